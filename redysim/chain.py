@@ -1,0 +1,305 @@
+"""The chain model: an immutable description of a serial chain of rigid links.
+
+Conventions (shared by every engine adapter, see DESIGN.md section 2):
+
+- World frame: gravity ``g`` (default 9.81 m/s^2 along -Y); base link #0 fixed at the origin.
+- Link k = 1..nl has its frame at its proximal joint O_k, its x axis along the link, length l_k,
+  mass m_k, centre of mass c_k (default (l_k/2, 0, 0)) and inertia about the COM in the link frame.
+  O_{k+1} = O_k + l_k x_k.
+- Joint k joins link k-1 to link k at O_k. Each joint type is a sequence of elementary axes
+  (revolute or prismatic) fixed in the frame produced by the axes before it; see :data:`JOINT_TYPES`.
+  All angles zero gives a straight chain along +X; q is ordered joint by joint.
+
+The model holds only what describes the chain. Per-call scratch space lives in
+:class:`redysim.workspace.Workspace` (Pinocchio's Model/Data split).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import CaseError
+
+# --------------------------------------------------------------------------- joint types
+# The one table of joint types. Every joint is a sequence of elementary 1-DOF axes; an axis is
+# (kind, default direction), kind "R" (revolute about it) or "P" (prismatic along it), direction
+# in the frame left by the axes before it. The kernels read the flattened per-DOF arrays built
+# from this table and never branch on the joint's name (one dispatch point: _kernels/joints.py).
+JOINT_TYPES: dict[str, tuple[tuple[str, str], ...]] = {
+    "R": (("R", "z"),),  # revolute, 1 DOF; planar chains bend in the XY plane
+    "P": (("P", "x"),),  # prismatic, 1 DOF; default along the link
+    "U": (("R", "y"), ("R", "z")),  # universal: parent's y, then the rotated z (R = Ry Rz)
+    "S": (("R", "y"), ("R", "z"), ("R", "x")),  # spherical: the U axes, then the link's own x
+}
+# Joint types whose single axis a case may choose ("axis" field).
+AXIS_CHOOSABLE = ("R", "P")
+
+AXIS_NAMES = {"x": 0, "y": 1, "z": 2}
+KIND_CODES = {"R": 0, "P": 1}
+GENERAL_AXIS = 3  # axis code of a direction that is not a coordinate axis
+
+INERTIA_MODELS = ("rod", "cylinder", "explicit")
+STANDARD_GRAVITY = 9.81
+
+
+def _fail(source, field_name, value, problem):
+    raise CaseError(source, field_name, value, problem)
+
+
+def check_positive(source: str, field_name: str, value, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float if it is a finite number > 0 (>= 0 with ``allow_zero``)."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        _fail(source, field_name, value, "must be a number")
+    x = float(value)
+    if not math.isfinite(x):
+        _fail(source, field_name, value, "must be finite")
+    if x < 0 or (x == 0 and not allow_zero):
+        _fail(source, field_name, value, "must be >= 0" if allow_zero else "must be > 0")
+    return x
+
+
+def check_vector(source: str, field_name: str, value, size: int) -> np.ndarray:
+    """Return ``value`` as a finite float vector of the given size."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        _fail(source, field_name, value, f"must be a list of {size} numbers")
+    if arr.shape != (size,):
+        _fail(source, field_name, value, f"must be a list of {size} numbers, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        _fail(source, field_name, value, "must be finite (no NaN or Inf)")
+    return arr
+
+
+# --------------------------------------------------------------------------- links and joints
+@dataclass(frozen=True)
+class Joint:
+    """A joint: its type (a key of :data:`JOINT_TYPES`) and, for R and P, an optional axis."""
+
+    type: str
+    axis: tuple[float, float, float] | str | None = None
+
+    def axes(self, source: str = "chain", field_name: str = "joint") -> list[tuple[str, np.ndarray]]:
+        """The joint's elementary axes as (kind, unit vector) pairs."""
+        if self.type not in JOINT_TYPES:
+            _fail(source, f"{field_name}.type", self.type,
+                  f"unknown joint type; known types: {', '.join(JOINT_TYPES)}")
+        spec = JOINT_TYPES[self.type]
+        if self.axis is not None:
+            if self.type not in AXIS_CHOOSABLE:
+                _fail(source, f"{field_name}.axis", self.axis,
+                      f"a {self.type} joint has fixed axes; only {AXIS_CHOOSABLE} take an axis")
+            spec = ((spec[0][0], self.axis),)
+        out = []
+        for kind, direction in spec:
+            if isinstance(direction, str):
+                if direction not in AXIS_NAMES:
+                    _fail(source, f"{field_name}.axis", direction, "must be 'x', 'y', 'z' or a vector")
+                u = np.zeros(3)
+                u[AXIS_NAMES[direction]] = 1.0
+            else:
+                u = check_vector(source, f"{field_name}.axis", direction, 3)
+                norm = float(np.linalg.norm(u))
+                if norm < 1e-12:
+                    _fail(source, f"{field_name}.axis", direction, "must not be the zero vector")
+                u = u / norm
+            out.append((kind, u))
+        return out
+
+
+@dataclass(frozen=True)
+class Link:
+    """A rigid link: length, mass, centre of mass and inertia about the COM, in the link frame."""
+
+    length: float
+    mass: float
+    com: tuple[float, float, float]
+    inertia: tuple[tuple[float, float, float], ...]  # 3x3 about the COM, link frame
+
+    @classmethod
+    def uniform(cls, length: float, mass: float, radius: float = 0.0, model: str = "rod",
+                source: str = "chain", field_name: str = "link") -> Link:
+        """A straight uniform link with the COM at mid-length and a standard inertia model.
+
+        ``rod``: Ixx = m r^2/2, Iyy = Izz = m l^2/12 (the paper's RE-U chains);
+        ``cylinder``: Ixx = m r^2/2, Iyy = Izz = m (3 r^2 + l^2)/12 (the section-5 study chains).
+        """
+        length = check_positive(source, f"{field_name}.length", length)
+        mass = check_positive(source, f"{field_name}.mass", mass)
+        radius = check_positive(source, f"{field_name}.radius", radius, allow_zero=True)
+        ixx = mass * radius**2 / 2
+        if model == "rod":
+            iyy = mass * length**2 / 12
+        elif model == "cylinder":
+            iyy = mass * (3 * radius**2 + length**2) / 12
+        else:
+            _fail(source, f"{field_name}.inertia", model,
+                  "unknown inertia model; use 'rod', 'cylinder' or an explicit 3x3 / [Ixx, Iyy, Izz]")
+        inertia = ((ixx, 0.0, 0.0), (0.0, iyy, 0.0), (0.0, 0.0, iyy))
+        return cls(length, mass, (length / 2, 0.0, 0.0), inertia)
+
+
+def check_inertia(source: str, field_name: str, value) -> np.ndarray:
+    """A 3x3 symmetric positive semi-definite inertia from a 3x3 list or [Ixx, Iyy, Izz]."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        _fail(source, field_name, value, "must be a 3x3 matrix or [Ixx, Iyy, Izz]")
+    if arr.shape == (3,):
+        arr = np.diag(arr)
+    if arr.shape != (3, 3):
+        _fail(source, field_name, value, f"must be a 3x3 matrix or [Ixx, Iyy, Izz], got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        _fail(source, field_name, value, "must be finite (no NaN or Inf)")
+    if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
+        _fail(source, field_name, value, "must be symmetric")
+    eig = np.linalg.eigvalsh(arr)
+    if eig[0] < -1e-12 * max(1.0, abs(eig[-1])):
+        _fail(source, field_name, value, f"must be positive semi-definite (eigenvalues {eig})")
+    return arr
+
+
+# --------------------------------------------------------------------------- the chain
+def _readonly(a) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Chain:
+    """An immutable serial chain: links, joints, gravity; fixed base at the origin.
+
+    Build it with :meth:`Chain.build` (or from a case file with :func:`redysim.load_case`). The
+    per-DOF and per-link arrays below are what the kernels read; they are read-only.
+
+    Attributes (nl links, n DOF):
+        name:          a label.
+        joints:        the joints, one per link.
+        length, mass:  (nl,) link lengths l_k [m] and masses m_k [kg].
+        com:           (nl, 3) centre of mass c_k in the link frame [m].
+        inertia_com:   (nl, 3, 3) inertia about the COM in the link frame [kg m^2].
+        gravity:       (3,) gravitational acceleration in the world frame [m/s^2].
+        joint_qoff:    (nl + 1,) index of joint k's first DOF in q (joint_qoff[nl] = n).
+        dof_kind:      (n,) 0 revolute, 1 prismatic.
+        dof_axis:      (n,) 0, 1, 2 for the x, y, z axis of the frame before it, 3 for a general one.
+        dof_u:         (n, 3) the unit axis in the frame left by the axes before it.
+        inertia_O:     (nl, 3, 3) inertia about O_k in the link frame (I_C + m (|c|^2 1 - c c^T)).
+        mass_com:      (nl, 3) m_k c_k in the link frame.
+    """
+
+    name: str
+    joints: tuple[Joint, ...]
+    length: np.ndarray
+    mass: np.ndarray
+    com: np.ndarray
+    inertia_com: np.ndarray
+    gravity: np.ndarray
+    joint_qoff: np.ndarray = field(repr=False)
+    dof_kind: np.ndarray = field(repr=False)
+    dof_axis: np.ndarray = field(repr=False)
+    dof_u: np.ndarray = field(repr=False)
+    inertia_O: np.ndarray = field(repr=False)
+    mass_com: np.ndarray = field(repr=False)
+
+    @classmethod
+    def build(cls, links: Sequence[Link], joints: Sequence[Joint | str], *,
+              gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "chain",
+              source: str = "chain") -> Chain:
+        """Validate and freeze a chain. ``joints`` may be Joint objects or type names."""
+        if len(links) == 0:
+            _fail(source, "links", len(links), "a chain needs at least one link")
+        if len(joints) != len(links):
+            _fail(source, "joints", len(joints), f"need one joint per link ({len(links)} links)")
+        joints = tuple(j if isinstance(j, Joint) else Joint(str(j)) for j in joints)
+        nl = len(links)
+        length = np.empty(nl)
+        mass = np.empty(nl)
+        com = np.empty((nl, 3))
+        inertia = np.empty((nl, 3, 3))
+        for k, link in enumerate(links):
+            where = f"links[{k}]"
+            length[k] = check_positive(source, f"{where}.length", link.length)
+            mass[k] = check_positive(source, f"{where}.mass", link.mass)
+            com[k] = check_vector(source, f"{where}.com", link.com, 3)
+            inertia[k] = check_inertia(source, f"{where}.inertia", link.inertia)
+        grav = check_vector(source, "gravity", gravity, 3)
+
+        kinds, codes, units, qoff = [], [], [], [0]
+        for k, joint in enumerate(joints):
+            for kind, u in joint.axes(source, f"joints[{k}]"):
+                kinds.append(KIND_CODES[kind])
+                hit = np.flatnonzero(np.abs(u) == 1.0)
+                codes.append(int(hit[0]) if hit.size == 1 else GENERAL_AXIS)
+                units.append(u)
+            qoff.append(len(kinds))
+
+        # Inertia about O_k (parallel axis theorem) and first moment m c, both in the link frame.
+        cc = np.einsum("ki,kj->kij", com, com)
+        sq = np.einsum("ki,ki->k", com, com)
+        inertia_O = inertia + mass[:, None, None] * (sq[:, None, None] * np.eye(3) - cc)
+        inertia_O = 0.5 * (inertia_O + inertia_O.transpose(0, 2, 1))
+        return cls(
+            name=name, joints=joints, length=_readonly(length), mass=_readonly(mass),
+            com=_readonly(com), inertia_com=_readonly(inertia), gravity=_readonly(grav),
+            joint_qoff=_readonly(np.array(qoff, dtype=np.int64)),
+            dof_kind=_readonly(np.array(kinds, dtype=np.int64)),
+            dof_axis=_readonly(np.array(codes, dtype=np.int64)),
+            dof_u=_readonly(np.array(units, dtype=float).reshape(-1, 3)),
+            inertia_O=_readonly(inertia_O), mass_com=_readonly(mass[:, None] * com),
+        )
+
+    @classmethod
+    def uniform(cls, n_links: int, joint: str | Joint = "U", *, length: float = 1.0,
+                mass: float | None = None, linear_density: float | None = None,
+                radius: float = 0.0, inertia: str = "rod",
+                gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0),
+                name: str | None = None) -> Chain:
+        """A chain of ``n_links`` identical uniform links with identical joints.
+
+        Give the link ``mass`` or the ``linear_density`` (kg/m); ``length`` is per link.
+        """
+        if (mass is None) == (linear_density is None):
+            raise CaseError("chain", "mass/linear_density", (mass, linear_density),
+                            "give exactly one of mass and linear_density")
+        if mass is None:
+            mass = check_positive("chain", "linear_density", linear_density) * length
+        link = Link.uniform(length, mass, radius, inertia)
+        joint = joint if isinstance(joint, Joint) else Joint(joint)
+        return cls.build([link] * n_links, [joint] * n_links, gravity=gravity,
+                         name=name or f"{joint.type}{n_links}")
+
+    # ----------------------------------------------------------------------- derived facts
+    @property
+    def n_links(self) -> int:
+        """nl, the number of moving links."""
+        return int(self.length.shape[0])
+
+    @property
+    def n_dof(self) -> int:
+        """n, the number of degrees of freedom (length of q)."""
+        return int(self.dof_kind.shape[0])
+
+    @property
+    def total_mass(self) -> float:
+        """M, the total mass [kg] (Eq. 11 divides the energy change by it)."""
+        return float(self.mass.sum())
+
+    @property
+    def is_planar(self) -> bool:
+        """True when every joint is a single revolute about its frame's z axis: all the joint axes
+        then stay parallel to the world Z, every link moves in the XY plane, and the planar
+        specialisation of the recursion applies. (Out-of-plane inertia products, COM offsets along
+        z and a gravity component along Z only load the joints with reaction moments and forces
+        normal to the plane; they do not change qdd.)"""
+        return bool(self.n_dof == self.n_links and np.all(self.dof_kind == 0)
+                    and np.all(self.dof_axis == 2))
+
+    def __repr__(self) -> str:
+        types = "".join(sorted({j.type for j in self.joints}))
+        return (f"Chain({self.name!r}, links={self.n_links}, dof={self.n_dof}, joints={types}, "
+                f"mass={self.total_mass:.6g} kg)")

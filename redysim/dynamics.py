@@ -1,0 +1,262 @@
+"""The public dynamics functions: checked at the door, then handed to the kernels.
+
+Every function takes a :class:`~redysim.chain.Chain` and numpy vectors in SI units and returns
+numpy arrays. An optional :class:`~redysim.workspace.Workspace` avoids reallocating scratch space
+in a loop (an integrator's right-hand side).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ._kernels.elimination import ge_n, rge_n
+from ._kernels.energy import energy as _energy
+from ._kernels.gim import gim_composite
+from ._kernels.inverse_dynamics import rnea_backward
+from ._kernels.kinematics import kinematics as _kinematics
+from ._kernels.planar import planar_forward_dynamics
+from ._kernels.rge_a import rge_a_backward, rge_a_forward
+from ._kernels.udu import udu_assemble
+from .chain import Chain
+from .errors import StateError
+from .workspace import Workspace
+
+METHODS = ("rge-a", "ge-n", "rge-n")
+
+
+def check_state(chain: Chain, name: str, x, *, optional: bool = False) -> np.ndarray | None:
+    """Return ``x`` as a finite float vector of length n, or raise StateError naming it."""
+    if x is None:
+        if optional:
+            return None
+        raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"{name} = {x!r}: not a numeric vector ({exc})") from None
+    if arr.ndim != 1 or arr.shape[0] != chain.n_dof:
+        raise StateError(f"{name} has shape {arr.shape}; chain {chain.name!r} has "
+                         f"{chain.n_dof} DOF, so {name} must have shape ({chain.n_dof},)")
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.isfinite(arr))
+        raise StateError(f"{name}[{bad[0]}] = {arr[bad[0]]!r}: not finite "
+                         f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
+    return np.ascontiguousarray(arr)
+
+
+def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
+    if ws is None:
+        return Workspace(chain)
+    if ws.chain is not chain:
+        raise ValueError("workspace was made for another chain")
+    return ws
+
+
+def _run_kinematics(chain, ws, q, qd, qdd, base_accel):
+    c = chain
+    _kinematics(c.length, c.dof_kind, c.dof_axis, c.dof_u, c.joint_qoff, q, qd, qdd, base_accel,
+                ws.oR, ws.oO, ws.oP, ws.t, ws.td)
+
+
+def _phi(chain, ws, q, qd, tau):
+    """phi = tau - (C qd + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
+    c = chain
+    _run_kinematics(c, ws, q, qd, ws.zeros, ws.base_accel)
+    rnea_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
+                  ws.phi, ws.W)
+    ws.phi *= -1.0
+    if tau is not None:
+        ws.phi += tau
+    return ws.phi
+
+
+# --------------------------------------------------------------------------- inverse dynamics
+def inverse_dynamics(chain: Chain, q, qd, qdd, *, ws: Workspace | None = None) -> np.ndarray:
+    """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9)."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    qdd = check_state(chain, "qdd", qdd)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, qd, qdd, ws.base_accel)
+    tau = np.empty(c.n_dof)
+    rnea_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
+                  tau, ws.W)
+    return tau
+
+
+def phi(chain: Chain, q, qd, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
+    """phi = tau - C(q, qd) qd - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    tau = check_state(chain, "tau", tau, optional=True)
+    return _phi(chain, _ws(chain, ws), q, qd, tau).copy()
+
+
+# --------------------------------------------------------------------------- forward dynamics
+def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
+                     planar: bool | None = None, ws: Workspace | None = None,
+                     out: np.ndarray | None = None) -> np.ndarray:
+    """qdd from I(q) qdd = phi(q, qd, tau).
+
+    method:
+        ``"rge-a"``: O(n) Reverse Gaussian Elimination done analytically (Table A.1), the default;
+        ``"ge-n"``:  the GIM by composite masses, then Gaussian elimination, O(n^3);
+        ``"rge-n"``: the GIM, then reverse Gaussian elimination, O(n^3) (section 5.2).
+    planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``);
+        ``False`` forces the spatial recursion.
+    tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
+    """
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    tau = check_state(chain, "tau", tau, optional=True)
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
+    if planar is None:
+        planar = chain.is_planar
+    elif planar and not chain.is_planar:
+        raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
+                         "a single revolute about its frame's z axis)")
+    ws = _ws(chain, ws)
+    if out is None:
+        out = np.empty(chain.n_dof)
+    c = chain
+    if method == "rge-a":
+        if planar:
+            _planar(c, ws, q, qd, tau, out)
+        else:
+            _phi(c, ws, q, qd, tau)
+            rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP,
+                           ws.phi, ws.Ihat, ws.Psihat, ws.phitil)
+            rge_a_forward(c.joint_qoff, ws.oO, ws.oP, ws.Psihat, ws.phitil, out)
+        return out
+    rhs = _phi(c, ws, q, qd, tau).copy()
+    A = np.empty((c.n_dof, c.n_dof))
+    gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, A)
+    mult = np.zeros_like(A)
+    (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
+    return out
+
+
+def _planar(c: Chain, ws: Workspace, q, qd, tau, out):
+    if ws.planar is None:
+        ws.planar = np.empty((c.n_links, 12))
+    planar_forward_dynamics(c.length, c.mass, c.inertia_O[:, 2, 2], c.mass_com[:, 0],
+                            c.mass_com[:, 1], c.gravity, q, qd,
+                            ws.zeros if tau is None else tau, out, ws.planar)
+
+
+# --------------------------------------------------------------------------- GIM and factors
+def mass_matrix(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
+    """The GIM I(q) (n, n) from composite masses (Eq. 10a); exactly symmetric."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    out = np.empty((c.n_dof, c.n_dof))
+    gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, out)
+    return out
+
+
+class UDU(NamedTuple):
+    """I = U D U^T: U unit upper block-triangular, D block diagonal (blocks Ihat_k)."""
+
+    U: np.ndarray
+    D: np.ndarray
+
+
+def udu_factors(chain: Chain, q, *, ws: Workspace | None = None) -> UDU:
+    """The explicit analytic factors I = U D U^T of RGE-A (Appendix A.1), dense (n, n) arrays."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.zeros,
+                   ws.Ihat, ws.Psihat, ws.phitil)
+    U = np.zeros((c.n_dof, c.n_dof))
+    D = np.zeros((c.n_dof, c.n_dof))
+    udu_assemble(c.joint_qoff, ws.oO, ws.oP, ws.Ihat, ws.Psihat, U, D)
+    return UDU(U, D)
+
+
+class Elimination(NamedTuple):
+    """The result of GE-N or RGE-N: qdd, the triangular factor, the multipliers and phi-hat."""
+
+    qdd: np.ndarray
+    factor: np.ndarray  # U (GE-N) or L' (RGE-N)
+    multipliers: np.ndarray  # L (GE-N) or U' (RGE-N), unit diagonal
+    phihat: np.ndarray
+
+
+def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
+    """Solve gim qdd = rhs by GE-N or RGE-N (section 5.2) and return the factors as well."""
+    A = np.array(gim, dtype=float, copy=True)
+    b = np.array(rhs, dtype=float, copy=True)
+    n = b.shape[0]
+    if A.shape != (n, n):
+        raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
+    kernels = {"ge-n": ge_n, "rge-n": rge_n}
+    if method not in kernels:
+        raise ValueError(f"method = {method!r}: unknown; choose 'ge-n' or 'rge-n'")
+    mult = np.zeros_like(A)
+    x = np.empty(n)
+    kernels[method](A, b, mult, x)
+    return Elimination(x, A, mult, b)
+
+
+# --------------------------------------------------------------------------- energy and tip
+def energy(chain: Chain, q, qd, *, ws: Workspace | None = None) -> tuple[float, float]:
+    """(T, V): kinetic and potential energy [J] (V = 0 with every COM at height y = 0)."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, qd, ws.zeros, ws.no_accel)
+    T, V = _energy(c.mass, c.inertia_O, c.mass_com, c.gravity, ws.oR, ws.oO, ws.t)
+    return float(T), float(V)
+
+
+def delta_M(chain: Chain, q, qd, E0: float, *, ws: Workspace | None = None) -> float:
+    """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
+    T, V = energy(chain, q, qd, ws=ws)
+    return (T + V - E0) / chain.total_mass
+
+
+class Tip(NamedTuple):
+    """Position, velocity and acceleration of the distal end of the last link (world frame)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray | None
+
+
+def tip(chain: Chain, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
+    """The tip (distal end of the last link): position, velocity and, given qdd, acceleration."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    qdd = check_state(chain, "qdd", qdd, optional=True)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
+    k = c.n_links - 1
+    r = c.length[k] * ws.oR[k][:, 0]
+    w, v = ws.t[k, :3], ws.t[k, 3:]
+    pos = ws.oO[k] + r
+    vel = v + np.cross(w, r)
+    acc = None
+    if qdd is not None:
+        wd, vd = ws.td[k, :3], ws.td[k, 3:]
+        acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+    return Tip(pos, vel, acc)
+
+
+def joint_positions(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
+    """(nl + 1, 3): the joint origins O_1..O_nl and the tip, for plotting the chain's shape."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    k = c.n_links - 1
+    return np.vstack([ws.oO, ws.oO[k] + c.length[k] * ws.oR[k][:, 0]])

@@ -1,0 +1,40 @@
+"""Preallocated per-chain scratch arrays (Pinocchio's ``Data``): the kernels write into these."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .chain import Chain
+
+
+class Workspace:
+    """O(n) scratch for one chain. Not thread-safe: use one workspace per thread.
+
+    Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
+    positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates, ``W``
+    (nl,6) resultant wrenches, ``Ihat`` (nl,3,3), ``Psihat`` (n,6), ``phitil``/``phi``/``zeros``
+    (n,), ``planar`` (nl,12) for the planar kernel.
+    """
+
+    def __init__(self, chain: Chain):
+        nl, n = chain.n_links, chain.n_dof
+        self.chain = chain
+        self.oR = np.empty((nl, 3, 3))
+        self.oO = np.empty((nl, 3))
+        self.oP = np.empty((n, 6))
+        self.t = np.empty((nl, 6))
+        self.td = np.empty((nl, 6))
+        self.W = np.empty((nl, 6))
+        self.Ihat = np.zeros((nl, 3, 3))
+        self.Psihat = np.empty((n, 6))
+        self.phitil = np.empty(n)
+        self.phi = np.empty(n)
+        self.zeros = np.zeros(n)
+        self.base_accel = -np.asarray(chain.gravity, dtype=float)
+        self.no_accel = np.zeros(3)
+        self.planar = np.empty((nl, 12)) if chain.is_planar else None
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the workspace's arrays (O(n))."""
+        return sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray))
