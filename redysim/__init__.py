@@ -1,1 +1,42 @@
-"""redysim: O(n) dynamics of very long serial chains (DeNOC + Reverse Gaussian Elimination)."""
+"""redysim: O(n) dynamics of very long serial chains (DeNOC + Reverse Gaussian Elimination).
+
+The public surface; everything else is internal::
+
+    from redysim import load_case, forward_dynamics
+    case = load_case("RE-U125-L1")
+    qdd = forward_dynamics(case.chain, case.q0, case.qd0)
+
+References:
+    A. Agarwal, S. V. Shah, S. Bandyopadhyay, S. K. Saha, "Dynamics of serial kinematic chains
+    with large number of degrees-of-freedom", Multibody System Dynamics (2014).
+"""
+
+from .cases import Case, case_from_dict, list_cases, load_case, load_published
+from .chain import JOINT_TYPES, Chain, Joint, Link
+from .dynamics import (
+    METHODS,
+    UDU,
+    Elimination,
+    Tip,
+    delta_M,
+    eliminate,
+    energy,
+    forward_dynamics,
+    inverse_dynamics,
+    joint_positions,
+    mass_matrix,
+    phi,
+    tip,
+    udu_factors,
+)
+from .errors import CaseError, RedysimError, StateError
+from .workspace import Workspace
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Case", "CaseError", "Chain", "Elimination", "JOINT_TYPES", "Joint", "Link", "METHODS",
+    "RedysimError", "StateError", "Tip", "UDU", "Workspace", "case_from_dict", "delta_M",
+    "eliminate", "energy", "forward_dynamics", "inverse_dynamics", "joint_positions",
+    "list_cases", "load_case", "load_published", "mass_matrix", "phi", "tip", "udu_factors",
+]

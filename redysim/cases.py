@@ -1,0 +1,327 @@
+"""Case files: a chain, its initial state and the paper's settings, as TOML data.
+
+A case file has these tables (see ``cases/README.md`` for every field):
+
+    [case]        name, description, paper = {tables = [...], row = "..."}
+    [chain]       links = N with uniform link fields, or [[chain.link]] entries; joint; gravity
+    [initial]     q and qd (a number, a list, or {fill, set, unit}), or shape = "catenary"
+    [simulation]  t_end, integrator, rtol, atol, sample_interval
+
+Every bad value raises :class:`~redysim.errors.CaseError` naming the file, the field and the value.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .chain import Chain, Joint, Link, check_inertia, check_positive, check_vector
+from .errors import CaseError
+from .shapes import catenary_angles
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+CASES_DIR = Path(os.environ.get("REDYSIM_CASES", REPO_ROOT / "cases"))
+PUBLISHED = REPO_ROOT / "paper" / "published.toml"
+MAX_LINKS = 2_000_000  # 100,000-DOF cases are 50,000 links; 2e6 links is ~2 GB of workspace
+
+_FIELDS = {
+    "case": {"name", "description", "paper"},
+    "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass", "total_mass",
+              "linear_density", "density", "radius", "inertia", "com", "gravity", "link"},
+    "link": {"length", "mass", "radius", "inertia", "com", "joint", "axis"},
+    "initial": {"q", "qd", "shape", "dX"},
+    "simulation": {"t_end", "integrator", "rtol", "atol", "sample_interval", "note"},
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Case:
+    """A loaded case: the chain, its initial state, and what the paper ran and published."""
+
+    name: str
+    path: Path
+    chain: Chain
+    q0: np.ndarray
+    qd0: np.ndarray
+    t_end: float
+    description: str = ""
+    simulation: dict[str, Any] = field(default_factory=dict)
+    paper_tables: tuple[str, ...] = ()
+    paper_row: str | None = None
+
+    def published(self) -> dict[str, Any]:
+        """The published.toml entries this case is compared with: {table: entry or matching row}."""
+        data = load_published()
+        out = {}
+        for table in self.paper_tables:
+            node = data
+            for part in table.split("."):
+                node = node[part]
+            rows = node.get("rows") if isinstance(node, dict) else None
+            if rows and self.paper_row is not None and any("case" in r for r in rows):
+                match = [r for r in rows if r.get("case") == self.paper_row]
+                out[table] = match[0] if match else node
+            else:
+                out[table] = node
+        return out
+
+    def __repr__(self) -> str:
+        return f"Case({self.name!r}, {self.chain!r}, t_end={self.t_end})"
+
+
+def load_published(path: Path = PUBLISHED) -> dict[str, Any]:
+    """The paper's published numbers (``paper/published.toml``)."""
+    with open(path, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def list_cases(directory: Path = CASES_DIR) -> list[str]:
+    """Names of the case files in ``cases/``."""
+    return sorted(p.stem for p in Path(directory).glob("*.toml"))
+
+
+def _resolve(name_or_path: str | os.PathLike) -> Path:
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists() or os.sep in str(name_or_path):
+        if not p.exists():
+            raise FileNotFoundError(f"case file {str(p)!r} does not exist")
+        return p
+    candidate = CASES_DIR / f"{name_or_path}.toml"
+    if candidate.exists():
+        return candidate
+    known = ", ".join(list_cases())
+    raise FileNotFoundError(f"no case named {name_or_path!r} in {CASES_DIR}; known cases: {known}")
+
+
+def load_case(name_or_path: str | os.PathLike) -> Case:
+    """Load a case by name (``"RE-U125-L1"``, from ``cases/``) or by the path of a TOML file."""
+    path = _resolve(name_or_path)
+    src = str(path)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(src, "<toml syntax>", None, str(exc)) from None
+    return case_from_dict(doc, source=src, path=path)
+
+
+# --------------------------------------------------------------------------- parsing
+def _table(doc, key, source, required=True) -> dict:
+    if key not in doc:
+        if required:
+            raise CaseError(source, key, None, f"missing table [{key}]")
+        return {}
+    node = doc[key]
+    if not isinstance(node, dict):
+        raise CaseError(source, key, node, f"[{key}] must be a table")
+    return node
+
+
+def _no_unknown(node: dict, allowed: set, source: str, prefix: str) -> None:
+    for k in node:
+        if k not in allowed:
+            raise CaseError(source, f"{prefix}.{k}", node[k],
+                            f"unknown field; expected one of {', '.join(sorted(allowed))}")
+
+
+def _require(node, key, source, prefix):
+    if key not in node:
+        raise CaseError(source, f"{prefix}.{key}", None, "missing field")
+    return node[key]
+
+
+def _int(source, name, value, lo, hi):
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise CaseError(source, name, value, "must be an integer")
+    if not lo <= value <= hi:
+        raise CaseError(source, name, value, f"must be between {lo:,} and {hi:,}")
+    return value
+
+
+def _joint(source, prefix, spec, axis=None) -> Joint:
+    if isinstance(spec, dict):
+        _no_unknown(spec, {"type", "axis"}, source, prefix)
+        axis = spec.get("axis", axis)
+        spec = _require(spec, "type", source, prefix)
+    if not isinstance(spec, str):
+        raise CaseError(source, prefix, spec, "a joint is a type name such as 'U' or {type, axis}")
+    joint = Joint(spec, tuple(axis) if isinstance(axis, list) else axis)
+    joint.axes(source, prefix)  # validates type and axis
+    return joint
+
+
+def _one_of(node, keys, source, prefix):
+    given = [k for k in keys if k in node]
+    if len(given) != 1:
+        raise CaseError(source, prefix + "." + "|".join(keys), {k: node[k] for k in given} or None,
+                        f"give exactly one of {', '.join(keys)}")
+    return given[0], node[given[0]]
+
+
+def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
+    nl = _int(source, "chain.links", chain["links"], 1, MAX_LINKS)
+    key, val = _one_of(chain, ("link_length", "total_length"), source, "chain")
+    val = check_positive(source, f"chain.{key}", val)
+    length = val if key == "link_length" else val / nl
+    radius = check_positive(source, "chain.radius", chain.get("radius", 0.0), allow_zero=True)
+    key, val = _one_of(chain, ("link_mass", "total_mass", "linear_density", "density"), source,
+                       "chain")
+    val = check_positive(source, f"chain.{key}", val)
+    if key == "link_mass":
+        mass = val
+    elif key == "total_mass":
+        mass = val / nl
+    elif key == "linear_density":
+        mass = val * length
+    else:
+        if radius == 0.0:
+            raise CaseError(source, "chain.radius", radius, "density needs a radius > 0")
+        mass = val * math.pi * radius**2 * length
+    link = _link_inertia(source, "chain", length, mass, radius, chain.get("inertia", "rod"),
+                         chain.get("com"))
+    joint = _joint(source, "chain.joint", _require(chain, "joint", source, "chain"),
+                   chain.get("axis"))
+    return [link] * nl, [joint] * nl
+
+
+def _link_inertia(source, prefix, length, mass, radius, inertia, com) -> Link:
+    if isinstance(inertia, str):
+        link = Link.uniform(length, mass, radius, inertia, source=source, field_name=prefix)
+    else:
+        I_c = check_inertia(source, f"{prefix}.inertia", inertia)
+        link = Link(length, mass, (length / 2, 0.0, 0.0), tuple(map(tuple, I_c)))
+    if com is not None:
+        c = check_vector(source, f"{prefix}.com", com, 3)
+        link = Link(link.length, link.mass, tuple(c), link.inertia)
+    return link
+
+
+def _explicit_links(chain, source) -> tuple[list[Link], list[Joint]]:
+    entries = chain["link"]
+    if not isinstance(entries, list) or not entries:
+        raise CaseError(source, "chain.link", entries, "must be a non-empty array of [[chain.link]]")
+    if len(entries) > MAX_LINKS:
+        raise CaseError(source, "chain.link", f"{len(entries)} entries", f"at most {MAX_LINKS:,}")
+    links, joints = [], []
+    for k, e in enumerate(entries):
+        prefix = f"chain.link[{k}]"
+        if not isinstance(e, dict):
+            raise CaseError(source, prefix, e, "must be a table")
+        _no_unknown(e, _FIELDS["link"], source, prefix)
+        length = check_positive(source, f"{prefix}.length", _require(e, "length", source, prefix))
+        mass = check_positive(source, f"{prefix}.mass", _require(e, "mass", source, prefix))
+        radius = check_positive(source, f"{prefix}.radius", e.get("radius", 0.0), allow_zero=True)
+        links.append(_link_inertia(source, prefix, length, mass, radius, e.get("inertia", "rod"),
+                                   e.get("com")))
+        jspec = e.get("joint", chain.get("joint"))
+        if jspec is None:
+            raise CaseError(source, f"{prefix}.joint", None, "missing field (and no chain.joint)")
+        joints.append(_joint(source, f"{prefix}.joint", jspec, e.get("axis", chain.get("axis"))))
+    return links, joints
+
+
+def _vector_spec(spec, n, source, name) -> np.ndarray:
+    """A state vector from a number (fill), a list, or {fill, set = [[i, x], ...], unit}."""
+    unit = 1.0
+    if isinstance(spec, dict):
+        _no_unknown(spec, {"fill", "set", "unit", "values"}, source, name)
+        u = spec.get("unit", "rad")
+        if u not in ("rad", "deg"):
+            raise CaseError(source, f"{name}.unit", u, "must be 'rad' or 'deg'")
+        unit = math.pi / 180 if u == "deg" else 1.0
+        if "values" in spec:
+            out = check_vector(source, f"{name}.values", spec["values"], n)
+        else:
+            fill = spec.get("fill", 0.0)
+            if isinstance(fill, bool) or not isinstance(fill, int | float) or not math.isfinite(fill):
+                raise CaseError(source, f"{name}.fill", fill, "must be a finite number")
+            out = np.full(n, float(fill))
+        for i, item in enumerate(spec.get("set", [])):
+            if not (isinstance(item, list) and len(item) == 2):
+                raise CaseError(source, f"{name}.set[{i}]", item, "must be [dof_index, value]")
+            idx, x = item
+            _int(source, f"{name}.set[{i}][0]", idx, 0, n - 1)
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+                raise CaseError(source, f"{name}.set[{i}][1]", x, "must be a finite number")
+            out[idx] = x
+        return out * unit
+    if isinstance(spec, int | float) and not isinstance(spec, bool):
+        if not math.isfinite(spec):
+            raise CaseError(source, name, spec, "must be finite (no NaN or Inf)")
+        return np.full(n, float(spec))
+    if isinstance(spec, list):
+        return check_vector(source, name, spec, n)
+    raise CaseError(source, name, spec, "must be a number, a list of n numbers or {fill, set, unit}")
+
+
+def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = None) -> Case:
+    """Build a :class:`Case` from a parsed TOML document (see the module docstring)."""
+    _no_unknown(doc, set(_FIELDS), source, "<top>")
+    meta = _table(doc, "case", source)
+    _no_unknown(meta, _FIELDS["case"], source, "case")
+    name = _require(meta, "name", source, "case")
+    if not isinstance(name, str) or not name:
+        raise CaseError(source, "case.name", name, "must be a non-empty string")
+    paper = meta.get("paper", {})
+    if not isinstance(paper, dict):
+        raise CaseError(source, "case.paper", paper, "must be a table {tables = [...], row = ...}")
+    _no_unknown(paper, {"tables", "row"}, source, "case.paper")
+    tables = tuple(paper.get("tables", ()))
+    published = load_published()
+    for t in tables:
+        node = published
+        for part in str(t).split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise CaseError(source, "case.paper.tables", t, "no such entry in paper/published.toml")
+            node = node[part]
+
+    chain_t = _table(doc, "chain", source)
+    _no_unknown(chain_t, _FIELDS["chain"], source, "chain")
+    if "link" in chain_t:
+        links, joints = _explicit_links(chain_t, source)
+    elif "links" in chain_t:
+        links, joints = _uniform_links(chain_t, source)
+    else:
+        raise CaseError(source, "chain.links", None,
+                        "missing field: give links = N (uniform) or [[chain.link]] entries")
+    gravity = chain_t.get("gravity", [0.0, -9.81, 0.0])
+    chain = Chain.build(links, joints, gravity=gravity, name=name, source=source)
+
+    init = _table(doc, "initial", source, required=False)
+    _no_unknown(init, _FIELDS["initial"], source, "initial")
+    n = chain.n_dof
+    if "shape" in init:
+        if init["shape"] != "catenary":
+            raise CaseError(source, "initial.shape", init["shape"], "known shapes: 'catenary'")
+        if not chain.is_planar:
+            raise CaseError(source, "initial.shape", "catenary", "needs a planar R chain")
+        dX = check_positive(source, "initial.dX", _require(init, "dX", source, "initial"))
+        total = float(chain.length.sum())
+        if dX > total * (1 + 1e-12):
+            raise CaseError(source, "initial.dX", dX, f"must not exceed the chain's length {total}")
+        if not np.allclose(chain.length, chain.length[0]):
+            raise CaseError(source, "initial.shape", "catenary", "needs links of equal length")
+        q0 = catenary_angles(chain.n_links, total, min(dX, total))
+        if "q" in init:
+            raise CaseError(source, "initial.q", init["q"], "give either shape or q, not both")
+    else:
+        q0 = _vector_spec(init.get("q", 0.0), n, source, "initial.q")
+    qd0 = _vector_spec(init.get("qd", 0.0), n, source, "initial.qd")
+
+    sim = _table(doc, "simulation", source, required=False)
+    _no_unknown(sim, _FIELDS["simulation"], source, "simulation")
+    t_end = check_positive(source, "simulation.t_end", _require(sim, "t_end", source, "simulation"))
+    for key in ("rtol", "atol", "sample_interval"):
+        if key in sim:
+            check_positive(source, f"simulation.{key}", sim[key])
+    q0.flags.writeable = False
+    qd0.flags.writeable = False
+    return Case(name=name, path=path or Path(source), chain=chain, q0=q0, qd0=qd0, t_end=t_end,
+                description=str(meta.get("description", "")), simulation=dict(sim),
+                paper_tables=tables, paper_row=paper.get("row"))
