@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numba
 
-jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy")
+jit = numba.njit(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 
 
 def inline(func):

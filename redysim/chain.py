@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -289,7 +290,7 @@ class Chain:
         """M, the total mass [kg] (Eq. 11 divides the energy change by it)."""
         return float(self.mass.sum())
 
-    @property
+    @cached_property
     def is_planar(self) -> bool:
         """True when every joint is a single revolute about its frame's z axis: all the joint axes
         then stay parallel to the world Z, every link moves in the XY plane, and the planar

@@ -7,6 +7,7 @@ in a loop (an integrator's right-hand side).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -17,7 +18,7 @@ from ._kernels.gim import gim_composite
 from ._kernels.inverse_dynamics import rnea_backward
 from ._kernels.kinematics import kinematics as _kinematics
 from ._kernels.planar import planar_forward_dynamics
-from ._kernels.rge_a import rge_a_backward, rge_a_forward
+from ._kernels.rge_a import rge_a_backward, rge_a_forward_dynamics
 from ._kernels.udu import udu_assemble
 from .chain import Chain
 from .errors import StateError
@@ -26,24 +27,38 @@ from .workspace import Workspace
 METHODS = ("rge-a", "ge-n", "rge-n")
 
 
-def check_state(chain: Chain, name: str, x, *, optional: bool = False) -> np.ndarray | None:
-    """Return ``x`` as a finite float vector of length n, or raise StateError naming it."""
+def check_state(chain: Chain, name: str, x, *, optional: bool = False,
+                finite: bool = True) -> np.ndarray | None:
+    """Return ``x`` as a float vector of length n, or raise StateError naming it.
+
+    ``finite=False`` skips the NaN/Inf scan (the hot path of :func:`forward_dynamics` checks its
+    result instead and only then looks for the offending input).
+    """
     if x is None:
         if optional:
             return None
         raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise StateError(f"{name} = {x!r}: not a numeric vector ({exc})") from None
-    if arr.ndim != 1 or arr.shape[0] != chain.n_dof:
+    if type(x) is np.ndarray and x.dtype == np.float64 and x.ndim == 1 and x.flags.c_contiguous:
+        arr = x
+    else:
+        try:
+            arr = np.ascontiguousarray(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise StateError(f"{name} = {x!r}: not a numeric vector ({exc})") from None
+    if arr.shape != (chain.n_dof,):
         raise StateError(f"{name} has shape {arr.shape}; chain {chain.name!r} has "
                          f"{chain.n_dof} DOF, so {name} must have shape ({chain.n_dof},)")
-    if not np.all(np.isfinite(arr)):
+    if finite:
+        require_finite(name, arr)
+    return arr
+
+
+def require_finite(name: str, arr: np.ndarray) -> None:
+    """Raise StateError naming the first NaN or Inf entry of ``arr``."""
+    if not np.isfinite(arr).all():
         bad = np.flatnonzero(~np.isfinite(arr))
-        raise StateError(f"{name}[{bad[0]}] = {arr[bad[0]]!r}: not finite "
+        raise StateError(f"{name}[{bad[0]}] = {float(arr[bad[0]])!r}: not finite "
                          f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
-    return np.ascontiguousarray(arr)
 
 
 def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
@@ -109,9 +124,9 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
     """
-    q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
-    tau = check_state(chain, "tau", tau, optional=True)
+    q = check_state(chain, "q", q, finite=False)
+    qd = check_state(chain, "qd", qd, finite=False)
+    tau = check_state(chain, "tau", tau, optional=True, finite=False)
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if planar is None:
@@ -127,16 +142,24 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         if planar:
             _planar(c, ws, q, qd, tau, out)
         else:
-            _phi(c, ws, q, qd, tau)
-            rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP,
-                           ws.phi, ws.Ihat, ws.Psihat, ws.phitil)
-            rge_a_forward(c.joint_qoff, ws.oO, ws.oP, ws.Psihat, ws.phitil, out)
-        return out
-    rhs = _phi(c, ws, q, qd, tau).copy()
-    A = np.empty((c.n_dof, c.n_dof))
-    gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, A)
-    mult = np.zeros_like(A)
-    (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
+            rge_a_forward_dynamics(c.length, c.mass, c.inertia_O, c.mass_com, c.dof_kind,
+                                   c.dof_axis, c.dof_u, c.joint_qoff, q, qd,
+                                   ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
+                                   ws.oR, ws.oO, ws.oP, ws.t, ws.td, ws.Ihat, ws.Psihat,
+                                   ws.phitil, ws.phi, out)
+    else:
+        rhs = _phi(c, ws, q, qd, tau).copy()
+        A = np.empty((c.n_dof, c.n_dof))
+        gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, A)
+        mult = np.zeros_like(A)
+        (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
+    if not math.isfinite(out.sum()):
+        # a NaN or Inf in the input always reaches qdd: only now look for it, to name it
+        for name, x in (("q", q), ("qd", qd), ("tau", tau)):
+            if x is not None:
+                require_finite(name, x)
+        raise StateError(f"qdd is not finite for finite q, qd and tau (max |q| = "
+                         f"{np.abs(q).max():.3g}, max |qd| = {np.abs(qd).max():.3g}): overflow?")
     return out
 
 
@@ -161,7 +184,7 @@ def mass_matrix(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
 
 
 class UDU(NamedTuple):
-    """I = U D U^T: U unit upper block-triangular, D block diagonal (blocks Ihat_k)."""
+    """I = U D U^T: U unit upper triangular, D diagonal (Ihat of each axis, eliminated last first)."""
 
     U: np.ndarray
     D: np.ndarray
@@ -173,8 +196,8 @@ def udu_factors(chain: Chain, q, *, ws: Workspace | None = None) -> UDU:
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.zeros,
-                   ws.Ihat, ws.Psihat, ws.phitil)
+    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.joint_qoff, ws.oR, ws.oO, ws.oP,
+                   ws.zeros6, ws.zeros6, ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phi)
     U = np.zeros((c.n_dof, c.n_dof))
     D = np.zeros((c.n_dof, c.n_dof))
     udu_assemble(c.joint_qoff, ws.oO, ws.oP, ws.Ihat, ws.Psihat, U, D)

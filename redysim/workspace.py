@@ -12,7 +12,7 @@ class Workspace:
 
     Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
     positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates, ``W``
-    (nl,6) resultant wrenches, ``Ihat`` (nl,3,3), ``Psihat`` (n,6), ``phitil``/``phi``/``zeros``
+    (nl,6) resultant wrenches, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phi``/``zeros``
     (n,), ``planar`` (nl,12) for the planar kernel.
     """
 
@@ -25,11 +25,12 @@ class Workspace:
         self.t = np.empty((nl, 6))
         self.td = np.empty((nl, 6))
         self.W = np.empty((nl, 6))
-        self.Ihat = np.zeros((nl, 3, 3))
+        self.Ihat = np.empty(n)
         self.Psihat = np.empty((n, 6))
         self.phitil = np.empty(n)
         self.phi = np.empty(n)
         self.zeros = np.zeros(n)
+        self.zeros6 = np.zeros((nl, 6))
         self.base_accel = -np.asarray(chain.gravity, dtype=float)
         self.no_accel = np.zeros(3)
         self.planar = np.empty((nl, 12)) if chain.is_planar else None

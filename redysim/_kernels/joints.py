@@ -1,9 +1,13 @@
 """Joint calculations: the one place that knows joint kinds and axes (spatial_v2's ``jcalc``).
 
 A joint is a sequence of elementary axes (see :data:`redysim.chain.JOINT_TYPES`); this module maps
-(kind, axis, q_j) to the axis's motion-subspace column P (a 6-vector in the world frame) and its
-effect on the link frame: a rotation of the frame (revolute) or a translation of the joint's origin
-(prismatic). The recursions call :func:`jcalc` and never branch on the joint type themselves.
+(kind, axis, q_j) and the frame before the axis to the axis's motion-subspace column
+P = [p_ang; p_lin] in the world frame and the frame after it: a rotation of the frame (revolute)
+or a translation of the joint's origin (prismatic). The recursions call :func:`jcalc` and never
+branch on the joint type themselves.
+
+Everything is scalars in and out: the kinematics pass keeps its running frame in registers, which
+measured 5x faster here than reading it back from arrays.
 
 References:
     Agarwal et al., Eq. (4): P_k = [e_k; 0] for a revolute and [0; e_k] for a prismatic axis.
@@ -13,78 +17,85 @@ from __future__ import annotations
 
 import math
 
-from .._jit import inline
+from .._jit import jit
 
 REVOLUTE = 0
 PRISMATIC = 1
 
 
-@inline
-def rotate_about_axis(R, code, u, qj):
-    """R <- R Rot(u, qj) in place. ``code`` 0, 1, 2 is the x, y or z axis (two columns mix);
-    3 is a general unit vector u (Rodrigues)."""
+@jit
+def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """One elementary axis: returns (p0..p5, dO0..dO2, r00..r22).
+
+    p = [e; 0] (revolute) or [0; e] (prismatic) with e = R u the axis in the world frame; dO the
+    displacement of the joint origin (e qj for a prismatic axis, else 0); r the frame after the
+    axis: R Rot(u, qj) for a revolute axis, R for a prismatic one. ``code`` 0, 1, 2 names the x,
+    y or z axis of the frame (two columns mix), 3 a general unit vector u (Rodrigues).
+    """
+    if code == 0:
+        e0, e1, e2 = r00, r10, r20
+    elif code == 1:
+        e0, e1, e2 = r01, r11, r21
+    elif code == 2:
+        e0, e1, e2 = r02, r12, r22
+    else:
+        e0 = r00 * u0 + r01 * u1 + r02 * u2
+        e1 = r10 * u0 + r11 * u1 + r12 * u2
+        e2 = r20 * u0 + r21 * u1 + r22 * u2
+    if kind == PRISMATIC:
+        return (0.0, 0.0, 0.0, e0, e1, e2, e0 * qj, e1 * qj, e2 * qj,
+                r00, r01, r02, r10, r11, r12, r20, r21, r22)
     c = math.cos(qj)
     s = math.sin(qj)
-    if code < 3:
-        ia = (code + 1) % 3
-        ib = (code + 2) % 3
-        for r in range(3):
-            xa = R[r, ia]
-            xb = R[r, ib]
-            R[r, ia] = c * xa + s * xb
-            R[r, ib] = c * xb - s * xa
-    else:
-        u0, u1, u2 = u[0], u[1], u[2]
+    if code == 0:  # columns y, z mix
+        n01, n11, n21 = c * r01 + s * r02, c * r11 + s * r12, c * r21 + s * r22
+        n02, n12, n22 = c * r02 - s * r01, c * r12 - s * r11, c * r22 - s * r21
+        r01, r11, r21, r02, r12, r22 = n01, n11, n21, n02, n12, n22
+    elif code == 1:  # columns z, x mix
+        n02, n12, n22 = c * r02 + s * r00, c * r12 + s * r10, c * r22 + s * r20
+        n00, n10, n20 = c * r00 - s * r02, c * r10 - s * r12, c * r20 - s * r22
+        r02, r12, r22, r00, r10, r20 = n02, n12, n22, n00, n10, n20
+    elif code == 2:  # columns x, y mix
+        n00, n10, n20 = c * r00 + s * r01, c * r10 + s * r11, c * r20 + s * r21
+        n01, n11, n21 = c * r01 - s * r00, c * r11 - s * r10, c * r21 - s * r20
+        r00, r10, r20, r01, r11, r21 = n00, n10, n20, n01, n11, n21
+    else:  # R Rot(u, q), Rot = c 1 + s C(u) + (1 - c) u u^T
         t = 1.0 - c
-        g00 = c + t * u0 * u0
-        g01 = t * u0 * u1 - s * u2
-        g02 = t * u0 * u2 + s * u1
-        g10 = t * u1 * u0 + s * u2
-        g11 = c + t * u1 * u1
-        g12 = t * u1 * u2 - s * u0
-        g20 = t * u2 * u0 - s * u1
-        g21 = t * u2 * u1 + s * u0
-        g22 = c + t * u2 * u2
-        for r in range(3):
-            x0 = R[r, 0]
-            x1 = R[r, 1]
-            x2 = R[r, 2]
-            R[r, 0] = x0 * g00 + x1 * g10 + x2 * g20
-            R[r, 1] = x0 * g01 + x1 * g11 + x2 * g21
-            R[r, 2] = x0 * g02 + x1 * g12 + x2 * g22
+        g00, g01, g02 = c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1
+        g10, g11, g12 = t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0
+        g20, g21, g22 = t * u2 * u0 - s * u1, t * u2 * u1 + s * u0, c + t * u2 * u2
+        r00, r01, r02 = (r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
+                         r00 * g02 + r01 * g12 + r02 * g22)
+        r10, r11, r12 = (r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
+                         r10 * g02 + r11 * g12 + r12 * g22)
+        r20, r21, r22 = (r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
+                         r20 * g02 + r21 * g12 + r22 * g22)
+    return (e0, e1, e2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
-@inline
-def jcalc(kind, code, u, qj, R, O, p):
-    """Apply one elementary joint axis.
+@jit
+def column_mass(kind, e0, e1, e2, x00, x01, x02, x11, x12, x22,
+                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22):
+    """Psi = Mhat p and Ihat = p^T Psi for the column p of one axis, Mhat = [[X, Y], [Y^T, Z]].
 
-    Writes the axis's motion-subspace column p = [e; 0] (revolute) or [0; e] (prismatic), with e
-    the axis in the world frame (R u, R the frame before this axis), then moves the frame: R <- R
-    Rot(u, qj) for a revolute, O <- O + e qj for a prismatic axis.
+    p = [e; 0] (revolute): Psi = [X e; Y^T e], Ihat = e . X e;
+    p = [0; e] (prismatic): Psi = [Y e; Z e], Ihat = e . Z e.
+    Only the non-zero half of p is multiplied: half the work of a 6 x 6 product, and a shorter
+    serial chain in RGE-A's backward pass. Returns (Psi_0..Psi_5, Ihat).
     """
-    if code < 3:
-        e0 = R[0, code]
-        e1 = R[1, code]
-        e2 = R[2, code]
-    else:
-        e0 = R[0, 0] * u[0] + R[0, 1] * u[1] + R[0, 2] * u[2]
-        e1 = R[1, 0] * u[0] + R[1, 1] * u[1] + R[1, 2] * u[2]
-        e2 = R[2, 0] * u[0] + R[2, 1] * u[1] + R[2, 2] * u[2]
-    if kind == REVOLUTE:
-        p[0] = e0
-        p[1] = e1
-        p[2] = e2
-        p[3] = 0.0
-        p[4] = 0.0
-        p[5] = 0.0
-        rotate_about_axis(R, code, u, qj)
-    else:
-        p[0] = 0.0
-        p[1] = 0.0
-        p[2] = 0.0
-        p[3] = e0
-        p[4] = e1
-        p[5] = e2
-        O[0] += e0 * qj
-        O[1] += e1 * qj
-        O[2] += e2 * qj
+    if kind == PRISMATIC:
+        u0 = y00 * e0 + y01 * e1 + y02 * e2
+        u1 = y10 * e0 + y11 * e1 + y12 * e2
+        u2 = y20 * e0 + y21 * e1 + y22 * e2
+        u3 = z00 * e0 + z01 * e1 + z02 * e2
+        u4 = z01 * e0 + z11 * e1 + z12 * e2
+        u5 = z02 * e0 + z12 * e1 + z22 * e2
+        return u0, u1, u2, u3, u4, u5, e0 * u3 + e1 * u4 + e2 * u5
+    u0 = x00 * e0 + x01 * e1 + x02 * e2
+    u1 = x01 * e0 + x11 * e1 + x12 * e2
+    u2 = x02 * e0 + x12 * e1 + x22 * e2
+    u3 = y00 * e0 + y10 * e1 + y20 * e2
+    u4 = y01 * e0 + y11 * e1 + y21 * e2
+    u5 = y02 * e0 + y12 * e1 + y22 * e2
+    return u0, u1, u2, u3, u4, u5, e0 * u0 + e1 * u1 + e2 * u2

@@ -9,6 +9,8 @@ with Pd's column j = w_j x p_j, w_j the angular velocity of the frame axis j is 
 twist-rate is ``base_accel`` ([0; -g] for dynamics, 0 for true accelerations): gravity enters as an
 acceleration of the base (paper, Appendix A.1).
 
+The running frame, twist and twist-rate stay in scalars and are written out once per link.
+
 References:
     Agarwal et al., Eq. (4)-(8) (DeNOC: t = N_l N_d qd); Table A.1's note on gravity.
 """
@@ -26,90 +28,101 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
 
     base_accel: (3,) linear acceleration of the fixed base (pass -gravity for dynamics).
     """
-    nl = length.shape[0]
+    r00 = r11 = r22 = 1.0
+    r01 = r02 = r10 = r12 = r20 = r21 = 0.0
+    O0 = O1 = O2 = 0.0
+    w0 = w1 = w2 = v0 = v1 = v2 = 0.0  # twist of link k-1
+    a0 = a1 = a2 = 0.0  # angular twist-rate of link k-1
+    b0, b1, b2 = base_accel[0], base_accel[1], base_accel[2]  # linear twist-rate of link k-1
+    lp = 0.0
     # forward: k = 1..nl
-    for k in range(nl):
-        R = oR[k]
-        O = oO[k]
-        if k == 0:
-            for i in range(3):
-                for j in range(3):
-                    R[i, j] = 1.0 if i == j else 0.0
-                O[i] = 0.0
-            wp0 = wp1 = wp2 = 0.0
-            vp0 = vp1 = vp2 = 0.0
-            ap0 = ap1 = ap2 = 0.0
-            bp0, bp1, bp2 = base_accel[0], base_accel[1], base_accel[2]
-            Op0 = Op1 = Op2 = 0.0
-        else:
-            Rp = oR[k - 1]
-            lp = length[k - 1]
-            for i in range(3):
-                for j in range(3):
-                    R[i, j] = Rp[i, j]
-            Op0 = oO[k - 1, 0]
-            Op1 = oO[k - 1, 1]
-            Op2 = oO[k - 1, 2]
-            O[0] = Op0 + lp * Rp[0, 0]
-            O[1] = Op1 + lp * Rp[1, 0]
-            O[2] = Op2 + lp * Rp[2, 0]
-            wp0, wp1, wp2 = t[k - 1, 0], t[k - 1, 1], t[k - 1, 2]
-            vp0, vp1, vp2 = t[k - 1, 3], t[k - 1, 4], t[k - 1, 5]
-            ap0, ap1, ap2 = td[k - 1, 0], td[k - 1, 1], td[k - 1, 2]
-            bp0, bp1, bp2 = td[k - 1, 3], td[k - 1, 4], td[k - 1, 5]
-        # joint k: its axes' columns, the frame's rotation (and the joint origin, if prismatic);
-        # accumulate P qd (twist) and P qdd + Pd qd (twist-rate)
+    for k in range(length.shape[0]):
+        # O_k = O_{k-1} + l_{k-1} x_{k-1}  (before joint k moves the frame)
+        Op0, Op1, Op2 = O0, O1, O2
+        O0 += lp * r00
+        O1 += lp * r10
+        O2 += lp * r20
+        # joint k: columns, frame update; accumulate P qd and P qdd + Pd qd
         dw0 = dw1 = dw2 = dv0 = dv1 = dv2 = 0.0
         da0 = da1 = da2 = db0 = db1 = db2 = 0.0
-        om0, om1, om2 = wp0, wp1, wp2  # angular velocity of the frame the next axis is fixed in
+        om0, om1, om2 = w0, w1, w2  # angular velocity of the frame the next axis is fixed in
         for j in range(joint_qoff[k], joint_qoff[k + 1]):
-            p = oP[j]
-            jcalc(dof_kind[j], dof_axis[j], dof_u[j], q[j], R, O, p)
-            qdj = qd[j]
-            qddj = qdd[j]
+            u = dof_u[j]
+            (p0, p1, p2, p3, p4, p5, dO0, dO1, dO2,
+             r00, r01, r02, r10, r11, r12, r20, r21, r22) = jcalc(
+                dof_kind[j], dof_axis[j], u[0], u[1], u[2], q[j],
+                r00, r01, r02, r10, r11, r12, r20, r21, r22)
+            O0 += dO0
+            O1 += dO1
+            O2 += dO2
+            oP[j, 0] = p0
+            oP[j, 1] = p1
+            oP[j, 2] = p2
+            oP[j, 3] = p3
+            oP[j, 4] = p4
+            oP[j, 5] = p5
+            x = qd[j]
+            y = qdd[j]
             # Pd column = om x p (both halves rotate with the frame the axis is fixed in)
-            pd0 = om1 * p[2] - om2 * p[1]
-            pd1 = om2 * p[0] - om0 * p[2]
-            pd2 = om0 * p[1] - om1 * p[0]
-            pd3 = om1 * p[5] - om2 * p[4]
-            pd4 = om2 * p[3] - om0 * p[5]
-            pd5 = om0 * p[4] - om1 * p[3]
-            dw0 += p[0] * qdj
-            dw1 += p[1] * qdj
-            dw2 += p[2] * qdj
-            dv0 += p[3] * qdj
-            dv1 += p[4] * qdj
-            dv2 += p[5] * qdj
-            da0 += p[0] * qddj + pd0 * qdj
-            da1 += p[1] * qddj + pd1 * qdj
-            da2 += p[2] * qddj + pd2 * qdj
-            db0 += p[3] * qddj + pd3 * qdj
-            db1 += p[4] * qddj + pd4 * qdj
-            db2 += p[5] * qddj + pd5 * qdj
-            om0 += p[0] * qdj
-            om1 += p[1] * qdj
-            om2 += p[2] * qdj
-        # r = O_k - O_{k-1} = -a_{k,k-1}
-        r0 = O[0] - Op0
-        r1 = O[1] - Op1
-        r2 = O[2] - Op2
-        # t_k = A t_{k-1} + P qd: v_k = v_{k-1} + w_{k-1} x r + (prismatic part)
-        v0 = vp0 + (wp1 * r2 - wp2 * r1) + dv0
-        v1 = vp1 + (wp2 * r0 - wp0 * r2) + dv1
-        v2 = vp2 + (wp0 * r1 - wp1 * r0) + dv2
-        t[k, 0] = wp0 + dw0
-        t[k, 1] = wp1 + dw1
-        t[k, 2] = wp2 + dw2
+            da0 += p0 * y + (om1 * p2 - om2 * p1) * x
+            da1 += p1 * y + (om2 * p0 - om0 * p2) * x
+            da2 += p2 * y + (om0 * p1 - om1 * p0) * x
+            db0 += p3 * y + (om1 * p5 - om2 * p4) * x
+            db1 += p4 * y + (om2 * p3 - om0 * p5) * x
+            db2 += p5 * y + (om0 * p4 - om1 * p3) * x
+            dw0 += p0 * x
+            dw1 += p1 * x
+            dw2 += p2 * x
+            dv0 += p3 * x
+            dv1 += p4 * x
+            dv2 += p5 * x
+            om0 += p0 * x
+            om1 += p1 * x
+            om2 += p2 * x
+        # r = O_k - O_{k-1} = -a_{k,k-1};  e = v_k - v_{k-1} = w_{k-1} x r + prismatic part
+        s0 = O0 - Op0
+        s1 = O1 - Op1
+        s2 = O2 - Op2
+        e0 = (w1 * s2 - w2 * s1) + dv0
+        e1 = (w2 * s0 - w0 * s2) + dv1
+        e2 = (w0 * s1 - w1 * s0) + dv2
+        # td_k = A td_{k-1} + [0; w_{k-1} x (v_k - v_{k-1})] + P qdd + Pd qd
+        b0 += (a1 * s2 - a2 * s1) + (w1 * e2 - w2 * e1) + db0
+        b1 += (a2 * s0 - a0 * s2) + (w2 * e0 - w0 * e2) + db1
+        b2 += (a0 * s1 - a1 * s0) + (w0 * e1 - w1 * e0) + db2
+        a0 += da0
+        a1 += da1
+        a2 += da2
+        # t_k = A t_{k-1} + P qd
+        v0 += e0
+        v1 += e1
+        v2 += e2
+        w0 += dw0
+        w1 += dw1
+        w2 += dw2
+        R = oR[k]
+        R[0, 0] = r00
+        R[0, 1] = r01
+        R[0, 2] = r02
+        R[1, 0] = r10
+        R[1, 1] = r11
+        R[1, 2] = r12
+        R[2, 0] = r20
+        R[2, 1] = r21
+        R[2, 2] = r22
+        oO[k, 0] = O0
+        oO[k, 1] = O1
+        oO[k, 2] = O2
+        t[k, 0] = w0
+        t[k, 1] = w1
+        t[k, 2] = w2
         t[k, 3] = v0
         t[k, 4] = v1
         t[k, 5] = v2
-        # td_k = A td_{k-1} + [0; w_{k-1} x (v_k - v_{k-1})] + P qdd + Pd qd
-        e0 = v0 - vp0
-        e1 = v1 - vp1
-        e2 = v2 - vp2
-        td[k, 0] = ap0 + da0
-        td[k, 1] = ap1 + da1
-        td[k, 2] = ap2 + da2
-        td[k, 3] = bp0 + (ap1 * r2 - ap2 * r1) + (wp1 * e2 - wp2 * e1) + db0
-        td[k, 4] = bp1 + (ap2 * r0 - ap0 * r2) + (wp2 * e0 - wp0 * e2) + db1
-        td[k, 5] = bp2 + (ap0 * r1 - ap1 * r0) + (wp0 * e1 - wp1 * e0) + db2
+        td[k, 0] = a0
+        td[k, 1] = a1
+        td[k, 2] = a2
+        td[k, 3] = b0
+        td[k, 4] = b1
+        td[k, 5] = b2
+        lp = length[k]

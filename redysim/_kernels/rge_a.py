@@ -13,140 +13,222 @@ factorisation (Table A.1):
         mu_{k,k-1} = A_{k,k-1} mu_{k-1},  qdd_k = phitil_k - Psihat_k^T mu_{k,k-1},
         mu_k = P_k qdd_k + mu_{k,k-1}
 
-Stability: every articulated mass is written through its upper triangle and mirrored, so it is
-exactly symmetric by construction. A literal 6 x 6 transcription lets rounding make Mhat_k
-slightly asymmetric, the recursion amplifies that, and all accuracy is gone by ~100 U-links
-(DESIGN.md section 3; the same failure as stock Pinocchio ABA on such chains).
+Implementation notes:
+
+- Axis by axis. A joint with z_k > 1 axes (U, S) is eliminated one axis at a time, last axis
+  first, with no shift between its axes (they meet at O_k). This is Table A.1 with the z_k x z_k
+  block Ihat_k factored in passing as a unit upper triangle times a diagonal: identical in exact
+  arithmetic, every step a symmetric rank-1 update, and D of I = U D U^T truly diagonal.
+- Exact symmetry. The articulated mass is carried as its blocks [[X, Y], [Y^T, Z]] with X and Z
+  symmetric (6 + 9 + 6 numbers); only those numbers are ever computed, so Mhat_k is exactly
+  symmetric by construction. A literal 6 x 6 transcription lets rounding make Mhat_k slightly
+  asymmetric, the recursion amplifies it, and all accuracy is gone by ~100 U-links (DESIGN.md
+  section 3; stock Pinocchio ABA fails the same way on such chains).
+- One backward pass. phi (Eq. 12) comes from the Newton-Euler backward pass of
+  ``inverse_dynamics.py`` run in the same loop, sharing M_k; the running quantities stay in
+  scalars (measured 2-5x faster here than reading them back from arrays).
 
 References:
-    Agarwal et al., Appendix A.1, Eq. (A.1)-(A.8) and Table A.1; Saha, "Analytical expression for
-    the inverted inertia matrix of serial robots", Int. J. Robotics Research 18 (1999).
+    Agarwal et al., Appendix A.1, Eq. (A.1)-(A.8) and Table A.1; Eq. (9)-(12) for phi.
+    Saha, "Analytical expression for the inverted inertia matrix of serial robots", Int. J.
+    Robotics Research 18 (1999).
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from .._jit import inline, jit
-from .spatial import add_shifted_mass, link_mass
-
-
-@inline
-def sym_inverse(H, z, Hinv):
-    """Hinv = H^-1 for a symmetric z x z block (z = 1, 2, 3) by its adjugate; exactly symmetric."""
-    if z == 1:
-        Hinv[0, 0] = 1.0 / H[0, 0]
-    elif z == 2:
-        det = H[0, 0] * H[1, 1] - H[0, 1] * H[0, 1]
-        Hinv[0, 0] = H[1, 1] / det
-        Hinv[1, 1] = H[0, 0] / det
-        x = -H[0, 1] / det
-        Hinv[0, 1] = x
-        Hinv[1, 0] = x
-    else:
-        c00 = H[1, 1] * H[2, 2] - H[1, 2] * H[1, 2]
-        c01 = H[0, 2] * H[1, 2] - H[0, 1] * H[2, 2]
-        c02 = H[0, 1] * H[1, 2] - H[0, 2] * H[1, 1]
-        c11 = H[0, 0] * H[2, 2] - H[0, 2] * H[0, 2]
-        c12 = H[0, 2] * H[0, 1] - H[0, 0] * H[1, 2]
-        c22 = H[0, 0] * H[1, 1] - H[0, 1] * H[0, 1]
-        det = H[0, 0] * c00 + H[0, 1] * c01 + H[0, 2] * c02
-        Hinv[0, 0] = c00 / det
-        Hinv[1, 1] = c11 / det
-        Hinv[2, 2] = c22 / det
-        Hinv[0, 1] = Hinv[1, 0] = c01 / det
-        Hinv[0, 2] = Hinv[2, 0] = c02 / det
-        Hinv[1, 2] = Hinv[2, 1] = c12 / det
+from .._jit import jit
+from .joints import column_mass
+from .kinematics import kinematics
 
 
 @jit
-def rge_a_backward(mass, inertia_O, mass_com, joint_qoff, oR, oO, oP, phi,
-                   Ihat, Psihat, phitil):
-    """Backward pass of Table A.1: articulated masses and phitil.
+def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, td, tau,
+                   Ihat, Psihat, phitil, phi):
+    """Backward pass: phi by Newton-Euler, articulated masses, phitil (Table A.1).
 
-    Writes Ihat (nl, 3, 3) (the D blocks of I = U D U^T), Psihat (n, 6) and phitil (n,).
+    Reads the kinematics pass (oR, oO, oP, t, td with qdd = 0 and the base at -g) and tau.
+    Writes phi (n,), Ihat (n,) (the diagonal D of I = U D U^T), Psihat (n, 6) and phitil (n,).
+    With t = td = 0 and tau = 0 it gives the factors alone (phi = 0).
     """
     nl = mass.shape[0]
-    Mhat = np.empty((6, 6))
-    Mbar = np.zeros((6, 6))
-    S = np.empty((3, 3))
-    Psi = np.empty((3, 6))
-    Hinv = np.empty((3, 3))
-    eta = np.zeros(6)
-    a = np.empty(3)
+    # Mbar_{k+1} (blocks X, Y, Z), eta_{k+1}, resultant wrench W_{k+1}: zero beyond the tip
+    x00 = x01 = x02 = x11 = x12 = x22 = 0.0
+    y00 = y01 = y02 = y10 = y11 = y12 = y20 = y21 = y22 = 0.0
+    z00 = z01 = z02 = z11 = z12 = z22 = 0.0
+    e0 = e1 = e2 = e3 = e4 = e5 = 0.0
+    n0 = n1 = n2 = f0 = f1 = f2 = 0.0
     # backward: k = nl..1
     for k in range(nl - 1, -1, -1):
-        j0 = joint_qoff[k]
-        z = joint_qoff[k + 1] - j0
-        # Mhat_k = M_k + A_{k+1,k}^T Mbar_{k+1} A_{k+1,k};  eta_{k,k+1} = A_{k+1,k}^T eta_{k+1}
-        link_mass(oR[k], inertia_O[k], mass_com[k], mass[k], Mhat)
+        # ---- M_k in the world frame: X = R I_O R^T, m d = R (m c), Z = m 1
+        R = oR[k]
+        J = inertia_O[k]
+        mc = mass_com[k]
+        m = mass[k]
+        r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
+        r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
+        r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
+        c00 = r00 * J[0, 0] + r01 * J[1, 0] + r02 * J[2, 0]
+        c01 = r00 * J[0, 1] + r01 * J[1, 1] + r02 * J[2, 1]
+        c02 = r00 * J[0, 2] + r01 * J[1, 2] + r02 * J[2, 2]
+        c10 = r10 * J[0, 0] + r11 * J[1, 0] + r12 * J[2, 0]
+        c11 = r10 * J[0, 1] + r11 * J[1, 1] + r12 * J[2, 1]
+        c12 = r10 * J[0, 2] + r11 * J[1, 2] + r12 * J[2, 2]
+        c20 = r20 * J[0, 0] + r21 * J[1, 0] + r22 * J[2, 0]
+        c21 = r20 * J[0, 1] + r21 * J[1, 1] + r22 * J[2, 1]
+        c22 = r20 * J[0, 2] + r21 * J[1, 2] + r22 * J[2, 2]
+        X00 = c00 * r00 + c01 * r01 + c02 * r02
+        X01 = c00 * r10 + c01 * r11 + c02 * r12
+        X02 = c00 * r20 + c01 * r21 + c02 * r22
+        X11 = c10 * r10 + c11 * r11 + c12 * r12
+        X12 = c10 * r20 + c11 * r21 + c12 * r22
+        X22 = c20 * r20 + c21 * r21 + c22 * r22
+        d0 = r00 * mc[0] + r01 * mc[1] + r02 * mc[2]
+        d1 = r10 * mc[0] + r11 * mc[1] + r12 * mc[2]
+        d2 = r20 * mc[0] + r21 * mc[1] + r22 * mc[2]
+        # ---- Newton-Euler link wrench about O_k: f = m vd + wd x md + w x (w x md),
+        #      n = X wd + w x (X w) + md x vd
+        w0, w1, w2 = t[k, 0], t[k, 1], t[k, 2]
+        a0, a1, a2 = td[k, 0], td[k, 1], td[k, 2]
+        b0, b1, b2 = td[k, 3], td[k, 4], td[k, 5]
+        h0 = X00 * w0 + X01 * w1 + X02 * w2
+        h1 = X01 * w0 + X11 * w1 + X12 * w2
+        h2 = X02 * w0 + X12 * w1 + X22 * w2
+        g0 = w1 * d2 - w2 * d1
+        g1 = w2 * d0 - w0 * d2
+        g2 = w0 * d1 - w1 * d0
+        lf0 = m * b0 + (a1 * d2 - a2 * d1) + (w1 * g2 - w2 * g1)
+        lf1 = m * b1 + (a2 * d0 - a0 * d2) + (w2 * g0 - w0 * g2)
+        lf2 = m * b2 + (a0 * d1 - a1 * d0) + (w0 * g1 - w1 * g0)
+        ln0 = (X00 * a0 + X01 * a1 + X02 * a2) + (w1 * h2 - w2 * h1) + (d1 * b2 - d2 * b1)
+        ln1 = (X01 * a0 + X11 * a1 + X12 * a2) + (w2 * h0 - w0 * h2) + (d2 * b0 - d0 * b2)
+        ln2 = (X02 * a0 + X12 * a1 + X22 * a2) + (w0 * h1 - w1 * h0) + (d0 * b1 - d1 * b0)
         if k < nl - 1:
-            a[0] = oO[k, 0] - oO[k + 1, 0]
-            a[1] = oO[k, 1] - oO[k + 1, 1]
-            a[2] = oO[k, 2] - oO[k + 1, 2]
-            add_shifted_mass(Mbar, a, Mhat, S)
-            f0, f1, f2 = eta[3], eta[4], eta[5]
-            eta[0] -= a[1] * f2 - a[2] * f1
-            eta[1] -= a[2] * f0 - a[0] * f2
-            eta[2] -= a[0] * f1 - a[1] * f0
-        # Psi_k = Mhat_k P_k
-        for c in range(z):
-            p = oP[j0 + c]
-            for i in range(6):
-                Psi[c, i] = (Mhat[i, 0] * p[0] + Mhat[i, 1] * p[1] + Mhat[i, 2] * p[2]
-                             + Mhat[i, 3] * p[3] + Mhat[i, 4] * p[4] + Mhat[i, 5] * p[5])
-        # Ihat_k = P_k^T Psi_k (upper triangle, mirrored) and its inverse
-        H = Ihat[k]
-        for c in range(z):
-            p = oP[j0 + c]
-            for d in range(c, z):
-                x = (p[0] * Psi[d, 0] + p[1] * Psi[d, 1] + p[2] * Psi[d, 2]
-                     + p[3] * Psi[d, 3] + p[4] * Psi[d, 4] + p[5] * Psi[d, 5])
-                H[c, d] = x
-                H[d, c] = x
-        sym_inverse(H, z, Hinv)
-        # Psihat_k = Psi_k Ihat_k^-1;  phihat_k = phi_k - P_k^T eta_{k,k+1}
-        for c in range(z):
-            ph = Psihat[j0 + c]
-            for i in range(6):
-                x = 0.0
-                for d in range(z):
-                    x += Psi[d, i] * Hinv[d, c]
-                ph[i] = x
-        for c in range(z):
-            p = oP[j0 + c]
-            phitil[j0 + c] = phi[j0 + c] - (p[0] * eta[0] + p[1] * eta[1] + p[2] * eta[2]
-                                            + p[3] * eta[3] + p[4] * eta[4] + p[5] * eta[5])
-        # phitil_k = Ihat_k^-1 phihat_k (in place; phihat kept in locals)
-        if z == 1:
-            phitil[j0] = Hinv[0, 0] * phitil[j0]
-        else:
-            h0 = phitil[j0]
-            h1 = phitil[j0 + 1]
-            h2 = phitil[j0 + 2] if z == 3 else 0.0
-            for c in range(z):
-                x = Hinv[c, 0] * h0 + Hinv[c, 1] * h1
-                if z == 3:
-                    x += Hinv[c, 2] * h2
-                phitil[j0 + c] = x
-        # eta_k = Psi_k phitil_k + eta_{k,k+1}
-        for c in range(z):
-            x = phitil[j0 + c]
-            for i in range(6):
-                eta[i] += Psi[c, i] * x
-        # Mbar_k = Mhat_k - Psihat_k Psi_k^T (upper triangle, mirrored)
-        for i in range(6):
-            for j in range(i, 6):
-                x = Mhat[i, j]
-                for c in range(z):
-                    x -= Psihat[j0 + c, i] * Psi[c, j]
-                Mbar[i, j] = x
-                Mbar[j, i] = x
+            # ---- shift to O_k with a = O_k - O_{k+1} (A_{k+1,k}):
+            #      n <- n - a x f (W and eta);  Mbar <- A^T Mbar A
+            s0 = oO[k, 0] - oO[k + 1, 0]
+            s1 = oO[k, 1] - oO[k + 1, 1]
+            s2 = oO[k, 2] - oO[k + 1, 2]
+            n0 -= s1 * f2 - s2 * f1
+            n1 -= s2 * f0 - s0 * f2
+            n2 -= s0 * f1 - s1 * f0
+            e0 -= s1 * e5 - s2 * e4
+            e1 -= s2 * e3 - s0 * e5
+            e2 -= s0 * e4 - s1 * e3
+            # S = Y C(a): column j of C(a) is a x e_j
+            S00 = y01 * s2 - y02 * s1
+            S01 = y02 * s0 - y00 * s2
+            S02 = y00 * s1 - y01 * s0
+            S10 = y11 * s2 - y12 * s1
+            S11 = y12 * s0 - y10 * s2
+            S12 = y10 * s1 - y11 * s0
+            S20 = y21 * s2 - y22 * s1
+            S21 = y22 * s0 - y20 * s2
+            S22 = y20 * s1 - y21 * s0
+            # CZ = C(a) Z
+            q00 = s1 * z02 - s2 * z01
+            q01 = s1 * z12 - s2 * z11
+            q02 = s1 * z22 - s2 * z12
+            q10 = s2 * z00 - s0 * z02
+            q11 = s2 * z01 - s0 * z12
+            q12 = s2 * z02 - s0 * z22
+            q20 = s0 * z01 - s1 * z00
+            q21 = s0 * z11 - s1 * z01
+            q22 = s0 * z12 - s1 * z02
+            # X <- X + S + S^T - CZ C(a) (upper triangle);  Y <- Y - CZ;  Z unchanged
+            x00 += 2.0 * S00 - (q01 * s2 - q02 * s1)
+            x01 += S01 + S10 - (q02 * s0 - q00 * s2)
+            x02 += S02 + S20 - (q00 * s1 - q01 * s0)
+            x11 += 2.0 * S11 - (q12 * s0 - q10 * s2)
+            x12 += S12 + S21 - (q10 * s1 - q11 * s0)
+            x22 += 2.0 * S22 - (q20 * s1 - q21 * s0)
+            y00 -= q00
+            y01 -= q01
+            y02 -= q02
+            y10 -= q10
+            y11 -= q11
+            y12 -= q12
+            y20 -= q20
+            y21 -= q21
+            y22 -= q22
+        # ---- Mhat_k = M_k + A^T Mbar_{k+1} A;  W_k = w_k + A^T W_{k+1}
+        x00 += X00
+        x01 += X01
+        x02 += X02
+        x11 += X11
+        x12 += X12
+        x22 += X22
+        y01 -= d2  # Y_k = C(m d)
+        y02 += d1
+        y10 += d2
+        y12 -= d0
+        y20 -= d1
+        y21 += d0
+        z00 += m
+        z11 += m
+        z22 += m
+        n0 += ln0
+        n1 += ln1
+        n2 += ln2
+        f0 += lf0
+        f1 += lf1
+        f2 += lf2
+        # ---- eliminate joint k's axes, last first (Table A.1, axis by axis)
+        for j in range(joint_qoff[k + 1] - 1, joint_qoff[k] - 1, -1):
+            p0, p1, p2, p3, p4, p5 = oP[j, 0], oP[j, 1], oP[j, 2], oP[j, 3], oP[j, 4], oP[j, 5]
+            # phi_j = tau_j - P^T W_k (Eq. 12);  phihat_j = phi_j - P^T eta
+            phij = tau[j] - (p0 * n0 + p1 * n1 + p2 * n2 + p3 * f0 + p4 * f1 + p5 * f2)
+            phi[j] = phij
+            phihat = phij - (p0 * e0 + p1 * e1 + p2 * e2 + p3 * e3 + p4 * e4 + p5 * e5)
+            # Psi = Mhat p, Ihat = P^T Psi (the column's kind is dispatched in joints.py)
+            kind = dof_kind[j]
+            u0, u1, u2, u3, u4, u5, ih = column_mass(
+                kind, p0 + p3, p1 + p4, p2 + p5, x00, x01, x02, x11, x12, x22,
+                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
+            inv = 1.0 / ih
+            v0, v1, v2, v3, v4, v5 = u0 * inv, u1 * inv, u2 * inv, u3 * inv, u4 * inv, u5 * inv
+            ptil = phihat * inv
+            Ihat[j] = ih
+            phitil[j] = ptil
+            Psihat[j, 0] = v0
+            Psihat[j, 1] = v1
+            Psihat[j, 2] = v2
+            Psihat[j, 3] = v3
+            Psihat[j, 4] = v4
+            Psihat[j, 5] = v5
+            # eta <- Psi phitil + eta
+            e0 += u0 * ptil
+            e1 += u1 * ptil
+            e2 += u2 * ptil
+            e3 += u3 * ptil
+            e4 += u4 * ptil
+            e5 += u5 * ptil
+            # Mhat <- Mhat - Psihat Psi^T (symmetric blocks: upper triangles only)
+            x00 -= v0 * u0
+            x01 -= v0 * u1
+            x02 -= v0 * u2
+            x11 -= v1 * u1
+            x12 -= v1 * u2
+            x22 -= v2 * u2
+            y00 -= v0 * u3
+            y01 -= v0 * u4
+            y02 -= v0 * u5
+            y10 -= v1 * u3
+            y11 -= v1 * u4
+            y12 -= v1 * u5
+            y20 -= v2 * u3
+            y21 -= v2 * u4
+            y22 -= v2 * u5
+            z00 -= v3 * u3
+            z01 -= v3 * u4
+            z02 -= v3 * u5
+            z11 -= v4 * u4
+            z12 -= v4 * u5
+            z22 -= v5 * u5
 
 
 @jit
 def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, qdd):
-    """Forward pass of Table A.1: qdd_k = phitil_k - Psihat_k^T mu_{k,k-1}."""
+    """Forward pass of Table A.1: qdd_k = phitil_k - Psihat_k^T mu_{k,k-1}, axis by axis."""
     nl = joint_qoff.shape[0] - 1
     m0 = m1 = m2 = m3 = m4 = m5 = 0.0
     # forward: k = 1..nl
@@ -159,19 +241,28 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, qdd):
             m3 += a1 * m2 - a2 * m1
             m4 += a2 * m0 - a0 * m2
             m5 += a0 * m1 - a1 * m0
-        j0 = joint_qoff[k]
-        z = joint_qoff[k + 1] - j0
-        for c in range(z):
-            ph = Psihat[j0 + c]
-            qdd[j0 + c] = phitil[j0 + c] - (ph[0] * m0 + ph[1] * m1 + ph[2] * m2
-                                            + ph[3] * m3 + ph[4] * m4 + ph[5] * m5)
-        # mu_k = P_k qdd_k + mu_{k,k-1}
-        for c in range(z):
-            p = oP[j0 + c]
-            x = qdd[j0 + c]
-            m0 += p[0] * x
-            m1 += p[1] * x
-            m2 += p[2] * x
-            m3 += p[3] * x
-            m4 += p[4] * x
-            m5 += p[5] * x
+        for j in range(joint_qoff[k], joint_qoff[k + 1]):
+            x = phitil[j] - (Psihat[j, 0] * m0 + Psihat[j, 1] * m1 + Psihat[j, 2] * m2
+                             + Psihat[j, 3] * m3 + Psihat[j, 4] * m4 + Psihat[j, 5] * m5)
+            qdd[j] = x
+            # mu <- P qdd + mu
+            m0 += oP[j, 0] * x
+            m1 += oP[j, 1] * x
+            m2 += oP[j, 2] * x
+            m3 += oP[j, 3] * x
+            m4 += oP[j, 4] * x
+            m5 += oP[j, 5] * x
+
+
+@jit
+def rge_a_forward_dynamics(length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u,
+                           joint_qoff, q, qd, tau, base_accel, zeros,
+                           oR, oO, oP, t, td, Ihat, Psihat, phitil, phi, qdd):
+    """qdd = I^-1 phi in O(n): the kinematics pass (qdd = 0, base at -g), then Table A.1's
+    backward pass (with phi by Newton-Euler in the same loop) and forward pass. One call from
+    Python for the three passes."""
+    kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, zeros, base_accel,
+               oR, oO, oP, t, td)
+    rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, td, tau,
+                   Ihat, Psihat, phitil, phi)
+    rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, qdd)

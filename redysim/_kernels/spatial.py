@@ -15,33 +15,6 @@ from .._jit import inline
 
 
 @inline
-def shift_twist(t, a, out):
-    """out = A t with A = [[1, 0], [C(a), 1]]: w' = w, v' = v + a x w.  (a = from new to old point)"""
-    w0, w1, w2 = t[0], t[1], t[2]
-    out[0] = w0
-    out[1] = w1
-    out[2] = w2
-    out[3] = t[3] + a[1] * w2 - a[2] * w1
-    out[4] = t[4] + a[2] * w0 - a[0] * w2
-    out[5] = t[5] + a[0] * w1 - a[1] * w0
-
-
-@inline
-def shift_wrench(w, a, out):
-    """out = A^T w with A = [[1, 0], [C(a), 1]]: f' = f, n' = n - a x f.
-
-    With a = O_k - O_{k+1} this moves a wrench's moment point from O_{k+1} back to O_k.
-    """
-    f0, f1, f2 = w[3], w[4], w[5]
-    out[0] = w[0] - (a[1] * f2 - a[2] * f1)
-    out[1] = w[1] - (a[2] * f0 - a[0] * f2)
-    out[2] = w[2] - (a[0] * f1 - a[1] * f0)
-    out[3] = f0
-    out[4] = f1
-    out[5] = f2
-
-
-@inline
 def link_mass(Rk, inertia_O, mass_com, m, Mk):
     """The extended mass matrix M_k about O_k in the world frame, exactly symmetric.
 
@@ -164,17 +137,3 @@ def add_shifted_mass(Mbar, a, Mhat, S):
             z = Mhat[i, j] + Mbar[i, j]
             Mhat[i, j] = z
             Mhat[j, i] = z
-
-
-@inline
-def dot6(x, y):
-    """x . y for 6-vectors (P^T w, a power)."""
-    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2] + x[3] * y[3] + x[4] * y[4] + x[5] * y[5]
-
-
-@inline
-def sym_mat_vec6(M, x, out):
-    """out = M x for a 6 x 6 matrix."""
-    for i in range(6):
-        out[i] = (M[i, 0] * x[0] + M[i, 1] * x[1] + M[i, 2] * x[2]
-                  + M[i, 3] * x[3] + M[i, 4] * x[4] + M[i, 5] * x[5])

@@ -1,10 +1,13 @@
 """The explicit factors of the GIM, I = U D U^T, from RGE-A's articulated quantities.
 
-    D = blockdiag(Ihat_k),   U_kk = 1,   U_{k,j} = P_k^T A_{j,k}^T Psihat_j   (j > k),
+With RGE-A eliminating axis by axis (see ``rge_a.py``), D = diag(Ihat_j) is diagonal and U is unit
+upper triangular with, for DOF i before DOF j,
 
-i.e. column block j of U is the wrench Psihat_j carried from O_j towards the base and projected on
-each joint's motion subspace. O(n^2) entries; meant for the conditioning study (Table A.2), not
-for simulation, which never forms U.
+    U_ij = P_i^T A_{j,i}^T Psihat_j,
+
+i.e. column j of U is the wrench Psihat_j carried from O_j towards the base and projected on every
+earlier axis (axes of the same joint need no carrying: they meet at O_j). O(n^2) entries; for the
+conditioning study (Table A.2), never formed in a simulation.
 
 References:
     Agarwal et al., Appendix A.1, Eq. (A.5)-(A.8); Saha, Int. J. Robotics Research 18 (1999).
@@ -12,34 +15,31 @@ References:
 
 from __future__ import annotations
 
-import numpy as np
-
 from .._jit import jit
 
 
 @jit
 def udu_assemble(joint_qoff, oO, oP, Ihat, Psihat, U, D):
-    """Fill U (unit upper block-triangular) and D (block diagonal) from RGE-A's backward pass."""
+    """Fill U (unit upper triangular) and D (diagonal) from RGE-A's backward pass."""
     nl = joint_qoff.shape[0] - 1
-    F = np.empty(6)
     for k in range(nl):
-        j0 = joint_qoff[k]
-        z = joint_qoff[k + 1] - j0
-        for c in range(z):
-            U[j0 + c, j0 + c] = 1.0
-            for d in range(z):
-                D[j0 + c, j0 + d] = Ihat[k, c, d]
-        for c in range(z):
-            for i in range(6):
-                F[i] = Psihat[j0 + c, i]
-            # carry towards the base: i = k-1..1
-            for i in range(k - 1, -1, -1):
-                r0 = oO[i + 1, 0] - oO[i, 0]
-                r1 = oO[i + 1, 1] - oO[i, 1]
-                r2 = oO[i + 1, 2] - oO[i, 2]
-                F[0] += r1 * F[5] - r2 * F[4]
-                F[1] += r2 * F[3] - r0 * F[5]
-                F[2] += r0 * F[4] - r1 * F[3]
-                for jj in range(joint_qoff[i], joint_qoff[i + 1]):
-                    U[jj, j0 + c] = (oP[jj, 0] * F[0] + oP[jj, 1] * F[1] + oP[jj, 2] * F[2]
-                                     + oP[jj, 3] * F[3] + oP[jj, 4] * F[4] + oP[jj, 5] * F[5])
+        for j in range(joint_qoff[k], joint_qoff[k + 1]):
+            U[j, j] = 1.0
+            D[j, j] = Ihat[j]
+            F0, F1, F2 = Psihat[j, 0], Psihat[j, 1], Psihat[j, 2]
+            F3, F4, F5 = Psihat[j, 3], Psihat[j, 4], Psihat[j, 5]
+            # earlier axes of the same joint
+            for i in range(joint_qoff[k], j):
+                U[i, j] = (oP[i, 0] * F0 + oP[i, 1] * F1 + oP[i, 2] * F2
+                           + oP[i, 3] * F3 + oP[i, 4] * F4 + oP[i, 5] * F5)
+            # carry towards the base: links k-1..1
+            for b in range(k - 1, -1, -1):
+                r0 = oO[b + 1, 0] - oO[b, 0]
+                r1 = oO[b + 1, 1] - oO[b, 1]
+                r2 = oO[b + 1, 2] - oO[b, 2]
+                F0 += r1 * F5 - r2 * F4
+                F1 += r2 * F3 - r0 * F5
+                F2 += r0 * F4 - r1 * F3
+                for i in range(joint_qoff[b], joint_qoff[b + 1]):
+                    U[i, j] = (oP[i, 0] * F0 + oP[i, 1] * F1 + oP[i, 2] * F2
+                               + oP[i, 3] * F3 + oP[i, 4] * F4 + oP[i, 5] * F5)
