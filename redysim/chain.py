@@ -156,8 +156,10 @@ def check_inertia(source: str, field_name: str, value) -> np.ndarray:
         _fail(source, field_name, value, f"must be a 3x3 matrix or [Ixx, Iyy, Izz], got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         _fail(source, field_name, value, "must be finite (no NaN or Inf)")
-    if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
+    scale = max(np.abs(arr).max(), np.finfo(float).tiny)
+    if np.abs(arr - arr.T).max() > 1e-12 * scale:
         _fail(source, field_name, value, "must be symmetric")
+    arr = 0.5 * (arr + arr.T)
     eig = np.linalg.eigvalsh(arr)
     if eig[0] < -1e-12 * max(1.0, abs(eig[-1])):
         _fail(source, field_name, value, f"must be positive semi-definite (eigenvalues {eig})")

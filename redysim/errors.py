@@ -10,7 +10,7 @@ class RedysimError(Exception):
 class CaseError(RedysimError, ValueError):
     """A case file or chain description is malformed.
 
-    The message reads ``<source>: <field> = <value>: <what is wrong>`` so that a user can find the
+    The message reads ``<source>: <field> = <value>: <what is wrong>`` (no value when it is missing) so that a user can find the
     offending line without reading a traceback.
     """
 
@@ -19,7 +19,8 @@ class CaseError(RedysimError, ValueError):
         self.field = field
         self.value = value
         self.problem = problem
-        super().__init__(f"{source}: {field} = {value!r}: {problem}")
+        shown = f"{field}" if value is None else f"{field} = {value!r}"
+        super().__init__(f"{source}: {shown}: {problem}")
 
 
 class StateError(RedysimError, ValueError):

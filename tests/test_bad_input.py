@@ -1,0 +1,173 @@
+"""Bad input gets an error that names the file, the field and the value."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from redysim import (
+    CaseError,
+    Chain,
+    Joint,
+    Link,
+    StateError,
+    energy,
+    forward_dynamics,
+    inverse_dynamics,
+    load_case,
+    mass_matrix,
+    tip,
+)
+
+GOOD = """
+[case]
+name = "T"
+paper = { tables = ["study_chains"] }
+
+[chain]
+links = 3
+joint = "R"
+link_length = 1.0
+link_mass = 2.0
+radius = 0.02
+inertia = "cylinder"
+
+[initial]
+q = 0.0
+qd = 0.0
+
+[simulation]
+t_end = 1.0
+"""
+
+
+def write(tmp_path, text, name="bad.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def expect(tmp_path, text, field, value_text):
+    path = write(tmp_path, text)
+    with pytest.raises(CaseError) as err:
+        load_case(path)
+    msg = str(err.value)
+    assert str(path) in msg, msg
+    assert field in msg, msg
+    assert value_text in msg, msg
+    return msg
+
+
+def test_good_case_loads(tmp_path):
+    case = load_case(write(tmp_path, GOOD))
+    assert case.chain.n_dof == 3
+
+
+@pytest.mark.parametrize("old,new,field,value", [
+    ("link_mass = 2.0", "link_mass = -2.0", "chain.link_mass", "-2.0"),
+    ("link_mass = 2.0", "link_mass = 0.0", "chain.link_mass", "0.0"),
+    ("link_length = 1.0", "link_length = -1.0", "chain.link_length", "-1.0"),
+    ("link_length = 1.0", "link_length = 0", "chain.link_length", "0"),
+    ('joint = "R"', 'joint = "Q"', "chain.joint.type", "'Q'"),
+    ('joint = "R"', "joint = 3", "chain.joint", "3"),
+    ("link_mass = 2.0", "link_mass = nan", "chain.link_mass", "nan"),
+    ("link_mass = 2.0", "link_mass = inf", "chain.link_mass", "inf"),
+    ("link_mass = 2.0", 'link_mass = "heavy"', "chain.link_mass", "'heavy'"),
+    ("radius = 0.02", "radius = -0.02", "chain.radius", "-0.02"),
+    ('inertia = "cylinder"', 'inertia = "sphere"', "chain.inertia", "'sphere'"),
+    ('inertia = "cylinder"', "inertia = [1.0, -2.0, 1.0]", "chain.inertia", "-2.0"),
+    ("q = 0.0", "q = [0.0, 0.0]", "initial.q", "[0.0, 0.0]"),
+    ("qd = 0.0", "qd = [0.0, 0.0, 0.0, 0.0]", "initial.qd", "[0.0, 0.0, 0.0, 0.0]"),
+    ("q = 0.0", "q = [0.0, nan, 0.0]", "initial.q", "nan"),
+    ("qd = 0.0", "qd = inf", "initial.qd", "inf"),
+    ("qd = 0.0", "qd = { fill = 0.0, set = [[7, 1.0]] }", "initial.qd.set[0][0]", "7"),
+    ("t_end = 1.0", "t_end = -1.0", "simulation.t_end", "-1.0"),
+    ("links = 3", "links = 1000000000", "chain.links", "1000000000"),
+    ("links = 3", "links = 2.5", "chain.links", "2.5"),
+    ("links = 3", "links = 0", "chain.links", "0"),
+    ('paper = { tables = ["study_chains"] }', 'paper = { tables = ["table99"] }',
+     "case.paper.tables", "'table99'"),
+    ("link_length = 1.0", "link_lenght = 1.0", "chain.link_lenght", "1.0"),
+])
+def test_bad_values_are_named(tmp_path, old, new, field, value):
+    assert old in GOOD
+    expect(tmp_path, GOOD.replace(old, new), field, value)
+
+
+@pytest.mark.parametrize("missing,field", [
+    ("link_mass = 2.0\n", "chain.link_mass"),
+    ('joint = "R"\n', "chain.joint"),
+    ("t_end = 1.0\n", "simulation.t_end"),
+    ('name = "T"\n', "case.name"),
+    ("links = 3\n", "chain.links"),
+])
+def test_missing_fields_are_named(tmp_path, missing, field):
+    path = write(tmp_path, GOOD.replace(missing, ""))
+    with pytest.raises(CaseError) as err:
+        load_case(path)
+    assert field in str(err.value) and str(path) in str(err.value)
+
+
+def test_toml_syntax_error_names_the_file(tmp_path):
+    msg = expect(tmp_path, GOOD.replace("links = 3", "links = = 3"), "<toml syntax>", "line")
+    assert "line 7" in msg
+
+
+def test_missing_case_names_the_known_ones():
+    with pytest.raises(FileNotFoundError, match="RE-U125-L1"):
+        load_case("RE-U126-L1")
+
+
+def test_catenary_span_longer_than_the_chain(tmp_path):
+    text = GOOD.replace("q = 0.0", 'shape = "catenary"\ndX = 5.0')
+    expect(tmp_path, text, "initial.dX", "5.0")
+
+
+def test_chain_api_errors():
+    link = Link(1.0, 1.0, (0.5, 0, 0), ((0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+    with pytest.raises(CaseError, match=r"links\[0\].mass = -1.0"):
+        Chain.build([Link(1.0, -1.0, link.com, link.inertia)], ["R"])
+    with pytest.raises(CaseError, match=r"joints\[1\].type = 'X'"):
+        Chain.build([link, link], [Joint("R"), Joint("X")])
+    with pytest.raises(CaseError, match=r"joints\[0\].axis"):
+        Chain.build([link], [Joint("U", "x")])
+    with pytest.raises(CaseError, match="one joint per link"):
+        Chain.build([link, link], ["R"])
+
+
+@pytest.mark.parametrize("func", [forward_dynamics, inverse_dynamics, energy, tip])
+def test_state_errors_name_the_argument(func):
+    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+    n = chain.n_dof
+    good = [np.zeros(n)] * (3 if func is inverse_dynamics else 2)
+    bad = list(good)
+    bad[0] = np.zeros(n + 1)
+    with pytest.raises(StateError, match=r"q has shape \(7,\).*must have shape \(6,\)"):
+        func(chain, *bad)
+    bad = list(good)
+    bad[1] = np.zeros(n)
+    bad[1][4] = math.nan
+    with pytest.raises(StateError, match=r"qd\[4\] = nan"):
+        func(chain, *bad)
+    bad = list(good)
+    bad[0] = np.zeros(n)
+    bad[0][2] = math.inf
+    with pytest.raises(StateError, match=r"q\[2\] = inf"):
+        func(chain, *bad)
+    with pytest.raises(StateError, match="q = 'abc'"):
+        func(chain, "abc", *good[1:])
+
+
+def test_forward_dynamics_names_bad_tau_and_method():
+    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+    z = np.zeros(6)
+    tau = z.copy()
+    tau[5] = -math.inf
+    with pytest.raises(StateError, match=r"tau\[5\] = -inf"):
+        forward_dynamics(chain, z, z, tau)
+    with pytest.raises(ValueError, match="method = 'lu'"):
+        forward_dynamics(chain, z, z, method="lu")
+    with pytest.raises(StateError, match=r"q has shape \(6, 1\)"):
+        mass_matrix(chain, z[:, None])

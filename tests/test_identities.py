@@ -1,0 +1,186 @@
+"""Tier 2: identities on seeded random chains of every joint type and mixes, 1..200 links.
+
+Each identity compares two different computations (or a computation with a finite difference), so
+an error in one of them shows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import ALL_JOINT_MIXES, EPS, denoc_gim, random_chain, random_state, rel
+
+from redysim import (
+    Workspace,
+    energy,
+    forward_dynamics,
+    inverse_dynamics,
+    mass_matrix,
+    phi,
+    udu_factors,
+)
+
+SIZES = [1, 2, 3, 10, 50, 200]
+SPREADS = ["wide", "straight"]
+MIX_IDS = ["R", "U", "S", "P", "mixed"]
+
+
+def cases():
+    for mix, mid in zip(ALL_JOINT_MIXES, MIX_IDS, strict=True):
+        for n in SIZES:
+            for spread in SPREADS:
+                yield pytest.param(mix, n, spread, id=f"{mid}-{n}-{spread}")
+
+
+@pytest.mark.parametrize("mix,n_links,spread", list(cases()))
+def test_rge_a_solves_the_gim(mix, n_links, spread):
+    """RGE-A qdd = solve(GIM, phi): to 1e-10 where cond2 < 1e5, else within 10 cond2 eps (the
+    dense solve itself is only that good)."""
+    rng = np.random.default_rng(hash((mix, n_links, spread)) % 2**32)
+    chain = random_chain(rng, n_links, mix)
+    q, qd, tau = random_state(rng, chain, spread)
+    gim = mass_matrix(chain, q)
+    ref = np.linalg.solve(gim, phi(chain, q, qd, tau))
+    qdd = forward_dynamics(chain, q, qd, tau)
+    cond = np.linalg.cond(gim)
+    tol = 1e-10 if cond < 1e5 else 10 * cond * EPS
+    err = np.linalg.norm(qdd - ref) / np.linalg.norm(ref)
+    assert err < tol, f"relative error {err:.3g}, cond2 {cond:.3g}, tolerance {tol:.3g}"
+
+
+@pytest.mark.parametrize("mix,n_links,spread", list(cases()))
+def test_inverse_of_forward_returns_tau(mix, n_links, spread):
+    rng = np.random.default_rng(hash((mix, n_links, spread, 1)) % 2**32)
+    chain = random_chain(rng, n_links, mix)
+    q, qd, tau = random_state(rng, chain, spread)
+    qdd = forward_dynamics(chain, q, qd, tau)
+    tau_back = inverse_dynamics(chain, q, qd, qdd)
+    # relative to the size of the terms that cancel in tau = I qdd + C qd + g
+    scale = np.abs(mass_matrix(chain, q)).max() * np.abs(qdd).max() + np.abs(tau).max()
+    assert np.abs(tau_back - tau).max() / scale < 1e-9
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+@pytest.mark.parametrize("n_links", [1, 2, 7, 40])
+def test_composite_gim_equals_denoc_assembly(mix, n_links, rng):
+    """Eq. 10a (composite masses) equals N_d^T N_l^T M N_l N_d built explicitly (Eq. 7-10a)."""
+    chain = random_chain(rng, n_links, mix)
+    q, _, _ = random_state(rng, chain)
+    assert rel(mass_matrix(chain, q), denoc_gim(chain, q)) < 1e-12
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+@pytest.mark.parametrize("n_links", [1, 2, 10, 100])
+def test_udu_factors(mix, n_links, rng):
+    chain = random_chain(rng, n_links, mix)
+    q, _, _ = random_state(rng, chain)
+    U, D = udu_factors(chain, q)
+    gim = mass_matrix(chain, q)
+    assert np.array_equal(np.tril(U, -1), np.zeros_like(U))
+    assert np.array_equal(np.diag(U), np.ones(chain.n_dof))
+    assert np.array_equal(D, np.diag(np.diag(D))) and np.all(np.diag(D) > 0)
+    assert rel(U @ D @ U.T, gim) < 1e-12
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+def test_power_balance(mix, rng):
+    """dE/dt = qd . tau along the motion, by a central difference in time.
+
+    The path q(t + s) = q + s qd + s^2/2 qdd is a polynomial in s, so the central difference has
+    an even-power error expansion; one Richardson step cancels its h^2 term (random fast states
+    make that term ~1e-5 relative at h = 1e-5)."""
+    chain = random_chain(rng, 12, mix)
+    q, qd, tau = random_state(rng, chain)
+    qdd = forward_dynamics(chain, q, qd, tau)
+
+    def central(h):
+        E = [sum(energy(chain, q + s * h * qd + 0.5 * h * h * qdd, qd + s * h * qdd))
+             for s in (-1.0, 1.0)]
+        return (E[1] - E[0]) / (2 * h)
+
+    h = 1e-4
+    dEdt = (4 * central(h / 2) - central(h)) / 3
+    power = qd @ tau
+    scale = abs(qd) @ abs(tau) + abs(qd) @ abs(phi(chain, q, qd))
+    assert abs(dEdt - power) / scale < 1e-7, (dEdt, power)
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+def test_kinetic_energy_is_the_gim_quadratic_form(mix, rng):
+    chain = random_chain(rng, 30, mix)
+    q, qd, _ = random_state(rng, chain)
+    T, _ = energy(chain, q, qd)
+    assert abs(T - 0.5 * qd @ mass_matrix(chain, q) @ qd) / T < 1e-12
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+def test_gravity_terms_are_the_gradient_of_V(mix, rng):
+    """phi(q, 0, 0) = -dV/dq (central differences)."""
+    chain = random_chain(rng, 8, mix)
+    q, _, _ = random_state(rng, chain)
+    zero = np.zeros(chain.n_dof)
+    g = -phi(chain, q, zero)
+    h = 1e-6
+    grad = np.empty(chain.n_dof)
+    for i in range(chain.n_dof):
+        dq = np.zeros(chain.n_dof)
+        dq[i] = h
+        grad[i] = (energy(chain, q + dq, zero)[1] - energy(chain, q - dq, zero)[1]) / (2 * h)
+    assert rel(grad, g) < 1e-7
+
+
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+def test_gim_is_the_hessian_of_T(mix, rng):
+    """I(q) = d^2 T / d qd^2, by central differences of T in qd (T is quadratic: exact)."""
+    chain = random_chain(rng, 5, mix)
+    q, qd, _ = random_state(rng, chain)
+    n, h = chain.n_dof, 1e-3
+    H = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            ei, ej = np.eye(n)[i] * h, np.eye(n)[j] * h
+            T = [energy(chain, q, qd + si * ei + sj * ej)[0] for si, sj in
+                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+            H[i, j] = (T[0] - T[1] - T[2] + T[3]) / (4 * h * h)
+    assert rel(H, mass_matrix(chain, q)) < 1e-8
+
+
+@pytest.mark.parametrize("method", ["ge-n", "rge-n"])
+@pytest.mark.parametrize("mix", ALL_JOINT_MIXES, ids=MIX_IDS)
+def test_numerical_eliminations_solve_the_gim(method, mix, rng):
+    chain = random_chain(rng, 6, mix)
+    q, qd, tau = random_state(rng, chain, "straight")
+    ref = np.linalg.solve(mass_matrix(chain, q), phi(chain, q, qd, tau))
+    assert rel(forward_dynamics(chain, q, qd, tau, method=method), ref) < 1e-10
+
+
+@pytest.mark.parametrize("n_links", [1, 2, 10, 200])
+def test_planar_specialisation_equals_spatial(n_links, rng):
+    chain = random_chain(rng, n_links, ("R",), general_axes=False)
+    chain = type(chain).build(
+        [l for l in _links(chain)], ["R"] * n_links, gravity=(0.3, -9.81, 0.0))
+    assert chain.is_planar
+    q, qd, tau = random_state(rng, chain)
+    ws = Workspace(chain)
+    planar = forward_dynamics(chain, q, qd, tau, planar=True, ws=ws)
+    spatial = forward_dynamics(chain, q, qd, tau, planar=False, ws=ws)
+    cond = np.linalg.cond(mass_matrix(chain, q))
+    assert rel(planar, spatial) < max(1e-12, 10 * cond * EPS)
+
+
+def _links(chain):
+    from redysim import Link
+
+    for k in range(chain.n_links):
+        yield Link(chain.length[k], chain.mass[k], tuple(chain.com[k]),
+                   tuple(map(tuple, chain.inertia_com[k])))
+
+
+def test_workspace_reuse_gives_identical_results(rng):
+    chain = random_chain(rng, 20, ("U",))
+    ws = Workspace(chain)
+    q, qd, tau = random_state(rng, chain)
+    a = forward_dynamics(chain, q, qd, tau, ws=ws).copy()
+    forward_dynamics(chain, -q, qd, -tau, ws=ws)
+    b = forward_dynamics(chain, q, qd, tau, ws=ws)
+    assert np.array_equal(a, b)
