@@ -1,0 +1,136 @@
+"""MuJoCo adapter, built programmatically with ``mujoco.MjSpec`` (no XML).
+
+What the model contains and why (DESIGN.md sections 5-6):
+
+- one body per link, nested (a chain), at ``pos = (l_{k-1}, 0, 0)`` in its parent; a U joint is two
+  hinge joints in the same body, axis y then z (MuJoCo composes a body's joints in order, so the
+  second axis is the rotated z: R = Ry(q1) Rz(q2)); an R joint is one hinge about z.
+- ``explicitinertial`` with mass, ``ipos`` = COM and the inertia's principal moments + ``iquat``
+  (the eigen-decomposition of ``chain.inertia_com``, done here). No geoms at all: nothing to
+  collide, nothing to draw, and no inertia inferred from geometry.
+- ``option.disableflags = CONTACT | CONSTRAINT``: the scene has no contacts, limits or equality
+  constraints, so the constraint solver must not run (``qacc`` then equals ``qacc_smooth``).
+  ``enableflags = ENERGY`` so ``data.energy`` holds (V, T). Joint damping, armature, friction
+  loss, stiffness and limits are left at their zero/off defaults and asserted zero after compile.
+- ``compiler.balanceinertia`` only when a link's inertia violates the triangle inequality (the
+  paper's rod model does, DESIGN.md section 2); the exact principal moments are then written back
+  into ``model.body_inertia`` after compiling.
+- ``option.gravity = chain.gravity``.
+
+``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
+``bias`` is ``-qfrc_bias``; ``energy`` is ``data.energy`` = (V, T) reordered.
+``simulate`` uses ``mj_step`` with ``mjINT_RK4`` at the fixed step h.
+
+Limits: MuJoCo refuses a body tree deeper than 1,024 ("depth limit exceeded in signature
+computation"), and compile time grows ~n^3 (references/limits.toml).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Engine
+
+
+def _principal(I):
+    """Principal moments and the (w, x, y, z) quaternion of the principal axes (det +1)."""
+    w, V = np.linalg.eigh(I)
+    if np.linalg.det(V) < 0:
+        V[:, 0] = -V[:, 0]
+    import mujoco
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(V).ravel())
+    return w, quat
+
+
+class MuJoCo(Engine):
+    """MuJoCo ``mj_forward`` on an MjSpec-built chain (see the module docstring)."""
+
+    name = "mujoco"
+    package = "mujoco"
+    module = "mujoco"
+    integrator = "mj_step, mjINT_RK4, fixed step"
+
+    def _build(self):
+        mj = self.lib
+        c = self.chain
+        spec = mj.MjSpec()
+        spec.option.gravity = np.asarray(c.gravity, dtype=float)
+        spec.option.disableflags |= int(mj.mjtDisableBit.mjDSBL_CONTACT)
+        spec.option.disableflags |= int(mj.mjtDisableBit.mjDSBL_CONSTRAINT)
+        spec.option.enableflags |= int(mj.mjtEnableBit.mjENBL_ENERGY)
+        spec.option.integrator = int(mj.mjtIntegrator.mjINT_RK4)
+        spec.compiler.inertiafromgeom = int(mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
+        principal = []
+        balance = False
+        parent = spec.worldbody
+        for k, kind in enumerate(self.kinds):
+            body = parent.add_body()
+            body.name = f"link{k}"
+            body.pos = [c.length[k - 1], 0.0, 0.0] if k > 0 else [0.0, 0.0, 0.0]
+            body.explicitinertial = True
+            body.mass = float(c.mass[k])
+            body.ipos = np.array(c.com[k])
+            w, quat = _principal(np.array(c.inertia_com[k]))
+            principal.append(w)
+            balance |= bool(w[0] + w[1] < w[2] or w[0] + w[2] < w[1] or w[1] + w[2] < w[0])
+            body.inertia = w
+            body.iquat = quat
+            axes = ([0.0, 0.0, 1.0],) if kind == "R" else ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+            for i, axis in enumerate(axes):
+                j = body.add_joint()
+                j.name = f"j{k}_{i}"
+                j.type = mj.mjtJoint.mjJNT_HINGE
+                j.axis = axis
+            parent = body
+        spec.compiler.balanceinertia = balance
+        model = spec.compile()
+        model.body_inertia[1:] = np.array(principal)  # exact moments (balanceinertia moved them)
+        for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness"):
+            assert not np.any(getattr(model, name)), name
+        self.model, self.data = model, mj.MjData(model)
+        self.last_body = model.nbody - 1
+        if model.nv != c.n_dof:
+            raise AssertionError(f"model has nv={model.nv}, chain {c.n_dof}")
+
+    def _forward(self, q, qd, tau=None):
+        d = self.data
+        d.qpos[:] = q
+        d.qvel[:] = qd
+        d.qfrc_applied[:] = 0.0 if tau is None else tau
+        self.lib.mj_forward(self.model, d)
+        return d
+
+    def _qdd(self, q, qd, tau):
+        return self._forward(q, qd, tau).qacc.copy()
+
+    def _mass_matrix(self, q):
+        d = self._forward(q, np.zeros_like(q))
+        n = self.model.nv
+        M = np.zeros((n, n))
+        self.lib.mj_fullM(self.model, d, M)
+        return M
+
+    def _bias(self, q, qd):
+        return -self._forward(q, qd).qfrc_bias.copy()
+
+    def _energy(self, q, qd):
+        e = self._forward(q, qd).energy
+        return e[1], e[0]  # MuJoCo stores (potential, kinetic)
+
+    def _tip(self, q, qd):
+        d = self._forward(q, qd)
+        R = d.xmat[self.last_body].reshape(3, 3)
+        return d.xpos[self.last_body] + R @ np.array([self.chain.length[-1], 0.0, 0.0])
+
+    def _sim_reset(self, q0, qd0, h):
+        self.model.opt.timestep = h
+        self.lib.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = q0
+        self.data.qvel[:] = qd0
+
+    def _sim_step(self):
+        self.lib.mj_step(self.model, self.data)
+
+    def _sim_state(self):
+        return self.data.qpos.copy(), self.data.qvel.copy()
