@@ -1,0 +1,62 @@
+# redysim: the front door. `make reproduce` and `make test` set everything up on a fresh machine.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+EXTRAS := test,harness,engines
+STAMP  := $(VENV)/.installed
+export PYTHONDONTWRITEBYTECODE := 1
+
+.PHONY: help venv test test-fast reproduce bench bench-core bench-engines lint constraints clean
+
+help:
+	@echo "make reproduce     venv + install + quick reproduction of the paper (prints results)"
+	@echo "make test          venv + install + the test suite"
+	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart)"
+	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF"
+	@echo "make lint          ruff"
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+# Reinstall when the project's dependency declarations change.
+$(STAMP): pyproject.toml requirements/constraints.txt | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -c requirements/constraints.txt -e ".[$(EXTRAS)]"
+	@touch $@
+
+venv: $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -m "not slow and not engine"
+
+reproduce: $(STAMP)
+	$(BIN)/python -m reports.reproduce
+
+bench: bench-core
+
+bench-core: $(STAMP)
+	@mkdir -p results/bench
+	$(BIN)/python benchmarks/jit_times.py
+	$(BIN)/python -m pytest benchmarks/test_bench_core.py --benchmark-only --benchmark-enable \
+		--benchmark-columns=min,median,mean,rounds --benchmark-sort=name \
+		--benchmark-json=results/bench/core.json
+
+bench-engines: $(STAMP)
+	@mkdir -p results/bench
+	$(BIN)/python -m pytest benchmarks/test_bench_engines.py --benchmark-only --benchmark-enable \
+		--benchmark-json=results/bench/engines.json
+	$(BIN)/python -m references.report_bench results/bench/engines.json
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+constraints: $(BIN)/python
+	{ echo "# Exact versions the project was tested with (pip constraints: install with -c)."; \
+	  echo "# Regenerate with 'make constraints' after an upgrade, then run 'make test'."; \
+	  $(BIN)/python -m pip freeze | grep -v -i "^-e\|^redysim\|^#"; } > requirements/constraints.txt
+
+clean:
+	rm -rf $(VENV) results .pytest_cache .benchmarks

@@ -1,0 +1,74 @@
+"""qdd per call: the core's RGE-A on U chains of 200..100,000 DOF, pin.aba beside it where it can
+be built; and the planar specialisation's gain over the spatial recursion on R chains.
+
+Run with ``make bench`` (pytest-benchmark). Kernels are warmed up (compiled or loaded from the
+on-disk cache) before timing; ``benchmarks/jit_times.py`` reports the compile and load times apart.
+Ratios are read from one run: ``make bench`` prints both columns side by side.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from redysim import Chain, Workspace, forward_dynamics
+
+U_DOF = [200, 2_000, 20_000, 100_000]
+# pin.Data allocates nv^3 tensors (DESIGN.md section 5): 0.5 GB at 200 DOF, 13.4 GB at 600 DOF.
+PIN_MAX_DOF = 400
+
+
+def u_chain(dof):
+    return Chain.uniform(dof // 2, "U", length=0.02, linear_density=7850 * np.pi * 0.05**2,
+                         radius=0.05, inertia="rod", name=f"U{dof // 2}")
+
+
+def state(chain, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-0.3, 0.3, chain.n_dof), rng.normal(size=chain.n_dof)
+
+
+@pytest.mark.parametrize("dof", U_DOF)
+def test_rge_a_u_chain(benchmark, record, dof):
+    chain = u_chain(dof)
+    ws, out = Workspace(chain), np.empty(chain.n_dof)
+    q, qd = state(chain)
+    forward_dynamics(chain, q, qd, ws=ws, out=out)  # warm-up: JIT compile or cache load
+    benchmark.group = "qdd, U chains"
+    benchmark(forward_dynamics, chain, q, qd, ws=ws, out=out)
+    record.update(dof=dof, engine="redysim rge-a", ns_per_dof=benchmark.stats.stats.min / dof * 1e9)
+
+
+@pytest.mark.parametrize("dof", [d for d in U_DOF if d <= PIN_MAX_DOF])
+def test_pinocchio_aba_u_chain(benchmark, record, dof):
+    pin = pytest.importorskip("pinocchio")
+    chain = u_chain(dof)
+    model = pin.Model()
+    parent = 0
+    for k in range(chain.n_links):
+        placement = pin.SE3(np.eye(3), np.array([chain.length[k - 1] if k else 0.0, 0.0, 0.0]))
+        joint = pin.JointModelUniversal(np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
+        parent = model.addJoint(parent, joint, placement, f"j{k}")
+        model.appendBodyToJoint(parent, pin.Inertia(chain.mass[k], chain.com[k].copy(),
+                                                    chain.inertia_com[k].copy()), pin.SE3.Identity())
+    model.gravity.linear = chain.gravity.copy()
+    data = pin.Data(model)
+    q, qd = state(chain)
+    tau = np.zeros(chain.n_dof)
+    benchmark.group = "qdd, U chains"
+    benchmark(pin.aba, model, data, q, qd, tau)
+    record.update(dof=dof, engine=f"pinocchio {pin.__version__} aba",
+                  ns_per_dof=benchmark.stats.stats.min / dof * 1e9)
+
+
+@pytest.mark.parametrize("links", [1_000, 100_000])
+@pytest.mark.parametrize("planar", [True, False], ids=["planar", "spatial"])
+def test_planar_gain(benchmark, record, links, planar):
+    chain = Chain.uniform(links, "R", length=1.0, mass=8.83, radius=0.02, inertia="cylinder")
+    ws, out = Workspace(chain), np.empty(chain.n_dof)
+    q, qd = state(chain)
+    forward_dynamics(chain, q, qd, planar=planar, ws=ws, out=out)
+    benchmark.group = f"qdd, planar R chain, {links} links"
+    benchmark(forward_dynamics, chain, q, qd, planar=planar, ws=ws, out=out)
+    record.update(dof=links, engine="planar" if planar else "spatial",
+                  ns_per_dof=benchmark.stats.stats.min / links * 1e9)

@@ -1,0 +1,1 @@
+"""Reports: reproductions of the paper's tables and figures, and the comparison report."""
