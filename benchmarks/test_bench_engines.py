@@ -1,0 +1,116 @@
+"""Side by side: qdd per call for the core and every reference engine on U chains, 20 to
+100,000 DOF, each engine up to its measured limit; and the cost of one native step at 2,000 DOF
+(or the engine's nearest feasible size).
+
+    .venv/bin/python -m pytest benchmarks/test_bench_engines.py --benchmark-only \
+        --benchmark-json=results/bench_engines.json
+    .venv/bin/python -m references.report_bench results/bench_engines.json
+
+The chain is the RE-U steel rod (20 mm links, rod inertia); the state a seeded small-angle one.
+Models are built once per module (build time is not timed here; references/limits.toml has it).
+The core is warmed up (numba JIT) before timing. A size beyond an engine's limit is skipped with
+the limit's reason, never attempted.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+
+import numpy as np
+import pytest
+
+import redysim
+import references
+from redysim import Workspace
+
+pytestmark = pytest.mark.engine
+
+SIZES_DOF = (20, 200, 2000, 20000, 100000)
+STEP_DOF = 2000
+STEP_H = 1e-5  # s; a step length the RE-U chains need (DESIGN.md section 4)
+ENGINES = ("core", *references.ENGINES)
+
+_CHAINS: dict = {}
+_BUILT: dict = {}
+
+
+def chain_of(dof: int) -> redysim.Chain:
+    if dof not in _CHAINS:
+        _CHAINS[dof] = redysim.Chain.uniform(dof // 2, "U", length=0.02, linear_density=61.6538,
+                                             radius=0.05, inertia="rod", name=f"U{dof // 2}")
+    return _CHAINS[dof]
+
+
+def state(chain):
+    rng = np.random.default_rng(0)
+    return rng.uniform(-0.1, 0.1, chain.n_dof), rng.uniform(-0.1, 0.1, chain.n_dof)
+
+
+def machine() -> dict:
+    return {"machine": platform.machine(), "processor": platform.processor() or "unknown",
+            "cpus": os.cpu_count(), "python": platform.python_version(),
+            "numpy": np.__version__, "redysim": redysim.__version__}
+
+
+def engine_for(name: str, dof: int):
+    cls = references.get(name)
+    if not cls.available():
+        pytest.skip(f"{name}: package {cls.package!r} not installed")
+    chain = chain_of(dof)
+    lim = cls.limits(chain)
+    if not lim.ok:
+        pytest.skip(lim.reason)
+    key = (name, dof)
+    if key not in _BUILT:
+        _BUILT.clear()  # keep one model at a time: the large ones are hundreds of MiB
+        _BUILT[key] = cls(chain)
+    return _BUILT[key]
+
+
+@pytest.mark.parametrize("dof", SIZES_DOF)
+@pytest.mark.parametrize("name", ENGINES)
+def test_qdd(benchmark, name, dof):
+    benchmark.group = f"qdd-{dof}"
+    chain = chain_of(dof)
+    q, qd = state(chain)
+    info = {"engine": name, "dof": dof, "kind": "qdd", **machine()}
+    if name == "core":
+        ws = Workspace(chain)
+        redysim.forward_dynamics(chain, q, qd, ws=ws)  # JIT warm-up, not timed
+        info["version"] = redysim.__version__
+        benchmark.extra_info.update(info)
+        out = benchmark(redysim.forward_dynamics, chain, q, qd, ws=ws)
+    else:
+        eng = engine_for(name, dof)
+        info["version"] = eng.version
+        benchmark.extra_info.update(info)
+        out = benchmark(eng.qdd, q, qd)
+    assert np.all(np.isfinite(out))
+
+
+def step_dof(name: str) -> int:
+    """STEP_DOF, or the largest even DOF the engine's limit allows below it."""
+    max_dof = references.load_limits()["engine"][name]["max_dof"]
+    return min(STEP_DOF, max_dof - max_dof % 2)
+
+
+@pytest.mark.parametrize("name", list(references.ENGINES))
+def test_native_step(benchmark, name):
+    """One native step from the same state each round (the state is reset, untimed, before each
+    round: a long run of steps would time a drifting state, and stock pin.aba reaches NaN)."""
+    dof = step_dof(name)
+    benchmark.group = "native-step"
+    eng = engine_for(name, dof)
+    q, qd = state(eng.chain)
+    eng.sim_reset(q, qd, STEP_H)
+    t0 = time.perf_counter()
+    eng.step_once()
+    rounds = int(min(200, max(3, 2.0 / max(time.perf_counter() - t0, 1e-9))))
+    benchmark.extra_info.update({"engine": name, "dof": dof, "kind": "step", "h": STEP_H,
+                                 "integrator": eng.integrator, "version": eng.version,
+                                 **machine()})
+    benchmark.pedantic(eng.step_once, setup=lambda: eng.sim_reset(q, qd, STEP_H),
+                       rounds=rounds, iterations=1, warmup_rounds=1)
+    assert np.all(np.isfinite(eng._sim_state()[0]))
