@@ -223,7 +223,12 @@ class Engine:
         self._sim_step()
 
     def sim_reset(self, q0, qd0, h: float) -> None:
+        """Set the native stepper's state and step (before :meth:`step_once`)."""
         self._sim_reset(check_vec(self.chain, "q0", q0), check_vec(self.chain, "qd0", qd0), h)
+
+    def sim_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qd) of the native stepper now."""
+        return self._sim_state()
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.chain.name!r}, {self.chain.n_dof} DOF)"

@@ -1,0 +1,67 @@
+"""Where a result came from: package versions, the machine, the git commit, the date."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import functools
+import os
+import platform
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = ("numpy", "scipy", "numba")
+
+
+def _version(dist: str) -> str:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return ""
+
+
+@functools.cache
+def cpu_model() -> str:
+    """The processor's model name (Linux /proc/cpuinfo, else platform.processor())."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+@functools.cache
+def git_commit() -> str:
+    """The checkout's commit (with ``+dirty`` when the tree has changes), or "" outside git."""
+    try:
+        out = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short=12", "HEAD"],
+                             capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain",
+                                "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+        return out + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+@functools.cache
+def _static() -> dict[str, str]:
+    return {
+        "python": platform.python_version(),
+        **{pkg: _version(pkg) for pkg in PACKAGES},
+        "redysim": _version("redysim"),
+        "machine": f"{platform.system()} {platform.machine()}, {os.cpu_count()} cores",
+        "cpu": cpu_model(),
+        "git_commit": git_commit(),
+    }
+
+
+def provenance(engine_version: str = "") -> dict[str, str]:
+    """One flat dict of provenance columns for a result row."""
+    return {**_static(), "engine_version": engine_version,
+            "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "executable": sys.executable}

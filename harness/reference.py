@@ -1,0 +1,138 @@
+"""Reference solutions: each case integrated at tight tolerance with the core, cached on disk.
+
+The reference of (case, horizon, sample interval) is the core's RGE-A integrated by our DOP853
+under ode45's max-norm control at ``REF_RTOL`` (atol = ``REF_ATOL``); it is checked by an
+independent integrator, SciPy's DOP853 (RMS norm) at ``CHECK_RTOL``, and the max tip distance
+between the two is stored as ``tol_estimate``, an estimate of the reference's own error.
+
+Why not tighter: qdd of a long chain carries rounding noise of order eps x cond(GIM) x |qdd|
+relative (cond ~ 4 nl^4), and a max-norm error test at a tolerance below that noise takes tiny
+steps without gaining accuracy (measured on RE-U125-L1 over 0.05 s: 147 steps at rtol = atol =
+1e-10, 18,208 at 1e-12, where the error estimate stopped scaling with h). Over 0.2 s the tip of
+our DOP853 at 1e-9, 1e-10, 1e-11 and SciPy's DOP853 at 1e-12..1e-14 agree to 7e-15 m. Error
+measures of a run against the reference: the max tip-position error over the samples and the
+final-state error (``harness.run``).
+
+The cache key is a hash of the case file's bytes, the horizon, the interval and the settings, so
+editing a case invalidates its references. Files are ``.npz`` written atomically (temp file +
+``os.replace``) under ``results/reference/`` (``REDYSIM_RESULTS`` moves ``results/``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from redysim import Workspace, forward_dynamics, tip
+from redysim.integrate import advance, make_solver, sample_times
+
+from .provenance import REPO
+
+REF_METHOD = "dop853"
+REF_RTOL = 1e-10
+REF_ATOL = 1e-10
+CHECK_METHOD = "scipy-DOP853"
+CHECK_RTOL = 1e-13
+
+
+def results_dir() -> Path:
+    return Path(os.environ.get("REDYSIM_RESULTS", REPO / "results"))
+
+
+@dataclass
+class Reference:
+    """Samples ``t`` (m,), full states ``y`` (m, 2n), tip positions ``tip`` (m, 3)."""
+
+    t: np.ndarray
+    y: np.ndarray
+    tip: np.ndarray
+    tol_estimate: float
+    steps: int
+    nfev: int
+    cpu_s: float
+
+
+def _key(case, t_end: float, interval: float, rtol: float = REF_RTOL) -> str:
+    blob = json.dumps({"case": case.path.read_bytes().hex(), "t_end": t_end, "dt": interval,
+                       "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL]})
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def reference_path(case, t_end: float, interval: float) -> Path:
+    return results_dir() / "reference" / f"{case.name}-{_key(case, t_end, interval)}.npz"
+
+
+def load_reference(case, t_end: float, interval: float) -> Reference | None:
+    """The cached reference, or None."""
+    p = reference_path(case, t_end, interval)
+    if not p.exists():
+        return None
+    with np.load(p) as z:
+        return Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]), int(z["steps"]),
+                         int(z["nfev"]), float(z["cpu_s"]))
+
+
+def _solve(case, t_end, interval, method, rtol):
+    chain, n = case.chain, case.chain.n_dof
+    ws = Workspace(chain)
+
+    def rhs(_t, y):
+        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
+
+    ts = sample_times(0.0, t_end, interval)
+    ys = []
+    cpu0 = time.process_time()
+    solver = make_solver(rhs, 0.0, np.concatenate((case.q0, case.qd0)), t_end, method,
+                         rtol=rtol, atol=rtol)
+    status, msg = advance(solver, ts, on_sample=lambda t, y: ys.append(y))
+    if status != 0:
+        raise RuntimeError(f"reference of {case.name} failed: {msg}")
+    Y = np.array(ys)
+    P = np.array([tip(chain, y[:n], y[n:], ws=ws).position for y in Y])
+    return ts, Y, P, solver.counters, time.process_time() - cpu0
+
+
+def compute_reference(case, t_end: float, interval: float, *, force: bool = False) -> Reference:
+    """Compute (or load) and cache the reference of ``case`` over [0, t_end], sampled at
+    ``interval``."""
+    p = reference_path(case, t_end, interval)
+    if p.exists() and not force:
+        return load_reference(case, t_end, interval)
+    ts, Y, P, cnt, cpu = _solve(case, t_end, interval, REF_METHOD, REF_RTOL)
+    _, _, P_check, _, _ = _solve(case, t_end, interval, CHECK_METHOD, CHECK_RTOL)
+    est = float(np.linalg.norm(P - P_check, axis=1).max())
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, suffix=".npz.tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, t=ts, y=Y, tip=P, tol_estimate=est, steps=cnt.steps, nfev=cnt.nfev,
+                     cpu_s=cpu)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return Reference(ts, Y, P, est, cnt.steps, cnt.nfev, cpu)
+
+
+def ensure_references(specs) -> dict[tuple, Reference]:
+    """Compute the missing references of a list of RunSpecs (once per case, horizon, interval)."""
+    from redysim import load_case
+
+    from .run import horizon
+
+    out = {}
+    for spec in specs:
+        case = load_case(spec.case)
+        key = (spec.case, *horizon(spec, case))
+        if key not in out:
+            out[key] = compute_reference(case, *key[1:])
+    return out

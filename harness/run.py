@@ -1,0 +1,246 @@
+"""Execute one run: a case, simulated by one engine and algorithm with one integrator.
+
+:func:`execute` never raises for a run that goes wrong: a NaN, an energy blow-up past the spec's
+bound, an engine's refusal or a missing package, a time limit, any exception: the result's
+``status`` is ``"failed"`` and ``reason`` says why, with the samples finished before it.
+
+Per sample (the spec's interval): tip position, velocity and acceleration, E = T + V and
+delta_M = (E - E0) / M (Eq. 11), all computed by the core from the run's state (the energy is a
+measurement, the same for every engine). The tip acceleration needs qdd at the sample: one extra
+call of the run's own qdd per sample, not counted in ``nfev`` (the integrator's count).
+
+Per run: steps, rejected steps, RHS evaluations, CPU and wall time of the integration, the JIT
+compile (or cache load) of the first qdd call and an engine's model build, both timed apart and
+excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance; and, when a cached
+reference solution exists for the case, horizon and sampling (:mod:`harness.reference`), the max
+tip-position error over the samples and the final-state error against it.
+"""
+
+from __future__ import annotations
+
+import math
+import resource
+import time
+import traceback
+from dataclasses import dataclass
+
+import numpy as np
+
+from redysim import energy, forward_dynamics, load_case, tip
+from redysim.integrate import FIXED_STEP, advance, make_solver, sample_times
+
+from .provenance import provenance
+from .spec import CORE, NATIVE, RunSpec
+
+SAMPLE_COLUMNS = ("run_id", "t", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz",
+                  "tip_ax", "tip_ay", "tip_az", "E", "delta_M")
+DEFAULT_SAMPLES = 20  # samples over the horizon when neither the spec nor the case gives one
+
+
+@dataclass
+class RunResult:
+    """``summary``: one row (dict); ``samples``: a pandas DataFrame with :data:`SAMPLE_COLUMNS`."""
+
+    spec: RunSpec
+    summary: dict
+    samples: object  # pandas.DataFrame
+
+    @property
+    def ok(self) -> bool:
+        return self.summary["status"] == "ok"
+
+
+class RunFailed(Exception):
+    """Raised inside a run to stop it with a reason (caught by :func:`execute`)."""
+
+
+def peak_rss_mib() -> float:
+    """Peak resident set size of this process so far [MiB] (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def horizon(spec: RunSpec, case) -> tuple[float, float]:
+    """(t_end, sample interval) of a run: the spec's, else the case's."""
+    t_end = spec.t_end or case.t_end
+    sample = spec.sample or case.simulation.get("sample_interval") or t_end / DEFAULT_SAMPLES
+    return float(t_end), float(min(sample, t_end))
+
+
+class _Dynamics:
+    """The run's qdd: the core (RGE-A, GE-N or RGE-N) or a reference engine's."""
+
+    def __init__(self, spec: RunSpec, case):
+        self.chain = case.chain
+        self.n = self.chain.n_dof
+        self.build_s = 0.0
+        self.engine = None
+        if spec.engine == CORE:
+            from redysim import Workspace
+
+            self.ws = Workspace(self.chain)
+            self.method = spec.method or "rge-a"
+            self.version = ""
+        else:
+            import references
+
+            cls = references.get(spec.engine)
+            lim = cls.limits(case)
+            if not lim.ok:
+                raise RunFailed(f"refused by the engine: {lim.reason}")
+            t0 = time.perf_counter()
+            self.engine = cls(case)
+            self.build_s = time.perf_counter() - t0
+            self.version = self.engine.version
+
+    def qdd(self, q, qd) -> np.ndarray:
+        if self.engine is not None:
+            return self.engine.qdd(q, qd)
+        return forward_dynamics(self.chain, q, qd, method=self.method, ws=self.ws)
+
+    def rhs(self, _t, y):
+        n = self.n
+        return np.concatenate((y[n:], self.qdd(y[:n], y[n:])))
+
+
+def execute(spec: RunSpec, *, reference=True) -> RunResult:
+    """Run ``spec`` and return its summary row and samples (never raises for a failing run).
+
+    ``reference``: compare with the cached reference solution when one exists (True), or not.
+    """
+    import pandas as pd
+
+    row = {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "ok",
+           "reason": "", "steps": 0, "rejected": 0, "nfev": 0, "cpu_s": math.nan,
+           "wall_s": math.nan, "jit_s": math.nan, "build_s": math.nan, "peak_rss_mib": math.nan,
+           "n_dof": 0, "E0": math.nan, "avg_abs_delta_M": math.nan, "max_abs_delta_M": math.nan,
+           "t_reached": 0.0, "n_samples": 0, "max_tip_err": math.nan, "final_state_err": math.nan,
+           "ref_tol_estimate": math.nan}
+    samples: list[tuple] = []
+    last = {}  # the state at the last sample, for the final-state error
+    engine_version = ""
+    try:
+        case = load_case(spec.case)
+        row["n_dof"] = case.chain.n_dof
+        dyn = _Dynamics(spec, case)
+        engine_version = dyn.version
+        row["build_s"] = dyn.build_s
+        _integrate(spec, case, dyn, row, samples, last)
+    except RunFailed as exc:
+        row.update(status="failed", reason=str(exc))
+    except Exception as exc:  # an engine's or the core's error: recorded, never raised
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        row.update(status="failed", reason=f"{type(exc).__name__}: {exc} "
+                                           f"(at {last.filename.rsplit('/', 1)[-1]}:{last.lineno})")
+    df = pd.DataFrame(samples, columns=SAMPLE_COLUMNS)
+    if len(df):
+        row["avg_abs_delta_M"] = float(df["delta_M"].abs().mean())
+        row["max_abs_delta_M"] = float(df["delta_M"].abs().max())
+        row["t_reached"] = float(df["t"].iloc[-1])
+    row["n_samples"] = len(df)
+    row["peak_rss_mib"] = peak_rss_mib()
+    if reference and row["status"] == "ok" and len(df):
+        _compare_with_reference(spec, row, df, last.get("y"))
+    row.update(provenance(engine_version))
+    return RunResult(spec, row, df)
+
+
+def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict):
+    chain, n = case.chain, case.chain.n_dof
+    t_end, interval = horizon(spec, case)
+    ts = sample_times(0.0, t_end, interval)
+    y0 = np.concatenate((case.q0, case.qd0))
+    T0, V0 = energy(chain, case.q0, case.qd0)
+    E0 = T0 + V0
+    row["E0"] = E0
+    run_id, mass, bound = spec.run_id, chain.total_mass, spec.energy_bound
+
+    def on_sample(t, y):
+        q, qd = y[:n], y[n:]
+        qdd = dyn.qdd(q, qd)
+        tp = tip(chain, q, qd, qdd)
+        T, V = energy(chain, q, qd)
+        dM = (T + V - E0) / mass
+        samples.append((run_id, t, *tp.position, *tp.velocity, *tp.acceleration, T + V, dM))
+        last["y"] = y
+        if not math.isfinite(dM):
+            return f"non-finite energy at t = {t:.6g}"
+        if bound and abs(dM) > bound:
+            return (f"energy blow-up: |delta_M| = {abs(dM):.3g} J/kg > bound {bound:g} "
+                    f"at t = {t:.6g}")
+        return None
+
+    t0 = time.perf_counter()
+    dyn.rhs(0.0, y0)  # the first qdd call: JIT compile or on-disk cache load, timed apart
+    row["jit_s"] = time.perf_counter() - t0
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    deadline = wall0 + spec.max_wall_s if spec.max_wall_s else math.inf
+
+    if spec.integrator == NATIVE:
+        status, msg = _native(spec, dyn, case, t_end, ts, on_sample, deadline, row)
+    else:
+        if spec.integrator in FIXED_STEP and not spec.h > 0:
+            raise RunFailed(f"integrator {spec.integrator!r} needs a step h > 0")
+        solver = make_solver(dyn.rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
+                             atol=spec.atol, h=spec.h or None)
+
+        def on_step(s):
+            if time.perf_counter() > deadline:
+                return f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at t = {s.t:.6g}"
+            return None
+
+        status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
+        c = solver.counters
+        row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev)
+    row["cpu_s"] = time.process_time() - cpu0
+    row["wall_s"] = time.perf_counter() - wall0
+    if status != 0:
+        raise RunFailed(msg)
+
+
+def _native(spec, dyn, case, t_end, ts, on_sample, deadline, row):
+    """The engine's own fixed-step stepper; samples must fall on whole steps."""
+    if dyn.engine is None:
+        raise RunFailed("integrator 'native' needs a reference engine (the core has no native "
+                        "stepper: use 'rk4' with a step h)")
+    h = spec.h
+    if not h > 0:
+        raise RunFailed("integrator 'native' needs a step h > 0")
+    per = ts / h
+    if np.abs(per - np.round(per)).max() > 1e-6:
+        raise RunFailed(f"native stepping: sample times must be whole multiples of h = {h:g}")
+    marks = np.round(per).astype(int)
+    eng = dyn.engine
+    eng.sim_reset(case.q0, case.qd0, h)
+    n_steps = int(marks[-1])
+    i = 0
+    for step in range(n_steps + 1):
+        if step:
+            eng.step_once()
+            row["steps"] = step
+        while i < marks.size and marks[i] == step:
+            q, qd = eng.sim_state()
+            if not (np.isfinite(q).all() and np.isfinite(qd).all()):
+                return -1, f"non-finite state at t = {ts[i]:.6g}"
+            if msg := on_sample(float(ts[i]), np.concatenate((q, qd))):
+                return 1, msg
+            i += 1
+        if time.perf_counter() > deadline:
+            return 1, (f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at "
+                       f"t = {step * h:.6g}")
+    row["nfev"] = -1  # the engine's stepper does not report its qdd calls
+    return 0, "ok"
+
+
+def _compare_with_reference(spec: RunSpec, row: dict, df, y_final) -> None:
+    from .reference import load_reference
+
+    case = load_case(spec.case)
+    t_end, interval = horizon(spec, case)
+    ref = load_reference(case, t_end, interval)
+    if ref is None or len(ref.t) != len(df):
+        return
+    pos = df[["tip_x", "tip_y", "tip_z"]].to_numpy()
+    row["max_tip_err"] = float(np.linalg.norm(pos - ref.tip, axis=1).max())
+    row["ref_tol_estimate"] = ref.tol_estimate
+    if y_final is not None:
+        row["final_state_err"] = float(np.abs(y_final - ref.y[-1]).max())

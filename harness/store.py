@@ -1,0 +1,112 @@
+"""Atomic file writes and their readers: a reader sees the old file or the new, never a torn one.
+
+Every writer here writes to a temporary file in the destination's directory (same file system),
+flushes and fsyncs it, then renames it over the destination with :func:`os.replace` (atomic on
+POSIX and Windows) and fsyncs the directory so the rename itself survives a power cut. A writer
+killed mid-write (``kill -9``) leaves at most a stray temporary file, named
+``.<name>.<random>.tmp``, which :func:`remove_temp_files` clears::
+
+    from harness.store import write_parquet_atomic, read_parquet
+    write_parquet_atomic(df, "results/runs.parquet")
+    df = read_parquet("results/runs.parquet")
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import pandas as pd
+
+TEMP_PREFIX = "."  # temporary files are hidden, so "*.parquet" globs never see them
+TEMP_SUFFIX = ".tmp"
+PARQUET_SUFFIX = ".parquet"
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (a no-op where directories cannot be opened)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> Path:
+    """Call ``write(fh)`` on a temporary file beside ``path``, then rename it onto ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{TEMP_PREFIX}{path.name}.",
+                               suffix=TEMP_SUFFIX)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+    _fsync_dir(path.parent)
+    return path
+
+
+def write_parquet_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
+    """Write ``df`` (without its index) to the Parquet file ``path`` atomically."""
+    return _write_atomic(path, lambda fh: df.to_parquet(fh, engine="pyarrow", index=False))
+
+
+def write_text_atomic(text: str, path: str | os.PathLike) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    return _write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))
+
+
+def write_json_atomic(obj: Any, path: str | os.PathLike) -> Path:
+    """Write ``obj`` as indented JSON to ``path`` atomically."""
+    return write_text_atomic(json.dumps(obj, indent=1) + "\n", path)
+
+
+def read_parquet(path: str | os.PathLike) -> pd.DataFrame:
+    """One Parquet file as a DataFrame."""
+    return pd.read_parquet(path, engine="pyarrow")
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """One JSON file."""
+    with open(path, encoding="utf-8") as fh:
+        return json.load(fh)
+
+
+def parquet_files(directory: str | os.PathLike) -> dict[str, Path]:
+    """The finished Parquet files in ``directory`` by stem (``{run_id: path}``); {} if none."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        return {}
+    return {p.stem: p for p in sorted(directory.glob(f"*{PARQUET_SUFFIX}"))
+            if not p.name.startswith(TEMP_PREFIX)}
+
+
+def remove_temp_files(directory: str | os.PathLike) -> int:
+    """Delete the temporary files a killed writer left in ``directory``; returns how many.
+
+    Call it only when no writer is active in ``directory``.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        return 0
+    stale = list(directory.glob(f"{TEMP_PREFIX}*{TEMP_SUFFIX}"))
+    for p in stale:
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+    return len(stale)

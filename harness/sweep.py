@@ -1,0 +1,527 @@
+"""Sweeps as data: TOML files declare cross products of runs, run resumably, locally or on Dask.
+
+A sweep file has one table, ``[sweep]``, whose lists multiply into runs (every case x engine x
+method x integrator x tolerance or step)::
+
+    [sweep]
+    name = "smoke"
+    description = "two chains, two integrators, two tolerances"
+    cases = ["STUDY-R3", "RE-U125-L1"]   # names from cases/, or paths of case files
+    engines = ["redysim"]                # default ["redysim"]; others: references.ENGINES
+    methods = ["rge-a"]                  # the core's methods (default ["rge-a"]); engines take none
+    integrators = ["ode45", "rk4"]       # redysim.integrate.INTEGRATORS or "native"
+    rtols = [1e-4, 1e-6]                 # adaptive integrators: one run per rtol
+    atol_ratio = 1e-2                    # atol = rtol * atol_ratio (default); or atols = [...],
+                                         # paired with rtols one to one
+    h = [1e-3]                           # fixed-step integrators (rk4, native): one run per h
+    t_end = 0.01                         # scalars shared by every run (RunSpec's meanings)
+    sample = 0.005
+    energy_bound = 1e3
+    max_wall_s = 60
+
+    [[sweep.product]]                    # another cross product: what it does not give, it
+    engines = ["mujoco", "dart"]         # takes from [sweep]
+    integrators = ["ode45"]
+
+    [[sweep.extra]]                      # one explicit run: RunSpec's fields; t_end, sample,
+    case = "STUDY-R10"                   # energy_bound and max_wall_s default to [sweep]'s
+    integrator = "dop853"
+    rtol = 1e-8
+    atol = 1e-10
+
+A bad file raises :class:`SweepError` naming the file, the field and the value. Runs are
+identified by :attr:`RunSpec.run_id`; a run declared twice is run once.
+
+:func:`run_sweep` writes into ``out_dir``::
+
+    sweep.json                   the plan: name, source and every planned run (atomically)
+    runs/<run_id>.parquet        a finished run's summary row, written as soon as it finishes
+    samples/<run_id>.parquet     its samples (written first: the summary row marks a run done)
+    runs.parquet, samples.parquet  everything, in plan order (:func:`collect`)
+
+Every file is written atomically (:mod:`harness.store`), so a sweep killed at any moment (even
+``kill -9``) and started again skips the runs it finished and redoes only those in flight. At most
+``workers`` runs are in flight on the local pool. A run that fails is a row with ``status =
+"failed"`` and its ``reason``; so is a run whose worker raised or died.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import math
+import multiprocessing
+import os
+import sys
+import tomllib
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from tqdm import tqdm
+
+import references
+from redysim import list_cases, load_case
+from redysim.errors import CaseError, RedysimError
+from redysim.integrate import FIXED_STEP, INTEGRATORS
+
+from .run import execute
+from .spec import CORE, CORE_METHODS, NATIVE, RunSpec
+from .store import (
+    parquet_files,
+    read_json,
+    read_parquet,
+    remove_temp_files,
+    write_json_atomic,
+    write_parquet_atomic,
+)
+
+SWEEP_TABLE = "sweep"
+PRODUCT_TABLE = "product"
+EXTRA_TABLE = "extra"
+LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h")
+SCALAR_FIELDS = ("atol_ratio", "t_end", "sample", "energy_bound", "max_wall_s")
+SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_wall_s")  # handed down to extra runs
+TEXT_FIELDS = ("name", "description")
+BOOL_FIELDS = ("reference",)  # reference = true: compute the cases' reference solutions first
+STRICTLY_POSITIVE = ("atol_ratio", "energy_bound", "rtol", "atol")  # the others may be 0
+STEPPED_INTEGRATORS = (*FIXED_STEP, NATIVE)  # take h values; all others take rtols
+KNOWN_INTEGRATORS = (*INTEGRATORS, NATIVE)
+DEFAULT_ATOL_RATIO = 1e-2  # the paper's ode45 setting: rtol 1e-4, atol 1e-6
+TOL_DIGITS = 12  # atol = rtol * atol_ratio is rounded to 12 significant digits: 1e-06, not
+#                  1.0000000000000002e-06 (the run_id hashes the exact float)
+
+PLAN_FILE = "sweep.json"
+RUNS_DIR = "runs"
+SAMPLES_DIR = "samples"
+RUNS_FILE = "runs.parquet"
+SAMPLES_FILE = "samples.parquet"
+
+POOL_START_METHOD = "spawn"  # fresh interpreters: safe with numba and with threads in the parent
+DASK_LOCAL = "local"  # dask= value that starts a LocalCluster on this machine
+DASK_LOCAL_WORKERS = 2
+DASK_KEY_PREFIX = "redysim-run-"
+DIED = "worker process died (out of memory, a crash in native code, or a signal)"
+
+
+class SweepError(RedysimError, ValueError):
+    """A sweep file is malformed: ``<file>: <field> = <value>: <what is wrong>``."""
+
+    def __init__(self, source: str, field: str, value: Any, problem: str):
+        self.source = source
+        self.field = field
+        self.value = value
+        self.problem = problem
+        shown = field if value is None else f"{field} = {value!r}"
+        super().__init__(f"{source}: {shown}: {problem}")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A loaded sweep file: its name and the runs it declares, in declaration order."""
+
+    name: str
+    specs: tuple[RunSpec, ...]
+    description: str = ""
+    source: str = ""
+    reference: bool = False
+
+
+# --------------------------------------------------------------------------- the sweep file
+def load_sweep(path: str | os.PathLike) -> Sweep:
+    """Read and expand a sweep file; case paths in it are relative to the file's folder."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"sweep file {str(path)!r} does not exist")
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SweepError(str(path), "<toml syntax>", None, str(exc)) from None
+    return sweep_from_dict(doc, source=str(path), base=path.parent)
+
+
+def sweep_from_dict(doc: dict, *, source: str = "<dict>", base: Path | None = None) -> Sweep:
+    """Expand a parsed sweep document (see the module docstring) into a :class:`Sweep`."""
+    check = _Checker(source, Path.cwd() if base is None else base)
+    for key in doc:
+        if key != SWEEP_TABLE:
+            check.fail(key, None, f"unknown table; a sweep file has only [{SWEEP_TABLE}]")
+    table = doc.get(SWEEP_TABLE)
+    if not isinstance(table, dict):
+        check.fail(SWEEP_TABLE, table, f"a sweep file needs a [{SWEEP_TABLE}] table")
+    top = check.fields(table, SWEEP_TABLE, (*TEXT_FIELDS, *BOOL_FIELDS, *LIST_FIELDS,
+                                            *SCALAR_FIELDS, PRODUCT_TABLE, EXTRA_TABLE))
+    reference = table.get("reference", False)
+    if not isinstance(reference, bool):
+        check.fail(f"{SWEEP_TABLE}.reference", reference, "must be true or false")
+    if "cases" not in top:
+        check.fail(f"{SWEEP_TABLE}.cases", None, "missing: list the cases to run")
+    products = [(SWEEP_TABLE, top)]
+    for i, sub in enumerate(check.tables(table, PRODUCT_TABLE)):
+        where = f"{SWEEP_TABLE}.{PRODUCT_TABLE}[{i}]"
+        given = check.fields(sub, where, (*LIST_FIELDS, *SCALAR_FIELDS))
+        inherited = {k: v for k, v in top.items() if k in LIST_FIELDS + SCALAR_FIELDS}
+        if "atols" in given or "atol_ratio" in given:
+            inherited.pop("atols", None)
+            inherited.pop("atol_ratio", None)
+        products.append((where, {**inherited, **given}))
+    specs = [spec for where, settings in products for spec in check.expand(where, settings)]
+    shared = {k: top[k] for k in SHARED_SCALARS if k in top}
+    for i, sub in enumerate(check.tables(table, EXTRA_TABLE)):
+        specs.append(check.extra(f"{SWEEP_TABLE}.{EXTRA_TABLE}[{i}]", sub, shared))
+    name = top.get("name") or Path(source).stem
+    return Sweep(name=name, specs=tuple(unique(specs)), description=top.get("description", ""),
+                 source=source, reference=reference)
+
+
+def unique(specs: Iterable[RunSpec]) -> list[RunSpec]:
+    """``specs`` without repeats (same run_id), in first-seen order."""
+    seen: dict[str, RunSpec] = {}
+    for spec in specs:
+        seen.setdefault(spec.run_id, spec)
+    return list(seen.values())
+
+
+class _Checker:
+    """Validates the fields of one sweep file; every error names the file, field and value."""
+
+    def __init__(self, source: str, base: Path):
+        self.source = source
+        self.base = base
+        self.case_names = set(list_cases())
+        self.engines = (CORE, *references.ENGINES)
+
+    def fail(self, field: str, value: Any, problem: str):
+        raise SweepError(self.source, field, value, problem)
+
+    def tables(self, table: dict, key: str) -> list[dict]:
+        subs = table.get(key, [])
+        if not isinstance(subs, list) or not all(isinstance(s, dict) for s in subs):
+            self.fail(f"{SWEEP_TABLE}.{key}", subs, f"must be tables: [[{SWEEP_TABLE}.{key}]]")
+        return subs
+
+    def fields(self, node: dict, where: str, allowed: Sequence[str]) -> dict:
+        """The checked values of ``node``'s fields (lists and scalars, not sub-tables)."""
+        out = {}
+        for key, value in node.items():
+            field = f"{where}.{key}"
+            if key not in allowed:
+                self.fail(field, value, f"unknown field; allowed: {', '.join(allowed)}")
+            if key in TEXT_FIELDS:
+                out[key] = self.text(field, value)
+            elif key in LIST_FIELDS:
+                out[key] = self.values(field, key, value)
+            elif key in SCALAR_FIELDS:
+                out[key] = self.scalar(field, key, value)
+        return out
+
+    # ----------------------------------------------------------------------- single values
+    def text(self, field: str, value: Any) -> str:
+        if not isinstance(value, str):
+            self.fail(field, value, "must be a string")
+        return value
+
+    def number(self, field: str, value: Any, *, strict: bool) -> float:
+        """A finite number > 0 (``strict``) or >= 0."""
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.fail(field, value, "must be a number")
+        value = float(value)
+        if not math.isfinite(value) or not (value > 0 if strict else value >= 0):
+            self.fail(field, value, "must be a finite number " + ("> 0" if strict else ">= 0"))
+        return value
+
+    def scalar(self, field: str, key: str, value: Any) -> float:
+        return self.number(field, value, strict=key in STRICTLY_POSITIVE)
+
+    def case(self, field: str, value: Any) -> str:
+        """A case name from ``cases/``, or the path of a valid case file (made absolute)."""
+        name = self.text(field, value)
+        if name in self.case_names:
+            return name
+        path = Path(name) if Path(name).is_absolute() else self.base / name
+        if not path.is_file():
+            self.fail(field, value, f"no such case and no such file; known cases: "
+                                    f"{', '.join(sorted(self.case_names))}")
+        try:
+            load_case(path)
+        except CaseError as exc:
+            self.fail(field, value, f"bad case file: {exc}")
+        return str(path.resolve())
+
+    def choice(self, field: str, value: Any, known: Sequence[str], what: str) -> str:
+        value = self.text(field, value)
+        if value not in known:
+            self.fail(field, value, f"unknown {what}; choose from {', '.join(known)}")
+        return value
+
+    def item(self, field: str, key: str, value: Any):
+        if key == "cases":
+            return self.case(field, value)
+        if key == "engines":
+            return self.choice(field, value, self.engines, "engine")
+        if key == "methods":
+            return self.choice(field, value, CORE_METHODS, "method of the core")
+        if key == "integrators":
+            return self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+        return self.number(field, value, strict=True)  # rtols, atols, h
+
+    def values(self, field: str, key: str, value: Any) -> list:
+        if not isinstance(value, list):
+            self.fail(field, value, f"must be a list, e.g. {json.dumps([value], default=str)}")
+        if not value:
+            self.fail(field, value, "must not be empty")
+        return [self.item(f"{field}[{i}]", key, v) for i, v in enumerate(value)]
+
+    # ----------------------------------------------------------------------- expansion
+    def tolerances(self, where: str, settings: dict) -> list[tuple[float, float]]:
+        rtols = settings.get("rtols", [RunSpec.rtol])
+        if "atols" in settings and "atol_ratio" in settings:
+            self.fail(f"{where}.atols", settings["atols"], "give atols or atol_ratio, not both")
+        if "atols" in settings:
+            atols = settings["atols"]
+            if len(atols) != len(rtols):
+                self.fail(f"{where}.atols", atols, f"{len(atols)} atols for {len(rtols)} rtols: "
+                                                   "atols pair with rtols one to one")
+            return list(zip(rtols, atols, strict=True))
+        ratio = settings.get("atol_ratio", DEFAULT_ATOL_RATIO)
+        return [(r, float(f"{r * ratio:.{TOL_DIGITS}g}")) for r in rtols]
+
+    def expand(self, where: str, settings: dict) -> list[RunSpec]:
+        """The cross product one [sweep] or [[sweep.product]] table declares."""
+        integrators = settings.get("integrators", [RunSpec.integrator])
+        stepped = [i for i in integrators if i in STEPPED_INTEGRATORS]
+        if stepped and "h" not in settings:
+            self.fail(f"{where}.h", None, f"missing: integrator {stepped[0]!r} is fixed-step "
+                                          "and needs step sizes, e.g. h = [1e-3]")
+        tols = self.tolerances(where, settings)
+        common = {k: settings[k] for k in SHARED_SCALARS if k in settings}
+        specs = []
+        for case in settings["cases"]:
+            for engine in settings.get("engines", [CORE]):
+                methods = settings.get("methods", [RunSpec.method]) if engine == CORE else [""]
+                for method in methods:
+                    for integrator in integrators:
+                        run = dict(case=case, engine=engine, method=method,
+                                   integrator=integrator, **common)
+                        if integrator in STEPPED_INTEGRATORS:
+                            specs += [RunSpec(**run, h=h) for h in settings["h"]]
+                        else:
+                            specs += [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
+        return specs
+
+    def extra(self, where: str, node: dict, shared: dict) -> RunSpec:
+        """One explicit run of a [[sweep.extra]] table."""
+        allowed = RunSpec.field_names()
+        run = dict(shared)
+        for key, value in node.items():
+            field = f"{where}.{key}"
+            if key not in allowed:
+                self.fail(field, value, f"unknown field; allowed: {', '.join(allowed)}")
+            if key == "case":
+                run[key] = self.case(field, value)
+            elif key == "engine":
+                run[key] = self.choice(field, value, self.engines, "engine")
+            elif key == "method":
+                run[key] = self.choice(field, value, CORE_METHODS, "method of the core")
+            elif key == "integrator":
+                run[key] = self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+            else:
+                run[key] = self.scalar(field, key, value)
+        if "case" not in run:
+            self.fail(f"{where}.case", None, "missing: an extra run needs a case")
+        if run.get("integrator", RunSpec.integrator) in STEPPED_INTEGRATORS and not run.get("h"):
+            self.fail(f"{where}.h", run.get("h"), f"integrator {run['integrator']!r} is "
+                                                  "fixed-step and needs a step h > 0")
+        return RunSpec(**run)
+
+
+# --------------------------------------------------------------------------- running
+def failed_row(spec: RunSpec, reason: str) -> dict:
+    """The summary row of a run that could not report one itself (its worker raised or died)."""
+    return {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "failed",
+            "reason": reason}
+
+
+def run_one(spec: RunSpec) -> tuple[dict, pd.DataFrame]:
+    """Execute one run in a worker: (summary row, samples)."""
+    res = execute(spec)
+    return res.summary, res.samples
+
+
+Result = tuple[RunSpec, dict, pd.DataFrame | None]  # what an executor yields per finished run
+
+
+def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str = "sweep",
+              workers: int | None = None, dask: str | None = None,
+              progress: bool = True, reference: bool = False) -> pd.DataFrame:
+    """Run every spec not yet done in ``out_dir``; return all runs' rows (see :func:`collect`).
+
+    ``workers``: processes of the local pool (default ``os.cpu_count()``). ``dask``: a scheduler
+    address (``"tcp://host:8786"``; its workers need this project installed) or ``"local"`` (a
+    LocalCluster of 2 single-threaded worker processes) instead of the local pool. ``progress``:
+    a progress bar on stderr (runs done, failed, time left). ``name`` goes into sweep.json.
+    ``reference``: first compute (or load from the cache) the reference solution of every
+    pending run's case, horizon and sampling (:mod:`harness.reference`), so that each run reports
+    its error against it. One sweep at a time per ``out_dir``: it starts by deleting the temporary
+    files a killed sweep left there.
+    """
+    specs = unique(specs)
+    out = Path(out_dir)
+    write_json_atomic({"name": name, "n_runs": len(specs),
+                       "runs": [{"run_id": s.run_id, "label": s.label, **s.to_dict()}
+                                for s in specs]}, out / PLAN_FILE)
+    for sub in (RUNS_DIR, SAMPLES_DIR):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+        remove_temp_files(out / sub)
+    done = parquet_files(out / RUNS_DIR)
+    pending = [s for s in specs if s.run_id not in done]
+    failed = sum(_status(done[s.run_id]) != "ok" for s in specs if s.run_id in done)
+    if reference and pending:
+        from .reference import ensure_references
+
+        if progress:
+            print(f"{name}: reference solutions (cached under results/reference/)",
+                  file=sys.stderr)
+        ensure_references(pending)
+    if dask:
+        results = _dask_results(pending, dask, run_one)
+    else:
+        results = _pool_results(pending, workers or os.cpu_count() or 1, run_one)
+    with tqdm(total=len(specs), initial=len(specs) - len(pending), desc=name, unit="run",
+              disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
+        bar.set_postfix(failed=failed)
+        with contextlib.closing(results):
+            for spec, summary, samples in results:
+                _store(out, spec, summary, samples)
+                failed += summary["status"] != "ok"
+                bar.set_postfix(failed=failed, refresh=False)
+                bar.update()
+    return collect(out)
+
+
+def _status(run_file: Path) -> str:
+    return str(read_parquet(run_file)["status"].iloc[0])
+
+
+def _store(out: Path, spec: RunSpec, summary: dict, samples: pd.DataFrame | None) -> None:
+    """Write one finished run: its samples first, then the summary row that marks it done."""
+    if samples is not None:
+        write_parquet_atomic(samples, out / SAMPLES_DIR / f"{spec.run_id}.parquet")
+    write_parquet_atomic(pd.DataFrame([summary]), out / RUNS_DIR / f"{spec.run_id}.parquet")
+
+
+def _pool_results(specs: Sequence[RunSpec], workers: int,
+                  task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
+    """Run ``task`` on a local process pool, yielding each run as it finishes.
+
+    At most ``workers`` runs are submitted at a time, so at most that many are lost to a kill.
+    When a worker process dies, the pool breaks and every run in flight fails with it: a lone
+    one is recorded as failed; several are rerun one at a time in a fresh pool, so that only the
+    run that kills its worker is recorded as failed.
+    """
+    todo, suspects = deque(specs), deque()
+    running: dict = {}  # future -> spec
+    pool = None
+    workers = max(1, min(workers, len(todo)))
+    context = multiprocessing.get_context(POOL_START_METHOD)
+    try:
+        while todo or suspects or running:
+            if pool is None:
+                pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+            source, limit = (suspects, 1) if suspects else (todo, workers)
+            broken = False
+            while source and len(running) < limit:
+                spec = source.popleft()
+                try:
+                    running[pool.submit(task, spec)] = spec
+                except BrokenProcessPool:  # a worker died since the last check: retry this run
+                    source.appendleft(spec)
+                    broken = True
+                    break
+            finished = wait(running, return_when=FIRST_COMPLETED)[0] if running else set()
+            if broken or any(isinstance(fut.exception(), BrokenProcessPool) for fut in finished):
+                wait(running)  # a broken pool fails every run in flight at once
+                finished = set(running)
+                pool.shutdown(wait=True)
+                pool = None
+            lost = []
+            for fut in finished:
+                spec = running.pop(fut)
+                exc = fut.exception()
+                if isinstance(exc, BrokenProcessPool):
+                    lost.append(spec)
+                elif exc is not None:
+                    yield spec, failed_row(spec, f"worker raised {exc!r}"), None
+                else:
+                    yield spec, *fut.result()
+            if len(lost) == 1:
+                yield lost[0], failed_row(lost[0], DIED), None
+            else:
+                suspects.extend(lost)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=not running, cancel_futures=True)
+
+
+def _dask_results(specs: Sequence[RunSpec], address: str,
+                  task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
+    """Run ``task`` on a Dask cluster, yielding each run as it finishes (``as_completed``).
+
+    A worker that dies is retried by the scheduler; a run that keeps killing workers
+    (``KilledWorker``) or raises is recorded as failed.
+    """
+    from distributed import Client, LocalCluster, as_completed
+
+    if not specs:
+        return
+    with contextlib.ExitStack() as stack:
+        if address == DASK_LOCAL:
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=DASK_LOCAL_WORKERS, processes=True, threads_per_worker=1,
+                dashboard_address=None, silence_logs=logging.ERROR))
+            client = stack.enter_context(Client(cluster))
+        else:
+            client = stack.enter_context(Client(address))
+        futures = {client.submit(task, spec, key=DASK_KEY_PREFIX + spec.run_id, pure=False): spec
+                   for spec in specs}
+        for fut in as_completed(futures):
+            spec = futures.pop(fut)
+            try:
+                summary, samples = fut.result()
+            except Exception as exc:
+                summary, samples = failed_row(spec, f"worker raised {exc!r}"), None
+            fut.release()
+            yield spec, summary, samples
+
+
+# --------------------------------------------------------------------------- results
+def collect(out_dir: str | os.PathLike) -> pd.DataFrame:
+    """Consolidate ``out_dir``'s finished runs into runs.parquet and samples.parquet.
+
+    Rows follow the plan's order (sweep.json; run_id order without one), so the tables do not
+    depend on which run finished first. Runs not in the plan (left by an earlier version of the
+    sweep) are left out; planned runs not yet finished are simply absent. Returns the runs.
+    """
+    out = Path(out_dir)
+    run_files = parquet_files(out / RUNS_DIR)
+    sample_files = parquet_files(out / SAMPLES_DIR)
+    plan = out / PLAN_FILE
+    order = [r["run_id"] for r in read_json(plan)["runs"]] if plan.exists() else list(run_files)
+    ids = [run_id for run_id in order if run_id in run_files]
+    runs = _concat(read_parquet(run_files[i]) for i in ids)
+    samples = _concat(read_parquet(sample_files[i]) for i in ids if i in sample_files)
+    write_parquet_atomic(samples, out / SAMPLES_FILE)
+    write_parquet_atomic(runs, out / RUNS_FILE)
+    return runs
+
+
+def _concat(frames: Iterable[pd.DataFrame]) -> pd.DataFrame:
+    frames = [f for f in frames if len(f)]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()

@@ -1,0 +1,533 @@
+"""Explicit Runge-Kutta integrators as one family: each scheme is its tableau and error estimator.
+
+One stepping kernel (:meth:`Solver._stages`) advances any explicit tableau; an adaptive scheme adds
+an embedded error estimate and a step-size controller; a fixed-step scheme has neither. Schemes:
+
+``ode45``   Dormand-Prince 5(4) with MATLAB ode45's step control (the paper's integrator): error
+            ``h * || K^T E ./ max(|y|, |y_new|, atol/rtol) ||_inf`` accepted when ``<= rtol``;
+            first step ``min(hmax, span)`` cut to ``1/rh`` with
+            ``rh = || f0 ./ max(|y0|, atol/rtol) ||_inf / (0.8 rtol^(1/5))`` (no extra RHS call);
+            ``hmax = 0.1 span``; growth ``0.8 (rtol/err)^(1/5)`` capped at 5x, only after a step
+            that needed no retry; a first rejection shrinks by ``max(0.1, 0.8 (rtol/err)^(1/5))``,
+            later ones of the same step halve it; outputs by its quartic interpolant (ntrp45).
+``dop853``  Dormand-Prince 8(5,3) (Hairer's DOP853 tableau, error estimator and 7th-order dense
+            output) under the SAME max-norm control as ``ode45`` (exponent 1/8), so that a
+            tolerance means the same thing for both.
+``rk4``     classical Runge-Kutta at a fixed step ``h``; steps are shortened to land on the sample
+            times; outputs are the step values.
+``scipy-RK45``, ``scipy-DOP853``, ``scipy-LSODA``, ``scipy-Radau``: SciPy's ``solve_ivp`` solvers
+            (RMS error norm, their own controllers; DESIGN.md section 4 explains why equal
+            tolerances do not mean equal accuracy), stepped one step at a time so that steps and
+            samples are counted the same way.
+
+Every solver counts accepted steps, rejected steps and right-hand-side evaluations (``nfev``), can
+be stopped after any step by a callback, and its state (t, y, step size, counters) can be saved and
+restored, so a long run resumes from a checkpoint.
+
+References:
+    J. R. Dormand, P. J. Prince, "A family of embedded Runge-Kutta formulae", J. Comp. Appl. Math.
+    6 (1980). L. F. Shampine, M. W. Reichelt, "The MATLAB ODE suite", SIAM J. Sci. Comput. 18
+    (1997) (ode45's control, ntrp45). E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary
+    Differential Equations I", 2nd ed., section II.10 (DOP853). DESIGN.md section 4.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# --------------------------------------------------------------------------- controller constants
+SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
+MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
+FIRST_REJECT_MIN = 0.1  # ode45: a first rejection shrinks h by no more than 10x
+LATER_REJECT = 0.5      # ode45: later rejections of the same step halve h
+HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
+HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
+FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
+SAMPLE_EPS = 1e-12      # relative slack when matching sample times
+
+
+# --------------------------------------------------------------------------- tableaux
+@dataclass(frozen=True, eq=False)
+class Tableau:
+    """An explicit Runge-Kutta scheme as data.
+
+    ``A`` (s, s) strictly lower triangular, ``b`` (s,) weights, ``c`` (s,) nodes; ``order`` of the
+    propagated solution. An embedded scheme adds ``E`` (s + 1,): the error estimate is
+    ``h K^T E`` over the s stages and f(t + h, y_new) (FSAL); ``E3`` (optional) is DOP853's
+    3rd-order estimate; ``error_order`` the order q of the estimate (the controller's exponent is
+    1 / (q + 1)). ``fsal``: the last stage is f(t + h, y_new), reused as the next step's first.
+    """
+
+    name: str
+    order: int
+    A: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    E: np.ndarray | None = None
+    E3: np.ndarray | None = None
+    error_order: int = 0
+    fsal: bool = False
+
+    @property
+    def stages(self) -> int:
+        return self.b.size
+
+    @property
+    def adaptive(self) -> bool:
+        return self.E is not None
+
+
+def _dp45() -> Tableau:
+    A = np.zeros((6, 6))
+    A[1, :1] = [1 / 5]
+    A[2, :2] = [3 / 40, 9 / 40]
+    A[3, :3] = [44 / 45, -56 / 15, 32 / 9]
+    A[4, :4] = [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729]
+    A[5, :5] = [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656]
+    b = np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
+    c = np.array([0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1])
+    # MATLAB ode45's E = b5 - b4 over the 6 stages and f(t + h, y_new) (FSAL).
+    E = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
+    return Tableau("ode45", 5, A, b, c, E=E, error_order=4, fsal=True)
+
+
+# ode45's interpolant (MATLAB ntrp45): y(t + s h) = y + h K^T (BI @ [s, s^2, s^3, s^4]).
+NTRP45_BI = np.array([
+    [1, -183 / 64, 37 / 12, -145 / 128],
+    [0, 0, 0, 0],
+    [0, 1500 / 371, -1000 / 159, 1000 / 371],
+    [0, -125 / 32, 125 / 12, -375 / 64],
+    [0, 9477 / 3392, -729 / 106, 25515 / 6784],
+    [0, -11 / 7, 11 / 3, -55 / 28],
+    [0, 3 / 2, -4, 5 / 2],
+])
+
+
+def _dop853() -> tuple[Tableau, dict]:
+    # Hairer's coefficients as SciPy ships them (a data module; the pinned SciPy is tested).
+    from scipy.integrate._ivp import dop853_coefficients as d
+
+    s = d.N_STAGES  # 12 stages; E3/E5 span 13 entries (the 13th is f(t + h, y_new))
+    tab = Tableau("dop853", 8, d.A[:s, :s].copy(), d.B.copy(), d.C[:s].copy(), E=d.E5.copy(),
+                  E3=d.E3.copy(), error_order=7, fsal=True)
+    dense = {"A_extra": d.A[s + 1:].copy(), "C_extra": d.C[s + 1:].copy(), "D": d.D.copy()}
+    return tab, dense
+
+
+def _rk4() -> Tableau:
+    A = np.zeros((4, 4))
+    A[1, 0] = 0.5
+    A[2, 1] = 0.5
+    A[3, 2] = 1.0
+    return Tableau("rk4", 4, A, np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
+                   np.array([0, 0.5, 0.5, 1.0]))
+
+
+DP45 = _dp45()
+DOP853, _DOP853_DENSE = _dop853()
+RK4 = _rk4()
+TABLEAUS = {t.name: t for t in (DP45, DOP853, RK4)}
+SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
+INTEGRATORS = (*TABLEAUS, *(f"scipy-{m}" for m in SCIPY_METHODS))
+FIXED_STEP = ("rk4",)
+
+
+class IntegrationError(RuntimeError):
+    """The integration cannot go on (step below hmin, a non-finite state)."""
+
+
+# --------------------------------------------------------------------------- the solver
+@dataclass
+class Counters:
+    steps: int = 0
+    rejected: int = 0
+    nfev: int = 0
+
+
+@dataclass
+class SolverState:
+    """Everything needed to resume: time, state, its derivative, the next step, counters."""
+
+    t: float
+    y: np.ndarray
+    f: np.ndarray
+    h: float
+    counters: Counters = field(default_factory=Counters)
+
+
+class Solver:
+    """One of our Runge-Kutta schemes, advanced one accepted step at a time.
+
+    ``rhs(t, y) -> dy/dt``. After :meth:`step`, ``t_old``/``y_old`` and ``t``/``y`` bracket the
+    step and :meth:`dense` interpolates inside it. ``h`` is a fixed scheme's step; an adaptive
+    scheme chooses its own (``hmax`` defaults to 0.1 x span, as in ode45).
+    """
+
+    def __init__(self, rhs: Callable, t0: float, y0, t_end: float, method: str = "ode45", *,
+                 rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
+                 hmax: float | None = None, state: SolverState | None = None):
+        if method not in TABLEAUS:
+            raise ValueError(f"method = {method!r}: unknown; choose one of "
+                             f"{', '.join(TABLEAUS)} (or scipy-*)")
+        self.tab = TABLEAUS[method]
+        self.rhs = rhs
+        self.t_end = float(t_end)
+        span = abs(self.t_end - t0)
+        if self.t_end <= t0:
+            raise ValueError(f"t_end = {t_end!r} must be greater than t0 = {t0!r}")
+        self.adaptive = self.tab.adaptive and h is None
+        if self.adaptive:
+            if not (rtol > 0 and atol > 0):
+                raise ValueError(f"need rtol > 0 and atol > 0, got rtol={rtol!r}, atol={atol!r}")
+            self.rtol, self.atol = float(rtol), float(atol)
+            self.hmax = float(hmax) if hmax else HMAX_FRACTION * span
+            self.power = 1.0 / (self.tab.error_order + 1)
+        else:
+            if not (h is not None and h > 0):
+                raise ValueError(f"fixed-step method {method!r} needs h > 0, got h={h!r}")
+            self.rtol = self.atol = math.nan
+            self.hmax = float(h)
+        y0 = np.array(y0, dtype=float)
+        self.n = y0.size
+        self.K = np.empty((self.tab.stages + (1 if self.tab.fsal else 0), self.n))
+        self._dense_K = None  # DOP853's extra stages, computed on demand per step
+        if state is not None:
+            self.t, self.y, self.f = state.t, state.y.copy(), state.f.copy()
+            self.h_next, self.counters = state.h, state.counters
+        else:
+            self.counters = Counters()
+            self.t, self.y = float(t0), y0
+            self.f = self._call(self.t, self.y)
+            self.h_next = self._initial_step() if self.adaptive else float(h)
+        self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
+
+    # ----------------------------------------------------------------------- helpers
+    def _call(self, t, y):
+        self.counters.nfev += 1
+        return np.asarray(self.rhs(t, y), dtype=float)
+
+    def _threshold(self):
+        return self.atol / self.rtol
+
+    def _initial_step(self) -> float:
+        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call)."""
+        absh = min(self.hmax, self.t_end - self.t)
+        scale = np.maximum(np.abs(self.y), self._threshold())
+        rh = np.max(np.abs(self.f) / scale) / (SAFETY * self.rtol ** self.power)
+        if absh * rh > 1:
+            absh = 1.0 / rh
+        return max(absh, self._hmin(self.t))
+
+    @staticmethod
+    def _hmin(t: float) -> float:
+        return HMIN_EPS * float(np.spacing(abs(t)))
+
+    def state(self) -> SolverState:
+        """A copy of the resumable state (to save in a checkpoint)."""
+        return SolverState(self.t, self.y.copy(), self.f.copy(), self.h_next,
+                           Counters(**vars(self.counters)))
+
+    @property
+    def done(self) -> bool:
+        return self.t >= self.t_end
+
+    # ----------------------------------------------------------------------- the stepping kernel
+    def _stages(self, t, y, f, h) -> np.ndarray:
+        """K[0..s-1] (and K[s] = f(t + h, y_new) for FSAL schemes); returns y_new."""
+        tab, K = self.tab, self.K
+        K[0] = f
+        for i in range(1, tab.stages):
+            K[i] = self._call(t + tab.c[i] * h, y + h * (tab.A[i, :i] @ K[:i]))
+        y_new = y + h * (tab.b @ K[:tab.stages])
+        if tab.fsal:
+            K[tab.stages] = self._call(t + h, y_new)
+        return y_new
+
+    def _error(self, h, y, y_new) -> float:
+        """The max-norm error of ode45, relative to rtol's scale (accept when <= rtol)."""
+        tab, K = self.tab, self.K
+        scale = np.maximum(np.maximum(np.abs(y), np.abs(y_new)), self._threshold())
+        err = tab.E @ K
+        if tab.E3 is not None:  # DOP853: err5 * |err5| / hypot(err5, 0.1 err3), componentwise
+            err3 = tab.E3 @ K
+            denom = np.hypot(err, 0.1 * err3)
+            nz = denom > 0
+            err[nz] *= np.abs(err[nz]) / denom[nz]
+        return abs(h) * float(np.max(np.abs(err) / scale))
+
+    def step(self, t_stop: float | None = None) -> None:
+        """Take one accepted step (retrying rejected ones); stop no later than ``t_stop``."""
+        t_stop = self.t_end if t_stop is None else min(t_stop, self.t_end)
+        if self.adaptive:
+            self._adaptive_step()
+        else:
+            self._fixed_step(t_stop)
+        self._dense_K = None
+
+    def _fixed_step(self, t_stop):
+        h, t_new = self.h_next, self.t + self.h_next
+        if t_stop - t_new <= SAMPLE_EPS * max(1.0, abs(t_stop)):  # land on the sample time
+            h, t_new = t_stop - self.t, t_stop
+        y_new = self._stages(self.t, self.y, self.f, h)
+        f_new = self.K[self.tab.stages].copy() if self.tab.fsal else self._call(t_new, y_new)
+        self._accept(t_new, y_new, f_new)
+
+    def _adaptive_step(self):
+        t, y, tab = self.t, self.y, self.tab
+        hmin = self._hmin(t)
+        absh = min(self.hmax, max(hmin, self.h_next))
+        done = False
+        if FINISH_SLACK * absh >= self.t_end - t:
+            absh, done = self.t_end - t, True
+        nofailed = True
+        while True:
+            t_new = self.t_end if done else t + absh
+            h = t_new - t
+            y_new = self._stages(t, y, self.f, h)
+            err = self._error(h, y, y_new)
+            if not math.isfinite(err):
+                raise IntegrationError(f"non-finite error estimate at t = {t:.6g} "
+                                       f"(h = {h:.3g}): the state or qdd is not finite")
+            if err <= self.rtol:
+                break
+            self.counters.rejected += 1
+            if absh <= hmin:
+                raise IntegrationError(f"step size {absh:.3g} fell below hmin = {hmin:.3g} at "
+                                       f"t = {t:.6g}: tolerances cannot be met")
+            if nofailed:
+                nofailed = False
+                absh = max(hmin, absh * max(FIRST_REJECT_MIN,
+                                            SAFETY * (self.rtol / err) ** self.power))
+            else:
+                absh = max(hmin, LATER_REJECT * absh)
+            done = False
+        if nofailed:
+            temp = (err / self.rtol) ** self.power / SAFETY
+            absh = absh / temp if temp > 1.0 / MAX_GROWTH else MAX_GROWTH * absh
+        self.h_next = absh
+        self._accept(t_new, y_new, self.K[tab.stages].copy())
+
+    def _accept(self, t_new, y_new, f_new):
+        self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
+        self.t, self.y, self.f = t_new, y_new, f_new
+        self.counters.steps += 1
+
+    # ----------------------------------------------------------------------- dense output
+    def dense(self, ts) -> np.ndarray:
+        """y at times ``ts`` (m,) inside the last step [t_old, t] -> (m, n)."""
+        ts = np.atleast_1d(np.asarray(ts, dtype=float))
+        h = self.t - self.t_old
+        s = (ts - self.t_old) / h
+        if self.tab is DP45:
+            S = np.vstack([s, s**2, s**3, s**4])          # (4, m)
+            return self.y_old + h * (NTRP45_BI @ S).T @ self.K
+        if self.tab is DOP853:
+            return self._dense_dop853(h, s)
+        # rk4: its steps land on the sample times; in between, cubic Hermite
+        return _hermite(self.y_old, self.f_old, self.y, self.f, h, s)
+
+    def _dense_dop853(self, h, s):
+        if self._dense_K is None:
+            d = _DOP853_DENSE
+            Kx = np.empty((d["C_extra"].size + self.K.shape[0], self.n))
+            Kx[:self.K.shape[0]] = self.K
+            for i, (a, c) in enumerate(zip(d["A_extra"], d["C_extra"], strict=True)):
+                j = self.K.shape[0] + i
+                Kx[j] = self._call(self.t_old + c * h, self.y_old + h * (a[:j] @ Kx[:j]))
+            dy = self.y - self.y_old
+            F = np.empty((7, self.n))
+            F[0] = dy
+            F[1] = h * Kx[0] - dy
+            F[2] = 2 * dy - h * (self.f + Kx[0])
+            F[3:] = h * (d["D"] @ Kx)
+            self._dense_K = F
+        F = self._dense_K
+        x = s[:, None]
+        y = np.zeros((s.size, self.n))
+        for i, fi in enumerate(F[::-1]):
+            y += fi
+            y *= x if i % 2 == 0 else (1 - x)
+        return y + self.y_old
+
+
+def _hermite(y0, f0, y1, f1, h, s):
+    s = s[:, None]
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s * s * (3 - 2 * s)
+    h11 = s * s * (s - 1)
+    return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
+
+
+# --------------------------------------------------------------------------- SciPy solvers
+class ScipySolver:
+    """A SciPy ``solve_ivp`` solver with the same interface as :class:`Solver`.
+
+    Rejected steps: SciPy does not report them; for the explicit Runge-Kutta pairs they follow from
+    the RHS count (each attempt costs a fixed number of calls); for LSODA and Radau they are NaN.
+    """
+
+    def __init__(self, rhs, t0, y0, t_end, method, *, rtol=1e-4, atol=1e-6, hmax=None):
+        from scipy.integrate import DOP853 as SDOP853
+        from scipy.integrate import LSODA, RK45, Radau
+
+        classes = {"RK45": RK45, "DOP853": SDOP853, "LSODA": LSODA, "Radau": Radau}
+        if method not in classes:
+            raise ValueError(f"method = scipy-{method!r}: unknown; choose one of "
+                             f"{', '.join('scipy-' + m for m in classes)}")
+        self.method = method
+        self.counters = Counters()
+        self.t_end = float(t_end)
+        self.rtol, self.atol = rtol, atol
+        self._rhs = rhs
+
+        def f(t, y):
+            self.counters.nfev += 1
+            return np.asarray(rhs(t, y), dtype=float)
+
+        kw = {"max_step": hmax} if hmax else {}
+        self._s = classes[method](f, t0, np.array(y0, dtype=float), t_end, rtol=rtol,
+                                  atol=atol, **kw)
+        self._nfev0 = self.counters.nfev  # RHS calls before the first step (f0, first-step guess)
+        self.t, self.y = self._s.t, self._s.y
+        self.t_old, self._dense = self.t, None
+
+    @property
+    def done(self) -> bool:
+        return self._s.status != "running"
+
+    def step(self, t_stop=None):
+        msg = self._s.step()
+        if self._s.status == "failed":
+            raise IntegrationError(f"scipy-{self.method} failed at t = {self._s.t:.6g}: {msg}")
+        if not np.isfinite(self._s.y).all():
+            raise IntegrationError(f"scipy-{self.method}: non-finite state at t = {self._s.t:.6g}")
+        self.counters.steps += 1
+        self.t_old, self.t, self.y = self._s.t_old, self._s.t, self._s.y
+        self._dense = None
+        if self.method in ("RK45", "DOP853"):
+            per_attempt = self._s.n_stages
+            attempts = (self.counters.nfev - self._nfev0) // per_attempt
+            self.counters.rejected = attempts - self.counters.steps
+        else:
+            self.counters.rejected = -1  # not reported by SciPy
+
+    def dense(self, ts):
+        if self._dense is None:
+            n0 = self.counters.nfev
+            self._dense = self._s.dense_output()
+            self._dense_calls = self.counters.nfev - n0
+            self._nfev0 += self._dense_calls  # dense-output calls are not step attempts
+        return np.atleast_2d(self._dense(np.atleast_1d(ts)).T)
+
+
+# --------------------------------------------------------------------------- the driver
+@dataclass
+class Solution:
+    """Samples (``t`` (m,), ``y`` (m, n)) and the counts; ``status`` 0 done, 1 stopped by the
+    callback, -1 failed (``message`` says why)."""
+
+    t: np.ndarray
+    y: np.ndarray
+    steps: int
+    rejected: int
+    nfev: int
+    status: int
+    message: str
+    cpu_s: float
+    wall_s: float
+
+
+def make_solver(rhs, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=None,
+                hmax=None):
+    """A :class:`Solver` (ours) or :class:`ScipySolver` (``"scipy-..."``) by name."""
+    if method.startswith("scipy-"):
+        return ScipySolver(rhs, t0, y0, t_end, method[len("scipy-"):], rtol=rtol, atol=atol,
+                           hmax=hmax)
+    return Solver(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
+
+
+def sample_times(t0: float, t_end: float, interval: float) -> np.ndarray:
+    """t0, t0 + interval, ..., t_end (t_end always included)."""
+    if not interval > 0:
+        raise ValueError(f"sample interval must be > 0, got {interval!r}")
+    m = int(math.floor((t_end - t0) / interval * (1 + SAMPLE_EPS)))
+    ts = t0 + interval * np.arange(m + 1)
+    if t_end - ts[-1] > SAMPLE_EPS * max(1.0, t_end):
+        ts = np.append(ts, t_end)
+    else:
+        ts[-1] = t_end
+    return ts
+
+
+def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
+    """Step ``solver`` to the last of ``t_eval``, calling ``on_sample(t, y)`` at each sample time
+    (in order; samples at or before the current time are emitted first) and ``on_step(solver)``
+    after each accepted step. Either callback returning a non-empty string stops the run with that
+    message. Returns (status, message) as in :class:`Solution`."""
+    i = 0
+    t_eval = np.asarray(t_eval, dtype=float)
+    fixed = isinstance(solver, Solver) and not solver.adaptive
+    while i < t_eval.size and t_eval[i] <= solver.t * (1 + SAMPLE_EPS):
+        if on_sample and (msg := on_sample(float(t_eval[i]), solver.y.copy())):
+            return 1, msg
+        i += 1
+    try:
+        while i < t_eval.size and not solver.done:
+            solver.step(t_eval[i] if fixed else None)
+            if on_step and (msg := on_step(solver)):
+                return 1, msg
+            j = i
+            while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
+                j += 1
+            if j > i:
+                ys = solver.dense(np.minimum(t_eval[i:j], solver.t))
+                ys[t_eval[i:j] >= solver.t] = solver.y  # the step's end: no interpolation
+                for t, y in zip(t_eval[i:j], ys, strict=True):
+                    if on_sample and (msg := on_sample(float(t), y)):
+                        return 1, msg
+                i = j
+    except IntegrationError as exc:
+        return -1, str(exc)
+    return 0, "ok"
+
+
+def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,
+              rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
+              hmax: float | None = None, t_eval=None, callback=None) -> Solution:
+    """Integrate ``dy/dt = rhs(t, y)`` over ``t_span``; samples at ``t_eval`` (default: every
+    accepted step's end). ``callback(t, y)`` at each sample may return a message to stop.
+
+    ``method``: one of :data:`INTEGRATORS`. ``h``: the step of a fixed-step method.
+    """
+    if method not in INTEGRATORS:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(INTEGRATORS)}")
+    t0, t1 = map(float, t_span)
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    solver = make_solver(rhs, t0, y0, t1, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
+    ts, ys = [], []
+
+    def keep(t, y):
+        ts.append(t)
+        ys.append(y)
+        return callback(t, y) if callback else None
+
+    if t_eval is None:
+        keep(solver.t, solver.y.copy())
+
+        def every_step(s):
+            return keep(s.t, s.y.copy())
+
+        status, msg = advance(solver, [t1], on_step=every_step)
+    else:
+        status, msg = advance(solver, t_eval, on_sample=keep)
+    c = solver.counters
+    Y = np.array(ys) if ys else np.empty((0, np.size(y0)))
+    return Solution(np.array(ts), Y, c.steps, c.rejected,
+                    c.nfev, status, msg, time.process_time() - cpu0,
+                    time.perf_counter() - wall0)

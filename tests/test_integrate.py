@@ -1,0 +1,207 @@
+"""The integrator family: tableau consistency, convergence orders, ode45's step control rules,
+counting, dense output and resuming from a saved state."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from redysim.integrate import (
+    DOP853,
+    DP45,
+    INTEGRATORS,
+    MAX_GROWTH,
+    NTRP45_BI,
+    RK4,
+    TABLEAUS,
+    Solver,
+    integrate,
+    sample_times,
+)
+
+
+def oscillator(t, y):
+    """y'' = -y: y = cos t, y' = -sin t."""
+    return np.array([y[1], -y[0]])
+
+
+def exact(t):
+    return np.array([np.cos(t), -np.sin(t)])
+
+
+def nonautonomous(t, y):
+    """y' = y cos t: y = exp(sin t) (exercises the nodes c)."""
+    return y * np.cos(t)
+
+
+@pytest.mark.parametrize("tab", TABLEAUS.values(), ids=list(TABLEAUS))
+def test_tableau_consistency(tab):
+    s = tab.stages
+    assert tab.A.shape == (s, s) and tab.c.shape == (s,)
+    assert np.allclose(np.triu(tab.A), 0.0), "explicit: A strictly lower triangular"
+    assert np.allclose(tab.A.sum(axis=1), tab.c, atol=1e-14), "row sums equal the nodes"
+    assert tab.b.sum() == pytest.approx(1.0, abs=1e-14)
+    # order conditions up to 4 (all three schemes are at least 4th order)
+    c, A, b = tab.c, tab.A, tab.b
+    assert b @ c == pytest.approx(1 / 2, abs=1e-14)
+    assert b @ c**2 == pytest.approx(1 / 3, abs=1e-14)
+    assert b @ (A @ c) == pytest.approx(1 / 6, abs=1e-14)
+    assert b @ c**3 == pytest.approx(1 / 4, abs=1e-14)
+    assert b @ (c * (A @ c)) == pytest.approx(1 / 8, abs=1e-14)
+    assert b @ (A @ c**2) == pytest.approx(1 / 12, abs=1e-14)
+    assert b @ (A @ (A @ c)) == pytest.approx(1 / 24, abs=1e-14)
+    if tab.adaptive:
+        # an error estimate is a difference of two consistent weight sets: it sums to zero
+        assert tab.E.size == s + 1 and tab.E.sum() == pytest.approx(0.0, abs=1e-14)
+        if tab.E3 is not None:
+            assert tab.E3.sum() == pytest.approx(0.0, abs=1e-14)
+
+
+def test_ntrp45_interpolant_ends_at_the_step():
+    # at s = 1 the interpolant's weights are the propagated solution's (b, and 0 for f_new)
+    w = NTRP45_BI @ np.ones(4)
+    assert np.allclose(w, np.append(DP45.b, 0.0), atol=1e-14)
+
+
+@pytest.mark.parametrize("method, order", [("ode45", 5), ("dop853", 8), ("rk4", 4)])
+def test_convergence_order_at_fixed_steps(method, order):
+    """The observed order of the global error at fixed steps is the scheme's order."""
+    errs = []
+    hs = [0.2, 0.1] if order < 8 else [0.4, 0.2]
+    for h in hs:
+        sol = integrate(nonautonomous, (0.0, 2.0), [1.0], method, h=h, t_eval=[2.0])
+        errs.append(abs(sol.y[-1, 0] - np.exp(np.sin(2.0))))
+    observed = np.log2(errs[0] / errs[1])
+    assert observed == pytest.approx(order, abs=0.35)
+
+
+@pytest.mark.parametrize("method", INTEGRATORS)
+def test_every_integrator_reaches_its_tolerance(method):
+    kw = {"h": 1e-3} if method == "rk4" else {}
+    ts = np.linspace(0, 10, 11)
+    sol = integrate(oscillator, (0.0, 10.0), [1.0, 0.0], method, rtol=1e-8, atol=1e-10,
+                    t_eval=ts, **kw)
+    assert sol.status == 0 and np.array_equal(sol.t, ts)
+    assert np.abs(sol.y - exact(ts).T).max() < 1e-6
+    assert sol.steps > 0 and sol.nfev > sol.steps
+
+
+def test_tighter_tolerance_smaller_error_more_work():
+    prev_err, prev_nfev = np.inf, 0
+    for rtol in (1e-4, 1e-6, 1e-8, 1e-10):
+        sol = integrate(oscillator, (0.0, 10.0), [1.0, 0.0], "ode45", rtol=rtol, atol=rtol,
+                        t_eval=[10.0])
+        err = np.abs(sol.y[-1] - exact(10.0)).max()
+        assert err < prev_err and sol.nfev > prev_nfev
+        prev_err, prev_nfev = err, sol.nfev
+
+
+def test_ode45_counts_and_controls_like_matlab():
+    """nfev = 1 + 6 (steps + rejected); first step by the rh rule; h <= 0.1 span; growth <= 5x;
+    every accepted step passes the per-component test |e_i| <= max(rtol |y_i|, atol)."""
+    rtol, atol, t_end = 1e-6, 1e-9, 10.0
+    s = Solver(oscillator, 0.0, [1.0, 0.0], t_end, "ode45", rtol=rtol, atol=atol)
+    y0, f0 = np.array([1.0, 0.0]), oscillator(0.0, [1.0, 0.0])
+    rh = np.max(np.abs(f0) / np.maximum(np.abs(y0), atol / rtol)) / (0.8 * rtol ** 0.2)
+    assert s.h_next == pytest.approx(min(0.1 * t_end, 1 / rh))
+    hs = []
+    while not s.done:
+        s.step()
+        h = s.t - s.t_old
+        hs.append(h)
+        assert h <= 0.1 * t_end * (1 + 1e-12)
+        err = h * np.abs(DP45.E @ s.K)
+        assert np.all(err <= np.maximum(rtol * np.maximum(np.abs(s.y_old), np.abs(s.y)), atol)
+                      * (1 + 1e-12))
+    c = s.counters
+    assert c.nfev == 1 + 6 * (c.steps + c.rejected)
+    assert s.t == t_end
+    growth = np.array(hs[1:-1]) / np.array(hs[:-2])
+    assert growth.max() <= MAX_GROWTH * (1 + 1e-12)
+
+
+def test_rejections_are_counted_and_shrink_the_step():
+    # a kink in the right-hand side at t = 0.5: steps across it fail the error test
+    def kinked(t, y):
+        return np.array([np.sin(40 * t) if t > 0.5 else 0.0])
+
+    sol = integrate(kinked, (0.0, 1.0), [0.0], "ode45", rtol=1e-8, atol=1e-10, t_eval=[1.0])
+    assert sol.rejected > 0
+    assert sol.y[-1, 0] == pytest.approx((np.cos(20) - np.cos(40)) / 40, abs=1e-7)
+    assert sol.nfev == 1 + 6 * (sol.steps + sol.rejected)
+
+
+def test_dense_output_matches_the_solution_between_steps():
+    for method in ("ode45", "dop853"):
+        ts = np.linspace(0.0, 10.0, 101)  # many samples per step
+        sol = integrate(oscillator, (0.0, 10.0), [1.0, 0.0], method, rtol=1e-10, atol=1e-12,
+                        t_eval=ts)
+        assert np.abs(sol.y - exact(ts).T).max() < 1e-8, method
+
+
+def test_sampling_does_not_change_the_steps():
+    """ode45 outputs by interpolation: the sample times do not alter the step sequence."""
+    a = integrate(oscillator, (0.0, 5.0), [1.0, 0.0], "ode45", rtol=1e-7, t_eval=[5.0])
+    b = integrate(oscillator, (0.0, 5.0), [1.0, 0.0], "ode45", rtol=1e-7,
+                  t_eval=np.linspace(0, 5, 51))
+    assert (a.steps, a.nfev) == (b.steps, b.nfev)
+    assert np.array_equal(a.y[-1], b.y[-1])
+
+
+def test_resume_from_saved_state_is_bit_identical():
+    whole = Solver(oscillator, 0.0, [1.0, 0.0], 10.0, "ode45", rtol=1e-7)
+    part = Solver(oscillator, 0.0, [1.0, 0.0], 10.0, "ode45", rtol=1e-7)
+    for _ in range(10):
+        part.step()
+    saved = part.state()
+    resumed = Solver(oscillator, 0.0, [1.0, 0.0], 10.0, "ode45", rtol=1e-7, state=saved)
+    while not whole.done:
+        whole.step()
+    while not resumed.done:
+        resumed.step()
+    assert np.array_equal(whole.y, resumed.y)
+    assert whole.counters == resumed.counters
+
+
+def test_rk4_lands_on_sample_times():
+    sol = integrate(oscillator, (0.0, 1.0), [1.0, 0.0], "rk4", h=0.03, t_eval=[0, 0.1, 0.5, 1.0])
+    assert np.array_equal(sol.t, [0, 0.1, 0.5, 1.0])
+    assert np.abs(sol.y - exact(sol.t).T).max() < 1e-6
+    assert sol.nfev == 1 + 4 * sol.steps  # 3 new stages + f(t + h), reused as the next K[0]
+
+
+def test_bad_arguments_are_named():
+    with pytest.raises(ValueError, match="method = 'ode23'"):
+        integrate(oscillator, (0, 1), [1.0, 0.0], "ode23")
+    with pytest.raises(ValueError, match="needs h > 0"):
+        integrate(oscillator, (0, 1), [1.0, 0.0], "rk4")
+    with pytest.raises(ValueError, match="rtol > 0"):
+        integrate(oscillator, (0, 1), [1.0, 0.0], "ode45", rtol=0.0)
+    with pytest.raises(ValueError, match="t_end"):
+        integrate(oscillator, (1, 0), [1.0, 0.0], "ode45")
+
+
+def test_non_finite_rhs_fails_with_a_reason():
+    def blows_up(t, y):
+        return np.array([np.nan if t > 0.5 else 1.0])
+
+    sol = integrate(blows_up, (0.0, 1.0), [0.0], "ode45", t_eval=[1.0])
+    assert sol.status == -1 and "not finite" in sol.message
+
+
+def test_callback_stops_the_run():
+    sol = integrate(oscillator, (0.0, 10.0), [1.0, 0.0], "ode45", t_eval=np.arange(11.0),
+                    callback=lambda t, y: "enough" if t >= 3 else None)
+    assert sol.status == 1 and sol.message == "enough" and sol.t[-1] == 3.0
+
+
+def test_sample_times():
+    assert np.allclose(sample_times(0.0, 1.0, 0.25), [0, 0.25, 0.5, 0.75, 1.0])
+    assert np.allclose(sample_times(0.0, 1.0, 0.3), [0, 0.3, 0.6, 0.9, 1.0])
+    assert sample_times(0.0, 0.3, 0.1)[-1] == 0.3
+
+
+def test_tableaus_are_the_named_ones():
+    assert DP45.order == 5 and DP45.error_order == 4 and DP45.fsal
+    assert DOP853.order == 8 and DOP853.stages == 12
+    assert RK4.order == 4 and not RK4.adaptive

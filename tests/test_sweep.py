@@ -1,0 +1,405 @@
+"""Sweeps: sweep files and their errors, resume after kill -9, Dask equals the local pool,
+failed runs recorded, atomic writes, and the ``redysim`` command line."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from harness.spec import RunSpec
+from harness.store import (
+    TEMP_PREFIX,
+    TEMP_SUFFIX,
+    parquet_files,
+    read_parquet,
+    remove_temp_files,
+    write_parquet_atomic,
+)
+from harness.sweep import (
+    DIED,
+    PLAN_FILE,
+    RUNS_DIR,
+    RUNS_FILE,
+    SAMPLES_DIR,
+    SAMPLES_FILE,
+    SweepError,
+    _pool_results,
+    collect,
+    failed_row,
+    load_sweep,
+    run_sweep,
+)
+from redysim.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+PYTHON = sys.executable
+# Columns that legitimately differ between two executions of the same run.
+VOLATILE = ["cpu_s", "wall_s", "jit_s", "build_s", "peak_rss_mib", "python", "numpy", "scipy",
+            "numba", "redysim", "machine", "cpu", "git_commit", "engine_version", "date",
+            "executable"]
+TINY = [RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05),
+        RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005),
+        RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05, integrator="rk4", h=0.01),
+        RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005, integrator="dop853", rtol=1e-6,
+                atol=1e-8)]
+
+
+def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def subprocess_env() -> dict:
+    """The environment for a child Python that must import this checkout."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get(
+        "PYTHONPATH", "")])}
+
+
+# --------------------------------------------------------------------------- (a) sweep files
+def test_expansion_cross_product_product_tables_and_extras(tmp_path):
+    case_file = write(tmp_path, (REPO / "cases" / "STUDY-R3.toml").read_text(), "mine.toml")
+    path = write(tmp_path, """
+        [sweep]
+        name = "demo"
+        cases = ["STUDY-R3", "mine.toml"]
+        methods = ["rge-a", "ge-n"]
+        integrators = ["ode45", "rk4"]
+        rtols = [1e-4, 1e-6]
+        atol_ratio = 1e-2
+        h = [1e-3]
+        t_end = 0.5
+        sample = 0.1
+        max_wall_s = 30
+
+        [[sweep.product]]
+        cases = ["RE-U125-L1"]
+        engines = ["mujoco", "dart"]
+        rtols = [1e-5]
+        atols = [1e-9]
+        integrators = ["dop853"]
+
+        [[sweep.extra]]
+        case = "STUDY-R10"
+        integrator = "scipy-Radau"
+        rtol = 1e-8
+        atol = 1e-10
+
+        [[sweep.extra]]            # the same run as one of the cross product: run once
+        case = "STUDY-R3"
+        integrator = "rk4"
+        h = 1e-3
+        """)
+    sweep = load_sweep(path)
+    assert sweep.name == "demo"
+    # 2 cases x 2 methods x (ode45 x 2 rtols + rk4 x 1 h); 2 engines; 1 new extra run
+    assert len(sweep.specs) == 2 * 2 * 3 + 2 + 1
+    main_runs, product_runs, extra = sweep.specs[:12], sweep.specs[12:14], sweep.specs[14:]
+    assert len({s.run_id for s in sweep.specs}) == len(sweep.specs)
+    first = main_runs[0]
+    assert (first.case, first.engine, first.method, first.integrator) == (
+        "STUDY-R3", "redysim", "rge-a", "ode45")
+    assert (first.rtol, first.atol, first.h) == (1e-4, 1e-6, 0.0)  # 1e-4 * 1e-2 rounded: 1e-06
+    assert (first.t_end, first.sample, first.max_wall_s) == (0.5, 0.1, 30.0)
+    assert main_runs[6].case == str(case_file.resolve())
+    stepped = [s for s in main_runs if s.integrator == "rk4"]
+    assert len(stepped) == 4 and all(s.h == 1e-3 for s in stepped)
+    for s in product_runs:  # engines take no method; product inherits t_end from [sweep]
+        assert (s.case, s.method, s.integrator, s.rtol, s.atol, s.t_end) == (
+            "RE-U125-L1", "", "dop853", 1e-5, 1e-9, 0.5)
+    assert [s.engine for s in product_runs] == ["mujoco", "dart"]
+    assert extra[0] == RunSpec(case="STUDY-R10", integrator="scipy-Radau", rtol=1e-8, atol=1e-10,
+                               t_end=0.5, sample=0.1, max_wall_s=30.0)
+
+
+def test_example_sweep_files_load():
+    smoke = load_sweep(REPO / "sweeps" / "smoke.toml")
+    assert len(smoke.specs) == 8
+    wp = load_sweep(REPO / "sweeps" / "work-precision-RE-U125-L1.toml")
+    engines = {s.engine for s in wp.specs}
+    assert engines == {"redysim", "mujoco", "dart", "pinocchio-aba-ryrz", "pinocchio-crba",
+                       "exudyn"}
+    assert {s.integrator for s in wp.specs if s.engine != "redysim"} == {"ode45", "native"}
+    assert wp.reference and not smoke.reference
+
+
+BAD = {
+    "unknown field": ('rtol = [1e-4]', "sweep.rtol", "[0.0001]", "unknown field"),
+    "wrong type": ('cases = "STUDY-R3"', "sweep.cases", "'STUDY-R3'", "must be a list"),
+    "empty list": ('cases = ["STUDY-R3"]\nrtols = []', "sweep.rtols", "[]", "must not be empty"),
+    "negative tolerance": ('cases = ["STUDY-R3"]\nrtols = [1e-4, -1e-6]', "sweep.rtols[1]",
+                           "-1e-06", "> 0"),
+    "unknown integrator": ('cases = ["STUDY-R3"]\nintegrators = ["ode45", "euler"]',
+                           "sweep.integrators[1]", "'euler'", "unknown integrator"),
+    "unknown case": ('cases = ["STUDY-R3", "STUDY-R4"]', "sweep.cases[1]", "'STUDY-R4'",
+                     "no such case"),
+    "unknown engine": ('cases = ["STUDY-R3"]\nengines = ["bullet"]', "sweep.engines[0]",
+                       "'bullet'", "unknown engine"),
+    "fixed step without h": ('cases = ["STUDY-R3"]\nintegrators = ["rk4"]', "sweep.h", None,
+                             "needs step sizes"),
+    "atols unpaired": ('cases = ["STUDY-R3"]\nrtols = [1e-4, 1e-6]\natols = [1e-6]',
+                       "sweep.atols", "[1e-06]", "pair with rtols"),
+    "bad number": ('cases = ["STUDY-R3"]\nt_end = "1 s"', "sweep.t_end", "'1 s'",
+                   "must be a number"),
+    "bad extra": ('cases = ["STUDY-R3"]\n[[sweep.extra]]\ncase = "STUDY-R3"\nrtols = 1e-3',
+                  "sweep.extra[0].rtols", "0.001", "unknown field"),
+}
+
+
+@pytest.mark.parametrize("name", BAD)
+def test_bad_sweep_file_names_file_field_and_value(tmp_path, name):
+    body, field, value, problem = BAD[name]
+    path = write(tmp_path, "[sweep]\n" + body + "\n")
+    with pytest.raises(SweepError) as info:
+        load_sweep(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}: {field}"), msg
+    if value is not None:
+        assert f"{field} = {value}:" in msg, msg
+    assert problem in msg, msg
+
+
+def test_bad_sweep_file_on_the_command_line_exits_2_without_traceback(tmp_path, capsys):
+    path = write(tmp_path, '[sweep]\ncases = ["STUDY-R3"]\nrtols = [0]\n')
+    assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f"redysim: error: {path}: sweep.rtols[0] = 0.0: must be a finite " \
+                          "number > 0"
+    assert main(["sweep", str(tmp_path / "missing.toml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    syntax = write(tmp_path, "[sweep\n", "syntax.toml")
+    assert main(["sweep", str(syntax)]) == 2
+    assert "<toml syntax>" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- (b) kill -9
+@pytest.mark.slow
+def test_sweep_killed_with_sigkill_resumes_without_duplicates(tmp_path):
+    """Kill the whole process group (the CLI and its pool workers) once some runs are saved.
+
+    Runs are submitted in plan order, at most ``workers`` at a time; so every run finished before
+    the kill lies among the first (finished + workers) planned runs, and the resumed sweep redoes
+    only the (at most ``workers``) runs that were in flight.
+    """
+    workers = 2
+    rtols = ", ".join(f"{k}e-7" for k in range(1, 11))
+    path = write(tmp_path, f"""
+        [sweep]
+        name = "kill"
+        cases = ["RE-U125-L1"]
+        rtols = [{rtols}]
+        t_end = 0.1
+        sample = 0.01
+        """)
+    planned = [s.run_id for s in load_sweep(path).specs]
+    out = tmp_path / "out"
+    cmd = [PYTHON, "-m", "redysim.cli", "sweep", str(path), "--out", str(out), "--workers",
+           str(workers), "--no-progress"]
+    proc = subprocess.Popen(cmd, cwd=REPO, env=subprocess_env(), start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while len(parquet_files(out / RUNS_DIR)) < 2:
+            assert proc.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline, "no run finished within 60 s"
+            time.sleep(0.005)
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    before = {k: (p.stat().st_ino, p.stat().st_mtime_ns)
+              for k, p in parquet_files(out / RUNS_DIR).items()}
+    assert 2 <= len(before) < len(planned)
+    assert max(planned.index(k) for k in before) < len(before) + workers
+
+    res = subprocess.run(cmd, cwd=REPO, env=subprocess_env(), capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert f"10 runs, {len(before)} already done" in res.stdout
+    after = parquet_files(out / RUNS_DIR)
+    assert sorted(after) == sorted(planned)
+    for k, stamp in before.items():  # finished runs were not redone
+        assert (after[k].stat().st_ino, after[k].stat().st_mtime_ns) == stamp
+    assert sorted(parquet_files(out / SAMPLES_DIR)) == sorted(planned)
+    runs = read_parquet(out / RUNS_FILE)
+    assert runs["run_id"].tolist() == planned and (runs["status"] == "ok").all()
+    samples = read_parquet(out / SAMPLES_FILE)
+    assert samples.groupby("run_id").size().to_dict() == {k: 11 for k in planned}
+    assert not any(p.name.startswith(TEMP_PREFIX) for p in out.rglob("*"))
+
+
+# --------------------------------------------------------------------------- (c) Dask
+@pytest.mark.slow
+def test_dask_local_cluster_gives_the_same_rows_as_the_local_pool(tmp_path):
+    pool = run_sweep(TINY, tmp_path / "pool", workers=2, progress=False)
+    dask = run_sweep(TINY, tmp_path / "dask", dask="local", progress=False)
+    assert pool["run_id"].tolist() == [s.run_id for s in TINY]
+    assert (pool["status"] == "ok").all()
+    pd.testing.assert_frame_equal(pool.drop(columns=VOLATILE), dask.drop(columns=VOLATILE))
+    pd.testing.assert_frame_equal(read_parquet(tmp_path / "pool" / SAMPLES_FILE),
+                                  read_parquet(tmp_path / "dask" / SAMPLES_FILE))
+
+
+# --------------------------------------------------------------------------- (d) failures
+@pytest.mark.slow
+def test_failed_runs_are_recorded_with_their_reason_and_the_sweep_goes_on(tmp_path):
+    specs = [RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005, energy_bound=1e-30),
+             RunSpec(case="RE-U125-L1", t_end=0.5, sample=0.005, max_wall_s=1e-6),
+             *TINY[:2]]
+    runs = run_sweep(specs, tmp_path, workers=1, progress=False)
+    assert runs["status"].tolist() == ["failed", "failed", "ok", "ok"]
+    assert runs["reason"].iloc[0].startswith("energy blow-up: |delta_M| = ")
+    assert runs["reason"].iloc[1].startswith("time limit: max_wall_s = 1e-06 s reached")
+    assert runs["reason"].iloc[2:].tolist() == ["", ""]
+    assert runs["n_samples"].iloc[0] >= 1  # the samples before the failure are kept
+    # a second run of the sweep redoes nothing, failed runs included
+    stamps = {k: p.stat().st_mtime_ns for k, p in parquet_files(tmp_path / RUNS_DIR).items()}
+    again = run_sweep(specs, tmp_path, workers=1, progress=False)
+    pd.testing.assert_frame_equal(again, runs)
+    assert stamps == {k: p.stat().st_mtime_ns
+                      for k, p in parquet_files(tmp_path / RUNS_DIR).items()}
+
+
+def _task_that_crashes_or_raises(spec: RunSpec):
+    """A stand-in for a worker's run: rk4 kills its process, dop853 raises, others succeed."""
+    time.sleep(0.3)  # let the runs overlap, so that a crash takes an innocent run down with it
+    if spec.integrator == "rk4":
+        os._exit(3)
+    if spec.integrator == "dop853":
+        raise ArithmeticError("boom")
+    return {**failed_row(spec, ""), "status": "ok"}, pd.DataFrame({"run_id": [spec.run_id]})
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_or_raises_fails_only_its_own_run():
+    specs = [RunSpec(case="STUDY-R3"), RunSpec(case="STUDY-R3", integrator="rk4", h=0.01),
+             RunSpec(case="STUDY-R3", rtol=1e-6), RunSpec(case="STUDY-R3", integrator="dop853")]
+    got = {spec.run_id: (summary, samples) for spec, summary, samples
+           in _pool_results(specs, 2, _task_that_crashes_or_raises)}
+    assert sorted(got) == sorted(s.run_id for s in specs)
+    status = {k: (row["status"], row["reason"]) for k, (row, _) in got.items()}
+    assert status[specs[0].run_id] == ("ok", "")
+    assert status[specs[1].run_id] == ("failed", DIED)
+    assert status[specs[2].run_id] == ("ok", "")
+    assert status[specs[3].run_id] == ("failed", "worker raised ArithmeticError('boom')")
+    assert got[specs[1].run_id][1] is None
+
+
+def test_collect_orders_by_plan_and_ignores_unplanned_and_partial_runs(tmp_path):
+    specs = TINY[:3]
+    rows = {s.run_id: failed_row(s, "x") for s in specs}
+    (tmp_path / PLAN_FILE).write_text(
+        '{"runs": [' + ", ".join(f'{{"run_id": "{s.run_id}"}}' for s in specs[::-1]) + "]}")
+    for s in specs[:2]:
+        write_parquet_atomic(pd.DataFrame([rows[s.run_id]]),
+                             tmp_path / RUNS_DIR / f"{s.run_id}.parquet")
+        write_parquet_atomic(pd.DataFrame({"run_id": [s.run_id] * 2, "t": [0.0, 1.0]}),
+                             tmp_path / SAMPLES_DIR / f"{s.run_id}.parquet")
+    # samples without a summary (killed between the two writes) and a run of an older plan
+    write_parquet_atomic(pd.DataFrame({"run_id": [specs[2].run_id], "t": [0.0]}),
+                         tmp_path / SAMPLES_DIR / f"{specs[2].run_id}.parquet")
+    stale = TINY[3]
+    write_parquet_atomic(pd.DataFrame([failed_row(stale, "old")]),
+                         tmp_path / RUNS_DIR / f"{stale.run_id}.parquet")
+    runs = collect(tmp_path)
+    assert runs["run_id"].tolist() == [specs[1].run_id, specs[0].run_id]
+    samples = read_parquet(tmp_path / SAMPLES_FILE)
+    assert samples["run_id"].tolist() == [specs[1].run_id] * 2 + [specs[0].run_id] * 2
+    pd.testing.assert_frame_equal(read_parquet(tmp_path / RUNS_FILE), runs)
+
+
+# --------------------------------------------------------------------------- (e) atomic writes
+WRITER = """
+import sys
+import numpy as np, pandas as pd
+from harness.store import write_parquet_atomic
+n = int(sys.argv[2])
+df = pd.DataFrame({"i": np.arange(n), "x": np.sin(np.arange(n)), "version": 0})
+version = 0
+while True:
+    version += 1
+    df["version"] = version
+    df["x"] = np.sin(np.arange(n) + version)
+    write_parquet_atomic(df, sys.argv[1])
+    print(version, flush=True)
+"""
+
+
+@pytest.mark.slow
+def test_a_writer_killed_mid_write_leaves_the_old_or_the_new_file(tmp_path):
+    import numpy as np
+
+    n = 400_000
+    path = tmp_path / "big.parquet"
+    rng = random.Random(7)
+    torn_writes = 0
+    for _ in range(5):
+        proc = subprocess.Popen([PYTHON, "-c", WRITER, str(path), str(n)], cwd=REPO,
+                                env=subprocess_env(), stdout=subprocess.PIPE, text=True)
+        try:
+            first = proc.stdout.readline()  # one whole version written: the file exists
+            assert first, "the writer died before writing"
+            time.sleep(rng.uniform(0.0, 0.4))
+            proc.kill()
+        finally:
+            proc.wait(timeout=30)
+        df = read_parquet(path)  # never torn: always reads
+        assert len(df) == n
+        version = int(df["version"].iloc[0])
+        assert (df["version"] == version).all()
+        np.testing.assert_array_equal(df["x"].to_numpy(), np.sin(np.arange(n) + version))
+        torn_writes += remove_temp_files(tmp_path)
+    assert not list(tmp_path.glob(f"*{TEMP_SUFFIX}"))
+    assert torn_writes >= 1  # at least one kill landed mid-write (each write is most of the loop)
+
+
+# --------------------------------------------------------------------------- the command line
+def test_cli_simulate_prints_a_summary_and_saves_parquet(tmp_path, capsys):
+    out = tmp_path / "tip.parquet"
+    assert main(["simulate", "STUDY-R3", "--t-end", "0.2", "--sample", "0.05", "--out",
+                 str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "STUDY-R3 redysim/rge-a ode45 rtol=0.0001" in text and "E(0)" in text
+    assert "|delta_M|     average" in text and "tip x [m]" in text
+    samples = read_parquet(out)
+    summary = read_parquet(tmp_path / "tip.summary.parquet")
+    assert len(samples) == 5 and summary["status"].tolist() == ["ok"]
+    table = text.split("tip z [m]")[1].split("saved:")[0]
+    assert len(table.strip().splitlines()) == 5
+
+
+def test_cli_exit_codes_for_bad_input_and_failed_runs(capsys):
+    assert main(["simulate", "NO-SUCH-CASE"]) == 2
+    assert capsys.readouterr().err.startswith("redysim: error: no case named 'NO-SUCH-CASE'")
+    assert main(["simulate", "STUDY-R3", "--integrator", "rk4"]) == 2
+    assert "--h 1e-3" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        main(["simulate", "STUDY-R3", "--rtol", "-1"])
+    assert info.value.code == 2
+    assert "argument --rtol: '-1' must be > 0" in capsys.readouterr().err
+    assert main(["simulate", "STUDY-R3", "--integrator", "native", "--h", "0.01"]) == 1
+    assert capsys.readouterr().err.startswith("redysim: run failed: integrator 'native' needs")
+
+
+def test_cli_help_and_cases(capsys):
+    for argv in (["--help"], ["simulate", "--help"], ["sweep", "--help"], ["cases", "--help"]):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 0
+        assert "example" in capsys.readouterr().out
+    assert main(["cases"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.startswith("RE-U125-L1 ") and "250 DOF" in line for line in lines)
+
+
+def test_cli_import_does_not_import_pandas():
+    code = "import sys, redysim.cli; assert 'pandas' not in sys.modules, 'pandas imported'"
+    subprocess.run([PYTHON, "-c", code], cwd=REPO, env=subprocess_env(), check=True, timeout=60)
