@@ -1,0 +1,112 @@
+"""One run (harness.run.execute): what it records, how it fails, and the reference solution."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from harness import reference as ref_mod
+from harness.run import SAMPLE_COLUMNS, execute
+from harness.spec import RunSpec
+from redysim import energy, load_case
+
+
+@pytest.fixture
+def results_tmp(tmp_path, monkeypatch):
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path))
+    return tmp_path
+
+
+def test_a_run_records_samples_counts_and_provenance(results_tmp):
+    spec = RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05)
+    res = execute(spec)
+    s = res.summary
+    assert res.ok and s["reason"] == ""
+    assert list(res.samples.columns) == list(SAMPLE_COLUMNS)
+    assert np.allclose(res.samples["t"], [0, 0.05, 0.1, 0.15, 0.2])
+    case = load_case("STUDY-R3")
+    assert s["E0"] == pytest.approx(sum(energy(case.chain, case.q0, case.qd0)), rel=1e-15)
+    assert res.samples["delta_M"].iloc[0] == 0.0
+    # ode45's RHS count: 1 + 6 (steps + rejected), the first (JIT) call timed apart
+    assert s["nfev"] == 1 + 6 * (s["steps"] + s["rejected"])
+    assert s["jit_s"] >= 0 and s["cpu_s"] > 0 and s["peak_rss_mib"] > 0
+    for key in ("python", "numpy", "numba", "machine", "cpu", "git_commit", "date"):
+        assert key in s
+    assert math.isnan(s["max_tip_err"])  # no reference was computed
+
+
+def test_the_tip_of_the_first_sample_is_the_cases_tip(results_tmp):
+    res = execute(RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.01))
+    first = res.samples.iloc[0]
+    # straight along +X, 1 m long: the tip at (1, 0, 0), moving at w x r = (0, 0, -1) m/s
+    assert np.allclose(first[["tip_x", "tip_y", "tip_z"]].astype(float), [1, 0, 0], atol=1e-12)
+    assert np.allclose(first[["tip_vx", "tip_vy", "tip_vz"]].astype(float), [0, 0, -1],
+                       atol=1e-12)
+
+
+def test_errors_against_a_cached_reference(results_tmp):
+    case = load_case("STUDY-R3")
+    ref = ref_mod.compute_reference(case, 0.2, 0.05)
+    assert ref.tol_estimate < 1e-9
+    assert ref_mod.reference_path(case, 0.2, 0.05).exists()
+    coarse = execute(RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05, rtol=1e-3, atol=1e-5))
+    fine = execute(RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05, rtol=1e-7, atol=1e-9))
+    assert 0 < fine.summary["max_tip_err"] < coarse.summary["max_tip_err"]
+    assert fine.summary["final_state_err"] < coarse.summary["final_state_err"]
+
+
+def test_every_integrator_and_the_native_stepper(results_tmp):
+    for integrator, h in (("dop853", 0.0), ("rk4", 1e-3), ("scipy-RK45", 0.0),
+                          ("scipy-LSODA", 0.0)):
+        res = execute(RunSpec(case="STUDY-R3", integrator=integrator, h=h, t_end=0.1,
+                              sample=0.05))
+        assert res.ok, res.summary["reason"]
+        assert abs(res.samples["delta_M"]).max() < 1e-3
+
+
+def test_an_energy_blow_up_is_a_failed_run_with_its_reason(results_tmp):
+    res = execute(RunSpec(case="RE-U125-L1", t_end=0.05, sample=0.01, energy_bound=1e-14))
+    assert res.summary["status"] == "failed"
+    assert "energy blow-up" in res.summary["reason"] and "1e-14" in res.summary["reason"]
+    assert len(res.samples) >= 1  # the samples before it are kept
+
+
+def test_a_time_limit_stops_the_run(results_tmp):
+    res = execute(RunSpec(case="RE-U125-L1", t_end=1.0, sample=0.01, rtol=1e-9, atol=1e-11,
+                          max_wall_s=0.2))
+    assert res.summary["status"] == "failed" and "time limit" in res.summary["reason"]
+    assert res.summary["t_reached"] < 1.0
+
+
+def test_bad_specs_fail_with_reasons(results_tmp):
+    cases = {
+        RunSpec(case="NO-SUCH-CASE"): "no case named 'NO-SUCH-CASE'",
+        RunSpec(case="STUDY-R3", integrator="rk4"): "needs a step h > 0",
+        RunSpec(case="STUDY-R3", integrator="native", h=1e-3): "needs a reference engine",
+        RunSpec(case="STUDY-R3", integrator="ode23"): "unknown",
+        RunSpec(case="STUDY-R3", engine="no-engine"): "no engine 'no-engine'",
+    }
+    for spec, fragment in cases.items():
+        res = execute(spec)
+        assert res.summary["status"] == "failed", spec
+        assert fragment in res.summary["reason"], res.summary["reason"]
+
+
+def test_an_engine_refusal_is_recorded_before_building(results_tmp):
+    res = execute(RunSpec(case="RE-U50000-L1000", engine="mujoco", t_end=0.01))
+    assert res.summary["status"] == "failed"
+    assert "refused by the engine" in res.summary["reason"]
+    assert res.summary["n_dof"] == 100_000 and len(res.samples) == 0
+
+
+@pytest.mark.engine
+def test_an_engine_through_ode45_matches_the_core(results_tmp):
+    pytest.importorskip("mujoco")
+    core = execute(RunSpec(case="RE-U125-L1", t_end=0.02, sample=0.01))
+    eng = execute(RunSpec(case="RE-U125-L1", engine="mujoco", t_end=0.02, sample=0.01))
+    assert eng.ok, eng.summary["reason"]
+    assert eng.summary["engine_version"]
+    tip = ["tip_x", "tip_y", "tip_z"]
+    assert np.abs(core.samples[tip].to_numpy() - eng.samples[tip].to_numpy()).max() < 1e-9
