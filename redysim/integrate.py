@@ -467,9 +467,10 @@ def sample_times(t0: float, t_end: float, interval: float) -> np.ndarray:
 
 def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     """Step ``solver`` to the last of ``t_eval``, calling ``on_sample(t, y)`` at each sample time
-    (in order; samples at or before the current time are emitted first) and ``on_step(solver)``
-    after each accepted step. Either callback returning a non-empty string stops the run with that
-    message. Returns (status, message) as in :class:`Solution`."""
+    (in order; samples at or before the current time are emitted first, with the current state)
+    and ``on_step(solver)`` after each accepted step and its samples. Either callback returning a
+    non-empty string stops the run with that message. Returns (status, message) as in
+    :class:`Solution`."""
     i = 0
     t_eval = np.asarray(t_eval, dtype=float)
     fixed = isinstance(solver, Solver) and not solver.adaptive
@@ -480,8 +481,6 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     try:
         while i < t_eval.size and not solver.done:
             solver.step(t_eval[i] if fixed else None)
-            if on_step and (msg := on_step(solver)):
-                return 1, msg
             j = i
             while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
                 j += 1
@@ -492,6 +491,9 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
                     if on_sample and (msg := on_sample(float(t), y)):
                         return 1, msg
                 i = j
+            # after the step's samples: a checkpoint taken here holds every sample up to t
+            if on_step and (msg := on_step(solver)):
+                return 1, msg
     except IntegrationError as exc:
         return -1, str(exc)
     return 0, "ok"

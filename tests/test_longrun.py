@@ -1,0 +1,47 @@
+"""A long run killed with SIGKILL resumes from its checkpoint and ends bit for bit where an
+uninterrupted run ends."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from harness.longrun import CHECKPOINT, load_checkpoint, run
+
+CASE, T_END = "RE-U125-L1", 0.2
+
+
+@pytest.mark.slow
+def test_kill_9_then_resume_is_bit_identical(tmp_path):
+    whole = run(CASE, t_end=T_END, every_s=1e9, out=tmp_path / "whole", log=lambda m: None)
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "harness.longrun", CASE, "--t-end", str(T_END),
+                             "--every", "0.1", "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    deadline = time.monotonic() + 120
+    while not (out / CHECKPOINT).exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.15)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    partial = load_checkpoint(out / CHECKPOINT)
+    assert partial is not None and 0 < float(partial["t"]) < T_END, "killed mid-run"
+    resumed = run(CASE, t_end=T_END, every_s=0.1, out=out, log=lambda m: None)
+    assert np.array_equal(resumed["y"], whole["y"])
+    assert np.array_equal(resumed["samples"], whole["samples"])
+    for key in ("steps", "rejected", "nfev"):
+        assert int(resumed[key]) == int(whole[key])
+    assert not list(out.glob(".ckpt-*")), "no temporary files left behind"
+
+
+def test_a_checkpoint_for_other_settings_is_not_silently_reused(tmp_path):
+    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
+    with pytest.raises(SystemExit, match="t_end = 0.1"):
+        run("STUDY-R3", t_end=0.2, every_s=1e9, out=tmp_path, log=lambda m: None)
