@@ -180,17 +180,22 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     else:
         if spec.integrator in FIXED_STEP and not spec.h > 0:
             raise RunFailed(f"integrator {spec.integrator!r} needs a step h > 0")
-        solver = make_solver(dyn.rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
-                             atol=spec.atol, h=spec.h or None)
-
-        def on_step(s):
+        def rhs(t, y):
+            # the time limit is checked per RHS call: one step of an implicit solver (Newton
+            # iterations, finite-difference Jacobians) can take far longer than the limit
             if time.perf_counter() > deadline:
-                return f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at t = {s.t:.6g}"
-            return None
+                raise RunFailed(f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at "
+                                f"t = {t:.6g}")
+            return dyn.rhs(t, y)
 
-        status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
-        c = solver.counters
-        row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev)
+        solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
+                             atol=spec.atol, h=spec.h or None)
+        try:
+            status, msg = advance(solver, ts, on_sample=on_sample)
+        finally:
+            c = solver.counters
+            row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev,
+                       cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0)
     row["cpu_s"] = time.process_time() - cpu0
     row["wall_s"] = time.perf_counter() - wall0
     if status != 0:
