@@ -9,8 +9,11 @@ export PYTHONDONTWRITEBYTECODE := 1
 .PHONY: help venv test test-fast reproduce bench bench-core bench-engines lint constraints clean
 
 help:
-	@echo "make reproduce     venv + install + quick reproduction of the paper (prints results)"
+	@echo "make reproduce     venv + install + quick reproduction (~10 min): runs, then reports/out/report.{html,pdf}"
+	@echo "make reproduce-full every table to the paper's horizons (hours; resumable), then the report"
+	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite"
+	@echo "make gates         accuracy gates of gates.toml: a table, exit 1 if any fails"
 	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF"
 	@echo "make lint          ruff"
@@ -32,8 +35,23 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -m "not slow and not engine"
 
+.PHONY: gates
+gates: $(STAMP)
+	$(BIN)/python -m harness.gates
+
+# The paper's tables, one target each (reports/reproduce.py --table N).
+PAPER_TABLES := 1 2 3 4 5 6 7 8 9 10 11 A2
+TABLE_TARGETS := $(addprefix table,$(PAPER_TABLES))
+.PHONY: reproduce-full $(TABLE_TARGETS)
+
 reproduce: $(STAMP)
 	$(BIN)/python -m reports.reproduce
+
+reproduce-full: $(STAMP)
+	$(BIN)/python -m reports.reproduce --full
+
+$(TABLE_TARGETS): table%: $(STAMP)
+	$(BIN)/python -m reports.reproduce --table $*
 
 bench: bench-core
 

@@ -27,8 +27,12 @@ chain = Chain.uniform(DOF // 2, "U", length=0.02, linear_density=61.6538, radius
 ws, out = Workspace(chain), np.empty(chain.n_dof)
 q = np.full(chain.n_dof, 0.1); qd = np.full(chain.n_dof, 0.2)
 rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-t0 = time.perf_counter(); forward_dynamics(chain, q, qd, ws=ws, out=out); first = time.perf_counter() - t0
-best = min((lambda: (lambda t: (forward_dynamics(chain, q, qd, ws=ws, out=out), time.perf_counter() - t)[1])(time.perf_counter()))() for _ in range(20))
+def timed():
+    t0 = time.perf_counter()
+    forward_dynamics(chain, q, qd, ws=ws, out=out)
+    return time.perf_counter() - t0
+first = timed()
+best = min(timed() for _ in range(20))
 print(json.dumps({"import_s": t_import, "first_call_s": first, "steady_call_s": best,
                   "rss_before_MiB": rss_before / 1024,
                   "peak_rss_MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,

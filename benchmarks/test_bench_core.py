@@ -50,7 +50,8 @@ def test_pinocchio_aba_u_chain(benchmark, record, dof):
         joint = pin.JointModelUniversal(np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
         parent = model.addJoint(parent, joint, placement, f"j{k}")
         model.appendBodyToJoint(parent, pin.Inertia(chain.mass[k], chain.com[k].copy(),
-                                                    chain.inertia_com[k].copy()), pin.SE3.Identity())
+                                                    chain.inertia_com[k].copy()),
+                       pin.SE3.Identity())
     model.gravity.linear = chain.gravity.copy()
     data = pin.Data(model)
     q, qd = state(chain)

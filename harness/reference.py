@@ -13,18 +13,22 @@ our DOP853 at 1e-9, 1e-10, 1e-11 and SciPy's DOP853 at 1e-12..1e-14 agree to 7e-
 measures of a run against the reference: the max tip-position error over the samples and the
 final-state error (``harness.run``).
 
-The cache key is a hash of the case file's bytes, the horizon, the interval and the settings, so
-editing a case invalidates its references. Files are ``.npz`` written atomically (temp file +
-``os.replace``) under ``results/reference/`` (``REDYSIM_RESULTS`` moves ``results/``).
+The cache key is a hash of the case file's bytes, the horizon, the interval, the settings and the
+core's source (every ``.py`` of ``redysim/``), so editing a case or the core invalidates its
+references; a damaged cache file reads as missing and is recomputed. Files are ``.npz`` written
+atomically (temp file + ``os.replace``) under ``results/reference/`` (``REDYSIM_RESULTS`` moves
+``results/``).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
 import tempfile
 import time
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,9 +63,20 @@ class Reference:
     cpu_s: float
 
 
+@functools.cache
+def _core_source_hash() -> str:
+    import redysim
+
+    h = hashlib.sha256()
+    for p in sorted(Path(redysim.__file__).parent.rglob("*.py")):
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
 def _key(case, t_end: float, interval: float, rtol: float = REF_RTOL) -> str:
     blob = json.dumps({"case": case.path.read_bytes().hex(), "t_end": t_end, "dt": interval,
-                       "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL]})
+                       "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL],
+                       "core": _core_source_hash()})
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -74,9 +89,12 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
     p = reference_path(case, t_end, interval)
     if not p.exists():
         return None
-    with np.load(p) as z:
-        return Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]), int(z["steps"]),
-                         int(z["nfev"]), float(z["cpu_s"]))
+    try:
+        with np.load(p) as z:
+            return Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]),
+                             int(z["steps"]), int(z["nfev"]), float(z["cpu_s"]))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return None  # damaged (the writer is atomic, so only outside damage does this)
 
 
 def _solve(case, t_end, interval, method, rtol):
@@ -103,8 +121,8 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
     """Compute (or load) and cache the reference of ``case`` over [0, t_end], sampled at
     ``interval``."""
     p = reference_path(case, t_end, interval)
-    if p.exists() and not force:
-        return load_reference(case, t_end, interval)
+    if not force and (ref := load_reference(case, t_end, interval)) is not None:
+        return ref
     ts, Y, P, cnt, cpu = _solve(case, t_end, interval, REF_METHOD, REF_RTOL)
     _, _, P_check, _, _ = _solve(case, t_end, interval, CHECK_METHOD, CHECK_RTOL)
     est = float(np.linalg.norm(P - P_check, axis=1).max())

@@ -23,12 +23,18 @@ import numpy as np
 
 from .chain import Chain, Joint, Link, check_inertia, check_positive, check_vector
 from .errors import CaseError
+from .integrate import INTEGRATORS
 from .shapes import catenary_angles
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CASES_DIR = Path(os.environ.get("REDYSIM_CASES", REPO_ROOT / "cases"))
 PUBLISHED = REPO_ROOT / "paper" / "published.toml"
 MAX_LINKS = 2_000_000  # 100,000-DOF cases are 50,000 links; 2e6 links is ~2 GB of workspace
+MAX_SAMPLES = 10_000_000  # t_end / sample_interval above this is a unit slip, not a plan
+# Chain fields that describe the links of a uniform chain (links = N); with [[chain.link]]
+# entries each link gives its own, and these would be ignored, so they are refused.
+UNIFORM_ONLY = ("link_length", "total_length", "link_mass", "total_mass", "linear_density",
+                "density", "radius", "inertia", "com")
 
 _FIELDS = {
     "case": {"name", "description", "paper"},
@@ -108,6 +114,10 @@ def load_case(name_or_path: str | os.PathLike) -> Case:
             doc = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(src, "<toml syntax>", None, str(exc)) from None
+    except UnicodeDecodeError as exc:  # tomllib decodes the bytes as UTF-8 first
+        raise CaseError(src, "<toml syntax>", None,
+                        f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
+                        f"{exc.start})") from None
     return case_from_dict(doc, source=src, path=path)
 
 
@@ -169,6 +179,9 @@ def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
     key, val = _one_of(chain, ("link_length", "total_length"), source, "chain")
     val = check_positive(source, f"chain.{key}", val)
     length = val if key == "link_length" else val / nl
+    if not math.isfinite(length * length):
+        raise CaseError(source, f"chain.{key}", val, "too large: the link inertia m l^2 / 12 "
+                        "overflows")
     radius = check_positive(source, "chain.radius", chain.get("radius", 0.0), allow_zero=True)
     key, val = _one_of(chain, ("link_mass", "total_mass", "linear_density", "density"), source,
                        "chain")
@@ -182,7 +195,10 @@ def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
     else:
         if radius == 0.0:
             raise CaseError(source, "chain.radius", radius, "density needs a radius > 0")
-        mass = val * math.pi * radius**2 * length
+        mass = val * math.pi * radius * radius * length
+    if not (math.isfinite(mass) and mass > 0):
+        raise CaseError(source, f"chain.{key}", val,
+                        f"gives a link mass of {mass!r} (length {length!r} m): out of range")
     link = _link_inertia(source, "chain", length, mass, radius, chain.get("inertia", "rod"),
                          chain.get("com"))
     joint = _joint(source, "chain.joint", _require(chain, "joint", source, "chain"),
@@ -205,9 +221,20 @@ def _link_inertia(source, prefix, length, mass, radius, inertia, com) -> Link:
 def _explicit_links(chain, source) -> tuple[list[Link], list[Joint]]:
     entries = chain["link"]
     if not isinstance(entries, list) or not entries:
-        raise CaseError(source, "chain.link", entries, "must be a non-empty array of [[chain.link]]")
+        raise CaseError(source, "chain.link", entries,
+                        "must be a non-empty array of [[chain.link]]")
     if len(entries) > MAX_LINKS:
         raise CaseError(source, "chain.link", f"{len(entries)} entries", f"at most {MAX_LINKS:,}")
+    for key in UNIFORM_ONLY:
+        if key in chain:
+            raise CaseError(source, f"chain.{key}", chain[key],
+                            "applies to uniform chains (links = N) only; with [[chain.link]] "
+                            "entries give it in each entry")
+    if "links" in chain:
+        nl = _int(source, "chain.links", chain["links"], 1, MAX_LINKS)
+        if nl != len(entries):
+            raise CaseError(source, "chain.links", nl,
+                            f"disagrees with the {len(entries)} [[chain.link]] entries")
     links, joints = [], []
     for k, e in enumerate(entries):
         prefix = f"chain.link[{k}]"
@@ -231,6 +258,8 @@ def _vector_spec(spec, n, source, name) -> np.ndarray:
     unit = 1.0
     if isinstance(spec, dict):
         _no_unknown(spec, {"fill", "set", "unit", "values"}, source, name)
+        if "values" in spec and "fill" in spec:
+            raise CaseError(source, f"{name}.values|fill", None, "give values or fill, not both")
         u = spec.get("unit", "rad")
         if u not in ("rad", "deg"):
             raise CaseError(source, f"{name}.unit", u, "must be 'rad' or 'deg'")
@@ -239,10 +268,15 @@ def _vector_spec(spec, n, source, name) -> np.ndarray:
             out = check_vector(source, f"{name}.values", spec["values"], n)
         else:
             fill = spec.get("fill", 0.0)
-            if isinstance(fill, bool) or not isinstance(fill, int | float) or not math.isfinite(fill):
+            if (isinstance(fill, bool) or not isinstance(fill, int | float)
+                    or not math.isfinite(fill)):
                 raise CaseError(source, f"{name}.fill", fill, "must be a finite number")
             out = np.full(n, float(fill))
-        for i, item in enumerate(spec.get("set", [])):
+        entries = spec.get("set", [])
+        if not isinstance(entries, list):
+            raise CaseError(source, f"{name}.set", entries,
+                            "must be a list of [dof_index, value] pairs")
+        for i, item in enumerate(entries):
             if not (isinstance(item, list) and len(item) == 2):
                 raise CaseError(source, f"{name}.set[{i}]", item, "must be [dof_index, value]")
             idx, x = item
@@ -257,11 +291,15 @@ def _vector_spec(spec, n, source, name) -> np.ndarray:
         return np.full(n, float(spec))
     if isinstance(spec, list):
         return check_vector(source, name, spec, n)
-    raise CaseError(source, name, spec, "must be a number, a list of n numbers or {fill, set, unit}")
+    raise CaseError(source, name, spec,
+                    "must be a number, a list of n numbers or {fill, set, unit}")
 
 
 def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = None) -> Case:
     """Build a :class:`Case` from a parsed TOML document (see the module docstring)."""
+    if not isinstance(doc, dict):
+        raise CaseError(source, "<top>", type(doc).__name__, "a case is a table (a parsed TOML "
+                        "document, a dict)")
     _no_unknown(doc, set(_FIELDS), source, "<top>")
     meta = _table(doc, "case", source)
     _no_unknown(meta, _FIELDS["case"], source, "case")
@@ -272,13 +310,21 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     if not isinstance(paper, dict):
         raise CaseError(source, "case.paper", paper, "must be a table {tables = [...], row = ...}")
     _no_unknown(paper, {"tables", "row"}, source, "case.paper")
-    tables = tuple(paper.get("tables", ()))
+    tables = paper.get("tables", [])
+    if not (isinstance(tables, list) and all(isinstance(t, str) for t in tables)):
+        raise CaseError(source, "case.paper.tables", tables,
+                        "must be a list of published.toml entry names such as ['table2']")
+    tables = tuple(tables)
+    row = paper.get("row")
+    if row is not None and not isinstance(row, str):
+        raise CaseError(source, "case.paper.row", row, "must be a case name (a string)")
     published = load_published()
     for t in tables:
         node = published
         for part in str(t).split("."):
             if not isinstance(node, dict) or part not in node:
-                raise CaseError(source, "case.paper.tables", t, "no such entry in paper/published.toml")
+                raise CaseError(source, "case.paper.tables", t,
+                                "no such entry in paper/published.toml")
             node = node[part]
 
     chain_t = _table(doc, "chain", source)
@@ -307,7 +353,12 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
             raise CaseError(source, "initial.dX", dX, f"must not exceed the chain's length {total}")
         if not np.allclose(chain.length, chain.length[0]):
             raise CaseError(source, "initial.shape", "catenary", "needs links of equal length")
-        q0 = catenary_angles(chain.n_links, total, min(dX, total))
+        try:
+            q0 = catenary_angles(chain.n_links, total, min(dX, total))
+        except ValueError:  # the root finder's bracket holds no catenary this flat
+            raise CaseError(source, "initial.dX", dX,
+                            f"too small: no catenary of arc length {total} spans it "
+                            f"(dX / length = {dX / total:.3g})") from None
         if "q" in init:
             raise CaseError(source, "initial.q", init["q"], "give either shape or q, not both")
     else:
@@ -320,8 +371,18 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     for key in ("rtol", "atol", "sample_interval"):
         if key in sim:
             check_positive(source, f"simulation.{key}", sim[key])
+    if sim.get("rtol", 0.0) >= 1.0:
+        raise CaseError(source, "simulation.rtol", sim["rtol"],
+                        "must be < 1 (a relative tolerance of 100 % controls nothing)")
+    if "sample_interval" in sim and t_end / sim["sample_interval"] > MAX_SAMPLES:
+        raise CaseError(source, "simulation.sample_interval", sim["sample_interval"],
+                        f"gives {t_end / sim['sample_interval']:.3g} samples over t_end = {t_end}; "
+                        f"at most {MAX_SAMPLES:,}")
+    if "integrator" in sim and sim["integrator"] not in INTEGRATORS:
+        raise CaseError(source, "simulation.integrator", sim["integrator"],
+                        f"unknown integrator; known: {', '.join(INTEGRATORS)}")
     q0.flags.writeable = False
     qd0.flags.writeable = False
     return Case(name=name, path=path or Path(source), chain=chain, q0=q0, qd0=qd0, t_end=t_end,
                 description=str(meta.get("description", "")), simulation=dict(sim),
-                paper_tables=tables, paper_row=paper.get("row"))
+                paper_tables=tables, paper_row=row)

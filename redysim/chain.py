@@ -7,7 +7,8 @@ Conventions (shared by every engine adapter, see DESIGN.md section 2):
   mass m_k, centre of mass c_k (default (l_k/2, 0, 0)) and inertia about the COM in the link frame.
   O_{k+1} = O_k + l_k x_k.
 - Joint k joins link k-1 to link k at O_k. Each joint type is a sequence of elementary axes
-  (revolute or prismatic) fixed in the frame produced by the axes before it; see :data:`JOINT_TYPES`.
+  (revolute or prismatic) fixed in the frame produced by the axes before it; see
+  :data:`JOINT_TYPES`.
   All angles zero gives a straight chain along +X; q is ordered joint by joint.
 
 The model holds only what describes the chain. Per-call scratch space lives in
@@ -63,11 +64,27 @@ def check_positive(source: str, field_name: str, value, *, allow_zero: bool = Fa
     return x
 
 
+# numpy dtype kinds accepted as numbers: signed and unsigned integers, floats. Not bool ("b"),
+# strings ("U", "S": numpy would parse "1.5" silently), complex ("c": it would drop the imaginary
+# part) or objects ("O": None would become NaN).
+NUMERIC_KINDS = "iuf"
+
+
+def numeric_array(value) -> np.ndarray | None:
+    """``value`` as a float array if it is numbers (int or float) only, else None."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        return None
+    if arr.dtype.kind not in NUMERIC_KINDS:
+        return None
+    return arr.astype(float, copy=False)
+
+
 def check_vector(source: str, field_name: str, value, size: int) -> np.ndarray:
     """Return ``value`` as a finite float vector of the given size."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    arr = numeric_array(value)
+    if arr is None:
         _fail(source, field_name, value, f"must be a list of {size} numbers")
     if arr.shape != (size,):
         _fail(source, field_name, value, f"must be a list of {size} numbers, got shape {arr.shape}")
@@ -84,7 +101,8 @@ class Joint:
     type: str
     axis: tuple[float, float, float] | str | None = None
 
-    def axes(self, source: str = "chain", field_name: str = "joint") -> list[tuple[str, np.ndarray]]:
+    def axes(self, source: str = "chain",
+             field_name: str = "joint") -> list[tuple[str, np.ndarray]]:
         """The joint's elementary axes as (kind, unit vector) pairs."""
         if self.type not in JOINT_TYPES:
             _fail(source, f"{field_name}.type", self.type,
@@ -99,7 +117,8 @@ class Joint:
         for kind, direction in spec:
             if isinstance(direction, str):
                 if direction not in AXIS_NAMES:
-                    _fail(source, f"{field_name}.axis", direction, "must be 'x', 'y', 'z' or a vector")
+                    _fail(source, f"{field_name}.axis", direction,
+                          "must be 'x', 'y', 'z' or a vector")
                 u = np.zeros(3)
                 u[AXIS_NAMES[direction]] = 1.0
             else:
@@ -132,28 +151,35 @@ class Link:
         length = check_positive(source, f"{field_name}.length", length)
         mass = check_positive(source, f"{field_name}.mass", mass)
         radius = check_positive(source, f"{field_name}.radius", radius, allow_zero=True)
-        ixx = mass * radius**2 / 2
+        # products, not powers: a float ** 2 that overflows raises, a product gives inf
+        ixx = mass * (radius * radius) / 2
         if model == "rod":
-            iyy = mass * length**2 / 12
+            iyy = mass * (length * length) / 12
         elif model == "cylinder":
-            iyy = mass * (3 * radius**2 + length**2) / 12
+            iyy = mass * (3 * radius * radius + length * length) / 12
         else:
             _fail(source, f"{field_name}.inertia", model,
-                  "unknown inertia model; use 'rod', 'cylinder' or an explicit 3x3 / [Ixx, Iyy, Izz]")
+                  "unknown inertia model; use 'rod', 'cylinder' or an explicit 3x3 / "
+                  "[Ixx, Iyy, Izz]")
+        if not (math.isfinite(ixx) and math.isfinite(iyy)):
+            culprit = ("length" if not math.isfinite(length * length) else
+                       "radius" if not math.isfinite(radius * radius) else "mass")
+            _fail(source, f"{field_name}.{culprit}", locals()[culprit],
+                  f"too large: the {model} inertia overflows (Ixx = {ixx}, Iyy = {iyy})")
         inertia = ((ixx, 0.0, 0.0), (0.0, iyy, 0.0), (0.0, 0.0, iyy))
         return cls(length, mass, (length / 2, 0.0, 0.0), inertia)
 
 
 def check_inertia(source: str, field_name: str, value) -> np.ndarray:
     """A 3x3 symmetric positive semi-definite inertia from a 3x3 list or [Ixx, Iyy, Izz]."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        _fail(source, field_name, value, "must be a 3x3 matrix or [Ixx, Iyy, Izz]")
+    arr = numeric_array(value)
+    if arr is None:
+        _fail(source, field_name, value, "must be a 3x3 matrix or [Ixx, Iyy, Izz] of numbers")
     if arr.shape == (3,):
         arr = np.diag(arr)
     if arr.shape != (3, 3):
-        _fail(source, field_name, value, f"must be a 3x3 matrix or [Ixx, Iyy, Izz], got shape {arr.shape}")
+        _fail(source, field_name, value,
+              f"must be a 3x3 matrix or [Ixx, Iyy, Izz], got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         _fail(source, field_name, value, "must be finite (no NaN or Inf)")
     scale = max(np.abs(arr).max(), np.finfo(float).tiny)
@@ -189,7 +215,8 @@ class Chain:
         gravity:       (3,) gravitational acceleration in the world frame [m/s^2].
         joint_qoff:    (nl + 1,) index of joint k's first DOF in q (joint_qoff[nl] = n).
         dof_kind:      (n,) 0 revolute, 1 prismatic.
-        dof_axis:      (n,) 0, 1, 2 for the x, y, z axis of the frame before it, 3 for a general one.
+        dof_axis:      (n,) 0, 1, 2 for the x, y, z axis of the frame before it, 3 for a
+                       general one.
         dof_u:         (n, 3) the unit axis in the frame left by the axes before it.
         inertia_O:     (nl, 3, 3) inertia about O_k in the link frame (I_C + m (|c|^2 1 - c c^T)).
         mass_com:      (nl, 3) m_k c_k in the link frame.
@@ -218,42 +245,75 @@ class Chain:
             _fail(source, "links", len(links), "a chain needs at least one link")
         if len(joints) != len(links):
             _fail(source, "joints", len(joints), f"need one joint per link ({len(links)} links)")
-        joints = tuple(j if isinstance(j, Joint) else Joint(str(j)) for j in joints)
+        named: dict[str, Joint] = {}  # one Joint per type name, so that repeats are shared
+        joints = tuple(j if isinstance(j, Joint) else named.setdefault(str(j), Joint(str(j)))
+                       for j in joints)
         nl = len(links)
-        length = np.empty(nl)
-        mass = np.empty(nl)
-        com = np.empty((nl, 3))
-        inertia = np.empty((nl, 3, 3))
+
+        # Links and joints are immutable: each distinct object is validated once (a uniform chain
+        # repeats one Link and one Joint nl times) and its values are spread by index.
+        link_of = np.empty(nl, dtype=np.int64)  # link k -> its distinct Link
+        first: dict[int, int] = {}
+        values = []
         for k, link in enumerate(links):
-            where = f"links[{k}]"
-            length[k] = check_positive(source, f"{where}.length", link.length)
-            mass[k] = check_positive(source, f"{where}.mass", link.mass)
-            com[k] = check_vector(source, f"{where}.com", link.com, 3)
-            inertia[k] = check_inertia(source, f"{where}.inertia", link.inertia)
+            u = first.get(id(link))
+            if u is None:
+                where = f"links[{k}]"
+                values.append((check_positive(source, f"{where}.length", link.length),
+                               check_positive(source, f"{where}.mass", link.mass),
+                               check_vector(source, f"{where}.com", link.com, 3),
+                               check_inertia(source, f"{where}.inertia", link.inertia)))
+                u = first[id(link)] = len(values) - 1
+            link_of[k] = u
+        length = np.array([v[0] for v in values])[link_of]
+        mass = np.array([v[1] for v in values])[link_of]
+        com = np.array([v[2] for v in values])[link_of]
+        inertia = np.array([v[3] for v in values])[link_of]
         grav = check_vector(source, "gravity", gravity, 3)
 
-        kinds, codes, units, qoff = [], [], [], [0]
+        # Per DOF: kind, axis code and unit axis of each distinct joint, then spread joint by joint.
+        joint_of = np.empty(nl, dtype=np.int64)
+        first = {}
+        dofs = []  # per distinct joint: (kinds, codes, units)
         for k, joint in enumerate(joints):
-            for kind, u in joint.axes(source, f"joints[{k}]"):
-                kinds.append(KIND_CODES[kind])
-                hit = np.flatnonzero(np.abs(u) == 1.0)
-                codes.append(int(hit[0]) if hit.size == 1 else GENERAL_AXIS)
-                units.append(u)
-            qoff.append(len(kinds))
+            u = first.get(id(joint))
+            if u is None:
+                axes = joint.axes(source, f"joints[{k}]")
+                codes = []
+                for _, v in axes:
+                    hit = np.flatnonzero(np.abs(v) == 1.0)
+                    codes.append(int(hit[0]) if hit.size == 1 else GENERAL_AXIS)
+                dofs.append(([KIND_CODES[kind] for kind, _ in axes], codes, [v for _, v in axes]))
+                u = first[id(joint)] = len(dofs) - 1
+            joint_of[k] = u
+        width = np.array([len(d[0]) for d in dofs], dtype=np.int64)  # DOF of each distinct joint
+        start = np.concatenate(([0], np.cumsum(width)[:-1]))  # its first row in the flat tables
+        per_joint = width[joint_of]
+        qoff = np.concatenate(([0], np.cumsum(per_joint)))
+        row = np.repeat(start[joint_of] - qoff[:-1], per_joint) + np.arange(qoff[-1])
+        kinds = np.array([x for d in dofs for x in d[0]], dtype=np.int64)[row]
+        codes = np.array([x for d in dofs for x in d[1]], dtype=np.int64)[row]
+        units = np.array([x for d in dofs for x in d[2]], dtype=float).reshape(-1, 3)[row]
 
         # Inertia about O_k (parallel axis theorem) and first moment m c, both in the link frame.
-        cc = np.einsum("ki,kj->kij", com, com)
-        sq = np.einsum("ki,ki->k", com, com)
-        inertia_O = inertia + mass[:, None, None] * (sq[:, None, None] * np.eye(3) - cc)
-        inertia_O = 0.5 * (inertia_O + inertia_O.transpose(0, 2, 1))
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported below
+            cc = np.einsum("ki,kj->kij", com, com)
+            sq = np.einsum("ki,ki->k", com, com)
+            inertia_O = inertia + mass[:, None, None] * (sq[:, None, None] * np.eye(3) - cc)
+            inertia_O = 0.5 * (inertia_O + inertia_O.transpose(0, 2, 1))
+            mass_com = mass[:, None] * com
+        bad = ~(np.isfinite(inertia_O).all(axis=(1, 2)) & np.isfinite(mass_com).all(axis=1))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            _fail(source, f"links[{k}].com", [float(x) for x in com[k]],
+                  f"the inertia about the joint, I_C + m (|c|^2 1 - c c^T) with m = {mass[k]}, "
+                  "overflows: values too large")
         return cls(
             name=name, joints=joints, length=_readonly(length), mass=_readonly(mass),
             com=_readonly(com), inertia_com=_readonly(inertia), gravity=_readonly(grav),
-            joint_qoff=_readonly(np.array(qoff, dtype=np.int64)),
-            dof_kind=_readonly(np.array(kinds, dtype=np.int64)),
-            dof_axis=_readonly(np.array(codes, dtype=np.int64)),
-            dof_u=_readonly(np.array(units, dtype=float).reshape(-1, 3)),
-            inertia_O=_readonly(inertia_O), mass_com=_readonly(mass[:, None] * com),
+            joint_qoff=_readonly(qoff.astype(np.int64)),
+            dof_kind=_readonly(kinds), dof_axis=_readonly(codes), dof_u=_readonly(units),
+            inertia_O=_readonly(inertia_O), mass_com=_readonly(mass_com),
         )
 
     @classmethod

@@ -8,6 +8,7 @@ in a loop (an integrator's right-hand side).
 from __future__ import annotations
 
 import math
+import reprlib
 from typing import NamedTuple
 
 import numpy as np
@@ -20,7 +21,7 @@ from ._kernels.kinematics import kinematics as _kinematics
 from ._kernels.planar import planar_forward_dynamics
 from ._kernels.rge_a import rge_a_backward, rge_a_forward_dynamics
 from ._kernels.udu import udu_assemble
-from .chain import Chain
+from .chain import NUMERIC_KINDS, Chain
 from .errors import StateError
 from .workspace import Workspace
 
@@ -42,12 +43,17 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         arr = x
     else:
         try:
-            arr = np.ascontiguousarray(x, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise StateError(f"{name} = {x!r}: not a numeric vector ({exc})") from None
+            arr = np.asarray(x)
+        except (TypeError, ValueError) as exc:  # ragged nesting
+            raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector ({exc})") from None
+        if arr.dtype.kind not in NUMERIC_KINDS:  # strings, bools, complex, None/objects
+            raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
+                             f"{arr.dtype}; need int or float)")
+        arr = np.asarray(arr, dtype=float)
     if arr.shape != (chain.n_dof,):
         raise StateError(f"{name} has shape {arr.shape}; chain {chain.name!r} has "
                          f"{chain.n_dof} DOF, so {name} must have shape ({chain.n_dof},)")
+    arr = np.ascontiguousarray(arr)
     if finite:
         require_finite(name, arr)
     return arr
@@ -184,7 +190,8 @@ def mass_matrix(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
 
 
 class UDU(NamedTuple):
-    """I = U D U^T: U unit upper triangular, D diagonal (Ihat of each axis, eliminated last first)."""
+    """I = U D U^T: U unit upper triangular, D diagonal (Ihat of each axis, eliminated last
+    first)."""
 
     U: np.ndarray
     D: np.ndarray

@@ -10,8 +10,8 @@ class RedysimError(Exception):
 class CaseError(RedysimError, ValueError):
     """A case file or chain description is malformed.
 
-    The message reads ``<source>: <field> = <value>: <what is wrong>`` (no value when it is missing) so that a user can find the
-    offending line without reading a traceback.
+    The message reads ``<source>: <field> = <value>: <what is wrong>`` (no value when it is
+    missing) so that a user can find the offending line without reading a traceback.
     """
 
     def __init__(self, source: str, field: str, value, problem: str):

@@ -12,7 +12,8 @@ class Workspace:
 
     Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
     positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates, ``W``
-    (nl,6) resultant wrenches, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phi``/``zeros``
+    (nl,6) resultant wrenches, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A,
+    ``phitil``/``phi``/``zeros``
     (n,), ``planar`` (nl,12) for the planar kernel.
     """
 

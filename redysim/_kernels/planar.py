@@ -35,7 +35,8 @@ def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau
     gravity: (3,) world gravity (only X and Y act in the plane).
     """
     nl = length.shape[0]
-    # scratch columns: 0 c, 1 s, 2 Ox, 3 Oy, 4 w, 5 wd, 6 vdx, 7 vdy, 8 psi0 (Ihat), 9 psi1, 10 psi2,
+    # scratch columns: 0 c, 1 s, 2 Ox, 3 Oy, 4 w, 5 wd, 6 vdx, 7 vdy, 8 psi0 (Ihat), 9 psi1,
+    # 10 psi2,
     # 11 phitil
     # forward: k = 1..nl  (angles, positions, w, bias accelerations with qdd = 0, base at -g)
     th = 0.0
