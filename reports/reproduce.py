@@ -1,81 +1,305 @@
-"""The quick reproduction (``make reproduce``): RE-U125-L1 for 0.1 s with the core.
+"""Reproduce the paper: run what the comparison report needs, then build it (``make reproduce``).
 
-Prints E(0), the energy drift delta_M and the tip position at every sample. Integrator: SciPy's
-RK45 at the paper's tolerances (rtol 1e-4, atol 1e-6) until the ode45-equivalent lands (issue 5);
-SciPy's RMS error norm is looser than MATLAB's max norm (DESIGN.md section 4), so expect more
-drift than the paper's ode45.
+    python -m reports.reproduce                 # quick: 8 min of CPU, under 15 min on 2 cores
+    python -m reports.reproduce --full          # every table to the paper's horizons: hours
+    python -m reports.reproduce --table 4 --table 9   # only what those tables need
+    python -m reports.reproduce --build-only    # rebuild the report from the results on disk
+
+Options: ``--results DIR`` (default ``results``; also where reference solutions are cached),
+``--out DIR`` (the report, default ``reports/out``), ``--workers N`` (sweep processes, default
+one per core).
+
+Quick mode (the default): the sweeps ``sweeps/quick-tables.toml`` (Tables 1-4 up to 2,500 DOF
+at the paper's horizons, RE-U3750-L30 shortened, Table 6's GE-N on RE-U125-L1) and
+``sweeps/quick-work-precision.toml`` (every integrator and engine on RE-U125-L1 over 0.05 s);
+the precision tables 8, 10, 11, A.2 and IEEE (:mod:`reports.precision_tables`, Table 8 without
+its sensitivity runs); Table 9 and the conditioning study (:mod:`reports.gim_study`); the
+operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 links
+(:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
+then the report (:mod:`reports.build`).
+
+Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml`` and
+``work-precision-RE-U125-L1.toml`` (Table 6's GE-N on the larger chains takes hours), Table 5's
+huge chains as checkpointed long runs (:mod:`harness.longrun`: hours each, resumed from the last
+checkpoint when stopped), everything above at full size.
+
+Everything resumes: a sweep skips the runs it has finished (harness.sweep), the error study the
+cells it has, and the other steps take seconds to minutes. Progress and each step's wall time are
+printed, and ``results/reproduce-<kind>.json`` (kind: quick, full or tables) records them for the
+report. A failed step is reported and the others still run; the exit code is then 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import datetime as _dt
+import os
 import sys
 import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
 
-import numpy as np
-from scipy.integrate import solve_ivp
+from harness.provenance import REPO, provenance
+from harness.store import write_json_atomic
 
-import redysim
-from redysim import Workspace, energy, forward_dynamics, load_case, tip
+QUICK = "quick"
+FULL = "full"
+SWEEPS = REPO / "sweeps"
+QUICK_SWEEPS = ("quick-tables", "quick-work-precision")
+TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6": "table6"}
+# Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
+# Table 5's checkpointed long runs (hours each).
+FULL_SWEEPS = ("table1", "table3", "table2", "table4", "work-precision-RE-U125-L1", "table6")
+TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
+QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs harness.error_study's defaults
+REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
+LOG_DIR = "logs"
 
 
-def simulate_quick(name: str, t_end: float, sample: float) -> int:
-    case = load_case(name)
-    chain, n = case.chain, case.chain.n_dof
-    ws = Workspace(chain)
-    qdd = np.empty(n)
-    rhs_calls = 0
+@dataclass
+class Plan:
+    """What one invocation runs: named steps, in order. ``mode`` says what for ("quick",
+    "full", "tables 4, 9", "report only"); ``kind`` names its record (quick, full, tables)."""
 
-    def rhs(_t, y):
-        nonlocal rhs_calls
-        rhs_calls += 1
-        forward_dynamics(chain, y[:n], y[n:], ws=ws, out=qdd)
-        return np.concatenate([y[n:], qdd])
+    mode: str
+    kind: str
+    steps: list[tuple[str, Callable[[], object]]] = field(default_factory=list)
 
-    y0 = np.concatenate([case.q0, case.qd0])
-    t0 = time.perf_counter()
-    rhs(0.0, y0)  # JIT compile (or load from the on-disk cache), timed apart
-    jit_s = time.perf_counter() - t0
-    T0, V0 = energy(chain, case.q0, case.qd0)
-    E0 = T0 + V0
-    print(f"redysim {redysim.__version__}: {case.name}, {chain.n_links} links, {n} DOF, "
-          f"mass {chain.total_mass:.4f} kg")
-    print(f"E(0) = {E0:.6f} J   (paper, Table 3: {case.published()['table3']['E0_J']} J, "
-          "printed truncated)")
-    print(f"first qdd call (JIT compile or cache load): {jit_s:.2f} s")
-    samples = np.arange(0.0, t_end + 1e-12, sample)
-    rhs_calls = 0
-    cpu0, wall0 = time.process_time(), time.perf_counter()
-    sol = solve_ivp(rhs, (0.0, t_end), y0, method="RK45", rtol=case.simulation.get("rtol", 1e-4),
-                    atol=case.simulation.get("atol", 1e-6), t_eval=samples)
-    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
-    if not sol.success:
-        print(f"integration failed: {sol.message}", file=sys.stderr)
-        return 1
-    print(f"SciPy RK45, rtol {case.simulation.get('rtol')}, atol {case.simulation.get('atol')}: "
-          f"{sol.t.size} samples, {sol.nfev} RHS calls, CPU {cpu:.2f} s, wall {wall:.2f} s")
-    print(f"{'t [s]':>6} {'delta_M [J/kg]':>15} {'tip X':>10} {'tip Y':>10} {'tip Z':>10}")
-    drifts = []
-    for t, y in zip(sol.t, sol.y.T, strict=True):
-        q, qd = y[:n], y[n:]
-        T, V = energy(chain, q, qd, ws=ws)
-        dM = (T + V - E0) / chain.total_mass
-        drifts.append(abs(dM))
-        p = tip(chain, q, qd, ws=ws).position
-        print(f"{t:6.3f} {dM:15.3e} {p[0]:10.5f} {p[1]:10.5f} {p[2]:10.5f}")
-    print(f"average |delta_M| over the samples: {np.mean(drifts):.3e} J/kg "
-          f"(paper, 1 s with ode45: {case.published()['table3']['avg_abs_delta_M']} J/kg)")
-    return 0
+    def add(self, name: str, fn: Callable[[], object]) -> None:
+        if name not in {n for n, _ in self.steps}:
+            self.steps.append((name, fn))
+
+
+class Reproduction:
+    """The steps, bound to a results folder, a report folder and a number of workers."""
+
+    def __init__(self, results: Path, out: Path, workers: int | None, mode: str):
+        self.results = results.resolve()
+        self.out = out
+        self.workers = workers
+        self.mode = mode
+        self.t0 = time.perf_counter()
+
+    def say(self, msg: str) -> None:
+        m, s = divmod(int(time.perf_counter() - self.t0), 60)
+        print(f"[{m:02d}:{s:02d}] {msg}", flush=True)
+
+    # ----------------------------------------------------------------------- steps
+    def warm_up(self) -> None:
+        """Compile (or load from numba's disk cache) every kernel once, before the sweep workers
+        start: they then load machine code instead of compiling it each."""
+        import numpy as np
+
+        from redysim import Chain, energy, forward_dynamics, mass_matrix, tip, udu_factors
+
+        for chain in (Chain.uniform(3, "U", mass=1.0), Chain.uniform(3, "R", mass=1.0)):
+            q = np.full(chain.n_dof, 0.1)
+            for method in ("rge-a", "ge-n", "rge-n"):
+                forward_dynamics(chain, q, q, method=method)
+            forward_dynamics(chain, q, q, planar=False)
+            energy(chain, q, q)
+            tip(chain, q, q, q)
+            mass_matrix(chain, q)
+            udu_factors(chain, q)
+
+    def sweep(self, name: str) -> str:
+        from harness.sweep import load_sweep, run_sweep
+
+        sw = load_sweep(SWEEPS / f"{name}.toml")
+        runs = run_sweep(sw.specs, self.results / "sweeps" / sw.name, name=sw.name,
+                         workers=self.workers, progress=True, reference=sw.reference)
+        bad = runs[runs["status"] != "ok"] if len(runs) else runs
+        return f"{len(runs)} runs, {len(bad)} failed" + (
+            ": " + "; ".join(f"{r.label}: {str(r.reason)[:80]}" for r in bad.itertuples())
+            if len(bad) else "")
+
+    def long_runs(self) -> str:
+        """Table 5: each huge chain to the paper's horizon as a checkpointed long run
+        (:mod:`harness.longrun`, under the results folder): stopped at any point, it resumes
+        from its last checkpoint."""
+        from harness import longrun
+        from redysim import load_published
+
+        done = []
+        for row in load_published()["table5"]["rows"]:  # one at a time: each holds one core
+            try:
+                ck = longrun.run(row["case"], t_end=row["t_end"],
+                                 log=lambda msg: self.say(f"  {msg.strip()}"))
+            except SystemExit as exc:  # a checkpoint made for another horizon or tolerance
+                raise RuntimeError(str(exc)) from None
+            done.append(longrun.summary(ck))
+        return " | ".join(done)
+
+    def precision(self, names: tuple[str, ...], sensitivity: bool) -> str:
+        from redysim import load_published
+
+        from . import precision_tables as pt
+
+        pub, out, refs = load_published(), self.results / "precision", {}
+        makers = {"table10": lambda: pt.table10(pub), "tableA2": lambda: pt.tableA2(pub),
+                  "table11": lambda: pt.table11(pub, refs=refs),
+                  "ieee": lambda: pt.ieee_table(refs=refs),
+                  "table8": lambda: pt.table8(pub, sensitivity=sensitivity)}
+        for name in names:
+            pt.write(out, name, makers[name]())
+            self.say(f"  precision {name} written")
+        return f"{', '.join(names)} -> {out}"
+
+    def gim_study(self) -> str:
+        from . import gim_study
+
+        t9, cond = gim_study.run(self.results / "gim_study")
+        return (f"Table 9: cond2 {t9['ours']['cond2']:.4f} (paper {t9['paper']['cond2']}); "
+                f"cond2 of {len(cond)} chains up to {cond['n_links'].max():,} links")
+
+    def opcount(self) -> str:
+        from . import opcount
+
+        fits = opcount.run(self.results / "opcount")["fits"]
+        return "; ".join(f"{f['algorithm']}: {f['mult']} mult, {f['add']} add" for f in fits)
+
+    def error_study(self, sizes: tuple[int, ...] | None) -> str:
+        try:
+            from harness import error_study
+        except ImportError as exc:
+            return f"skipped: harness.error_study is not available ({exc})"
+        log = self.results / LOG_DIR / "error_study.log"
+        log.parent.mkdir(parents=True, exist_ok=True)
+        argv = ["--out", str(self.results / "error_study")]
+        if sizes:
+            argv += ["--sizes", *map(str, sizes)]
+        with open(log, "a", encoding="utf-8") as fh, contextlib.redirect_stdout(fh):
+            error_study.main(argv)
+        return f"log: {log}"
+
+    def scaling(self) -> str:
+        from . import scaling
+
+        df = scaling.run(self.results / "scaling", FULL if self.mode == FULL else QUICK,
+                         log=lambda _msg: None)
+        ok = df[df["status"] == "ok"]
+        return (f"{ok['algorithm'].nunique()} algorithms, {len(ok)} points; largest timed: "
+                + ", ".join(f"{a} {g['n_dof'].max():,}" for a, g in ok.groupby("algorithm",
+                                                                               sort=False)))
+
+    def build(self) -> str:
+        from .build import write_report
+
+        html, pdf = write_report(self.results, self.out, log=self.say)
+        return f"{html}, {pdf}"
+
+    # ----------------------------------------------------------------------- plans
+    def plan(self, tables: list[str], build_only: bool) -> Plan:
+        if build_only:
+            p = Plan("report only", "report")
+        elif tables:
+            p = Plan(f"table{'s' if len(tables) > 1 else ''} {', '.join(tables)}", "tables")
+        else:
+            p = Plan(self.mode, self.mode)
+        if build_only:
+            p.add("report", self.build)
+            return p
+        p.add("JIT warm-up", self.warm_up)
+        if tables:
+            for t in tables:
+                self._table_steps(p, t)
+        elif self.mode == QUICK:
+            for name in QUICK_SWEEPS:
+                p.add(f"sweep {name}", lambda name=name: self.sweep(name))
+            p.add("precision tables", lambda: self.precision(
+                ("table10", "tableA2", "table11", "ieee", "table8"), sensitivity=False))
+            p.add("Table 9, conditioning", self.gim_study)
+            p.add("Table 7, operation counts", self.opcount)
+            p.add("true-error study", lambda: self.error_study(QUICK_ERROR_SIZES))
+            p.add("CPU scaling", self.scaling)
+        else:
+            for name in FULL_SWEEPS:
+                p.add(f"sweep {name}", lambda name=name: self.sweep(name))
+            p.add("Table 5, long runs", self.long_runs)
+            p.add("precision tables", lambda: self.precision(
+                ("table10", "tableA2", "table11", "ieee", "table8"), sensitivity=True))
+            p.add("Table 9, conditioning", self.gim_study)
+            p.add("Table 7, operation counts", self.opcount)
+            p.add("CPU scaling", self.scaling)
+            p.add("true-error study", lambda: self.error_study(None))
+        p.add("report", self.build)
+        return p
+
+    def _table_steps(self, p: Plan, table: str) -> None:
+        if table == "5":
+            p.add("Table 5, long runs", self.long_runs)
+        elif table in TABLE_SWEEPS:
+            name = TABLE_SWEEPS[table]
+            p.add(f"sweep {name}", lambda: self.sweep(name))
+            if table == "6":  # Fig. 18(a) goes with Table 6
+                p.add("CPU scaling", self.scaling)
+        elif table == "7":
+            p.add("Table 7, operation counts", self.opcount)
+        elif table == "9":
+            p.add("Table 9, conditioning", self.gim_study)
+        else:
+            name = "tableA2" if table == "A2" else f"table{table}"
+            names = (name, "ieee") if table == "11" else (name,)
+            p.add(f"precision {', '.join(names)}",
+                  lambda: self.precision(names, sensitivity=True))
+            if table == "11":  # the conditioning figure goes with Table 11
+                p.add("Table 9, conditioning", self.gim_study)
+
+    def run(self, plan: Plan) -> int:
+        started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+        record = {"mode": plan.mode, "started": started, "steps": [], "provenance": provenance(),
+                  "machine": provenance()["machine"]}
+        failed = 0
+        for name, fn in plan.steps:
+            self.say(f"{name} ...")
+            t0 = time.perf_counter()
+            try:
+                detail = fn() or ""
+                status = "ok"
+            except Exception as exc:  # report it, go on: the report shows what there is
+                traceback.print_exc()
+                detail, status = f"{type(exc).__name__}: {exc}", "failed"
+                failed += 1
+            wall = time.perf_counter() - t0
+            self.say(f"{name}: {status} in {wall:.1f} s. {detail}")
+            record["steps"].append({"step": name, "wall_s": wall, "status": status,
+                                    "detail": str(detail)})
+            record["wall_s"] = time.perf_counter() - self.t0
+            record["finished"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+            if name != "report":
+                write_json_atomic(record, self.results / REPRODUCE_FILE.format(plan.kind))
+        total = time.perf_counter() - self.t0
+        m, s = divmod(int(round(total)), 60)
+        self.say(f"{plan.mode}: finished in {m} min {s} s"
+                 + (f"; {failed} step(s) failed" if failed else ""))
+        return 1 if failed else 0
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", default="RE-U125-L1")
-    ap.add_argument("--t-end", type=float, default=0.1)
-    ap.add_argument("--sample", type=float, default=0.01)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--full", action="store_true",
+                      help="every table to the paper's horizons (hours)")
+    mode.add_argument("--table", action="append", choices=TABLES, default=[], metavar="N",
+                      help=f"only what table N needs ({', '.join(TABLES)}); repeatable")
+    mode.add_argument("--build-only", action="store_true",
+                      help="only rebuild the report from the results on disk")
+    ap.add_argument("--results", type=Path, default=Path("results"), help="results folder")
+    ap.add_argument("--out", type=Path, default=Path("reports") / "out", help="report folder")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="sweep worker processes (default: one per core)")
     args = ap.parse_args(argv)
-    return simulate_quick(args.case, args.t_end, args.sample)
+    rep = Reproduction(args.results, args.out, args.workers, FULL if args.full else QUICK)
+    # reference solutions are cached under the results folder (harness.reference), also in
+    # the sweep's worker processes, which inherit the environment
+    os.environ["REDYSIM_RESULTS"] = str(rep.results)
+    rep.say(f"{rep.mode} reproduction -> {rep.results}, report -> {args.out}")
+    return rep.run(rep.plan(args.table, args.build_only))
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

@@ -1,0 +1,464 @@
+"""The comparison report: the results on disk -> one self-contained HTML page and the same as PDF.
+
+    python -m reports.build [--results results] [--out reports/out]
+
+Writes ``report.html`` (figures embedded as PNG data URIs: it opens from disk, offline) and
+``report.pdf`` (reportlab) into ``--out``. Reads only what is on disk (:mod:`reports.results`):
+a table or figure without data says which make target produces it. Sections:
+
+1. headline: the numbers a reader wants first;
+2. setup and provenance: this machine, versions, settings, where every result came from;
+3. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`reports.paper_tables`);
+4. the paper's figures, from our runs (:mod:`reports.figures`);
+5. beyond the paper: conditioning, CPU scaling, operation counts, work-precision, engine limits,
+   the precision study in IEEE formats, the true error against a 50-digit reference, benchmarks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import math
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import jinja2
+import pandas as pd
+
+import references
+from harness.provenance import provenance
+from harness.spec import CORE
+from redysim.cases import CASES_DIR
+
+from . import figures as F
+from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
+from .paper_tables import Ctx, paper_tables, printed_match
+from .precision_tables import sig_decimals
+from .results import Results, finite
+from .scaling import slopes
+from .text import integer, num, provenance_line, sci, seconds
+
+DEFAULT_RESULTS = Path("results")
+DEFAULT_OUT = Path("reports") / "out"
+HTML_FILE = "report.html"
+PDF_FILE = "report.pdf"
+REPORT_MODE = 0o644
+TEMPLATES = Path(__file__).with_name("templates")
+TEMPLATE = "report.html.j2"
+TITLE = "redysim: paper vs ours"
+SUBTITLE = ("Agarwal, Shah, Bandyopadhyay, Saha: Dynamics of serial kinematic chains with large "
+            "number of degrees-of-freedom, reproduced with redysim and four reference engines")
+SPIN_RATE = 1.0  # rad/s: w_Y0 of every RE-U case (published.toml [conventions])
+ENERGY_TABLES = ("table2", "table3", "table4", "table5", "table6")
+HEADLINE_CASE = "RE-U125-L1"
+
+
+# --------------------------------------------------------------------------- headline
+def closed_form_e0(case: str) -> float | None:
+    """rho_l L^3 w^2 / 6: E(0) of a straight rod spinning about its end (rod inertia)."""
+    path = CASES_DIR / f"{case}.toml"
+    if not path.is_file():
+        return None
+    with open(path, "rb") as fh:
+        ch = tomllib.load(fh)["chain"]
+    if not {"total_length", "density", "radius"} <= ch.keys():
+        return None
+    rho_l = ch["density"] * math.pi * ch["radius"] ** 2
+    return rho_l * ch["total_length"] ** 3 * SPIN_RATE**2 / 6
+
+
+def headline_e0(ctx: Ctx) -> Headline:
+    ours, every = {}, set()
+    for key in ENERGY_TABLES:
+        for row in ctx.pub[key]["rows"]:
+            case = row.get("case", ctx.pub[key].get("case"))
+            if "E0_J" not in row or case is None:
+                continue
+            every.add(case)
+            c = ctx.candidates(case)
+            c = c[c["status"] == "ok"] if len(c) else c
+            # compare with the most digits the paper prints for the case (Table 2 or 6)
+            if len(c) and (case not in ours
+                           or sig_decimals(row["E0_J"]) > sig_decimals(ours[case][1])):
+                ours[case] = (float(c["E0"].iloc[0]), row["E0_J"])
+    if not ours:
+        return Headline("E(0)", "not run", "make reproduce", NOT_RUN)
+    n_match = sum(printed_match(o, p)[0] for o, p in ours.values())
+    devs = [abs(o - cf) / cf for case, (o, _) in ours.items() if (cf := closed_form_e0(case))]
+    total = len(every)
+    detail = (f"{n_match}/{len(ours)} RE-U chains run match the paper's printed E(0) "
+              f"({total - len(ours)} of the paper's {total} not run yet)")
+    if devs:
+        detail += f"; |ours - rho_l L^3 w^2/6| / E(0) <= {max(devs):.1e}"
+    return Headline("E(0) of the spinning rods", f"{n_match}/{len(ours)} match", detail,
+                    MATCH if n_match == len(ours) else DIFFER)
+
+
+def headline_precision(res: Results, tables: dict[str, Table]) -> Headline:
+    parts, kinds = [], []
+    for key, label in (("table9", "Table 9"), ("table10", "Table 10"), ("table11", "Table 11"),
+                       ("tableA2", "Table A.2")):
+        t = tables[key]
+        if t.not_run:
+            parts.append(f"{label}: {t.not_run}")
+            kinds.append(NOT_RUN)
+            continue
+        c = t.counts()
+        parts.append(f"{label}: {c[MATCH]}/{len(t.rows)} rows match")
+        kinds.append(MATCH if c[MATCH] == len(t.rows) else PARTIAL)
+    doc = res.precision("table10")
+    value = parts[0]  # Table 9's count, unless Table 10's values are on disk
+    if doc is not None:
+        c = doc["counts"]
+        exact = {m: c[f"double/{m}"]["qdd"]["exact"] + c[f"double/{m}"]["dq"]["exact"]
+                 for m in ("GE-N", "RGE-N", "RGE-A")}
+        value = "Table 10 values exact: " + ", ".join(f"{m} {n}/36" for m, n in exact.items())
+    return Headline("Precision study (Tables 9, 10, 11, A.2)", value, "; ".join(parts),
+                    MATCH if set(kinds) == {MATCH} else PARTIAL)
+
+
+def headline_speed(res: Results) -> Headline:
+    df = res.scaling
+    if df is None or df.empty:
+        return Headline("Core speed", "not run", "python -m reports.scaling (make reproduce)",
+                        NOT_RUN)
+    ok = df[df["status"] == "ok"]
+    core = ok[(ok["engine"] == CORE) & (ok["algorithm"] == "rge-a")].set_index("n_dof")
+    if core.empty:
+        return Headline("Core speed", "no core timing", "", NOT_RUN)
+    top = core.index.max()
+    value = f"{core.loc[top, 'ns_per_dof']:.0f} ns/DOF at {top:,} DOF"
+    best = None
+    for engine, g in ok[ok["engine"] != CORE].groupby("engine"):
+        d = g["n_dof"].max()
+        if d in core.index:
+            r = float(g.set_index("n_dof").loc[d, "seconds_per_call"] / core.loc[d,
+                                                                                   "seconds_per_call"])
+            if best is None or r < best[1]:
+                best = (engine, r, d)
+    load = core["load_avg_1min"].max() if "load_avg_1min" in core else math.nan
+    detail = "RGE-A qdd per call, one core, warm" + (
+        f", load average {load:.1f} while timed ({core['machine'].iloc[0]})"
+        if finite(load) else "")
+    if best:
+        detail += (f"; the fastest engine at its largest timed size, {best[0]}, takes "
+                   f"{best[1]:.2g}x the core's time at {best[2]:,} DOF")
+    sl = slopes(df).get("rge-a")
+    if sl is not None:
+        detail += f"; fitted slope {sl:.2f} (O(n))"
+    return Headline("Core speed", value, detail, INFO)
+
+
+def headline_limits(res: Results) -> Headline:
+    lim = references.load_limits()["engine"]
+    parts = [f"{e} {v['max_dof']:,}" for e, v in lim.items()]
+    biggest = 0
+    runs = res.runs
+    if not runs.empty:
+        ok = runs[(runs["engine"] == CORE) & (runs["status"] == "ok")]
+        if len(ok):
+            biggest = int(ok["n_dof"].max())
+    value = f"engines up to {max(v['max_dof'] for v in lim.values()):,} DOF"
+    detail = "largest DOF each engine takes (references/limits.toml): " + ", ".join(parts)
+    detail += f"; the core has simulated {biggest:,} DOF here" if biggest else ""
+    return Headline("Largest chain per engine", value, detail, INFO)
+
+
+def headline_drift(ctx: Ctx) -> Headline:
+    row = next(r for r in ctx.pub["table3"]["rows"] if r["case"] == HEADLINE_CASE)
+    p = ctx.pick(HEADLINE_CASE, row["t_end"])
+    if not p.ok:
+        return Headline(f"Energy drift {HEADLINE_CASE}", "not run", "make table3", NOT_RUN)
+    ours, paper = p.value("avg_abs_delta_M"), row["avg_abs_delta_M"]
+    kind = MATCH if 1 / 10 <= ours / paper <= 10 else DIFFER
+    return Headline(f"Energy drift {HEADLINE_CASE}, {row['t_end']:g} s",
+                    f"{ours:.2e} J/kg (paper {paper:.2e})",
+                    f"avg |delta_M| with ode45 at rtol 1e-4 (ours/paper {ours / paper:.2g}); "
+                    f"{int(p.value('steps')):,} steps, CPU {seconds(p.value('cpu_s'))} "
+                    f"(paper {row['cpu_s']} s)", kind)
+
+
+def headline_verdicts(tables: list[Table]) -> Headline:
+    total = {k: 0 for k in (MATCH, DIFFER, PARTIAL, NOT_RUN)}
+    for t in tables:
+        for k, n in t.counts().items():
+            if k in total:
+                total[k] += n
+    empty = [t.id for t in tables if t.not_run]
+    value = f"{total[MATCH]} rows match, {total[DIFFER]} differ"
+    detail = (f"over Tables 1-11 and A.2: {total[PARTIAL]} partial (shortened runs), "
+              f"{total[NOT_RUN]} rows not run" + (f"; tables without data: {', '.join(empty)}"
+                                                   if empty else ""))
+    return Headline("Verdicts", value, detail, INFO)
+
+
+def headline_reproduction(res: Results) -> Headline:
+    docs = [d for d in res.reproductions if d.get("mode") in ("quick", "full")] \
+        or res.reproductions
+    if not docs:
+        return Headline("Reproduction", "not recorded", "python -m reports.reproduce", INFO)
+    value = "; ".join(f"{d.get('mode', '')}: {seconds(d.get('wall_s'))}" for d in docs)
+    last = docs[-1]
+    return Headline("Reproduction", value,
+                    f"wall time of `python -m reports.reproduce` up to the report, from empty "
+                    f"results or resumed (last finished {last.get('finished', '')}, "
+                    f"{last.get('machine', '')})", INFO)
+
+
+# --------------------------------------------------------------------------- setup
+def setup_section(ctx: Ctx) -> Section:
+    here = provenance()
+    sec = Section("setup", "Setup and provenance")
+    sec.intro.append("Every number below comes from files under the results folder; each table "
+                     "and figure names its source and the versions, machine, commit and date "
+                     "of its data. The paper's numbers are in paper/published.toml, "
+                     "transcribed from the text.")
+    t = Table("provenance", "This build", ["item", "value"])
+    for k, v in here.items():
+        if k != "executable" and v:
+            t.rows.append(Row([k, str(v)]))
+    for name, cls in references.ENGINES.items():
+        try:
+            version = cls.package_version() if cls.available() else "not installed"
+        except Exception as exc:  # a broken engine install is reported, not fatal
+            version = f"unavailable ({type(exc).__name__})"
+        t.rows.append(Row([f"engine {name}", f"{cls.package} {version}"]))
+    t.provenance = f"report built {here['date']}"
+    sec.items.append(t)
+    conv = ctx.pub["conventions"]
+    s = Table("settings", "The paper's settings, used for every paper-vs-ours run",
+              ["setting", "value"])
+    for key in ("integrator", "rtol", "atol", "sample_interval_s", "energy_drift",
+                "rod_mass_per_length", "rod_inertia_note", "spatial_initial_state"):
+        s.rows.append(Row([key, str(conv[key])]))
+    s.notes.append("Our ode45 is Dormand-Prince 4(5) with MATLAB's step-size rules (max-norm "
+                   "error, first step, 5x growth cap, refine; redysim/integrate.py).")
+    s.notes.append("RE-U chains use the rod inertia (Ixx = m r^2/2, Iyy = Izz = m l^2/12): the "
+                   "paper's E(0) needs it. It violates the triangle inequality of inertia for "
+                   "l < sqrt(3) r, i.e. in every RE-U case; MuJoCo's compiler rejects it, so its "
+                   "adapter compiles with balanceinertia and writes the exact values back "
+                   "(DESIGN.md section 2). The physical cylinder model is available in the case "
+                   "files' `inertia` field.")
+    s.notes.append("Timings run one BLAS thread per process (OPENBLAS_NUM_THREADS=1, set by "
+                   "reports/__init__.py): with OpenBLAS's default threads on this shared 2-core "
+                   "machine SciPy's Cholesky of a 250 x 250 GIM took 0.23 s instead of 1.5 ms.")
+    sec.items.append(s)
+    src = Table("sources", "Results found", ["result", "where"],
+                [Row([a, b]) for a, b in ctx.res.sources()])
+    if not src.rows:
+        src.not_run = "no results yet: make reproduce"
+    sec.items.append(src)
+    for doc in ctx.res.reproductions:
+        r = Table(f"reproduction-{doc.get('mode', '')}".replace(" ", "-").replace(",", ""),
+                  f"Reproduction: {doc.get('mode')}", ["step", "wall time", "status", "detail"],
+                  [Row([s["step"], seconds(s["wall_s"]), s["status"], s.get("detail", "")],
+                       MATCH if s["status"] == "ok" else DIFFER) for s in doc.get("steps", [])])
+        r.notes.append(f"Total wall time {seconds(doc.get('wall_s'))} up to the report, started "
+                       f"{doc.get('started', '')}.")
+        r.provenance = provenance_line(doc.get("provenance"), what="results/reproduce-*.json")
+        sec.items.append(r)
+    return sec
+
+
+# --------------------------------------------------------------------------- beyond the paper
+def limits_table(res: Results) -> Table:
+    lim = references.load_limits()
+    t = Table("limits", "Engine limits: the largest case each engine takes, and what stops it",
+              ["engine", "max DOF", "max links", "what stops it", "measured",
+               "timed here up to", "timing stopped by"])
+    sc = res.scaling
+    for engine, v in lim["engine"].items():
+        timed, why = "", ""
+        if sc is not None:
+            g = sc[sc["engine"] == engine]
+            ok = g[g["status"] == "ok"]
+            timed = f"{int(ok['n_dof'].max()):,} DOF" if len(ok) else ""
+            stop = g[g["status"] != "ok"]
+            why = str(stop["reason"].iloc[0]) if len(stop) else ""
+        t.rows.append(Row([engine, integer(v["max_dof"]), integer(v.get("max_links")),
+                           v["stops"], v["measured"], timed, why]))
+    b = lim["budget"]
+    t.notes.append(f"Budgets (references/limits.toml): {b['memory_gib']} GiB memory, "
+                   f"{b['build_s']} s to build, {b['qdd_s']} s per qdd call. None takes "
+                   "RE-U50000-L1000 (100,000 DOF); the core does (O(n) time and memory). "
+                   "'Timed here' is the CPU-scaling measurement of this report, under its own "
+                   "smaller budget.")
+    t.provenance = "references/limits.toml (measured " + ", ".join(
+        sorted({v["date"] for v in lim["engine"].values()})) + ")"
+    return t
+
+
+def scaling_table(res: Results) -> Table:
+    t = Table("scaling", "CPU of one qdd call per engine and algorithm",
+              ["algorithm", "engine", "version", "DOF timed", "ns/DOF at the smallest",
+               "ns/DOF at the largest", "slope", "stopped at", "why"])
+    df = res.scaling
+    if df is None or df.empty:
+        t.not_run = "not run: python -m reports.scaling (make reproduce)"
+        return t
+    sl = slopes(df)
+    for label, g in df.groupby("algorithm", sort=False):
+        ok = g[g["status"] == "ok"].sort_values("n_dof")
+        stop = g[g["status"] != "ok"]
+        t.rows.append(Row([
+            label, g["engine"].iloc[0], str(ok["version"].iloc[0]) if len(ok) else "",
+            f"{int(ok['n_dof'].min()):,}-{int(ok['n_dof'].max()):,}" if len(ok) else "",
+            f"{ok['ns_per_dof'].iloc[0]:,.0f}" if len(ok) else "",
+            f"{ok['ns_per_dof'].iloc[-1]:,.0f}" if len(ok) else "",
+            f"{sl[label]:.2f}" if label in sl else "",
+            integer(stop["n_dof"].iloc[0]) if len(stop) else "",
+            (f"{stop['status'].iloc[0]}: {stop['reason'].iloc[0]}" if len(stop) else "")]))
+    if "load_avg_1min" in df:
+        t.notes.append(f"Load average of the machine during the timing: "
+                       f"{df['load_avg_1min'].min():.1f}-{df['load_avg_1min'].max():.1f} "
+                       "(2 cores, shared): timings of a loaded machine are upper bounds.")
+    t.provenance = provenance_line(df, what="results/scaling/scaling.parquet")
+    return t
+
+
+def ieee_table(res: Results) -> Table:
+    t = Table("ieee", "The precision study in IEEE float32: relative error of qdd at q = 0",
+              ["links", "cond2", "u x cond2"])
+    doc = res.precision("ieee")
+    if doc is None:
+        t.not_run = "not run: make table11"
+        return t
+    rows = [r for r in doc["rows"] if r["dtype"] == "float32"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    t.columns += methods
+    for n in dict.fromkeys(r["links"] for r in rows):
+        rr = {r["method"]: r for r in rows if r["links"] == n}
+        r0 = next(iter(rr.values()))
+        t.rows.append(Row([str(n), num(r0["cond2"], 4), sci(r0["u_cond2"], 1)]
+                          + [sci(rr[m]["rel_error"], 1) if rr[m]["status"] == "ok"
+                             else rr[m]["status"] for m in methods]))
+    t.notes.append("Every operation of each method in float32 (the kernels' own source on "
+                   "float32 scalars; redysim/precision.py); the reference is the same inputs in "
+                   "40-place decimal arithmetic. u = 2^-24, the unit roundoff.")
+    t.provenance = provenance_line(doc.get("meta"), what="results/precision/ieee.json")
+    return t
+
+
+def true_error_table(res: Results) -> Table:
+    t = Table("true-error", "True relative error of qdd, double precision, straight chain",
+              ["chain", "links", "DOF", "cond2"])
+    df = res.error_study
+    if df is None or df.empty:
+        t.not_run = "not run: python -m harness.error_study (make reproduce)"
+        return t
+    sel = df[(df["precision"] == "float64") & (df["config"] == "stretched")]
+    ran = sel[sel["status"].isin(["ok", "nonfinite", "failed"])]
+    methods = list(dict.fromkeys(ran["method"]))
+    t.columns += methods
+    for (chain, nl), g in sel.groupby(["chain", "n_links"]):
+        by = g.set_index("method")
+        cond = g["cond2"].dropna()
+        cond = cond.iloc[0] if len(cond) else g["cond2_lanczos"].dropna().iloc[0] \
+            if g["cond2_lanczos"].notna().any() else math.nan
+        cells = [chain, f"{nl:,}", f"{int(g['n_dof'].iloc[0]):,}", sci(cond, 1)]
+        for m in methods:
+            if m not in by.index:
+                cells.append("")
+                continue
+            r = by.loc[m]
+            r = r.iloc[0] if isinstance(r, pd.DataFrame) else r
+            cells.append(sci(r["rel2"], 1) if r["status"] == "ok" else
+                         {"nonfinite": "NaN", "failed": "FAIL"}.get(r["status"], ""))
+        t.rows.append(Row(cells))
+    t.notes.append("||qdd - ref||_2 / ||ref||_2 with ref the exact solution of the double-"
+                   "precision input (mpmath, 50 digits; harness/error_study.py). NaN: the method "
+                   "returned "
+                   "NaN/Inf; FAIL: it raised (Cholesky: not positive definite); blank: not run "
+                   "(beyond the method's or engine's limit).")
+    t.provenance = provenance_line(df, what="results/error_study/error_study.parquet")
+    return t
+
+
+def bench_table(res: Results) -> Table:
+    from references.report_bench import rows as bench_rows
+
+    t = Table("bench", "Benchmarks (pytest-benchmark): qdd per call, core vs engines",
+              ["kind", "engine", "version", "DOF", "mean per call", "ns/DOF", "x core"])
+    doc = res.bench("engines")
+    if doc is None:
+        t.not_run = "not run: make bench-engines"
+        return t
+    for r in bench_rows(doc):
+        t.rows.append(Row([r["kind"], r["engine"], r["version"], f"{r['dof']:,}",
+                           seconds(r["mean_s"]), num(r["ns_per_dof"], 3),
+                           num(r["ratio"], 3)]))
+    info = doc.get("machine_info", {})
+    t.provenance = (f"results/bench/engines.json: {info.get('cpu', {}).get('brand_raw', '')}, "
+                    f"Python {info.get('python_version', '')}, {doc.get('datetime', '')}")
+    return t
+
+
+# --------------------------------------------------------------------------- assembling
+def build_report(res: Results) -> Report:
+    ctx = Ctx(res)
+    tables = paper_tables(res)
+    by_id = {t.id: t for t in tables}
+    headline = [headline_e0(ctx), headline_drift(ctx), headline_precision(res, by_id),
+                headline_speed(res), headline_limits(res), headline_verdicts(tables),
+                headline_reproduction(res)]
+    paper = Section("paper", "Paper vs ours: Tables 1-11 and A.2", items=list(tables))
+    paper.intro.append("One table per table of the paper, a verdict per row. The paper "
+                       "truncates printed values: ours matches when, truncated (or rounded) to "
+                       "the printed digits, it equals the paper's. Energy drift is compared by "
+                       "its ratio; CPU times are shown, not judged (MATLAB on a 2011 laptop).")
+    figs = Section("figures", "The paper's figures, from our runs", items=F.paper_figures(ctx))
+    figs.intro.append("Figs. 3-5, 7-17 and 19 in the paper's form (Fig. 18 is with the CPU "
+                      "scaling below). Samples every 0.05 s, as the paper's; a curve from a "
+                      "shortened run says so in its legend.")
+    beyond = Section("beyond", "Beyond the paper: conditioning, cost, accuracy, engines",
+                     items=[F.conditioning(ctx), F.scaling(ctx), scaling_table(res),
+                            F.op_counts(ctx), *F.work_precision(ctx), limits_table(res),
+                            ieee_table(res), F.true_error(ctx), true_error_table(res),
+                            bench_table(res)])
+    here = provenance()
+    return Report(TITLE, SUBTITLE, here["date"], headline,
+                  [setup_section(ctx), paper, figs, beyond],
+                  provenance_line(here, what="report built with"))
+
+
+# --------------------------------------------------------------------------- rendering
+def render_html(report: Report) -> str:
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES),
+                             autoescape=jinja2.select_autoescape(["html", "j2"]),
+                             trim_blocks=True, lstrip_blocks=True)
+    env.filters["b64"] = lambda b: base64.b64encode(b).decode("ascii")
+    env.tests["table"] = lambda x: isinstance(x, Table)
+    return env.get_template(TEMPLATE).render(report=report)
+
+
+def write_report(results: Path, out: Path, *, log=print) -> tuple[Path, Path]:
+    """Build the report from ``results`` and write HTML and PDF into ``out``."""
+    from harness.store import write_text_atomic
+
+    from .pdf import write_pdf
+
+    t0 = time.perf_counter()
+    report = build_report(Results(results))
+    html = write_text_atomic(render_html(report), out / HTML_FILE)
+    html.chmod(REPORT_MODE)  # the atomic writer's temporary file is private (0600)
+    pdf = write_pdf(report, out / PDF_FILE)
+    log(f"report: {html} and {pdf} ({len(report.tables())} tables, {len(report.figures())} "
+        f"figures) in {time.perf_counter() - t0:.1f} s")
+    return html, pdf
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--results", type=Path, default=DEFAULT_RESULTS,
+                    help=f"results folder (default {DEFAULT_RESULTS})")
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
+                    help=f"output folder (default {DEFAULT_OUT})")
+    args = ap.parse_args(argv)
+    write_report(args.results, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

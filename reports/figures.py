@@ -1,0 +1,485 @@
+"""The report's figures: the paper's (tip paths, speeds, energy drift, Figs. 3-19) and ours beyond
+it (conditioning, CPU scaling, work-precision, true error), as PNG bytes.
+
+Every figure carries a footer with the versions, machine, commit and dates of the data it shows
+(:func:`reports.text.provenance_line`), drawn into the image so it survives copying. A figure
+without data is a :class:`~reports.content.Figure` with ``png = None`` and a ``not_run`` that says
+which make target produces it.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from harness.spec import CORE, NATIVE  # noqa: E402
+
+from .content import Figure  # noqa: E402
+from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
+from .scaling import SLOPE_MIN_DOF, slopes  # noqa: E402
+from .text import footer_lines, provenance_line  # noqa: E402
+
+DPI = 120
+PANEL_W = 4.3          # inches per panel
+PANEL_H = 3.0
+FOOTER_PT = 6.0        # footer font size
+FONT_PT = 8.0
+EPS = float(np.finfo(float).eps)
+ERROR_FLOOR = 1e-17    # errors of exactly 0 are drawn here on log axes
+OPS_DOF = np.unique(np.geomspace(10, 5000, 60).round())  # the paper's Fig. 18(b) runs to 5,000
+CORE_LABEL = "redysim (RGE-A)"
+WP_MARKERS = "osD^v<>ph*"
+FAILED_REASON_CHARS = 90  # a failed run's reason, shortened, in a work-precision caption
+
+plt.rcParams.update({"font.size": FONT_PT, "axes.titlesize": FONT_PT + 1,
+                     "legend.fontsize": FONT_PT - 1, "axes.grid": True, "grid.alpha": 0.3,
+                     "lines.linewidth": 1.2})
+
+
+@dataclass
+class Series:
+    """One curve's data: a label, the run's samples, the run's summary row."""
+
+    label: str
+    samples: pd.DataFrame
+    run: pd.Series
+
+
+def new_figure(ncols: int, nrows: int = 1, *, width: float | None = None,
+               height: float | None = None, footer: str = ""):
+    """A figure of ``nrows`` x ``ncols`` panels with room for the provenance footer."""
+    w = width or PANEL_W * ncols
+    h = height or PANEL_H * nrows
+    lines = footer_lines(footer, w)
+    bottom = (len(lines) * FOOTER_PT * 1.45 + 4) / 72 / h
+    fig, axes = plt.subplots(nrows, ncols, figsize=(w, h), squeeze=False)
+    fig.set_layout_engine("constrained", rect=(0, bottom, 1, 1 - bottom))
+    fig.text(0.005, 0.004, "\n".join(lines), fontsize=FOOTER_PT, color="0.35", va="bottom",
+             ha="left", family="monospace")
+    return fig, axes.ravel()
+
+
+def to_png(fig) -> tuple[bytes, int, int]:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    w, h = (fig.get_size_inches() * DPI).round().astype(int)
+    plt.close(fig)
+    return buf.getvalue(), int(w), int(h)
+
+
+def _figure(fid, family, title, caption, fig) -> Figure:
+    png, w, h = to_png(fig)
+    return Figure(fid, family, title, caption, png, width_px=w, height_px=h)
+
+
+def missing(fid, family, title, caption, how) -> Figure:
+    return Figure(fid, family, title, caption, None, not_run=how)
+
+
+def series(ctx: Ctx, picks: Sequence[tuple[str, Pick]]) -> list[Series]:
+    """The curves of the picks that have samples (shortened runs are labelled so)."""
+    out = []
+    for label, p in picks:
+        if p.run is None:
+            continue
+        s = ctx.res.samples(p.run["run_id"])
+        if s is None or s.empty:
+            continue
+        short = "" if p.full else f" {p.shortened()}"
+        out.append(Series(label + short, s.sort_values("t"), p.run))
+    return out
+
+
+def _footer(curves: Sequence[Series]) -> str:
+    return provenance_line(pd.DataFrame([c.run for c in curves]))
+
+
+def _speed(s: pd.DataFrame, part: str) -> np.ndarray:
+    cols = [f"tip_{part}{k}" for k in "xyz"]
+    return np.linalg.norm(s[cols].to_numpy(), axis=1)
+
+
+# --------------------------------------------------------------------------- the paper's figures
+def tip_paths(fid: str, title: str, caption: str, curves: list[Series], how: str) -> Figure:
+    """Tip X, Y and Z against time, one panel per coordinate, one line per curve."""
+    if not curves:
+        return missing(fid, "tip-path", title, caption, how)
+    fig, axes = new_figure(3, footer=_footer(curves))
+    for ax, k in zip(axes, "xyz", strict=True):
+        for c in curves:
+            ax.plot(c.samples["t"], c.samples[f"tip_{k}"], label=c.label)
+        ax.set(xlabel="time [s]", ylabel=f"tip {k.upper()} [m]", title=f"tip {k.upper()}")
+    axes[0].legend()
+    return _figure(fid, "tip-path", title, caption, fig)
+
+
+def tip_paths_planar(fid: str, title: str, caption: str, curves: list[Series],
+                     how: str) -> Figure:
+    """Fig. 3's form: one panel per curve (case), tip X and Y against time."""
+    if not curves:
+        return missing(fid, "tip-path", title, caption, how)
+    fig, axes = new_figure(len(curves), footer=_footer(curves), width=PANEL_W * 1.3 * len(curves))
+    for ax, c in zip(axes, curves, strict=True):
+        ax.plot(c.samples["t"], c.samples["tip_x"], label="X")
+        ax.plot(c.samples["t"], c.samples["tip_y"], label="Y")
+        ax.set(xlabel="time [s]", ylabel="tip coordinates [m]", title=c.label)
+        ax.legend()
+    return _figure(fid, "tip-path", title, caption, fig)
+
+
+def tip_speed(fid: str, title: str, caption: str, curves: list[Series], how: str) -> Figure:
+    """Tip speed and acceleration magnitudes against time (of the runs that sampled them: a
+    checkpointed long run keeps positions and energy only)."""
+    sampled = [c for c in curves if "tip_vx" in c.samples]
+    if not sampled:
+        return missing(fid, "tip-speed", title, caption, how if not curves else
+                       "no tip speeds: checkpointed long runs (harness.longrun) keep tip "
+                       "position and energy only")
+    curves = sampled
+    fig, axes = new_figure(2, footer=_footer(curves), width=PANEL_W * 2.6)
+    for c in curves:
+        axes[0].plot(c.samples["t"], _speed(c.samples, "v"), label=c.label)
+        axes[1].plot(c.samples["t"], _speed(c.samples, "a"), label=c.label)
+    axes[0].set(xlabel="time [s]", ylabel="|v| [m/s]", title="(a) tip velocity magnitude")
+    axes[1].set(xlabel="time [s]", ylabel="|a| [m/s$^2$]",
+                title="(b) tip acceleration magnitude")
+    axes[0].legend()
+    return _figure(fid, "tip-speed", title, caption, fig)
+
+
+def drift(fid: str, title: str, caption: str, panels: list[tuple[str, list[Series]]],
+          how: str) -> Figure:
+    """delta_M(t), one panel per (title, curves)."""
+    panels = [(t, cs) for t, cs in panels if cs]
+    if not panels:
+        return missing(fid, "drift", title, caption, how)
+    every = [c for _, cs in panels for c in cs]
+    fig, axes = new_figure(len(panels), footer=_footer(every),
+                           width=PANEL_W * max(2.6, 1.3 * len(panels)))
+    for ax, (ptitle, cs) in zip(axes, panels, strict=True):
+        for c in cs:
+            ax.plot(c.samples["t"], c.samples["delta_M"], label=c.label)
+        ax.set(xlabel="time [s]", ylabel="$\\delta_M(t)$ [J/kg]", title=ptitle)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 3))
+        ax.legend()
+    return _figure(fid, "drift", title, caption, fig)
+
+
+def _engine_curves(ctx: Ctx, case: str, horizon: float) -> list[tuple[str, Pick]]:
+    return [(label, ctx.pick(case, horizon, engine=e)) for e, label in ENGINE_LABELS.items()]
+
+
+def paper_figures(ctx: Ctx) -> list[Figure]:
+    """Figs. 3-5, 7-17 and 19 in the paper's form, from the runs on disk."""
+    pub = ctx.pub
+    figs = []
+    t1 = pub["table1"]
+    t1_curves = series(ctx, [(f"dX = {r['dX']:g} m", ctx.pick(f"{t1['case']}-DX{r['dX']:g}",
+                                                             r["t_end"])) for r in t1["rows"]])
+    how1 = f"not run: {make_target('table1')}"
+    figs.append(tip_paths_planar(
+        "fig3", "Fig. 3: tip position of RE-R229-L1.02",
+        "Tip X and Y of the falling chain for both initial separations (the paper compares with "
+        "the experiment of Tomaszewski et al. 2006, which we do not have).", t1_curves, how1))
+    figs.append(tip_speed(
+        "fig4", "Fig. 4: tip speed and acceleration of RE-R229-L1.02",
+        "Peaks near 10-15 m/s and 1,500-2,000 m/s^2 around t = 0.3-0.4 s in the paper for "
+        "dX = 1.02 m; samples every 0.05 s miss the sharpest peaks.", t1_curves, how1))
+    figs.append(drift("fig5", "Fig. 5: energy drift of RE-R229-L1.02",
+                      "delta_M(t) = (E(t) - E(0)) / M; the paper's is of order 1e-5 (dX = 1.02) "
+                      "and 1e-6 (dX = 0.765).",
+                      [(c.label, [c]) for c in t1_curves], how1))
+
+    case = pub["table2"]["case"]
+    h2 = pub["table2"]["rows"][0]["t_end"]
+    c7 = series(ctx, [(CORE_LABEL, ctx.pick(case, h2))] + _engine_curves(ctx, case, h2))
+    how2 = f"not run: {make_target('table2')}"
+    figs.append(tip_paths(
+        "fig7", f"Fig. 7: tip position of {case}",
+        "Our core beside every reference engine through the same ode45 (the paper: ReDySim "
+        "beside RecurDyn). The tip reaches its lowest point near t = 0.45 s.", c7, how2))
+    figs.append(tip_speed(
+        "fig8", f"Fig. 8: tip speed and acceleration of {case}",
+        "The paper's RecurDyn acceleration departs from ReDySim's after 0.45 s, where joint "
+        "accelerations reach ~100 g.", c7, how2))
+    long = series(ctx, [(CORE_LABEL, ctx.pick(case, pub["table2"]["long_run"]["t_end"],
+                                               shorter=False))])
+    figs.append(drift(
+        "fig9", f"Fig. 9: energy drift of {case}",
+        f"(a) 1.0 s, our core and the engines (the paper: ReDySim and RecurDyn); (b) "
+        f"{pub['table2']['long_run']['t_end']} s, our core (the paper's ReDySim drifted "
+        f"{pub['table2']['long_run']['redysim_avg_abs_delta_M']} J/kg on average).",
+        [("(a) 1.0 s", c7), (f"(b) {pub['table2']['long_run']['t_end']} s", long)], how2))
+
+    for key, fig_path, fig_speed, fig_drift, label in (
+            ("table3", "fig10", "fig12", None, "moderate-DOF"),
+            ("table4", "fig11", "fig13", "fig14", "large-DOF"),
+            ("table5", "fig15", "fig16", "fig17", "huge-DOF")):
+        rows = pub[key]["rows"]
+        cs = series(ctx, [(r["case"], ctx.pick(r["case"], r["t_end"])) for r in rows])
+        how = f"not run: {make_target(key)}"
+        num_p = fig_path[3:]
+        figs.append(tip_paths(fig_path, f"Fig. {num_p}: tip position of the {label} chains",
+                              f"{', '.join(r['case'] for r in rows)} (samples every "
+                              f"{ctx.sample} s, as the paper).", cs, how))
+        figs.append(tip_speed(fig_speed, f"Fig. {fig_speed[3:]}: tip speed and acceleration "
+                                         f"of the {label} chains",
+                              "The acceleration peaks when the tip passes its lowest point and "
+                              "grows with the chain's length.", cs, how))
+        if fig_drift:
+            shown = rows[1:] if key == "table4" else [rows[3], rows[4]]
+            panel = series(ctx, [(r["case"], ctx.pick(r["case"], r["t_end"])) for r in shown])
+            figs.append(drift(fig_drift, f"Fig. {fig_drift[3:]}: energy drift of the {label} "
+                                         "chains",
+                              "The paper shows these two chains: delta_M of order 1e-5 and "
+                              "1e-4 (Fig. 14), bounded by 0.2 J/kg (Fig. 17).",
+                              [(c.label, [c]) for c in panel], how))
+    figs.append(fig19(ctx))
+    return figs
+
+
+def fig19(ctx: Ctx) -> Figure:
+    title = "Fig. 19: energy drift with reduced floating-point accuracy"
+    caption = ("delta_M(t) of the study chains under ode45 with every operation of qdd rounded: "
+               "(a) 3 links at 1e-3, (b) 10 links at 1e-5 (Table 8's runs). The paper: 3-link "
+               "GE-N swings to about -0.06 J/kg, RGE-A stays smallest.")
+    doc = ctx.res.precision("table8")
+    if doc is None or not doc.get("series"):
+        return missing("fig19", "drift", title, caption, f"not run: {make_target('table8')}")
+    chains = list(dict.fromkeys(s["chain"] for s in doc["series"]))
+    fig, axes = new_figure(len(chains), width=PANEL_W * 2.6,
+                           footer=provenance_line(doc.get("meta"),
+                                                  what="results/precision/table8.json"))
+    for ax, (i, chain) in zip(axes, enumerate(chains), strict=True):
+        for s in (s for s in doc["series"] if s["chain"] == chain):
+            ax.plot(s["t"], s["delta_M"], label=s["method"])
+            acc = s["accuracy"]
+        ax.set(xlabel="time [s]", ylabel="$\\delta_M(t)$ [J/kg]",
+               title=f"({'ab'[i]}) {chain}, accuracy {acc:g}")
+        ax.legend()
+    return _figure("fig19", "drift", title, caption, fig)
+
+
+# --------------------------------------------------------------------------- beyond the paper
+def conditioning(ctx: Ctx) -> Figure:
+    title = "Conditioning: cond2 of the GIM against the number of links"
+    caption = ("cond2 of the GIM at q = 0 (the straight chain) by SVD, for the section-5 study "
+               "chain (R) and the RE-U rod (U), beside Featherstone's ~4 nl^4 and the paper's "
+               "Tables 9 and 11; dashed: cond2 of the unit upper factor U of RGE-A's "
+               "I = U D U^T. Dotted: 1/eps, where double precision has no digit left.")
+    df = ctx.res.cond
+    if df is None or df.empty:
+        return missing("cond", "conditioning", title, caption,
+                       "not run: python -m reports.gim_study (make reproduce)")
+    fig, axes = new_figure(1, width=PANEL_W * 1.9, height=PANEL_H * 1.35,
+                           footer=provenance_line(df, what="results/gim_study/cond.parquet"))
+    ax = axes[0]
+    for chain, g in df.groupby("chain"):
+        g = g.sort_values("n_links")
+        line, = ax.loglog(g["n_links"], g["cond2_gim"], "o-", ms=3,
+                          label=f"GIM, {g['what'].iloc[0]}")
+        ax.loglog(g["n_links"], g["cond2_udu_U"], "s--", ms=3, color=line.get_color(),
+                  label=f"RGE-A factor U, {chain} chain")
+    nl = np.geomspace(df["n_links"].min(), df["n_links"].max(), 50)
+    ax.loglog(nl, 4 * nl**4, "k-", lw=0.8, label="Featherstone ~4 nl$^4$")
+    ax.axhline(1 / EPS, color="0.5", ls=":", lw=0.8, label="1/eps")
+    paper = [(3, ctx.pub["table9"]["cond2"])] + [(r["links"], r["cond2"])
+                                                 for r in ctx.pub["table11"]["rows"]]
+    ax.loglog(*zip(*paper, strict=True), "x", color="k", ms=6, label="paper, Tables 9 and 11")
+    ax.set(xlabel="links nl", ylabel="cond2")
+    ax.legend(loc="upper left")
+    return _figure("cond", "conditioning", title, caption, fig)
+
+
+def scaling(ctx: Ctx) -> Figure:
+    title = "Fig. 18(a): CPU time against DOF, per engine and algorithm"
+    caption = ("(a) CPU of one qdd call on U chains (the RE-U rod, seeded small-angle state), "
+               f"log-log, with the slope fitted from {SLOPE_MIN_DOF} DOF on; each algorithm stops "
+               "at its measured limit or budget (table below). (b) the same per DOF. (c) the "
+               "paper's form: CPU of 1.0 s simulations (Table 6's runs, ours beside the "
+               "paper's MATLAB times).")
+    df = ctx.res.scaling
+    if df is None or df.empty:
+        return missing("fig18a", "scaling", title, caption,
+                       "not run: python -m reports.scaling (make reproduce, make table6)")
+    ok = df[df["status"] == "ok"]
+    sl = slopes(df)
+    fig, axes = new_figure(3, width=PANEL_W * 3.1, height=PANEL_H * 1.3,
+                           footer=provenance_line(df, what="results/scaling/scaling.parquet"))
+    for label, g in ok.groupby("algorithm", sort=False):
+        name = f"{label} ({'core' if g['engine'].iloc[0] == CORE else 'engine'})"
+        slope = f", slope {sl[label]:.2f}" if label in sl else ""
+        line, = axes[0].loglog(g["n_dof"], g["seconds_per_call"], "o-", ms=3,
+                               label=name + slope)
+        axes[1].loglog(g["n_dof"], g["ns_per_dof"], "o-", ms=3, color=line.get_color())
+    axes[0].set(xlabel="DOF", ylabel="seconds per qdd call", title="(a) qdd per call")
+    axes[1].set(xlabel="DOF", ylabel="ns per DOF", title="(b) per DOF")
+    axes[0].legend(fontsize=FONT_PT - 2)
+    ax = axes[2]
+    t6 = ctx.pub["table6"]
+    dof = [2 * int(r["case"].split("-")[1][1:]) for r in t6["rows"]]
+    ax.loglog(dof, [r["cpu_s_On3"] for r in t6["rows"]], "x--", color="C3",
+              label="paper O(n^3) (MATLAB, 2011)")
+    ax.loglog(dof, [r["cpu_s_redysim"] for r in t6["rows"]], "x--", color="C0",
+              label="paper ReDySim (MATLAB, 2011)")
+    for method, color in (("ge-n", "C3"), ("rge-a", "C0")):
+        pts = [(d, p.value("cpu_s")) for d, r in zip(dof, t6["rows"], strict=True)
+               if (p := ctx.pick(r["case"], t6["t_end"], method=method)).ok and p.full]
+        if pts:
+            ax.loglog(*zip(*pts, strict=True), "o-", color=color, label=f"ours {method.upper()}")
+    ax.set(xlabel="DOF", ylabel="CPU [s] for 1.0 s", title="(c) Table 6: 1.0 s simulations")
+    ax.legend(fontsize=FONT_PT - 2)
+    return _figure("fig18a", "scaling", title, caption, fig)
+
+
+def op_counts(ctx: Ctx) -> Figure:
+    from .paper_tables import parse_count
+
+    title = "Fig. 18(b): arithmetic operations of forward dynamics against DOF"
+    caption = ("Multiplications plus additions: the paper's Table 7 formulas (ReDySim for R and "
+               "U joints, Mohan and Saha, Featherstone; Lilly and Orin's leading n^3/6) and ours "
+               "as counted in our kernels (reports/opcount.py). Log-log: the paper's figure has "
+               "linear axes, where every O(n) line lies on the floor.")
+    oc = ctx.res.opcount
+    t7 = ctx.pub["table7"]
+    foot = provenance_line(oc.get("provenance") if oc else None,
+                           what="results/opcount/opcount.json")
+    fig, axes = new_figure(1, width=PANEL_W * 1.9, height=PANEL_H * 1.3, footer=foot)
+    ax = axes[0]
+    n = OPS_DOF
+    for key, var, label in (("redysim", "nr", "ReDySim, R (paper)"),
+                            ("redysim", "nu", "ReDySim, U (paper)"),
+                            ("mohan_saha", "n", "Mohan and Saha (paper)"),
+                            ("featherstone", "n", "Featherstone (paper)")):
+        total = sum(parse_count(t7[key][k]).get(var, 0) * n + parse_count(t7[key][k]).get("", 0)
+                    for k in ("mult", "add"))
+        ax.loglog(n, total, "--", label=label)
+    ax.loglog(n, n**3 / 6, "k--", lw=0.8, label="Lilly and Orin, n$^3$/6 (paper)")
+    if oc is not None:
+        for f in oc["fits"]:
+            total = np.polyval(f["mult_coef"], n) + np.polyval(f["add_coef"], n)
+            ax.loglog(n, total, "-", label=f"ours: {f['algorithm']}")
+    ax.set(xlabel="DOF n", ylabel="multiplications + additions")
+    ax.legend(fontsize=FONT_PT - 2)
+    return _figure("fig18b", "opcount", title, caption, fig)
+
+
+def _wp_label(r: pd.Series) -> str:
+    who = CORE if r["engine"] == CORE else r["engine"]
+    if r["engine"] == CORE and r["method"] not in ("", "rge-a"):
+        who += f"/{r['method']}"
+    return f"{who} {r['integrator']}"
+
+
+def _failed_group(label: str, runs: pd.DataFrame) -> str:
+    """'mujoco ode45 (rtol 1e-09, 1e-10): time limit ...' for the failed runs of one curve."""
+    key = "h" if runs["h"].astype(float).gt(0).all() else "rtol"
+    values = ", ".join(f"{v:g}" for v in sorted(runs[key], reverse=True))
+    reason = str(runs["reason"].iloc[0])[:FAILED_REASON_CHARS]
+    return f"{label} ({key} {values}): {reason}" + (" (the first)" if len(runs) > 1 else "")
+
+
+def work_precision(ctx: Ctx) -> list[Figure]:
+    """One figure per (case, horizon) of runs measured against a reference solution."""
+    runs = ctx.res.runs
+    title0 = "Work-precision"
+    how = "not run: make reproduce (sweeps/quick-work-precision.toml)"
+    if runs.empty or "max_tip_err" not in runs:
+        return [missing("wp", "work-precision", title0, "", how)]
+    measured = runs[pd.to_numeric(runs["max_tip_err"], errors="coerce").notna()]
+    groups = list(measured.groupby(["case", "horizon"]))
+    if not groups:
+        return [missing("wp", "work-precision", title0, "", how)]
+    figs = []
+    for (case, horizon), g in groups:
+        cases = runs[(runs["case"] == case) & np.isclose(runs["horizon"].astype(float), horizon)
+                     & runs["sweep"].isin(set(g["sweep"]))]
+        failed = cases[cases["status"] != "ok"]
+        fig, axes = new_figure(2, width=PANEL_W * 3, height=PANEL_H * 1.45,
+                               footer=provenance_line(g))
+        core = g[g["engine"] == CORE]
+        engines = g[g["engine"] != CORE]
+        for ax, part, colour_by in ((axes[0], core, "integrator"), (axes[1], engines, "engine")):
+            keys = list(dict.fromkeys(part[colour_by]))
+            for label, c in part.groupby(part.apply(_wp_label, axis=1)):
+                i = keys.index(c[colour_by].iloc[0])
+                key = "h" if c["integrator"].iloc[0] in ("rk4", NATIVE) else "rtol"
+                c = c.sort_values(key, ascending=False)
+                style = "--" if c["integrator"].iloc[0] == NATIVE else "-"
+                ax.loglog(c["cpu_s"], np.maximum(c["max_tip_err"], ERROR_FLOOR), style,
+                          color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)], ms=3.5,
+                          label=label)
+        ref = core[core["integrator"] == "ode45"].sort_values("rtol", ascending=False)
+        if len(ref):
+            axes[1].loglog(ref["cpu_s"], np.maximum(ref["max_tip_err"], ERROR_FLOOR), "k:",
+                           lw=1.5, label=f"{CORE} ode45 (for scale)")
+        axes[0].set(title="(a) the core (RGE-A), every integrator")
+        axes[1].set(title="(b) every engine: ode45 (solid), its own stepper (dashed)")
+        for ax in axes:
+            ax.set(xlabel="CPU time [s]", ylabel="max tip error [m]")
+            ax.legend(fontsize=FONT_PT - 2, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        gone = "; ".join(_failed_group(label, f) for label, f in
+                         failed.groupby(failed.apply(_wp_label, axis=1), sort=False)) \
+            if len(failed) else ""
+        caption = (f"{case} over {horizon:g} s: error = the largest distance of the tip from the "
+                   "reference solution (DOP853 at 1e-10, checked by SciPy's DOP853 at 1e-13) over "
+                   "the samples, against CPU time; one curve per engine and integrator, points "
+                   "from loose to tight tolerance (or large to small step)."
+                   + (f" Failed runs (not drawn): {gone}." if gone else ""))
+        figs.append(_figure(f"wp-{case}-{horizon:g}", "work-precision",
+                            f"{title0}: {case}, {horizon:g} s", caption, fig))
+    return figs
+
+
+def true_error(ctx: Ctx) -> Figure:
+    title = "True error of qdd against a 50-digit reference"
+    caption = ("||qdd - ref||_2 / ||ref||_2 in double precision on the straight chain (q = 0, "
+               "where cond2 is largest), per method and engine, against DOF; dashed: "
+               "eps x cond2(GIM), the error a backward-stable dense solve may have.")
+    df = ctx.res.error_study
+    if df is None or df.empty:
+        return missing("true-error", "true-error", title, caption,
+                       "not run: python -m harness.error_study (make reproduce)")
+    sel = df[(df["precision"] == "float64") & (df["config"] == "stretched")
+             & (df["status"] == "ok")]
+    chains = sorted(set(sel["chain"]))
+    methods = list(dict.fromkeys(sel["method"]))
+    if not chains:
+        return missing("true-error", "true-error", title, caption,
+                       "no finished double-precision rows in results/error_study")
+    fig, axes = new_figure(len(chains), width=PANEL_W * 1.35 * len(chains) + 2.0,
+                           height=PANEL_H * 1.4,
+                           footer=provenance_line(df, what="results/error_study"))
+    for ax, chain in zip(axes, chains, strict=True):
+        g = sel[sel["chain"] == chain]
+        for method, m in g.groupby("method", sort=False):
+            i = methods.index(method)  # the same colour and marker for a method in every panel
+            m = m.sort_values("n_dof")
+            ax.loglog(m["n_dof"], np.maximum(m["rel2"], ERROR_FLOOR), "-",
+                      marker=WP_MARKERS[i % len(WP_MARKERS)], color=plt.cm.tab20(i % 20), ms=3,
+                      label=method)
+        c = g.drop_duplicates("n_dof").sort_values("n_dof")
+        cond = c["cond2"].fillna(c["cond2_lanczos"])  # the SVD's where there is one
+        ax.loglog(c["n_dof"], np.minimum(EPS * cond, 1.0), "k--", lw=0.8,
+                  label="eps x cond2 (capped at 1)")
+        ax.set(xlabel="DOF", ylabel="relative error", title=f"{chain} chain, q = 0")
+    handles = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    fig.legend(handles.values(), handles.keys(), loc="outside right center",
+               fontsize=FONT_PT - 1.5)
+    return _figure("true-error", "true-error", title, caption, fig)
+
+
+def figures_beyond(ctx: Ctx) -> list[Figure]:
+    return [conditioning(ctx), scaling(ctx), op_counts(ctx), *work_precision(ctx),
+            true_error(ctx)]

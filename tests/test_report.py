@@ -1,0 +1,184 @@
+"""The comparison report, built from a tiny results folder: every section, every paper table, every
+figure family in the HTML; a PDF with pages; verdicts where there is data and "not run" where
+there is none; provenance on every table and figure.
+
+The results folder is made here in seconds: two small sweeps (Table 1's first chain at the paper's
+settings, RE-U125-L1 shortened, and a work-precision pair measured against a reference solution),
+a second of Table 5's first chain as a checkpointed long run, the small producers at small sizes
+(precision Tables 10, 11, A.2 and IEEE, Table 9 and the conditioning, operation counts, CPU
+scaling up to 20 DOF), and a synthetic true-error file.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pandas as pd
+import pytest
+
+from harness import longrun
+from harness.provenance import provenance
+from harness.spec import RunSpec
+from harness.store import write_parquet_atomic
+from harness.sweep import run_sweep
+from redysim import load_published
+from reports import figures as F
+from reports import gim_study, opcount, scaling
+from reports import precision_tables as pt
+from reports.build import build_report, render_html, write_report
+from reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
+from reports.pdf import write_pdf
+from reports.results import Results
+from reports.text import provenance_line
+
+pypdf = pytest.importorskip("pypdf")
+
+SMALL_LINKS = 10
+LONG_CASE = "RE-U5000-L100"  # Table 5's first chain, as a long run stopped after LONG_RUN_S
+LONG_RUN_S = 1.0
+SCALING_MAX_DOF = 20
+SECTIONS = ("headline", "setup", "paper", "figures", "beyond")
+PAPER_TABLES = ("table1", "table2", "table3", "table4", "table5", "table6", "table7", "table8",
+                "table9", "table10", "table11", "tableA2")
+FIGURE_FAMILIES = ("tip-path", "tip-speed", "drift", "conditioning", "scaling", "opcount",
+                   "work-precision", "true-error")
+SPECS = [
+    RunSpec(case="RE-R229-L1.02-DX1.02", sample=0.05),              # Table 1, the paper's run
+    RunSpec(case="RE-U125-L1", t_end=0.1, sample=0.05),             # Tables 2/3, shortened
+    RunSpec(case="RE-U125-L1", t_end=0.02, sample=0.01, integrator="rk4", h=1e-3),
+    RunSpec(case="RE-U125-L1", t_end=0.02, sample=0.01, rtol=1e-6, atol=1e-8),
+]
+
+
+def synthetic_error_study() -> pd.DataFrame:
+    rows = []
+    for n in (10, 100):
+        for method, err in (("rge-a", 1e-14 * n), ("cholesky", 1e-13 * n**2)):
+            rows.append({"chain": "U", "n_links": n, "n_dof": 2 * n, "config": "stretched",
+                         "method": method, "precision": "float64", "status": "ok",
+                         "rel2": err, "cond2": 4.0 * n**4, "cond2_lanczos": 4.0 * n**4,
+                         "engine_version": "redysim 0.1.0", "date": "2026-11-22T00:00:00",
+                         "host": "test"})
+    return pd.DataFrame(rows)
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    root = tmp_path_factory.mktemp("results")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("REDYSIM_RESULTS", str(root))  # reference solutions (inherited by the workers)
+    try:
+        run_sweep(SPECS[:2], root / "sweeps" / "tiny", name="tiny", workers=2, progress=False)
+        run_sweep(SPECS[2:], root / "sweeps" / "tiny-wp", name="tiny-wp", workers=2,
+                  progress=False, reference=True)
+        longrun.run(LONG_CASE, stop_after_s=LONG_RUN_S, log=lambda _msg: None)  # a checkpoint
+    finally:
+        mp.undo()
+    pub = load_published()
+    refs: dict = {}
+    for name, table in (("table10", pt.table10(pub)), ("tableA2", pt.tableA2(pub)),
+                        ("table11", pt.table11(pub, max_links=SMALL_LINKS, refs=refs)),
+                        ("ieee", pt.ieee_table(max_links=SMALL_LINKS, refs=refs))):
+        pt.write(root / "precision", name, table)
+    gim_study.run(root / "gim_study", SMALL_LINKS)
+    opcount.run(root / "opcount")
+    scaling.run(root / "scaling", "quick", SCALING_MAX_DOF, log=lambda _msg: None)
+    write_parquet_atomic(synthetic_error_study(), root / "error_study" / "error_study.parquet")
+    return root
+
+
+@pytest.fixture(scope="module")
+def report(results):
+    return build_report(Results(results))
+
+
+@pytest.fixture(scope="module")
+def written(report, tmp_path_factory):
+    """The HTML and PDF files of the report (the model built once, as write_report does)."""
+    out = tmp_path_factory.mktemp("report")
+    html = out / "report.html"
+    html.write_text(render_html(report), encoding="utf-8")
+    return html, write_pdf(report, out / "report.pdf")
+
+
+def test_write_report_writes_both_files(tmp_path):
+    empty = tmp_path / "results"  # no results at all: the report still builds, all "not run"
+    html, pdf = write_report(empty, tmp_path / "out", log=lambda *_: None)
+    assert html.is_file() and pdf.is_file()
+    assert "not run: make table1" in html.read_text(encoding="utf-8")
+
+
+def test_html_has_every_section_table_and_figure_family(written):
+    html = written[0].read_text(encoding="utf-8")
+    for sid in SECTIONS:
+        assert f'id="{sid}"' in html, sid
+    for tid in PAPER_TABLES:
+        assert f'id="{tid}"' in html, tid
+    for family in FIGURE_FAMILIES:
+        assert f"figure-{family}" in html, family
+    assert html.count("data:image/png;base64,") >= len(FIGURE_FAMILIES)
+    assert "not run: make table5" in html  # a table without data says how to get it
+    assert "not run: make table8" in html
+    assert "<script" not in html  # self-contained, static
+
+
+def test_pdf_exists_and_has_pages(written):
+    pdf = written[1]
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    reader = pypdf.PdfReader(str(pdf))
+    assert len(reader.pages) > len(SECTIONS)
+    assert "Headline" in reader.pages[0].extract_text()
+
+
+def test_every_figure_family_has_an_image(report):
+    drawn = {f.family for f in report.figures() if f.png is not None}
+    assert set(FIGURE_FAMILIES) <= drawn
+    for f in report.figures():
+        assert (f.png is not None) != bool(f.not_run), f.id
+
+
+def test_verdicts_where_data_and_not_run_elsewhere(report):
+    tables = {t.id: t for t in report.tables()}
+    t1 = tables["table1"]
+    assert t1.rows[0].kind in (MATCH, DIFFER)  # the run exists: a verdict
+    assert t1.rows[1].kind == NOT_RUN and "make table1" in t1.rows[1].cells[-1]
+    t3 = tables["table3"]
+    assert t3.rows[0].kind == PARTIAL  # RE-U125-L1 ran to 0.1 s of 1.0 s
+    assert "0.1 s of 1 s" in t3.rows[0].cells[-1]
+    t5 = tables["table5"]
+    assert t5.rows[0].kind == PARTIAL and "of 5 s" in t5.rows[0].cells[-1]  # its checkpoint
+    assert all(r.kind == NOT_RUN for r in t5.rows[1:])
+    assert tables["table8"].not_run == "not run: make table8"
+    for tid in ("table9", "table10", "tableA2"):
+        assert tables[tid].rows and not tables[tid].not_run, tid
+    assert all(r.kind == MATCH for r in tables["table9"].rows)
+
+
+def test_every_table_with_data_carries_provenance(report):
+    for t in report.tables():
+        if t.rows and t.id not in ("provenance", "settings", "sources"):
+            assert t.provenance, t.id
+
+
+def test_headline_comes_first_with_the_numbers(report, written):
+    labels = [h.label for h in report.headline]
+    assert any("E(0)" in lab for lab in labels)
+    assert any("speed" in lab.lower() for lab in labels)
+    html = written[0].read_text(encoding="utf-8")
+    assert html.index('id="headline"') < html.index('id="setup"') < html.index('id="paper"')
+
+
+def test_figure_footer_carries_versions_and_machine():
+    line = provenance_line(provenance())
+    fig, _ = F.new_figure(2, footer=line)
+    text = " ".join(t.get_text() for t in fig.texts)
+    here = provenance()
+    for key in ("redysim", "numpy", "cpu"):
+        assert here[key].split()[0] in text, key
+    F.plt.close(fig)
+
+
+def test_render_is_deterministic_given_the_model(report):
+    a, b = render_html(report), render_html(report)
+    assert a == b
+    assert re.search(r"<h1>redysim: paper vs ours</h1>", a)
