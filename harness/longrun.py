@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import resource
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -30,6 +28,7 @@ from redysim import Workspace, energy, forward_dynamics, load_case, tip
 from redysim.integrate import Counters, Solver, SolverState, advance, sample_times
 
 from .reference import results_dir
+from .store import write_npz_atomic
 
 CHECKPOINT = "checkpoint.npz"
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
@@ -43,20 +42,10 @@ def out_dir_for(case_name: str) -> Path:
 def save_checkpoint(path: Path, solver: Solver, samples: list, meta: dict) -> None:
     """Everything to resume, in one file, atomically."""
     st = solver.state()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".ckpt-", suffix=".npz.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, t=st.t, y=st.y, f=st.f, h=st.h, steps=st.counters.steps,
+    write_npz_atomic(path, t=st.t, y=st.y, f=st.f, h=st.h, steps=st.counters.steps,
                      rejected=st.counters.rejected, nfev=st.counters.nfev,
                      samples=np.array(samples, dtype=float).reshape(-1, len(SAMPLE_FIELDS)),
                      **{k: np.asarray(v) for k, v in meta.items()})
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def load_checkpoint(path: Path) -> dict | None:

@@ -26,7 +26,6 @@ import functools
 import hashlib
 import json
 import os
-import tempfile
 import time
 import zipfile
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ from redysim import Workspace, forward_dynamics, tip
 from redysim.integrate import advance, make_solver, sample_times
 
 from .provenance import REPO
+from .store import write_npz_atomic
 
 REF_METHOD = "dop853"
 REF_RTOL = 1e-10
@@ -127,17 +127,8 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
     _, _, P_check, _, _ = _solve(case, t_end, interval, CHECK_METHOD, CHECK_RTOL)
     est = float(np.linalg.norm(P - P_check, axis=1).max())
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, suffix=".npz.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, t=ts, y=Y, tip=P, tol_estimate=est, steps=cnt.steps, nfev=cnt.nfev,
+    write_npz_atomic(p, t=ts, y=Y, tip=P, tol_estimate=est, steps=cnt.steps, nfev=cnt.nfev,
                      cpu_s=cpu)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return Reference(ts, Y, P, est, cnt.steps, cnt.nfev, cpu)
 
 

@@ -188,14 +188,16 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                                 f"t = {t:.6g}")
             return dyn.rhs(t, y)
 
-        solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
-                             atol=spec.atol, h=spec.h or None)
-        try:
+        solver = None
+        try:  # the limit can strike inside the constructor too (its first RHS calls)
+            solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
+                                 atol=spec.atol, h=spec.h or None)
             status, msg = advance(solver, ts, on_sample=on_sample)
         finally:
-            c = solver.counters
-            row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev,
-                       cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0)
+            if solver is not None:
+                c = solver.counters
+                row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev)
+            row.update(cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0)
     row["cpu_s"] = time.process_time() - cpu0
     row["wall_s"] = time.perf_counter() - wall0
     if status != 0:

@@ -77,6 +77,13 @@ def write_json_atomic(obj: Any, path: str | os.PathLike) -> Path:
     return write_text_atomic(json.dumps(obj, indent=1) + "\n", path)
 
 
+def write_npz_atomic(path: str | os.PathLike, **arrays) -> Path:
+    """Write ``arrays`` as an uncompressed ``.npz`` file ``path`` atomically."""
+    import numpy as np
+
+    return _write_atomic(path, lambda fh: np.savez(fh, **arrays))
+
+
 def read_parquet(path: str | os.PathLike) -> pd.DataFrame:
     """One Parquet file as a DataFrame."""
     return pd.read_parquet(path, engine="pyarrow")
