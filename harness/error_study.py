@@ -46,10 +46,11 @@ Output (``--out``, default results/error_study):
                           atomically (temp file + os.replace) after every cell; a rerun skips the
                           cells already finished (status ok / nonfinite / refused) and retries
                           the others;
-    refs/<chain><n>-<config>-dps<d>.npy   the reference as a double-double (n, 2) [hi, lo]
-                          (~32 digits), and .json beside it (timing, the reference's self-check
-                          against ``--check-dps`` digits, the condition numbers): the slow part,
-                          computed once.
+    refs/<chain><n>-<config>-dps<d>.npz   the reference as a double-double ``qdd_dd`` (n, 2)
+                          [hi, lo] (~32 digits) with its ``q`` and ``qd``, and .json beside it
+                          (timing, the reference's self-check against ``--check-dps`` digits, the
+                          condition numbers): the slow part, computed once.
+All files are written atomically through :mod:`harness.store`.
 
 Costs here (2 shared cores): the mpmath reference ~2 ms per U-link and ~1.8 ms per R-link (the
 spatial kernel), so 100,000 links take 3-4 min; the engines' builds dominate at 1,000 links.
@@ -60,10 +61,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as _dt
-import json
 import math
 import multiprocessing as mp
-import os
 import platform
 import sys
 import time
@@ -211,14 +210,16 @@ class RefStore:
 
     def _paths(self, kind, n_links, config):
         stem = self.dir / f"{kind}{n_links}-{config}-dps{self.dps}"
-        return stem.with_suffix(".npy"), stem.with_suffix(".json")
+        return stem.with_suffix(".npz"), stem.with_suffix(".json")
 
     def get(self, kind, n_links, config, chain, q, qd) -> tuple[np.ndarray, dict]:
         from . import hiprec
-        npy, meta_path = self._paths(kind, n_links, config)
-        meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-        if npy.exists():
-            ref = np.load(npy)
+        from .store import read_json, write_json_atomic, write_npz_atomic
+        npz, meta_path = self._paths(kind, n_links, config)
+        meta = read_json(meta_path) if meta_path.exists() else {}
+        if npz.exists():
+            with np.load(npz) as f:
+                ref = f["qdd_dd"]
         else:
             log(f"reference {kind}{n_links} {config}: mpmath dps={self.dps} "
                 f"({chain.n_dof:,} DOF) ...")
@@ -236,8 +237,8 @@ class RefStore:
                     scale = max(abs(b) for b in hi)
                     meta["ref_check"] = float(diff / scale)
                 meta["check_dps"] = self.check_dps
-            _atomic_save_npy(npy, ref)
-            _atomic_write(meta_path, json.dumps(meta, indent=1))
+            write_npz_atomic(npz, qdd_dd=ref, q=q, qd=qd)
+            write_json_atomic(meta, meta_path)
             log(f"reference {kind}{n_links} {config}: {meta['ref_s']:.1f} s "
                 f"({1e3 * meta['ref_s_per_link']:.2f} ms/link); self-check vs dps="
                 f"{self.check_dps}: {meta.get('ref_check', float('nan')):.1e}")
@@ -247,21 +248,8 @@ class RefStore:
             if chain.n_dof <= self.max_svd_dof and "cond2" not in meta:
                 meta["cond2"] = cond_svd(chain, q)
             meta["cond_s"] = time.perf_counter() - t0
-            _atomic_write(meta_path, json.dumps(meta, indent=1))
+            write_json_atomic(meta, meta_path)
         return ref, meta
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
-def _atomic_save_npy(path: Path, arr: np.ndarray) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        np.save(fh, arr)
-    os.replace(tmp, path)
 
 
 # --------------------------------------------------------------------------- core methods
@@ -409,11 +397,11 @@ class Results:
     """The Parquet table: one row per cell, rewritten atomically after every cell."""
 
     def __init__(self, path: Path):
-        import pandas as pd
+        from .store import read_parquet
         self.path = path
         self.rows: dict[tuple, dict] = {}
         if path.exists():
-            for r in pd.read_parquet(path).to_dict("records"):
+            for r in read_parquet(path).to_dict("records"):
                 self.rows[tuple(r[k] for k in KEY)] = r
 
     def done(self, key) -> bool:
@@ -425,10 +413,10 @@ class Results:
         self._write()
 
     def _write(self) -> None:
-        """Temp file + os.replace: a reader (or a crash) never sees a half-written table."""
-        tmp = self.path.with_name(self.path.name + ".tmp")
-        self.frame().to_parquet(tmp, index=False)
-        os.replace(tmp, self.path)
+        """Atomically (harness.store: temp file, fsync, os.replace): a reader or a crash never
+        sees a half-written table."""
+        from .store import write_parquet_atomic
+        write_parquet_atomic(self.frame(), self.path)
 
     def frame(self):
         import pandas as pd
@@ -611,11 +599,11 @@ def print_table(df) -> None:
         print(fmt.to_string())
     other = df[~df.status.isin(["ok", "nonfinite", "failed"])]
     if not other.empty:
-        print("\nNot run:")
-        g = other.groupby(["method", "status", "reason"]).n_links.apply(
-            lambda s: ",".join(str(x) for x in sorted(set(s))))
-        for (m, st, why), sizes in g.items():
-            print(f"  {m} [{st}] at n_links {sizes}: {why[:150]}")
+        print("\nNot run (method [status]: chain n_links; the first reason):")
+        for (m, st), g in other.groupby(["method", "status"], sort=False):
+            where = " ".join(f"{c}:" + ",".join(str(x) for x in sorted(set(gg.n_links)))
+                             for c, gg in g.groupby("chain"))
+            print(f"  {m} [{st}]: {where}; {g.reason.iloc[0][:110]}")
 
 
 def parse_args(argv=None):
