@@ -18,9 +18,10 @@ Configurations:
 Methods (``--methods``), float64 and, where marked, float32 (``--precisions``):
     rge-a              core RGE-A, spatial kernel (``forward_dynamics(planar=False)``) [f32]
     rge-a-planar       core RGE-A, planar kernel (R chains only) [f32]
-    rge-a-gfwd         study variant: the core's RGE-A passes with gravity entered as the
-                       base's acceleration in the forward pass, not in phi
-                       (``harness.gravity_forward``)
+    rge-a-phi          Table A.1 as printed: phi (Eq. 12) by Newton-Euler with the base at -g,
+                       then the recursion on phi (the paper's formulation, and the core's before
+                       it took gravity and the velocity terms into the passes): the core's
+                       compiled spatial kernels run on phi with no motion and no gravity
     ge-n, rge-n        core GIM + (reverse) Gaussian elimination, O(n^3) [f32]
     cholesky           core ``mass_matrix`` + ``phi``, scipy.linalg cho_factor/cho_solve [f32]
     literal-6x6        the non-symmetric literal Table A.1 (``harness.nonsymmetric``) [f32]
@@ -80,7 +81,7 @@ CHAINS = {
               inertia="cylinder", what="study chain, l = 1 m, r = 0.02 m, cylinder inertia"),
 }
 CONFIGS = ("stretched", "random")
-CORE_METHODS = ("rge-a", "rge-a-planar", "rge-a-gfwd", "ge-n", "rge-n", "cholesky",
+CORE_METHODS = ("rge-a", "rge-a-planar", "rge-a-phi", "ge-n", "rge-n", "cholesky",
                 "literal-6x6", "literal-6x6-resym")
 ENGINE_METHODS = ("pinocchio-aba", "pinocchio-aba-ryrz", "pinocchio-crba", "mujoco", "dart",
                   "exudyn")
@@ -296,13 +297,28 @@ def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
         b = phi(chain, q, qd).astype(dt)
         return scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), b,
                                       check_finite=False)
-    if method == "rge-a-gfwd":
-        from .gravity_forward import rge_a_gravity_forward
-        return rge_a_gravity_forward(chain, q, qd)
+    if method == "rge-a-phi":
+        return rge_a_on_phi(chain, q, qd)
     if method in ("literal-6x6", "literal-6x6-resym"):
         return literal_rge_a(chain, q, qd, dtype=np.float32 if f32 else np.float64,
                              resymmetrise=method.endswith("resym"))
     raise ValueError(method)
+
+
+def rge_a_on_phi(chain, q, qd) -> np.ndarray:
+    """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n)."""
+    from redysim import Workspace, phi
+    from redysim._kernels.kinematics import kinematics
+    from redysim._kernels.rge_a import rge_a_backward, rge_a_forward
+    c, ws = chain, Workspace(chain)
+    ph = phi(c, q, qd).copy()
+    kinematics(c.length, c.dof_kind, c.dof_axis, c.dof_u, c.joint_qoff, q, ws.zeros, ws.zeros,
+               ws.no_accel, ws.oR, ws.oO, ws.oP, ws.t, ws.td)
+    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.joint_qoff, ws.oR, ws.oO,
+                   ws.oP, ws.zeros6, ws.zeros6, ph, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
+    qdd = np.empty(c.n_dof)
+    rge_a_forward(c.joint_qoff, ws.oO, ws.oP, ws.Psihat, ws.phitil, ws.zeros6, ws.no_accel, qdd)
+    return qdd
 
 
 def core_skip_reason(method: str, precision: str, chain, a) -> str:

@@ -152,7 +152,7 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
                                    c.dof_axis, c.dof_u, c.joint_qoff, q, qd,
                                    ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
                                    ws.oR, ws.oO, ws.oP, ws.t, ws.td, ws.Ihat, ws.Psihat,
-                                   ws.phitil, ws.phi, out)
+                                   ws.phitil, ws.phihat, out)
     else:
         rhs = _phi(c, ws, q, qd, tau).copy()
         A = np.empty((c.n_dof, c.n_dof))
@@ -204,7 +204,7 @@ def udu_factors(chain: Chain, q, *, ws: Workspace | None = None) -> UDU:
     c = chain
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
     rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.joint_qoff, ws.oR, ws.oO, ws.oP,
-                   ws.zeros6, ws.zeros6, ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phi)
+                   ws.zeros6, ws.zeros6, ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
     U = np.zeros((c.n_dof, c.n_dof))
     D = np.zeros((c.n_dof, c.n_dof))
     udu_assemble(c.joint_qoff, ws.oO, ws.oP, ws.Ihat, ws.Psihat, U, D)

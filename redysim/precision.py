@@ -34,9 +34,10 @@ What is rounded, per method:
 - RGE-A: the chain's link quantities (lengths, masses, inertias about O_k, m c) and q are rounded
   on entry and the recursion runs in the number type: the planar kernel (``planar.py``) for planar
   chains, the spatial kernels otherwise. By default phi is the same rounded double-precision phi
-  the other two methods get (passed as tau with gravity and qd set to zero, so the kernel's
-  Newton-Euler part adds exact zeros); ``fused_phi=True`` lets the kernel compute phi itself in the
-  number type. cos and sin are evaluated in double and rounded to the number type (to the IEEE
+  the other two methods get (passed as tau with gravity and qd set to zero: Table A.1 as printed,
+  the kernel's bias terms are exact zeros); ``fused_phi=True`` runs the kernel as
+  :func:`redysim.forward_dynamics` does, gravity as the base's twist-rate and the velocity terms
+  as articulated-body biases, all in the number type. cos and sin are evaluated in double and rounded to the number type (to the IEEE
   format in :func:`ieee_qdd`). Only the geometry of the state enters the recursion:
   rounded arithmetic is not rotation invariant, so q1 matters although the GIM does not depend on
   it.
@@ -371,7 +372,8 @@ def reduced_factors(chain: Chain, q, qd, method: str = "ge-n", decimals: int = 3
                                               c.dof_kind, c.joint_qoff, oR, oO, oP, t, td,
                                               N(phi(c, q, qd, tau)), Ihat, Psihat, phitil, ph)
         kernel_source(udu_assemble, number)(c.joint_qoff, oO, oP, Ihat, Psihat, U, D)
-        kernel_source(rge_a_forward, number)(c.joint_qoff, oO, oP, Psihat, phitil, qdd)
+        kernel_source(rge_a_forward, number)(c.joint_qoff, oO, oP, Psihat, phitil, E(nl, 6), E(3),
+                                             qdd)
         L = Ihat[:, None] * U.T  # L' = D U^T, each product rounded
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 

@@ -13,7 +13,7 @@ class Workspace:
     Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
     positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates, ``W``
     (nl,6) resultant wrenches, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A,
-    ``phitil``/``phi``/``zeros``
+    ``phitil``/``phihat``/``phi``/``zeros``
     (n,), ``planar`` (nl,12) for the planar kernel.
     """
 
@@ -29,6 +29,7 @@ class Workspace:
         self.Ihat = np.empty(n)
         self.Psihat = np.empty((n, 6))
         self.phitil = np.empty(n)
+        self.phihat = np.empty(n)
         self.phi = np.empty(n)
         self.zeros = np.zeros(n)
         self.zeros6 = np.zeros((nl, 6))

@@ -149,9 +149,9 @@ def table10(pub) -> dict:
     variants = {}
     tab9 = load_case("STUDY-R3-TABLE9")
     for label, c, fused in (("horizontal, phi rounded from double (main)", case, False),
-                            ("horizontal, phi computed inside", case, True),
+                            ("horizontal, gravity and velocity terms inside (as the core)", case, True),
                             ("q1 = 60 deg, phi rounded from double", tab9, False),
-                            ("q1 = 60 deg, phi computed inside", tab9, True)):
+                            ("q1 = 60 deg, gravity and velocity terms inside (as the core)", tab9, True)):
         n_ok = 0
         for prow in (r for r in pub["table10"]["rows"] if r["method"] == "RGE-A"):
             k = round(-math.log10(prow["accuracy"]))
@@ -361,7 +361,7 @@ def ieee_table(max_links: int = 100, refs: dict | None = None) -> dict:
                 "GE-N": (ieee_qdd(ch, q0, qd0, "ge-n", dtype), ref_gim),
                 "RGE-N": (ieee_qdd(ch, q0, qd0, "rge-n", dtype), ref_gim),
                 "RGE-A": (ieee_qdd(ch, q0, qd0, "rge-a", dtype), ref_rec),
-                "RGE-A (phi inside)": (ieee_qdd(ch, q0, qd0, "rge-a", dtype, fused_phi=True),
+                "RGE-A (as the core: gravity in the passes)": (ieee_qdd(ch, q0, qd0, "rge-a", dtype, fused_phi=True),
                                        ref_fused),
             }
             status = {}
@@ -486,7 +486,7 @@ def table8(pub, sensitivity: bool = True) -> dict:
                 rows.append({"chain": name, "accuracy": entry["digits_accuracy"],
                              "t_end": entry["t_end"], "method": method,
                              "variant": f"{arithmetic} arithmetic"
-                                        + (", phi inside" if fused else ""),
+                                        + (", gravity in the passes (as the core)" if fused else ""),
                              "paper_steps": prow["steps"], "paper_cpu_s": prow["cpu_s"], **r,
                              "steps_ratio": r["steps"] / prow["steps"]})
     for name in dict.fromkeys(r["chain"] for r in rows):

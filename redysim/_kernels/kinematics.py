@@ -9,6 +9,11 @@ with Pd's column j = w_j x p_j, w_j the angular velocity of the frame axis j is 
 twist-rate is ``base_accel`` ([0; -g] for dynamics, 0 for true accelerations): gravity enters as an
 acceleration of the base (paper, Appendix A.1).
 
+With ``local_rates`` the pass writes, instead of td_k, its local part
+    td_k - A_{k,k-1} td_{k-1} = [0; w_{k-1} x (v_k - v_{k-1})] + P_k qdd_k + Pd_k qd_k
+(with qdd = 0: the velocity-product twist-rate c_k of the articulated-body algorithm), so that
+neither the base's twist-rate nor anything inboard of joint k is in it.
+
 The running frame, twist and twist-rate stay in scalars and are written out once per link.
 
 References:
@@ -23,10 +28,11 @@ from .joints import jcalc
 
 @jit
 def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_accel,
-               oR, oO, oP, t, td):
+               oR, oO, oP, t, td, local_rates=False):
     """Fill oR (nl,3,3), oO (nl,3), oP (n,6), t (nl,6), td (nl,6) for the state (q, qd, qdd).
 
     base_accel: (3,) linear acceleration of the fixed base (pass -gravity for dynamics).
+    local_rates: write each link's local twist-rate term in td (module docstring), not td_k.
     """
     r00 = r11 = r22 = 1.0
     r01 = r02 = r10 = r12 = r20 = r21 = 0.0
@@ -87,9 +93,12 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
         e1 = (w2 * s0 - w0 * s2) + dv1
         e2 = (w0 * s1 - w1 * s0) + dv2
         # td_k = A td_{k-1} + [0; w_{k-1} x (v_k - v_{k-1})] + P qdd + Pd qd
-        b0 += (a1 * s2 - a2 * s1) + (w1 * e2 - w2 * e1) + db0
-        b1 += (a2 * s0 - a0 * s2) + (w2 * e0 - w0 * e2) + db1
-        b2 += (a0 * s1 - a1 * s0) + (w0 * e1 - w1 * e0) + db2
+        cb0 = (w1 * e2 - w2 * e1) + db0
+        cb1 = (w2 * e0 - w0 * e2) + db1
+        cb2 = (w0 * e1 - w1 * e0) + db2
+        b0 += (a1 * s2 - a2 * s1) + cb0
+        b1 += (a2 * s0 - a0 * s2) + cb1
+        b2 += (a0 * s1 - a1 * s0) + cb2
         a0 += da0
         a1 += da1
         a2 += da2
@@ -119,10 +128,18 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
         t[k, 3] = v0
         t[k, 4] = v1
         t[k, 5] = v2
-        td[k, 0] = a0
-        td[k, 1] = a1
-        td[k, 2] = a2
-        td[k, 3] = b0
-        td[k, 4] = b1
-        td[k, 5] = b2
+        if local_rates:
+            td[k, 0] = da0
+            td[k, 1] = da1
+            td[k, 2] = da2
+            td[k, 3] = cb0
+            td[k, 4] = cb1
+            td[k, 5] = cb2
+        else:
+            td[k, 0] = a0
+            td[k, 1] = a1
+            td[k, 2] = a2
+            td[k, 3] = b0
+            td[k, 4] = b1
+            td[k, 5] = b2
         lp = length[k]
