@@ -37,10 +37,10 @@ What is rounded, per method:
   the other two methods get (passed as tau with gravity and qd set to zero: Table A.1 as printed,
   the kernel's bias terms are exact zeros); ``fused_phi=True`` runs the kernel as
   :func:`redysim.forward_dynamics` does, gravity as the base's twist-rate and the velocity terms
-  as articulated-body biases, all in the number type. cos and sin are evaluated in double and rounded to the number type (to the IEEE
-  format in :func:`ieee_qdd`). Only the geometry of the state enters the recursion:
-  rounded arithmetic is not rotation invariant, so q1 matters although the GIM does not depend on
-  it.
+  as articulated-body biases, all in the number type. cos and sin are evaluated in double and
+  rounded to the number type (to the IEEE format in :func:`ieee_qdd`). Only the geometry of the
+  state enters the recursion: rounded arithmetic is not rotation invariant, so q1 matters although
+  the GIM does not depend on it.
 
 What reproduces (``reports/precision_tables.py`` prints it value by value): Table 10's GE-N and
 RGE-N rows and Table A.2 exactly; Table 10's RGE-A rows only at 1e-1 and two more values (the

@@ -148,10 +148,11 @@ def table10(pub) -> dict:
     # RGE-A alternatives (same kernels, other inputs), for the record
     variants = {}
     tab9 = load_case("STUDY-R3-TABLE9")
+    inside = "gravity and velocity terms inside (as the core)"
     for label, c, fused in (("horizontal, phi rounded from double (main)", case, False),
-                            ("horizontal, gravity and velocity terms inside (as the core)", case, True),
+                            (f"horizontal, {inside}", case, True),
                             ("q1 = 60 deg, phi rounded from double", tab9, False),
-                            ("q1 = 60 deg, gravity and velocity terms inside (as the core)", tab9, True)):
+                            (f"q1 = 60 deg, {inside}", tab9, True)):
         n_ok = 0
         for prow in (r for r in pub["table10"]["rows"] if r["method"] == "RGE-A"):
             k = round(-math.log10(prow["accuracy"]))
@@ -361,8 +362,8 @@ def ieee_table(max_links: int = 100, refs: dict | None = None) -> dict:
                 "GE-N": (ieee_qdd(ch, q0, qd0, "ge-n", dtype), ref_gim),
                 "RGE-N": (ieee_qdd(ch, q0, qd0, "rge-n", dtype), ref_gim),
                 "RGE-A": (ieee_qdd(ch, q0, qd0, "rge-a", dtype), ref_rec),
-                "RGE-A (as the core: gravity in the passes)": (ieee_qdd(ch, q0, qd0, "rge-a", dtype, fused_phi=True),
-                                       ref_fused),
+                "RGE-A (as the core: gravity in the passes)": (
+                    ieee_qdd(ch, q0, qd0, "rge-a", dtype, fused_phi=True), ref_fused),
             }
             status = {}
             if dtype == np.float32:
@@ -486,7 +487,7 @@ def table8(pub, sensitivity: bool = True) -> dict:
                 rows.append({"chain": name, "accuracy": entry["digits_accuracy"],
                              "t_end": entry["t_end"], "method": method,
                              "variant": f"{arithmetic} arithmetic"
-                                        + (", gravity in the passes (as the core)" if fused else ""),
+                                        + (", gravity in the passes (core)" if fused else ""),
                              "paper_steps": prow["steps"], "paper_cpu_s": prow["cpu_s"], **r,
                              "steps_ratio": r["steps"] / prow["steps"]})
     for name in dict.fromkeys(r["chain"] for r in rows):

@@ -237,3 +237,20 @@ def test_the_gates_json_is_written_atomically_and_is_valid_json(tmp_path, monkey
     doc = json.loads(out.read_text())  # strict JSON: no NaN
     assert [r["gate"] for r in doc["rows"]] == ["table9.cond2"]
     assert doc["rows"][0]["result"] == gates.PASS
+
+
+def test_an_edited_kernel_source_drops_numbas_cache(tmp_path):
+    """numba would load a kernel's stale machine code after an edit to a callee in another file;
+    the cache is dropped whenever any kernel source changes (redysim/_kernels/__init__.py)."""
+    from redysim import _kernels
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    (cache / "kinematics.kinematics-29.py311.nbi").write_bytes(b"old")
+    (cache / "kinematics.kinematics-29.py311.1.nbc").write_bytes(b"old")
+    (cache / _kernels.STAMP).write_text("digest of other sources")
+    assert _kernels.drop_stale_cache(cache)
+    assert not list(cache.glob("*.nb?"))
+    assert (cache / _kernels.STAMP).read_text() == _kernels.sources_digest()
+    (cache / "kinematics.kinematics-29.py311.nbi").write_bytes(b"current")
+    assert not _kernels.drop_stale_cache(cache), "sources unchanged: the cache stays"
+    assert (cache / "kinematics.kinematics-29.py311.nbi").exists()

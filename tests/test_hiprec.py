@@ -16,8 +16,7 @@ import pytest
 from conftest import random_chain, random_state
 
 from harness import hiprec
-from harness.error_study import make_chain, make_state
-from harness.error_study import rge_a_on_phi
+from harness.error_study import make_chain, make_state, rge_a_on_phi
 from harness.nonsymmetric import literal_rge_a
 from redysim import forward_dynamics, mass_matrix, phi
 

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from .._jit import inline
 
 REVOLUTE = 0
 PRISMATIC = 1
 
 
-@jit
+@inline
 def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r22):
     """One elementary axis: returns (p0..p5, dO0..dO2, r00..r22).
 
@@ -74,7 +74,7 @@ def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r2
             r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
-@jit
+@inline
 def column_mass(kind, e0, e1, e2, x00, x01, x02, x11, x12, x22,
                 y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22):
     """Psi = Mhat p and Ihat = p^T Psi for the column p of one axis, Mhat = [[X, Y], [Y^T, Z]].
