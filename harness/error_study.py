@@ -46,7 +46,8 @@ Output (``--out``, default results/error_study):
     error_study.parquet   one row per cell (chain, n_links, config, method, precision), written
                           atomically (temp file + os.replace) after every cell; a rerun skips the
                           cells already finished (status ok / nonfinite / refused) and retries
-                          the others;
+                          the others; a core method's cell is redone when the kernels' sources
+                          changed since (its ``core_digest``);
     refs/<chain><n>-<config>-dps<d>.npz   the reference as a double-double ``qdd_dd`` (n, 2)
                           [hi, lo] (~32 digits) with its ``q`` and ``qd``, and .json beside it
                           (timing, the reference's self-check against ``--check-dps`` digits, the
@@ -412,17 +413,23 @@ def engine_precheck(name, chain) -> tuple[str, str]:
 class Results:
     """The Parquet table: one row per cell, rewritten atomically after every cell."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, core_digest: str = ""):
         from .store import read_parquet
         self.path = path
+        self.core_digest = core_digest
         self.rows: dict[tuple, dict] = {}
         if path.exists():
             for r in read_parquet(path).to_dict("records"):
-                self.rows[tuple(r[k] for k in KEY)] = r
+                if r["method"] in METHODS:  # a method since retired is dropped
+                    self.rows[tuple(r[k] for k in KEY)] = r
 
     def done(self, key) -> bool:
+        """Finished, and for a core method computed by the core's current kernels (their source
+        digest, ``redysim._kernels.sources_digest``): a change to the kernels redoes the cell."""
         r = self.rows.get(key)
-        return r is not None and r["status"] in FINAL
+        if r is None or r["status"] not in FINAL:
+            return False
+        return key[3] not in CORE_METHODS or r.get("core_digest") == self.core_digest
 
     def put(self, row: dict) -> None:
         self.rows[tuple(row[k] for k in KEY)] = row
@@ -496,7 +503,8 @@ def study(a) -> None:
     from redysim import __version__ as core_version
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    res = Results(out / "error_study.parquet")
+    from redysim._kernels import sources_digest
+    res = Results(out / "error_study.parquet", sources_digest()[:16])
     refs = RefStore(out, a.dps, a.check_dps, a.check_max_links, a.max_svd_dof)
     log(f"error study -> {res.path} ({len(res.rows)} cells on file); sizes {a.sizes}, chains "
         f"{a.chains}, configs {a.configs}, precisions {a.precisions}; core {core_version}")
@@ -531,6 +539,7 @@ def study(a) -> None:
                             continue
                         row = base_row(kind, chain, cfg, m, p, meta)
                         row["engine_version"] = f"redysim {core_version}"
+                        row["core_digest"] = res.core_digest
                         if why:
                             row.update(status="skipped", reason=why)
                             if key not in res.rows or res.rows[key]["status"] != "skipped":

@@ -341,14 +341,19 @@ def ieee_table(res: Results) -> Table:
     return t
 
 
-def true_error_table(res: Results) -> Table:
-    t = Table("true-error", "True relative error of qdd, double precision, straight chain",
+CONFIG_TITLES = {"stretched": "straight chain (q = 0)",
+                 "random": "random state (q, qd ~ U(-0.3, 0.3), seeded)"}
+
+
+def true_error_table(res: Results, config: str = "stretched") -> Table:
+    tid = "true-error" if config == "stretched" else f"true-error-{config}"
+    t = Table(tid, f"True relative error of qdd, double precision, {CONFIG_TITLES[config]}",
               ["chain", "links", "DOF", "cond2"])
     df = res.error_study
     if df is None or df.empty:
         t.not_run = "not run: python -m harness.error_study (make reproduce)"
         return t
-    sel = df[(df["precision"] == "float64") & (df["config"] == "stretched")]
+    sel = df[(df["precision"] == "float64") & (df["config"] == config)]
     ran = sel[sel["status"].isin(["ok", "nonfinite", "failed"])]
     methods = list(dict.fromkeys(ran["method"]))
     t.columns += methods
@@ -416,6 +421,7 @@ def build_report(res: Results) -> Report:
                      items=[F.conditioning(ctx), F.scaling(ctx), scaling_table(res),
                             F.op_counts(ctx), *F.work_precision(ctx), limits_table(res),
                             ieee_table(res), F.true_error(ctx), true_error_table(res),
+                            F.true_error(ctx, "random"), true_error_table(res, "random"),
                             bench_table(res)])
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,

@@ -439,21 +439,26 @@ def work_precision(ctx: Ctx) -> list[Figure]:
     return figs
 
 
-def true_error(ctx: Ctx) -> Figure:
-    title = "True error of qdd against a 50-digit reference"
-    caption = ("||qdd - ref||_2 / ||ref||_2 in double precision on the straight chain (q = 0, "
-               "where cond2 is largest), per method and engine, against DOF; dashed: "
-               "eps x cond2(GIM), the error a backward-stable dense solve may have.")
+def true_error(ctx: Ctx, config: str = "stretched") -> Figure:
+    fid = "true-error" if config == "stretched" else f"true-error-{config}"
+    where = {"stretched": "the straight chain (q = 0, where cond2 is largest)",
+             "random": "a seeded random state (q, qd ~ U(-0.3, 0.3))"}[config]
+    title = ("True error of qdd against a 50-digit reference"
+             + ("" if config == "stretched" else ", random state"))
+    caption = (f"||qdd - ref||_2 / ||ref||_2 in double precision on {where}, per method and "
+               "engine, against DOF; dashed: eps x cond2(GIM), the error a backward-stable "
+               "dense solve may have. rge-a-phi: Table A.1 as printed (gravity and velocity "
+               "terms inside phi), beside the core's rge-a.")
     df = ctx.res.error_study
     if df is None or df.empty:
-        return missing("true-error", "true-error", title, caption,
+        return missing(fid, "true-error", title, caption,
                        "not run: python -m harness.error_study (make reproduce)")
-    sel = df[(df["precision"] == "float64") & (df["config"] == "stretched")
+    sel = df[(df["precision"] == "float64") & (df["config"] == config)
              & (df["status"] == "ok")]
     chains = sorted(set(sel["chain"]))
     methods = list(dict.fromkeys(sel["method"]))
     if not chains:
-        return missing("true-error", "true-error", title, caption,
+        return missing(fid, "true-error", title, caption,
                        "no finished double-precision rows in results/error_study")
     fig, axes = new_figure(len(chains), width=PANEL_W * 1.35 * len(chains) + 2.0,
                            height=PANEL_H * 1.4,
@@ -470,14 +475,15 @@ def true_error(ctx: Ctx) -> Figure:
         cond = c["cond2"].fillna(c["cond2_lanczos"])  # the SVD's where there is one
         ax.loglog(c["n_dof"], np.minimum(EPS * cond, 1.0), "k--", lw=0.8,
                   label="eps x cond2 (capped at 1)")
-        ax.set(xlabel="DOF", ylabel="relative error", title=f"{chain} chain, q = 0")
+        ax.set(xlabel="DOF", ylabel="relative error",
+               title=f"{chain} chain, " + ("q = 0" if config == "stretched" else "random"))
     handles = {}
     for ax in axes:
         for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(lab, h)
     fig.legend(handles.values(), handles.keys(), loc="outside right center",
                fontsize=FONT_PT - 1.5)
-    return _figure("true-error", "true-error", title, caption, fig)
+    return _figure(fid, "true-error", title, caption, fig)
 
 
 def figures_beyond(ctx: Ctx) -> list[Figure]:
