@@ -29,9 +29,10 @@ EPS = np.finfo(float).eps
 
 # --------------------------------------------------------------------------- tolerances
 # O(n) recursive solvers (articulated-body algorithm, like the core's RGE-A): their rounding
-# error grows with the number of links, not with cond(I). Measured <= 3.4e-13 on qdd at 50 links
-# (GIM, phi, tip <= 4e-15); 1e-11 leaves a 30x margin and is still ~1000x tighter than a
-# cond(I) * eps bound, so it catches a wrong model or a drifting recursion.
+# error grows with the number of links, not with cond(I). Measured <= 1.2e-14 on qdd at 50 links
+# (GIM, phi, tip <= 4e-15; 3.4e-13 while the core still carried gravity inside phi); 1e-11 is
+# ~1000x tighter than a cond(I) * eps bound, so it catches a wrong model or a drifting recursion,
+# and stays above the ~n^2 eps growth of Table A.1 as printed should an engine work that way.
 TOL_DART = 1e-11
 TOL_PINOCCHIO_ABA_RYRZ = 1e-11
 # pin.aba is the same algorithm, so it gets the same tolerance; with JointModelUniversal it
@@ -63,8 +64,8 @@ SEEDS = (0, 1, 2)
 STAGES = ("gim", "phi", "qdd", "tip", "energy")
 
 # Known engine defect: stock pin.aba with JointModelUniversal on 50 U-links misses its
-# tolerance (measured 2.4e-8 near straight and 1.9e-10 spread, vs 3.4e-13 for the RY +
-# massless body + RZ model and for DART).
+# tolerance (measured 3.8e-8 near straight, vs 1.2e-14 for the RY + massless body + RZ model
+# and 1.0e-14 for DART).
 PIN_UNIVERSAL_DEFECT = {("pinocchio-aba", "U", 50, "straight", "qdd"),
                         ("pinocchio-aba", "U", 50, "spread", "qdd")}
 
