@@ -151,6 +151,38 @@ def headline_speed(res: Results) -> Headline:
     return Headline("Core speed", value, detail, INFO)
 
 
+def headline_accuracy(res: Results) -> Headline:
+    """The core's true error at the largest chain studied, beside Table A.1 as printed and the
+    best engine there (error study, double precision)."""
+    title = "True error of qdd (50-digit reference)"
+    df = res.error_study
+    if df is None or df.empty:
+        return Headline(title, "not run", "python -m harness.error_study (make reproduce)",
+                        NOT_RUN)
+    ok = df[(df["precision"] == "float64") & (df["status"] == "ok")]
+    core = ok[ok["method"] == "rge-a"]
+    if core.empty:
+        return Headline(title, "no core rows", "results/error_study", NOT_RUN)
+    top = int(core["n_links"].max())
+    at = ok[ok["n_links"] == top]
+    worst = at[at["method"] == "rge-a"].sort_values("rel2").iloc[-1]
+    value = f"{worst['rel2']:.1e} at {top:,} links"
+    detail = (f"core RGE-A, worst of {', '.join(sorted(set(at['chain'])))} chains, straight and "
+              f"random ({worst['chain']} {worst['config']}, {int(worst['n_dof']):,} DOF)")
+    phi = at[at["method"] == "rge-a-phi"]
+    if len(phi):
+        detail += f"; Table A.1 as printed (gravity inside phi): up to {phi['rel2'].max():.1e}"
+    engines = ok[ok["method"].isin(list(references.ENGINES))]
+    if len(engines):
+        counts = engines.groupby("n_links")["method"].nunique()
+        n_e = int(counts[counts >= min(3, counts.max())].index.max())
+        per = engines[engines["n_links"] == n_e].groupby("method")["rel2"].max().sort_values()
+        e_core = ok[(ok["method"] == "rge-a") & (ok["n_links"] == n_e)]["rel2"].max()
+        detail += (f"; at {n_e:,} links ({len(per)} engines): core {e_core:.1e}, most accurate "
+                   f"engine {per.index[0]} {per.iloc[0]:.1e}")
+    return Headline(title, value, detail, INFO)
+
+
 def headline_limits(res: Results) -> Headline:
     lim = references.load_limits()["engine"]
     parts = [f"{e} {v['max_dof']:,}" for e, v in lim.items()]
@@ -406,7 +438,8 @@ def build_report(res: Results) -> Report:
     tables = paper_tables(res)
     by_id = {t.id: t for t in tables}
     headline = [headline_e0(ctx), headline_drift(ctx), headline_precision(res, by_id),
-                headline_speed(res), headline_limits(res), headline_verdicts(tables),
+                headline_speed(res), headline_accuracy(res), headline_limits(res),
+                headline_verdicts(tables),
                 headline_reproduction(res)]
     paper = Section("paper", "Paper vs ours: Tables 1-11 and A.2", items=list(tables))
     paper.intro.append("One table per table of the paper, a verdict per row. The paper "
