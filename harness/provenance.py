@@ -35,6 +35,22 @@ def cpu_model() -> str:
 
 
 @functools.cache
+def code_digest() -> str:
+    """SHA-256 of the code a result depends on: every ``.py`` of the core (``redysim/``: the
+    kernels, the integrators) and of the engine adapters (``references/``). Part of a run's id
+    and of a cached reference solution's key, so that results computed by other code are never
+    reused silently."""
+    import hashlib
+
+    import redysim
+    h = hashlib.sha256()
+    for root in (Path(redysim.__file__).parent, REPO / "references"):
+        for path in sorted(root.rglob("*.py")):
+            h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+@functools.cache
 def git_commit() -> str:
     """The checkout's commit (with ``+dirty`` when the tree has changes), or "" outside git."""
     try:

@@ -22,7 +22,6 @@ atomically (temp file + ``os.replace``) under ``results/reference/`` (``REDYSIM_
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
@@ -36,7 +35,7 @@ import numpy as np
 from redysim import Workspace, forward_dynamics, tip
 from redysim.integrate import advance, make_solver, sample_times
 
-from .provenance import REPO
+from .provenance import REPO, code_digest
 from .store import write_npz_atomic
 
 REF_METHOD = "dop853"
@@ -63,20 +62,10 @@ class Reference:
     cpu_s: float
 
 
-@functools.cache
-def _core_source_hash() -> str:
-    import redysim
-
-    h = hashlib.sha256()
-    for p in sorted(Path(redysim.__file__).parent.rglob("*.py")):
-        h.update(p.read_bytes())
-    return h.hexdigest()
-
-
 def _key(case, t_end: float, interval: float, rtol: float = REF_RTOL) -> str:
     blob = json.dumps({"case": case.path.read_bytes().hex(), "t_end": t_end, "dt": interval,
                        "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL],
-                       "core": _core_source_hash()})
+                       "core": code_digest()})
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 

@@ -54,8 +54,11 @@ class RunSpec:
 
     @property
     def run_id(self) -> str:
-        """A stable 16-hex-digit id from every field (same spec, same id, on any machine)."""
-        blob = json.dumps(asdict(self), sort_keys=True, default=repr)
+        """A stable 16-hex-digit id from every field and the code that runs it
+        (:func:`harness.provenance.code_digest`): same spec and code, same id, on any machine;
+        a run finished by other code is not reused."""
+        from .provenance import code_digest
+        blob = json.dumps({**asdict(self), "code": code_digest()}, sort_keys=True, default=repr)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
     @property

@@ -30,7 +30,9 @@ method x integrator x tolerance or step)::
     atol = 1e-10
 
 A bad file raises :class:`SweepError` naming the file, the field and the value. Runs are
-identified by :attr:`RunSpec.run_id`; a run declared twice is run once.
+identified by :attr:`RunSpec.run_id`; a run declared twice is run once. The id includes the
+code's digest (``redysim/`` and ``references/``), so after a change to the code a resumed sweep
+runs everything again instead of mixing results of two versions.
 
 :func:`run_sweep` writes into ``out_dir``::
 
