@@ -145,7 +145,7 @@ def kernel_function(dispatcher: Dispatcher, arith: Arithmetic) -> types.Function
     fn = types.FunctionType(f.__code__, g, f.__name__, f.__defaults__, f.__closure__)
     _REBOUND[key] = fn  # before recursing: a kernel may be reached twice
     for name, value in list(g.items()):
-        if isinstance(value, Dispatcher):
+        if isinstance(value, Dispatcher) or hasattr(value, "py_func"):  # (joints.sincos)
             g[name] = kernel_function(value, arith)
         elif value is math:
             g[name] = arith.trig

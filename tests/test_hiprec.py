@@ -161,3 +161,16 @@ def test_literal_is_fine_with_one_dof_joints():
     ref = hiprec.qdd_reference(chain, q, qd, output="dd")
     rel2, _ = hiprec.relative_errors(literal_rge_a(chain, q, qd), ref)
     assert rel2 < 1e-10
+
+
+def test_rebound_kernels_take_cos_and_sin_in_the_arithmetic():
+    """jcalc's sincos is a plain helper, not a numba dispatcher: the high-precision source must
+    still get mpmath's cos and sin (a float cos would cap the reference at double accuracy while
+    its 50- vs 70-digit self-check still agreed)."""
+    import redysim._kernels.kinematics as kin
+    a = hiprec.mpf_arithmetic(50)
+    sincos = hiprec.kernel_function(kin.kinematics, a).__globals__["jcalc"].__globals__["sincos"]
+    with mpmath.workdps(50):
+        c, s = sincos(mpmath.mpf(1) / 3)
+        assert isinstance(c, mpmath.mpf) and abs(c - mpmath.cos(mpmath.mpf(1) / 3)) < 1e-45
+        assert abs(s - mpmath.sin(mpmath.mpf(1) / 3)) < 1e-45

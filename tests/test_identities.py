@@ -184,3 +184,26 @@ def test_workspace_reuse_gives_identical_results(rng):
     forward_dynamics(chain, -q, qd, -tau, ws=ws)
     b = forward_dynamics(chain, q, qd, tau, ws=ws)
     assert np.array_equal(a, b)
+
+
+def test_compiled_sincos_is_within_one_ulp_of_libm():
+    """The kinematics' inline sincos (fdlibm's polynomials for |x| <= pi/4, libm beyond) against
+    Python's math.cos/math.sin, which call the platform libm: at most 1 ulp apart anywhere."""
+    import math
+
+    import numba
+
+    from redysim._kernels.joints import sincos
+
+    both = numba.njit(lambda x: sincos(x))
+    rng = np.random.default_rng(3)
+    far = rng.uniform(math.pi / 4, 50.0, 2_000) * rng.choice([-1.0, 1.0], 2_000)
+    x = np.concatenate([rng.uniform(-math.pi / 4, math.pi / 4, 20_000),
+                        rng.uniform(-1e-6, 1e-6, 2_000), [0.0, -0.0, math.pi / 4, -math.pi / 4],
+                        far])  # beyond pi/4: libm itself
+    got = np.array([both(v) for v in x])
+    ref = np.array([(math.cos(v), math.sin(v)) for v in x])
+    ulp = np.abs(got - ref) / np.spacing(np.abs(ref))
+    assert ulp.max() <= 1.0
+    assert (got[-2_000:] == ref[-2_000:]).all(), "outside [-pi/4, pi/4] libm is called"
+    assert sincos(0.5) == (math.cos(0.5), math.sin(0.5)), "the Python definition is libm's"

@@ -17,10 +17,55 @@ from __future__ import annotations
 
 import math
 
+from numba.extending import overload
+
 from .._jit import inline
 
 REVOLUTE = 0
 PRISMATIC = 1
+
+
+def sincos(x):
+    """(cos x, sin x).
+
+    This Python definition is what the kernels' Python source runs, in any arithmetic
+    (``redysim.precision`` and ``harness.hiprec`` rebind its ``math`` as they do a kernel's: the
+    ``py_func`` attribute marks it). Compiled code runs :func:`_sincos_compiled` instead.
+    """
+    return math.cos(x), math.sin(x)
+
+
+sincos.py_func = sincos
+
+
+# fdlibm's minimax polynomials on [-pi/4, pi/4] (FreeBSD msun k_sin.c, k_cos.c)
+S1, S2, S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+S4, S5, S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+C1, C2, C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+C4, C5, C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+PI_4 = 0.7853981633974483
+
+
+@overload(sincos, inline="always")
+def _sincos_compiled(x):
+    """Compiled (cos x, sin x): for |x| <= pi/4 (every joint angle of a gently bent chain)
+    fdlibm's kernels inline, without a call to libm; else libm's cos and sin.
+
+    Why: two libm calls per axis were half of the kinematics pass (20 of 41 ns/DOF on a U
+    chain), each call also spilling the pass's running scalars. The polynomials are libm's own
+    (fdlibm, error < 1 ulp); ``tests/test_identities.py`` checks them against ``math`` to 1 ulp.
+    """
+    def impl(x):
+        if abs(x) <= PI_4:
+            z = x * x
+            r = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
+            s = x + x * z * (S1 + z * r)
+            rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
+            hz = 0.5 * z
+            w = 1.0 - hz
+            return w + (((1.0 - w) - hz) + z * rc), s
+        return math.cos(x), math.sin(x)
+    return impl
 
 
 @inline
@@ -45,8 +90,7 @@ def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r2
     if kind == PRISMATIC:
         return (0.0, 0.0, 0.0, e0, e1, e2, e0 * qj, e1 * qj, e2 * qj,
                 r00, r01, r02, r10, r11, r12, r20, r21, r22)
-    c = math.cos(qj)
-    s = math.sin(qj)
+    c, s = sincos(qj)
     if code == 0:  # columns y, z mix
         n01, n11, n21 = c * r01 + s * r02, c * r11 + s * r12, c * r21 + s * r22
         n02, n12, n22 = c * r02 - s * r01, c * r12 - s * r11, c * r22 - s * r21
