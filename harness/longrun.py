@@ -27,6 +27,7 @@ import numpy as np
 from redysim import Workspace, energy, forward_dynamics, load_case, tip
 from redysim.integrate import Counters, Solver, SolverState, advance, sample_times
 
+from .provenance import code_digest
 from .reference import results_dir
 from .store import write_npz_atomic
 
@@ -76,11 +77,17 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     t0 = time.perf_counter()
     rhs(0.0, y0)
     jit_s = time.perf_counter() - t0
+    code = code_digest()
     ck = load_checkpoint(path)
     if ck is not None:
         if float(ck["t_end"]) != t_end or float(ck["rtol"]) != rtol:
             raise SystemExit(f"{path}: a checkpoint for t_end = {float(ck['t_end'])}, rtol = "
                              f"{float(ck['rtol'])} exists; use another --out or delete it")
+        if str(ck.get("code", "")) != code:
+            raise SystemExit(f"{path}: the checkpoint was written by other code (digest "
+                             f"{str(ck.get('code', ''))[:12] or 'not recorded'}, now {code[:12]}):"
+                             " resuming would not continue the same computation; use another "
+                             "--out or delete it")
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
         solver = Solver(rhs, 0.0, y0, t_end, "ode45", rtol=rtol, atol=atol, state=state)
@@ -98,7 +105,8 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     last_ck = [wall0]
 
     def meta():
-        return {"case": case.name, "t_end": t_end, "rtol": rtol, "atol": atol, "E0": E0,
+        return {"case": case.name, "code": code, "t_end": t_end, "rtol": rtol, "atol": atol,
+                "E0": E0,
                 "mass": chain.total_mass, "n_dof": n,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,

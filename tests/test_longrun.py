@@ -48,3 +48,11 @@ def test_a_checkpoint_for_other_settings_is_not_silently_reused(tmp_path):
     run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
     with pytest.raises(SystemExit, match="t_end = 0.1"):
         run("STUDY-R3", t_end=0.2, every_s=1e9, out=tmp_path, log=lambda m: None)
+
+
+def test_a_checkpoint_written_by_other_code_is_not_resumed(tmp_path, monkeypatch):
+    import harness.longrun as longrun
+    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
+    monkeypatch.setattr(longrun, "code_digest", lambda: "0" * 64)
+    with pytest.raises(SystemExit, match="written by other code"):
+        run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
