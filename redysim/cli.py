@@ -13,7 +13,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from .cases import CASES_DIR, list_cases
+from .cases import CASES_DIR, list_cases, load_case
 from .errors import RedysimError
 from .integrate import FIXED_STEP, INTEGRATORS
 
@@ -160,6 +160,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.case not in list_cases() and not Path(args.case).is_file():
         raise FileNotFoundError(f"no case named {args.case!r} and no such file; "
                                 f"`{PROG} cases` lists the cases")
+    load_case(args.case)  # a malformed case file is bad input (exit 2), not a failed run
     if args.integrator in (*FIXED_STEP, NATIVE) and not args.h:
         raise RedysimError(f"--integrator {args.integrator} is fixed-step: give its step, "
                            "e.g. --h 1e-3")

@@ -2,9 +2,24 @@
 
 from __future__ import annotations
 
+import reprlib
+
 
 class RedysimError(Exception):
     """Base class of every error redysim raises on purpose."""
+
+
+def _short_repr(value, limit: int = 200) -> str:
+    """repr(value), abbreviated by reprlib when longer than ``limit`` characters (a whole table
+    given where a number was expected would otherwise flood the message)."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    r = reprlib.Repr()
+    r.maxlist = r.maxtuple = r.maxdict = 4
+    r.maxstring = r.maxother = 60
+    r.maxlevel = 2
+    return r.repr(value)
 
 
 class CaseError(RedysimError, ValueError):
@@ -19,7 +34,7 @@ class CaseError(RedysimError, ValueError):
         self.field = field
         self.value = value
         self.problem = problem
-        shown = f"{field}" if value is None else f"{field} = {value!r}"
+        shown = f"{field}" if value is None else f"{field} = {_short_repr(value)}"
         super().__init__(f"{source}: {shown}: {problem}")
 
 

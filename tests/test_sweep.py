@@ -387,6 +387,11 @@ def test_cli_exit_codes_for_bad_input_and_failed_runs(capsys):
     assert "argument --rtol: '-1' must be > 0" in capsys.readouterr().err
     assert main(["simulate", "STUDY-R3", "--integrator", "native", "--h", "0.01"]) == 1
     assert capsys.readouterr().err.startswith("redysim: run failed: integrator 'native' needs")
+    bad = Path(__file__).parent / "bad_inputs" / "states.toml"  # a state list, not a case
+    assert main(["simulate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"redysim: error: {bad}: <top>.state = ") and "unknown field" in err
+    assert len(err) < 600, "a long value is abbreviated, not dumped"
 
 
 def test_cli_help_and_cases(capsys):
