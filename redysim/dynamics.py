@@ -7,7 +7,6 @@ in a loop (an integrator's right-hand side).
 
 from __future__ import annotations
 
-import math
 import reprlib
 from typing import NamedTuple
 
@@ -39,8 +38,11 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         if optional:
             return None
         raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
-    if type(x) is np.ndarray and x.dtype == np.float64 and x.ndim == 1 and x.flags.c_contiguous:
-        arr = x
+    if (type(x) is np.ndarray and x.ndim == 1 and x.shape[0] == chain.n_dof
+            and x.dtype == np.float64 and x.flags.c_contiguous):  # the hot path: as given
+        if finite:
+            require_finite(name, x)
+        return x
     else:
         try:
             arr = np.asarray(x)
@@ -146,20 +148,20 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
     c = chain
     if method == "rge-a":
         if planar:
-            _planar(c, ws, q, qd, tau, out)
+            nonfinite = _planar(c, ws, q, qd, tau, out)
         else:
-            rge_a_forward_dynamics(c.length, c.mass, c.inertia_O, c.mass_com, c.dof_kind,
-                                   c.dof_axis, c.dof_u, c.joint_qoff, q, qd,
-                                   ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
-                                   ws.oR, ws.oO, ws.oP, ws.t, ws.td, ws.Ihat, ws.Psihat,
-                                   ws.phitil, ws.phihat, out)
+            nonfinite = rge_a_forward_dynamics(
+                c.length, c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.dof_axis, c.dof_u,
+                c.joint_qoff, q, qd, ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
+                ws.oR, ws.oO, ws.oP, ws.t, ws.td, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat, out)
     else:
         rhs = _phi(c, ws, q, qd, tau).copy()
         A = np.empty((c.n_dof, c.n_dof))
         gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, A)
         mult = np.zeros_like(A)
         (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
-    if not math.isfinite(out.sum()):
+        nonfinite = float(np.sum(out * 0.0))
+    if nonfinite != 0.0:  # NaN: some qdd is NaN or +-inf
         # a NaN or Inf in the input always reaches qdd: only now look for it, to name it
         for name, x in (("q", q), ("qd", qd), ("tau", tau)):
             if x is not None:
@@ -169,10 +171,10 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
     return out
 
 
-def _planar(c: Chain, ws: Workspace, q, qd, tau, out):
+def _planar(c: Chain, ws: Workspace, q, qd, tau, out) -> float:
     if ws.planar is None:
         ws.planar = np.empty((c.n_links, 12))
-    planar_forward_dynamics(c.length, c.mass, c.inertia_O[:, 2, 2], c.mass_com[:, 0],
+    return planar_forward_dynamics(c.length, c.mass, c.inertia_O[:, 2, 2], c.mass_com[:, 0],
                             c.mass_com[:, 1], c.gravity, q, qd,
                             ws.zeros if tau is None else tau, out, ws.planar)
 

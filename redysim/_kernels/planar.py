@@ -34,6 +34,8 @@ from .._jit import jit
 def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau, qdd, scratch):
     """qdd for a planar R chain; tau may be all zeros. scratch: (nl, 12) work array.
 
+    Returns 0.0, or NaN when some qdd is not finite (the caller's check, without a pass over qdd).
+
     izz_O: (nl,) inertia about the joint axis through O_k; mc_x, mc_y: m c in the link frame.
     gravity: (3,) world gravity (only X and Y act in the plane).
     """
@@ -126,6 +128,7 @@ def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau
     m0 = 0.0
     m1 = -gravity[0]
     m2 = -gravity[1]
+    nonfinite = 0.0  # stays 0 unless a qdd is NaN or +-inf (x * 0 is then NaN)
     for k in range(nl):
         if k > 0:
             rx = scratch[k, 2] - scratch[k - 1, 2]
@@ -138,3 +141,5 @@ def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau
         x = scratch[k, 11] - (scratch[k, 9] * m1 + scratch[k, 10] * m2) / h00 - m0
         qdd[k] = x
         m0 += x
+        nonfinite += x * 0.0
+    return nonfinite

@@ -254,10 +254,12 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
 
     mu starts from the base's twist-rate [0; base_accel] and takes in each link's local
     twist-rate c_k (zeros and zero for Table A.1 as printed, where both are inside phi).
+    Returns 0.0, or NaN when some qdd is not finite.
     """
     nl = joint_qoff.shape[0] - 1
     m0 = m1 = m2 = 0.0
     m3, m4, m5 = base_accel[0], base_accel[1], base_accel[2]
+    nonfinite = 0.0  # stays 0 unless a qdd is NaN or +-inf (x * 0 is then NaN)
     # forward: k = 1..nl
     for k in range(nl):
         if k > 0:
@@ -278,6 +280,7 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
             x = phitil[j] - (Psihat[j, 0] * m0 + Psihat[j, 1] * m1 + Psihat[j, 2] * m2
                              + Psihat[j, 3] * m3 + Psihat[j, 4] * m4 + Psihat[j, 5] * m5)
             qdd[j] = x
+            nonfinite += x * 0.0
             # mu <- P qdd + mu
             m0 += oP[j, 0] * x
             m1 += oP[j, 1] * x
@@ -285,6 +288,7 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
             m3 += oP[j, 3] * x
             m4 += oP[j, 4] * x
             m5 += oP[j, 5] * x
+    return nonfinite
 
 
 @jit
@@ -293,9 +297,10 @@ def rge_a_forward_dynamics(length, mass, inertia_O, mass_com, dof_kind, dof_axis
                            oR, oO, oP, t, c, Ihat, Psihat, phitil, phihat, qdd):
     """qdd = I^-1 phi in O(n): the kinematics pass (local twist-rates c_k, qdd = 0), then Table
     A.1's backward pass (with the bias of each articulated body) and its forward pass from the
-    base's twist-rate [0; base_accel] = [0; -g]. One call from Python for the three passes."""
+    base's twist-rate [0; base_accel] = [0; -g]. One call from Python for the three passes.
+    Returns 0.0, or NaN when some qdd is not finite."""
     kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, zeros, base_accel,
                oR, oO, oP, t, c, True)
     rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, c, tau,
                    Ihat, Psihat, phitil, phihat)
-    rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd)
+    return rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd)
