@@ -175,8 +175,8 @@ def _planar(c: Chain, ws: Workspace, q, qd, tau, out) -> float:
     if ws.planar is None:
         ws.planar = np.empty((c.n_links, 12))
     return planar_forward_dynamics(c.length, c.mass, c.inertia_O[:, 2, 2], c.mass_com[:, 0],
-                            c.mass_com[:, 1], c.gravity, q, qd,
-                            ws.zeros if tau is None else tau, out, ws.planar)
+                                   c.mass_com[:, 1], c.gravity, q, qd,
+                                   ws.zeros if tau is None else tau, out, ws.planar)
 
 
 # --------------------------------------------------------------------------- GIM and factors
