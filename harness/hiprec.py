@@ -53,13 +53,13 @@ from dataclasses import dataclass, field
 
 import mpmath
 import numpy as np
-from numba.core.dispatcher import Dispatcher
 
 from redysim import Chain
 from redysim._kernels import inverse_dynamics as _inverse_dynamics
 from redysim._kernels import kinematics as _kinematics
 from redysim._kernels import planar as _planar
 from redysim._kernels import rge_a as _rge_a
+from redysim.precision import rebind
 
 DEFAULT_DPS = 50
 
@@ -127,29 +127,15 @@ FLOAT64 = Arithmetic("float64", float, np.float64, math.cos, math.sin)
 
 
 # --------------------------------------------------------------------------- rebinding
-_REBOUND: dict[tuple[int, str], types.FunctionType] = {}
-
-
-def kernel_function(dispatcher: Dispatcher, arith: Arithmetic) -> types.FunctionType:
+def kernel_function(dispatcher, arith: Arithmetic) -> types.FunctionType:
     """The Python source of a numba kernel, rebound to run in ``arith``.
 
     Same code object as ``dispatcher.py_func``; globals: a copy of the kernel module's, with every
-    numba dispatcher replaced (recursively) by its rebound Python function and ``math`` by
-    ``arith.trig``. The module itself is not touched.
+    kernel it calls rebound (recursively) and ``math`` replaced by ``arith.trig``
+    (:func:`redysim.precision.rebind`, the mechanism the reduced-precision study uses too). The
+    module itself is not touched.
     """
-    key = (id(dispatcher), arith.name)
-    if key in _REBOUND:
-        return _REBOUND[key]
-    f = dispatcher.py_func
-    g = dict(f.__globals__)
-    fn = types.FunctionType(f.__code__, g, f.__name__, f.__defaults__, f.__closure__)
-    _REBOUND[key] = fn  # before recursing: a kernel may be reached twice
-    for name, value in list(g.items()):
-        if isinstance(value, Dispatcher) or hasattr(value, "py_func"):  # (joints.sincos)
-            g[name] = kernel_function(value, arith)
-        elif value is math:
-            g[name] = arith.trig
-    return fn
+    return rebind(dispatcher, ("hiprec", arith.name), arith.trig)
 
 
 # --------------------------------------------------------------------------- chain and state
@@ -411,15 +397,8 @@ def dense_reference(chain: Chain, q, qd, tau=None, dps: int = DEFAULT_DPS) -> li
     """
     n = chain.n_dof
     with mpmath.workdps(dps):
-        zeros = np.zeros(n)
-        bias = newton_euler_mp(chain, q, qd, zeros)
-        gim = mpmath.matrix(n, n)
-        for i in range(n):
-            e = np.zeros(n)
-            e[i] = 1.0
-            col = newton_euler_mp(chain, q, zeros, e, gravity=False)
-            for r in range(n):
-                gim[r, i] = col[r]
+        bias = newton_euler_mp(chain, q, qd, np.zeros(n))
+        gim = dense_gim_mp(chain, q, dps)
         t = [mpmath.mpf(0)] * n if tau is None else [mpmath.mpf(float(x)) for x in tau]
         rhs = mpmath.matrix([t[i] - bias[i] for i in range(n)])
         x = mpmath.lu_solve(gim, rhs)

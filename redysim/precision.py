@@ -220,26 +220,38 @@ def _math_for(number) -> types.SimpleNamespace:
     return ns
 
 
-def kernel_source(kernel, number):
-    """The Python source of a jitted kernel, run in ``number``'s arithmetic.
+def rebind(kernel, key, math_ns):
+    """The Python source of a kernel, run with ``math`` replaced by ``math_ns``.
 
-    ``kernel.py_func`` (the very function numba compiles) with the module-level names it calls
-    rebound: ``math`` to functions that return ``number``, and every jitted callee to its own
-    rebound source. ``number``: a :class:`Rounded` type or a numpy scalar type (np.float32, ...).
+    ``kernel.py_func`` (the very function numba compiles; a plain helper marks itself with a
+    ``py_func`` attribute, as ``joints.sincos`` does) with a copy of its module's globals in which
+    ``math`` is ``math_ns`` and every kernel it calls is rebound the same way. Cached per
+    ``(kernel, key)``; ``key`` names the arithmetic. Shared by :func:`kernel_source` and
+    ``harness.hiprec.kernel_function``.
     """
-    key = (kernel, number)
-    fn = _SOURCES.get(key)
+    fn = _SOURCES.get((kernel, key))
     if fn is None:
         f = getattr(kernel, "py_func", kernel)
         env = dict(f.__globals__)
-        env["math"] = _math_for(number)
-        for name in f.__code__.co_names:
-            if hasattr(env.get(name), "py_func"):
-                env[name] = kernel_source(env[name], number)
+        env["math"] = math_ns
         fn = types.FunctionType(f.__code__, env, f.__name__, f.__defaults__, f.__closure__)
         fn.__doc__ = f.__doc__
-        _SOURCES[key] = fn
+        _SOURCES[(kernel, key)] = fn  # before recursing: a callee may be reached twice
+        for name in f.__code__.co_names:
+            if hasattr(env.get(name), "py_func"):
+                env[name] = rebind(env[name], key, math_ns)
     return fn
+
+
+def kernel_source(kernel, number):
+    """The Python source of a jitted kernel, run in ``number``'s arithmetic.
+
+    :func:`rebind` with ``math`` whose functions return ``number`` (evaluated in double, then
+    rounded). ``number``: a :class:`Rounded` type or a numpy scalar type (np.float32, ...).
+    """
+    if (kernel, number) in _SOURCES:
+        return _SOURCES[(kernel, number)]
+    return rebind(kernel, number, _math_for(number))
 
 
 def _numbers(a, number) -> np.ndarray:
@@ -396,4 +408,4 @@ def ieee_qdd(chain: Chain, q, qd, method: str = "rge-a", dtype=np.float32, *, ta
 
 
 __all__ = ["ARITHMETICS", "Factors", "IEEE_DTYPES", "METHODS", "Rounded", "ieee_qdd",
-           "kernel_source", "reduced_factors", "reduced_qdd", "rounded_type"]
+           "kernel_source", "rebind", "reduced_factors", "reduced_qdd", "rounded_type"]
