@@ -144,12 +144,20 @@ def execute(spec: RunSpec, *, reference=True) -> RunResult:
     return RunResult(spec, row, df)
 
 
+def initial_state(spec: RunSpec, case) -> np.ndarray:
+    """y0 = (q0, qd0) of the run: the case's, shifted by ``spec.perturb`` (RunSpec's meaning)."""
+    y0 = np.concatenate((case.q0, case.qd0))
+    if spec.perturb:
+        y0 = y0 + spec.perturb * np.maximum(np.abs(y0), 1.0)
+    return y0
+
+
 def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict):
     chain, n = case.chain, case.chain.n_dof
     t_end, interval = horizon(spec, case)
     ts = sample_times(0.0, t_end, interval)
-    y0 = np.concatenate((case.q0, case.qd0))
-    T0, V0 = energy(chain, case.q0, case.qd0)
+    y0 = initial_state(spec, case)
+    T0, V0 = energy(chain, y0[:n], y0[n:])
     E0 = T0 + V0
     row["E0"] = E0
     run_id, mass, bound = spec.run_id, chain.total_mass, spec.energy_bound
@@ -217,7 +225,9 @@ def _native(spec, dyn, case, t_end, ts, on_sample, deadline, row):
         raise RunFailed(f"native stepping: sample times must be whole multiples of h = {h:g}")
     marks = np.round(per).astype(int)
     eng = dyn.engine
-    eng.sim_reset(case.q0, case.qd0, h)
+    y0 = initial_state(spec, case)
+    n = case.chain.n_dof
+    eng.sim_reset(y0[:n], y0[n:], h)
     n_steps = int(marks[-1])
     i = 0
     for step in range(n_steps + 1):

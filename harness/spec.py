@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, fields
 CORE = "redysim"  # the engine name of our own core
 CORE_METHODS = ("rge-a", "ge-n", "rge-n")
 NATIVE = "native"  # integrator name: the engine's own time stepping
+ADDED_FIELDS = ("perturb",)  # left out of run_id at their default (see RunSpec.run_id)
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,10 @@ class RunSpec:
     energy_bound: a run whose |delta_M| exceeds this [J/kg] is stopped and recorded as failed.
     max_wall_s:  a run still going after this many seconds is stopped and recorded as failed
                  (its finished samples are kept); 0 means no limit.
+    perturb:     a rounding-level change of the initial state: every component y0_i of (q0, qd0)
+                 becomes y0_i + perturb * max(|y0_i|, 1), and E(0) is that state's energy. 0 (the
+                 default) runs the case's own state. Ensembles of runs with perturb ~ 1e-13 show
+                 how much a result depends on round-off (``sweeps/drift-ensemble.toml``).
     """
 
     case: str
@@ -47,6 +52,7 @@ class RunSpec:
     sample: float = 0.0
     energy_bound: float = 1e3
     max_wall_s: float = 0.0
+    perturb: float = 0.0
 
     def __post_init__(self):
         if self.engine != CORE and self.method in CORE_METHODS:
@@ -58,7 +64,11 @@ class RunSpec:
         (:func:`harness.provenance.code_digest`): same spec and code, same id, on any machine;
         a run finished by other code is not reused."""
         from .provenance import code_digest
-        blob = json.dumps({**asdict(self), "code": code_digest()}, sort_keys=True, default=repr)
+        fields_ = asdict(self)
+        for name in ADDED_FIELDS:  # a field added later keeps the ids of runs that do not use it
+            if fields_[name] == getattr(RunSpec, name):
+                del fields_[name]
+        blob = json.dumps({**fields_, "code": code_digest()}, sort_keys=True, default=repr)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
     @property
@@ -66,7 +76,8 @@ class RunSpec:
         """A short human label: ``RE-U125-L1 redysim/rge-a ode45 rtol=1e-06``."""
         algo = f"{self.engine}/{self.method}" if self.method else self.engine
         step = f"h={self.h:g}" if self.h else f"rtol={self.rtol:g}"
-        return f"{self.case} {algo} {self.integrator} {step}"
+        extra = f" perturb={self.perturb:g}" if self.perturb else ""
+        return f"{self.case} {algo} {self.integrator} {step}{extra}"
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -14,6 +14,8 @@ method x integrator x tolerance or step)::
     atol_ratio = 1e-2                    # atol = rtol * atol_ratio (default); or atols = [...],
                                          # paired with rtols one to one
     h = [1e-3]                           # fixed-step integrators (rk4, native): one run per h
+    perturbs = [0, 1e-13]                # optional: one run per initial-state perturbation
+                                         # (RunSpec.perturb; default [0], the case's state)
     t_end = 0.01                         # scalars shared by every run (RunSpec's meanings)
     sample = 0.005
     energy_bound = 1e3
@@ -87,7 +89,7 @@ from .store import (
 SWEEP_TABLE = "sweep"
 PRODUCT_TABLE = "product"
 EXTRA_TABLE = "extra"
-LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h")
+LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h", "perturbs")
 SCALAR_FIELDS = ("atol_ratio", "t_end", "sample", "energy_bound", "max_wall_s")
 SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_wall_s")  # handed down to extra runs
 TEXT_FIELDS = ("name", "description")
@@ -272,7 +274,7 @@ class _Checker:
             return self.choice(field, value, CORE_METHODS, "method of the core")
         if key == "integrators":
             return self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
-        return self.number(field, value, strict=True)  # rtols, atols, h
+        return self.number(field, value, strict=key != "perturbs")  # rtols, atols, h; perturbs >= 0
 
     def values(self, field: str, key: str, value: Any) -> list:
         if not isinstance(value, list):
@@ -310,12 +312,13 @@ class _Checker:
                 methods = settings.get("methods", [RunSpec.method]) if engine == CORE else [""]
                 for method in methods:
                     for integrator in integrators:
-                        run = dict(case=case, engine=engine, method=method,
-                                   integrator=integrator, **common)
-                        if integrator in STEPPED_INTEGRATORS:
-                            specs += [RunSpec(**run, h=h) for h in settings["h"]]
-                        else:
-                            specs += [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
+                        for perturb in settings.get("perturbs", [RunSpec.perturb]):
+                            run = dict(case=case, engine=engine, method=method,
+                                       integrator=integrator, perturb=perturb, **common)
+                            if integrator in STEPPED_INTEGRATORS:
+                                specs += [RunSpec(**run, h=h) for h in settings["h"]]
+                            else:
+                                specs += [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
         return specs
 
     def extra(self, where: str, node: dict, shared: dict) -> RunSpec:

@@ -11,17 +11,18 @@ one per core).
 
 Quick mode (the default): the sweeps ``sweeps/quick-tables.toml`` (Tables 1-4 up to 2,500 DOF
 at the paper's horizons, RE-U3750-L30 shortened, Table 6's GE-N on RE-U125-L1) and
-``sweeps/quick-work-precision.toml`` (every integrator and engine on RE-U125-L1 over 0.05 s);
+``sweeps/quick-work-precision.toml`` (every integrator and engine on RE-U125-L1 over 0.05 s)
+and ``sweeps/quick-drift-ensemble.toml`` (RE-U125-L1's drift from 8 perturbed initial states);
 the precision tables 8, 10, 11, A.2 and IEEE (:mod:`reports.precision_tables`, Table 8 without
 its sensitivity runs); Table 9 and the conditioning study (:mod:`reports.gim_study`); the
 operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 links
 (:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
 then the report (:mod:`reports.build`).
 
-Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml`` and
-``work-precision-RE-U125-L1.toml`` (Table 6's GE-N on the larger chains takes hours), Table 5's
-huge chains as checkpointed long runs (:mod:`harness.longrun`: hours each, resumed from the last
-checkpoint when stopped), everything above at full size.
+Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
+``drift-ensemble.toml`` and ``work-precision-RE-U125-L1.toml`` (Table 6's GE-N on the larger
+chains takes hours), Table 5's huge chains as checkpointed long runs (:mod:`harness.longrun`:
+hours each, resumed from the last checkpoint when stopped), everything above at full size.
 
 Everything resumes: a sweep skips the runs it has finished (harness.sweep), the error study the
 cells it has, and the other steps take seconds to minutes. Progress and each step's wall time are
@@ -48,11 +49,12 @@ from harness.store import write_json_atomic
 QUICK = "quick"
 FULL = "full"
 SWEEPS = REPO / "sweeps"
-QUICK_SWEEPS = ("quick-tables", "quick-work-precision")
+QUICK_SWEEPS = ("quick-tables", "quick-work-precision", "quick-drift-ensemble")
 TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6": "table6"}
 # Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
 # Table 5's checkpointed long runs (hours each).
-FULL_SWEEPS = ("table1", "table3", "table2", "table4", "work-precision-RE-U125-L1", "table6")
+FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
+               "work-precision-RE-U125-L1", "table6")
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables

@@ -118,6 +118,9 @@ class Results:
             return pd.DataFrame(columns=["run_id", "case", "engine", "method", "integrator",
                                          "status", "sweep", "horizon"])
         runs = pd.concat(frames, ignore_index=True).drop_duplicates("run_id", keep="first")
+        # runs saved before RunSpec.perturb existed ran the case's own initial state
+        runs["perturb"] = (runs["perturb"].astype(float).fillna(0.0) if "perturb" in runs
+                           else 0.0)
         runs["horizon"] = [t if t > 0 else case_horizon(c)
                            for t, c in zip(runs["t_end"], runs["case"], strict=True)]
         return runs.reset_index(drop=True)

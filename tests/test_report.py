@@ -44,6 +44,8 @@ FIGURE_FAMILIES = ("tip-path", "tip-speed", "drift", "conditioning", "scaling", 
                    "work-precision", "true-error")
 SPECS = [
     RunSpec(case="RE-R229-L1.02-DX1.02", sample=0.05),              # Table 1, the paper's run
+    *[RunSpec(case="RE-R229-L1.02-DX1.02", sample=0.05, perturb=k * 1e-13)  # its drift spread
+      for k in (1, 2, 3)],
     RunSpec(case="RE-U125-L1", t_end=0.1, sample=0.05),             # Tables 2/3, shortened
     RunSpec(case="RE-U125-L1", t_end=0.02, sample=0.01, integrator="rk4", h=1e-3),
     RunSpec(case="RE-U125-L1", t_end=0.02, sample=0.01, rtol=1e-6, atol=1e-8),
@@ -68,8 +70,8 @@ def results(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setenv("REDYSIM_RESULTS", str(root))  # reference solutions (inherited by the workers)
     try:
-        run_sweep(SPECS[:2], root / "sweeps" / "tiny", name="tiny", workers=2, progress=False)
-        run_sweep(SPECS[2:], root / "sweeps" / "tiny-wp", name="tiny-wp", workers=2,
+        run_sweep(SPECS[:5], root / "sweeps" / "tiny", name="tiny", workers=2, progress=False)
+        run_sweep(SPECS[5:], root / "sweeps" / "tiny-wp", name="tiny-wp", workers=2,
                   progress=False, reference=True)
         longrun.run(LONG_CASE, stop_after_s=LONG_RUN_S, log=lambda _msg: None)  # a checkpoint
     finally:
@@ -99,6 +101,17 @@ def written(report, tmp_path_factory):
     html = out / "report.html"
     html.write_text(render_html(report), encoding="utf-8")
     return html, write_pdf(report, out / "report.pdf")
+
+
+def test_table1_places_the_papers_drift_against_our_round_off_spread(report, results):
+    t = {t.id: t for t in report.tables()}["table1"]
+    row = t.rows[0]  # dX = 1.02: the paper's run and three runs from perturbed initial states
+    verdict = row.cells[-1]
+    assert "our 4 runs from initial states perturbed by <= 3e-13 give" in verdict, verdict
+    # the perturbed runs never stand in for the run from the case's own state
+    runs = Results(results).runs
+    own = runs[(runs["case"] == "RE-R229-L1.02-DX1.02") & (runs["perturb"] == 0)]
+    assert len(own) == 1 and row.cells[4] == f"{int(own['steps'].iloc[0]):,}"
 
 
 def test_write_report_writes_both_files(tmp_path):

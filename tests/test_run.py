@@ -113,3 +113,37 @@ def test_an_engine_through_ode45_matches_the_core(results_tmp):
     assert eng.summary["engine_version"]
     tip = ["tip_x", "tip_y", "tip_z"]
     assert np.abs(core.samples[tip].to_numpy() - eng.samples[tip].to_numpy()).max() < 1e-9
+
+
+def test_a_perturbed_run_starts_from_the_shifted_state_and_keeps_its_own_E0(results_tmp):
+    base = RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005)
+    pert = RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005, perturb=1e-9)
+    assert pert.run_id != base.run_id and "perturb=1e-09" in pert.label
+    a, b = execute(base), execute(pert)
+    assert a.ok and b.ok
+    case = load_case("RE-U125-L1")
+    # every component moves by perturb * max(|y0_i|, 1): q0 = 0 and qd0 = (1, 0, ...) -> +1e-9
+    q, qd = case.q0 + 1e-9, case.qd0 + 1e-9
+    assert b.summary["E0"] == pytest.approx(sum(energy(case.chain, q, qd)), rel=1e-15)
+    assert b.summary["E0"] != a.summary["E0"]
+    assert b.samples["delta_M"].iloc[0] == 0.0  # measured from the run's own E(0)
+    # every joint bent by 1e-9 rad about y and z: the tip moves by 1e-9 x (sum of the distances
+    # from each joint to the tip) = 1e-9 x (125 - 124 x 125 / 2 / 125) m in -z and in y
+    d = (b.samples.iloc[0][["tip_x", "tip_y", "tip_z"]].astype(float).to_numpy()
+         - a.samples.iloc[0][["tip_x", "tip_y", "tip_z"]].astype(float).to_numpy())
+    lever = 1e-9 * (125 - 124 / 2)
+    assert np.allclose(d, [0.0, lever, -lever], rtol=1e-6, atol=1e-13)
+
+
+def test_the_run_id_of_an_unperturbed_run_leaves_the_new_field_out():
+    # runs saved before RunSpec.perturb existed keep their ids, so a resumed sweep reuses them
+    import hashlib
+    import json
+    from dataclasses import asdict
+
+    from harness.provenance import code_digest
+
+    spec = RunSpec(case="STUDY-R3", t_end=0.2)
+    old = {k: v for k, v in asdict(spec).items() if k != "perturb"}
+    blob = json.dumps({**old, "code": code_digest()}, sort_keys=True, default=repr)
+    assert spec.run_id == hashlib.sha256(blob.encode()).hexdigest()[:16]

@@ -132,6 +132,25 @@ def test_example_sweep_files_load():
     assert wp.reference and not smoke.reference
 
 
+def test_perturbs_multiply_into_runs_from_shifted_initial_states(tmp_path):
+    path = write(tmp_path, """\
+        [sweep]
+        name = "ens"
+        cases = ["STUDY-R3"]
+        rtols = [1e-4, 1e-6]
+        perturbs = [0, 1e-13, 2e-13]
+        """)
+    specs = load_sweep(path).specs
+    assert len(specs) == 6 and len({s.run_id for s in specs}) == 6
+    assert sorted({s.perturb for s in specs}) == [0, 1e-13, 2e-13]
+    # perturb = 0 is the case's own run: the same id as a sweep that never mentions perturbs
+    plain = load_sweep(write(tmp_path, '[sweep]\nname = "p"\ncases = ["STUDY-R3"]\n'
+                                       'rtols = [1e-4, 1e-6]\n', "plain.toml")).specs
+    assert {s.run_id for s in plain} == {s.run_id for s in specs if s.perturb == 0}
+    ens = load_sweep(REPO / "sweeps" / "drift-ensemble.toml").specs
+    assert len(ens) == 5 * 16 + 8 and all(s.perturb <= 1.5e-12 for s in ens)
+
+
 BAD = {
     "unknown field": ('rtol = [1e-4]', "sweep.rtol", "[0.0001]", "unknown field"),
     "wrong type": ('cases = "STUDY-R3"', "sweep.cases", "'STUDY-R3'", "must be a list"),
@@ -150,6 +169,8 @@ BAD = {
                        "sweep.atols", "[1e-06]", "pair with rtols"),
     "bad number": ('cases = ["STUDY-R3"]\nt_end = "1 s"', "sweep.t_end", "'1 s'",
                    "must be a number"),
+    "negative perturbation": ('cases = ["STUDY-R3"]\nperturbs = [0, -1e-13]',
+                              "sweep.perturbs[1]", "-1e-13", ">= 0"),
     "bad extra": ('cases = ["STUDY-R3"]\n[[sweep.extra]]\ncase = "STUDY-R3"\nrtols = 1e-3',
                   "sweep.extra[0].rtols", "0.001", "unknown field"),
 }
