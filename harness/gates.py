@@ -30,6 +30,7 @@ import fnmatch
 import math
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import textwrap
@@ -54,6 +55,10 @@ REQUIRED_FIELDS = ("name", "quantity", "measure", "compare", "threshold", "reaso
 DEFAULT_WIDTH = 170  # table width when stdout is not a terminal
 MIN_REASON_WIDTH = 40  # the reason column wraps, but never narrower than this
 MAX_WHERE_WIDTH = 36  # the where column wraps beyond this
+# A gate still measuring after this long fails with "time limit" and the next one runs. Each
+# gate takes under a minute on this 2-core machine; a broken core can make an integration crawl
+# (a sign flipped in the velocity terms took the reference solver 590 s to give up).
+GATE_TIME_LIMIT_S = 300
 
 # Engine agreement: the chains (joint, links) and states of tests/test_engines_agreement.py.
 ENGINE_CHAINS = ("R10", "R50", "U10", "U50")
@@ -345,20 +350,29 @@ def measure_energy_drift(gate: Gate) -> list[Measurement]:
                         where=f"max |delta_M| {row['max_abs_delta_M']:.2g}, {row['steps']} steps")]
 
 
+_FRESH: list[Path] = []  # the fresh results directory while one is active
+
+
 @contextlib.contextmanager
 def _fresh_results_dir():
     """Point ``REDYSIM_RESULTS`` at a temporary directory for the duration.
 
     The reference cache is keyed by the case file and the settings, not by the code: a reference
     cached by an older (or broken) core would be reused. A gate computes its reference afresh
-    with the code under test, and leaves the project's cache alone.
+    with the code under test, and leaves the project's cache alone. Nested uses share the outer
+    directory, so one ``make gates`` computes each reference once.
     """
+    if _FRESH:
+        yield _FRESH[-1]
+        return
     old = os.environ.get(RESULTS_ENV)
     with tempfile.TemporaryDirectory(prefix="redysim-gates-") as tmp:
+        _FRESH.append(Path(tmp))
         os.environ[RESULTS_ENV] = tmp
         try:
             yield Path(tmp)
         finally:
+            _FRESH.pop()
             if old is None:
                 os.environ.pop(RESULTS_ENV, None)
             else:
@@ -451,8 +465,33 @@ class Row:
         return self.result == FAIL
 
 
-def run_gate(gate: Gate) -> list[Row]:
-    """Measure one gate; an exception becomes a FAIL row carrying it, a :class:`Skip` a SKIP row."""
+class GateTimeout(Exception):
+    """A gate ran past its time limit."""
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float):
+    """Raise :class:`GateTimeout` in the main thread after ``seconds`` (SIGALRM; the numba
+    kernels return to Python at every qdd call, so the signal is handled within milliseconds)."""
+    if not seconds or seconds <= 0 or not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def expire(_signum, _frame):
+        raise GateTimeout(f"time limit: still measuring after {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def run_gate(gate: Gate, time_limit_s: float = GATE_TIME_LIMIT_S) -> list[Row]:
+    """Measure one gate; an exception (or running past ``time_limit_s``) becomes a FAIL row
+    carrying it, a :class:`Skip` a SKIP row."""
     t0 = time.perf_counter()
 
     def row(value, result, where, label=""):
@@ -462,8 +501,10 @@ def run_gate(gate: Gate) -> list[Row]:
                    gate.reason, gate.quantity)
 
     try:
+        with _time_limit(time_limit_s):
+            measured = MEASURES[gate.measure](gate)
         rows = [row(m.value, PASS if gate.check(m.value) else FAIL, m.where, m.label)
-                for m in MEASURES[gate.measure](gate)]
+                for m in measured]
     except Skip as exc:
         rows = [row(math.nan, SKIP, str(exc))]
     except Exception as exc:  # a broken core or engine: a FAIL row, never a crash
@@ -576,8 +617,9 @@ def main(argv=None) -> int:
         return EXIT_OK
     t0 = time.perf_counter()
     rows = []
-    for g in gates:
-        rows.extend(run_gate(g))
+    with _fresh_results_dir():  # every reference solution computed once, by the code under test
+        for g in gates:
+            rows.extend(run_gate(g))
     total = time.perf_counter() - t0
     print(format_table(rows))
     print(summary_line(rows, total, a.strict))

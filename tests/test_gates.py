@@ -5,7 +5,9 @@ gates have teeth (a broken core fails them)."""
 from __future__ import annotations
 
 import math
+import os
 import re
+import time
 
 import pytest
 import test_engines_agreement
@@ -151,3 +153,29 @@ def test_an_engine_gate_measures_all_stages(capsys):
     rows = gates.run_gate(BY_NAME["engine.dart"])
     assert [r.gate for r in rows] == ["engine.dart/gim", "engine.dart/phi", "engine.dart/qdd"]
     assert all(r.result == gates.PASS for r in rows)
+
+
+def test_a_gate_past_its_time_limit_is_a_fail_row_and_the_next_gate_runs(monkeypatch, capsys):
+    def crawl(gate):  # a broken core can make an integration crawl: the gate must give up
+        while True:
+            time.sleep(0.01)
+
+    monkeypatch.setitem(gates.MEASURES, "table9", crawl)
+    t0 = time.perf_counter()
+    (row,) = gates.run_gate(BY_NAME["table9.gim"], time_limit_s=0.3)
+    assert time.perf_counter() - t0 < 5
+    assert row.result == gates.FAIL
+    assert row.where == "error: GateTimeout: time limit: still measuring after 0.3 s"
+    # the alarm is disarmed afterwards: a following gate runs to its end
+    nxt, *_ = gates.run_gate(BY_NAME["e0"], time_limit_s=30)
+    time.sleep(0.5)
+    assert nxt.result == gates.PASS
+
+
+def test_one_gates_run_computes_each_reference_once(monkeypatch):
+    seen = []
+    with gates._fresh_results_dir() as outer:
+        with gates._fresh_results_dir() as inner:
+            seen.append(os.environ[gates.RESULTS_ENV])
+        assert inner == outer and seen == [str(outer)]
+    assert not outer.exists()
