@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redysim import energy, forward_dynamics, load_case, tip
+from redysim import StateError, energy, forward_dynamics, load_case, tip
 from redysim.integrate import FIXED_STEP, advance, make_solver, sample_times
 
 from .provenance import provenance
@@ -164,9 +164,12 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
 
     def on_sample(t, y):
         q, qd = y[:n], y[n:]
-        qdd = dyn.qdd(q, qd)
-        tp = tip(chain, q, qd, qdd)
-        T, V = energy(chain, q, qd)
+        try:
+            qdd = dyn.qdd(q, qd)
+            tp = tip(chain, q, qd, qdd)
+            T, V = energy(chain, q, qd)
+        except StateError as exc:  # the state overflowed (or went NaN) between samples
+            return f"at t = {t:.6g}: {exc}"
         dM = (T + V - E0) / mass
         samples.append((run_id, t, *tp.position, *tp.velocity, *tp.acceleration, T + V, dM))
         last["y"] = y

@@ -7,6 +7,7 @@ in a loop (an integrator's right-hand side).
 
 from __future__ import annotations
 
+import math
 import reprlib
 from typing import NamedTuple
 
@@ -69,6 +70,14 @@ def require_finite(name: str, arr: np.ndarray) -> None:
                          f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
 
 
+def overflow_error(what: str, **inputs) -> StateError:
+    """The error for a non-finite result of finite inputs: the recursion overflowed."""
+    sizes = ", ".join(f"max |{k}| = {np.abs(v).max():.3g}" for k, v in inputs.items()
+                      if v is not None)
+    names = ", ".join(k for k, v in inputs.items() if v is not None)
+    return StateError(f"{what} is not finite for finite {names} ({sizes}): overflow?")
+
+
 def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
     if ws is None:
         return Workspace(chain)
@@ -107,6 +116,8 @@ def inverse_dynamics(chain: Chain, q, qd, qdd, *, ws: Workspace | None = None) -
     tau = np.empty(c.n_dof)
     rnea_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
                   tau, ws.W)
+    if not np.isfinite(tau).all():
+        raise overflow_error("tau", q=q, qd=qd, qdd=qdd)
     return tau
 
 
@@ -115,7 +126,10 @@ def phi(chain: Chain, q, qd, tau=None, *, ws: Workspace | None = None) -> np.nda
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
     tau = check_state(chain, "tau", tau, optional=True)
-    return _phi(chain, _ws(chain, ws), q, qd, tau).copy()
+    out = _phi(chain, _ws(chain, ws), q, qd, tau).copy()
+    if not np.isfinite(out).all():
+        raise overflow_error("phi", q=q, qd=qd, tau=tau)
+    return out
 
 
 # --------------------------------------------------------------------------- forward dynamics
@@ -166,8 +180,7 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         for name, x in (("q", q), ("qd", qd), ("tau", tau)):
             if x is not None:
                 require_finite(name, x)
-        raise StateError(f"qdd is not finite for finite q, qd and tau (max |q| = "
-                         f"{np.abs(q).max():.3g}, max |qd| = {np.abs(qd).max():.3g}): overflow?")
+        raise overflow_error("qdd", q=q, qd=qd, tau=tau)
     return out
 
 
@@ -247,6 +260,8 @@ def energy(chain: Chain, q, qd, *, ws: Workspace | None = None) -> tuple[float, 
     c = chain
     _run_kinematics(c, ws, q, qd, ws.zeros, ws.no_accel)
     T, V = _energy(c.mass, c.inertia_O, c.mass_com, c.gravity, ws.oR, ws.oO, ws.t)
+    if not (math.isfinite(T) and math.isfinite(V)):
+        raise overflow_error("the energy", q=q, qd=qd)
     return float(T), float(V)
 
 
@@ -276,11 +291,14 @@ def tip(chain: Chain, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
     r = c.length[k] * ws.oR[k][:, 0]
     w, v = ws.t[k, :3], ws.t[k, 3:]
     pos = ws.oO[k] + r
-    vel = v + np.cross(w, r)
-    acc = None
-    if qdd is not None:
-        wd, vd = ws.td[k, :3], ws.td[k, 3:]
-        acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
+        vel = v + np.cross(w, r)
+        acc = None
+        if qdd is not None:
+            wd, vd = ws.td[k, :3], ws.td[k, 3:]
+            acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+    if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
+        raise overflow_error("the tip's motion", q=q, qd=qd, qdd=qdd)
     return Tip(pos, vel, acc)
 
 

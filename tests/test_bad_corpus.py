@@ -136,9 +136,19 @@ def test_valid_state_forms_are_still_accepted(chain):
 
 
 def test_overflowing_state_is_named_not_returned(chain):
-    """Finite but absurd rates overflow inside the recursion: forward_dynamics says so instead of
-    returning NaN."""
-    qd = np.full(chain.n_dof, 1e200)
-    with pytest.raises(StateError, match="qdd is not finite for finite q, qd and tau"):
-        forward_dynamics(chain, np.zeros(chain.n_dof), qd)
-    assert math.isfinite(energy(chain, np.zeros(chain.n_dof), np.ones(chain.n_dof))[0])
+    """Finite but absurd rates overflow inside the recursions: every function says so instead of
+    returning NaN or inf."""
+    n = chain.n_dof
+    q, qd = np.zeros(n), np.full(n, 1e200)
+    with pytest.raises(StateError, match=r"qdd is not finite for finite q, qd \(max \|q\| = 0, "
+                                         r"max \|qd\| = 1e\+200\): overflow\?"):
+        forward_dynamics(chain, q, qd)
+    with pytest.raises(StateError, match=r"tau is not finite for finite q, qd, qdd \("):
+        inverse_dynamics(chain, q, qd, np.zeros(n))
+    with pytest.raises(StateError, match=r"phi is not finite for finite q, qd \("):
+        phi(chain, q, qd)
+    with pytest.raises(StateError, match=r"the energy is not finite for finite q, qd \("):
+        energy(chain, q, qd)
+    with pytest.raises(StateError, match=r"tip's motion is not finite for finite q, qd, qdd \("):
+        tip(chain, q, qd, np.zeros(n))  # the centripetal acceleration w x (w x r) overflows
+    assert math.isfinite(energy(chain, q, np.ones(n))[0])
