@@ -212,8 +212,9 @@ def spread_verdict(ctx: Ctx, p: Pick, paper, column: str = "avg_abs_delta_M") ->
     if got is None:
         return "", False
     n, lo, hi, pmax = got
-    text = (f"our {n} runs from initial states perturbed by <= {pmax:.1g} give "
-            f"{lo:.2g}..{hi:.2g} (x{hi / lo:.2g} apart)")
+    apart = (f"within {100 * (hi / lo - 1):.2g}%" if hi < 1.1 * lo else f"x{hi / lo:.2g} apart")
+    text = (f"our {n} runs from initial states perturbed by <= {pmax:.2g} give "
+            f"{lo:.2g}..{hi:.2g} ({apart})")
     if lo <= paper <= hi:
         return f"{text}: the paper's value lies inside this round-off spread", True
     if paper < lo:

@@ -148,7 +148,7 @@ def test_perturbs_multiply_into_runs_from_shifted_initial_states(tmp_path):
                                        'rtols = [1e-4, 1e-6]\n', "plain.toml")).specs
     assert {s.run_id for s in plain} == {s.run_id for s in specs if s.perturb == 0}
     ens = load_sweep(REPO / "sweeps" / "drift-ensemble.toml").specs
-    assert len(ens) == 5 * 16 + 8 and all(s.perturb <= 1.5e-12 for s in ens)
+    assert len(ens) == 5 * 16 + 8 + 4 and all(s.perturb <= 1.5e-12 for s in ens)
 
 
 BAD = {
