@@ -126,8 +126,8 @@ def test_example_sweep_files_load():
     assert len(smoke.specs) == 8
     wp = load_sweep(REPO / "sweeps" / "work-precision-RE-U125-L1.toml")
     engines = {s.engine for s in wp.specs}
-    assert engines == {"redysim", "mujoco", "dart", "pinocchio-aba-ryrz", "pinocchio-crba",
-                       "exudyn"}
+    assert engines == {"redysim", "mujoco", "dart", "pinocchio-aba", "pinocchio-aba-ryrz",
+                       "pinocchio-crba", "exudyn"}
     assert {s.integrator for s in wp.specs if s.engine != "redysim"} == {"ode45", "native"}
     assert wp.reference and not smoke.reference
 
