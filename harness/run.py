@@ -169,7 +169,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
             tp = tip(chain, q, qd, qdd)
             T, V = energy(chain, q, qd)
         except StateError as exc:  # the state overflowed (or went NaN) between samples
-            return f"at t = {t:.6g}: {exc}"
+            return f"at t = {t:.6g}: {type(exc).__name__}: {exc}"
         dM = (T + V - E0) / mass
         samples.append((run_id, t, *tp.position, *tp.velocity, *tp.acceleration, T + V, dM))
         last["y"] = y
