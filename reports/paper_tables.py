@@ -172,7 +172,6 @@ class Ctx:
         d = c[column].astype(float)
         return len(c), float(d.min()), float(d.max()), float(c["perturb"].max())
 
-
     def pick(self, case: str, horizon: float, engine: str = CORE, method: str = "rge-a", *,
              shorter: bool = True) -> Pick:
         """The run of ``case`` at the paper's settings to ``horizon``; else (``shorter``) the
