@@ -106,8 +106,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
 
     def meta():
         return {"case": case.name, "code": code, "t_end": t_end, "rtol": rtol, "atol": atol,
-                "E0": E0,
-                "mass": chain.total_mass, "n_dof": n,
+                "E0": E0, "mass": chain.total_mass, "n_dof": n,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}

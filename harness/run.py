@@ -187,7 +187,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     deadline = wall0 + spec.max_wall_s if spec.max_wall_s else math.inf
 
     if spec.integrator == NATIVE:
-        status, msg = _native(spec, dyn, case, t_end, ts, on_sample, deadline, row)
+        status, msg = _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row)
     else:
         if spec.integrator in FIXED_STEP and not spec.h > 0:
             raise RunFailed(f"integrator {spec.integrator!r} needs a step h > 0")
@@ -215,7 +215,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         raise RunFailed(msg)
 
 
-def _native(spec, dyn, case, t_end, ts, on_sample, deadline, row):
+def _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row):
     """The engine's own fixed-step stepper; samples must fall on whole steps."""
     if dyn.engine is None:
         raise RunFailed("integrator 'native' needs a reference engine (the core has no native "
@@ -228,9 +228,7 @@ def _native(spec, dyn, case, t_end, ts, on_sample, deadline, row):
         raise RunFailed(f"native stepping: sample times must be whole multiples of h = {h:g}")
     marks = np.round(per).astype(int)
     eng = dyn.engine
-    y0 = initial_state(spec, case)
-    n = case.chain.n_dof
-    eng.sim_reset(y0[:n], y0[n:], h)
+    eng.sim_reset(y0[:dyn.n], y0[dyn.n:], h)
     n_steps = int(marks[-1])
     i = 0
     for step in range(n_steps + 1):

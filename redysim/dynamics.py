@@ -44,15 +44,14 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         if finite:
             require_finite(name, x)
         return x
-    else:
-        try:
-            arr = np.asarray(x)
-        except (TypeError, ValueError) as exc:  # ragged nesting
-            raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector ({exc})") from None
-        if arr.dtype.kind not in NUMERIC_KINDS:  # strings, bools, complex, None/objects
-            raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
-                             f"{arr.dtype}; need int or float)")
-        arr = np.asarray(arr, dtype=float)
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError) as exc:  # ragged nesting
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector ({exc})") from None
+    if arr.dtype.kind not in NUMERIC_KINDS:  # strings, bools, complex, None/objects
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
+                         f"{arr.dtype}; need int or float)")
+    arr = np.asarray(arr, dtype=float)
     if arr.shape != (chain.n_dof,):
         raise StateError(f"{name} has shape {arr.shape}; chain {chain.name!r} has "
                          f"{chain.n_dof} DOF, so {name} must have shape ({chain.n_dof},)")

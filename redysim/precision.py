@@ -56,6 +56,7 @@ References:
 from __future__ import annotations
 
 import decimal
+import functools
 import math
 import types
 from decimal import ROUND_HALF_UP, Decimal
@@ -211,6 +212,7 @@ _MATH_FUNCS = ("cos", "sin", "tan", "sqrt", "exp", "log", "atan", "atan2", "acos
 _SOURCES: dict = {}
 
 
+@functools.cache
 def _math_for(number) -> types.SimpleNamespace:
     """``math`` whose functions return ``number`` (evaluated in double, then rounded to it)."""
     ns = types.SimpleNamespace(**{n: getattr(math, n) for n in dir(math) if not n.startswith("_")})
@@ -249,8 +251,6 @@ def kernel_source(kernel, number):
     :func:`rebind` with ``math`` whose functions return ``number`` (evaluated in double, then
     rounded). ``number``: a :class:`Rounded` type or a numpy scalar type (np.float32, ...).
     """
-    if (kernel, number) in _SOURCES:
-        return _SOURCES[(kernel, number)]
     return rebind(kernel, number, _math_for(number))
 
 

@@ -147,13 +147,14 @@ class Ctx:
         if runs.empty:
             return runs
         sel = ((runs["case"] == case) & (runs["engine"] == engine)
-               & (perturbed | (runs["perturb"].astype(float) == 0.0))
                & (runs["integrator"] == "ode45")
                & np.isclose(runs["rtol"].astype(float), self.rtol)
                & np.isclose(runs["atol"].astype(float), self.atol)
                & np.isclose(runs["sample"].astype(float), self.sample))
         if engine == CORE:
             sel &= runs["method"] == method
+        if not perturbed:
+            sel &= runs["perturb"].astype(float) == 0.0
         return runs[sel]
 
     def spread(self, case: str, horizon: float,
