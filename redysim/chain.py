@@ -337,12 +337,12 @@ class Chain:
                          name=name or f"{joint.type}{n_links}")
 
     # ----------------------------------------------------------------------- derived facts
-    @property
+    @cached_property  # read on every call (the state checks): cached, the arrays are frozen
     def n_links(self) -> int:
         """nl, the number of moving links."""
         return int(self.length.shape[0])
 
-    @property
+    @cached_property
     def n_dof(self) -> int:
         """n, the number of degrees of freedom (length of q)."""
         return int(self.dof_kind.shape[0])

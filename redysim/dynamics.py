@@ -26,6 +26,7 @@ from .errors import StateError
 from .workspace import Workspace
 
 METHODS = ("rge-a", "ge-n", "rge-n")
+FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 
 def check_state(chain: Chain, name: str, x, *, optional: bool = False,
@@ -39,8 +40,8 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         if optional:
             return None
         raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
-    if (type(x) is np.ndarray and x.ndim == 1 and x.shape[0] == chain.n_dof
-            and x.dtype == np.float64 and x.flags.c_contiguous):  # the hot path: as given
+    if (type(x) is np.ndarray and x.shape == (chain.n_dof,) and x.dtype is FLOAT64
+            and x.strides == FLOAT64_STRIDES):  # the hot path: a contiguous float vector, as given
         if finite:
             require_finite(name, x)
         return x

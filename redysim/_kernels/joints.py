@@ -3,8 +3,9 @@
 A joint is a sequence of elementary axes (see :data:`redysim.chain.JOINT_TYPES`); this module maps
 (kind, axis, q_j) and the frame before the axis to the axis's motion-subspace column
 P = [p_ang; p_lin] in the world frame and the frame after it: a rotation of the frame (revolute)
-or a translation of the joint's origin (prismatic). The recursions call :func:`jcalc` and never
-branch on the joint type themselves.
+or a translation of the joint's origin (prismatic). The recursions call :func:`jcalc`,
+:func:`axis_rates` and :func:`column_mass` and never branch on the joint type themselves; each
+skips the half of P that is zero for its kind (work a revolute chain does not need).
 
 Everything is scalars in and out: the kinematics pass keeps its running frame in registers, which
 measured 5x faster here than reading it back from arrays.
@@ -69,13 +70,14 @@ def _sincos_compiled(x):
 
 
 @inline
-def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r22):
-    """One elementary axis: returns (p0..p5, dO0..dO2, r00..r22).
+def jcalc(kind, code, u0, u1, u2, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """One elementary axis: returns (p0..p5, s0..s2, r00..r22).
 
-    p = [e; 0] (revolute) or [0; e] (prismatic) with e = R u the axis in the world frame; dO the
-    displacement of the joint origin (e qj for a prismatic axis, else 0); r the frame after the
-    axis: R Rot(u, qj) for a revolute axis, R for a prismatic one. ``code`` 0, 1, 2 names the x,
-    y or z axis of the frame (two columns mix), 3 a general unit vector u (Rodrigues).
+    p = [e; 0] (revolute) or [0; e] (prismatic) with e = R u the axis in the world frame; s the
+    joint origin's offset, moved by e qj along a prismatic axis (else as given); r the
+    frame after the axis: R Rot(u, qj) for a revolute axis, R for a prismatic one. ``code`` 0, 1,
+    2 names the x, y or z axis of the frame (two columns mix), 3 a general unit vector u
+    (Rodrigues).
     """
     if code == 0:
         e0, e1, e2 = r00, r10, r20
@@ -88,7 +90,7 @@ def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r2
         e1 = r10 * u0 + r11 * u1 + r12 * u2
         e2 = r20 * u0 + r21 * u1 + r22 * u2
     if kind == PRISMATIC:
-        return (0.0, 0.0, 0.0, e0, e1, e2, e0 * qj, e1 * qj, e2 * qj,
+        return (0.0, 0.0, 0.0, e0, e1, e2, s0 + e0 * qj, s1 + e1 * qj, s2 + e2 * qj,
                 r00, r01, r02, r10, r11, r12, r20, r21, r22)
     c, s = sincos(qj)
     if code == 0:  # columns y, z mix
@@ -114,7 +116,7 @@ def jcalc(kind, code, u0, u1, u2, qj, r00, r01, r02, r10, r11, r12, r20, r21, r2
                          r10 * g02 + r11 * g12 + r12 * g22)
         r20, r21, r22 = (r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
                          r20 * g02 + r21 * g12 + r22 * g22)
-    return (e0, e1, e2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    return (e0, e1, e2, 0.0, 0.0, 0.0, s0, s1, s2,
             r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
@@ -143,3 +145,30 @@ def column_mass(kind, e0, e1, e2, x00, x01, x02, x11, x12, x22,
     u4 = y01 * e0 + y11 * e1 + y21 * e2
     u5 = y02 * e0 + y12 * e1 + y22 * e2
     return u0, u1, u2, u3, u4, u5, e0 * u0 + e1 * u1 + e2 * u2
+
+
+@inline
+def axis_rates(kind, p0, p1, p2, p3, p4, p5, x, y, om0, om1, om2,
+               dv0, dv1, dv2, da0, da1, da2, db0, db1, db2):
+    """One axis's part of the link's twist and local twist-rate, the column's zero half skipped.
+
+    P = [p_ang; p_lin]; x, y: the axis's qd and qdd; om: the angular velocity of the frame the
+    axis is fixed in (a revolute axis adds e x to it, the frame of the next axis). Adds P x to
+    (om, dv) and P y + Pd x to (da, db), with Pd = om x P (both halves of the column rotate with
+    that frame). Returns (om, dv, da, db) updated: 12 scalars.
+    """
+    if kind == PRISMATIC:
+        dv0 += p3 * x
+        dv1 += p4 * x
+        dv2 += p5 * x
+        db0 += p3 * y + (om1 * p5 - om2 * p4) * x
+        db1 += p4 * y + (om2 * p3 - om0 * p5) * x
+        db2 += p5 * y + (om0 * p4 - om1 * p3) * x
+    else:
+        da0 += p0 * y + (om1 * p2 - om2 * p1) * x
+        da1 += p1 * y + (om2 * p0 - om0 * p2) * x
+        da2 += p2 * y + (om0 * p1 - om1 * p0) * x
+        om0 += p0 * x
+        om1 += p1 * x
+        om2 += p2 * x
+    return (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2)

@@ -23,7 +23,7 @@ References:
 from __future__ import annotations
 
 from .._jit import jit
-from .joints import jcalc
+from .joints import axis_rates, jcalc
 
 
 @jit
@@ -43,72 +43,45 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
     lp = 0.0
     # forward: k = 1..nl
     for k in range(length.shape[0]):
-        # O_k = O_{k-1} + l_{k-1} x_{k-1}  (before joint k moves the frame)
-        Op0, Op1, Op2 = O0, O1, O2
-        O0 += lp * r00
-        O1 += lp * r10
-        O2 += lp * r20
+        # s = O_k - O_{k-1} = -a_{k,k-1}: l_{k-1} x_{k-1}, and the slide of any prismatic axis
+        s0, s1, s2 = lp * r00, lp * r10, lp * r20
         # joint k: columns, frame update; accumulate P qd and P qdd + Pd qd
-        dw0 = dw1 = dw2 = dv0 = dv1 = dv2 = 0.0
+        dv0 = dv1 = dv2 = 0.0
         da0 = da1 = da2 = db0 = db1 = db2 = 0.0
-        om0, om1, om2 = w0, w1, w2  # angular velocity of the frame the next axis is fixed in
+        # the angular velocity of the frame the next axis is fixed in; w_k after the last axis
+        om0, om1, om2 = w0, w1, w2
         for j in range(joint_qoff[k], joint_qoff[k + 1]):
             u = dof_u[j]
-            (p0, p1, p2, p3, p4, p5, dO0, dO1, dO2,
+            (p0, p1, p2, p3, p4, p5, s0, s1, s2,
              r00, r01, r02, r10, r11, r12, r20, r21, r22) = jcalc(
-                dof_kind[j], dof_axis[j], u[0], u[1], u[2], q[j],
+                dof_kind[j], dof_axis[j], u[0], u[1], u[2], q[j], s0, s1, s2,
                 r00, r01, r02, r10, r11, r12, r20, r21, r22)
-            O0 += dO0
-            O1 += dO1
-            O2 += dO2
             oP[j, 0] = p0
             oP[j, 1] = p1
             oP[j, 2] = p2
             oP[j, 3] = p3
             oP[j, 4] = p4
             oP[j, 5] = p5
-            x = qd[j]
-            y = qdd[j]
-            # Pd column = om x p (both halves rotate with the frame the axis is fixed in)
-            da0 += p0 * y + (om1 * p2 - om2 * p1) * x
-            da1 += p1 * y + (om2 * p0 - om0 * p2) * x
-            da2 += p2 * y + (om0 * p1 - om1 * p0) * x
-            db0 += p3 * y + (om1 * p5 - om2 * p4) * x
-            db1 += p4 * y + (om2 * p3 - om0 * p5) * x
-            db2 += p5 * y + (om0 * p4 - om1 * p3) * x
-            dw0 += p0 * x
-            dw1 += p1 * x
-            dw2 += p2 * x
-            dv0 += p3 * x
-            dv1 += p4 * x
-            dv2 += p5 * x
-            om0 += p0 * x
-            om1 += p1 * x
-            om2 += p2 * x
-        # r = O_k - O_{k-1} = -a_{k,k-1};  e = v_k - v_{k-1} = w_{k-1} x r + prismatic part
-        s0 = O0 - Op0
-        s1 = O1 - Op1
-        s2 = O2 - Op2
+            # P qd into the twist, P qdd + Pd qd into the local twist-rate (Pd = om x P)
+            (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2) = axis_rates(
+                dof_kind[j], p0, p1, p2, p3, p4, p5, qd[j], qdd[j], om0, om1, om2,
+                dv0, dv1, dv2, da0, da1, da2, db0, db1, db2)
+        O0 += s0
+        O1 += s1
+        O2 += s2
+        # e = v_k - v_{k-1} = w_{k-1} x s + the prismatic part
         e0 = (w1 * s2 - w2 * s1) + dv0
         e1 = (w2 * s0 - w0 * s2) + dv1
         e2 = (w0 * s1 - w1 * s0) + dv2
-        # td_k = A td_{k-1} + [0; w_{k-1} x (v_k - v_{k-1})] + P qdd + Pd qd
+        # the local twist-rate: [0; w_{k-1} x (v_k - v_{k-1})] + P qdd + Pd qd
         cb0 = (w1 * e2 - w2 * e1) + db0
         cb1 = (w2 * e0 - w0 * e2) + db1
         cb2 = (w0 * e1 - w1 * e0) + db2
-        b0 += (a1 * s2 - a2 * s1) + cb0
-        b1 += (a2 * s0 - a0 * s2) + cb1
-        b2 += (a0 * s1 - a1 * s0) + cb2
-        a0 += da0
-        a1 += da1
-        a2 += da2
         # t_k = A t_{k-1} + P qd
         v0 += e0
         v1 += e1
         v2 += e2
-        w0 += dw0
-        w1 += dw1
-        w2 += dw2
+        w0, w1, w2 = om0, om1, om2
         R = oR[k]
         R[0, 0] = r00
         R[0, 1] = r01
@@ -135,7 +108,13 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
             td[k, 3] = cb0
             td[k, 4] = cb1
             td[k, 5] = cb2
-        else:
+        else:  # td_k = A td_{k-1} + the local twist-rate
+            b0 += (a1 * s2 - a2 * s1) + cb0
+            b1 += (a2 * s0 - a0 * s2) + cb1
+            b2 += (a0 * s1 - a1 * s0) + cb2
+            a0 += da0
+            a1 += da1
+            a2 += da2
             td[k, 0] = a0
             td[k, 1] = a1
             td[k, 2] = a2

@@ -86,21 +86,32 @@ def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, 
         r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
         r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
         r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
-        c00 = r00 * J[0, 0] + r01 * J[1, 0] + r02 * J[2, 0]
-        c01 = r00 * J[0, 1] + r01 * J[1, 1] + r02 * J[2, 1]
-        c02 = r00 * J[0, 2] + r01 * J[1, 2] + r02 * J[2, 2]
-        c10 = r10 * J[0, 0] + r11 * J[1, 0] + r12 * J[2, 0]
-        c11 = r10 * J[0, 1] + r11 * J[1, 1] + r12 * J[2, 1]
-        c12 = r10 * J[0, 2] + r11 * J[1, 2] + r12 * J[2, 2]
-        c20 = r20 * J[0, 0] + r21 * J[1, 0] + r22 * J[2, 0]
-        c21 = r20 * J[0, 1] + r21 * J[1, 1] + r22 * J[2, 1]
-        c22 = r20 * J[0, 2] + r21 * J[1, 2] + r22 * J[2, 2]
-        X00 = c00 * r00 + c01 * r01 + c02 * r02
-        X01 = c00 * r10 + c01 * r11 + c02 * r12
-        X02 = c00 * r20 + c01 * r21 + c02 * r22
-        X11 = c10 * r10 + c11 * r11 + c12 * r12
-        X12 = c10 * r20 + c11 * r21 + c12 * r22
-        X22 = c20 * r20 + c21 * r21 + c22 * r22
+        j00, j01, j02, j11, j12, j22 = J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2]
+        if j01 == 0.0 and j02 == 0.0 and j12 == 0.0:
+            # principal axes along the link frame's (rod, cylinder): X = sum_i J_ii r_i r_i^T
+            # over the columns r_i of R
+            X00 = j00 * (r00 * r00) + j11 * (r01 * r01) + j22 * (r02 * r02)
+            X01 = j00 * (r00 * r10) + j11 * (r01 * r11) + j22 * (r02 * r12)
+            X02 = j00 * (r00 * r20) + j11 * (r01 * r21) + j22 * (r02 * r22)
+            X11 = j00 * (r10 * r10) + j11 * (r11 * r11) + j22 * (r12 * r12)
+            X12 = j00 * (r10 * r20) + j11 * (r11 * r21) + j22 * (r12 * r22)
+            X22 = j00 * (r20 * r20) + j11 * (r21 * r21) + j22 * (r22 * r22)
+        else:  # B = R I_O (inertia_O is exactly symmetric), X = B R^T
+            c00 = r00 * j00 + r01 * j01 + r02 * j02
+            c01 = r00 * j01 + r01 * j11 + r02 * j12
+            c02 = r00 * j02 + r01 * j12 + r02 * j22
+            c10 = r10 * j00 + r11 * j01 + r12 * j02
+            c11 = r10 * j01 + r11 * j11 + r12 * j12
+            c12 = r10 * j02 + r11 * j12 + r12 * j22
+            c20 = r20 * j00 + r21 * j01 + r22 * j02
+            c21 = r20 * j01 + r21 * j11 + r22 * j12
+            c22 = r20 * j02 + r21 * j12 + r22 * j22
+            X00 = c00 * r00 + c01 * r01 + c02 * r02
+            X01 = c00 * r10 + c01 * r11 + c02 * r12
+            X02 = c00 * r20 + c01 * r21 + c02 * r22
+            X11 = c10 * r10 + c11 * r11 + c12 * r12
+            X12 = c10 * r20 + c11 * r21 + c12 * r22
+            X22 = c20 * r20 + c21 * r21 + c22 * r22
         d0 = r00 * mc[0] + r01 * mc[1] + r02 * mc[2]
         d1 = r10 * mc[0] + r11 * mc[1] + r12 * mc[2]
         d2 = r20 * mc[0] + r21 * mc[1] + r22 * mc[2]
@@ -262,23 +273,27 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
     nonfinite = 0.0  # stays 0 unless a qdd is NaN or +-inf (x * 0 is then NaN)
     # forward: k = 1..nl
     for k in range(nl):
+        # mu_{k,k-1} = A_{k,k-1} mu_{k-1} + c_k, a = O_{k-1} - O_k (no shift at the base);
+        # grouped so that c_k is added off the recursion's critical path
         if k > 0:
-            # mu_{k,k-1} = A_{k,k-1} mu_{k-1}, a = O_{k-1} - O_k
             a0 = oO[k - 1, 0] - oO[k, 0]
             a1 = oO[k - 1, 1] - oO[k, 1]
             a2 = oO[k - 1, 2] - oO[k, 2]
-            m3 += a1 * m2 - a2 * m1
-            m4 += a2 * m0 - a0 * m2
-            m5 += a0 * m1 - a1 * m0
+            m3, m4, m5 = ((m3 + c[k, 3]) + (a1 * m2 - a2 * m1),
+                          (m4 + c[k, 4]) + (a2 * m0 - a0 * m2),
+                          (m5 + c[k, 5]) + (a0 * m1 - a1 * m0))
+        else:
+            m3 += c[k, 3]
+            m4 += c[k, 4]
+            m5 += c[k, 5]
         m0 += c[k, 0]
         m1 += c[k, 1]
         m2 += c[k, 2]
-        m3 += c[k, 3]
-        m4 += c[k, 4]
-        m5 += c[k, 5]
         for j in range(joint_qoff[k], joint_qoff[k + 1]):
-            x = phitil[j] - (Psihat[j, 0] * m0 + Psihat[j, 1] * m1 + Psihat[j, 2] * m2
-                             + Psihat[j, 3] * m3 + Psihat[j, 4] * m4 + Psihat[j, 5] * m5)
+            # qdd_j = phitil_j - Psihat_j^T mu, summed as a tree (a shorter dependency chain)
+            x = ((phitil[j] - (Psihat[j, 0] * m0 + Psihat[j, 1] * m1))
+                 - ((Psihat[j, 2] * m2 + Psihat[j, 3] * m3)
+                    + (Psihat[j, 4] * m4 + Psihat[j, 5] * m5)))
             qdd[j] = x
             nonfinite += x * 0.0
             # mu <- P qdd + mu
