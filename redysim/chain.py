@@ -194,9 +194,30 @@ def check_inertia(source: str, field_name: str, value) -> np.ndarray:
 
 # --------------------------------------------------------------------------- the chain
 def _readonly(a) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.flags.writeable = False
-    return a
+    """A read-only view of a private C-contiguous copy of ``a`` (the view's ``base``).
+
+    The copy stays writeable so that :func:`kernel_alias` can hand it to the kernels: numba's
+    dispatcher does not take its fast typing path for read-only arrays (measured: +0.7 us on each
+    RGE-A call with the chain's 8 arrays read-only, 4 % at 200 DOF). Nothing writes through it.
+    """
+    owner = np.array(a, order="C")
+    view = owner.view()
+    view.flags.writeable = False
+    return view
+
+
+def kernel_alias(a: np.ndarray) -> np.ndarray:
+    """The writeable array behind one of a chain's read-only arrays, for passing to a kernel
+    (which only reads it); ``a`` itself when it is writeable, a copy when no such owner is at hand
+    (an unpickled chain, say)."""
+    if a.flags.writeable:
+        return a
+    owner = a.base
+    if (isinstance(owner, np.ndarray) and owner.flags.writeable and owner.shape == a.shape
+            and owner.dtype == a.dtype and owner.flags.c_contiguous
+            and owner.ctypes.data == a.ctypes.data):
+        return owner
+    return np.array(a, order="C")
 
 
 @dataclass(frozen=True, eq=False)

@@ -62,6 +62,25 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
     return arr
 
 
+def check_out(chain: Chain, out) -> np.ndarray:
+    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
+
+    The kernels index without bounds checks: a short or strided ``out`` would be written past
+    its end, so it is refused here, never converted (a copy would not reach the caller).
+    """
+    n = chain.n_dof
+    if out is None:
+        return np.empty(n)
+    if (type(out) is np.ndarray and out.shape == (n,) and out.dtype is FLOAT64
+            and out.strides == FLOAT64_STRIDES and out.flags.writeable):
+        return out
+    what = (f"shape {out.shape}, dtype {out.dtype}, strides {out.strides}, "
+            f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
+            else f"a {type(out).__name__}")
+    raise StateError(f"out ({what}) must be a writeable, contiguous float64 array of shape "
+                     f"({n},): chain {chain.name!r} has {n} DOF")
+
+
 def require_finite(name: str, arr: np.ndarray) -> None:
     """Raise StateError naming the first NaN or Inf entry of ``arr``."""
     if not np.isfinite(arr).all():
@@ -157,17 +176,15 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
     ws = _ws(chain, ws)
-    if out is None:
-        out = np.empty(chain.n_dof)
+    out = check_out(chain, out)
     c = chain
     if method == "rge-a":
         if planar:
             nonfinite = _planar(c, ws, q, qd, tau, out)
         else:
             nonfinite = rge_a_forward_dynamics(
-                c.length, c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.dof_axis, c.dof_u,
-                c.joint_qoff, q, qd, ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
-                ws.oR, ws.oO, ws.oP, ws.t, ws.td, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat, out)
+                *ws.rge_a_head, q, qd, ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
+                *ws.rge_a_tail, out)
     else:
         rhs = _phi(c, ws, q, qd, tau).copy()
         A = np.empty((c.n_dof, c.n_dof))
@@ -187,9 +204,8 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
 def _planar(c: Chain, ws: Workspace, q, qd, tau, out) -> float:
     if ws.planar is None:
         ws.planar = np.empty((c.n_links, 12))
-    return planar_forward_dynamics(c.length, c.mass, c.inertia_O[:, 2, 2], c.mass_com[:, 0],
-                                   c.mass_com[:, 1], c.gravity, q, qd,
-                                   ws.zeros if tau is None else tau, out, ws.planar)
+    return planar_forward_dynamics(*ws.planar_head, q, qd, ws.zeros if tau is None else tau,
+                                   out, ws.planar)
 
 
 # --------------------------------------------------------------------------- GIM and factors

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .chain import Chain
+from .chain import Chain, kernel_alias
 
 
 class Workspace:
@@ -36,6 +36,18 @@ class Workspace:
         self.base_accel = -np.asarray(chain.gravity, dtype=float)
         self.no_accel = np.zeros(3)
         self.planar = np.empty((nl, 12)) if chain.is_planar else None
+        # forward dynamics' kernel arguments before and after the state, gathered once; the
+        # chain's arrays as writeable aliases (chain.kernel_alias: numba types read-only arrays
+        # on a slow path)
+        c, k = chain, kernel_alias
+        self.rge_a_head = (k(c.length), k(c.mass), k(c.inertia_O), k(c.mass_com),
+                           k(c.dof_kind), k(c.dof_axis), k(c.dof_u), k(c.joint_qoff))
+        self.rge_a_tail = (self.oR, self.oO, self.oP, self.t, self.td, self.Ihat, self.Psihat,
+                           self.phitil, self.phihat)
+        self.planar_head = ((k(c.length), k(c.mass), np.ascontiguousarray(c.inertia_O[:, 2, 2]),
+                             np.ascontiguousarray(c.mass_com[:, 0]),
+                             np.ascontiguousarray(c.mass_com[:, 1]), k(c.gravity))
+                            if chain.is_planar else None)
 
     @property
     def nbytes(self) -> int:

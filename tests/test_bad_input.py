@@ -171,3 +171,27 @@ def test_forward_dynamics_names_bad_tau_and_method():
         forward_dynamics(chain, z, z, method="lu")
     with pytest.raises(StateError, match=r"q has shape \(6, 1\)"):
         mass_matrix(chain, z[:, None])
+
+
+@pytest.mark.parametrize("out", [np.empty(5), np.empty(7), np.empty(6, dtype=np.float32),
+                                 np.empty(12)[::2], np.empty((6, 1)), [0.0] * 6],
+                         ids=["short", "long", "float32", "strided", "2-d", "list"])
+def test_forward_dynamics_refuses_an_out_it_cannot_write(out):
+    """The kernels write qdd without bounds checks: an ``out`` too short was written past its end
+    (heap corruption) before it was checked."""
+    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+    z = np.zeros(6)
+    with pytest.raises(StateError, match=r"out \(.*\) must be a writeable, contiguous float64 "
+                                         r"array of shape \(6,\)"):
+        forward_dynamics(chain, z, z, out=out)
+
+
+def test_forward_dynamics_refuses_a_read_only_out():
+    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+    z = np.zeros(6)
+    out = np.empty(6)
+    out.flags.writeable = False
+    with pytest.raises(StateError, match="writeable False"):
+        forward_dynamics(chain, z, z, out=out)
+    good = np.empty(6)
+    assert forward_dynamics(chain, z, z, out=good) is good

@@ -231,3 +231,26 @@ def test_compiled_sincos_is_within_one_ulp_of_libm():
     assert ulp.max() <= 1.0
     assert (got[-2_000:] == ref[-2_000:]).all(), "outside [-pi/4, pi/4] libm is called"
     assert sincos(0.5) == (math.cos(0.5), math.sin(0.5)), "the Python definition is libm's"
+
+
+def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
+    """The chain's arrays are read-only views; the kernels get the writeable arrays behind them
+    (numba types read-only arrays on a slow path), the same memory, never a copy; a chain that
+    lost the owners (pickled and back) gives a copy, and the same qdd."""
+    import pickle
+
+    from redysim.chain import kernel_alias
+
+    chain = random_chain(rng, 12, ("U",))
+    for name in ("length", "mass", "inertia_O", "mass_com", "dof_u", "joint_qoff"):
+        a = getattr(chain, name)
+        assert not a.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            a[...] = 0
+        owner = kernel_alias(a)
+        assert owner.flags.writeable and np.shares_memory(owner, a)
+        assert owner.shape == a.shape and owner.dtype == a.dtype
+    q, qd, tau = random_state(rng, chain)
+    qdd = forward_dynamics(chain, q, qd, tau)
+    again = pickle.loads(pickle.dumps(chain))
+    assert np.array_equal(forward_dynamics(again, q, qd, tau), qdd)
