@@ -383,6 +383,12 @@ class Chain:
         return bool(self.n_dof == self.n_links and np.all(self.dof_kind == 0)
                     and np.all(self.dof_axis == 2))
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickling: numpy restores arrays writeable; make them read-only views again."""
+        for key, value in state.items():
+            object.__setattr__(self, key,
+                               _readonly(value) if isinstance(value, np.ndarray) else value)
+
     def __repr__(self) -> str:
         types = "".join(sorted({j.type for j in self.joints}))
         return (f"Chain({self.name!r}, links={self.n_links}, dof={self.n_dof}, joints={types}, "

@@ -235,8 +235,8 @@ def test_compiled_sincos_is_within_one_ulp_of_libm():
 
 def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     """The chain's arrays are read-only views; the kernels get the writeable arrays behind them
-    (numba types read-only arrays on a slow path), the same memory, never a copy; a chain that
-    lost the owners (pickled and back) gives a copy, and the same qdd."""
+    (numba types read-only arrays on a slow path), the same memory, never a copy; so too after
+    pickling (numpy unpickles arrays writeable), with the same qdd."""
     import pickle
 
     from redysim.chain import kernel_alias
@@ -253,4 +253,6 @@ def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     q, qd, tau = random_state(rng, chain)
     qdd = forward_dynamics(chain, q, qd, tau)
     again = pickle.loads(pickle.dumps(chain))
+    assert not again.inertia_O.flags.writeable
+    assert np.shares_memory(kernel_alias(again.inertia_O), again.inertia_O)
     assert np.array_equal(forward_dynamics(again, q, qd, tau), qdd)
