@@ -39,6 +39,25 @@ def test_rge_a_u_chain(benchmark, record, dof):
     record.update(dof=dof, engine="redysim rge-a", ns_per_dof=benchmark.stats.stats.min / dof * 1e9)
 
 
+@pytest.mark.parametrize("dof", U_DOF[:2])
+def test_rge_a_kernel_alone_u_chain(benchmark, record, dof):
+    """The compiled kernel called directly, without forward_dynamics' input checks (its share of
+    a call at small sizes: the checks of q, qd, tau and out, ~1.5 us here, and numba's dispatch
+    of 23 arguments, ~1.1 us). Not a user's path: shown to say where the time goes."""
+    from redysim._kernels.rge_a import rge_a_forward_dynamics
+
+    chain = u_chain(dof)
+    ws, out = Workspace(chain), np.empty(chain.n_dof)
+    q, qd = state(chain)
+    args = (*ws.rge_a_head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
+    rge_a_forward_dynamics(*args)
+    benchmark.group = "qdd, U chains"
+    benchmark(rge_a_forward_dynamics, *args)
+    assert np.array_equal(out, forward_dynamics(chain, q, qd))  # the same qdd
+    record.update(dof=dof, engine="redysim rge-a kernel alone",
+                  ns_per_dof=benchmark.stats.stats.min / dof * 1e9)
+
+
 @pytest.mark.parametrize("dof", [d for d in U_DOF if d <= PIN_MAX_DOF])
 def test_pinocchio_aba_u_chain(benchmark, record, dof):
     pin = pytest.importorskip("pinocchio")
