@@ -28,7 +28,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from redysim import Chain, Workspace  # noqa: E402
-from redysim.chain import kernel_alias  # noqa: E402
 
 PASSES = ("whole", "kinematics", "backward", "forward")
 
@@ -53,12 +52,10 @@ def base_kernels(rev: str, into: Path):
 
 def calls(rge_a, kin, chain: Chain, q, qd) -> tuple[list, np.ndarray]:
     """The four timed calls (whole, kinematics, backward, forward) and the qdd they write."""
-    c, k, ws = chain, kernel_alias, Workspace(chain)
-    out = np.empty(c.n_dof)
-    head = (k(c.length), k(c.mass), k(c.inertia_O), k(c.mass_com), k(c.dof_kind),
-            k(c.dof_axis), k(c.dof_u), k(c.joint_qoff))
-    whole = (*head, q, qd, ws.zeros, ws.base_accel, ws.zeros, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
-             ws.Ihat, ws.Psihat, ws.phitil, ws.phihat, out)
+    ws = Workspace(chain)
+    out = np.empty(chain.n_dof)
+    head = ws.rge_a_head  # length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u, qoff
+    whole = (*head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
     kin_args = (head[0], head[4], head[5], head[6], head[7], q, qd, ws.zeros, ws.base_accel,
                 ws.oR, ws.oO, ws.oP, ws.t, ws.td, True)
     bw_args = (head[1], head[2], head[3], head[4], head[7], ws.oR, ws.oO, ws.oP, ws.t, ws.td,

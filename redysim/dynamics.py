@@ -29,6 +29,12 @@ METHODS = ("rge-a", "ge-n", "rge-n")
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 
+def _plain_vector(x, n: int) -> bool:
+    """True for a contiguous float64 ndarray of shape (n,): what the kernels take as is."""
+    return (type(x) is np.ndarray and x.shape == (n,) and x.dtype is FLOAT64
+            and x.strides == FLOAT64_STRIDES)
+
+
 def check_state(chain: Chain, name: str, x, *, optional: bool = False,
                 finite: bool = True) -> np.ndarray | None:
     """Return ``x`` as a float vector of length n, or raise StateError naming it.
@@ -40,8 +46,7 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         if optional:
             return None
         raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
-    if (type(x) is np.ndarray and x.shape == (chain.n_dof,) and x.dtype is FLOAT64
-            and x.strides == FLOAT64_STRIDES):  # the hot path: a contiguous float vector, as given
+    if _plain_vector(x, chain.n_dof):  # the hot path: as given
         if finite:
             require_finite(name, x)
         return x
@@ -71,8 +76,7 @@ def check_out(chain: Chain, out) -> np.ndarray:
     n = chain.n_dof
     if out is None:
         return np.empty(n)
-    if (type(out) is np.ndarray and out.shape == (n,) and out.dtype is FLOAT64
-            and out.strides == FLOAT64_STRIDES and out.flags.writeable):
+    if _plain_vector(out, n) and out.flags.writeable:
         return out
     what = (f"shape {out.shape}, dtype {out.dtype}, strides {out.strides}, "
             f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
@@ -202,8 +206,7 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
 
 
 def _planar(c: Chain, ws: Workspace, q, qd, tau, out) -> float:
-    if ws.planar is None:
-        ws.planar = np.empty((c.n_links, 12))
+    # ws.planar and ws.planar_head exist: a workspace makes them for every planar chain
     return planar_forward_dynamics(*ws.planar_head, q, qd, ws.zeros if tau is None else tau,
                                    out, ws.planar)
 
