@@ -41,18 +41,19 @@ def test_rge_a_u_chain(benchmark, record, dof):
 
 @pytest.mark.parametrize("dof", U_DOF[:2])
 def test_rge_a_kernel_alone_u_chain(benchmark, record, dof):
-    """The compiled kernel called directly, without forward_dynamics' input checks (its share of
-    a call at small sizes: the checks of q, qd, tau and out, ~1.5 us here, and numba's dispatch
-    of 23 arguments, ~1.1 us). Not a user's path: shown to say where the time goes."""
-    from redysim._kernels.rge_a import rge_a_forward_dynamics
+    """The compiled entry point that forward_dynamics calls, called directly: the difference is
+    forward_dynamics' Python (its argument handling, ~0.5 us here). Not a user's path: shown to
+    say where the time goes."""
+    from redysim._kernels.entry import RGE_A
 
     chain = u_chain(dof)
     ws, out = Workspace(chain), np.empty(chain.n_dof)
     q, qd = state(chain)
-    args = (*ws.rge_a_head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
-    rge_a_forward_dynamics(*args)
+    args = (ws.kernel_f, ws.kernel_i, q, qd, ws.zeros, ws.scratch, out)
+    entry = RGE_A.compiled
+    assert entry(*args) == 0.0
     benchmark.group = "qdd, U chains"
-    benchmark(rge_a_forward_dynamics, *args)
+    benchmark(entry, *args)
     assert np.array_equal(out, forward_dynamics(chain, q, qd))  # the same qdd
     record.update(dof=dof, engine="redysim rge-a kernel alone",
                   ns_per_dof=benchmark.stats.stats.min / dof * 1e9)

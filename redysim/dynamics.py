@@ -12,14 +12,15 @@ import reprlib
 from typing import NamedTuple
 
 import numpy as np
+from numpy import ndarray
 
+from ._kernels import entry as _entry
 from ._kernels.elimination import ge_n, rge_n
 from ._kernels.energy import energy as _energy
 from ._kernels.gim import gim_composite
 from ._kernels.inverse_dynamics import rnea_backward
 from ._kernels.kinematics import kinematics as _kinematics
-from ._kernels.planar import planar_forward_dynamics
-from ._kernels.rge_a import rge_a_backward, rge_a_forward_dynamics
+from ._kernels.rge_a import rge_a_backward
 from ._kernels.udu import udu_assemble
 from .chain import NUMERIC_KINDS, Chain
 from .errors import StateError
@@ -168,10 +169,11 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
     planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``);
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
+
+    Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
+    these go to the compiled entry point as they are, which checks their types and sizes
+    itself; anything else is checked and converted first.
     """
-    q = check_state(chain, "q", q, finite=False)
-    qd = check_state(chain, "qd", qd, finite=False)
-    tau = check_state(chain, "tau", tau, optional=True, finite=False)
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if planar is None:
@@ -180,15 +182,28 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
     ws = _ws(chain, ws)
+    if method == "rge-a":
+        entry = (_entry.PLANAR if planar else _entry.RGE_A).compiled
+        qdd = np.empty(chain.n_dof) if out is None else out
+        t = ws.zeros if tau is None else tau
+        if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
+                and type(qdd) is ndarray:
+            try:  # the hot path: no conversion, the entry checks the sizes
+                flag = entry(ws.kernel_f, ws.kernel_i, q, qd, t, ws.scratch, qdd)
+            except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
+                flag = _entry.SIZE_MISMATCH
+            if flag == 0.0:
+                return qdd
+            if flag != _entry.SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
+                raise _nonfinite_qdd(q, qd, tau)
+    q = check_state(chain, "q", q, finite=False)
+    qd = check_state(chain, "qd", qd, finite=False)
+    tau = check_state(chain, "tau", tau, optional=True, finite=False)
     out = check_out(chain, out)
     c = chain
     if method == "rge-a":
-        if planar:
-            nonfinite = _planar(c, ws, q, qd, tau, out)
-        else:
-            nonfinite = rge_a_forward_dynamics(
-                *ws.rge_a_head, q, qd, ws.zeros if tau is None else tau, ws.base_accel, ws.zeros,
-                *ws.rge_a_tail, out)
+        nonfinite = entry(ws.kernel_f, ws.kernel_i, q, qd, ws.zeros if tau is None else tau,
+                          ws.scratch, out)
     else:
         rhs = _phi(c, ws, q, qd, tau).copy()
         A = np.empty((c.n_dof, c.n_dof))
@@ -196,19 +211,19 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         mult = np.zeros_like(A)
         (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
         nonfinite = float(np.sum(out * 0.0))
-    if nonfinite != 0.0:  # NaN: some qdd is NaN or +-inf
-        # a NaN or Inf in the input always reaches qdd: only now look for it, to name it
-        for name, x in (("q", q), ("qd", qd), ("tau", tau)):
-            if x is not None:
-                require_finite(name, x)
-        raise overflow_error("qdd", q=q, qd=qd, tau=tau)
+    if nonfinite != 0.0:
+        raise _nonfinite_qdd(q, qd, tau)
     return out
 
 
-def _planar(c: Chain, ws: Workspace, q, qd, tau, out) -> float:
-    # ws.planar and ws.planar_head exist: a workspace makes them for every planar chain
-    return planar_forward_dynamics(*ws.planar_head, q, qd, ws.zeros if tau is None else tau,
-                                   out, ws.planar)
+def _nonfinite_qdd(q, qd, tau) -> StateError:
+    """The error for a qdd that is NaN or +-inf: the input that is not finite, named, else the
+    recursion overflowed. A NaN or Inf in the input always reaches qdd, so only now is it looked
+    for."""
+    for name, x in (("q", q), ("qd", qd), ("tau", tau)):
+        if x is not None:
+            require_finite(name, np.asarray(x, dtype=float))
+    return overflow_error("qdd", q=q, qd=qd, tau=tau)
 
 
 # --------------------------------------------------------------------------- GIM and factors

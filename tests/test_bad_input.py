@@ -173,21 +173,46 @@ def test_forward_dynamics_names_bad_tau_and_method():
         mass_matrix(chain, z[:, None])
 
 
+# a U chain (spatial entry point) and a planar R chain (planar entry point), both 6 DOF
+ENTRY_CHAINS = {"spatial": lambda: Chain.uniform(3, "U", mass=1.0, radius=0.05),
+                "planar": lambda: Chain.uniform(6, "R", mass=1.0, radius=0.05)}
+
+
+@pytest.mark.parametrize("kind", ENTRY_CHAINS)
 @pytest.mark.parametrize("out", [np.empty(5), np.empty(7), np.empty(6, dtype=np.float32),
                                  np.empty(12)[::2], np.empty((6, 1)), [0.0] * 6],
                          ids=["short", "long", "float32", "strided", "2-d", "list"])
-def test_forward_dynamics_refuses_an_out_it_cannot_write(out):
+def test_forward_dynamics_refuses_an_out_it_cannot_write(out, kind):
     """The kernels write qdd without bounds checks: an ``out`` too short was written past its end
     (heap corruption) before it was checked."""
-    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+    chain = ENTRY_CHAINS[kind]()
+    assert chain.is_planar == (kind == "planar")
     z = np.zeros(6)
+    before = np.array(out, dtype=float, copy=True)
     with pytest.raises(StateError, match=r"out \(.*\) must be a writeable, contiguous float64 "
                                          r"array of shape \(6,\)"):
         forward_dynamics(chain, z, z, out=out)
+    assert np.array_equal(np.array(out, dtype=float), before, equal_nan=True), "written into"
 
 
-def test_forward_dynamics_refuses_a_read_only_out():
-    chain = Chain.uniform(3, "U", mass=1.0, radius=0.05)
+@pytest.mark.parametrize("kind", ENTRY_CHAINS)
+def test_forward_dynamics_checks_sizes_before_the_entry_point_writes(kind):
+    """Plain float64 vectors go to the compiled entry point unchecked by Python; it checks their
+    lengths before anything is written (the kernels index without bounds checks)."""
+    chain = ENTRY_CHAINS[kind]()
+    z, out = np.zeros(6), np.full(6, 7.0)
+    for args, name in (((np.zeros(5), z), "q"), ((z, np.zeros(7)), "qd"),
+                       ((z, z, np.zeros(5)), "tau")):
+        with pytest.raises(StateError, match=rf"{name} has shape"):
+            forward_dynamics(chain, *args, out=out)
+        assert (out == 7.0).all()
+    with pytest.raises(StateError, match=r"out \(shape \(5,\)"):
+        forward_dynamics(chain, z, z, out=np.zeros(5))
+
+
+@pytest.mark.parametrize("kind", ENTRY_CHAINS)
+def test_forward_dynamics_refuses_a_read_only_out(kind):
+    chain = ENTRY_CHAINS[kind]()
     z = np.zeros(6)
     out = np.empty(6)
     out.flags.writeable = False

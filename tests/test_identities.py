@@ -258,3 +258,51 @@ def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     assert not again.inertia_O.flags.writeable
     assert np.shares_memory(kernel_alias(again.inertia_O), again.inertia_O)
     assert np.array_equal(forward_dynamics(again, q, qd, tau), qdd)
+
+
+class _Sub(np.ndarray):
+    """A numpy subclass: not the entry point's plain ndarray, so converted first."""
+
+
+@pytest.mark.parametrize("joints, planar", [(("U",), None), (("R", "U", "S", "P"), None),
+                                            ("planar", None), ("planar", False)])
+def test_forward_dynamics_gives_one_qdd_for_every_form_of_the_state(rng, joints, planar):
+    """Plain float64 vectors go straight to the compiled entry point (its own type and size
+    checks); any other form is checked and converted first. Both give the same qdd, with or
+    without a workspace and ``out``; and a workspace left by the entry point holds the factors
+    udu_factors computes."""
+    from redysim import Workspace, udu_factors
+
+    chain = (Chain.uniform(7, "R", mass=1.3, radius=0.02) if joints == "planar"
+             else random_chain(rng, 7, joints))
+    n = chain.n_dof
+    q = rng.integers(-2, 3, n).astype(float)  # integers: the int form is exact
+    qd, tau = rng.normal(size=n), rng.normal(size=n)
+    ref = forward_dynamics(chain, q, qd, tau, planar=planar)
+    assert np.isfinite(ref).all()
+    ws, out = Workspace(chain), np.empty(n)
+    assert forward_dynamics(chain, q, qd, tau, planar=planar, ws=ws, out=out) is out
+    assert np.array_equal(out, ref)
+
+    def forms(x):
+        read_only = x.copy()
+        read_only.flags.writeable = False
+        return {"list": x.tolist(), "tuple": tuple(x), "read-only": read_only,
+                "strided": np.repeat(x, 2)[::2], "subclass": x.view(_Sub),
+                "big-endian": x.astype(">f8")}
+
+    cases = [(name, (f, qd, tau)) for name, f in forms(q).items()]
+    cases += [(f"qd {name}", (q, f, tau)) for name, f in forms(qd).items()]
+    cases += [(f"tau {name}", (q, qd, f)) for name, f in forms(tau).items()]
+    cases += [("int", (q.astype(np.int64), qd, tau))]
+    for name, args in cases:
+        for kw in ({}, {"ws": ws, "out": np.empty(n)}):
+            assert np.array_equal(forward_dynamics(chain, *args, planar=planar, **kw), ref), name
+    # float32 is rounded once, at the door: the float64 qdd of the rounded values
+    q32 = qd.astype(np.float32)
+    assert np.array_equal(forward_dynamics(chain, q, q32, tau, planar=planar, ws=ws),
+                          forward_dynamics(chain, q, q32.astype(float), tau, planar=planar))
+    if not (planar is None and chain.is_planar):  # the spatial entry point fills the workspace
+        forward_dynamics(chain, q, qd, planar=planar, ws=ws, out=out)
+        D = udu_factors(chain, q).D
+        assert np.array_equal(ws.Ihat, np.diag(D))
