@@ -14,9 +14,11 @@ from typing import NamedTuple
 import numpy as np
 from numpy import ndarray
 
-from ._kernels import entry as _entry
 from ._kernels.elimination import ge_n, rge_n
 from ._kernels.energy import energy as _energy
+from ._kernels.entry import PLANAR as _PLANAR
+from ._kernels.entry import RGE_A as _RGE_A
+from ._kernels.entry import SIZE_MISMATCH
 from ._kernels.gim import gim_composite
 from ._kernels.inverse_dynamics import rnea_backward
 from ._kernels.kinematics import kinematics as _kinematics
@@ -174,16 +176,14 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
     these go to the compiled entry point as they are, which checks their types and sizes
     itself; anything else is checked and converted first.
     """
-    if method not in METHODS:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
+    ws = _ws(chain, ws)
     if planar is None:
         planar = chain.is_planar
     elif planar and not chain.is_planar:
         raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
-    ws = _ws(chain, ws)
     if method == "rge-a":
-        entry = (_entry.PLANAR if planar else _entry.RGE_A).compiled
+        entry = _PLANAR.compiled if planar else _RGE_A.compiled
         qdd = np.empty(chain.n_dof) if out is None else out
         t = ws.zeros if tau is None else tau
         if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
@@ -191,11 +191,13 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, qd, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
-                flag = _entry.SIZE_MISMATCH
+                flag = SIZE_MISMATCH
             if flag == 0.0:
                 return qdd
-            if flag != _entry.SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
+            if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
                 raise _nonfinite_qdd(q, qd, tau)
+    elif method not in METHODS:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     q = check_state(chain, "q", q, finite=False)
     qd = check_state(chain, "qd", qd, finite=False)
     tau = check_state(chain, "tau", tau, optional=True, finite=False)
