@@ -12,7 +12,8 @@ acceleration of the base (paper, Appendix A.1).
 With ``local_rates`` the pass writes, instead of td_k, its local part
     td_k - A_{k,k-1} td_{k-1} = [0; w_{k-1} x (v_k - v_{k-1})] + P_k qdd_k + Pd_k qd_k
 (with qdd = 0: the velocity-product twist-rate c_k of the articulated-body algorithm), so that
-neither the base's twist-rate nor anything inboard of joint k is in it.
+neither the base's twist-rate nor anything inboard of joint k is in it; and of t_k only the
+angular velocity w_k, all that RGE-A's passes read (measured: kinematics 20.0 -> 19.0 ns/DOF).
 
 The running frame, twist and twist-rate stay in scalars and are written out once per link.
 
@@ -32,7 +33,8 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
     """Fill oR (nl,3,3), oO (nl,3), oP (n,6), t (nl,6), td (nl,6) for the state (q, qd, qdd).
 
     base_accel: (3,) linear acceleration of the fixed base (pass -gravity for dynamics).
-    local_rates: write each link's local twist-rate term in td (module docstring), not td_k.
+    local_rates: write each link's local twist-rate term in td (module docstring), not td_k,
+        and leave t's linear part (t[:, 3:]) unset.
     """
     r00 = r11 = r22 = 1.0
     r01 = r02 = r10 = r12 = r20 = r21 = 0.0
@@ -77,10 +79,6 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
         cb0 = (w1 * e2 - w2 * e1) + db0
         cb1 = (w2 * e0 - w0 * e2) + db1
         cb2 = (w0 * e1 - w1 * e0) + db2
-        # t_k = A t_{k-1} + P qd
-        v0 += e0
-        v1 += e1
-        v2 += e2
         w0, w1, w2 = om0, om1, om2
         R = oR[k]
         R[0, 0] = r00
@@ -98,17 +96,20 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
         t[k, 0] = w0
         t[k, 1] = w1
         t[k, 2] = w2
-        t[k, 3] = v0
-        t[k, 4] = v1
-        t[k, 5] = v2
-        if local_rates:
+        if local_rates:  # RGE-A's passes need w_k and c_k only: t_k's linear part left unset
             td[k, 0] = da0
             td[k, 1] = da1
             td[k, 2] = da2
             td[k, 3] = cb0
             td[k, 4] = cb1
             td[k, 5] = cb2
-        else:  # td_k = A td_{k-1} + the local twist-rate
+        else:  # t_k = A t_{k-1} + P qd;  td_k = A td_{k-1} + the local twist-rate
+            v0 += e0
+            v1 += e1
+            v2 += e2
+            t[k, 3] = v0
+            t[k, 4] = v1
+            t[k, 5] = v2
             b0 += (a1 * s2 - a2 * s1) + cb0
             b1 += (a2 * s0 - a0 * s2) + cb1
             b2 += (a0 * s1 - a1 * s0) + cb2
