@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+from functools import cached_property
+
 import numpy as np
 
 from ._kernels import entry as E
@@ -10,15 +13,20 @@ from .chain import Chain, kernel_alias
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
 
+def _layout(sizes: dict[int, int], header: np.ndarray, start: int = 0) -> int:
+    """Lay segments (slot -> number of items) back to back, each padded to ALIGN items: write
+    each one's offset, counted from ``start``, into ``header`` at its slot; return the total."""
+    end = start
+    for slot, size in sizes.items():
+        header[slot] = end
+        end += -(-size // ALIGN) * ALIGN
+    return end - start
+
+
 def _pack(segments: dict[int, np.ndarray], dtype, header: np.ndarray, start: int = 0
           ) -> np.ndarray:
-    """One array holding ``segments`` (slot -> array) back to back, each padded to ALIGN items;
-    each segment's offset, counted from ``start``, is written into ``header`` at its slot."""
-    size = 0
-    for slot, a in segments.items():
-        header[slot] = start + size
-        size += -(-a.size // ALIGN) * ALIGN
-    packed = np.zeros(size, dtype=dtype)
+    """One array holding ``segments`` (slot -> array) as laid out by :func:`_layout`."""
+    packed = np.zeros(_layout({k: a.size for k, a in segments.items()}, header, start), dtype)
     for slot, a in segments.items():
         packed[header[slot] - start:header[slot] - start + a.size] = np.ravel(a)
     return packed
@@ -56,8 +64,8 @@ class Workspace:
                   E.S_PHIHAT: (n,)}
         if chain.is_planar:
             shapes[E.S_PLANAR] = (nl, 12)
-        self.scratch = _pack({s: np.empty(shape) for s, shape in shapes.items()}, np.float64,
-                             header)
+        self.scratch = np.empty(_layout({s: math.prod(shape) for s, shape in shapes.items()},
+                                        header))
         self.kernel_i = np.concatenate((header, ints_packed))
         view = self._view
         self.oR, self.oO, self.oP = view(E.S_OR, shapes), view(E.S_OO, shapes), view(E.S_OP, shapes)
@@ -71,18 +79,25 @@ class Workspace:
         self.zeros6 = np.zeros((nl, 6))
         self.base_accel = -np.asarray(chain.gravity, dtype=float)
         self.no_accel = np.zeros(3)
-        # the spatial kernel's arguments before and after the state, for calling it directly
-        # (benchmarks/ab_kernels.py); the chain's arrays as writeable aliases (chain.kernel_alias:
-        # numba types read-only arrays on a slow path)
-        k = kernel_alias
-        self.rge_a_head = (k(c.length), k(c.mass), k(c.inertia_O), k(c.mass_com),
-                           k(c.dof_kind), k(c.dof_axis), k(c.dof_u), k(c.joint_qoff))
-        self.rge_a_tail = (self.oR, self.oO, self.oP, self.t, self.td, self.Ihat, self.Psihat,
-                           self.phitil, self.phihat)
+
+    @cached_property
+    def rge_a_head(self) -> tuple:
+        """The spatial kernel's (``rge_a_forward_dynamics``) arguments before the state, for
+        calling it directly (benchmarks/ab_kernels.py): the chain's arrays as writeable aliases
+        (chain.kernel_alias: numba types read-only arrays on a slow path)."""
+        c, k = self.chain, kernel_alias
+        return (k(c.length), k(c.mass), k(c.inertia_O), k(c.mass_com), k(c.dof_kind),
+                k(c.dof_axis), k(c.dof_u), k(c.joint_qoff))
+
+    @property
+    def rge_a_tail(self) -> tuple:
+        """The spatial kernel's scratch arguments, after the state (the workspace's arrays)."""
+        return (self.oR, self.oO, self.oP, self.t, self.td, self.Ihat, self.Psihat, self.phitil,
+                self.phihat)
 
     def _view(self, slot: int, shapes: dict) -> np.ndarray:
         start = self.kernel_i[slot]
-        size = int(np.prod(shapes[slot]))
+        size = math.prod(shapes[slot])
         return self.scratch[start:start + size].reshape(shapes[slot])
 
     @property
