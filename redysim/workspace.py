@@ -38,9 +38,10 @@ class Workspace:
     Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
     positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates,
     ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phihat`` (n,), ``planar`` (nl,12)
-    for the planar kernel: views of one array, ``scratch``. ``kernel_f`` and ``kernel_i`` hold
-    copies of the chain's arrays, packed for forward dynamics' entry points
-    (:mod:`redysim._kernels.entry`: 7 arguments instead of 23, ~1 us less per call).
+    for the planar kernel: views of one array, ``scratch``. Besides: ``W`` (nl,6) resultant
+    wrenches, ``phi`` (n,), and ``zeros`` (n,), ``zeros6`` (nl,6) that no kernel writes.
+    ``kernel_f`` and ``kernel_i`` hold copies of the chain's arrays, packed with ``scratch`` for
+    forward dynamics' entry points (:mod:`redysim._kernels.entry`: 7 arguments instead of 23).
     """
 
     def __init__(self, chain: Chain):
