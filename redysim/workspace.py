@@ -76,9 +76,10 @@ class Workspace:
         self.planar = view(E.S_PLANAR, shapes) if chain.is_planar else None
         self.W = np.empty((nl, 6))
         self.phi = np.empty(n)
+        # views of the packed chain data that the other functions take too: no kernel writes them
         self.zeros = self.kernel_f[header[E.F_ZEROS]:header[E.F_ZEROS] + n]  # (n,) of zeros
         self.zeros6 = np.zeros((nl, 6))
-        self.base_accel = -np.asarray(chain.gravity, dtype=float)
+        self.base_accel = self.kernel_f[header[E.F_BASE_ACCEL]:header[E.F_BASE_ACCEL] + 3]  # -g
         self.no_accel = np.zeros(3)
 
     @cached_property
