@@ -32,13 +32,27 @@ class EntryPoint:
     Given a signature, numba compiles nothing else: a call with other argument types raises
     TypeError instead of compiling a new specialisation (a float32 or strided array, say), which
     makes the dispatcher itself the type check of the hot path.
+
+    ``callees``: the :func:`jit` kernels the entry calls, each with the exact argument types it
+    calls them with; they are compiled (or loaded from disk) first, on their own. Why: numba
+    links a copy of every callee into the caller's machine code, optimised a second time with
+    it, and that copy ran RGE-A ~3% slower here than the callee compiled on its own (2,000 to
+    100,000 DOF, both in one process: ``benchmarks/entry_copies.py``). A caller compiled afresh
+    calls the callees' own code, which numba compiled first and the JIT linker prefers to the
+    copies; one loaded from numba's disk cache calls its copies unless the callees' own code is
+    loaded before it. Types that differ from the entry's only cost the time to load (or
+    compile) the unused callee code: ``tests/test_identities.py`` checks that they do not.
     """
 
-    def __init__(self, func, signature):
+    def __init__(self, func, signature, callees=()):
         self.func = func
         self.signature = signature
+        self.callees = callees
 
     @cached_property
     def compiled(self):
-        """The compiled dispatcher (compiled, or loaded from the disk cache, on first access)."""
+        """The compiled dispatcher (compiled, or loaded from the disk cache, on first access),
+        after its callees."""
+        for kernel, signature in self.callees:
+            kernel.compile(signature)
         return numba.njit(self.signature, **OPTIONS)(self.func)

@@ -44,10 +44,20 @@ I_DOF_KIND, I_DOF_AXIS, I_JOINT_QOFF = range(13, 16)
 (S_OR, S_OO, S_OP, S_T, S_TD, S_IHAT, S_PSIHAT, S_PHITIL, S_PHIHAT, S_PLANAR) = range(16, 26)
 HEADER = 26
 
-_F1 = types.Array(types.float64, 1, "C")
+_F1, _F2, _F3 = (types.Array(types.float64, d, "C") for d in (1, 2, 3))
 _RO = types.Array(types.float64, 1, "C", readonly=True)
 _I1 = types.Array(types.int64, 1, "C")
 SIGNATURE = types.float64(_F1, _I1, _RO, _RO, _RO, _F1, _F1)
+# the kernels as the entries call them (the segments' types), loaded before the entries
+# (redysim._jit.EntryPoint: the callees' own machine code, not the entries' copies of it)
+RGE_A_CALLEES = (
+    (kinematics, (_F1, _I1, _I1, _F2, _I1, _RO, _RO, _F1, _F1, _F3, _F2, _F2, _F2, _F2,
+                  types.literal(True))),  # local_rates=True
+    (rge_a_backward, (_F1, _F3, _F2, _I1, _I1, _F3, _F2, _F2, _F2, _F2, _RO, _F1, _F2, _F1,
+                      _F1)),
+    (rge_a_forward, (_I1, _F2, _F2, _F2, _F1, _F2, _F1, _F1)))
+PLANAR_CALLEES = (
+    (planar_forward_dynamics, (_F1, _F1, _F1, _F1, _F1, _F1, _RO, _RO, _RO, _F1, _F2)),)
 
 
 def rge_a_entry(fdata, idata, q, qd, tau, scratch, qdd):
@@ -99,5 +109,5 @@ def planar_entry(fdata, idata, q, qd, tau, scratch, qdd):
         scratch[h[S_PLANAR]:h[S_PLANAR] + 12 * nl].reshape((nl, 12)))
 
 
-RGE_A = EntryPoint(rge_a_entry, SIGNATURE)
-PLANAR = EntryPoint(planar_entry, SIGNATURE)
+RGE_A = EntryPoint(rge_a_entry, SIGNATURE, RGE_A_CALLEES)
+PLANAR = EntryPoint(planar_entry, SIGNATURE, PLANAR_CALLEES)
