@@ -2,12 +2,15 @@
 
     .venv/bin/python benchmarks/ab_kernels.py --base 4e53e17 [--dof 2000 100000] [--reps 40]
 
-The base revision's ``redysim/_jit.py`` and ``redysim/_kernels/`` are copied out of git into a
-temporary package and imported beside the working tree's kernels; both are called on the same
+The base revision's ``redysim/_jit.py`` and ``redysim/_kernels/`` (and ``workspace.py``, for its
+entry point) are copied out of git into a temporary package and imported beside the working
+tree's kernels, both compiled afresh (a temporary numba cache); both are called on the same
 chain (the RE-U steel rod, as ``make bench``) and state, alternating base and head call by call so
 that the machine's drift falls on both alike, and each is read as its fastest call. JIT compile
-happens before the timing. The passes are timed through their own numba dispatch (~1 us each), so
-at small sizes they add up to more than the whole call.
+happens before the timing. "entry" is forward dynamics' compiled entry point (as
+``forward_dynamics`` calls it), "whole" ``rge_a_forward_dynamics`` (the three passes by their 23
+arrays). The passes are timed through their own numba dispatch (~1 us each), so at small sizes
+they add up to more than the whole call.
 
 Speed changes to the kernels are claimed from this script's output, never from two separate runs.
 """
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import subprocess
 import sys
 import tempfile
@@ -26,20 +30,31 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+# both sides compiled afresh, into a cache of their own: code loaded from numba's disk cache
+# calls its own copies of the kernels, which ran ~3% slower (benchmarks/entry_copies.py), so a
+# cached head against a compiled base was not a fair comparison
+_CACHE = tempfile.TemporaryDirectory(prefix="ab_kernels-")
+os.environ["NUMBA_CACHE_DIR"] = _CACHE.name
 
 from redysim import Chain, Workspace  # noqa: E402
 
-PASSES = ("whole", "kinematics", "backward", "forward")
+PASSES = ("entry", "whole", "kinematics", "backward", "forward")
 
 
 def base_kernels(rev: str, into: Path):
-    """Import the kernels of ``rev`` as the package ``ab_base`` (copied from git into ``into``)."""
+    """Import the kernels of ``rev`` as the package ``ab_base`` (copied from git into ``into``),
+    with its workspace if it has the packed entry points (the chain is the working tree's)."""
     pkg = into / "ab_base"
     (pkg / "_kernels").mkdir(parents=True)
     (pkg / "__init__.py").write_text("")
     names = subprocess.run(["git", "-C", str(ROOT), "ls-tree", "--name-only", rev,
                             "redysim/_kernels/"], capture_output=True, text=True,
                            check=True).stdout.split()
+    has_entry = "redysim/_kernels/entry.py" in names
+    if has_entry:
+        names.append("redysim/workspace.py")
+        (pkg / "chain.py").write_text("from redysim.chain import *  # noqa\n"
+                                      "from redysim.chain import kernel_alias  # noqa\n")
     for name in [*names, "redysim/_jit.py"]:
         if name.endswith(".py"):
             text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{name}"],
@@ -47,12 +62,18 @@ def base_kernels(rev: str, into: Path):
             (pkg / Path(name).relative_to("redysim")).write_text(text)
     sys.path.insert(0, str(into))
     return (importlib.import_module("ab_base._kernels.rge_a"),
-            importlib.import_module("ab_base._kernels.kinematics"))
+            importlib.import_module("ab_base._kernels.kinematics"),
+            importlib.import_module("ab_base._kernels.entry") if has_entry else None,
+            importlib.import_module("ab_base.workspace").Workspace if has_entry else Workspace)
 
 
-def calls(rge_a, kin, chain: Chain, q, qd) -> tuple[list, np.ndarray]:
-    """The four timed calls (whole, kinematics, backward, forward) and the qdd they write."""
-    ws = Workspace(chain)
+def calls(rge_a, kin, entry, workspace, chain: Chain, q, qd) -> tuple[list, np.ndarray]:
+    """The timed calls (entry, whole, kinematics, backward, forward) and the qdd they write.
+
+    entry: forward dynamics' compiled entry point, as ``forward_dynamics`` calls it (None for a
+    revision without one: not timed); whole: ``rge_a_forward_dynamics``, the three passes by
+    their 23 arrays."""
+    ws = workspace(chain)
     out = np.empty(chain.n_dof)
     head = ws.rge_a_head  # length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u, qoff
     whole = (*head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
@@ -61,12 +82,22 @@ def calls(rge_a, kin, chain: Chain, q, qd) -> tuple[list, np.ndarray]:
     bw_args = (head[1], head[2], head[3], head[4], head[7], ws.oR, ws.oO, ws.oP, ws.t, ws.td,
                ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
     fw_args = (head[7], ws.oO, ws.oP, ws.Psihat, ws.phitil, ws.td, ws.base_accel, out)
-    fns = [lambda: rge_a.rge_a_forward_dynamics(*whole), lambda: kin.kinematics(*kin_args),
+    fns = [(lambda: entry.RGE_A.compiled(ws.kernel_f, ws.kernel_i, q, qd, ws.zeros, ws.scratch,
+                                         out)) if entry else None,
+           lambda: rge_a.rge_a_forward_dynamics(*whole), lambda: kin.kinematics(*kin_args),
            lambda: rge_a.rge_a_backward(*bw_args), lambda: rge_a.rge_a_forward(*fw_args)]
     for f in fns:
-        f()  # compile or load
-    fns[0]()
+        if f:
+            f()  # compile or load
+    fns[1]()
+    if fns[0]:
+        fns[0]()
     return fns, out
+
+
+def _cell(x: float, digits: int = 2) -> str:
+    """A table cell: x, or "-" for a call not timed (the base revision has no entry point)."""
+    return f"{x:11.{digits}f}" if np.isfinite(x) else f"{'-':>11}"
 
 
 def main(argv=None) -> int:
@@ -75,11 +106,12 @@ def main(argv=None) -> int:
     ap.add_argument("--dof", type=int, nargs="+", default=[200, 2000, 100_000])
     ap.add_argument("--reps", type=int, default=0, help="calls per pass (default: by size)")
     a = ap.parse_args(argv)
+    import redysim._kernels.entry as head_entry
     import redysim._kernels.kinematics as head_kin
     import redysim._kernels.rge_a as head_rge_a
 
     with tempfile.TemporaryDirectory() as tmp:
-        base_rge_a, base_kin = base_kernels(a.base, Path(tmp))
+        base = base_kernels(a.base, Path(tmp))
         print(f"base {a.base} vs working tree; U chain, fastest call, ns/DOF")
         print(f"{'DOF':>8} {'':5} " + " ".join(f"{p:>11}" for p in PASSES))
         for dof in a.dof:
@@ -88,22 +120,24 @@ def main(argv=None) -> int:
                                   inertia="rod")
             rng = np.random.default_rng(0)
             q, qd = rng.uniform(-0.3, 0.3, chain.n_dof), rng.normal(size=chain.n_dof)
-            sides = {"base": calls(base_rge_a, base_kin, chain, q, qd),
-                     "head": calls(head_rge_a, head_kin, chain, q, qd)}
+            sides = {"base": calls(*base, chain, q, qd),
+                     "head": calls(head_rge_a, head_kin, head_entry, Workspace, chain, q, qd)}
             best = {s: [np.inf] * len(PASSES) for s in sides}
             reps = a.reps or max(20, 2_000_000 // dof)
             for r in range(reps):
                 for s in (("base", "head") if r % 2 else ("head", "base")):
                     for i, f in enumerate(sides[s][0]):
+                        if f is None:
+                            continue
                         t0 = time.perf_counter()
                         f()
                         best[s][i] = min(best[s][i], time.perf_counter() - t0)
             for s in sides:
-                print(f"{dof:>8,} {s:5} " + " ".join(f"{b / dof * 1e9:11.2f}" for b in best[s]))
+                print(f"{dof:>8,} {s:5} " + " ".join(_cell(b / dof * 1e9) for b in best[s]))
             ratio = [b / h for b, h in zip(best["base"], best["head"], strict=True)]
             qb, qh = sides["base"][1], sides["head"][1]
             diff = np.abs(qb - qh).max() / np.abs(qb).max()
-            print(f"{'':>8} {'x':5} " + " ".join(f"{x:11.3f}" for x in ratio)
+            print(f"{'':>8} {'x':5} " + " ".join(_cell(x, 3) for x in ratio)
                   + f"   max |qdd diff| / max |qdd| = {diff:.1e}")
     return 0
 
