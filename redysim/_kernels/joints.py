@@ -70,14 +70,15 @@ def _sincos_compiled(x):
 
 
 @inline
-def jcalc(kind, code, u0, u1, u2, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+def jcalc(kind, code, u, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
     """One elementary axis: returns (p0..p5, s0..s2, r00..r22).
 
     p = [e; 0] (revolute) or [0; e] (prismatic) with e = R u the axis in the world frame; s the
     joint origin's offset, moved by e qj along a prismatic axis (else as given); r the
     frame after the axis: R Rot(u, qj) for a revolute axis, R for a prismatic one. ``code`` 0, 1,
     2 names the x, y or z axis of the frame (two columns mix), 3 a general unit vector u
-    (Rodrigues).
+    (Rodrigues). ``u`` is the axis's row of ``dof_u``, read only for code 3: a chain of x, y and
+    z axes never loads it (48 bytes a U joint less to stream).
     """
     if code == 0:
         e0, e1, e2 = r00, r10, r20
@@ -86,6 +87,7 @@ def jcalc(kind, code, u0, u1, u2, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, 
     elif code == 2:
         e0, e1, e2 = r02, r12, r22
     else:
+        u0, u1, u2 = u[0], u[1], u[2]
         e0 = r00 * u0 + r01 * u1 + r02 * u2
         e1 = r10 * u0 + r11 * u1 + r12 * u2
         e2 = r20 * u0 + r21 * u1 + r22 * u2
@@ -106,6 +108,7 @@ def jcalc(kind, code, u0, u1, u2, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, 
         n01, n11, n21 = c * r01 - s * r00, c * r11 - s * r10, c * r21 - s * r20
         r00, r10, r20, r01, r11, r21 = n00, n10, n20, n01, n11, n21
     else:  # R Rot(u, q), Rot = c 1 + s C(u) + (1 - c) u u^T
+        u0, u1, u2 = u[0], u[1], u[2]
         t = 1.0 - c
         g00, g01, g02 = c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1
         g10, g11, g12 = t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0

@@ -53,10 +53,9 @@ def kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, qdd, base_a
         # the angular velocity of the frame the next axis is fixed in; w_k after the last axis
         om0, om1, om2 = w0, w1, w2
         for j in range(joint_qoff[k], joint_qoff[k + 1]):
-            u = dof_u[j]
             (p0, p1, p2, p3, p4, p5, s0, s1, s2,
              r00, r01, r02, r10, r11, r12, r20, r21, r22) = jcalc(
-                dof_kind[j], dof_axis[j], u[0], u[1], u[2], q[j], s0, s1, s2,
+                dof_kind[j], dof_axis[j], dof_u[j], q[j], s0, s1, s2,
                 r00, r01, r02, r10, r11, r12, r20, r21, r22)
             oP[j, 0] = p0
             oP[j, 1] = p1
