@@ -5,8 +5,11 @@ disk, so a second process loads machine code instead of recompiling) or :func:`i
 helper that numba inlines into its callers at the IR level); the entry points that the public
 functions call on their hot path are :class:`EntryPoint` s.
 
-``fastmath`` stays off: the kernels rely on IEEE semantics (exactly mirrored symmetric blocks,
-reproducible round-off), and reassociation would make results depend on the compiler's choices.
+``fastmath`` is limited to ``contract``: LLVM may fuse a multiply and an add into one FMA (one
+rounding instead of two), so compiled results may differ from the kernels' Python source in the
+last bits. Nothing else: no reassociation (results would depend on the compiler's choices) and
+IEEE NaN and Inf (the kernels' non-finite checks rely on them). The articulated masses' symmetry
+does not depend on it: only one triangle of each symmetric block is ever computed.
 """
 
 from __future__ import annotations
