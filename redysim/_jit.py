@@ -57,6 +57,7 @@ class EntryPoint:
     def compiled(self):
         """The compiled dispatcher (compiled, or loaded from the disk cache, on first access),
         after its callees."""
-        for kernel, signature in self.callees:
-            kernel.compile(signature)
+        if not numba.config.DISABLE_JIT:  # with NUMBA_DISABLE_JIT the kernels are Python
+            for kernel, signature in self.callees:
+                kernel.compile(signature)
         return numba.njit(self.signature, **OPTIONS)(self.func)

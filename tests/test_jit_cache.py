@@ -5,8 +5,11 @@ times (compile with an empty cache, load with a warm one)."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+
+import numpy as np
 
 PROBE = """
 import json, numpy as np, redysim
@@ -32,3 +35,17 @@ def test_a_second_process_loads_the_kernels_from_disk():
     assert set(second) == {"rge_a_entry", "kinematics", "rge_a_backward", "rge_a_forward"}
     for name, (hits, misses) in second.items():
         assert hits >= 1 and misses == 0, (name, hits, misses)
+
+
+def test_forward_dynamics_runs_with_numba_disabled():
+    """NUMBA_DISABLE_JIT=1 (debugging, coverage) runs the kernels' Python source: the entry
+    point must not ask its kernels to compile (they are plain functions then)."""
+    code = ("import numpy as np, redysim; c = redysim.Chain.uniform(3, 'U', length=1.0, "
+            "linear_density=1.0, radius=0.1); q = np.full(6, 0.1); "
+            "print(redysim.forward_dynamics(c, q, q).tolist())")
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    plain = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True, env=env)
+    jitted = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True)
+    np.testing.assert_allclose(json.loads(plain.stdout), json.loads(jitted.stdout), rtol=1e-12)
