@@ -260,10 +260,6 @@ def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     assert np.array_equal(forward_dynamics(again, q, qd, tau), qdd)
 
 
-class _Sub(np.ndarray):
-    """A numpy subclass: not the entry point's plain ndarray, so converted first."""
-
-
 @pytest.mark.parametrize("name", ["RGE_A", "PLANAR"])
 def test_entry_points_declare_the_types_they_call_their_kernels_with(name):
     """An entry point loads its kernels, for the types it calls them with, before itself
@@ -288,6 +284,10 @@ def test_entry_points_declare_the_types_they_call_their_kernels_with(name):
         if isinstance(ty, numba.types.Dispatcher):
             called[ty.dispatcher] = tuple(sig.args)
     assert called == declared
+
+
+class _Sub(np.ndarray):
+    """A numpy subclass: not the entry point's plain ndarray, so converted first."""
 
 
 @pytest.mark.parametrize("joints, planar", [(("U",), None), (("R", "U", "S", "P"), None),
