@@ -36,6 +36,8 @@ sys.path.insert(0, str(ROOT))
 _CACHE = tempfile.TemporaryDirectory(prefix="ab_kernels-")
 os.environ["NUMBA_CACHE_DIR"] = _CACHE.name
 
+from test_bench_core import state, u_chain  # noqa: E402  (make bench's chain and state)
+
 from redysim import Chain, Workspace  # noqa: E402
 
 PASSES = ("entry", "whole", "kinematics", "backward", "forward")
@@ -115,11 +117,8 @@ def main(argv=None) -> int:
         print(f"base {a.base} vs working tree; U chain, fastest call, ns/DOF")
         print(f"{'DOF':>8} {'':5} " + " ".join(f"{p:>11}" for p in PASSES))
         for dof in a.dof:
-            chain = Chain.uniform(dof // 2, "U", length=0.02,
-                                  linear_density=7850 * np.pi * 0.05**2, radius=0.05,
-                                  inertia="rod")
-            rng = np.random.default_rng(0)
-            q, qd = rng.uniform(-0.3, 0.3, chain.n_dof), rng.normal(size=chain.n_dof)
+            chain = u_chain(dof)
+            q, qd = state(chain)
             sides = {"base": calls(*base, chain, q, qd),
                      "head": calls(head_rge_a, head_kin, head_entry, Workspace, chain, q, qd)}
             best = {s: [np.inf] * len(PASSES) for s in sides}

@@ -41,8 +41,9 @@ def main(argv=None) -> int:
     subprocess.run([sys.executable, "-c", WARM], cwd=ROOT, check=True)
 
     import numba
+    from test_bench_core import state, u_chain  # make bench's chain and state
 
-    from redysim import Chain, Workspace
+    from redysim import Workspace
     from redysim._jit import OPTIONS
     from redysim._kernels import entry
 
@@ -53,10 +54,8 @@ def main(argv=None) -> int:
     print(f"numba {numba.__version__}; U chain, fastest call, ns/DOF")
     print(f"{'DOF':>8} {'copies':>9} {'own':>9} {'copies/own':>11}")
     for dof in a.dof:
-        chain = Chain.uniform(dof // 2, "U", length=0.02, linear_density=7850 * np.pi * 0.05**2,
-                              radius=0.05, inertia="rod")
-        rng = np.random.default_rng(0)
-        q, qd = rng.uniform(-0.3, 0.3, chain.n_dof), rng.normal(size=chain.n_dof)
+        chain = u_chain(dof)
+        q, qd = state(chain)
         ws = Workspace(chain)
         out = {"copies": np.empty(chain.n_dof), "own": np.empty(chain.n_dof)}
         best = {"copies": np.inf, "own": np.inf}
