@@ -37,7 +37,7 @@ test-fast: $(STAMP)
 
 .PHONY: gates
 gates: $(STAMP)
-	$(BIN)/python -m harness.gates
+	$(BIN)/python -m redysim.harness.gates
 
 # The paper's tables, one target each (reports/reproduce.py --table N).
 PAPER_TABLES := 1 2 3 4 5 6 7 8 9 10 11 A2
@@ -45,13 +45,13 @@ TABLE_TARGETS := $(addprefix table,$(PAPER_TABLES))
 .PHONY: reproduce-full $(TABLE_TARGETS)
 
 reproduce: $(STAMP)
-	$(BIN)/python -m reports.reproduce
+	$(BIN)/python -m redysim.reports.reproduce
 
 reproduce-full: $(STAMP)
-	$(BIN)/python -m reports.reproduce --full
+	$(BIN)/python -m redysim.reports.reproduce --full
 
 $(TABLE_TARGETS): table%: $(STAMP)
-	$(BIN)/python -m reports.reproduce --table $*
+	$(BIN)/python -m redysim.reports.reproduce --table $*
 
 bench: bench-core
 
@@ -66,7 +66,7 @@ bench-engines: $(STAMP)
 	@mkdir -p results/bench
 	$(BIN)/python -m pytest benchmarks/test_bench_engines.py --benchmark-only --benchmark-enable \
 		--benchmark-json=results/bench/engines.json
-	$(BIN)/python -m references.report_bench results/bench/engines.json
+	$(BIN)/python -m redysim.references.report_bench results/bench/engines.json
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

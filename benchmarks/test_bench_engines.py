@@ -4,7 +4,7 @@
 
     .venv/bin/python -m pytest benchmarks/test_bench_engines.py --benchmark-only \
         --benchmark-json=results/bench_engines.json
-    .venv/bin/python -m references.report_bench results/bench_engines.json
+    .venv/bin/python -m redysim.references.report_bench results/bench_engines.json
 
 The chain is the RE-U steel rod (20 mm links, rod inertia); the state a seeded small-angle one.
 Models are built once per module (build time is not timed here; references/limits.toml has it).
@@ -22,8 +22,7 @@ import numpy as np
 import pytest
 
 import redysim
-import references
-from redysim import Workspace
+from redysim import Workspace, references
 
 pytestmark = pytest.mark.engine
 

@@ -1,7 +1,7 @@
 """The true-error study: forward-dynamics methods against a 50-digit reference, 10..100,000 links.
 
-    .venv/bin/python -m harness.error_study [--sizes 10 100 1000] [--out results/error_study]
-    .venv/bin/python -m harness.error_study --table          # print the table of what is done
+    python -m redysim.harness.error_study [--sizes 10 100 1000] [--out results/error_study]
+    python -m redysim.harness.error_study --table     # print the table of what is done
 
 For every chain x size x configuration it computes the exact qdd of the double-precision input
 (:func:`harness.hiprec.qdd_reference`, mpmath at ``--dps`` digits, O(n)) and, beside it, every
@@ -347,7 +347,7 @@ def _engine_child(conn, name, kind, n_links, states, mem_gib):
     try:
         import resource
 
-        import references
+        from redysim import references
         cls = references.get(name)
         out["version"] = cls.package_version()
         chain = make_chain(kind, n_links)
@@ -392,7 +392,7 @@ def run_engine_job(name, kind, n_links, states, timeout_s, mem_gib) -> dict:
 def engine_precheck(name, chain) -> tuple[str, str]:
     """('refused', reason) beyond the engine's limits; ('deferred', reason) when the machine has
     not the memory now; ('', '') to run."""
-    import references
+    from redysim import references
     cls = references.get(name)
     if not cls.available():
         return "refused", f"{name}: package {cls.package!r} not installed"
@@ -632,7 +632,7 @@ def print_table(df) -> None:
 
 
 def parse_args(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m harness.error_study",
+    ap = argparse.ArgumentParser(prog="python -m redysim.harness.error_study",
                                  description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES))

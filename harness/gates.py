@@ -1,6 +1,6 @@
 """Accuracy gates: measure what ``gates.toml`` declares and check each value against its threshold.
 
-    python -m harness.gates [--only NAME ...] [--json FILE] [--strict] [--list]
+    python -m redysim.harness.gates [--only NAME ...] [--json FILE] [--strict] [--list]
 
 Every gate in ``gates.toml`` (at the repository root) names a measured quantity, the measuring
 function (a key of :data:`MEASURES`), a comparison (``<=``, ``>=``, ``==`` or ``within``), a
@@ -279,7 +279,7 @@ def _engine_errors(chain, eng, stages, states) -> dict[str, tuple[float, str]]:
 def measure_engine_agreement(gate: Gate) -> list[Measurement]:
     """One row per stage: the max relative difference engine vs core over the chains and states
     (``params``: engine; chains, stages, exclude = [[chain, stage], ...] optional)."""
-    import references
+    from redysim import references
 
     from .random_chains import engine_test_chain
 
@@ -592,7 +592,7 @@ def summary_line(rows: list[Row], seconds: float, strict: bool) -> str:
 
 # --------------------------------------------------------------------------- command line
 def parse_args(argv=None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="python -m harness.gates", description=__doc__.split(
+    ap = argparse.ArgumentParser(prog="python -m redysim.harness.gates", description=__doc__.split(
         "\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", action="append", metavar="NAME",
                     help="run only the gates named NAME (a glob such as 'engine.*'; repeatable)")

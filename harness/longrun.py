@@ -7,8 +7,8 @@ wall time so far) and the samples so far are written to ONE ``.npz`` file atomic
 fsync, ``os.replace``): a run killed at any moment, even by ``kill -9``, loses at most the work
 since the last checkpoint, and resuming continues bit for bit the same step sequence.
 
-    python -m harness.longrun RE-U50000-L1000 [--t-end 5] [--every 120] [--out DIR]
-    python -m harness.longrun RE-U50000-L1000 --status     # what the checkpoint holds, and ETA
+    python -m redysim.harness.longrun RE-U50000-L1000 [--t-end 5] [--every 120] [--out DIR]
+    python -m redysim.harness.longrun RE-U50000-L1000 --status  # what the checkpoint holds, ETA
 
 Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M.
 """
@@ -160,9 +160,10 @@ def summary(ck: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m harness.longrun",
+        prog="python -m redysim.harness.longrun",
         description="Run a case with ode45 on the core, checkpointing so that a stopped run "
-                    "resumes where it was. Example: python -m harness.longrun RE-U50000-L1000")
+                    "resumes where it was. Example: "
+                    "python -m redysim.harness.longrun RE-U50000-L1000")
     ap.add_argument("case")
     ap.add_argument("--t-end", type=float, default=None, help="horizon [s] (the case's)")
     ap.add_argument("--every", type=float, default=DEFAULT_EVERY_S,

@@ -11,6 +11,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+# The source checkout when redysim runs from one (an editable install: harness/ is a folder of
+# the repository), else the installed package's folder, where git finds nothing.
 REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("numpy", "scipy", "numba")
 
@@ -43,8 +45,9 @@ def code_digest() -> str:
     import hashlib
 
     import redysim
+    from redysim import references
     h = hashlib.sha256()
-    for root in (Path(redysim.__file__).parent, REPO / "references"):
+    for root in (Path(redysim.__file__).parent, Path(references.__file__).parent):
         for path in sorted(root.rglob("*.py")):
             h.update(path.name.encode() + b"\0" + path.read_bytes())
     return h.hexdigest()

@@ -35,7 +35,7 @@ import numpy as np
 from redysim import Workspace, forward_dynamics, tip
 from redysim.integrate import advance, make_solver, sample_times
 
-from .provenance import REPO, code_digest
+from .provenance import code_digest
 from .store import write_npz_atomic
 
 REF_METHOD = "dop853"
@@ -46,7 +46,8 @@ CHECK_RTOL = 1e-13
 
 
 def results_dir() -> Path:
-    return Path(os.environ.get("REDYSIM_RESULTS", REPO / "results"))
+    """Where results go: ``$REDYSIM_RESULTS``, else ``results/`` in the working directory."""
+    return Path(os.environ.get("REDYSIM_RESULTS") or "results")
 
 
 @dataclass

@@ -81,7 +81,7 @@ class _Dynamics:
             self.method = spec.method or "rge-a"
             self.version = ""
         else:
-            import references
+            from redysim import references
 
             cls = references.get(spec.engine)
             lim = cls.limits(case)

@@ -6,7 +6,7 @@ POSIX and Windows) and fsyncs the directory so the rename itself survives a powe
 killed mid-write (``kill -9``) leaves at most a stray temporary file, named
 ``.<name>.<random>.tmp``, which :func:`remove_temp_files` clears::
 
-    from harness.store import write_parquet_atomic, read_parquet
+    from redysim.harness.store import write_parquet_atomic, read_parquet
     write_parquet_atomic(df, "results/runs.parquet")
     df = read_parquet("results/runs.parquet")
 """

@@ -70,8 +70,7 @@ from typing import Any
 import pandas as pd
 from tqdm import tqdm
 
-import references
-from redysim import list_cases, load_case
+from redysim import list_cases, load_case, references
 from redysim.errors import CaseError, RedysimError
 from redysim.integrate import FIXED_STEP, INTEGRATORS
 

@@ -16,6 +16,7 @@ import math
 import os
 import tomllib
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -26,9 +27,10 @@ from .errors import CaseError
 from .integrate import INTEGRATORS
 from .shapes import catenary_angles
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-CASES_DIR = Path(os.environ.get("REDYSIM_CASES", REPO_ROOT / "cases"))
-PUBLISHED = REPO_ROOT / "paper" / "published.toml"
+# The case files and the paper's numbers ship as package data (the repository's cases/ and paper/
+# folders, installed as redysim.case_files and redysim.paper); REDYSIM_CASES points elsewhere.
+CASES_DIR = Path(os.environ.get("REDYSIM_CASES") or str(resources.files("redysim.case_files")))
+PUBLISHED = Path(str(resources.files("redysim.paper"))) / "published.toml"
 MAX_LINKS = 2_000_000  # 100,000-DOF cases are 50,000 links; 2e6 links is ~2 GB of workspace
 MAX_SAMPLES = 10_000_000  # t_end / sample_interval above this is a unit slip, not a plan
 # Chain fields that describe the links of a uniform chain (links = N); with [[chain.link]]

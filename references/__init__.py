@@ -5,7 +5,7 @@ Every adapter has the shape of :class:`references.base.Engine` (build from a Cas
 Importing this package imports no engine: a missing one raises :class:`EngineUnavailable`
 (naming the package) only when it is used::
 
-    import references
+    from redysim import references
     eng = references.get("mujoco")(chain)     # or references.get("mujoco").limits(case)
 """
 

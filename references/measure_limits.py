@@ -1,6 +1,6 @@
 """Measure one engine at one chain size in THIS process, guarded: build + one qdd call.
 
-    .venv/bin/python -m references.measure_limits ENGINE N_LINKS [--joint U] [--mem-gib 12]
+    .venv/bin/python -m redysim.references.measure_limits ENGINE N_LINKS [--joint U] [--mem-gib 12]
 
 Prints one JSON line: engine, links, dof, build_s, qdd_s, peak_rss_mib (growth over the
 process's peak after importing the engine), ok and error. ``--mem-gib`` caps the address space
@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
 
     import redysim
-    import references
+    from redysim import references
 
     cls = references.get(a.engine)
     cls.package_version()  # import the engine before the baseline

@@ -1,6 +1,6 @@
 """Turn a pytest-benchmark JSON of benchmarks/test_bench_engines.py into a table.
 
-    .venv/bin/python -m references.report_bench results/bench_engines.json [--markdown]
+    .venv/bin/python -m redysim.references.report_bench results/bench_engines.json [--markdown]
 
 Columns: kind (qdd or native step), engine, version, DOF, time per call, ns/DOF, and the
 ratio to the core's qdd at the same DOF. Times are each benchmark's fastest round (pytest-

@@ -1,8 +1,7 @@
 """Reports: reproductions of the paper's tables and figures, and the comparison report.
 
-Importing the package imports :mod:`harness`, which pins the BLAS libraries to one thread per
-process (see there); it must happen before numpy loads OpenBLAS, which ``python -m reports.X``
-guarantees.
+Importing the package imports :mod:`redysim.harness`, which limits BLAS to one thread per process
+(see there).
 """
 
-import harness  # noqa: F401  (pins the BLAS threads)
+from redysim import harness  # noqa: F401  (one BLAS thread per process)

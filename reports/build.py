@@ -1,6 +1,6 @@
 """The comparison report: the results on disk -> one self-contained HTML page and the same as PDF.
 
-    python -m reports.build [--results results] [--out reports/out]
+    python -m redysim.reports.build [--results results] [--out reports/out]
 
 Writes ``report.html`` (figures embedded as PNG data URIs: it opens from disk, offline) and
 ``report.pdf`` (reportlab) into ``--out``. Reads only what is on disk (:mod:`reports.results`):
@@ -26,10 +26,10 @@ from pathlib import Path
 
 import jinja2
 import pandas as pd
+from redysim.harness.provenance import provenance
+from redysim.harness.spec import CORE
 
-import references
-from harness.provenance import provenance
-from harness.spec import CORE
+from redysim import references
 from redysim.cases import CASES_DIR
 
 from . import figures as F
@@ -122,8 +122,8 @@ def headline_precision(res: Results, tables: dict[str, Table]) -> Headline:
 def headline_speed(res: Results) -> Headline:
     df = res.scaling
     if df is None or df.empty:
-        return Headline("Core speed", "not run", "python -m reports.scaling (make reproduce)",
-                        NOT_RUN)
+        return Headline("Core speed", "not run",
+                        "python -m redysim.reports.scaling (make reproduce)", NOT_RUN)
     ok = df[df["status"] == "ok"]
     core = ok[(ok["engine"] == CORE) & (ok["algorithm"] == "rge-a")].set_index("n_dof")
     if core.empty:
@@ -157,7 +157,7 @@ def headline_accuracy(res: Results) -> Headline:
     title = "True error of qdd (50-digit reference)"
     df = res.error_study
     if df is None or df.empty:
-        return Headline(title, "not run", "python -m harness.error_study (make reproduce)",
+        return Headline(title, "not run", "python -m redysim.harness.error_study (make reproduce)",
                         NOT_RUN)
     ok = df[(df["precision"] == "float64") & (df["status"] == "ok")]
     core = ok[ok["method"] == "rge-a"]
@@ -230,11 +230,12 @@ def headline_reproduction(res: Results) -> Headline:
     docs = [d for d in res.reproductions if d.get("mode") in ("quick", "full")] \
         or res.reproductions
     if not docs:
-        return Headline("Reproduction", "not recorded", "python -m reports.reproduce", INFO)
+        return Headline("Reproduction", "not recorded", "python -m redysim.reports.reproduce", INFO)
     value = "; ".join(f"{d.get('mode', '')}: {seconds(d.get('wall_s'))}" for d in docs)
     last = docs[-1]
     return Headline("Reproduction", value,
-                    f"wall time of `python -m reports.reproduce` up to the report, from empty "
+                    f"wall time of `python -m redysim.reports.reproduce` up to the report, from "
+                    f"empty "
                     f"results or resumed (last finished {last.get('finished', '')}, "
                     f"{last.get('machine', '')})", INFO)
 
@@ -328,7 +329,7 @@ def scaling_table(res: Results) -> Table:
                "ns/DOF at the largest", "slope", "stopped at", "why"])
     df = res.scaling
     if df is None or df.empty:
-        t.not_run = "not run: python -m reports.scaling (make reproduce)"
+        t.not_run = "not run: python -m redysim.reports.scaling (make reproduce)"
         return t
     sl = slopes(df)
     for label, g in df.groupby("algorithm", sort=False):
@@ -383,7 +384,7 @@ def true_error_table(res: Results, config: str = "stretched") -> Table:
               ["chain", "links", "DOF", "cond2"])
     df = res.error_study
     if df is None or df.empty:
-        t.not_run = "not run: python -m harness.error_study (make reproduce)"
+        t.not_run = "not run: python -m redysim.harness.error_study (make reproduce)"
         return t
     sel = df[(df["precision"] == "float64") & (df["config"] == config)]
     ran = sel[sel["status"].isin(["ok", "nonfinite", "failed"])]
@@ -414,7 +415,7 @@ def true_error_table(res: Results, config: str = "stretched") -> Table:
 
 
 def bench_table(res: Results) -> Table:
-    from references.report_bench import rows as bench_rows
+    from redysim.references.report_bench import rows as bench_rows
 
     t = Table("bench", "Benchmarks (pytest-benchmark): qdd per call, core vs engines",
               ["kind", "engine", "version", "DOF", "fastest per call", "ns/DOF", "x core"])
@@ -474,7 +475,7 @@ def render_html(report: Report) -> str:
 
 def write_report(results: Path, out: Path, *, log=print) -> tuple[Path, Path]:
     """Build the report from ``results`` and write HTML and PDF into ``out``."""
-    from harness.store import write_text_atomic
+    from redysim.harness.store import write_text_atomic
 
     from .pdf import write_pdf
 

@@ -19,8 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-
-from harness.spec import CORE, NATIVE  # noqa: E402
+from redysim.harness.spec import CORE, NATIVE  # noqa: E402
 
 from .content import Figure  # noqa: E402
 from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
@@ -278,7 +277,7 @@ def conditioning(ctx: Ctx) -> Figure:
     df = ctx.res.cond
     if df is None or df.empty:
         return missing("cond", "conditioning", title, caption,
-                       "not run: python -m reports.gim_study (make reproduce)")
+                       "not run: python -m redysim.reports.gim_study (make reproduce)")
     fig, axes = new_figure(1, width=PANEL_W * 1.9, height=PANEL_H * 1.35,
                            footer=provenance_line(df, what="results/gim_study/cond.parquet"))
     ax = axes[0]
@@ -309,7 +308,7 @@ def scaling(ctx: Ctx) -> Figure:
     df = ctx.res.scaling
     if df is None or df.empty:
         return missing("fig18a", "scaling", title, caption,
-                       "not run: python -m reports.scaling (make reproduce, make table6)")
+                       "not run: python -m redysim.reports.scaling (make reproduce, make table6)")
     ok = df[df["status"] == "ok"]
     sl = slopes(df)
     fig, axes = new_figure(3, width=PANEL_W * 3.1, height=PANEL_H * 1.3,
@@ -452,7 +451,7 @@ def true_error(ctx: Ctx, config: str = "stretched") -> Figure:
     df = ctx.res.error_study
     if df is None or df.empty:
         return missing(fid, "true-error", title, caption,
-                       "not run: python -m harness.error_study (make reproduce)")
+                       "not run: python -m redysim.harness.error_study (make reproduce)")
     sel = df[(df["precision"] == "float64") & (df["config"] == config)
              & (df["status"] == "ok")]
     chains = sorted(set(sel["chain"]))

@@ -1,6 +1,6 @@
 """The GIM of the paper's chains: Table 9 and the condition number against the number of links.
 
-    python -m reports.gim_study [--out results/gim_study] [--max-links 1000]
+    python -m redysim.reports.gim_study [--out results/gim_study] [--max-links 1000]
 
 Table 9: the 3-link study chain's GIM, cond2, phi and qdd at the state of ``STUDY-R3-TABLE9``
 (DESIGN.md section 2), in double precision, beside the published values.
@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from redysim.harness.provenance import provenance
+from redysim.harness.store import write_json_atomic, write_parquet_atomic
 
-from harness.provenance import provenance
-from harness.store import write_json_atomic, write_parquet_atomic
 from redysim import (
     Chain,
     forward_dynamics,

@@ -1,6 +1,6 @@
 """Operation counts of our kernels (Table 7): multiplications/divisions and additions/subtractions.
 
-    python -m reports.opcount [--out results/opcount]
+    python -m redysim.reports.opcount [--out results/opcount]
 
 Counted, not estimated: each kernel's own Python source (``kernel.py_func``, the function numba
 compiles; :func:`redysim.precision.kernel_source`) runs on object arrays of :class:`Count`, a float
@@ -30,9 +30,9 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+from redysim.harness.provenance import provenance
+from redysim.harness.store import write_json_atomic
 
-from harness.provenance import provenance
-from harness.store import write_json_atomic
 from redysim import Chain, mass_matrix, phi
 from redysim._kernels.elimination import ge_n
 from redysim._kernels.planar import planar_forward_dynamics

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from redysim.harness.spec import CORE
 
-from harness.spec import CORE
 from redysim import load_published
 
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Row, Table

@@ -1,6 +1,6 @@
 """Paper-vs-ours tables of the reduced-precision study: Tables 10, A.2 and 11, and IEEE precisions.
 
-    python -m reports.precision_tables [--out DIR] [--max-links N] [--no-ieee] [--no-table8]
+    python -m redysim.reports.precision_tables [--out DIR] [--max-links N] [--no-ieee] [--no-table8]
 
 Prints each table beside the paper's values (paper/published.toml) with a verdict per value and a
 count of matches, and writes them as CSV and JSON to ``results/precision/`` (atomically). Table 8
@@ -47,8 +47,7 @@ from redysim import (
 from redysim.cases import CASES_DIR
 from redysim.precision import ieee_qdd, reduced_factors, reduced_qdd
 
-REPO = Path(__file__).resolve().parents[1]
-DEFAULT_OUT = REPO / "results" / "precision"
+DEFAULT_OUT = Path("results") / "precision"
 METHOD_KEYS = {"GE-N": "ge-n", "RGE-N": "rge-n", "RGE-A": "rge-a"}
 TABLE11_SIZES = (5, 10, 20, 40, 60, 80, 100)
 IEEE_SIZES = (3, 5, 10, 20, 40, 60, 80, 100)

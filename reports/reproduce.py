@@ -1,9 +1,9 @@
 """Reproduce the paper: run what the comparison report needs, then build it (``make reproduce``).
 
-    python -m reports.reproduce                 # quick: 8 min of CPU, under 15 min on 2 cores
-    python -m reports.reproduce --full          # every table to the paper's horizons: hours
-    python -m reports.reproduce --table 4 --table 9   # only what those tables need
-    python -m reports.reproduce --build-only    # rebuild the report from the results on disk
+    python -m redysim.reports.reproduce                 # quick: minutes
+    python -m redysim.reports.reproduce --full          # every table to the paper's horizons: hours
+    python -m redysim.reports.reproduce --table 4 --table 9   # only what those tables need
+    python -m redysim.reports.reproduce --build-only    # rebuild the report from the results
 
 Options: ``--results DIR`` (default ``results``; also where reference solutions are cached),
 ``--out DIR`` (the report, default ``reports/out``), ``--workers N`` (sweep processes, default
@@ -43,8 +43,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.provenance import REPO, provenance
-from harness.store import write_json_atomic
+from redysim.harness.provenance import REPO, provenance
+from redysim.harness.store import write_json_atomic
 
 QUICK = "quick"
 FULL = "full"
@@ -108,7 +108,7 @@ class Reproduction:
             udu_factors(chain, q)
 
     def sweep(self, name: str) -> str:
-        from harness.sweep import load_sweep, run_sweep
+        from redysim.harness.sweep import load_sweep, run_sweep
 
         sw = load_sweep(SWEEPS / f"{name}.toml")
         runs = run_sweep(sw.specs, self.results / "sweeps" / sw.name, name=sw.name,
@@ -122,7 +122,8 @@ class Reproduction:
         """Table 5: each huge chain to the paper's horizon as a checkpointed long run
         (:mod:`harness.longrun`, under the results folder): stopped at any point, it resumes
         from its last checkpoint."""
-        from harness import longrun
+        from redysim.harness import longrun
+
         from redysim import load_published
 
         done = []
@@ -165,7 +166,7 @@ class Reproduction:
 
     def error_study(self, sizes: tuple[int, ...] | None) -> str:
         try:
-            from harness import error_study
+            from redysim.harness import error_study
         except ImportError as exc:
             return f"skipped: harness.error_study is not available ({exc})"
         log = self.results / LOG_DIR / "error_study.log"

@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from redysim.harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
+from redysim.harness.longrun import SAMPLE_FIELDS as LONGRUN_SAMPLE_FIELDS
+from redysim.harness.run import DEFAULT_SAMPLES
+from redysim.harness.spec import CORE
+from redysim.harness.store import parquet_files, read_parquet
+from redysim.harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
 
-from harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
-from harness.longrun import SAMPLE_FIELDS as LONGRUN_SAMPLE_FIELDS
-from harness.run import DEFAULT_SAMPLES
-from harness.spec import CORE
-from harness.store import parquet_files, read_parquet
-from harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
 from redysim.cases import CASES_DIR
 
 SWEEPS_DIR = "sweeps"
@@ -143,7 +143,7 @@ class Results:
                 "h": 0.0, "t_end": t_end, "sample": case_sample_interval(case),
                 "status": "ok" if done else PARTIAL,
                 "reason": "" if done else (f"checkpoint at t = {t:.4g} of {t_end:g} s: "
-                                           f"python -m harness.longrun {case} resumes it"),
+                                           f"python -m redysim.harness.longrun {case} resumes it"),
                 "steps": int(ck["steps"]), "rejected": int(ck["rejected"]),
                 "nfev": int(ck["nfev"]), "cpu_s": float(ck["cpu_s"]),
                 "wall_s": float(ck["wall_s"]), "peak_rss_mib": float(ck["peak_rss_mib"]),

@@ -1,6 +1,7 @@
 """CPU time of one qdd call against the number of DOF, per engine and algorithm (Fig. 18).
 
-    python -m reports.scaling [--out results/scaling] [--max-dof 100000] [--budget quick|full]
+    python -m redysim.reports.scaling [--out results/scaling] [--max-dof 100000]
+                                      [--budget quick|full]
 
 The chain is the RE-U steel rod (l = 0.02 m, rod inertia) at a seeded small-angle state, as in
 ``benchmarks/test_bench_engines.py``. Per algorithm (the core's RGE-A, GE-N and RGE-N, and every
@@ -31,12 +32,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import psutil
+from redysim.harness.provenance import provenance
+from redysim.harness.spec import CORE
+from redysim.harness.store import write_parquet_atomic
 
-import references
-from harness.provenance import provenance
-from harness.spec import CORE
-from harness.store import write_parquet_atomic
-from redysim import Chain, Workspace, __version__, forward_dynamics
+from redysim import Chain, Workspace, __version__, forward_dynamics, references
 
 DEFAULT_OUT = Path("results") / "scaling"
 OUT_FILE = "scaling.parquet"

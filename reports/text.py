@@ -8,9 +8,8 @@ from collections.abc import Iterable, Mapping
 from decimal import Decimal
 
 import pandas as pd
-
-from harness.provenance import provenance
-from harness.spec import CORE
+from redysim.harness.provenance import provenance
+from redysim.harness.spec import CORE
 
 PROVENANCE_KEYS = ("redysim", "git_commit", "python", "numpy", "scipy", "numba", "machine", "cpu",
                    "date")

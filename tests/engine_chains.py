@@ -6,7 +6,7 @@ harness.gates``) compare the engines on exactly the chains and states these test
 
 from __future__ import annotations
 
-from harness.random_chains import (  # noqa: F401
+from redysim.harness.random_chains import (  # noqa: F401
     engine_test_chain,
     random_chain,
     random_link,

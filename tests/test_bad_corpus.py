@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from redysim.harness.run import execute
+from redysim.harness.spec import RunSpec
 
-from harness.run import execute
-from harness.spec import RunSpec
 from redysim import (
     CaseError,
     Chain,

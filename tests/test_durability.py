@@ -18,14 +18,11 @@ import types
 import numpy as np
 import pandas as pd
 import pytest
-
-import references
-import references.base
-from harness import gates
-from harness.reference import compute_reference, reference_path
-from harness.run import execute
-from harness.spec import RunSpec
-from harness.store import (
+from redysim.harness import gates
+from redysim.harness.reference import compute_reference, reference_path
+from redysim.harness.run import execute
+from redysim.harness.spec import RunSpec
+from redysim.harness.store import (
     TEMP_PREFIX,
     TEMP_SUFFIX,
     read_json,
@@ -33,7 +30,8 @@ from harness.store import (
     write_json_atomic,
     write_parquet_atomic,
 )
-from redysim import load_case
+
+from redysim import load_case, references
 
 SHORT = dict(t_end=0.2, sample=0.05)  # STUDY-R3, 4 samples after t = 0
 FAIL_AFTER_CALLS = 40  # a mid-run failure: after the first samples are taken
@@ -231,7 +229,7 @@ def test_the_gates_json_is_written_atomically_and_is_valid_json(tmp_path, monkey
         calls.append(path)
         return real(obj, path)
 
-    monkeypatch.setattr("harness.store.write_json_atomic", spy)
+    monkeypatch.setattr("redysim.harness.store.write_json_atomic", spy)
     assert gates.main(["--only", "table9.cond2", "--json", str(out)]) == gates.EXIT_OK
     assert calls == [str(out)]
     doc = json.loads(out.read_text())  # strict JSON: no NaN

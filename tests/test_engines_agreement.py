@@ -21,7 +21,7 @@ import pytest
 from engine_chains import random_chain, random_state
 
 import redysim
-import references
+from redysim import references
 
 pytestmark = pytest.mark.engine
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from redysim.references.base import Engine, EngineLimitExceeded, EngineUnavailable
 
 import redysim
-import references
-from references.base import Engine, EngineLimitExceeded, EngineUnavailable
+from redysim import references
 
 pytestmark = pytest.mark.engine
 

@@ -11,8 +11,7 @@ import time
 
 import numpy as np
 import pytest
-
-from harness.longrun import CHECKPOINT, load_checkpoint, run
+from redysim.harness.longrun import CHECKPOINT, load_checkpoint, run
 
 # Long enough (about 2,200 steps) that a kill landing within a few milliseconds of the first
 # checkpoint (written after 0.02 s of wall time) leaves most of the run undone even on a fast,
@@ -24,8 +23,8 @@ CASE, T_END = "RE-U125-L1", 0.5
 def test_kill_9_then_resume_is_bit_identical(tmp_path):
     whole = run(CASE, t_end=T_END, every_s=1e9, out=tmp_path / "whole", log=lambda m: None)
     out = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "harness.longrun", CASE, "--t-end", str(T_END),
-                             "--every", "0.02", "--out", str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "redysim.harness.longrun", CASE,
+                             "--t-end", str(T_END), "--every", "0.02", "--out", str(out)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
     deadline = time.monotonic() + 120
@@ -51,7 +50,7 @@ def test_a_checkpoint_for_other_settings_is_not_silently_reused(tmp_path):
 
 
 def test_a_checkpoint_written_by_other_code_is_not_resumed(tmp_path, monkeypatch):
-    import harness.longrun as longrun
+    import redysim.harness.longrun as longrun
     run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
     monkeypatch.setattr(longrun, "code_digest", lambda: "0" * 64)
     with pytest.raises(SystemExit, match="written by other code"):

@@ -18,6 +18,12 @@ import math
 
 import numpy as np
 import pytest
+from redysim.reports.precision_tables import (
+    printed_decimals,
+    sig_decimals,
+    table9_horizontal,
+    verdict,
+)
 
 from redysim import (
     Chain,
@@ -40,7 +46,6 @@ from redysim.precision import (
     reduced_qdd,
     rounded_type,
 )
-from reports.precision_tables import printed_decimals, sig_decimals, table9_horizontal, verdict
 
 PUB = load_published()
 T10 = PUB["table10"]["rows"]

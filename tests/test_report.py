@@ -15,21 +15,21 @@ import re
 
 import pandas as pd
 import pytest
+from redysim.harness import longrun
+from redysim.harness.provenance import provenance
+from redysim.harness.spec import RunSpec
+from redysim.harness.store import write_parquet_atomic
+from redysim.harness.sweep import run_sweep
+from redysim.reports import figures as F
+from redysim.reports import gim_study, opcount, scaling
+from redysim.reports import precision_tables as pt
+from redysim.reports.build import build_report, render_html, write_report
+from redysim.reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
+from redysim.reports.pdf import write_pdf
+from redysim.reports.results import Results
+from redysim.reports.text import provenance_line
 
-from harness import longrun
-from harness.provenance import provenance
-from harness.spec import RunSpec
-from harness.store import write_parquet_atomic
-from harness.sweep import run_sweep
 from redysim import load_published
-from reports import figures as F
-from reports import gim_study, opcount, scaling
-from reports import precision_tables as pt
-from reports.build import build_report, render_html, write_report
-from reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
-from reports.pdf import write_pdf
-from reports.results import Results
-from reports.text import provenance_line
 
 pypdf = pytest.importorskip("pypdf")
 

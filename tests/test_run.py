@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from redysim.harness import reference as ref_mod
+from redysim.harness.run import SAMPLE_COLUMNS, execute
+from redysim.harness.spec import RunSpec
 
-from harness import reference as ref_mod
-from harness.run import SAMPLE_COLUMNS, execute
-from harness.spec import RunSpec
 from redysim import energy, load_case
 
 
@@ -141,7 +141,7 @@ def test_the_run_id_of_an_unperturbed_run_leaves_the_new_field_out():
     import json
     from dataclasses import asdict
 
-    from harness.provenance import code_digest
+    from redysim.harness.provenance import code_digest
 
     spec = RunSpec(case="STUDY-R3", t_end=0.2)
     old = {k: v for k, v in asdict(spec).items() if k != "perturb"}

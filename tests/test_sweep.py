@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-
-from harness.spec import RunSpec
-from harness.store import (
+from redysim.harness.cli import main
+from redysim.harness.spec import RunSpec
+from redysim.harness.store import (
     TEMP_PREFIX,
     TEMP_SUFFIX,
     parquet_files,
@@ -24,7 +24,7 @@ from harness.store import (
     remove_temp_files,
     write_parquet_atomic,
 )
-from harness.sweep import (
+from redysim.harness.sweep import (
     DIED,
     PLAN_FILE,
     RUNS_DIR,
@@ -38,7 +38,6 @@ from harness.sweep import (
     load_sweep,
     run_sweep,
 )
-from redysim.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable
@@ -223,7 +222,7 @@ def test_sweep_killed_with_sigkill_resumes_without_duplicates(tmp_path):
         """)
     planned = [s.run_id for s in load_sweep(path).specs]
     out = tmp_path / "out"
-    cmd = [PYTHON, "-m", "redysim.cli", "sweep", str(path), "--out", str(out), "--workers",
+    cmd = [PYTHON, "-m", "redysim.harness.cli", "sweep", str(path), "--out", str(out), "--workers",
            str(workers), "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=REPO, env=subprocess_env(), start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -341,7 +340,7 @@ def test_collect_orders_by_plan_and_ignores_unplanned_and_partial_runs(tmp_path)
 WRITER = """
 import sys
 import numpy as np, pandas as pd
-from harness.store import write_parquet_atomic
+from redysim.harness.store import write_parquet_atomic
 n = int(sys.argv[2])
 df = pd.DataFrame({"i": np.arange(n), "x": np.sin(np.arange(n)), "version": 0})
 version = 0
@@ -427,5 +426,5 @@ def test_cli_help_and_cases(capsys):
 
 
 def test_cli_import_does_not_import_pandas():
-    code = "import sys, redysim.cli; assert 'pandas' not in sys.modules, 'pandas imported'"
+    code = "import sys, redysim.harness.cli; assert 'pandas' not in sys.modules, 'pandas imported'"
     subprocess.run([PYTHON, "-c", code], cwd=REPO, env=subprocess_env(), check=True, timeout=60)

@@ -38,7 +38,8 @@ Implementation notes:
   twist-rate c_k (kinematics with ``local_rates``) and its velocity-product wrench, accumulated in
   the articulated body's bias p_k = eta_k + (biases): phihat_k = tau_k - P_k^T p_{k,k+1} is then
   formed without the cancellation (6.2e-16 on straight chains at every size up to 100,000 links,
-  4.4e-13 at 100,000 random U-links; ``python -m harness.error_study --table``). Same factors,
+  4.4e-13 at 100,000 random U-links; ``python -m redysim.harness.error_study --table``). Same
+  factors,
   same operation count to within a 6 x 6 product per link; with t = c = 0 and tau = phi the
   passes are Table A.1 as printed (``redysim.precision`` runs them so for the paper's tables).
 - The running quantities stay in scalars (measured 2-5x faster here than reading them back

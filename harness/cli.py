@@ -13,9 +13,9 @@ import sys
 import tomllib
 from pathlib import Path
 
-from .cases import CASES_DIR, list_cases, load_case
-from .errors import RedysimError
-from .integrate import FIXED_STEP, INTEGRATORS
+from redysim.cases import CASES_DIR, list_cases, load_case
+from redysim.errors import RedysimError
+from redysim.integrate import FIXED_STEP, INTEGRATORS
 
 PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
@@ -90,8 +90,9 @@ def _workers(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
-    import references
-    from harness.spec import CORE, CORE_METHODS, NATIVE, RunSpec
+    from redysim.harness.spec import CORE, CORE_METHODS, NATIVE, RunSpec
+
+    from redysim import references
 
     positive, nonnegative = _number(True), _number(False)
     fmt = argparse.RawDescriptionHelpFormatter
@@ -154,8 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
 # --------------------------------------------------------------------------- commands
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``redysim simulate``: one run, printed."""
-    from harness.run import execute
-    from harness.spec import NATIVE, RunSpec
+    from redysim.harness.run import execute
+    from redysim.harness.spec import NATIVE, RunSpec
 
     if args.case not in list_cases() and not Path(args.case).is_file():
         raise FileNotFoundError(f"no case named {args.case!r} and no such file; "
@@ -171,8 +172,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     print_run(res.summary, res.samples)
     if args.out is not None:
         import pandas as pd
-
-        from harness.store import write_parquet_atomic
+        from redysim.harness.store import write_parquet_atomic
 
         summary_path = args.out.with_suffix(".summary.parquet")
         write_parquet_atomic(res.samples, args.out)
@@ -208,8 +208,8 @@ def print_run(summary: dict, samples) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
-    from harness.store import parquet_files
-    from harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
+    from redysim.harness.store import parquet_files
+    from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
 
     sweep = load_sweep(args.sweep_file)
     out = args.out or DEFAULT_SWEEP_ROOT / sweep.name
