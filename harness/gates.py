@@ -43,6 +43,8 @@ from typing import Any
 
 import numpy as np
 
+from redysim.errors import FieldError
+
 from .provenance import REPO, provenance
 
 GATES_FILE = REPO / "gates.toml"
@@ -66,12 +68,8 @@ ENGINE_STATES = (("spread", 0), ("straight", 0))
 ENGINE_STAGES = ("gim", "phi", "qdd")
 
 
-class GatesError(ValueError):
+class GatesError(FieldError):
     """A malformed gates file: the message reads ``<file>: <gate>.<field> = <value>: <problem>``."""
-
-    def __init__(self, source: str, field_name: str, value, problem: str):
-        shown = field_name if value is None else f"{field_name} = {value!r}"
-        super().__init__(f"{source}: {shown}: {problem}")
 
 
 class Skip(Exception):

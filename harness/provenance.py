@@ -36,6 +36,35 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+# OpenBLAS's x86-64 kernels (OPENBLAS_CORETYPE), each with the CPU flags it needs
+OPENBLAS_CORETYPES = (
+    ("Prescott", ("pni",)),  # SSE3: every x86-64 CPU since 2005
+    ("Nehalem", ("sse4_2",)),
+    ("Sandybridge", ("avx",)),
+    ("Haswell", ("avx2", "fma")),
+    ("SkylakeX", ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl")),
+)
+
+
+@functools.cache
+def cpu_flags() -> frozenset[str]:
+    """The processor's feature flags (Linux /proc/cpuinfo; empty elsewhere)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                return frozenset(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return frozenset()
+
+
+def openblas_coretypes() -> list[str]:
+    """The OPENBLAS_CORETYPE values this CPU can run, oldest kernel first (for checking that a
+    result does not depend on which one OpenBLAS picked)."""
+    flags = cpu_flags()
+    return [name for name, needs in OPENBLAS_CORETYPES if flags.issuperset(needs)]
+
+
 @functools.cache
 def code_digest() -> str:
     """SHA-256 of the code a result depends on: every ``.py`` of the core (``redysim/``: the

@@ -71,7 +71,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from redysim import list_cases, load_case, references
-from redysim.errors import CaseError, RedysimError
+from redysim.errors import CaseError, FieldError
 from redysim.integrate import FIXED_STEP, INTEGRATORS
 
 from .run import execute
@@ -113,16 +113,8 @@ DASK_KEY_PREFIX = "redysim-run-"
 DIED = "worker process died (out of memory, a crash in native code, or a signal)"
 
 
-class SweepError(RedysimError, ValueError):
+class SweepError(FieldError):
     """A sweep file is malformed: ``<file>: <field> = <value>: <what is wrong>``."""
-
-    def __init__(self, source: str, field: str, value: Any, problem: str):
-        self.source = source
-        self.field = field
-        self.value = value
-        self.problem = problem
-        shown = field if value is None else f"{field} = {value!r}"
-        super().__init__(f"{source}: {shown}: {problem}")
 
 
 @dataclass(frozen=True)

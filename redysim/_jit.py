@@ -20,6 +20,11 @@ import numba
 
 OPTIONS = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 jit = numba.njit(**OPTIONS)
+# IEEE arithmetic as written: no FMA fusion either, so that every result is the same on every
+# x86-64 CPU (with or without FMA units, whatever its SIMD width). For what must be reproducible
+# bit for bit: the integrators' stage sums, whose last bits steer the step-size control.
+STRICT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
+jit_strict = numba.njit(**STRICT_OPTIONS)
 
 
 def inline(func):

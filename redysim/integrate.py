@@ -40,6 +40,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._kernels.rk import combine, error_norm
+from .errors import SettingsError
+
 # --------------------------------------------------------------------------- controller constants
 SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
 MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
@@ -49,6 +52,12 @@ HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
 HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
 FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
 SAMPLE_EPS = 1e-12      # relative slack when matching sample times
+
+# --------------------------------------------------------------------------- settings' ranges
+RTOL_MIN = 100 * float(np.finfo(float).eps)  # ode45 raises a smaller rtol to this (MATLAB)
+MAX_T_END = 1e6        # s: a horizon of 11.6 days of simulated time is a unit slip, not a plan
+MAX_SAMPLES = 10_000_000  # t_end / sample interval: ~1 GB of samples; more is a unit slip
+MAX_FIXED_STEPS = 100_000_000  # t_end / h of a fixed-step run: a step too small for its span
 
 
 # --------------------------------------------------------------------------- tableaux
@@ -135,6 +144,73 @@ TABLEAUS = {t.name: t for t in (DP45, DOP853, RK4)}
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 INTEGRATORS = (*TABLEAUS, *(f"scipy-{m}" for m in SCIPY_METHODS))
 FIXED_STEP = ("rk4",)
+ADAPTIVE = tuple(m for m in INTEGRATORS if m not in FIXED_STEP)
+
+
+def check_settings(source: str = "integrate", names: dict[str, str] | None = None, *,
+                   method: str | None = None, rtol: float | None = None,
+                   atol: float | None = None, h: float | None = None,
+                   t_end: float | None = None, sample: float | None = None,
+                   extra_methods: tuple[str, ...] = ()) -> None:
+    """Raise :class:`~redysim.errors.SettingsError` unless the given run settings make sense.
+
+    The one place that says what an integrator, a tolerance, a step, a horizon and a sample
+    interval may be; case files, run specs, sweep files and the command line all call it.
+    ``names`` renames fields in the message (``{"rtol": "--rtol"}``); ``None`` skips a setting.
+
+    - ``method``: one of :data:`INTEGRATORS` (or ``extra_methods``).
+    - ``rtol``: ``RTOL_MIN <= rtol < 1`` (MATLAB's ode45 floor is 100 eps; a relative tolerance
+      of 100 % controls nothing). ``atol``: finite and > 0.
+    - ``h``: finite and > 0; a step belongs to a fixed-step method only (an adaptive method
+      chooses its own), and ``t_end / h <= MAX_FIXED_STEPS``.
+    - ``t_end``: ``0 < t_end <= MAX_T_END``; ``sample``: > 0, ``t_end / sample <= MAX_SAMPLES``.
+    """
+    names = names or {}
+
+    def fail(field, value, problem):
+        raise SettingsError(source, names.get(field, field), value, problem)
+
+    def number(field, value):
+        if isinstance(value, bool) or not isinstance(value, int | float | np.floating
+                                                    | np.integer):
+            fail(field, value, "must be a number")
+        if not math.isfinite(value):
+            fail(field, value, "must be finite")
+        return float(value)
+
+    if method is not None and method not in INTEGRATORS + extra_methods:
+        fail("integrator", method, f"unknown integrator; known: "
+                                   f"{', '.join(INTEGRATORS + extra_methods)}")
+    if rtol is not None:
+        rtol = number("rtol", rtol)
+        if not RTOL_MIN <= rtol < 1.0:
+            fail("rtol", rtol, f"must be at least {RTOL_MIN:.3g} (100 eps: below it the error "
+                               "test only measures rounding) and below 1 (a relative tolerance "
+                               "of 100 % controls nothing)")
+    if atol is not None and not number("atol", atol) > 0:
+        fail("atol", atol, "must be > 0")
+    if t_end is not None:
+        t_end = number("t_end", t_end)
+        if not 0 < t_end <= MAX_T_END:
+            fail("t_end", t_end, f"must be > 0 and at most {MAX_T_END:g} s (11.6 days of "
+                                 "simulated time; more is a unit slip, not a plan)")
+    if sample is not None:
+        sample = number("sample", sample)
+        if not sample > 0:
+            fail("sample", sample, "must be > 0")
+        if t_end is not None and t_end / sample > MAX_SAMPLES:
+            fail("sample", sample, f"gives {t_end / sample:.3g} samples over t_end = {t_end:g} "
+                                   f"s; at most {MAX_SAMPLES:,}")
+    if h is not None:
+        h = number("h", h)
+        if not h > 0:
+            fail("h", h, "must be > 0")
+        if method is not None and method in ADAPTIVE:
+            fail("h", h, f"is the step of a fixed-step integrator ({', '.join(FIXED_STEP)}); "
+                         f"{method} chooses its own steps from rtol and atol")
+        if t_end is not None and t_end / h > MAX_FIXED_STEPS:
+            fail("h", h, f"gives {t_end / h:.3g} steps over t_end = {t_end:g} s; at most "
+                         f"{MAX_FIXED_STEPS:,}")
 
 
 class IntegrationError(RuntimeError):
@@ -195,6 +271,8 @@ class Solver:
         y0 = np.array(y0, dtype=float)
         self.n = y0.size
         self.K = np.empty((self.tab.stages + (1 if self.tab.fsal else 0), self.n))
+        self._err = np.empty(self.n)  # the error estimates' scratch
+        self._err3 = np.empty(self.n)
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
         if state is not None:
             self.t, self.y, self.f = state.t, state.y.copy(), state.f.copy()
@@ -238,27 +316,26 @@ class Solver:
 
     # ----------------------------------------------------------------------- the stepping kernel
     def _stages(self, t, y, f, h) -> np.ndarray:
-        """K[0..s-1] (and K[s] = f(t + h, y_new) for FSAL schemes); returns y_new."""
+        """K[0..s-1] (and K[s] = f(t + h, y_new) for FSAL schemes); returns y_new.
+
+        The stage sums y + h sum_j a_ij K_j are taken in a fixed order, without BLAS
+        (:mod:`redysim._kernels.rk`): a step is the same on every CPU."""
         tab, K = self.tab, self.K
         K[0] = f
         for i in range(1, tab.stages):
-            K[i] = self._call(t + tab.c[i] * h, y + h * (tab.A[i, :i] @ K[:i]))
-        y_new = y + h * (tab.b @ K[:tab.stages])
+            K[i] = self._call(t + tab.c[i] * h, combine(y, h, tab.A[i], K, i, np.empty(self.n)))
+        y_new = combine(y, h, tab.b, K, tab.stages, np.empty(self.n))
         if tab.fsal:
             K[tab.stages] = self._call(t + h, y_new)
         return y_new
 
     def _error(self, h, y, y_new) -> float:
-        """The max-norm error of ode45, relative to rtol's scale (accept when <= rtol)."""
-        tab, K = self.tab, self.K
-        scale = np.maximum(np.maximum(np.abs(y), np.abs(y_new)), self._threshold())
-        err = tab.E @ K
-        if tab.E3 is not None:  # DOP853: err5 * |err5| / hypot(err5, 0.1 err3), componentwise
-            err3 = tab.E3 @ K
-            denom = np.hypot(err, 0.1 * err3)
-            nz = denom > 0
-            err[nz] *= np.abs(err[nz]) / denom[nz]
-        return abs(h) * float(np.max(np.abs(err) / scale))
+        """The max-norm error of ode45, relative to rtol's scale (accept when <= rtol); DOP853's
+        estimate is err5 |err5| / hypot(err5, 0.1 err3), componentwise."""
+        tab = self.tab
+        E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
+        return float(error_norm(h, tab.E, E3, self.K, tab.E.size, y, y_new, self._threshold(),
+                                self._err, self._err3))
 
     def step(self, t_stop: float | None = None) -> None:
         """Take one accepted step (retrying rejected ones); stop no later than ``t_stop``."""
@@ -323,9 +400,13 @@ class Solver:
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         h = self.t - self.t_old
         s = (ts - self.t_old) / h
-        if self.tab is DP45:
-            S = np.vstack([s, s**2, s**3, s**4])          # (4, m)
-            return self.y_old + h * (NTRP45_BI @ S).T @ self.K
+        if self.tab is DP45:  # y_old + h sum_j (BI_j . [s, s^2, s^3, s^4]) K_j, per time
+            out = np.empty((s.size, self.n))
+            for i, si in enumerate(s.tolist()):
+                w = [((b[0] * si + b[1] * si ** 2) + b[2] * si ** 3) + b[3] * si ** 4
+                     for b in _NTRP45_ROWS]
+                combine(self.y_old, h, np.array(w), self.K, len(w), out[i])
+            return out
         if self.tab is DOP853:
             return self._dense_dop853(h, s)
         # rk4: its steps land on the sample times; in between, cubic Hermite
@@ -338,13 +419,15 @@ class Solver:
             Kx[:self.K.shape[0]] = self.K
             for i, (a, c) in enumerate(zip(d["A_extra"], d["C_extra"], strict=True)):
                 j = self.K.shape[0] + i
-                Kx[j] = self._call(self.t_old + c * h, self.y_old + h * (a[:j] @ Kx[:j]))
+                Kx[j] = self._call(self.t_old + c * h,
+                                   combine(self.y_old, h, a, Kx, j, np.empty(self.n)))
             dy = self.y - self.y_old
             F = np.empty((7, self.n))
             F[0] = dy
             F[1] = h * Kx[0] - dy
             F[2] = 2 * dy - h * (self.f + Kx[0])
-            F[3:] = h * (d["D"] @ Kx)
+            for r, weights in enumerate(d["D"]):
+                combine(_NO_WEIGHTS, h, weights, Kx, Kx.shape[0], F[3 + r])
             self._dense_K = F
         F = self._dense_K
         x = s[:, None]
@@ -353,6 +436,10 @@ class Solver:
             y += fi
             y *= x if i % 2 == 0 else (1 - x)
         return y + self.y_old
+
+
+_NO_WEIGHTS = np.empty(0)
+_NTRP45_ROWS = NTRP45_BI.tolist()
 
 
 def _hermite(y0, f0, y1, f1, h, s):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -109,6 +111,12 @@ def denoc_gim(chain: Chain, q) -> np.ndarray:
 def rel(a, b) -> float:
     """max |a - b| / max |b| (max-norm relative difference)."""
     return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b)))
+
+
+def stable_seed(*parts) -> int:
+    """A seed from ``parts`` that is the same in every process (Python's ``hash`` of a string
+    is randomised per process, so a failing chain could not be built again)."""
+    return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:8], "little")
 
 
 @pytest.fixture

