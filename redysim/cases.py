@@ -12,6 +12,8 @@ Every bad value raises :class:`~redysim.errors.CaseError` naming the file, the f
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 import tomllib
@@ -24,7 +26,13 @@ import numpy as np
 
 from .chain import Chain, Joint, Link, check_inertia, check_positive, check_vector
 from .errors import CaseError
-from .integrate import INTEGRATORS
+from .integrate import (
+    DEFAULT_ATOL,
+    DEFAULT_METHOD,
+    DEFAULT_RTOL,
+    FIXED_STEP,
+    check_settings,
+)
 from .shapes import catenary_angles
 
 # The case files and the paper's numbers ship as package data (the repository's cases/ and paper/
@@ -32,7 +40,11 @@ from .shapes import catenary_angles
 CASES_DIR = Path(os.environ.get("REDYSIM_CASES") or str(resources.files("redysim.case_files")))
 PUBLISHED = Path(str(resources.files("redysim.paper"))) / "published.toml"
 MAX_LINKS = 2_000_000  # 100,000-DOF cases are 50,000 links; 2e6 links is ~2 GB of workspace
-MAX_SAMPLES = 10_000_000  # t_end / sample_interval above this is a unit slip, not a plan
+DEFAULT_SAMPLES = 20  # samples over the horizon when the case gives no sample_interval
+# A revolute joint's angle [rad] beyond which float64 resolves it no better than ~1e-10 rad
+# (spacing(1e6) = 1.2e-10): larger initial angles are a unit slip, and at 1e16 an angle no
+# longer moves under a step (the run then ends "ok" with the chain frozen).
+MAX_ANGLE = 1e6
 # Chain fields that describe the links of a uniform chain (links = N); with [[chain.link]]
 # entries each link gives its own, and these would be ignored, so they are refused.
 UNIFORM_ONLY = ("link_length", "total_length", "link_mass", "total_mass", "linear_density",
@@ -44,13 +56,20 @@ _FIELDS = {
               "linear_density", "density", "radius", "inertia", "com", "gravity", "link"},
     "link": {"length", "mass", "radius", "inertia", "com", "joint", "axis"},
     "initial": {"q", "qd", "shape", "dX"},
-    "simulation": {"t_end", "integrator", "rtol", "atol", "sample_interval", "note"},
+    "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval", "note"},
 }
 
 
 @dataclass(frozen=True, eq=False)
 class Case:
-    """A loaded case: the chain, its initial state, and what the paper ran and published."""
+    """A loaded case: the chain, its initial state, its run settings, and what the paper ran and
+    published.
+
+    ``integrator``, ``rtol``, ``atol``, ``h`` and ``sample_interval`` are the ``[simulation]``
+    table's, or the defaults (ode45, 1e-4, 1e-6, no step, t_end / 20); ``simulation`` is the
+    table as written. ``digest``: SHA-256 of the file's bytes (of the document, for a case built
+    from a dict), so that results computed from another version of the file are never reused.
+    """
 
     name: str
     path: Path
@@ -62,6 +81,12 @@ class Case:
     simulation: dict[str, Any] = field(default_factory=dict)
     paper_tables: tuple[str, ...] = ()
     paper_row: str | None = None
+    integrator: str = DEFAULT_METHOD
+    rtol: float = DEFAULT_RTOL
+    atol: float = DEFAULT_ATOL
+    h: float | None = None
+    sample_interval: float = 0.0
+    digest: str = ""
 
     def published(self) -> dict[str, Any]:
         """The published.toml entries this case is compared with: {table: entry or matching row}."""
@@ -94,33 +119,62 @@ def list_cases(directory: Path = CASES_DIR) -> list[str]:
     return sorted(p.stem for p in Path(directory).glob("*.toml"))
 
 
-def _resolve(name_or_path: str | os.PathLike) -> Path:
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists() or os.sep in str(name_or_path):
-        if not p.exists():
-            raise FileNotFoundError(f"case file {str(p)!r} does not exist")
-        return p
-    candidate = CASES_DIR / f"{name_or_path}.toml"
-    if candidate.exists():
-        return candidate
-    known = ", ".join(list_cases())
-    raise FileNotFoundError(f"no case named {name_or_path!r} in {CASES_DIR}; known cases: {known}")
+def is_case_name(name_or_path: str | os.PathLike) -> bool:
+    """True for the name of a built-in case (no folder, no ``.toml``), False for a path."""
+    text = os.fspath(name_or_path)
+    return not (isinstance(name_or_path, os.PathLike) or text.endswith(".toml") or os.sep in text
+                or (os.altsep is not None and os.altsep in text))
+
+
+def case_path(name_or_path: str | os.PathLike) -> Path:
+    """The file of a case: a name without a folder or ``.toml`` (``"RE-U125-L1"``) is a built-in
+    case and nothing else, so a file of that name in the working directory never replaces it; a
+    path (``cases/mine.toml``, ``./mine``) is that file. Raises FileNotFoundError or CaseError."""
+    if not isinstance(name_or_path, str | os.PathLike):
+        raise CaseError("load_case", "name_or_path", name_or_path,
+                        "must be a case name (a string) or the path of a case file")
+    text = os.fspath(name_or_path)
+    if not isinstance(text, str) or not text.strip():
+        raise CaseError("load_case", "name_or_path", text, "must not be empty: give a case name "
+                        "or the path of a case file")
+    if is_case_name(name_or_path):
+        candidate = Path(CASES_DIR) / f"{text}.toml"
+        if candidate.is_file():
+            return candidate
+        hint = (f"; the file {text!r} in this directory is not read as a case unless you give "
+                f"its path, ./{text}" if Path(text).exists() else "")
+        raise FileNotFoundError(f"no case named {text!r} in {CASES_DIR}{hint}; known cases: "
+                                f"{', '.join(list_cases())}")
+    p = Path(text)
+    if p.is_dir():
+        raise CaseError(str(p), "<file>", None, "is a folder, not a case file")
+    if not p.is_file():
+        raise FileNotFoundError(f"case file {text!r} does not exist")
+    return p
+
+
+def file_digest(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def load_case(name_or_path: str | os.PathLike) -> Case:
-    """Load a case by name (``"RE-U125-L1"``, from ``cases/``) or by the path of a TOML file."""
-    path = _resolve(name_or_path)
+    """Load a case by name (``"RE-U125-L1"``, from ``cases/``) or by the path of a TOML file
+    (see :func:`case_path`)."""
+    path = case_path(name_or_path)
     src = str(path)
     try:
         with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+            raw = fh.read()
+        doc = tomllib.loads(raw.decode("utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(src, "<toml syntax>", None, str(exc)) from None
-    except UnicodeDecodeError as exc:  # tomllib decodes the bytes as UTF-8 first
+    except UnicodeDecodeError as exc:  # a case file is UTF-8 text
         raise CaseError(src, "<toml syntax>", None,
                         f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
                         f"{exc.start})") from None
-    return case_from_dict(doc, source=src, path=path)
+    return case_from_dict(doc, source=src, path=path,
+                          digest=hashlib.sha256(raw).hexdigest())
 
 
 # --------------------------------------------------------------------------- parsing
@@ -297,8 +351,12 @@ def _vector_spec(spec, n, source, name) -> np.ndarray:
                     "must be a number, a list of n numbers or {fill, set, unit}")
 
 
-def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = None) -> Case:
-    """Build a :class:`Case` from a parsed TOML document (see the module docstring)."""
+def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = None,
+                   digest: str | None = None) -> Case:
+    """Build a :class:`Case` from a parsed TOML document (see the module docstring).
+
+    ``digest``: the SHA-256 of the file the document was read from (:func:`load_case` gives
+    it); by default, that of the document itself (its JSON, keys sorted)."""
     if not isinstance(doc, dict):
         raise CaseError(source, "<top>", type(doc).__name__, "a case is a table (a parsed TOML "
                         "document, a dict)")
@@ -355,6 +413,9 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
             raise CaseError(source, "initial.dX", dX, f"must not exceed the chain's length {total}")
         if not np.allclose(chain.length, chain.length[0]):
             raise CaseError(source, "initial.shape", "catenary", "needs links of equal length")
+        if chain.n_links == 1 and dX < total * (1 - 1e-12):
+            raise CaseError(source, "initial.dX", dX, f"a chain of one link spans only its own "
+                            f"length {total}: a catenary start needs at least two links")
         try:
             q0 = catenary_angles(chain.n_links, total, min(dX, total))
         except ValueError:  # the root finder's bracket holds no catenary this flat
@@ -365,26 +426,42 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
             raise CaseError(source, "initial.q", init["q"], "give either shape or q, not both")
     else:
         q0 = _vector_spec(init.get("q", 0.0), n, source, "initial.q")
+        angles = np.abs(q0) * (chain.dof_kind == 0)  # revolute DOFs only
+        if angles.max() > MAX_ANGLE:
+            j = int(np.argmax(angles))
+            raise CaseError(source, f"initial.q[{j}]", float(q0[j]),
+                            f"a joint angle beyond {MAX_ANGLE:g} rad is a unit slip: float64 "
+                            f"resolves it only to {math.ulp(float(q0[j])):.3g} rad")
     qd0 = _vector_spec(init.get("qd", 0.0), n, source, "initial.qd")
 
     sim = _table(doc, "simulation", source, required=False)
     _no_unknown(sim, _FIELDS["simulation"], source, "simulation")
-    t_end = check_positive(source, "simulation.t_end", _require(sim, "t_end", source, "simulation"))
-    for key in ("rtol", "atol", "sample_interval"):
-        if key in sim:
-            check_positive(source, f"simulation.{key}", sim[key])
-    if sim.get("rtol", 0.0) >= 1.0:
-        raise CaseError(source, "simulation.rtol", sim["rtol"],
-                        "must be < 1 (a relative tolerance of 100 % controls nothing)")
-    if "sample_interval" in sim and t_end / sim["sample_interval"] > MAX_SAMPLES:
-        raise CaseError(source, "simulation.sample_interval", sim["sample_interval"],
-                        f"gives {t_end / sim['sample_interval']:.3g} samples over t_end = {t_end}; "
-                        f"at most {MAX_SAMPLES:,}")
-    if "integrator" in sim and sim["integrator"] not in INTEGRATORS:
-        raise CaseError(source, "simulation.integrator", sim["integrator"],
-                        f"unknown integrator; known: {', '.join(INTEGRATORS)}")
+    t_end = _require(sim, "t_end", source, "simulation")
+    integrator = sim.get("integrator", DEFAULT_METHOD)
+    fixed = integrator in FIXED_STEP
+    names = {k: f"simulation.{k}" for k in ("integrator", "rtol", "atol", "h", "t_end")}
+    names["sample"] = "simulation.sample_interval"
+    check_settings(source, names, method=integrator, t_end=t_end,
+                   rtol=sim.get("rtol"), atol=sim.get("atol"), h=sim.get("h"),
+                   sample=sim.get("sample_interval"), error=CaseError)
+    if fixed and "h" not in sim:
+        raise CaseError(source, "simulation.h", None,
+                        f"missing field: integrator {integrator!r} is fixed-step and needs h")
+    if fixed and ("rtol" in sim or "atol" in sim):
+        key = "rtol" if "rtol" in sim else "atol"
+        raise CaseError(source, f"simulation.{key}", sim[key],
+                        f"applies to adaptive integrators; {integrator!r} steps at h")
+    t_end = float(t_end)
     q0.flags.writeable = False
     qd0.flags.writeable = False
+    if digest is None:
+        digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()
     return Case(name=name, path=path or Path(source), chain=chain, q0=q0, qd0=qd0, t_end=t_end,
                 description=str(meta.get("description", "")), simulation=dict(sim),
-                paper_tables=tables, paper_row=row)
+                paper_tables=tables, paper_row=row, integrator=integrator,
+                rtol=float(sim.get("rtol", DEFAULT_RTOL)),
+                atol=float(sim.get("atol", DEFAULT_ATOL)),
+                h=float(sim["h"]) if "h" in sim else None,
+                sample_interval=min(float(sim.get("sample_interval", t_end / DEFAULT_SAMPLES)),
+                                    t_end),
+                digest=digest)

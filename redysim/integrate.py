@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._kernels.rk import combine, error_norm
-from .errors import SettingsError
+from .errors import FieldError, SettingsError
 
 # --------------------------------------------------------------------------- controller constants
 SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
@@ -144,6 +144,7 @@ TABLEAUS = {t.name: t for t in (DP45, DOP853, RK4)}
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 INTEGRATORS = (*TABLEAUS, *(f"scipy-{m}" for m in SCIPY_METHODS))
 FIXED_STEP = ("rk4",)
+DEFAULT_METHOD, DEFAULT_RTOL, DEFAULT_ATOL = "ode45", 1e-4, 1e-6  # the paper's ode45 settings
 ADAPTIVE = tuple(m for m in INTEGRATORS if m not in FIXED_STEP)
 
 
@@ -151,8 +152,10 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
                    method: str | None = None, rtol: float | None = None,
                    atol: float | None = None, h: float | None = None,
                    t_end: float | None = None, sample: float | None = None,
-                   extra_methods: tuple[str, ...] = ()) -> None:
-    """Raise :class:`~redysim.errors.SettingsError` unless the given run settings make sense.
+                   extra_methods: tuple[str, ...] = (),
+                   error: type[FieldError] = SettingsError) -> None:
+    """Raise ``error`` (:class:`~redysim.errors.SettingsError` unless a caller names another
+    :class:`~redysim.errors.FieldError`) unless the given run settings make sense.
 
     The one place that says what an integrator, a tolerance, a step, a horizon and a sample
     interval may be; case files, run specs, sweep files and the command line all call it.
@@ -168,7 +171,7 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
     names = names or {}
 
     def fail(field, value, problem):
-        raise SettingsError(source, names.get(field, field), value, problem)
+        raise error(source, names.get(field, field), value, problem)
 
     def number(field, value):
         if isinstance(value, bool) or not isinstance(value, int | float | np.floating
@@ -183,10 +186,11 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
                                    f"{', '.join(INTEGRATORS + extra_methods)}")
     if rtol is not None:
         rtol = number("rtol", rtol)
-        if not RTOL_MIN <= rtol < 1.0:
-            fail("rtol", rtol, f"must be at least {RTOL_MIN:.3g} (100 eps: below it the error "
-                               "test only measures rounding) and below 1 (a relative tolerance "
-                               "of 100 % controls nothing)")
+        if not rtol < 1.0:
+            fail("rtol", rtol, "must be < 1 (a relative tolerance of 100 % controls nothing)")
+        if not rtol >= RTOL_MIN:
+            fail("rtol", rtol, f"must be at least {RTOL_MIN:.3g} (100 eps, ode45's floor: "
+                               "below it the error test measures only rounding)")
     if atol is not None and not number("atol", atol) > 0:
         fail("atol", atol, "must be > 0")
     if t_end is not None:

@@ -25,19 +25,17 @@ from __future__ import annotations
 import functools
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from redysim.cases import load_case
 from redysim.harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
 from redysim.harness.longrun import SAMPLE_FIELDS as LONGRUN_SAMPLE_FIELDS
-from redysim.harness.run import DEFAULT_SAMPLES
 from redysim.harness.spec import CORE
 from redysim.harness.store import parquet_files, read_parquet
 from redysim.harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
-
-from redysim.cases import CASES_DIR
 
 SWEEPS_DIR = "sweeps"
 PRECISION_DIR = "precision"
@@ -65,23 +63,19 @@ def _parquet(path: Path) -> pd.DataFrame | None:
 
 
 @functools.cache
-def _case_simulation(case: str) -> dict:
-    """A case file's [simulation] table, read from its TOML: loading the chain of a 50,000-link
-    case takes half a minute, its TOML a millisecond."""
-    path = Path(case) if case.endswith(".toml") else CASES_DIR / f"{case}.toml"
-    with open(path, "rb") as fh:
-        return tomllib.load(fh)["simulation"]
+def _case(case: str):
+    """A loaded case (cached: the report asks about each case many times)."""
+    return load_case(case)
 
 
 def case_horizon(case: str) -> float:
     """A case's own t_end [s] (what a run with t_end = 0 runs to)."""
-    return float(_case_simulation(case)["t_end"])
+    return _case(case).t_end
 
 
 def case_sample_interval(case: str) -> float:
-    """A case's own sample interval [s] (as harness.run: t_end / 20 when the case has none)."""
-    sim = _case_simulation(case)
-    return float(sim.get("sample_interval", sim["t_end"] / DEFAULT_SAMPLES))
+    """A case's own sample interval [s] (its file's, else t_end / 20, as a run takes it)."""
+    return _case(case).sample_interval
 
 
 class Results:

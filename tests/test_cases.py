@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from redysim import joint_positions, list_cases, load_case, load_published
+from redysim import CaseError, joint_positions, list_cases, load_case, load_published
+from redysim.cases import CASES_DIR
 
 ALL = list_cases()
 
@@ -55,27 +56,82 @@ def test_catenary_initial_shape(dX):
     chain = case.chain
     assert chain.is_planar and chain.n_links == 229
     assert math.isclose(chain.total_mass, 0.0208, rel_tol=1e-12)
-    P = joint_positions(chain, case.q0)
-    assert np.allclose(P[0], 0.0)
-    # the far end is at (dX, 0) up to the chord-vs-arc shortening of 229 links (a few microns)
-    assert np.hypot(P[-1, 0] - dX, P[-1, 1]) < 1e-5
     if dX == 1.02:
         assert np.array_equal(case.q0, np.zeros(229))
+    _check_on_one_catenary(chain, case.q0, dX)
+    P = joint_positions(chain, case.q0)
+    assert np.allclose(P[:, 1], P[::-1, 1], atol=1e-12)  # symmetric about the middle
+    if dX != 1.02:
+        assert P[:, 1].min() < -0.25  # sagging below the X axis
+        # the catenary of the chain's own arc length, its joints at equal arc length (the
+        # paper's wording; their chords are shorter than the links): within microns of ours
+        u = _solve_u(1.02 / dX)
+        a = dX / (2 * u)
+        s = np.linspace(0, 1.02, 230)
+        xs = dX / 2 + a * np.arcsinh(s / a - math.sinh(u))
+        ys = a * np.cosh((xs - dX / 2) / a) - a * math.cosh(u)
+        assert np.max(np.hypot(P[:, 0] - xs, P[:, 1] - ys)) < 1e-5
+
+
+def _check_on_one_catenary(chain, q, dX):
+    """The chain starts at (0, 0), ends exactly at (dX, 0), and every joint lies on one catenary
+    y = a cosh((x - dX/2)/a) - a cosh(dX/(2a)) (a from the lowest joint, by bisection)."""
+    P = joint_positions(chain, q)
+    assert np.allclose(P[0], 0.0, atol=0)
+    assert np.hypot(P[-1, 0] - dX, P[-1, 1]) < 1e-12
+    if np.all(q == 0):
         return
-    # every joint lies on the catenary y = a cosh((x - dX/2)/a) - a cosh(dX/(2a)) with arc 1.02
-    u = _solve_u(1.02 / dX)
-    a = dX / (2 * u)
-    # Links keep their length l while following chords (slightly shorter than l), so joints drift
-    # off the curve by at most the summed chord deficit sum(l - chord): bound them by it.
-    s = np.linspace(0, 1.02, 230)
-    xs = dX / 2 + a * np.arcsinh(s / a - math.sinh(u))
-    ys = a * np.cosh((xs - dX / 2) / a) - a * math.cosh(u)
-    deficit = np.sum(1.02 / 229 - np.hypot(np.diff(xs), np.diff(ys)))
-    assert 0 < deficit < 1e-5
-    assert np.max(np.hypot(P[:, 0] - xs, P[:, 1] - ys)) <= 2 * deficit
-    # symmetric about the middle, sagging below the X axis
-    assert np.allclose(P[:, 1], P[::-1, 1], atol=1e-5)
-    assert P[:, 1].min() < -0.25
+    m = dX / 2
+
+    def curve(x, a):
+        return a * np.cosh((x - m) / a) - a * np.cosh(m / a)
+
+    k = int(np.argmin(P[:, 1]))
+    lo, hi = 1e-3 * dX, 1e3 * dX  # curve(x_k, a) falls as a shrinks (a deeper sag)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if curve(P[k, 0], mid) < P[k, 1] else (lo, mid)
+    assert np.max(np.abs(curve(P[:, 0], lo) - P[:, 1])) < 1e-12 * max(1.0, dX)
+
+
+@pytest.mark.parametrize("n_links", [2, 3, 4, 10, 57])
+def test_a_catenary_start_of_any_number_of_links_spans_dX(n_links, tmp_path):
+    """Few links hang on the catenary as exactly as many: the end at (dX, 0), every joint on the
+    curve (equal arc-length placement, which the links' chords cannot follow, ended 37 mm short
+    with 2 links)."""
+    text = CATENARY.format(links=n_links, dX=0.6)
+    case = load_case(_write(tmp_path, text))
+    _check_on_one_catenary(case.chain, case.q0, 0.6)
+
+
+def test_a_catenary_start_of_one_link_is_refused(tmp_path):
+    path = _write(tmp_path, CATENARY.format(links=1, dX=0.6))
+    with pytest.raises(CaseError, match=r"initial.dX = 0.6: .*one link"):
+        load_case(path)
+    assert np.array_equal(load_case(_write(tmp_path, CATENARY.format(links=1, dX=1.0))).q0, [0.0])
+
+
+CATENARY = """
+[case]
+name = "catenary"
+[chain]
+links = {links}
+total_length = 1.0
+total_mass = 0.1
+radius = 0.001
+joint = "R"
+[initial]
+shape = "catenary"
+dX = {dX}
+[simulation]
+t_end = 0.1
+"""
+
+
+def _write(tmp_path, text, name="case.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
 
 
 def _solve_u(ratio):
@@ -91,3 +147,31 @@ def test_table9_state():
     case = load_case("STUDY-R3-TABLE9")
     np.testing.assert_allclose(case.q0, [math.pi / 3, 0, 0], rtol=1e-15)
     assert np.array_equal(case.qd0, np.zeros(3))
+
+
+def test_a_file_named_like_a_case_never_replaces_it(tmp_path, monkeypatch):
+    """An extensionless file or a folder called STUDY-R3 in the working directory is not read
+    in place of the built-in case (it was, silently, with the same run id); its path is."""
+    monkeypatch.chdir(tmp_path)
+    text = (CASES_DIR / "STUDY-R3.toml").read_text().replace("links = 3", "links = 4")
+    (tmp_path / "STUDY-R3").write_text(text)
+    assert load_case("STUDY-R3").chain.n_links == 3
+    assert load_case("./STUDY-R3").chain.n_links == 4
+    (tmp_path / "STUDY-R5").mkdir()
+    assert load_case("STUDY-R5").chain.n_links == 5
+    (tmp_path / "MINE").write_text(text)
+    with pytest.raises(FileNotFoundError, match=r"no case named 'MINE'.*give its path, ./MINE"):
+        load_case("MINE")
+
+
+@pytest.mark.parametrize("bad, fragment", [(5, "must be a case name"), ("", "must not be empty"),
+                                           ("   ", "must not be empty"), (None, "must be")])
+def test_load_case_names_a_bad_argument(bad, fragment):
+    with pytest.raises(CaseError, match=fragment) as err:
+        load_case(bad)
+    assert err.value.field == "name_or_path"
+
+
+def test_a_folder_given_as_a_case_file_is_named(tmp_path):
+    with pytest.raises(CaseError, match="is a folder, not a case file"):
+        load_case(str(tmp_path) + "/")

@@ -37,7 +37,7 @@ from redysim import (
     phi,
 )
 from redysim.chain import JOINT_TYPES
-from redysim.integrate import INTEGRATORS
+from redysim.integrate import DEFAULT_ATOL, DEFAULT_RTOL, FIXED_STEP, INTEGRATORS
 
 EPS = float(np.finfo(float).eps)
 PARSER_EXAMPLES = 150
@@ -108,10 +108,14 @@ def valid_cases(draw):
     q_spec, q = draw(state_specs(n))
     qd_spec, qd = draw(state_specs(n))
     t_end = draw(_pos(1e-3, 100))
-    rtol = draw(_pos(1e-12, 0.5))
-    sim = {"t_end": t_end, "rtol": rtol, "atol": draw(_pos(1e-14, 1.0)),
-           "integrator": draw(st.sampled_from(INTEGRATORS)),
+    integrator = draw(st.sampled_from(INTEGRATORS))
+    sim = {"t_end": t_end, "integrator": integrator,
            "sample_interval": t_end / draw(st.integers(1, 1000))}
+    if integrator in FIXED_STEP:  # a step, no tolerances
+        sim["h"] = t_end / draw(st.integers(1, 10_000))
+    else:
+        sim["rtol"] = draw(_pos(1e-12, 0.5))
+        sim["atol"] = draw(_pos(1e-14, 1.0))
     doc = {"case": {"name": draw(st.text(min_size=1, max_size=12)),
                     "paper": {"tables": ["study_chains"]}},
            "chain": chain, "initial": {"q": q_spec, "qd": qd_spec}, "simulation": sim}
@@ -135,6 +139,11 @@ def test_valid_case_dicts_load_and_keep_their_values(case_and_expected):
     np.testing.assert_allclose(case.qd0, exp["qd"], rtol=1e-15)
     assert case.t_end == exp["t_end"]
     assert case.simulation == doc["simulation"]
+    sim = doc["simulation"]
+    assert case.integrator == sim["integrator"]
+    assert (case.rtol, case.atol, case.h) == (sim.get("rtol", DEFAULT_RTOL),
+                                              sim.get("atol", DEFAULT_ATOL), sim.get("h"))
+    assert case.sample_interval == sim["sample_interval"]
     assert np.all(np.isfinite(chain.inertia_O))
     assert not case.q0.flags.writeable and not case.qd0.flags.writeable
 
