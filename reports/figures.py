@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+
 from redysim.harness.spec import CORE, NATIVE  # noqa: E402
 
 from .content import Figure  # noqa: E402

@@ -23,8 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from redysim.harness.provenance import provenance
-from redysim.harness.store import write_json_atomic, write_parquet_atomic
 
 from redysim import (
     Chain,
@@ -35,6 +33,8 @@ from redysim import (
     phi,
     udu_factors,
 )
+from redysim.harness.provenance import provenance
+from redysim.harness.store import write_json_atomic, write_parquet_atomic
 
 DEFAULT_OUT = Path("results") / "gim_study"
 TABLE9_FILE = "table9.json"

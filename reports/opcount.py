@@ -30,13 +30,13 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
-from redysim.harness.provenance import provenance
-from redysim.harness.store import write_json_atomic
 
 from redysim import Chain, mass_matrix, phi
 from redysim._kernels.elimination import ge_n
 from redysim._kernels.planar import planar_forward_dynamics
 from redysim._kernels.rge_a import rge_a_forward_dynamics
+from redysim.harness.provenance import provenance
+from redysim.harness.store import write_json_atomic
 from redysim.precision import kernel_source
 
 DEFAULT_OUT = Path("results") / "opcount"

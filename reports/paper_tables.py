@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from redysim.harness.spec import CORE
 
 from redysim import load_published
+from redysim.harness.spec import CORE
 
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Row, Table
 from .precision_tables import printed_decimals, sig_decimals, verdict

@@ -7,7 +7,6 @@ import io
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from redysim.harness.store import TEMP_PREFIX, TEMP_SUFFIX
 from reportlab.lib import colors
 from reportlab.lib.enums import TA_LEFT
 from reportlab.lib.pagesizes import A4, landscape
@@ -24,6 +23,8 @@ from reportlab.platypus import (
     TableStyle,
 )
 from reportlab.platypus import Table as RLTable
+
+from redysim.harness.store import TEMP_PREFIX, TEMP_SUFFIX
 
 from .content import DIFFER, MATCH, NOT_RUN, PARTIAL, Figure, Headline, Report, Table
 

@@ -122,9 +122,8 @@ class Reproduction:
         """Table 5: each huge chain to the paper's horizon as a checkpointed long run
         (:mod:`harness.longrun`, under the results folder): stopped at any point, it resumes
         from its last checkpoint."""
-        from redysim.harness import longrun
-
         from redysim import load_published
+        from redysim.harness import longrun
 
         done = []
         for row in load_published()["table5"]["rows"]:  # one at a time: each holds one core

@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import psutil
+
+from redysim import Chain, Workspace, __version__, forward_dynamics, references
 from redysim.harness.provenance import provenance
 from redysim.harness.spec import CORE
 from redysim.harness.store import write_parquet_atomic
-
-from redysim import Chain, Workspace, __version__, forward_dynamics, references
 
 DEFAULT_OUT = Path("results") / "scaling"
 OUT_FILE = "scaling.parquet"

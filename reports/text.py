@@ -8,6 +8,7 @@ from collections.abc import Iterable, Mapping
 from decimal import Decimal
 
 import pandas as pd
+
 from redysim.harness.provenance import provenance
 from redysim.harness.spec import CORE
 

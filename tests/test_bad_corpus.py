@@ -11,8 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from redysim.harness.run import execute
-from redysim.harness.spec import RunSpec
 
 from redysim import (
     CaseError,
@@ -26,6 +24,8 @@ from redysim import (
     phi,
     tip,
 )
+from redysim.harness.run import execute
+from redysim.harness.spec import RunSpec
 
 CORPUS = Path(__file__).with_name("bad_inputs")
 CASE_FILES = sorted((CORPUS / "cases").glob("*.toml"))

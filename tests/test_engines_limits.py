@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from redysim.references.base import Engine, EngineLimitExceeded, EngineUnavailable
 
 import redysim
 from redysim import references
+from redysim.references.base import Engine, EngineLimitExceeded, EngineUnavailable
 
 pytestmark = pytest.mark.engine
 

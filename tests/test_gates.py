@@ -11,10 +11,10 @@ import time
 
 import pytest
 import test_engines_agreement
-from redysim.harness import gates
 
 import redysim
 from redysim import references
+from redysim.harness import gates
 
 GATES = gates.load_gates()
 BY_NAME = {g.name: g for g in GATES}

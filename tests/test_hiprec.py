@@ -14,11 +14,11 @@ import mpmath
 import numpy as np
 import pytest
 from conftest import random_chain, random_state
+
+from redysim import forward_dynamics, mass_matrix, phi
 from redysim.harness import hiprec
 from redysim.harness.error_study import make_chain, make_state, rge_a_on_phi
 from redysim.harness.nonsymmetric import literal_rge_a
-
-from redysim import forward_dynamics, mass_matrix, phi
 
 
 def mp_rel(a, b) -> float:

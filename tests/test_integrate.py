@@ -9,8 +9,8 @@ import sys
 
 import numpy as np
 import pytest
-from redysim.harness.provenance import openblas_coretypes
 
+from redysim.harness.provenance import openblas_coretypes
 from redysim.integrate import (
     DOP853,
     DP45,

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+
 from redysim.harness.longrun import CHECKPOINT, load_checkpoint, run
 
 # Long enough (about 2,200 steps) that a kill landing within a few milliseconds of the first

@@ -18,12 +18,6 @@ import math
 
 import numpy as np
 import pytest
-from redysim.reports.precision_tables import (
-    printed_decimals,
-    sig_decimals,
-    table9_horizontal,
-    verdict,
-)
 
 from redysim import (
     Chain,
@@ -45,6 +39,12 @@ from redysim.precision import (
     reduced_factors,
     reduced_qdd,
     rounded_type,
+)
+from redysim.reports.precision_tables import (
+    printed_decimals,
+    sig_decimals,
+    table9_horizontal,
+    verdict,
 )
 
 PUB = load_published()

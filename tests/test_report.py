@@ -15,6 +15,8 @@ import re
 
 import pandas as pd
 import pytest
+
+from redysim import load_published
 from redysim.harness import longrun
 from redysim.harness.provenance import provenance
 from redysim.harness.spec import RunSpec
@@ -28,8 +30,6 @@ from redysim.reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
 from redysim.reports.pdf import write_pdf
 from redysim.reports.results import Results
 from redysim.reports.text import provenance_line
-
-from redysim import load_published
 
 pypdf = pytest.importorskip("pypdf")
 
