@@ -9,16 +9,16 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
-import tomllib
 from pathlib import Path
 
 from redysim.cases import CASES_DIR, list_cases, load_case
-from redysim.errors import RedysimError
-from redysim.integrate import FIXED_STEP, INTEGRATORS
+from redysim.errors import RedysimError, SettingsError
+from redysim.integrate import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL, INTEGRATORS
 
 PROG = "redysim"
-EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 DEFAULT_SWEEP_ROOT = Path("results") / "sweeps"  # redysim sweep's --out default: <root>/<name>
 MAX_FAILED_SHOWN = 20  # failed runs listed after a sweep
 
@@ -64,18 +64,16 @@ example:
   redysim cases"""
 
 
-def _number(minimum_exclusive: bool):
-    """An argparse type: a float > 0 (``minimum_exclusive``) or >= 0."""
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not (value > 0 if minimum_exclusive else value >= 0):
-            raise argparse.ArgumentTypeError(
-                f"{text!r} must be {'> 0' if minimum_exclusive else '>= 0'}")
-        return value
-    return parse
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0 (the ranges of each setting are checked later, by
+    the run's settings check, which names the flag)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return value
 
 
 def _workers(text: str) -> int:
@@ -90,11 +88,9 @@ def _workers(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
+    from redysim import references
     from redysim.harness.spec import CORE, CORE_METHODS, NATIVE, RunSpec
 
-    from redysim import references
-
-    positive, nonnegative = _number(True), _number(False)
     fmt = argparse.RawDescriptionHelpFormatter
     ap = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION, formatter_class=fmt)
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -110,24 +106,30 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default=RunSpec.method, choices=CORE_METHODS, metavar="M",
                      help=f"the core's algorithm: {', '.join(CORE_METHODS)}; rge-a is O(n) "
                           f"(default: {RunSpec.method})")
-    sim.add_argument("--integrator", default=RunSpec.integrator,
-                     choices=(*INTEGRATORS, NATIVE), metavar="I",
+    sim.add_argument("--integrator", choices=(*INTEGRATORS, NATIVE), metavar="I",
                      help=f"{', '.join((*INTEGRATORS, NATIVE))}; adaptive ones take "
                           f"--rtol/--atol, rk4 and native (an engine's own stepper) take --h "
-                          f"(default: {RunSpec.integrator})")
-    sim.add_argument("--rtol", type=positive, metavar="R", default=RunSpec.rtol,
-                     help=f"relative tolerance (default: {RunSpec.rtol:g})")
-    sim.add_argument("--atol", type=positive, metavar="A", default=RunSpec.atol,
-                     help=f"absolute tolerance (default: {RunSpec.atol:g})")
-    sim.add_argument("--h", type=positive, metavar="H", default=RunSpec.h,
-                     help="step [s] of a fixed-step integrator")
-    sim.add_argument("--t-end", type=nonnegative, metavar="T", default=RunSpec.t_end,
+                          f"(default: the case file's, else {DEFAULT_METHOD})")
+    sim.add_argument("--rtol", type=positive, metavar="R",
+                     help=f"relative tolerance of an adaptive integrator, in [100 eps, 1) "
+                          f"(default: the case file's, else {DEFAULT_RTOL:g})")
+    sim.add_argument("--atol", type=positive, metavar="A",
+                     help=f"absolute tolerance of an adaptive integrator (default: the case "
+                          f"file's, else {DEFAULT_ATOL:g})")
+    sim.add_argument("--h", type=positive, metavar="H",
+                     help="step [s] of a fixed-step integrator (rk4, native); adaptive "
+                          "integrators choose their own steps and refuse one")
+    sim.add_argument("--t-end", type=positive, metavar="T",
                      help="horizon [s] (default: the case's)")
-    sim.add_argument("--sample", type=nonnegative, metavar="S", default=RunSpec.sample,
+    sim.add_argument("--sample", type=positive, metavar="S",
                      help="sample interval [s] (default: the case's)")
-    sim.add_argument("--out", type=Path, metavar="FILE.parquet",
-                     help="also save the samples to FILE.parquet and the summary row to "
-                          "FILE.summary.parquet")
+    sim.add_argument("--max-wall", type=positive, metavar="S",
+                     help="stop the run after S seconds of wall time, keeping its samples so "
+                          "far (default: no limit; a run longer than a few seconds prints its "
+                          "progress on stderr)")
+    sim.add_argument("--out", type=Path, metavar="FILE.parquet|FILE.csv",
+                     help="also save the samples to FILE and the summary row to "
+                          "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
     sim.set_defaults(func=cmd_simulate)
 
     sw = sub.add_parser("sweep", description=SWEEP_HELP, formatter_class=fmt,
@@ -144,6 +146,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "2-worker cluster on this machine")
     sw.add_argument("--no-progress", dest="progress", action="store_false",
                     help="no progress bar")
+    sw.add_argument("--retry-failed", action="store_true",
+                    help="run the failed runs again too (without it, only runs whose worker "
+                         "died or raised are run again: the others fail the same way)")
     sw.set_defaults(func=cmd_sweep)
 
     cs = sub.add_parser("cases", description=CASES_HELP, formatter_class=fmt,
@@ -153,30 +158,61 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # --------------------------------------------------------------------------- commands
+# simulate's flags by the RunSpec field they set (in a refusal's message)
+FLAGS = {"integrator": "--integrator", "rtol": "--rtol", "atol": "--atol", "h": "--h",
+         "t_end": "--t-end", "sample": "--sample"}
+OUT_SUFFIXES = (".parquet", ".csv")
+SOURCE = "command line"  # where a bad flag came from, in its message
+
+
+def _check_out(out: Path) -> None:
+    """--out must name a file (.parquet or .csv) in an existing folder: checked before the run,
+    so that a long run is never lost to a bad path."""
+    if out.is_dir():
+        raise SettingsError(SOURCE, "--out", str(out), "is a folder; give a file name in it")
+    if out.suffix not in OUT_SUFFIXES:
+        raise SettingsError(SOURCE, "--out", str(out), f"must end in {' or '.join(OUT_SUFFIXES)} "
+                            "(the format is chosen by the suffix)")
+    if not out.parent.is_dir():
+        raise SettingsError(SOURCE, "--out", str(out), f"its folder {str(out.parent)!r} does not "
+                            "exist")
+
+
+def _save(df, path: Path) -> None:
+    from redysim.harness.store import write_csv_atomic, write_parquet_atomic
+
+    (write_csv_atomic if path.suffix == ".csv" else write_parquet_atomic)(df, path)
+
+
+def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
+    """A progress line on stderr: simulated time, steps, wall time, time to go."""
+    rate = t / wall if wall > 0 else 0.0
+    to_go = f", about {(t_end - t) / rate:,.0f} s to go" if rate > 0 else ""
+    print(f"{PROG}: t = {t:.6g} of {t_end:g} s, {steps:,} steps, {wall:,.0f} s{to_go}",
+          file=sys.stderr, flush=True)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``redysim simulate``: one run, printed."""
     from redysim.harness.run import execute
-    from redysim.harness.spec import NATIVE, RunSpec
+    from redysim.harness.spec import RunSpec
 
-    if args.case not in list_cases() and not Path(args.case).is_file():
-        raise FileNotFoundError(f"no case named {args.case!r} and no such file; "
-                                f"`{PROG} cases` lists the cases")
-    load_case(args.case)  # a malformed case file is bad input (exit 2), not a failed run
-    if args.integrator in (*FIXED_STEP, NATIVE) and not args.h:
-        raise RedysimError(f"--integrator {args.integrator} is fixed-step: give its step, "
-                           "e.g. --h 1e-3")
+    case = load_case(args.case)  # a missing or malformed case is bad input (exit 2)
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
-                   integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
-                   t_end=args.t_end, sample=args.sample)
-    res = execute(spec)
+                   integrator=args.integrator or "", rtol=args.rtol or 0.0,
+                   atol=args.atol or 0.0, h=args.h or 0.0, t_end=args.t_end or 0.0,
+                   sample=args.sample or 0.0, max_wall_s=args.max_wall or 0.0)
+    spec.resolved(case, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
+    if args.out is not None:
+        _check_out(args.out)
+    res = execute(spec, progress=_report_progress)
     print_run(res.summary, res.samples)
     if args.out is not None:
         import pandas as pd
-        from redysim.harness.store import write_parquet_atomic
 
-        summary_path = args.out.with_suffix(".summary.parquet")
-        write_parquet_atomic(res.samples, args.out)
-        write_parquet_atomic(pd.DataFrame([res.summary]), summary_path)
+        summary_path = args.out.with_suffix(".summary" + args.out.suffix)
+        _save(res.samples, args.out)
+        _save(pd.DataFrame([res.summary]), summary_path)
         print(f"saved: {args.out} (samples), {summary_path} (summary)")
     if res.summary["status"] != "ok":
         print(f"{PROG}: run failed: {res.summary['reason']}", file=sys.stderr)
@@ -213,6 +249,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     sweep = load_sweep(args.sweep_file)
     out = args.out or DEFAULT_SWEEP_ROOT / sweep.name
+    if out.exists() and not out.is_dir():
+        raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
+                            "folder")
     done = parquet_files(out / RUNS_DIR).keys() & {s.run_id for s in sweep.specs}
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
@@ -220,10 +259,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; "
           f"running the rest on {where}", flush=True)
     runs = run_sweep(sweep.specs, out, name=sweep.name, workers=args.workers, dask=args.dask,
-                     progress=args.progress, reference=sweep.reference)
+                     progress=args.progress, reference=sweep.reference,
+                     retry_failed=args.retry_failed)
     failed = runs[runs["status"] != "ok"] if len(runs) else runs
-    print(f"{len(runs)} runs: {len(runs) - len(failed)} ok, {len(failed)} failed -> "
-          f"{out / RUNS_FILE}, {out / SAMPLES_FILE}")
+    print(f"{len(runs)} runs: {len(runs) - len(failed)} ok, {len(failed)} failed, "
+          f"{runs.attrs.get('ran', 0)} run by this sweep -> {out / RUNS_FILE}, "
+          f"{out / SAMPLES_FILE}")
     for r in failed.head(MAX_FAILED_SHOWN).itertuples(index=False):
         print(f"  failed: {r.label}: {r.reason}")
     if len(failed) > MAX_FAILED_SHOWN:
@@ -232,14 +273,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_cases(args: argparse.Namespace) -> int:
-    """``redysim cases``: names and descriptions."""
+    """``redysim cases``: names and descriptions; a case file that does not load is listed with
+    the reason (and the exit code is 1), the others still are."""
     names = list_cases()
     width = max(map(len, names), default=0)
+    bad = 0
     for name in names:
-        with open(CASES_DIR / f"{name}.toml", "rb") as fh:
-            description = tomllib.load(fh).get("case", {}).get("description", "")
+        try:
+            description = load_case(name).description
+        except (RedysimError, OSError) as exc:
+            description = f"(does not load: {exc})"
+            bad += 1
         print(f"{name:<{width}}  {description}")
-    return EXIT_OK
+    if bad:
+        print(f"{PROG}: {bad} case file{'s' if bad > 1 else ''} in {CASES_DIR} did not load",
+              file=sys.stderr)
+    return EXIT_RUN_FAILED if bad else EXIT_OK
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -250,6 +299,13 @@ def main(argv: list[str] | None = None) -> int:
     except (RedysimError, FileNotFoundError) as exc:  # bad input: a case, a sweep file, a path
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # the reader went away (redysim ... | head): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python's own flush at exit would fail again
+        return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -64,7 +64,7 @@ class Reference:
 
 
 def _key(case, t_end: float, interval: float, rtol: float = REF_RTOL) -> str:
-    blob = json.dumps({"case": case.path.read_bytes().hex(), "t_end": t_end, "dt": interval,
+    blob = json.dumps({"case": case.digest, "t_end": t_end, "dt": interval,
                        "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL],
                        "core": code_digest()})
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
@@ -123,15 +123,19 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
 
 
 def ensure_references(specs) -> dict[tuple, Reference]:
-    """Compute the missing references of a list of RunSpecs (once per case, horizon, interval)."""
+    """Compute the missing references of a list of RunSpecs (once per case, horizon, interval).
+    A spec whose case or settings are bad is skipped: its run fails with the reason."""
     from redysim import load_case
-
-    from .run import horizon
+    from redysim.errors import RedysimError
 
     out = {}
     for spec in specs:
-        case = load_case(spec.case)
-        key = (spec.case, *horizon(spec, case))
+        try:
+            case = load_case(spec.case)
+            run = spec.resolved(case)
+        except (RedysimError, OSError):
+            continue
+        key = (spec.case, run.t_end, run.sample)
         if key not in out:
-            out[key] = compute_reference(case, *key[1:])
+            out[key] = compute_reference(case, run.t_end, run.sample)
     return out

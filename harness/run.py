@@ -27,14 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from redysim import StateError, energy, forward_dynamics, load_case, tip
-from redysim.integrate import FIXED_STEP, advance, make_solver, sample_times
+from redysim.integrate import advance, make_solver, sample_times
 
 from .provenance import provenance
+from .reference import load_reference
 from .spec import CORE, NATIVE, RunSpec
 
 SAMPLE_COLUMNS = ("run_id", "t", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz",
                   "tip_ax", "tip_ay", "tip_az", "E", "delta_M")
-DEFAULT_SAMPLES = 20  # samples over the horizon when neither the spec nor the case gives one
+PROGRESS_EVERY_S = 5.0  # wall seconds between two progress reports of a run
 
 
 @dataclass
@@ -57,13 +58,6 @@ class RunFailed(Exception):
 def peak_rss_mib() -> float:
     """Peak resident set size of this process so far [MiB] (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def horizon(spec: RunSpec, case) -> tuple[float, float]:
-    """(t_end, sample interval) of a run: the spec's, else the case's."""
-    t_end = spec.t_end or case.t_end
-    sample = spec.sample or case.simulation.get("sample_interval") or t_end / DEFAULT_SAMPLES
-    return float(t_end), float(min(sample, t_end))
 
 
 class _Dynamics:
@@ -102,10 +96,14 @@ class _Dynamics:
         return np.concatenate((y[n:], self.qdd(y[:n], y[n:])))
 
 
-def execute(spec: RunSpec, *, reference=True) -> RunResult:
+def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
     """Run ``spec`` and return its summary row and samples (never raises for a failing run).
 
+    The row holds the run's settings as run (:meth:`RunSpec.resolved`: the case's where the
+    spec leaves them to it) under the spec's own ``run_id``.
     ``reference``: compare with the cached reference solution when one exists (True), or not.
+    ``progress``: called as ``progress(t, t_end, steps, wall_s)`` at most every
+    ``PROGRESS_EVERY_S`` seconds of wall time while the run integrates.
     """
     import pandas as pd
 
@@ -121,10 +119,12 @@ def execute(spec: RunSpec, *, reference=True) -> RunResult:
     try:
         case = load_case(spec.case)
         row["n_dof"] = case.chain.n_dof
+        spec = spec.resolved(case)
+        row.update(spec.to_dict(), label=spec.label)
         dyn = _Dynamics(spec, case)
         engine_version = dyn.version
         row["build_s"] = dyn.build_s
-        _integrate(spec, case, dyn, row, samples, last)
+        _integrate(spec, case, dyn, row, samples, last, progress)
     except RunFailed as exc:
         row.update(status="failed", reason=str(exc))
     except Exception as exc:  # an engine's or the core's error: recorded, never raised
@@ -152,10 +152,12 @@ def initial_state(spec: RunSpec, case) -> np.ndarray:
     return y0
 
 
-def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict):
+def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict,
+               progress=None):
+    """Integrate a resolved spec (every setting explicit)."""
     chain, n = case.chain, case.chain.n_dof
-    t_end, interval = horizon(spec, case)
-    ts = sample_times(0.0, t_end, interval)
+    t_end = spec.t_end
+    ts = sample_times(0.0, t_end, spec.sample)
     y0 = initial_state(spec, case)
     T0, V0 = energy(chain, y0[:n], y0[n:])
     E0 = T0 + V0
@@ -189,8 +191,6 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     if spec.integrator == NATIVE:
         status, msg = _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row)
     else:
-        if spec.integrator in FIXED_STEP and not spec.h > 0:
-            raise RunFailed(f"integrator {spec.integrator!r} needs a step h > 0")
         def rhs(t, y):
             # the time limit is checked per RHS call: one step of an implicit solver (Newton
             # iterations, finite-difference Jacobians) can take far longer than the limit
@@ -199,11 +199,19 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                                 f"t = {t:.6g}")
             return dyn.rhs(t, y)
 
+        next_report = [time.perf_counter() + PROGRESS_EVERY_S]
+
+        def on_step(s):
+            if progress is not None and time.perf_counter() >= next_report[0]:
+                progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
+                next_report[0] = time.perf_counter() + PROGRESS_EVERY_S
+            return None
+
         solver = None
         try:  # the limit can strike inside the constructor too (its first RHS calls)
             solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
                                  atol=spec.atol, h=spec.h or None)
-            status, msg = advance(solver, ts, on_sample=on_sample)
+            status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
         finally:
             if solver is not None:
                 c = solver.counters
@@ -250,11 +258,8 @@ def _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row):
 
 
 def _compare_with_reference(spec: RunSpec, row: dict, df, y_final) -> None:
-    from .reference import load_reference
-
     case = load_case(spec.case)
-    t_end, interval = horizon(spec, case)
-    ref = load_reference(case, t_end, interval)
+    ref = load_reference(case, row["t_end"], row["sample"])
     if ref is None or len(ref.t) != len(df):
         return
     pos = df[["tip_x", "tip_y", "tip_z"]].to_numpy()

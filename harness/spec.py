@@ -1,20 +1,33 @@
 """What a run is: (case, engine and algorithm, integrator, tolerances or step, horizon, sampling).
 
 A :class:`RunSpec` is plain data (it pickles, it goes to a Dask worker, it is one row of a sweep's
-cross product). Its :attr:`RunSpec.run_id` is a stable hash of its fields, so a resumed sweep can
-tell which runs are already done.
+cross product). Its settings default to the case file's ``[simulation]`` table: an empty
+integrator and zero tolerances, step, horizon and sample interval mean "the case's", and
+:meth:`RunSpec.resolved` fills them in (and checks every setting, naming the bad one). Its
+:attr:`RunSpec.run_id` is a stable hash of its fields, of the case file's bytes and of the code,
+so a resumed sweep can tell which runs are already done, and never reuses a run computed from
+another version of the case or of the code.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
-from dataclasses import asdict, dataclass, fields
+import os
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+
+from redysim.cases import case_path, file_digest
+from redysim.dynamics import METHODS as CORE_METHODS
+from redysim.errors import SettingsError
+from redysim.integrate import FIXED_STEP, check_settings
 
 CORE = "redysim"  # the engine name of our own core
-CORE_METHODS = ("rge-a", "ge-n", "rge-n")
 NATIVE = "native"  # integrator name: the engine's own time stepping
-ADDED_FIELDS = ("perturb",)  # left out of run_id at their default (see RunSpec.run_id)
+STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerances
+
+__all__ = ["CORE", "CORE_METHODS", "NATIVE", "STEPPED", "RunSpec", "case_digest"]
 
 
 @dataclass(frozen=True)
@@ -26,12 +39,14 @@ class RunSpec:
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
                  for an engine.
     integrator:  a name from ``redysim.integrate.INTEGRATORS`` (``"ode45"``, ``"dop853"``,
-                 ``"rk4"``, ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper; needs
-                 ``h``).
-    rtol, atol:  tolerances of an adaptive integrator.
-    h:           the step of a fixed-step integrator (``rk4``, ``native``); 0 for adaptive ones.
-    t_end:       horizon [s]; 0 means the case's own ``t_end``.
-    sample:      sample interval [s]; 0 means the case's (``sample_interval``, else t_end / 20).
+                 ``"rk4"``, ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper;
+                 needs ``h``); ``""``: the case's (ode45 unless its file says otherwise).
+    rtol, atol:  tolerances of an adaptive integrator; 0: the case's (1e-4 and 1e-6 unless its
+                 file says otherwise). A fixed-step integrator takes none.
+    h:           the step of a fixed-step integrator (``rk4``, ``native``); 0: the case's. An
+                 adaptive integrator takes none: it chooses its own steps.
+    t_end:       horizon [s]; 0: the case's ``t_end``.
+    sample:      sample interval [s]; 0: the case's (``sample_interval``, else t_end / 20).
     energy_bound: a run whose |delta_M| exceeds this [J/kg] is stopped and recorded as failed.
     max_wall_s:  a run still going after this many seconds is stopped and recorded as failed
                  (its finished samples are kept); 0 means no limit.
@@ -44,9 +59,9 @@ class RunSpec:
     case: str
     engine: str = CORE
     method: str = "rge-a"
-    integrator: str = "ode45"
-    rtol: float = 1e-4
-    atol: float = 1e-6
+    integrator: str = ""
+    rtol: float = 0.0
+    atol: float = 0.0
     h: float = 0.0
     t_end: float = 0.0
     sample: float = 0.0
@@ -58,26 +73,67 @@ class RunSpec:
         if self.engine != CORE and self.method in CORE_METHODS:
             object.__setattr__(self, "method", "")
 
+    def resolved(self, case, *, source: str = "run", names: dict[str, str] | None = None
+                 ) -> RunSpec:
+        """This run with every "the case's" setting taken from ``case`` (a loaded
+        :class:`redysim.Case`), and every setting checked: raises
+        :class:`~redysim.errors.SettingsError` naming the field (renamed by ``names``, e.g.
+        ``{"rtol": "--rtol"}``) and the value.
+
+        A step given to an adaptive integrator, or tolerances to a fixed-step one, are refused
+        rather than ignored."""
+        names = names or {}
+        integrator = self.integrator or case.integrator
+        stepped = integrator in STEPPED
+        t_end = self.t_end or case.t_end
+        sample = self.sample or min(case.sample_interval, t_end)
+        if stepped:
+            if self.rtol or self.atol:
+                key = "rtol" if self.rtol else "atol"
+                raise SettingsError(source, names.get(key, key), getattr(self, key),
+                                    f"applies to adaptive integrators; {integrator!r} is "
+                                    "fixed-step (give its step h)")
+            h = self.h or (case.h if integrator == case.integrator else None)
+            if not h:
+                raise SettingsError(source, names.get("h", "h"), None,
+                                    f"missing: integrator {integrator!r} is fixed-step and "
+                                    "needs a step h > 0")
+            rtol = atol = 0.0
+        else:
+            h = self.h or None  # refused below: an adaptive integrator takes no step
+            rtol, atol = self.rtol or case.rtol, self.atol or case.atol
+        check_settings(source, names, method=integrator, rtol=None if stepped else rtol,
+                       atol=None if stepped else atol, h=h, t_end=t_end,
+                       sample=min(sample, t_end), extra_methods=(NATIVE,))
+        return replace(self, integrator=integrator, rtol=rtol, atol=atol, h=h or 0.0,
+                       t_end=float(t_end), sample=float(min(sample, t_end)))
+
     @property
     def run_id(self) -> str:
-        """A stable 16-hex-digit id from every field and the code that runs it
-        (:func:`harness.provenance.code_digest`): same spec and code, same id, on any machine;
-        a run finished by other code is not reused."""
+        """A stable 16-hex-digit id from every field, the case file's bytes
+        (:func:`case_digest`) and the code that runs it
+        (:func:`redysim.harness.provenance.code_digest`): same spec, case and code, same id, on
+        any machine; a run finished from another version of the case or of the code is not
+        reused."""
         from .provenance import code_digest
-        fields_ = asdict(self)
-        for name in ADDED_FIELDS:  # a field added later keeps the ids of runs that do not use it
-            if fields_[name] == getattr(RunSpec, name):
-                del fields_[name]
-        blob = json.dumps({**fields_, "code": code_digest()}, sort_keys=True, default=repr)
+        blob = json.dumps({**asdict(self), "case_digest": case_digest(self.case),
+                           "code": code_digest()}, sort_keys=True, default=repr)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
     @property
     def label(self) -> str:
-        """A short human label: ``RE-U125-L1 redysim/rge-a ode45 rtol=1e-06``."""
+        """A short human label: ``RE-U125-L1 redysim/rge-a ode45 rtol=1e-06``; "case's" where a
+        setting is left to the case."""
         algo = f"{self.engine}/{self.method}" if self.method else self.engine
-        step = f"h={self.h:g}" if self.h else f"rtol={self.rtol:g}"
+        integrator = self.integrator or "case's integrator"
+        if self.h:
+            step = f" h={self.h:g}"
+        elif self.rtol:
+            step = f" rtol={self.rtol:g}"
+        else:
+            step = "" if integrator in STEPPED else " case's rtol"
         extra = f" perturb={self.perturb:g}" if self.perturb else ""
-        return f"{self.case} {algo} {self.integrator} {step}{extra}"
+        return f"{self.case} {algo} {integrator}{step}{extra}"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -85,3 +141,19 @@ class RunSpec:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+
+def case_digest(case: str) -> str:
+    """SHA-256 of the case file's bytes ("missing" when it cannot be read: the run then fails
+    with the loader's message). Cached per file version (path, size, modification time)."""
+    try:
+        path = case_path(case)
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return "missing"
+    return _digest(str(Path(path).resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+
+
+@functools.lru_cache(maxsize=1024)
+def _digest(path: str, _size: int, _mtime_ns: int, _ino: int) -> str:
+    return file_digest(path)

@@ -28,6 +28,17 @@ TEMP_SUFFIX = ".tmp"
 PARQUET_SUFFIX = ".parquet"
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+# A new file's mode, as open() would give it: mkstemp makes its file private (0600), and a
+# results folder is often shared (a team, a CI artifact, a web server).
+FILE_MODE = 0o666 & ~_umask()
+
+
 def _fsync_dir(directory: Path) -> None:
     """Make a rename in ``directory`` durable (a no-op where directories cannot be opened)."""
     try:
@@ -46,9 +57,11 @@ def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -
     """Call ``write(fh)`` on a temporary file beside ``path``, then rename it onto ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{TEMP_PREFIX}{path.name}.",
+    # the writer's pid in the name: remove_temp_files leaves a live writer's file alone
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{TEMP_PREFIX}{path.name}.{os.getpid()}.",
                                suffix=TEMP_SUFFIX)
     try:
+        os.fchmod(fd, FILE_MODE)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
             fh.flush()
@@ -65,6 +78,11 @@ def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -
 def write_parquet_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
     """Write ``df`` (without its index) to the Parquet file ``path`` atomically."""
     return _write_atomic(path, lambda fh: df.to_parquet(fh, engine="pyarrow", index=False))
+
+
+def write_csv_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
+    """Write ``df`` (without its index) to the CSV file ``path`` atomically."""
+    return _write_atomic(path, lambda fh: fh.write(df.to_csv(index=False).encode("utf-8")))
 
 
 def write_text_atomic(text: str, path: str | os.PathLike) -> Path:
@@ -89,6 +107,14 @@ def read_parquet(path: str | os.PathLike) -> pd.DataFrame:
     return pd.read_parquet(path, engine="pyarrow")
 
 
+def parquet_metadata(path: str | os.PathLike):
+    """A Parquet file's footer (rows, columns): reads a few kilobytes, and raises if the file is
+    truncated or not Parquet."""
+    import pyarrow.parquet as pq
+
+    return pq.read_metadata(path)
+
+
 def read_json(path: str | os.PathLike) -> Any:
     """One JSON file."""
     with open(path, encoding="utf-8") as fh:
@@ -104,16 +130,33 @@ def parquet_files(directory: str | os.PathLike) -> dict[str, Path]:
             if not p.name.startswith(TEMP_PREFIX)}
 
 
-def remove_temp_files(directory: str | os.PathLike) -> int:
-    """Delete the temporary files a killed writer left in ``directory``; returns how many.
+def _writer_alive(temp: Path) -> bool:
+    """Whether the process that writes ``temp`` (its pid is in the name) is still running."""
+    try:
+        pid = int(temp.name[:-len(TEMP_SUFFIX)].rsplit(".", 2)[-2])
+    except (ValueError, IndexError):
+        return False  # not one of ours, or from before names carried the pid
+    if pid == os.getpid():
+        return False  # this process is not writing it now (it calls from outside a write)
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
 
-    Call it only when no writer is active in ``directory``.
-    """
+
+def remove_temp_files(directory: str | os.PathLike) -> int:
+    """Delete the temporary files that killed writers left in ``directory``; returns how many.
+    A file whose writer is still running (another sweep on the same folder) is left alone."""
     directory = Path(directory)
     if not directory.is_dir():
         return 0
-    stale = list(directory.glob(f"{TEMP_PREFIX}*{TEMP_SUFFIX}"))
-    for p in stale:
-        with contextlib.suppress(FileNotFoundError):
-            p.unlink()
-    return len(stale)
+    removed = 0
+    for p in directory.glob(f"{TEMP_PREFIX}*{TEMP_SUFFIX}"):
+        if not _writer_alive(p):
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+                removed += 1
+    return removed

@@ -52,12 +52,16 @@ Every file is written atomically (:mod:`harness.store`), so a sweep killed at an
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import logging
 import math
 import multiprocessing
 import os
+import re
 import sys
+import threading
+import time
 import tomllib
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -71,13 +75,17 @@ import pandas as pd
 from tqdm import tqdm
 
 from redysim import list_cases, load_case, references
-from redysim.errors import CaseError, FieldError
-from redysim.integrate import FIXED_STEP, INTEGRATORS
+from redysim.cases import is_case_name
+from redysim.errors import CaseError, FieldError, SettingsError
+from redysim.integrate import INTEGRATORS
 
 from .run import execute
-from .spec import CORE, CORE_METHODS, NATIVE, RunSpec
+from .spec import CORE, CORE_METHODS, NATIVE, STEPPED, RunSpec
 from .store import (
+    FILE_MODE,
+    PARQUET_SUFFIX,
     parquet_files,
+    parquet_metadata,
     read_json,
     read_parquet,
     remove_temp_files,
@@ -85,6 +93,10 @@ from .store import (
     write_parquet_atomic,
 )
 
+# a run's settings, and the sweep-file list each comes from
+SETTINGS = ("integrator", "rtol", "atol", "h", "t_end", "sample")
+LIST_NAMES = {"integrator": "integrators", "rtol": "rtols", "atol": "atols", "h": "h",
+              "t_end": "t_end", "sample": "sample"}
 SWEEP_TABLE = "sweep"
 PRODUCT_TABLE = "product"
 EXTRA_TABLE = "extra"
@@ -94,13 +106,16 @@ SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_wall_s")  # handed dow
 TEXT_FIELDS = ("name", "description")
 BOOL_FIELDS = ("reference",)  # reference = true: compute the cases' reference solutions first
 STRICTLY_POSITIVE = ("atol_ratio", "energy_bound", "rtol", "atol")  # the others may be 0
-STEPPED_INTEGRATORS = (*FIXED_STEP, NATIVE)  # take h values; all others take rtols
+STEPPED_INTEGRATORS = STEPPED  # take h values; all others take rtols
 KNOWN_INTEGRATORS = (*INTEGRATORS, NATIVE)
 DEFAULT_ATOL_RATIO = 1e-2  # the paper's ode45 setting: rtol 1e-4, atol 1e-6
 TOL_DIGITS = 12  # atol = rtol * atol_ratio is rounded to 12 significant digits: 1e-06, not
 #                  1.0000000000000002e-06 (the run_id hashes the exact float)
 
+SWEEP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")  # a folder name, never a path
 PLAN_FILE = "sweep.json"
+CLAIMS_DIR = ".claims"  # one lock file per run in flight (Claims)
+DAMAGED_DIR = "damaged"  # result files that could not be read, kept for a look
 RUNS_DIR = "runs"
 SAMPLES_DIR = "samples"
 RUNS_FILE = "runs.parquet"
@@ -110,6 +125,9 @@ POOL_START_METHOD = "spawn"  # fresh interpreters: safe with numba and with thre
 DASK_LOCAL = "local"  # dask= value that starts a LocalCluster on this machine
 DASK_LOCAL_WORKERS = 2
 DASK_KEY_PREFIX = "redysim-run-"
+DASK_IN_FLIGHT = 256  # runs submitted (and claimed) at a time
+DASK_CONNECT_TIMEOUT_S = 10
+PARENT_POLL_S = 1.0  # how often a pool worker checks that its sweep is still there
 DIED = "worker process died (out of memory, a crash in native code, or a signal)"
 
 
@@ -139,6 +157,10 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
             doc = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(str(path), "<toml syntax>", None, str(exc)) from None
+    except UnicodeDecodeError as exc:  # a sweep file is UTF-8 text
+        raise SweepError(str(path), "<toml syntax>", None,
+                         f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
+                         f"{exc.start})") from None
     return sweep_from_dict(doc, source=str(path), base=path.parent)
 
 
@@ -172,6 +194,10 @@ def sweep_from_dict(doc: dict, *, source: str = "<dict>", base: Path | None = No
     for i, sub in enumerate(check.tables(table, EXTRA_TABLE)):
         specs.append(check.extra(f"{SWEEP_TABLE}.{EXTRA_TABLE}[{i}]", sub, shared))
     name = top.get("name") or Path(source).stem
+    if not SWEEP_NAME.fullmatch(name):
+        check.fail(f"{SWEEP_TABLE}.name" if "name" in top else "<file name>", name,
+                   "must be a plain folder name (letters, digits, '.', '_', '-'; no '/'): it "
+                   "names the sweep's folder under the results folder")
     return Sweep(name=name, specs=tuple(unique(specs)), description=top.get("description", ""),
                  source=source, reference=reference)
 
@@ -192,6 +218,19 @@ class _Checker:
         self.base = base
         self.case_names = set(list_cases())
         self.engines = (CORE, *references.ENGINES)
+        self.loaded: dict[str, Any] = {}  # case -> its loaded Case
+
+    def resolved(self, where: str, spec: RunSpec, fields_: dict[str, str]) -> RunSpec:
+        """``spec`` with the case's settings filled in and every setting checked; a bad one
+        fails naming the sweep file's field (``fields_``: RunSpec field -> sweep field)."""
+        if spec.case not in self.loaded:
+            self.loaded[spec.case] = load_case(spec.case)
+        names = {k: f"{where}.{v}" for k, v in fields_.items()}
+        try:
+            return spec.resolved(self.loaded[spec.case], source=self.source, names=names)
+        except SettingsError as exc:
+            raise SweepError(self.source, exc.field, exc.value,
+                             f"{exc.problem} (case {spec.case})") from None
 
     def fail(self, field: str, value: Any, problem: str):
         raise SweepError(self.source, field, value, problem)
@@ -236,19 +275,25 @@ class _Checker:
         return self.number(field, value, strict=key in STRICTLY_POSITIVE)
 
     def case(self, field: str, value: Any) -> str:
-        """A case name from ``cases/``, or the path of a valid case file (made absolute)."""
+        """A case name from ``cases/``, or the path of a valid case file (made absolute;
+        relative to the sweep file's folder). A name without a folder or ``.toml`` is a
+        built-in case only (:func:`redysim.cases.case_path`)."""
         name = self.text(field, value)
-        if name in self.case_names:
+        if is_case_name(name):
+            if name not in self.case_names:
+                self.fail(field, value, f"no such case; known cases: "
+                                        f"{', '.join(sorted(self.case_names))} (a case file "
+                                        "is given by its path, e.g. ./mine.toml)")
             return name
         path = Path(name) if Path(name).is_absolute() else self.base / name
         if not path.is_file():
-            self.fail(field, value, f"no such case and no such file; known cases: "
-                                    f"{', '.join(sorted(self.case_names))}")
+            self.fail(field, value, "no such case file")
+        resolved = str(path.resolve())
         try:
-            load_case(path)
+            self.loaded[resolved] = load_case(resolved)
         except CaseError as exc:
             self.fail(field, value, f"bad case file: {exc}")
-        return str(path.resolve())
+        return resolved
 
     def choice(self, field: str, value: Any, known: Sequence[str], what: str) -> str:
         value = self.text(field, value)
@@ -307,9 +352,10 @@ class _Checker:
                             run = dict(case=case, engine=engine, method=method,
                                        integrator=integrator, perturb=perturb, **common)
                             if integrator in STEPPED_INTEGRATORS:
-                                specs += [RunSpec(**run, h=h) for h in settings["h"]]
+                                runs = [RunSpec(**run, h=h) for h in settings.get("h", [0.0])]
                             else:
-                                specs += [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
+                                runs = [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
+                            specs += [self.resolved(where, s, LIST_NAMES) for s in runs]
         return specs
 
     def extra(self, where: str, node: dict, shared: dict) -> RunSpec:
@@ -332,17 +378,15 @@ class _Checker:
                 run[key] = self.scalar(field, key, value)
         if "case" not in run:
             self.fail(f"{where}.case", None, "missing: an extra run needs a case")
-        if run.get("integrator", RunSpec.integrator) in STEPPED_INTEGRATORS and not run.get("h"):
-            self.fail(f"{where}.h", run.get("h"), f"integrator {run['integrator']!r} is "
-                                                  "fixed-step and needs a step h > 0")
-        return RunSpec(**run)
+        return self.resolved(where, RunSpec(**run), {k: k for k in SETTINGS})
 
 
 # --------------------------------------------------------------------------- running
-def failed_row(spec: RunSpec, reason: str) -> dict:
-    """The summary row of a run that could not report one itself (its worker raised or died)."""
+def failed_row(spec: RunSpec, reason: str, *, transient: bool = True) -> dict:
+    """The summary row of a run that could not report one itself (its worker raised or died):
+    ``transient``, so a resumed sweep runs it again."""
     return {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "failed",
-            "reason": reason}
+            "reason": reason, "transient": transient}
 
 
 def run_one(spec: RunSpec) -> tuple[dict, pd.DataFrame]:
@@ -354,9 +398,100 @@ def run_one(spec: RunSpec) -> tuple[dict, pd.DataFrame]:
 Result = tuple[RunSpec, dict, pd.DataFrame | None]  # what an executor yields per finished run
 
 
+class Claims:
+    """One lock per run (``<out>/.claims/<run_id>``, ``fcntl.flock``): a run is computed only
+    by the sweep process that holds its claim, so two sweeps on one folder share the work
+    instead of each computing everything. The kernel drops a dead process's locks, so a sweep
+    killed mid-run leaves no stale claim. A claim file is removed by its holder once the run is
+    stored; a process that locked a file just removed checks the path again (and retries)."""
+
+    def __init__(self, out: Path):
+        self.dir = out / CLAIMS_DIR
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.held: dict[str, int] = {}  # run_id -> fd
+
+    def take(self, run_id: str, *, block: bool = False) -> bool:
+        """Claim ``run_id``: True if this process holds it now. ``block``: wait for another
+        process's claim to end (it finished the run, or died)."""
+        path = self.dir / run_id
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, FILE_MODE)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | (0 if block else fcntl.LOCK_NB))
+            except BlockingIOError:
+                os.close(fd)
+                return False
+            try:
+                same = os.fstat(fd).st_ino == os.stat(path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                self.held[run_id] = fd
+                return True
+            os.close(fd)  # the holder removed it as we locked it: lock the current file
+
+    def release(self, run_id: str) -> None:
+        fd = self.held.pop(run_id, None)
+        if fd is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.dir / run_id)
+            os.close(fd)
+
+    def release_all(self) -> None:
+        for run_id in list(self.held):
+            self.release(run_id)
+
+    def clear_stale(self) -> int:
+        """Remove the claim files of processes that died holding them; returns how many."""
+        stale = 0
+        for path in self.dir.iterdir():
+            if path.name not in self.held and self.take(path.name):
+                self.release(path.name)
+                stale += 1
+        return stale
+
+
+class _Work:
+    """The runs this sweep has to compute, handed out one claim at a time: a run another sweep
+    holds is put off until nothing else is left, then waited for, and run only if that sweep
+    did not finish it."""
+
+    def __init__(self, specs: Sequence[RunSpec], claims: Claims,
+                 is_done: Callable[[RunSpec], bool]):
+        self.todo, self.later = deque(specs), deque()
+        self.claims, self.is_done = claims, is_done
+
+    @property
+    def empty(self) -> bool:
+        return not self.todo and not self.later
+
+    def next(self, *, wait: bool) -> RunSpec | None:
+        """The next run to compute (its claim taken), or None when there is none now (``wait``:
+        wait for another sweep's claims; without it, None may come while runs are left)."""
+        while self.todo:
+            spec = self.todo.popleft()
+            if not self.claims.take(spec.run_id):
+                self.later.append(spec)
+            elif self.is_done(spec):  # finished by another sweep since we looked
+                self.claims.release(spec.run_id)
+            else:
+                return spec
+        while self.later:
+            spec = self.later[0]
+            if not self.claims.take(spec.run_id, block=wait):
+                return None
+            self.later.popleft()
+            if self.is_done(spec):
+                self.claims.release(spec.run_id)
+            else:
+                return spec
+        return None
+
+
 def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str = "sweep",
               workers: int | None = None, dask: str | None = None,
-              progress: bool = True, reference: bool = False) -> pd.DataFrame:
+              progress: bool = True, reference: bool = False,
+              retry_failed: bool = False) -> pd.DataFrame:
     """Run every spec not yet done in ``out_dir``; return all runs' rows (see :func:`collect`).
 
     ``workers``: processes of the local pool (default ``os.cpu_count()``). ``dask``: a scheduler
@@ -365,20 +500,39 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     a progress bar on stderr (runs done, failed, time left). ``name`` goes into sweep.json.
     ``reference``: first compute (or load from the cache) the reference solution of every
     pending run's case, horizon and sampling (:mod:`harness.reference`), so that each run reports
-    its error against it. One sweep at a time per ``out_dir``: it starts by deleting the temporary
-    files a killed sweep left there.
+    its error against it.
+
+    Done runs are skipped: those that finished, and those that failed for a reason of their own
+    (NaN, energy blow-up, an engine's refusal, a time limit: the same inputs fail the same way).
+    Runs whose worker died or raised are marked ``transient`` and run again; ``retry_failed``
+    runs every failed run again. A run file that cannot be read is moved to ``damaged/`` (with
+    a note on stderr) and the run is done again. Several sweeps may share ``out_dir``: each run
+    is claimed (:class:`Claims`) and computed once. The returned frame's ``attrs["ran"]`` counts
+    the runs this call computed.
     """
     specs = unique(specs)
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise SweepError(str(out), "<results folder>", None, "is a file, not a folder")
     write_json_atomic({"name": name, "n_runs": len(specs),
                        "runs": [{"run_id": s.run_id, "label": s.label, **s.to_dict()}
                                 for s in specs]}, out / PLAN_FILE)
     for sub in (RUNS_DIR, SAMPLES_DIR):
         (out / sub).mkdir(parents=True, exist_ok=True)
         remove_temp_files(out / sub)
-    done = parquet_files(out / RUNS_DIR)
-    pending = [s for s in specs if s.run_id not in done]
-    failed = sum(_status(done[s.run_id]) != "ok" for s in specs if s.run_id in done)
+
+    def finished(spec: RunSpec) -> str | None:
+        """'ok', 'failed' (a result), or None (not run, damaged, or to be run again)."""
+        row = _read_run(out, spec.run_id)
+        if row is None or not _samples_readable(out, spec.run_id):
+            return None
+        if row["status"] == "ok":
+            return "ok"
+        return None if retry_failed or bool(row.get("transient", False)) else "failed"
+
+    status = {s.run_id: finished(s) for s in specs}
+    pending = [s for s in specs if status[s.run_id] is None]
+    failed = sum(v == "failed" for v in status.values())
     if reference and pending:
         from .reference import ensure_references
 
@@ -386,34 +540,81 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
             print(f"{name}: reference solutions (cached under results/reference/)",
                   file=sys.stderr)
         ensure_references(pending)
+    claims = Claims(out)
+    claims.clear_stale()
+    work = _Work(pending, claims, lambda s: finished(s) is not None)
     if dask:
-        results = _dask_results(pending, dask, run_one)
+        results = _dask_results(work, dask, run_one)
     else:
-        results = _pool_results(pending, workers or os.cpu_count() or 1, run_one)
-    with tqdm(total=len(specs), initial=len(specs) - len(pending), desc=name, unit="run",
-              disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
-        bar.set_postfix(failed=failed)
-        with contextlib.closing(results):
-            for spec, summary, samples in results:
-                _store(out, spec, summary, samples)
-                failed += summary["status"] != "ok"
-                bar.set_postfix(failed=failed, refresh=False)
-                bar.update()
-    return collect(out)
+        results = _pool_results(work, workers or os.cpu_count() or 1, run_one)
+    ran = 0
+    try:
+        with tqdm(total=len(specs), initial=len(specs) - len(pending), desc=name, unit="run",
+                  disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
+            bar.set_postfix(failed=failed)
+            with contextlib.closing(results):
+                for spec, summary, samples in results:
+                    _store(out, spec, summary, samples)
+                    claims.release(spec.run_id)
+                    ran += 1
+                    failed += summary["status"] != "ok"
+                    bar.set_postfix(failed=failed, refresh=False)
+                    bar.update()
+    finally:
+        claims.release_all()
+    runs = collect(out)
+    runs.attrs["ran"] = ran
+    return runs
 
 
-def _status(run_file: Path) -> str:
-    return str(read_parquet(run_file)["status"].iloc[0])
+def _read_run(out: Path, run_id: str) -> dict | None:
+    """A finished run's summary row, or None: not there, or damaged (then moved aside)."""
+    path = out / RUNS_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    if not path.is_file():
+        return None
+    try:
+        rows = read_parquet(path).to_dict("records")
+        if len(rows) != 1 or "status" not in rows[0]:
+            raise ValueError(f"{len(rows)} rows, columns {sorted(rows[0]) if rows else []}")
+        return rows[0]
+    except Exception as exc:  # a truncated, empty or foreign file: pyarrow's errors vary
+        set_aside(path, exc)
+        return None
+
+
+def set_aside(path: Path, exc: BaseException) -> Path | None:
+    """Move a damaged result file into ``damaged/`` beside its folder, saying so on stderr."""
+    target = path.parent.parent / DAMAGED_DIR / f"{path.name}.{int(time.time())}"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.replace(path, target)
+    except FileNotFoundError:  # another sweep moved it first
+        return None
+    print(f"redysim: {path} could not be read ({type(exc).__name__}: {str(exc)[:200]}); moved "
+          f"to {target}, and its run will be done again", file=sys.stderr)
+    return target
 
 
 def _store(out: Path, spec: RunSpec, summary: dict, samples: pd.DataFrame | None) -> None:
     """Write one finished run: its samples first, then the summary row that marks it done."""
     if samples is not None:
         write_parquet_atomic(samples, out / SAMPLES_DIR / f"{spec.run_id}.parquet")
+    summary = {"transient": False, **summary}
     write_parquet_atomic(pd.DataFrame([summary]), out / RUNS_DIR / f"{spec.run_id}.parquet")
 
 
-def _pool_results(specs: Sequence[RunSpec], workers: int,
+def _watch_parent(parent: int) -> None:
+    """In a pool worker: exit as soon as the sweep that started it is gone (a ``kill -9`` of the
+    sweep left its workers, ~265 MB each, running for ever)."""
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="redysim-parent-watch", daemon=True).start()
+
+
+def _pool_results(work: _Work, workers: int,
                   task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
     """Run ``task`` on a local process pool, yielding each run as it finishes.
 
@@ -422,23 +623,26 @@ def _pool_results(specs: Sequence[RunSpec], workers: int,
     one is recorded as failed; several are rerun one at a time in a fresh pool, so that only the
     run that kills its worker is recorded as failed.
     """
-    todo, suspects = deque(specs), deque()
+    suspects = deque()
     running: dict = {}  # future -> spec
     pool = None
-    workers = max(1, min(workers, len(todo)))
+    workers = max(1, min(workers, len(work.todo)))
     context = multiprocessing.get_context(POOL_START_METHOD)
     try:
-        while todo or suspects or running:
+        while not work.empty or suspects or running:
             if pool is None:
-                pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
-            source, limit = (suspects, 1) if suspects else (todo, workers)
+                pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                           initializer=_watch_parent, initargs=(os.getpid(),))
             broken = False
-            while source and len(running) < limit:
-                spec = source.popleft()
+            while len(running) < (1 if suspects else workers):
+                spec = (suspects.popleft() if suspects
+                        else work.next(wait=not running))
+                if spec is None:
+                    break
                 try:
                     running[pool.submit(task, spec)] = spec
                 except BrokenProcessPool:  # a worker died since the last check: retry this run
-                    source.appendleft(spec)
+                    suspects.appendleft(spec)
                     broken = True
                     break
             finished = wait(running, return_when=FIRST_COMPLETED)[0] if running else set()
@@ -466,16 +670,17 @@ def _pool_results(specs: Sequence[RunSpec], workers: int,
             pool.shutdown(wait=not running, cancel_futures=True)
 
 
-def _dask_results(specs: Sequence[RunSpec], address: str,
+def _dask_results(work: _Work, address: str,
                   task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
     """Run ``task`` on a Dask cluster, yielding each run as it finishes (``as_completed``).
 
-    A worker that dies is retried by the scheduler; a run that keeps killing workers
-    (``KilledWorker``) or raises is recorded as failed.
+    At most ``DASK_IN_FLIGHT`` runs are submitted (and claimed) at a time. A worker that dies is
+    retried by the scheduler; a run that keeps killing workers (``KilledWorker``) or raises is
+    recorded as failed (transient: a resumed sweep runs it again).
     """
     from distributed import Client, LocalCluster, as_completed
 
-    if not specs:
+    if work.empty:
         return
     with contextlib.ExitStack() as stack:
         if address == DASK_LOCAL:
@@ -484,10 +689,28 @@ def _dask_results(specs: Sequence[RunSpec], address: str,
                 dashboard_address=None, silence_logs=logging.ERROR))
             client = stack.enter_context(Client(cluster))
         else:
-            client = stack.enter_context(Client(address))
-        futures = {client.submit(task, spec, key=DASK_KEY_PREFIX + spec.run_id, pure=False): spec
-                   for spec in specs}
-        for fut in as_completed(futures):
+            try:
+                client = stack.enter_context(Client(address, timeout=DASK_CONNECT_TIMEOUT_S))
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SweepError("--dask", "address", address,
+                                 f"no Dask scheduler answered there within "
+                                 f"{DASK_CONNECT_TIMEOUT_S} s ({type(exc).__name__}: "
+                                 f"{str(exc)[:200]})") from None
+        futures: dict = {}
+        pending = as_completed()
+
+        def submit(wait_for_claims: bool) -> None:
+            while len(futures) < DASK_IN_FLIGHT:
+                spec = work.next(wait=wait_for_claims and not futures)
+                if spec is None:
+                    return
+                fut = client.submit(task, spec, key=DASK_KEY_PREFIX + spec.run_id, pure=False)
+                futures[fut] = spec
+                pending.add(fut)
+
+        submit(True)
+        while futures:
+            fut = next(pending)
             spec = futures.pop(fut)
             try:
                 summary, samples = fut.result()
@@ -495,6 +718,7 @@ def _dask_results(specs: Sequence[RunSpec], address: str,
                 summary, samples = failed_row(spec, f"worker raised {exc!r}"), None
             fut.release()
             yield spec, summary, samples
+            submit(True)
 
 
 # --------------------------------------------------------------------------- results
@@ -511,11 +735,46 @@ def collect(out_dir: str | os.PathLike) -> pd.DataFrame:
     plan = out / PLAN_FILE
     order = [r["run_id"] for r in read_json(plan)["runs"]] if plan.exists() else list(run_files)
     ids = [run_id for run_id in order if run_id in run_files]
-    runs = _concat(read_parquet(run_files[i]) for i in ids)
-    samples = _concat(read_parquet(sample_files[i]) for i in ids if i in sample_files)
+    rows = {i: row for i in ids if (row := _read_run(out, i)) is not None}
+    runs = pd.DataFrame([rows[i] for i in ids if i in rows])
+    samples = _concat(frame for i in ids if i in rows and i in sample_files
+                      if (frame := _read_samples(sample_files[i])) is not None)
     write_parquet_atomic(samples, out / SAMPLES_FILE)
     write_parquet_atomic(runs, out / RUNS_FILE)
     return runs
+
+
+def _samples_readable(out: Path, run_id: str) -> bool:
+    """False when a run's samples file exists but its Parquet footer cannot be read (then both
+    its files are set aside, and the run is not done); True otherwise (a run whose worker died
+    has no samples file)."""
+    path = out / SAMPLES_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    if not path.is_file():
+        return True
+    try:
+        parquet_metadata(path)
+    except Exception as exc:  # pyarrow's errors for a damaged file vary
+        _set_aside_run(path, exc)
+        return False
+    return True
+
+
+def _set_aside_run(samples: Path, exc: BaseException) -> None:
+    """Set a damaged samples file aside, and its run's summary with it: without its samples a
+    run is not done."""
+    set_aside(samples, exc)
+    with contextlib.suppress(FileNotFoundError):
+        (samples.parent.parent / DAMAGED_DIR).mkdir(exist_ok=True)
+        os.replace(samples.parent.parent / RUNS_DIR / samples.name,
+                   samples.parent.parent / DAMAGED_DIR / f"{samples.stem}.run{PARQUET_SUFFIX}")
+
+
+def _read_samples(path: Path) -> pd.DataFrame | None:
+    try:
+        return read_parquet(path)
+    except Exception as exc:  # damaged: set aside; its run is done again on resume
+        _set_aside_run(path, exc)
+        return None
 
 
 def _concat(frames: Iterable[pd.DataFrame]) -> pd.DataFrame:

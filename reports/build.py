@@ -26,11 +26,11 @@ from pathlib import Path
 
 import jinja2
 import pandas as pd
-from redysim.harness.provenance import provenance
-from redysim.harness.spec import CORE
 
 from redysim import references
 from redysim.cases import CASES_DIR
+from redysim.harness.provenance import provenance
+from redysim.harness.spec import CORE
 
 from . import figures as F
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
@@ -44,7 +44,6 @@ DEFAULT_RESULTS = Path("results")
 DEFAULT_OUT = Path("reports") / "out"
 HTML_FILE = "report.html"
 PDF_FILE = "report.pdf"
-REPORT_MODE = 0o644
 TEMPLATES = Path(__file__).with_name("templates")
 TEMPLATE = "report.html.j2"
 TITLE = "redysim: paper vs ours"
@@ -482,7 +481,6 @@ def write_report(results: Path, out: Path, *, log=print) -> tuple[Path, Path]:
     t0 = time.perf_counter()
     report = build_report(Results(results))
     html = write_text_atomic(render_html(report), out / HTML_FILE)
-    html.chmod(REPORT_MODE)  # the atomic writer's temporary file is private (0600)
     pdf = write_pdf(report, out / PDF_FILE)
     log(f"report: {html} and {pdf} ({len(report.tables())} tables, {len(report.figures())} "
         f"figures) in {time.perf_counter() - t0:.1f} s")

@@ -22,10 +22,8 @@ import csv
 import io
 import json
 import math
-import os
 import platform
 import sys
-import tempfile
 import time
 import tomllib
 from decimal import ROUND_DOWN, ROUND_HALF_UP, Decimal
@@ -45,6 +43,7 @@ from redysim import (
     phi,
 )
 from redysim.cases import CASES_DIR
+from redysim.harness.store import write_text_atomic
 from redysim.precision import ieee_qdd, reduced_factors, reduced_qdd
 
 DEFAULT_OUT = Path("results") / "precision"
@@ -518,20 +517,6 @@ def print_table8(t: dict, out) -> None:
 
 
 # --------------------------------------------------------------------------- output
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)  # mkstemp makes it 0600
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _csv(rows: list[dict]) -> str:
     buf = io.StringIO()
     keys = list(dict.fromkeys(k for r in rows for k in r))
@@ -566,9 +551,10 @@ def write(out_dir: Path, name: str, table: dict) -> None:
             "python": platform.python_version(), "machine": platform.machine(),
             "generated": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     payload = _clean(json.loads(json.dumps({"meta": meta, **table}, default=_json_default)))
-    _atomic_write(out_dir / f"{name}.json", json.dumps(payload, indent=1, allow_nan=False) + "\n")
+    write_text_atomic(json.dumps(payload, indent=1, allow_nan=False) + "\n",
+                      out_dir / f"{name}.json")
     if table.get("rows"):
-        _atomic_write(out_dir / f"{name}.csv", _csv(table["rows"]))
+        write_text_atomic(_csv(table["rows"]), out_dir / f"{name}.csv")
 
 
 def main(argv=None) -> int:

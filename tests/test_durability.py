@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 import types
 
 import numpy as np
 import pandas as pd
 import pytest
+
+from redysim import load_case, references
 from redysim.harness import gates
 from redysim.harness.reference import compute_reference, reference_path
 from redysim.harness.run import execute
@@ -27,11 +31,10 @@ from redysim.harness.store import (
     TEMP_SUFFIX,
     read_json,
     read_parquet,
+    remove_temp_files,
     write_json_atomic,
     write_parquet_atomic,
 )
-
-from redysim import load_case, references
 
 SHORT = dict(t_end=0.2, sample=0.05)  # STUDY-R3, 4 samples after t = 0
 FAIL_AFTER_CALLS = 40  # a mid-run failure: after the first samples are taken
@@ -252,3 +255,21 @@ def test_an_edited_kernel_source_drops_numbas_cache(tmp_path):
     (cache / "kinematics.kinematics-29.py311.nbi").write_bytes(b"current")
     assert not _kernels.drop_stale_cache(cache), "sources unchanged: the cache stays"
     assert (cache / "kinematics.kinematics-29.py311.nbi").exists()
+
+
+def test_cleaning_up_leaves_a_live_writer_s_temporary_file(tmp_path):
+    """A sweep starting on a folder where another sweep is writing removes only the temporary
+    files of dead writers (it removed every one, and the other sweep's rename then failed)."""
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        live = tmp_path / f"{TEMP_PREFIX}run.parquet.{sleeper.pid}.abc{TEMP_SUFFIX}"
+        dead = tmp_path / f"{TEMP_PREFIX}run.parquet.999999999.abc{TEMP_SUFFIX}"
+        old = tmp_path / f"{TEMP_PREFIX}run.parquet.abc{TEMP_SUFFIX}"  # a name without a pid
+        for p in (live, dead, old):
+            p.write_bytes(b"x")
+        assert remove_temp_files(tmp_path) == 2
+        assert live.exists() and not dead.exists() and not old.exists()
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert remove_temp_files(tmp_path) == 1 and not live.exists()

@@ -6,11 +6,13 @@ import math
 
 import numpy as np
 import pytest
+
+from redysim import energy, forward_dynamics, load_case
+from redysim.cases import CASES_DIR
 from redysim.harness import reference as ref_mod
 from redysim.harness.run import SAMPLE_COLUMNS, execute
 from redysim.harness.spec import RunSpec
-
-from redysim import energy, load_case
+from redysim.integrate import integrate
 
 
 @pytest.fixture
@@ -135,15 +137,62 @@ def test_a_perturbed_run_starts_from_the_shifted_state_and_keeps_its_own_E0(resu
     assert np.allclose(d, [0.0, lever, -lever], rtol=1e-6, atol=1e-13)
 
 
-def test_the_run_id_of_an_unperturbed_run_leaves_the_new_field_out():
-    # runs saved before RunSpec.perturb existed keep their ids, so a resumed sweep reuses them
-    import hashlib
-    import json
-    from dataclasses import asdict
+def test_the_run_id_follows_the_case_file_s_content(tmp_path):
+    """An edited case file is another run: its id changes with the file's bytes (not only its
+    name or path), and comes back when the bytes do."""
+    path = tmp_path / "mine.toml"
+    text = (CASES_DIR / "STUDY-R3.toml").read_text()
+    path.write_text(text)
+    before = RunSpec(case=str(path), t_end=0.2).run_id
+    assert RunSpec(case=str(path), t_end=0.2).run_id == before
+    path.write_text(text.replace("links = 3", "links = 5"))
+    assert RunSpec(case=str(path), t_end=0.2).run_id != before
+    path.write_text(text)
+    assert RunSpec(case=str(path), t_end=0.2).run_id == before
 
-    from redysim.harness.provenance import code_digest
 
-    spec = RunSpec(case="STUDY-R3", t_end=0.2)
-    old = {k: v for k, v in asdict(spec).items() if k != "perturb"}
-    blob = json.dumps({**old, "code": code_digest()}, sort_keys=True, default=repr)
-    assert spec.run_id == hashlib.sha256(blob.encode()).hexdigest()[:16]
+def test_a_run_takes_the_case_file_s_integrator_and_tolerances(tmp_path):
+    """[simulation] integrator, rtol and atol are honoured where the run leaves them to the case
+    (they were ignored: every run was ode45 at 1e-4), and a run's own settings win."""
+    path = tmp_path / "mine.toml"
+    text = (CASES_DIR / "STUDY-R3.toml").read_text()
+    assert 'integrator = "ode45"' in text and "rtol = 1e-4" in text
+    path.write_text(text.replace('integrator = "ode45"', 'integrator = "dop853"')
+                    .replace("rtol = 1e-4", "rtol = 1e-7").replace("atol = 1e-6", "atol = 1e-9"))
+    res = execute(RunSpec(case=str(path), t_end=0.2), reference=False)
+    assert res.ok, res.summary["reason"]
+    s = res.summary
+    assert (s["integrator"], s["rtol"], s["atol"]) == ("dop853", 1e-7, 1e-9)
+    assert "dop853 rtol=1e-07" in s["label"]
+    direct = integrate(lambda t, y: np.concatenate((y[3:], forward_dynamics(
+        load_case(path).chain, y[:3], y[3:]))), (0.0, 0.2), np.zeros(6), "dop853", rtol=1e-7,
+        atol=1e-9, t_eval=[0.2])
+    assert s["steps"] == direct.steps
+    own = execute(RunSpec(case=str(path), t_end=0.2, integrator="ode45", rtol=1e-5),
+                  reference=False).summary
+    assert (own["integrator"], own["rtol"], own["atol"]) == ("ode45", 1e-5, 1e-9)
+    fixed = tmp_path / "fixed.toml"
+    fixed.write_text(text.replace('integrator = "ode45"', 'integrator = "rk4"\nh = 0.01')
+                     .replace("rtol = 1e-4\n", "").replace("atol = 1e-6\n", ""))
+    run = execute(RunSpec(case=str(fixed), t_end=0.2), reference=False).summary
+    assert (run["integrator"], run["h"], run["steps"]) == ("rk4", 0.01, 20), run["reason"]
+
+
+@pytest.mark.parametrize("given, field, fragment", [
+    (dict(integrator="ode45", h=1e-3), "h", "is the step of a fixed-step integrator"),
+    (dict(integrator="rk4", h=1e-3, rtol=1e-6), "rtol", "applies to adaptive integrators"),
+    (dict(integrator="rk4"), "h", "missing"),
+    (dict(rtol=2.0), "rtol", "must be < 1"),
+    (dict(rtol=1e-300), "rtol", "must be at least"),
+    (dict(sample=1e-9), "sample", "at most 10,000,000"),
+    (dict(integrator="rk4", h=1e-9), "h", "at most 100,000,000"),
+    (dict(t_end=1e300), "t_end", "at most 1e+06 s"),
+])
+def test_settings_that_cannot_run_are_refused_naming_the_field(given, field, fragment):
+    """What hung or ran silently with another meaning (--sample 1e-9, rk4 at h = 1e-9,
+    rtol = 1e-300, t_end = 1e300, a step given to ode45) fails at once, naming the field."""
+    res = execute(RunSpec(case="STUDY-R3", **given), reference=False)
+    assert res.summary["status"] == "failed"
+    assert res.summary["reason"].startswith(f"SettingsError: run: {field}"), res.summary["reason"]
+    assert fragment in res.summary["reason"]
+    assert res.summary["cpu_s"] != res.summary["cpu_s"]  # NaN: it never started

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import random
+import shlex
 import signal
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+
 from redysim.harness.cli import main
 from redysim.harness.spec import RunSpec
 from redysim.harness.store import (
@@ -25,14 +27,18 @@ from redysim.harness.store import (
     write_parquet_atomic,
 )
 from redysim.harness.sweep import (
+    CLAIMS_DIR,
+    DAMAGED_DIR,
     DIED,
     PLAN_FILE,
     RUNS_DIR,
     RUNS_FILE,
     SAMPLES_DIR,
     SAMPLES_FILE,
+    Claims,
     SweepError,
     _pool_results,
+    _Work,
     collect,
     failed_row,
     load_sweep,
@@ -172,6 +178,18 @@ BAD = {
                               "sweep.perturbs[1]", "-1e-13", ">= 0"),
     "bad extra": ('cases = ["STUDY-R3"]\n[[sweep.extra]]\ncase = "STUDY-R3"\nrtols = 1e-3',
                   "sweep.extra[0].rtols", "0.001", "unknown field"),
+    "rtol below the floor": ('cases = ["STUDY-R3"]\nrtols = [1e-300]', "sweep.rtols", "1e-300",
+                             "must be at least"),
+    "step to an adaptive": ('cases = ["STUDY-R3"]\n[[sweep.extra]]\ncase = "STUDY-R3"\n'
+                            'integrator = "ode45"\nh = 1e-3', "sweep.extra[0].h", "0.001",
+                            "fixed-step integrator"),
+    "samples past the cap": ('cases = ["STUDY-R3"]\nsample = 1e-9', "sweep.sample", "1e-09",
+                             "at most 10,000,000"),
+    "name is a path": ('name = "/tmp/elsewhere"\ncases = ["STUDY-R3"]', "sweep.name",
+                       "'/tmp/elsewhere'", "plain folder name"),
+    "name climbs out": ('name = "../up"\ncases = ["STUDY-R3"]', "sweep.name", "'../up'",
+                        "plain folder name"),
+    "a name for a file": ('cases = ["mine"]', "sweep.cases[0]", "'mine'", "./mine.toml"),
 }
 
 
@@ -199,6 +217,29 @@ def test_bad_sweep_file_on_the_command_line_exits_2_without_traceback(tmp_path, 
     syntax = write(tmp_path, "[sweep\n", "syntax.toml")
     assert main(["sweep", str(syntax)]) == 2
     assert "<toml syntax>" in capsys.readouterr().err
+
+
+def test_a_sweep_takes_the_case_s_settings_and_reruns_an_edited_case(tmp_path):
+    """A run left to the case takes its [simulation] integrator and tolerances; edit the case
+    file and the resumed sweep runs it again (it reported the old 5-link results as done)."""
+    case = write(tmp_path, (REPO / "cases" / "STUDY-R3.toml").read_text()
+                 .replace('integrator = "ode45"', 'integrator = "dop853"')
+                 .replace("rtol = 1e-4", "rtol = 1e-7"), "mine.toml")
+    path = write(tmp_path, """
+        [sweep]
+        name = "edited"
+        cases = ["mine.toml"]
+        t_end = 0.1
+        sample = 0.05
+        """)
+    (spec,) = load_sweep(path).specs
+    assert (spec.integrator, spec.rtol, spec.atol) == ("dop853", 1e-7, 1e-6)
+    out = tmp_path / "out"
+    first = run_sweep(load_sweep(path).specs, out, progress=False)
+    assert first["n_dof"].tolist() == [3] and first["integrator"].tolist() == ["dop853"]
+    case.write_text(case.read_text().replace("links = 3", "links = 5"))
+    again = run_sweep(load_sweep(path).specs, out, progress=False)
+    assert again["n_dof"].tolist() == [5] and again["run_id"].tolist() != first["run_id"].tolist()
 
 
 # --------------------------------------------------------------------------- (b) kill -9
@@ -253,7 +294,8 @@ def test_sweep_killed_with_sigkill_resumes_without_duplicates(tmp_path):
     assert runs["run_id"].tolist() == planned and (runs["status"] == "ok").all()
     samples = read_parquet(out / SAMPLES_FILE)
     assert samples.groupby("run_id").size().to_dict() == {k: 11 for k in planned}
-    assert not any(p.name.startswith(TEMP_PREFIX) for p in out.rglob("*"))
+    assert not list(out.rglob(f"{TEMP_PREFIX}*{TEMP_SUFFIX}"))
+    assert not list((out / CLAIMS_DIR).iterdir())  # every claim released
 
 
 # --------------------------------------------------------------------------- (c) Dask
@@ -299,11 +341,12 @@ def _task_that_crashes_or_raises(spec: RunSpec):
 
 
 @pytest.mark.slow
-def test_a_worker_that_dies_or_raises_fails_only_its_own_run():
+def test_a_worker_that_dies_or_raises_fails_only_its_own_run(tmp_path):
     specs = [RunSpec(case="STUDY-R3"), RunSpec(case="STUDY-R3", integrator="rk4", h=0.01),
              RunSpec(case="STUDY-R3", rtol=1e-6), RunSpec(case="STUDY-R3", integrator="dop853")]
+    work = _Work(specs, Claims(tmp_path), lambda spec: False)
     got = {spec.run_id: (summary, samples) for spec, summary, samples
-           in _pool_results(specs, 2, _task_that_crashes_or_raises)}
+           in _pool_results(work, 2, _task_that_crashes_or_raises)}
     assert sorted(got) == sorted(s.run_id for s in specs)
     status = {k: (row["status"], row["reason"]) for k, (row, _) in got.items()}
     assert status[specs[0].run_id] == ("ok", "")
@@ -311,6 +354,7 @@ def test_a_worker_that_dies_or_raises_fails_only_its_own_run():
     assert status[specs[2].run_id] == ("ok", "")
     assert status[specs[3].run_id] == ("failed", "worker raised ArithmeticError('boom')")
     assert got[specs[1].run_id][1] is None
+    assert got[specs[1].run_id][0]["transient"] and got[specs[3].run_id][0]["transient"]
 
 
 def test_collect_orders_by_plan_and_ignores_unplanned_and_partial_runs(tmp_path):
@@ -400,11 +444,13 @@ def test_cli_exit_codes_for_bad_input_and_failed_runs(capsys):
     assert main(["simulate", "NO-SUCH-CASE"]) == 2
     assert capsys.readouterr().err.startswith("redysim: error: no case named 'NO-SUCH-CASE'")
     assert main(["simulate", "STUDY-R3", "--integrator", "rk4"]) == 2
-    assert "--h 1e-3" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as info:
-        main(["simulate", "STUDY-R3", "--rtol", "-1"])
-    assert info.value.code == 2
-    assert "argument --rtol: '-1' must be > 0" in capsys.readouterr().err
+    assert capsys.readouterr().err.startswith("redysim: error: command line: --h: missing: "
+                                              "integrator 'rk4' is fixed-step")
+    for bad in ("-1", "0", "nan", "inf"):
+        with pytest.raises(SystemExit) as info:
+            main(["simulate", "STUDY-R3", "--rtol", bad])
+        assert info.value.code == 2
+        assert f"argument --rtol: '{bad}' must be a finite number > 0" in capsys.readouterr().err
     assert main(["simulate", "STUDY-R3", "--integrator", "native", "--h", "0.01"]) == 1
     assert capsys.readouterr().err.startswith("redysim: run failed: integrator 'native' needs")
     bad = Path(__file__).parent / "bad_inputs" / "states.toml"  # a state list, not a case
@@ -412,6 +458,86 @@ def test_cli_exit_codes_for_bad_input_and_failed_runs(capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"redysim: error: {bad}: <top>.state = ") and "unknown field" in err
     assert len(err) < 600, "a long value is abbreviated, not dumped"
+
+
+@pytest.mark.parametrize("argv, flag, fragment", [
+    (["--rtol", "2"], "--rtol", "must be < 1"),
+    (["--rtol", "1e-300", "--atol", "1e-300"], "--rtol", "must be at least"),
+    (["--h", "1e-3"], "--h", "is the step of a fixed-step integrator"),
+    (["--integrator", "rk4", "--h", "1e-9"], "--h", "steps over t_end"),
+    (["--integrator", "rk4", "--h", "1e-3", "--rtol", "1e-6"], "--rtol", "adaptive"),
+    (["--sample", "1e-9"], "--sample", "samples over t_end"),
+    (["--t-end", "1e300"], "--t-end", "at most 1e+06 s"),
+    (["--out", "x.txt"], "--out", "must end in .parquet or .csv"),
+    (["--out", "no-such-folder/x.parquet"], "--out", "does not exist"),
+])
+def test_cli_refuses_settings_that_cannot_run_naming_the_flag(argv, flag, fragment, capsys,
+                                                                monkeypatch, tmp_path):
+    """Settings that hung (--sample 1e-9, rk4 at --h 1e-9, rtol 1e-300), were silently taken
+    another way (--h with ode45, --rtol 2, --t-end 0, --out x.csv written as Parquet) or lost the
+    run's result (--out in a missing folder) are refused before the run, naming the flag."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "STUDY-R3", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"redysim: error: command line: {flag}"), err
+    assert fragment in err, err
+
+
+def test_cli_zero_horizon_and_an_out_folder_are_refused(capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        main(["simulate", "STUDY-R3", "--t-end", "0"])  # it silently ran the case's horizon
+    assert "argument --t-end: '0' must be a finite number > 0" in capsys.readouterr().err
+    assert main(["simulate", "STUDY-R3", "--t-end", "0.01", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "command line: --out" in err and "is a folder" in err  # the run finished, unsaved
+
+
+def test_cli_saves_csv_by_its_suffix(tmp_path, capsys):
+    out = tmp_path / "tip.csv"
+    assert main(["simulate", "STUDY-R3", "--t-end", "0.1", "--sample", "0.05", "--out",
+                 str(out)]) == 0
+    samples = pd.read_csv(out)
+    assert list(samples.columns[:2]) == ["run_id", "t"] and len(samples) == 3
+    assert pd.read_csv(tmp_path / "tip.summary.csv")["status"].tolist() == ["ok"]
+    assert out.stat().st_mode & 0o044 == 0o044  # readable by others (umask 022), not 0600
+
+
+def test_cli_max_wall_stops_a_long_run_and_keeps_its_samples(capsys):
+    """A run that would take minutes (rk4 at a tiny step) stops at --max-wall with the samples
+    it finished, and says so; progress lines go to stderr."""
+    t0 = time.perf_counter()
+    code = main(["simulate", "RE-U125-L1", "--integrator", "rk4", "--h", "1e-6", "--t-end",
+                 "1", "--sample", "1e-4", "--max-wall", "2"])
+    assert time.perf_counter() - t0 < 30
+    assert code == 1
+    out, err = capsys.readouterr()
+    assert "time limit: max_wall_s = 2 s reached" in err
+    assert "status        failed" in out and "0.0001" in out
+
+
+def test_cli_output_into_a_closed_pipe_ends_quietly():
+    """`redysim cases | head -1` and `redysim simulate ... | head`: no BrokenPipeError
+    traceback."""
+    for args in (["cases"], ["simulate", "STUDY-R3", "--t-end", "0.5", "--sample", "0.001"]):
+        proc = subprocess.run(f"{shlex.quote(PYTHON)} -m redysim.harness.cli "
+                              f"{' '.join(args)} | head -1", shell=True, cwd=REPO,
+                              env=subprocess_env(), capture_output=True, text=True, timeout=120)
+        assert proc.stdout.count("\n") == 1
+        assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr, proc.stderr
+
+
+def test_cli_cases_lists_the_others_when_one_file_is_malformed(tmp_path):
+    for name in ("STUDY-R3", "STUDY-R5"):
+        (tmp_path / f"{name}.toml").write_text((REPO / "cases" / f"{name}.toml").read_text())
+    (tmp_path / "BROKEN.toml").write_text("[case]\nname = \n")
+    proc = subprocess.run([PYTHON, "-m", "redysim.harness.cli", "cases"], cwd=REPO,
+                          env={**subprocess_env(), "REDYSIM_CASES": str(tmp_path)},
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("BROKEN") and "does not load" in lines[0] and "line 2" in lines[0]
+    assert lines[1].startswith("STUDY-R3") and lines[2].startswith("STUDY-R5")
+    assert "1 case file in" in proc.stderr
 
 
 def test_cli_help_and_cases(capsys):
@@ -428,3 +554,148 @@ def test_cli_help_and_cases(capsys):
 def test_cli_import_does_not_import_pandas():
     code = "import sys, redysim.harness.cli; assert 'pandas' not in sys.modules, 'pandas imported'"
     subprocess.run([PYTHON, "-c", code], cwd=REPO, env=subprocess_env(), check=True, timeout=60)
+
+
+# --------------------------------------------------------------------------- (d) sharing, death
+def _sweep_cmd(path: Path, out: Path, *extra: str) -> list[str]:
+    return [PYTHON, "-m", "redysim.harness.cli", "sweep", str(path), "--out", str(out),
+            "--no-progress", *extra]
+
+
+def _session_processes(sid: int) -> list:
+    import psutil
+    out = []
+    for p in psutil.process_iter(["pid"]):
+        try:
+            if os.getsid(p.info["pid"]) == sid:
+                out.append(p)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return out
+
+
+@pytest.mark.slow
+def test_killing_the_sweep_ends_its_pool_workers(tmp_path):
+    """kill -9 of the sweep process alone (not its group): its pool workers notice within
+    seconds and exit, and so does multiprocessing's resource tracker (they stayed, ~265 MB
+    each, for ever)."""
+    path = write(tmp_path, """
+        [sweep]
+        name = "orphans"
+        cases = ["RE-U125-L1"]
+        rtols = [1e-7, 2e-7, 3e-7, 4e-7]
+        t_end = 0.5
+        """)
+    proc = subprocess.Popen(_sweep_cmd(path, tmp_path / "out", "--workers", "2"), cwd=REPO,
+                            env=subprocess_env(), start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while len(_session_processes(proc.pid)) < 3:  # the sweep and its two workers
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(1.0)  # the workers are computing
+    proc.kill()
+    proc.wait(timeout=10)
+    deadline = time.monotonic() + 20
+    while (left := _session_processes(proc.pid)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not left, [p.cmdline() for p in left]
+
+
+@pytest.mark.slow
+def test_two_sweeps_on_one_folder_share_the_runs(tmp_path):
+    """Two sweeps started together on the same file and folder: each run is computed once (each
+    computed every pending run before), and both end with the whole table."""
+    rtols = ", ".join(f"{k}e-7" for k in range(1, 9))
+    path = write(tmp_path, f"""
+        [sweep]
+        name = "shared"
+        cases = ["RE-U125-L1"]
+        rtols = [{rtols}]
+        t_end = 0.05
+        """)
+    out = tmp_path / "out"
+    procs = [subprocess.Popen(_sweep_cmd(path, out, "--workers", "1"), cwd=REPO,
+                              env=subprocess_env(), stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outputs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], outputs
+    ran = [int(o.split(" run by this sweep")[0].rsplit(", ", 1)[1]) for o, _ in outputs]
+    assert sum(ran) == 8 and min(ran) >= 1, outputs
+    runs = read_parquet(out / RUNS_FILE)
+    assert len(runs) == 8 and (runs["status"] == "ok").all()
+    assert not list((out / CLAIMS_DIR).iterdir())
+
+
+def test_a_claim_is_held_by_one_process_and_freed_by_its_death(tmp_path):
+    claims = Claims(tmp_path)
+    assert claims.take("abc")
+    code = ("import sys; from pathlib import Path; from redysim.harness.sweep import Claims; "
+            "c = Claims(Path(sys.argv[1])); print(c.take('abc'), c.take('xyz'))")
+    other = subprocess.run([PYTHON, "-c", code, str(tmp_path)], capture_output=True, text=True,
+                           env=subprocess_env(), check=True, timeout=60)
+    assert other.stdout.split() == ["False", "True"]  # xyz freed when that process ended
+    claims.release("abc")
+    assert not (tmp_path / CLAIMS_DIR / "abc").exists()
+    other = subprocess.run([PYTHON, "-c", code, str(tmp_path)], capture_output=True, text=True,
+                           env=subprocess_env(), check=True, timeout=60)
+    assert other.stdout.split() == ["True", "True"]
+
+
+def test_which_failed_runs_a_resumed_sweep_runs_again(tmp_path):
+    """A run whose worker died or raised is run again on resume (transient); a run that failed
+    by itself is a result and is not, unless retry_failed."""
+    out = tmp_path / "out"
+    spec = RunSpec(case="STUDY-R3", t_end=0.05, sample=0.05)
+    blowup = RunSpec(case="STUDY-R3", t_end=0.05, sample=0.05, energy_bound=1e-300)
+    first = run_sweep([spec, blowup], out, progress=False)
+    assert first.attrs["ran"] == 2
+    assert first.set_index("run_id").loc[blowup.run_id, "status"] == "failed"
+    assert not first["transient"].any()
+    # the worker of `spec` "died": a transient failed row in its place
+    write_parquet_atomic(pd.DataFrame([failed_row(spec, DIED)]),
+                         out / RUNS_DIR / f"{spec.run_id}.parquet")
+    again = run_sweep([spec, blowup], out, progress=False)
+    assert again.attrs["ran"] == 1
+    assert again.set_index("run_id")["status"].to_dict() == {spec.run_id: "ok",
+                                                             blowup.run_id: "failed"}
+    assert run_sweep([spec, blowup], out, progress=False).attrs["ran"] == 0
+    retried = run_sweep([spec, blowup], out, progress=False, retry_failed=True)
+    assert retried.attrs["ran"] == 1
+
+
+@pytest.mark.parametrize("damage", ["empty", "garbage", "truncated"])
+@pytest.mark.parametrize("which", [RUNS_DIR, SAMPLES_DIR])
+def test_a_damaged_result_file_is_set_aside_and_its_run_done_again(tmp_path, damage, which,
+                                                                    capsys):
+    out = tmp_path / "out"
+    specs = TINY[:2]
+    run_sweep(specs, out, progress=False)
+    victim = out / which / f"{specs[0].run_id}.parquet"
+    data = victim.read_bytes()
+    victim.write_bytes({"empty": b"", "garbage": os.urandom(300),
+                        "truncated": data[:len(data) // 2]}[damage])
+    runs = run_sweep(specs, out, progress=False)  # ArrowInvalid blocked every resume before
+    assert runs.attrs["ran"] == 1 and len(runs) == 2 and (runs["status"] == "ok").all()
+    err = capsys.readouterr().err
+    assert f"{victim} could not be read" in err and "done again" in err
+    assert list((out / DAMAGED_DIR).iterdir())
+    assert len(read_parquet(out / SAMPLES_FILE)["run_id"].unique()) == 2
+
+
+def test_sweep_inputs_that_crashed_now_fail_with_a_named_error(tmp_path, capsys, monkeypatch):
+    random_bytes = tmp_path / "random.toml"
+    random_bytes.write_bytes(bytes(range(256)) * 4)
+    assert main(["sweep", str(random_bytes)]) == 2
+    assert "<toml syntax>" in capsys.readouterr().err
+    good = write(tmp_path, '[sweep]\ncases = ["STUDY-R3"]\nt_end = 0.05\n')
+    a_file = tmp_path / "results-file"
+    a_file.write_text("x")
+    assert main(["sweep", str(good), "--out", str(a_file)]) == 2
+    assert "--out" in capsys.readouterr().err
+    monkeypatch.setattr("redysim.harness.sweep.DASK_CONNECT_TIMEOUT_S", 1)
+    t0 = time.monotonic()
+    assert main(["sweep", str(good), "--out", str(tmp_path / "o"), "--dask",
+                 "tcp://127.0.0.1:9"]) == 2
+    assert time.monotonic() - t0 < 20
+    assert "no Dask scheduler answered" in capsys.readouterr().err
