@@ -236,8 +236,8 @@ class Chain:
         gravity:       (3,) gravitational acceleration in the world frame [m/s^2].
         joint_qoff:    (nl + 1,) index of joint k's first DOF in q (joint_qoff[nl] = n).
         dof_kind:      (n,) 0 revolute, 1 prismatic.
-        dof_axis:      (n,) 0, 1, 2 for the x, y, z axis of the frame before it, 3 for a
-                       general one.
+        dof_axis:      (n,) 0, 1, 2 when the axis is exactly +x, +y, +z of the frame before it,
+                       3 for any other direction (-z and a tilted z included).
         dof_u:         (n, 3) the unit axis in the frame left by the axes before it.
         inertia_O:     (nl, 3, 3) inertia about O_k in the link frame (I_C + m (|c|^2 1 - c c^T)).
         mass_com:      (nl, 3) m_k c_k in the link frame.
@@ -300,10 +300,11 @@ class Chain:
             u = first.get(id(joint))
             if u is None:
                 axes = joint.axes(source, f"joints[{k}]")
-                codes = []
-                for _, v in axes:
-                    hit = np.flatnonzero(np.abs(v) == 1.0)
-                    codes.append(int(hit[0]) if hit.size == 1 else GENERAL_AXIS)
+                # a coordinate axis's code only for exactly +x, +y or +z: the kernels' fast path
+                # takes the frame's column as it is, so -z (or z tilted by 1e-9) must take the
+                # general path, which uses the axis as given
+                codes = [next((i for i in range(3) if np.array_equal(v, np.eye(3)[i])),
+                              GENERAL_AXIS) for _, v in axes]
                 dofs.append(([KIND_CODES[kind] for kind, _ in axes], codes, [v for _, v in axes]))
                 u = first[id(joint)] = len(dofs) - 1
             joint_of[k] = u

@@ -25,6 +25,7 @@ from conftest import (
 
 from redysim import (
     Chain,
+    Joint,
     Link,
     Workspace,
     energy,
@@ -32,6 +33,7 @@ from redysim import (
     inverse_dynamics,
     mass_matrix,
     phi,
+    tip,
     udu_factors,
 )
 
@@ -356,3 +358,33 @@ def test_the_random_chains_seeds_are_the_same_in_another_process():
     out = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parents[1], env=env,
                          capture_output=True, text=True, check=True, timeout=120)
     assert int(out.stdout) == stable_seed(("U",), 10, "wide")
+
+
+@pytest.mark.parametrize("kind", ["R", "P"])
+@pytest.mark.parametrize("axis", ["x", "y", "z"])
+def test_a_negative_axis_is_the_positive_one_turned_back(kind, axis):
+    """A joint about (along) -e moves as the one about +e with the opposite coordinate:
+    qdd_{-e}(q, qd) = -qdd_{+e}(-q, -qd), same tip. It acted as +e (the axis code keyed on
+    |v| = 1 and the kernels never saw the sign), and so did an axis within rounding of -e."""
+    e = {"x": 0, "y": 1, "z": 2}[axis]
+    plus, minus, near = np.eye(3)[e], -np.eye(3)[e], -np.eye(3)[e]
+    near[(e + 1) % 3] = 1e-9
+    links = [Link(0.7, 1.3, (0.35, 0.02, -0.01), ((0.01, 0, 0), (0, 0.06, 0), (0, 0, 0.06))),
+             Link(0.5, 0.8, (0.25, 0.0, 0.03), ((0.005, 0, 0), (0, 0.02, 0), (0, 0, 0.02)))]
+    gravity = (0.3, -9.81, 0.7)
+
+    def chain(u):
+        return Chain.build(links, [Joint(kind, tuple(u)), Joint("U")], gravity=gravity)
+
+    q, qd = np.array([0.5, 0.3, -0.2]), np.array([0.4, -1.1, 0.6])
+    flip = np.array([-1.0, 1.0, 1.0])
+    c_plus, c_minus, c_near = chain(plus), chain(minus), chain(near)
+    assert c_minus.dof_axis[0] == 3 and c_near.dof_axis[0] == 3 and c_plus.dof_axis[0] == e
+    qdd_minus = forward_dynamics(c_minus, q, qd)
+    qdd_plus = forward_dynamics(c_plus, flip * q, flip * qd)
+    np.testing.assert_allclose(qdd_minus, flip * qdd_plus, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(tip(c_minus, q, qd).position,
+                               tip(c_plus, flip * q, flip * qd).position, rtol=0, atol=1e-14)
+    assert rel(forward_dynamics(c_near, q, qd), qdd_minus) < 1e-7
+    if not np.allclose(qdd_plus, qdd_minus):  # it was the same as +e at the same q
+        assert rel(forward_dynamics(c_plus, q, qd), qdd_minus) > 1e-3
