@@ -1,39 +1,66 @@
-"""A long run that survives being stopped: ode45 on the core with checkpoints, resumed on restart.
+"""A long run that survives being stopped: the core integrated with checkpoints, resumed on restart.
 
 For chains whose runs take hours (RE-U50000-L1000: 100,000 DOF, ~8 ms per qdd, steps of ~1e-5 s
-limited by waves along the chain, DESIGN.md section 4). Every ``--every`` seconds of wall time,
-and at the end, the solver's whole state (t, y, f(t, y), the next step, the counters, the CPU and
-wall time so far) and the samples so far are written to ONE ``.npz`` file atomically (temp file,
-fsync, ``os.replace``): a run killed at any moment, even by ``kill -9``, loses at most the work
-since the last checkpoint, and resuming continues bit for bit the same step sequence.
+limited by waves along the chain). Every ``--every`` seconds of wall time, and at the end, the
+solver's whole state (t, y, f(t, y), the next step, the counters, the CPU and wall time so far)
+and the samples so far are written to ONE ``.npz`` file atomically (temp file, fsync,
+``os.replace``), the previous one kept beside it: a run killed at any moment, even by
+``kill -9``, loses at most the work since the last checkpoint, and resuming continues bit for
+bit the same step sequence.
 
     python -m redysim.harness.longrun RE-U50000-L1000 [--t-end 5] [--every 120] [--out DIR]
     python -m redysim.harness.longrun RE-U50000-L1000 --status  # what the checkpoint holds, ETA
 
+The integrator and its tolerances (or step) are the case file's ``[simulation]`` settings, or
+the flags': one of ours (ode45, dop853, rk4), whose state can be saved; SciPy's cannot.
+A checkpoint is resumed only by the same code, case file (its SHA-256 and DOF), integrator,
+tolerances and horizon; anything else is refused, naming both sides. A checkpoint that cannot
+be read is moved aside and the previous one (or a fresh start) is used, saying so.
+
 Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M.
+Exit codes: 0 done (or stopped by ``--stop-after``), 1 the run failed, 2 bad input.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import resource
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from redysim import Workspace, energy, forward_dynamics, load_case, tip
-from redysim.integrate import Counters, Solver, SolverState, advance, sample_times
+from redysim.errors import RedysimError, SettingsError, StateError
+from redysim.integrate import (
+    FIXED_STEP,
+    TABLEAUS,
+    Counters,
+    Solver,
+    SolverState,
+    advance,
+    check_settings,
+    sample_times,
+)
 
 from .provenance import code_digest
 from .reference import results_dir
 from .store import write_npz_atomic
 
 CHECKPOINT = "checkpoint.npz"
+PREVIOUS = "checkpoint.prev.npz"  # the checkpoint before the last, kept in case it is damaged
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
 SAMPLE_FIELDS = ("t", "tip_x", "tip_y", "tip_z", "E", "delta_M")
+INTEGRATORS = tuple(TABLEAUS)  # ours: ode45, dop853, rk4 (their state can be saved)
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+class LongrunError(RedysimError):
+    """A long run cannot start or resume as asked (the message says why and what to do)."""
 
 
 def out_dir_for(case_name: str) -> Path:
@@ -41,31 +68,106 @@ def out_dir_for(case_name: str) -> Path:
 
 
 def save_checkpoint(path: Path, solver: Solver, samples: list, meta: dict) -> None:
-    """Everything to resume, in one file, atomically."""
+    """Everything to resume, in one file, atomically; the file it replaces is kept as
+    ``checkpoint.prev.npz``."""
     st = solver.state()
+    if path.exists():
+        os.replace(path, path.with_name(PREVIOUS))
     write_npz_atomic(path, t=st.t, y=st.y, f=st.f, h=st.h, steps=st.counters.steps,
                      rejected=st.counters.rejected, nfev=st.counters.nfev,
                      samples=np.array(samples, dtype=float).reshape(-1, len(SAMPLE_FIELDS)),
                      **{k: np.asarray(v) for k, v in meta.items()})
 
 
-def load_checkpoint(path: Path) -> dict | None:
-    if not path.exists():
-        return None
+def _read(path: Path) -> dict:
     with np.load(path) as z:
-        return {k: z[k] for k in z.files}
+        ck = {k: z[k] for k in z.files}
+    missing = {"t", "y", "f", "h", "steps", "samples", "case", "t_end"} - set(ck)
+    if missing:
+        raise KeyError(f"no {', '.join(sorted(missing))}")
+    return ck
+
+
+def load_checkpoint(path: Path, *, repair: bool = False, log=print) -> dict | None:
+    """The checkpoint at ``path`` (a dict of its arrays), or None when there is none.
+
+    A checkpoint that cannot be read (truncated, corrupted, not ours) is skipped for the
+    previous one beside it, if that one reads; with ``repair`` the damaged file is also moved
+    aside (``<name>.damaged-<time>``), and ``log`` says what happened either way."""
+    for candidate in (path, path.with_name(PREVIOUS)):
+        if not candidate.exists():
+            continue
+        try:
+            return _read(candidate)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            what = f"{candidate} could not be read ({type(exc).__name__}: {str(exc)[:200]})"
+            if repair:
+                aside = candidate.with_name(f"{candidate.name}.damaged-{int(time.time())}")
+                os.replace(candidate, aside)
+                what += f"; moved to {aside}"
+            log(what)
+    return None
+
+
+def _refuse_other(path: Path, ck: dict, now: dict) -> None:
+    """Refuse to resume a checkpoint written for another case, code, integrator or horizon."""
+    if str(ck.get("code", "")) != now["code"]:
+        raise LongrunError(f"{path}: the checkpoint was written by other code (digest "
+                           f"{str(ck.get('code', ''))[:12] or 'not recorded'}, now "
+                           f"{now['code'][:12]}): resuming would not continue the same "
+                           "computation; use another --out or delete it")
+    then_case = (f"case {str(ck['case'])!r} ({int(ck['n_dof']):,} DOF, case file "
+                 f"{str(ck.get('case_digest', 'not recorded'))[:12]})")
+    now_case = (f"case {now['case']!r} ({now['n_dof']:,} DOF, case file "
+                f"{now['case_digest'][:12]})")
+    if str(ck.get("case_digest", "")) != now["case_digest"] or int(ck["n_dof"]) != now["n_dof"]:
+        raise LongrunError(f"{path}: the checkpoint was written for {then_case}; this is "
+                           f"{now_case}: resuming would continue one chain's state with another's "
+                           "dynamics; use another --out or delete it")
+    for key in ("t_end", "integrator", "rtol", "atol", "fixed_h"):
+        then = ck.get(key)
+        then = then.item() if isinstance(then, np.ndarray) else then
+        if then != now[key]:
+            raise LongrunError(f"{path}: a checkpoint for {key} = {then!r} exists (now "
+                               f"{now[key]!r}); use another --out or delete it")
+
+
+def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
+             names: dict | None = None) -> dict:
+    """The run's integrator and its tolerances (``rtol``, ``atol``) or step (``fixed_h``): the
+    arguments', else the case's; one of ours (its state can be checkpointed). Raises
+    SettingsError naming the field."""
+    method = integrator or case.integrator
+    if method not in INTEGRATORS:
+        field = (names or {}).get("integrator", "integrator") if integrator else \
+            "simulation.integrator"
+        raise SettingsError(str(case.path), field, method,
+                            f"a long run checkpoints our own integrators ({', '.join(INTEGRATORS)})"
+                            "; SciPy's state cannot be saved and resumed")
+    if method in FIXED_STEP:
+        h = h or (case.h if method == case.integrator else None)
+        check_settings(str(case.path), names, method=method, h=h, t_end=case.t_end)
+        if not h:
+            raise SettingsError(str(case.path), (names or {}).get("h", "h"), None,
+                                f"missing: {method} is fixed-step and needs a step h")
+        return {"integrator": method, "rtol": 0.0, "atol": 0.0, "fixed_h": float(h)}
+    rtol, atol = rtol or case.rtol, atol or case.atol
+    check_settings(str(case.path), names, method=method, rtol=rtol, atol=atol)
+    return {"integrator": method, "rtol": float(rtol), "atol": float(atol), "fixed_h": 0.0}
 
 
 def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_EVERY_S,
-        out: Path | None = None, rtol: float | None = None, atol: float | None = None,
-        stop_after_s: float = math.inf, log=print) -> dict:
-    """Run (or resume) ``case_name`` with ode45 to ``t_end``; return the final checkpoint."""
+        out: Path | None = None, integrator: str | None = None, rtol: float | None = None,
+        atol: float | None = None, h: float | None = None, stop_after_s: float = math.inf,
+        log=print, names: dict | None = None) -> dict:
+    """Run (or resume) ``case_name`` to ``t_end``; return the final checkpoint. Raises
+    :class:`LongrunError` (or a case or settings error) when it cannot start or resume."""
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
     t_end = float(t_end or case.t_end)
-    rtol = rtol or case.simulation.get("rtol", 1e-4)
-    atol = atol or case.simulation.get("atol", 1e-6)
-    interval = case.simulation.get("sample_interval", t_end / 20)
+    check_settings(str(case.path), names, t_end=t_end)
+    how = settings(case, integrator=integrator, rtol=rtol, atol=atol, h=h, names=names)
+    interval = min(case.sample_interval, t_end)
     path = (out or out_dir_for(case.name)) / CHECKPOINT
     ws = Workspace(chain)
 
@@ -77,36 +179,34 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     t0 = time.perf_counter()
     rhs(0.0, y0)
     jit_s = time.perf_counter() - t0
-    code = code_digest()
-    ck = load_checkpoint(path)
+    now = {"code": code_digest(), "case": case.name, "case_digest": case.digest, "n_dof": n,
+           "t_end": t_end, **how}
+    kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
+          dict(rtol=how["rtol"], atol=how["atol"]))
+    ck = load_checkpoint(path, repair=True, log=log)
     if ck is not None:
-        if float(ck["t_end"]) != t_end or float(ck["rtol"]) != rtol:
-            raise SystemExit(f"{path}: a checkpoint for t_end = {float(ck['t_end'])}, rtol = "
-                             f"{float(ck['rtol'])} exists; use another --out or delete it")
-        if str(ck.get("code", "")) != code:
-            raise SystemExit(f"{path}: the checkpoint was written by other code (digest "
-                             f"{str(ck.get('code', ''))[:12] or 'not recorded'}, now {code[:12]}):"
-                             " resuming would not continue the same computation; use another "
-                             "--out or delete it")
+        _refuse_other(path, ck, now)
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
-        solver = Solver(rhs, 0.0, y0, t_end, "ode45", rtol=rtol, atol=atol, state=state)
+        solver = Solver(rhs, 0.0, y0, t_end, how["integrator"], state=state, **kw)
         samples = [tuple(r) for r in ck["samples"]]
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
         log(f"{case.name}: resuming at t = {state.t:.6g} s, {state.counters.steps:,} steps, "
             f"{len(samples)} samples ({wall_prev:,.0f} s of wall time so far)")
     else:
-        solver = Solver(rhs, 0.0, y0, t_end, "ode45", rtol=rtol, atol=atol)
+        solver = Solver(rhs, 0.0, y0, t_end, how["integrator"], **kw)
         samples, cpu_prev, wall_prev = [], 0.0, 0.0
-        log(f"{case.name}: {n:,} DOF, ode45 rtol {rtol:g} atol {atol:g} to t = {t_end:g} s, "
+        step = (f"h {how['fixed_h']:g}" if how["fixed_h"] else
+                f"rtol {how['rtol']:g} atol {how['atol']:g}")
+        log(f"{case.name}: {n:,} DOF, {how['integrator']} {step} to t = {t_end:g} s, "
             f"E(0) = {E0:.9g} J; JIT/cache load {jit_s:.2f} s")
     ts = sample_times(0.0, t_end, interval)
     cpu0, wall0 = time.process_time(), time.perf_counter()
+    t_start = solver.t
     last_ck = [wall0]
 
     def meta():
-        return {"case": case.name, "code": code, "t_end": t_end, "rtol": rtol, "atol": atol,
-                "E0": E0, "mass": chain.total_mass, "n_dof": n,
+        return {**now, "E0": E0, "mass": chain.total_mass,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
@@ -122,26 +222,32 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
         return None
 
     def on_step(s):
-        now = time.perf_counter()
-        if now - last_ck[0] >= every_s:
+        wall = time.perf_counter()
+        if wall - last_ck[0] >= every_s:
             save_checkpoint(path, s, samples, meta())
-            last_ck[0] = now
-            m = meta()
-            rate = (s.t - float(ck["t"]) if ck is not None else s.t) / (now - wall0)
+            last_ck[0] = wall
+            rate = (s.t - t_start) / (wall - wall0)
             eta = (t_end - s.t) / rate if rate > 0 else math.inf
             log(f"  checkpoint t = {s.t:.6g} s, {s.counters.steps:,} steps, h = {s.h_next:.2e}, "
-                f"wall {m['wall_s']:,.0f} s, ETA {eta / 3600:.1f} h")
-        if now - wall0 > stop_after_s:
+                f"wall {meta()['wall_s']:,.0f} s, ETA {eta / 3600:.1f} h")
+        if wall - wall0 > stop_after_s:
             return "stopped by --stop-after"
         return None
 
-    status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
-    save_checkpoint(path, solver, samples, meta())
-    final = load_checkpoint(path)
+    try:
+        status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
+    except StateError as exc:  # the state overflowed or went NaN between two steps
+        status, msg = -1, f"at t = {solver.t:.6g}: {exc}"
+    final_meta = {**meta(), "status": "failed" if status < 0 else
+                  ("done" if solver.t >= t_end else "stopped"), "message": msg}
+    save_checkpoint(path, solver, samples, final_meta)
+    final = load_checkpoint(path, log=log)
     if status < 0:
         log(f"{case.name}: FAILED: {msg}")
     elif solver.t >= t_end:
         log(f"{case.name}: done, t = {t_end:g} s")
+    else:
+        log(f"{case.name}: {msg} at t = {solver.t:.6g} s; the same command resumes it")
     return final
 
 
@@ -151,37 +257,69 @@ def summary(ck: dict) -> str:
     t = float(ck["t"])
     wall = float(ck["wall_s"])
     eta = (float(ck["t_end"]) - t) / (t / wall) if t > 0 else math.inf
-    return (f"{ck['case']}: t = {t:.6g} of {float(ck['t_end']):g} s; steps {int(ck['steps']):,}, "
-            f"rejected {int(ck['rejected']):,}, RHS {int(ck['nfev']):,}; wall {wall:,.0f} s, "
-            f"CPU {float(ck['cpu_s']):,.0f} s; peak RSS {float(ck['peak_rss_mib']):,.0f} MiB; "
-            f"avg |delta_M| {dM.mean():.3e} J/kg over {len(s)} samples; "
-            f"time to finish at this rate {eta / 3600:.1f} h")
+    status = str(ck["status"]) if "status" in ck else "in progress"
+    return (f"{ck['case']}: {status}, t = {t:.6g} of {float(ck['t_end']):g} s; steps "
+            f"{int(ck['steps']):,}, rejected {int(ck['rejected']):,}, RHS {int(ck['nfev']):,}; "
+            f"wall {wall:,.0f} s, CPU {float(ck['cpu_s']):,.0f} s; peak RSS "
+            f"{float(ck['peak_rss_mib']):,.0f} MiB; avg |delta_M| {dM.mean():.3e} J/kg over "
+            f"{len(s)} samples; time to finish at this rate {eta / 3600:.1f} h")
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return value
+
+
+FLAGS = {"t_end": "--t-end", "integrator": "--integrator", "rtol": "--rtol", "atol": "--atol",
+         "h": "--h"}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m redysim.harness.longrun",
-        description="Run a case with ode45 on the core, checkpointing so that a stopped run "
-                    "resumes where it was. Example: "
-                    "python -m redysim.harness.longrun RE-U50000-L1000")
-    ap.add_argument("case")
-    ap.add_argument("--t-end", type=float, default=None, help="horizon [s] (the case's)")
-    ap.add_argument("--every", type=float, default=DEFAULT_EVERY_S,
-                    help="wall seconds between checkpoints")
+        description="Run a case on the core, checkpointing so that a stopped run resumes where "
+                    "it was. Example: python -m redysim.harness.longrun RE-U50000-L1000")
+    ap.add_argument("case", help="a case name or the path of a case file")
+    ap.add_argument("--t-end", type=_positive, help="horizon [s] (default: the case's)")
+    ap.add_argument("--integrator", choices=INTEGRATORS,
+                    help="default: the case file's (ode45 unless it says otherwise)")
+    ap.add_argument("--rtol", type=_positive, help="default: the case file's")
+    ap.add_argument("--atol", type=_positive, help="default: the case file's")
+    ap.add_argument("--h", type=_positive, help="step of rk4 (default: the case file's)")
+    ap.add_argument("--every", type=_positive, default=DEFAULT_EVERY_S,
+                    help=f"wall seconds between checkpoints (default {DEFAULT_EVERY_S:g})")
     ap.add_argument("--out", type=Path, default=None, help="folder of the checkpoint")
-    ap.add_argument("--stop-after", type=float, default=math.inf,
+    ap.add_argument("--stop-after", type=_positive, default=math.inf,
                     help="stop (with a checkpoint) after this many wall seconds")
     ap.add_argument("--status", action="store_true", help="print the checkpoint and exit")
     args = ap.parse_args(argv)
-    path = (args.out or out_dir_for(args.case)) / CHECKPOINT
-    if args.status:
-        ck = load_checkpoint(path)
-        print(summary(ck) if ck is not None else f"no checkpoint at {path}")
-        return 0
-    ck = run(args.case, t_end=args.t_end, every_s=args.every, out=args.out,
-             stop_after_s=args.stop_after, log=lambda m: print(m, flush=True))
+
+    def err(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    try:
+        if args.status:
+            name = load_case(args.case).name
+            path = (args.out or out_dir_for(name)) / CHECKPOINT
+            ck = load_checkpoint(path, log=err)
+            print(summary(ck) if ck is not None else f"no readable checkpoint at {path}")
+            return EXIT_OK if ck is not None else EXIT_FAILED
+        ck = run(args.case, t_end=args.t_end, every_s=args.every, out=args.out,
+                 integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
+                 stop_after_s=args.stop_after, log=lambda m: print(m, flush=True), names=FLAGS)
+    except (RedysimError, FileNotFoundError) as exc:
+        err(f"longrun: error: {exc}")
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        err("longrun: interrupted; the last checkpoint is kept and the same command resumes")
+        return 130
     print(summary(ck))
-    return 0
+    return EXIT_FAILED if str(ck.get("status")) == "failed" else EXIT_OK
 
 
 if __name__ == "__main__":

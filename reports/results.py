@@ -25,14 +25,15 @@ from __future__ import annotations
 import functools
 import json
 import math
+import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from redysim.cases import load_case
 from redysim.harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
 from redysim.harness.longrun import SAMPLE_FIELDS as LONGRUN_SAMPLE_FIELDS
+from redysim.harness.longrun import load_checkpoint
 from redysim.harness.spec import CORE
 from redysim.harness.store import parquet_files, read_parquet
 from redysim.harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
@@ -124,17 +125,20 @@ class Results:
         sweep's: status ``ok`` once the checkpoint reached t_end, else ``partial``."""
         rows = []
         for path in sorted((self.root / LONGRUN_DIR).glob(f"*/{LONGRUN_CHECKPOINT}")):
-            with np.load(path) as z:
-                ck = {k: z[k] for k in z.files}
+            ck = load_checkpoint(path, log=lambda msg: print(f"report: {msg}", file=sys.stderr))
+            if ck is None:  # damaged, and no readable previous one: not in the report
+                continue
             case, t, t_end = str(ck["case"]), float(ck["t"]), float(ck["t_end"])
+            integrator = str(ck["integrator"]) if "integrator" in ck else "ode45"
             run_id = f"{LONGRUN_DIR}:{case}"
             samples = pd.DataFrame(ck["samples"], columns=list(LONGRUN_SAMPLE_FIELDS))
             self._longrun_samples[run_id] = samples
             done = t >= t_end * (1 - HORIZON_SLACK)
             rows.append({
                 "run_id": run_id, "case": case, "engine": CORE, "method": "rge-a",
-                "integrator": "ode45", "rtol": float(ck["rtol"]), "atol": float(ck["atol"]),
-                "h": 0.0, "t_end": t_end, "sample": case_sample_interval(case),
+                "integrator": integrator, "rtol": float(ck["rtol"]), "atol": float(ck["atol"]),
+                "h": float(ck["fixed_h"]) if "fixed_h" in ck else 0.0, "t_end": t_end,
+                "sample": case_sample_interval(case),
                 "status": "ok" if done else PARTIAL,
                 "reason": "" if done else (f"checkpoint at t = {t:.4g} of {t_end:g} s: "
                                            f"python -m redysim.harness.longrun {case} resumes it"),
@@ -145,7 +149,7 @@ class Results:
                 "avg_abs_delta_M": float(samples["delta_M"].abs().mean()),
                 "max_abs_delta_M": float(samples["delta_M"].abs().max()),
                 "t_reached": t, "n_samples": len(samples), "sweep": LONGRUN_DIR,
-                "label": f"{case} redysim/rge-a ode45 (checkpointed long run)"})
+                "label": f"{case} redysim/rge-a {integrator} (checkpointed long run)"})
         return pd.DataFrame(rows)
 
     def samples(self, run_id: str) -> pd.DataFrame | None:

@@ -12,7 +12,16 @@ import time
 import numpy as np
 import pytest
 
-from redysim.harness.longrun import CHECKPOINT, load_checkpoint, run
+from redysim.cases import CASES_DIR
+from redysim.errors import SettingsError
+from redysim.harness.longrun import (
+    CHECKPOINT,
+    PREVIOUS,
+    LongrunError,
+    load_checkpoint,
+    main,
+    run,
+)
 
 # Long enough (about 2,200 steps) that a kill landing within a few milliseconds of the first
 # checkpoint (written after 0.02 s of wall time) leaves most of the run undone even on a fast,
@@ -44,15 +53,109 @@ def test_kill_9_then_resume_is_bit_identical(tmp_path):
     assert not list(out.glob(".*.tmp")), "no temporary files left behind"
 
 
+def quiet(_msg):
+    return None
+
+
 def test_a_checkpoint_for_other_settings_is_not_silently_reused(tmp_path):
-    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
-    with pytest.raises(SystemExit, match="t_end = 0.1"):
-        run("STUDY-R3", t_end=0.2, every_s=1e9, out=tmp_path, log=lambda m: None)
+    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=quiet)
+    with pytest.raises(LongrunError, match="t_end = 0.1"):
+        run("STUDY-R3", t_end=0.2, every_s=1e9, out=tmp_path, log=quiet)
+    with pytest.raises(LongrunError, match="integrator = 'ode45'"):
+        run("STUDY-R3", t_end=0.1, integrator="dop853", every_s=1e9, out=tmp_path, log=quiet)
 
 
 def test_a_checkpoint_written_by_other_code_is_not_resumed(tmp_path, monkeypatch):
     import redysim.harness.longrun as longrun
-    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
+    run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=quiet)
     monkeypatch.setattr(longrun, "code_digest", lambda: "0" * 64)
-    with pytest.raises(SystemExit, match="written by other code"):
-        run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=lambda m: None)
+    with pytest.raises(LongrunError, match="written by other code"):
+        run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=quiet)
+
+
+@pytest.mark.parametrize("edit, what", [("density = 7025.0", "same DOF, other density"),
+                                        ("links = 4", "another DOF")])
+def test_a_checkpoint_of_a_case_with_the_same_name_is_not_resumed(tmp_path, edit, what):
+    """Two case files named alike: the second neither continues the first's state with its own
+    dynamics (same DOF) nor fails with a broadcast traceback (other DOF): both are named."""
+    text = (CASES_DIR / "STUDY-R3.toml").read_text()
+    first, second = tmp_path / "a.toml", tmp_path / "b.toml"
+    first.write_text(text)
+    second.write_text(text.replace("links = 3", edit) if "links" in edit
+                      else text.replace("density = 7025", "density = 7800"))
+    assert first.read_text() != second.read_text(), what
+    out = tmp_path / "out"
+    run(str(first), t_end=0.1, every_s=1e9, out=out, log=quiet)
+    before = (out / CHECKPOINT).read_bytes()
+    with pytest.raises(LongrunError) as err:
+        run(str(second), t_end=0.1, every_s=1e9, out=out, log=quiet)
+    msg = str(err.value)
+    assert "the checkpoint was written for case 'STUDY-R3' (3 DOF" in msg
+    assert "this is case 'STUDY-R3' (" in msg and "dynamics" in msg
+    assert (out / CHECKPOINT).read_bytes() == before  # not overwritten
+
+
+def test_the_case_s_integrator_and_tolerances_are_honoured(tmp_path):
+    text = (CASES_DIR / "STUDY-R3.toml").read_text()
+    case = tmp_path / "c.toml"
+    case.write_text(text.replace('integrator = "ode45"', 'integrator = "dop853"')
+                    .replace("rtol = 1e-4", "rtol = 1e-8").replace("atol = 1e-6", "atol = 1e-10"))
+    ck = run(str(case), t_end=0.2, every_s=1e9, out=tmp_path / "o", log=quiet)
+    assert (str(ck["integrator"]), float(ck["rtol"]), float(ck["atol"])) == ("dop853", 1e-8, 1e-10)
+    fixed = tmp_path / "f.toml"
+    fixed.write_text(text.replace('integrator = "ode45"', 'integrator = "rk4"\nh = 0.01')
+                     .replace("rtol = 1e-4\n", "").replace("atol = 1e-6\n", ""))
+    ck = run(str(fixed), t_end=0.2, every_s=1e9, out=tmp_path / "f", log=quiet)
+    assert (str(ck["integrator"]), float(ck["fixed_h"]), int(ck["steps"])) == ("rk4", 0.01, 20)
+    scipy = tmp_path / "s.toml"
+    scipy.write_text(text.replace('integrator = "ode45"', 'integrator = "scipy-RK45"'))
+    with pytest.raises(SettingsError, match="SciPy's state cannot be saved"):
+        run(str(scipy), t_end=0.2, every_s=1e9, out=tmp_path / "s", log=quiet)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "empty"])
+def test_a_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, damage):
+    """A truncated or corrupted checkpoint gave BadZipFile, EOFError or a pickle hint on resume
+    and on --status: it is moved aside, said, and the previous checkpoint resumed instead."""
+    out = tmp_path / "out"
+    ck = run("STUDY-R3", t_end=0.3, every_s=0.0, stop_after_s=0.0, out=out, log=quiet)
+    assert str(ck["status"]) == "stopped" and (out / PREVIOUS).exists()
+    data = (out / CHECKPOINT).read_bytes()
+    (out / CHECKPOINT).write_bytes({"truncated": data[:len(data) // 2], "empty": b"",
+                                    "garbage": b"PK\x03\x04" + bytes(range(256))}[damage])
+    said = []
+    assert main(["STUDY-R3", "--out", str(out), "--status"]) == 0  # reads the previous one
+    ck = run("STUDY-R3", t_end=0.3, every_s=1e9, out=out, log=said.append)
+    assert str(ck["status"]) == "done" and float(ck["t"]) == 0.3
+    assert any("could not be read" in m and "moved to" in m for m in said), said
+    assert any(m.startswith("STUDY-R3: resuming at t = ") for m in said), said
+    assert list(out.glob(f"{CHECKPOINT}.damaged-*"))
+    whole = run("STUDY-R3", t_end=0.3, every_s=1e9, out=tmp_path / "whole", log=quiet)
+    assert np.array_equal(ck["y"], whole["y"])  # the same end as an uninterrupted run
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["STUDY-R3", "--t-end", "-1"], "must be a finite number > 0"),
+    (["STUDY-R3", "--t-end", "nan"], "must be a finite number > 0"),
+    (["STUDY-R3", "--t-end", "inf"], "must be a finite number > 0"),
+    (["STUDY-R3", "--t-end", "0"], "must be a finite number > 0"),
+    (["STUDY-R3", "--every", "0"], "must be a finite number > 0"),
+])
+def test_bad_arguments_exit_2_without_a_traceback(argv, fragment, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2 and fragment in capsys.readouterr().err
+
+
+def test_a_missing_or_malformed_case_and_a_failed_run_exit_nonzero(tmp_path, capsys):
+    assert main(["NO-SUCH-CASE", "--out", str(tmp_path)]) == 2
+    assert "no case named 'NO-SUCH-CASE'" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[case]\nname = 3\n")
+    assert main([str(bad), "--out", str(tmp_path)]) == 2
+    assert "case.name = 3" in capsys.readouterr().err
+    # a run that fails (rk4 far past its stability limit: the state overflows) exits 1, not 0
+    assert main(["RE-U125-L1", "--integrator", "rk4", "--h", "0.01", "--t-end", "1", "--out",
+                 str(tmp_path / "b")]) == 1
+    out = capsys.readouterr().out
+    assert "FAILED: at t = " in out and "overflow" in out
