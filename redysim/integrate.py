@@ -459,8 +459,9 @@ def _hermite(y0, f0, y1, f1, h, s):
 class ScipySolver:
     """A SciPy ``solve_ivp`` solver with the same interface as :class:`Solver`.
 
-    Rejected steps: SciPy does not report them; for the explicit Runge-Kutta pairs they follow from
-    the RHS count (each attempt costs a fixed number of calls); for LSODA and Radau they are NaN.
+    Rejected steps: SciPy does not report them; for the explicit Runge-Kutta pairs they follow
+    from the RHS count (each attempt costs a fixed number of calls); for LSODA and Radau they
+    are -1 (not known).
     """
 
     def __init__(self, rhs, t0, y0, t_end, method, *, rtol=1e-4, atol=1e-6, hmax=None):
@@ -593,14 +594,37 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
 def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,
               rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
               hmax: float | None = None, t_eval=None, callback=None) -> Solution:
-    """Integrate ``dy/dt = rhs(t, y)`` over ``t_span``; samples at ``t_eval`` (default: every
-    accepted step's end). ``callback(t, y)`` at each sample may return a message to stop.
+    """Integrate ``dy/dt = rhs(t, y)`` over ``t_span`` = (t0, t_end), t_end > t0; samples at
+    ``t_eval`` (default: every accepted step's end). ``callback(t, y)`` at each sample may
+    return a message to stop.
 
-    ``method``: one of :data:`INTEGRATORS`. ``h``: the step of a fixed-step method.
+    ``method``: one of :data:`INTEGRATORS`. ``h``: the step of a fixed-step method (given to an
+    adaptive scheme it steps that scheme at a fixed step, for convergence studies).
+    ``t_eval``: strictly increasing times within ``t_span``, as SciPy's ``solve_ivp`` requires;
+    anything else raises ValueError (unsorted times gave wrong values, a time before t0 the
+    initial state, and times past t_end were dropped).
+    Raises ValueError (:class:`~redysim.errors.SettingsError` for a setting out of range).
     """
     if method not in INTEGRATORS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(INTEGRATORS)}")
     t0, t1 = map(float, t_span)
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+        raise ValueError(f"t_span = {t_span!r}: need finite t0 < t_end (forward in time)")
+    adaptive = method not in FIXED_STEP and h is None
+    check_settings("integrate", method=method, rtol=rtol if adaptive else None,
+                   atol=atol if adaptive else None)
+    if t_eval is not None:
+        t_eval = np.asarray(t_eval, dtype=float)
+        if t_eval.ndim != 1:
+            raise ValueError(f"t_eval must be 1-dimensional, got shape {t_eval.shape}")
+        if not np.isfinite(t_eval).all():
+            raise ValueError("t_eval must be finite")
+        if t_eval.size and (t_eval.min() < t0 or t_eval.max() > t1):
+            raise ValueError(f"Values in t_eval are not within t_span = ({t0:g}, {t1:g}): "
+                             f"they run from {t_eval.min():g} to {t_eval.max():g}")
+        if np.any(np.diff(t_eval) <= 0):
+            raise ValueError("Values in t_eval are not properly sorted (they must increase "
+                             "strictly)")
     cpu0, wall0 = time.process_time(), time.perf_counter()
     solver = make_solver(rhs, t0, y0, t1, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
     ts, ys = [], []

@@ -180,10 +180,34 @@ def test_bad_arguments_are_named():
         integrate(oscillator, (0, 1), [1.0, 0.0], "ode23")
     with pytest.raises(ValueError, match="needs h > 0"):
         integrate(oscillator, (0, 1), [1.0, 0.0], "rk4")
-    with pytest.raises(ValueError, match="rtol > 0"):
+    with pytest.raises(ValueError, match="rtol = 0.0: must be at least"):
         integrate(oscillator, (0, 1), [1.0, 0.0], "ode45", rtol=0.0)
-    with pytest.raises(ValueError, match="t_end"):
+    with pytest.raises(ValueError, match="rtol = 2.0: must be < 1"):
+        integrate(oscillator, (0, 1), [1.0, 0.0], "ode45", rtol=2.0)
+    with pytest.raises(ValueError, match="forward in time"):
         integrate(oscillator, (1, 0), [1.0, 0.0], "ode45")
+
+
+@pytest.mark.parametrize("method", ["ode45", "dop853", "rk4", "scipy-RK45"])
+@pytest.mark.parametrize("t_eval, fragment", [
+    ([0.5, 0.2, 1.0], "not properly sorted"),  # ode45 returned values 0.5 % off
+    ([0.2, 0.2, 1.0], "not properly sorted"),
+    ([-0.1, 0.5], "not within t_span"),  # returned y0 labelled -0.1
+    ([0.5, 1.5], "not within t_span"),  # 1.5 was dropped, status ok
+    ([[0.1, 0.2]], "1-dimensional"),
+    ([0.1, np.nan], "finite"),
+])
+def test_t_eval_outside_the_span_or_unsorted_is_refused(method, t_eval, fragment):
+    kw = {"h": 0.01} if method == "rk4" else {}
+    with pytest.raises(ValueError, match=fragment):
+        integrate(oscillator, (0.0, 1.0), [1.0, 0.0], method, t_eval=t_eval, **kw)
+
+
+def test_t_eval_at_both_ends_of_the_span_is_accepted():
+    sol = integrate(oscillator, (0.0, 1.0), [1.0, 0.0], "ode45", rtol=1e-8, atol=1e-10,
+                    t_eval=[0.0, 0.3, 1.0])
+    assert sol.status == 0 and np.array_equal(sol.t, [0.0, 0.3, 1.0])
+    assert np.abs(sol.y - exact(sol.t).T).max() < 1e-7
 
 
 def test_non_finite_rhs_fails_with_a_reason():
