@@ -230,33 +230,58 @@ def _one_of(node, keys, source, prefix):
     return given[0], node[given[0]]
 
 
+def _culprit(factors: dict[str, tuple[float, float, int]], too_large: bool) -> tuple[str, float]:
+    """Of the fields (name -> (value as given, value as used, power)) whose product overflowed
+    (``too_large``) or underflowed, the one that did most: its name and value as given."""
+    score = {k: p * math.log10(used) for k, (_, used, p) in factors.items() if used > 0}
+    name = (max if too_large else min)(score, key=score.get)
+    return name, factors[name][0]
+
+
 def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
     nl = _int(source, "chain.links", chain["links"], 1, MAX_LINKS)
-    key, val = _one_of(chain, ("link_length", "total_length"), source, "chain")
-    val = check_positive(source, f"chain.{key}", val)
-    length = val if key == "link_length" else val / nl
+    lkey, lval = _one_of(chain, ("link_length", "total_length"), source, "chain")
+    lval = check_positive(source, f"chain.{lkey}", lval)
+    length = lval if lkey == "link_length" else lval / nl
     if not math.isfinite(length * length):
-        raise CaseError(source, f"chain.{key}", val, "too large: the link inertia m l^2 / 12 "
+        raise CaseError(source, f"chain.{lkey}", lval, "too large: the link inertia m l^2 / 12 "
                         "overflows")
     radius = check_positive(source, "chain.radius", chain.get("radius", 0.0), allow_zero=True)
     key, val = _one_of(chain, ("link_mass", "total_mass", "linear_density", "density"), source,
                        "chain")
     val = check_positive(source, f"chain.{key}", val)
+    # the inputs of the link's mass, as (value given, value used, power)
     if key == "link_mass":
-        mass = val
+        mass, of_mass = val, {key: (val, val, 1)}
     elif key == "total_mass":
-        mass = val / nl
+        mass, of_mass = val / nl, {key: (val, val / nl, 1)}
     elif key == "linear_density":
-        mass = val * length
+        mass, of_mass = val * length, {key: (val, val, 1), lkey: (lval, length, 1)}
     else:
         if radius == 0.0:
             raise CaseError(source, "chain.radius", radius, "density needs a radius > 0")
         mass = val * math.pi * radius * radius * length
+        of_mass = {key: (val, val, 1), "radius": (radius, radius, 2), lkey: (lval, length, 1)}
     if not (math.isfinite(mass) and mass > 0):
-        raise CaseError(source, f"chain.{key}", val,
-                        f"gives a link mass of {mass!r} (length {length!r} m): out of range")
-    link = _link_inertia(source, "chain", length, mass, radius, chain.get("inertia", "rod"),
-                         chain.get("com"))
+        too_large = not math.isfinite(mass)
+        name, given = _culprit(of_mass, too_large=too_large)
+        raise CaseError(source, f"chain.{name}", given,
+                        f"too {'large' if too_large else 'small'}: it gives a link mass of "
+                        f"{mass!r} kg (length {length!r} m)")
+    inertia = chain.get("inertia", "rod")
+    if isinstance(inertia, str):  # a standard model: m l^2 / 12 and m r^2 / 2 must be finite
+        big = max(mass * length * length, mass * radius * radius)
+        if not math.isfinite(big):
+            # the inputs of m l^2 (and m r^2): the mass's, and the length twice more
+            of_inertia = {k: (g, u, p + 2 * (k == lkey)) for k, (g, u, p) in of_mass.items()}
+            of_inertia.setdefault(lkey, (lval, length, 2))
+            if radius > 0:
+                of_inertia.setdefault("radius", (radius, radius, 2))
+            name, given = _culprit(of_inertia, too_large=True)
+            raise CaseError(source, f"chain.{name}", given,
+                            f"too large: the link's inertia overflows (mass {mass:.6g} kg, "
+                            f"length {length:.6g} m, radius {radius:.6g} m)")
+    link = _link_inertia(source, "chain", length, mass, radius, inertia, chain.get("com"))
     joint = _joint(source, "chain.joint", _require(chain, "joint", source, "chain"),
                    chain.get("axis"))
     return [link] * nl, [joint] * nl
@@ -265,12 +290,12 @@ def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
 def _link_inertia(source, prefix, length, mass, radius, inertia, com) -> Link:
     if isinstance(inertia, str):
         link = Link.uniform(length, mass, radius, inertia, source=source, field_name=prefix)
-    else:
-        I_c = check_inertia(source, f"{prefix}.inertia", inertia)
+    else:  # explicit: a rigid body's inertia (the triangle inequality)
+        I_c = check_inertia(source, f"{prefix}.inertia", inertia, physical=True)
         link = Link(length, mass, (length / 2, 0.0, 0.0), tuple(map(tuple, I_c)))
     if com is not None:
         c = check_vector(source, f"{prefix}.com", com, 3)
-        link = Link(link.length, link.mass, tuple(c), link.inertia)
+        link = Link(link.length, link.mass, tuple(c), link.inertia, physical=link.physical)
     return link
 
 

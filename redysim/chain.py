@@ -133,12 +133,19 @@ class Joint:
 
 @dataclass(frozen=True)
 class Link:
-    """A rigid link: length, mass, centre of mass and inertia about the COM, in the link frame."""
+    """A rigid link: length, mass, centre of mass and inertia about the COM, in the link frame.
+
+    ``physical``: the inertia must be a rigid body's (positive semi-definite, and each principal
+    moment at most the sum of the other two: the triangle inequality), checked when a chain is
+    built. ``False`` skips the triangle inequality only; the paper's ``rod`` model needs it
+    (Ixx = m r^2 / 2 exceeds Iyy + Izz = m l^2 / 6 whenever l < sqrt(3) r).
+    """
 
     length: float
     mass: float
     com: tuple[float, float, float]
     inertia: tuple[tuple[float, float, float], ...]  # 3x3 about the COM, link frame
+    physical: bool = True
 
     @classmethod
     def uniform(cls, length: float, mass: float, radius: float = 0.0, model: str = "rod",
@@ -167,11 +174,12 @@ class Link:
             _fail(source, f"{field_name}.{culprit}", locals()[culprit],
                   f"too large: the {model} inertia overflows (Ixx = {ixx}, Iyy = {iyy})")
         inertia = ((ixx, 0.0, 0.0), (0.0, iyy, 0.0), (0.0, 0.0, iyy))
-        return cls(length, mass, (length / 2, 0.0, 0.0), inertia)
+        return cls(length, mass, (length / 2, 0.0, 0.0), inertia, physical=model != "rod")
 
 
-def check_inertia(source: str, field_name: str, value) -> np.ndarray:
-    """A 3x3 symmetric positive semi-definite inertia from a 3x3 list or [Ixx, Iyy, Izz]."""
+def check_inertia(source: str, field_name: str, value, *, physical: bool = False) -> np.ndarray:
+    """A 3x3 symmetric positive semi-definite inertia from a 3x3 list or [Ixx, Iyy, Izz];
+    ``physical``: also the triangle inequality of its principal moments (a rigid body's)."""
     arr = numeric_array(value)
     if arr is None:
         _fail(source, field_name, value, "must be a 3x3 matrix or [Ixx, Iyy, Izz] of numbers")
@@ -189,6 +197,12 @@ def check_inertia(source: str, field_name: str, value) -> np.ndarray:
     eig = np.linalg.eigvalsh(arr)
     if eig[0] < -1e-12 * max(1.0, abs(eig[-1])):
         _fail(source, field_name, value, f"must be positive semi-definite (eigenvalues {eig})")
+    if physical and eig[2] > (eig[0] + eig[1]) * (1 + 1e-12):
+        _fail(source, field_name, value,
+              f"is not a rigid body's: its largest principal moment {eig[2]:.6g} exceeds the "
+              f"sum of the other two ({eig[0]:.6g} + {eig[1]:.6g}; the triangle inequality). "
+              "The paper's rod model, which breaks it on purpose, is inertia = 'rod' "
+              "(Link.uniform(..., model='rod'), or Link(..., physical=False))")
     return arr
 
 
@@ -280,10 +294,13 @@ class Chain:
             u = first.get(id(link))
             if u is None:
                 where = f"links[{k}]"
+                if not isinstance(link, Link):
+                    _fail(source, where, link, "must be a redysim.Link")
                 values.append((check_positive(source, f"{where}.length", link.length),
                                check_positive(source, f"{where}.mass", link.mass),
                                check_vector(source, f"{where}.com", link.com, 3),
-                               check_inertia(source, f"{where}.inertia", link.inertia)))
+                               check_inertia(source, f"{where}.inertia", link.inertia,
+                                             physical=link.physical)))
                 u = first[id(link)] = len(values) - 1
             link_of[k] = u
         length = np.array([v[0] for v in values])[link_of]
@@ -348,6 +365,9 @@ class Chain:
 
         Give the link ``mass`` or the ``linear_density`` (kg/m); ``length`` is per link.
         """
+        if isinstance(n_links, bool) or not isinstance(n_links, int | np.integer) \
+                or n_links < 1:
+            raise CaseError("chain", "n_links", n_links, "must be a whole number >= 1")
         if (mass is None) == (linear_density is None):
             raise CaseError("chain", "mass/linear_density", (mass, linear_density),
                             "give exactly one of mass and linear_density")

@@ -25,7 +25,7 @@ from ._kernels.kinematics import kinematics as _kinematics
 from ._kernels.rge_a import rge_a_backward
 from ._kernels.udu import udu_assemble
 from .chain import NUMERIC_KINDS, Chain
-from .errors import StateError
+from .errors import FieldError, StateError
 from .workspace import Workspace
 
 METHODS = ("rge-a", "ge-n", "rge-n")
@@ -107,8 +107,11 @@ def overflow_error(what: str, **inputs) -> StateError:
 def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
     if ws is None:
         return Workspace(chain)
+    if not isinstance(ws, Workspace):
+        raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
     if ws.chain is not chain:
-        raise ValueError("workspace was made for another chain")
+        raise FieldError("dynamics", "ws", repr(ws.chain), f"was made for another chain than "
+                         f"{chain!r}; make one with Workspace(chain)")
     return ws
 
 
@@ -196,7 +199,7 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
             if flag == 0.0:
                 return qdd
             if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
-                raise _nonfinite_qdd(q, qd, tau)
+                raise _nonfinite_qdd(chain, ws, planar, q, qd, tau)
     elif method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     q = check_state(chain, "q", q, finite=False)
@@ -215,17 +218,35 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
         nonfinite = float(np.sum(out * 0.0))
     if nonfinite != 0.0:
-        raise _nonfinite_qdd(q, qd, tau)
+        raise _nonfinite_qdd(chain, ws, method == "rge-a" and planar, q, qd, tau,
+                             gim=None if method == "rge-a" else A, first=method == "ge-n")
     return out
 
 
-def _nonfinite_qdd(q, qd, tau) -> StateError:
-    """The error for a qdd that is NaN or +-inf: the input that is not finite, named, else the
-    recursion overflowed. A NaN or Inf in the input always reaches qdd, so only now is it looked
-    for."""
+def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> StateError:
+    """The error for a qdd that is NaN or +-inf: the input that is not finite, named; else a
+    singular GIM (an elimination pivot that is 0: RGE-A's articulated inertia Ihat, or the
+    numerical GIM's factor after GE-N or RGE-N), naming the DOF where the elimination met it
+    (RGE-A and RGE-N eliminate from the tip, GE-N, ``first``, from the base); else the recursion
+    overflowed. A NaN or Inf in the input always reaches qdd, so only now is it looked for."""
     for name, x in (("q", q), ("qd", qd), ("tau", tau)):
         if x is not None:
             require_finite(name, np.asarray(x, dtype=float))
+    if gim is None:
+        pivots = ws.planar[:, 8] if planar else ws.Ihat  # Ihat: the planar kernel's column 8
+    else:
+        pivots = np.diag(gim)
+    bad = np.flatnonzero(~(pivots > 0) | ~np.isfinite(1.0 / np.where(pivots == 0, 1, pivots)))
+    if bad.size:
+        j = int(bad.min() if first else bad.max())
+        k = int(np.searchsorted(chain.joint_qoff, j, side="right") - 1)
+        axis = j - int(chain.joint_qoff[k])
+        return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
+                          f"{j} (joint {k}, axis {axis} of its {chain.joints[k].type} joint): "
+                          f"the inertia about that axis of everything it moves is "
+                          f"{float(pivots[j])!r} (a link with no mass or inertia that the axis "
+                          "can move, e.g. a point mass on the joint axis, or a length that "
+                          "underflows)")
     return overflow_error("qdd", q=q, qd=qd, tau=tau)
 
 
@@ -273,18 +294,38 @@ class Elimination(NamedTuple):
 
 
 def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
-    """Solve gim qdd = rhs by GE-N or RGE-N (section 5.2) and return the factors as well."""
-    A = np.array(gim, dtype=float, copy=True)
-    b = np.array(rhs, dtype=float, copy=True)
+    """Solve gim qdd = rhs by GE-N or RGE-N (section 5.2) and return the factors as well.
+
+    Raises StateError for a gim or rhs of the wrong shape or not finite, and for a singular gim
+    (a pivot that is 0 or not finite, named with its column: no pivoting, as in the paper)."""
+    try:
+        A = np.array(gim, dtype=float, copy=True)
+        b = np.array(rhs, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"gim and rhs must be numeric arrays ({exc})") from None
+    if b.ndim != 1:
+        raise StateError(f"rhs has shape {b.shape}; it must be a vector")
     n = b.shape[0]
     if A.shape != (n, n):
         raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
     kernels = {"ge-n": ge_n, "rge-n": rge_n}
     if method not in kernels:
         raise ValueError(f"method = {method!r}: unknown; choose 'ge-n' or 'rge-n'")
+    if not np.isfinite(A).all():
+        i, j = np.argwhere(~np.isfinite(A))[0]
+        raise StateError(f"gim[{i}, {j}] = {float(A[i, j])!r}: not finite")
+    require_finite("rhs", b)
     mult = np.zeros_like(A)
     x = np.empty(n)
     kernels[method](A, b, mult, x)
+    if not np.isfinite(x).all():
+        pivots = np.diag(A)  # the factor's diagonal: GE-N eliminates from the first column on,
+        order = range(n) if method == "ge-n" else range(n - 1, -1, -1)  # RGE-N from the last
+        c = next((c for c in order if not (np.isfinite(pivots[c]) and pivots[c] != 0)), None)
+        if c is not None:
+            raise StateError(f"gim is singular for {method.upper()} (no pivoting): the pivot of "
+                             f"column {c} is {float(pivots[c])!r}")
+        raise overflow_error("qdd", gim=A, rhs=b)
     return Elimination(x, A, mult, b)
 
 

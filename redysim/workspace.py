@@ -9,6 +9,7 @@ import numpy as np
 
 from ._kernels import entry as E
 from .chain import Chain, kernel_alias
+from .errors import FieldError
 
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
@@ -45,6 +46,10 @@ class Workspace:
     """
 
     def __init__(self, chain: Chain):
+        if not isinstance(chain, Chain):
+            raise FieldError("Workspace", "chain", type(chain).__name__,
+                             "must be a redysim.Chain (Chain.build, Chain.uniform or "
+                             "load_case(...).chain)")
         nl, n = chain.n_links, chain.n_dof
         c = chain
         self.chain = chain

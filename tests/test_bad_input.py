@@ -13,6 +13,8 @@ from redysim import (
     Joint,
     Link,
     StateError,
+    Workspace,
+    eliminate,
     energy,
     forward_dynamics,
     inverse_dynamics,
@@ -20,6 +22,7 @@ from redysim import (
     mass_matrix,
     tip,
 )
+from redysim.errors import FieldError
 
 GOOD = """
 [case]
@@ -220,3 +223,60 @@ def test_forward_dynamics_refuses_a_read_only_out(kind):
         forward_dynamics(chain, z, z, out=out)
     good = np.empty(6)
     assert forward_dynamics(chain, z, z, out=good) is good
+
+
+# --------------------------------------------------------------------------- named, not deep
+@pytest.mark.parametrize("call, error, fragment", [
+    (lambda: Workspace(None), FieldError, "Workspace: chain = 'NoneType': must be a redysim."),
+    (lambda: Chain.uniform(2.5), CaseError, "n_links = 2.5: must be a whole number"),
+    (lambda: Chain.uniform(0), CaseError, "n_links = 0: must be a whole number"),
+    (lambda: forward_dynamics(Chain.uniform(2, mass=1.0), [0, 0], [0, 0], ws=object()),
+     FieldError, "ws = 'object': must be a redysim.Workspace"),
+    (lambda: forward_dynamics(Chain.uniform(2, mass=1.0), [0, 0], [0, 0],
+                              ws=Workspace(Chain.uniform(2, mass=1.0))),
+     FieldError, "was made for another chain"),
+])
+def test_wrong_arguments_get_named_errors(call, error, fragment):
+    """These gave an AttributeError from deep inside (Workspace(None)) or a confusing message
+    (Chain.uniform(2.5) blamed mass/linear_density)."""
+    with pytest.raises(error, match=fragment):
+        call()
+
+
+@pytest.mark.parametrize("method", ["ge-n", "rge-n"])
+@pytest.mark.parametrize("gim, fragment", [
+    ([[0.0, 0.0], [0.0, 0.0]], "gim is singular for .*pivot of column"),
+    ([[1.0, 2.0], [2.0, 4.0]], "gim is singular for .*pivot of column"),
+    ([[1.0, np.nan], [0.0, 1.0]], r"gim\[0, 1\] = nan: not finite"),
+    ([[1.0, 0.0], [0.0, np.inf]], r"gim\[1, 1\] = inf: not finite"),
+])
+def test_eliminate_refuses_a_singular_or_non_finite_matrix(gim, fragment, method):
+    """It returned NaN qdd."""
+    with pytest.raises(StateError, match=fragment):
+        eliminate(np.array(gim), np.ones(2), method)
+    with pytest.raises(StateError, match=r"rhs\[1\] = nan"):
+        eliminate(np.eye(2), [1.0, np.nan], method)
+
+
+@pytest.mark.parametrize("method", ["rge-a", "ge-n", "rge-n"])
+@pytest.mark.parametrize("planar", [None, False])
+def test_a_singular_chain_is_named_not_called_overflow(method, planar):
+    """A link with no inertia about its joint (a point mass on the joint axis) at the tip makes
+    the GIM singular: qdd names the DOF, where it said 'overflow?'."""
+    point = Link(1.0, 1.0, (0.0, 0.0, 0.0), ((0, 0, 0), (0, 0, 0), (0, 0, 0)))
+    rod = Link(1.0, 1.0, (0.5, 0.0, 0.0), ((0.01, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+    chain = Chain.build([rod, rod, point], ["R", "R", "R"])
+    if method != "rge-a" and planar is False:
+        pytest.skip("planar applies to rge-a")
+    with pytest.raises(StateError, match=r"singular at DOF 2 \(joint 2, axis 0 of its R joint\)"
+                                         if method != "ge-n" else r"singular at DOF \d"):
+        forward_dynamics(chain, [0.1, 0.2, 0.3], [0, 0, 0], method=method, planar=planar)
+
+
+def test_a_link_length_that_underflows_is_named(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD.replace("link_length = 1.0", "link_length = 5e-324")
+                    .replace("link_mass = 2.0", "density = 7025.0"))
+    case = load_case(path)  # a length is a length; what it does to the dynamics is named there
+    with pytest.raises(StateError, match="singular at DOF"):
+        forward_dynamics(case.chain, [0.1, 0.1, 0.1], case.qd0)

@@ -74,7 +74,9 @@ def test_rge_a_principal_axes_path_solves_the_gim(mix, rng):
     links = []
     for _ in range(30):
         length, mass = rng.uniform(0.1, 1.0), rng.uniform(0.5, 5.0)
-        moments = rng.uniform(0.01, 1.0, 3) * mass * length**2
+        box = rng.uniform(0.05, 1.0, 3) * length  # a box's moments: three different ones
+        moments = mass / 12 * np.array([box[1] ** 2 + box[2] ** 2, box[0] ** 2 + box[2] ** 2,
+                                        box[0] ** 2 + box[1] ** 2])
         links.append(Link(length, mass, (rng.uniform(0.2, 0.8) * length, 0.0, 0.0),
                           tuple(map(tuple, np.diag(moments)))))
     joints = [mix[k % len(mix)] for k in range(len(links))]
