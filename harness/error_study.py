@@ -73,6 +73,9 @@ from pathlib import Path
 
 import numpy as np
 
+from redysim import references
+from redysim.dynamics import METHODS as CORE
+
 EPS = {"float64": float(np.finfo(np.float64).eps), "float32": float(np.finfo(np.float32).eps)}
 
 CHAINS = {
@@ -82,10 +85,10 @@ CHAINS = {
               inertia="cylinder", what="study chain, l = 1 m, r = 0.02 m, cylinder inertia"),
 }
 CONFIGS = ("stretched", "random")
-CORE_METHODS = ("rge-a", "rge-a-planar", "rge-a-phi", "ge-n", "rge-n", "cholesky",
-                "literal-6x6", "literal-6x6-resym")
-ENGINE_METHODS = ("pinocchio-aba", "pinocchio-aba-ryrz", "pinocchio-crba", "mujoco", "dart",
-                  "exudyn")
+# the core's methods (redysim.dynamics.METHODS) and this study's variants of them
+CORE_METHODS = (*CORE, "rge-a-planar", "rge-a-phi", "cholesky", "literal-6x6",
+                "literal-6x6-resym")
+ENGINE_METHODS = tuple(references.ENGINES)
 METHODS = CORE_METHODS + ENGINE_METHODS
 FLOAT32_METHODS = ("rge-a", "rge-a-planar", "ge-n", "rge-n", "cholesky", "literal-6x6",
                    "literal-6x6-resym")

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from redysim.dynamics import METHODS
 from redysim.errors import FieldError
 
 from .provenance import REPO, provenance
@@ -209,7 +210,7 @@ def measure_table9(gate: Gate) -> list[Measurement]:
     elif item == "phi":
         got = {"": phi(chain, q, qd)}
     elif item == "qdd":
-        got = {m: forward_dynamics(chain, q, qd, method=m) for m in ("rge-a", "ge-n", "rge-n")}
+        got = {m: forward_dynamics(chain, q, qd, method=m) for m in METHODS}
         got["rge-a spatial"] = forward_dynamics(chain, q, qd, planar=False)
     else:
         raise ValueError(f"params.item = {item!r}: one of gim, phi, qdd, cond2")

@@ -28,7 +28,11 @@ from .chain import NUMERIC_KINDS, Chain
 from .errors import FieldError, StateError
 from .workspace import Workspace
 
-METHODS = ("rge-a", "ge-n", "rge-n")
+# The one registry of forward-dynamics methods: name -> the paper's name. Everything that takes a
+# method (the command line, run specs, sweep files, the precision study, the reports) reads it.
+PAPER_NAMES = {"rge-a": "RGE-A", "ge-n": "GE-N", "rge-n": "RGE-N"}
+METHODS = tuple(PAPER_NAMES)
+ELIMINATIONS = ("ge-n", "rge-n")  # the numerical O(n^3) comparators: on a formed GIM
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 
@@ -308,9 +312,9 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
     n = b.shape[0]
     if A.shape != (n, n):
         raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
-    kernels = {"ge-n": ge_n, "rge-n": rge_n}
+    kernels = dict(zip(ELIMINATIONS, (ge_n, rge_n), strict=True))
     if method not in kernels:
-        raise ValueError(f"method = {method!r}: unknown; choose 'ge-n' or 'rge-n'")
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(kernels)}")
     if not np.isfinite(A).all():
         i, j = np.argwhere(~np.isfinite(A))[0]
         raise StateError(f"gim[{i}, {j}] = {float(A[i, j])!r}: not finite")

@@ -70,9 +70,8 @@ from ._kernels.planar import planar_forward_dynamics
 from ._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamics
 from ._kernels.udu import udu_assemble
 from .chain import Chain
-from .dynamics import check_state, mass_matrix, phi
+from .dynamics import METHODS, check_state, mass_matrix, phi
 
-METHODS = ("ge-n", "rge-n", "rge-a")
 ARITHMETICS = ("double", "decimal")
 IEEE_DTYPES = (np.float16, np.float32, np.float64)
 MAX_DECIMALS = 300

@@ -43,11 +43,12 @@ from redysim import (
     phi,
 )
 from redysim.cases import CASES_DIR
+from redysim.dynamics import PAPER_NAMES
 from redysim.harness.store import write_text_atomic
 from redysim.precision import ieee_qdd, reduced_factors, reduced_qdd
 
 DEFAULT_OUT = Path("results") / "precision"
-METHOD_KEYS = {"GE-N": "ge-n", "RGE-N": "rge-n", "RGE-A": "rge-a"}
+METHOD_KEYS = {paper: name for name, paper in PAPER_NAMES.items()}  # "GE-N" -> "ge-n"
 TABLE11_SIZES = (5, 10, 20, 40, 60, 80, 100)
 IEEE_SIZES = (3, 5, 10, 20, 40, 60, 80, 100)
 
