@@ -28,7 +28,7 @@ pytestmark = pytest.mark.engine
 
 SIZES_DOF = (20, 200, 2000, 20000, 100000)
 STEP_DOF = 2000
-STEP_H = 1e-5  # s; a step length the RE-U chains need (DESIGN.md section 4)
+STEP_H = 1e-5  # s; a step length the RE-U chains need (docs/design.md, "Integrators")
 ENGINES = ("core", *references.ENGINES)
 
 _CHAINS: dict = {}

@@ -8,7 +8,7 @@ For every chain x size x configuration it computes the exact qdd of the double-p
 method's qdd and its true relative error ||qdd - ref|| / ||ref|| (2-norm and max-norm), with the
 conditioning of the GIM.
 
-Chains (DESIGN.md section 2):
+Chains (docs/design.md, "Chain conventions"):
     U: the RE-U steel rod, l = 0.02 m, rho_l = 7850 pi 0.05^2 kg/m, r = 0.05 m, rod inertia.
     R: the section-5 study chain, l = 1 m, rho = 7025 kg/m^3, r = 0.02 m, cylinder inertia.
 Configurations:

@@ -28,7 +28,7 @@ the only difference from the core is the elimination. numpy, one link per Python
 (~40 us/link): slow, and meant to be.
 
 References:
-    Agarwal et al., Appendix A.1, Table A.1; DESIGN.md section 3 ("Stability").
+    Agarwal et al., Appendix A.1, Table A.1; docs/design.md, "The algorithm" (exact symmetry).
 """
 
 from __future__ import annotations

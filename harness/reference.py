@@ -7,9 +7,7 @@ between the two is stored as ``tol_estimate``, an estimate of the reference's ow
 
 Why not tighter: qdd of a long chain carries rounding noise of order eps x cond(GIM) x |qdd|
 relative (cond ~ 4 nl^4), and a max-norm error test at a tolerance below that noise takes tiny
-steps without gaining accuracy (measured on RE-U125-L1 over 0.05 s: 147 steps at rtol = atol =
-1e-10, 18,208 at 1e-12, where the error estimate stopped scaling with h). Over 0.2 s the tip of
-our DOP853 at 1e-9, 1e-10, 1e-11 and SciPy's DOP853 at 1e-12..1e-14 agree to 7e-15 m. Error
+steps without gaining accuracy (docs/design.md, "Integrators": reference solutions). Error
 measures of a run against the reference: the max tip-position error over the samples and the
 final-state error (``harness.run``).
 

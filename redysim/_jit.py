@@ -48,9 +48,9 @@ class EntryPoint:
     100,000 DOF, both in one process: ``benchmarks/entry_copies.py``). A caller compiled afresh
     calls the callees' own code, which numba compiled first and the JIT linker prefers to the
     copies; one loaded from numba's disk cache calls its copies unless the callees' own code is
-    loaded before it. Declared types that differed from the entry's would load callee code the
-    entry never calls, and the ~3% would be back: ``tests/test_identities.py`` checks that they
-    do not.
+    loaded before it (docs/design.md, "Performance notes"). Declared types that differed from the
+    entry's would load callee code the entry never calls, and the slowdown would be back:
+    ``tests/test_identities.py`` checks that they do not.
     """
 
     def __init__(self, func, signature, callees=()):

@@ -16,9 +16,9 @@ an embedded error estimate and a step-size controller; a fixed-step scheme has n
 ``rk4``     classical Runge-Kutta at a fixed step ``h``; steps are shortened to land on the sample
             times; outputs are the step values.
 ``scipy-RK45``, ``scipy-DOP853``, ``scipy-LSODA``, ``scipy-Radau``: SciPy's ``solve_ivp`` solvers
-            (RMS error norm, their own controllers; DESIGN.md section 4 explains why equal
-            tolerances do not mean equal accuracy), stepped one step at a time so that steps and
-            samples are counted the same way.
+            (RMS error norm, their own controllers; docs/design.md, "Integrators", explains why
+            equal tolerances do not mean equal accuracy), stepped one step at a time so that
+            steps and samples are counted the same way.
 
 Every solver counts accepted steps, rejected steps and right-hand-side evaluations (``nfev``), can
 be stopped after any step by a callback, and its state (t, y, step size, counters) can be saved and
@@ -28,7 +28,7 @@ References:
     J. R. Dormand, P. J. Prince, "A family of embedded Runge-Kutta formulae", J. Comp. Appl. Math.
     6 (1980). L. F. Shampine, M. W. Reichelt, "The MATLAB ODE suite", SIAM J. Sci. Comput. 18
     (1997) (ode45's control, ntrp45). E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary
-    Differential Equations I", 2nd ed., section II.10 (DOP853). DESIGN.md section 4.
+    Differential Equations I", 2nd ed., section II.10 (DOP853). docs/design.md, "Integrators".
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 "Floating-point accuracy 1e-k" (Tables 8, 10, 11 and A.2) is an ABSOLUTE quantum: every number is
 kept to k decimal places, r(x) = round(x / 1e-k) * 1e-k with halves away from zero, applied to the
-double-precision inputs and after every operation (DESIGN.md section 3). Two arithmetics carry it:
+double-precision inputs and after every operation (docs/design.md, "Reduced precision").
+Two arithmetics carry it:
 
 ``"double"`` (the default; the paper's)
     IEEE double arithmetic, then r(x) evaluated in double exactly as written, as MATLAB's
@@ -12,8 +13,8 @@ double-precision inputs and after every operation (DESIGN.md section 3). Two ari
     Table 10 and all of Table A.2.
 ``"decimal"``
     Exact decimal arithmetic (stdlib :mod:`decimal`, quantize with ROUND_HALF_UP): the rule as
-    DESIGN.md states it. Differs from ``"double"`` only at exact decimal ties; in Table 10 at one:
-    RGE-N at 1e-2 rounds 29.425 up and ends at [-6.25, 7.99, -2.35] instead of the published
+    docs/design.md states it. Differs from ``"double"`` only at exact decimal ties; in Table 10
+    at one: RGE-N at 1e-2 rounds 29.425 up and ends at [-6.25, 7.99, -2.35] instead of the published
     [-6.29, 8.10, -2.46] (35/36). With many places it is exact arithmetic on the double inputs:
     the reference for the IEEE study and the check that the same source runs (50 places equal the
     float64 kernel to 1e-12).
@@ -50,7 +51,7 @@ at 6 decimal places, not at the 7 of its caption; Table 8's step counts within 3
 
 References:
     Agarwal et al., section 5.2-5.3, Tables 8, 10, 11 and A.2; Appendix A.2 (Eq. (A.9)-(A.10)).
-    DESIGN.md section 3 ("Reduced precision").
+    docs/design.md, "Reduced precision".
 """
 
 from __future__ import annotations

@@ -271,8 +271,8 @@ def setup_section(ctx: Ctx) -> Section:
                    "paper's E(0) needs it. It violates the triangle inequality of inertia for "
                    "l < sqrt(3) r, i.e. in every RE-U case; MuJoCo's compiler rejects it, so its "
                    "adapter compiles with balanceinertia and writes the exact values back "
-                   "(DESIGN.md section 2). The physical cylinder model is available in the case "
-                   "files' `inertia` field.")
+                   "(docs/design.md, 'Chain conventions'). The physical cylinder model is "
+                   "available in the case files' `inertia` field.")
     s.notes.append("Timings run one BLAS thread per process (OPENBLAS_NUM_THREADS=1, set by "
                    "reports/__init__.py): with OpenBLAS's default threads on this shared 2-core "
                    "machine SciPy's Cholesky of a 250 x 250 GIM took 0.23 s instead of 1.5 ms.")

@@ -3,7 +3,7 @@
     python -m redysim.reports.gim_study [--out results/gim_study] [--max-links 1000]
 
 Table 9: the 3-link study chain's GIM, cond2, phi and qdd at the state of ``STUDY-R3-TABLE9``
-(DESIGN.md section 2), in double precision, beside the published values.
+(docs/design.md, "Chain conventions"), in double precision, beside the published values.
 
 Conditioning (section 5.1; Featherstone's estimate cond2 ~ 4 nl^4 for a uniform planar chain):
 cond2 of the GIM at q = 0 (the straight chain, where it is largest) by SVD (numpy.linalg.cond),

@@ -2,8 +2,8 @@
 
 Comparison rules (the paper's printed values are in ``paper/published.toml``):
 
-- Printed values: the paper TRUNCATES (DESIGN.md section 2). Ours matches when, rounded or
-  truncated to the digits the paper prints, it equals the paper's value
+- Printed values: the paper TRUNCATES (docs/design.md, 'The paper's numbers'). Ours matches
+  when, rounded or truncated to the digits the paper prints, it equals the paper's value
   (:func:`reports.precision_tables.verdict`); trailing zeros the paper pads with do not count.
 - Energy drift avg |delta_M| (a property of the integrator's step sequence, not of the model):
   "matches within x2", "same order (x r)" up to a factor :data:`SAME_ORDER`, else "differs".
@@ -41,16 +41,16 @@ MIN_ENSEMBLE = 4    # runs from perturbed initial states before their drift spre
 HORIZON_RTOL = 1e-9  # two horizons are the same horizon
 STEPS_WITHIN = 0.05  # Table 8: step counts within 5 % match
 TABLE9_DECIMALS = 4  # Table 9 prints four decimals
-REFINE = 4  # MATLAB ode45's default Refine: output points per step (DESIGN.md section 4)
+REFINE = 4  # MATLAB ode45's default Refine: output points per step (docs/design.md, 'Integrators')
 PAPER_MACHINE = "MATLAB ode45 on a 2 GHz Core2Duo laptop (2011)"
 PAPER_SOURCE = "paper: paper/published.toml"
 DRIFT_NOTE = ("avg |delta_M| is the mean over the samples of |E(t) - E(0)| / M. At rtol 1e-4 it "
               "is the integrator's error, set by its step sequence: our ode45 follows MATLAB's "
-              "error control (DESIGN.md section 4) but cannot replay the paper's steps, and the "
-              "error norm alone changes the drift 13x there. The step sequence, and with it the "
-              "drift, also moves with round-off: where sweeps/drift-ensemble.toml has run, the "
-              "verdict gives the spread of our drift over runs from initial states perturbed by "
-              "k x 1e-13 (RunSpec.perturb), far below any printed digit.")
+              "error control (docs/design.md, 'Integrators') but cannot replay the paper's steps, "
+              "and the error norm alone changes the drift 13x there. The step sequence, and with "
+              "it the drift, also moves with round-off: where sweeps/drift-ensemble.toml has run, "
+              "the verdict gives the spread of our drift over runs from initial states perturbed "
+              "by k x 1e-13 (RunSpec.perturb), far below any printed digit.")
 ENGINE_LABELS = {"pinocchio-aba": "Pinocchio ABA (Universal joints)",
                  "pinocchio-aba-ryrz": "Pinocchio ABA (RY + RZ joints)",
                  "pinocchio-crba": "Pinocchio CRBA + Cholesky", "mujoco": "MuJoCo mj_forward",
@@ -409,7 +409,7 @@ def table4(ctx: Ctx) -> Table:
         paper_steps = pub["re_u750_steps"] / REFINE
         t.notes.append(f"Steps, {first['case']}: the paper reports {pub['re_u750_steps']:,} "
                        f"ode45 'steps', which is {REFINE} x {paper_steps:,.0f} (MATLAB's Refine "
-                       f"= {REFINE} output points per step; DESIGN.md section 4). Ours: "
+                       f"= {REFINE} output points per step; docs/design.md, 'Integrators'). Ours: "
                        f"{int(p.value('steps')):,} accepted steps "
                        f"({int(p.value('steps')) / paper_steps:.2f} x {paper_steps:,.0f}).")
     peak = pub["re_u750_peak_tip_acc"]
@@ -575,8 +575,8 @@ def table8(ctx: Ctx) -> Table:
                            num(r["paper_cpu_vs_ge_n"], 3), num(r["cpu_vs_ge_n"], 3), v],
                           kind if main else INFO))
     t.notes.append("Accuracy 1e-k: every operation rounded to k decimal places, half away from "
-                   "zero (DESIGN.md section 3). CPU is compared as a fraction of GE-N's on the "
-                   "same chain (the paper's machine and ours differ).")
+                   "zero (docs/design.md, 'Reduced precision'). CPU is compared as a fraction of "
+                   "GE-N's on the same chain (the paper's machine and ours differ).")
     t.provenance = _prec_prov(doc, "table8")
     return t
 
@@ -605,8 +605,8 @@ def table9(ctx: Ctx) -> Table:
         t.rows.append(Row([label, vector(pv, fmt), vector(ov, fmt), v], kind))
     t.notes.append(f"State: {doc['case']} (q = [60 deg, 0, 0] at g = 9.81: the GIM is the "
                    "straight chain's and phi is half the horizontal chain's gravity terms; "
-                   "DESIGN.md section 2). The paper pads cond2 = 309.23 to 309.2300; ours is "
-                   "compared to its significant digits.")
+                   "docs/design.md, 'The paper's numbers'). The paper pads cond2 = 309.23 to "
+                   "309.2300; ours is compared to its significant digits.")
     t.provenance = provenance_line(doc.get("provenance"), what="results/gim_study/table9.json")
     return t
 
@@ -649,9 +649,9 @@ def table10(ctx: Ctx) -> Table:
     for label, n in doc.get("rge_a_variants_values_matching", {}).items():
         t.notes.append(f"RGE-A with {label}: {n}/18 values (qdd and dq both) match.")
     t.notes.append("Accuracy 1e-k: every result rounded to k decimal places, half away from zero, "
-                   "in IEEE double as MATLAB's round(x/1e-k)*1e-k (DESIGN.md section 3; "
-                   "redysim/precision.py). Our RGE-A rounds at other points than the paper's "
-                   "ReDySim: its rows reproduce only where noted.")
+                   "in IEEE double as MATLAB's round(x/1e-k)*1e-k (docs/design.md, 'Reduced "
+                   "precision'; redysim/precision.py). Our RGE-A rounds at other points than the "
+                   "paper's ReDySim: its rows reproduce only where noted.")
     t.provenance = _prec_prov(doc, "table10")
     return t
 

@@ -56,8 +56,9 @@ IEEE_SIZES = (3, 5, 10, 20, 40, 60, 80, 100)
 # --------------------------------------------------------------------------- states
 def table9_horizontal():
     """Table 9's state in the paper's stated configuration: the 3-link study chain horizontal
-    (q = 0) at rest with g = 4.905 (DESIGN.md section 2: same GIM, phi to 3e-14). Rounded RGE-A
-    sees the geometry; the STUDY-R3-TABLE9 case (q1 = 60 deg, g = 9.81) rotates it."""
+    (q = 0) at rest with g = 4.905 (docs/design.md, 'The paper's numbers': same GIM, phi to
+    3e-14). Rounded RGE-A sees the geometry; the STUDY-R3-TABLE9 case (q1 = 60 deg, g = 9.81)
+    rotates it."""
     with open(CASES_DIR / "STUDY-R3.toml", "rb") as fh:
         doc = tomllib.load(fh)
     doc["case"] = {"name": "STUDY-R3-TABLE9-HORIZONTAL",

@@ -1,7 +1,7 @@
 """Tier 1: the paper's published numbers (paper/published.toml), reproduced by the core.
 
-The paper sometimes truncates printed values and sometimes rounds them (DESIGN.md section 2), so
-"to its printed digits" means: within one unit of the last printed digit.
+The paper sometimes truncates printed values and sometimes rounds them (docs/design.md, "The
+paper's numbers"), so "to its printed digits" means: within one unit of the last printed digit.
 """
 
 from __future__ import annotations
@@ -60,8 +60,9 @@ def test_table11_cond2_to_printed_digits(row):
     assert abs(cond - printed) < printed_ulp(printed, sig_digits(printed)), (cond, printed)
 
 
-# E(0) to 1e-7 relative: DESIGN.md section 2 gives the rod model's values to 1e-6 J, which equal
-# the closed form rho_l L^3 w^2 / 6 for a straight rod spinning about one end (rho_l = 7850 pi r^2).
+# E(0) to 1e-7 relative: docs/design.md ("The paper's numbers") gives the rod model's values to
+# 1e-6 J, which equal the closed form rho_l L^3 w^2 / 6 for a straight rod spinning about one end
+# (rho_l = 7850 pi r^2).
 E0_DESIGN = {"RE-U125-L1": 10.275626, "RE-U750-L6": 2219.535210, "RE-U3750-L30": 277441.901220}
 
 

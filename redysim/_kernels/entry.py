@@ -1,9 +1,8 @@
 """Forward dynamics' entry points: a workspace's packed arrays in, 7 arguments instead of 23.
 
-numba's dispatcher types and unboxes every argument of every call, ~60 ns per array here (an
-empty function of 23 arrays: 1.46 us a call; of 7: 0.49 us), while RGE-A's compute at 200 DOF
-is ~14 us: the 23 arrays of :func:`~redysim._kernels.rge_a.rge_a_forward_dynamics` were ~7% of
-it. A :class:`~redysim.workspace.Workspace` therefore packs the chain's arrays into one float
+numba's dispatcher types and unboxes every argument of every call, at a cost per array that
+matters for small chains (docs/design.md, "Performance notes"). A
+:class:`~redysim.workspace.Workspace` therefore packs the chain's arrays into one float
 and one int array (copies: the chain is immutable) and its scratch arrays into one float array,
 and these entries slice the kernels' arrays back out of them (views: nothing is copied or
 allocated). The int array starts with a header, ``nl``, ``n`` and the offset of every

@@ -7,8 +7,8 @@ or a translation of the joint's origin (prismatic). The recursions call :func:`j
 :func:`axis_rates` and :func:`column_mass` and never branch on the joint type themselves; each
 skips the half of P that is zero for its kind (work a revolute chain does not need).
 
-Everything is scalars in and out: the kinematics pass keeps its running frame in registers, which
-measured 5x faster here than reading it back from arrays.
+Everything is scalars in and out: the kinematics pass keeps its running frame in registers rather
+than reading it back from arrays (docs/design.md, "Performance notes").
 
 References:
     Agarwal et al., Eq. (4): P_k = [e_k; 0] for a revolute and [0; e_k] for a prismatic axis.
@@ -52,8 +52,8 @@ def _sincos_compiled(x):
     """Compiled (cos x, sin x): for |x| <= pi/4 (every joint angle of a gently bent chain)
     fdlibm's kernels inline, without a call to libm; else libm's cos and sin.
 
-    Why: two libm calls per axis were half of the kinematics pass (20 of 41 ns/DOF on a U
-    chain), each call also spilling the pass's running scalars. The polynomials are libm's own
+    Why: two libm calls per axis were half of the kinematics pass, each call also spilling the
+    pass's running scalars (docs/design.md, "Performance notes"). The polynomials are libm's own
     (fdlibm, error < 1 ulp); ``tests/test_identities.py`` checks them against ``math`` to 1 ulp.
     """
     def impl(x):

@@ -26,24 +26,23 @@ Implementation notes:
 - Exact symmetry. The articulated mass is carried as its blocks [[X, Y], [Y^T, Z]] with X and Z
   symmetric (6 + 9 + 6 numbers); only those numbers are ever computed, so Mhat_k is exactly
   symmetric by construction. A literal 6 x 6 transcription lets rounding make Mhat_k slightly
-  asymmetric, the recursion amplifies it, and all accuracy is gone by ~100 U-links (DESIGN.md
-  section 3; stock Pinocchio ABA fails the same way on such chains).
+  asymmetric, the recursion amplifies it, and all accuracy is gone by ~100 U-links
+  (docs/design.md, "The algorithm"; stock Pinocchio ABA fails the same way on such chains).
 - Gravity and the velocity terms never enter phi. Table A.1 as printed solves I qdd = phi with
   phi = tau - (C qd + gravity terms) (Eq. 12); on a long chain phi_k holds the gravity and
   centripetal moments of every link outboard of joint k (~(n - k)^2 m g l) while phihat_k is of
   order m g l, so phihat_k = phi_k - P_k^T eta cancels ~2 log10(n) digits and the true error grows
-  ~n^2 eps (measured against a 50-digit reference: 2.1e-9 at 1,000 straight U-links, 1.1e-6 at
-  10,000). Here, as in the articulated-body algorithm, gravity is the base's twist-rate [0; -g]
+  ~n^2 eps (docs/design.md, "The algorithm", gives the measured errors against a 50-digit
+  reference). Here, as in the articulated-body algorithm, gravity is the base's twist-rate [0; -g]
   that the forward pass carries up the chain, and the velocity terms enter as each link's local
   twist-rate c_k (kinematics with ``local_rates``) and its velocity-product wrench, accumulated in
   the articulated body's bias p_k = eta_k + (biases): phihat_k = tau_k - P_k^T p_{k,k+1} is then
-  formed without the cancellation (6.2e-16 on straight chains at every size up to 100,000 links,
-  4.4e-13 at 100,000 random U-links; ``python -m redysim.harness.error_study --table``). Same
-  factors,
-  same operation count to within a 6 x 6 product per link; with t = c = 0 and tau = phi the
-  passes are Table A.1 as printed (``redysim.precision`` runs them so for the paper's tables).
-- The running quantities stay in scalars (measured 2-5x faster here than reading them back
-  from arrays).
+  formed without the cancellation (``python -m redysim.harness.error_study --table`` measures
+  it). Same factors, same operation count to within a 6 x 6 product per link; with t = c = 0 and
+  tau = phi the passes are Table A.1 as printed (``redysim.precision`` runs them so for the
+  paper's tables).
+- The running quantities stay in scalars rather than being read back from arrays
+  (docs/design.md, "Performance notes").
 
 References:
     Agarwal et al., Appendix A.1, Eq. (A.1)-(A.8) and Table A.1; Eq. (9)-(12) for phi.
@@ -267,8 +266,8 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
     mu starts from the base's twist-rate [0; base_accel] and takes in each link's local
     twist-rate c_k (zeros and zero for Table A.1 as printed, where both are inside phi).
     The step to the next link is taken with each joint's last axis (every joint has one), so
-    that its qdd enters through a single multiply-add: measured 8.4 -> 7.0 ns/DOF here, the
-    pass being bound by that chain of dependent operations.
+    that its qdd enters through a single multiply-add: the pass is bound by that chain of
+    dependent operations (docs/design.md, "Performance notes").
     Returns 0.0, or NaN when some qdd is not finite.
     """
     nl = joint_qoff.shape[0] - 1
