@@ -14,7 +14,8 @@ import pytest
 from redysim import Chain, Workspace, forward_dynamics
 
 U_DOF = [200, 2_000, 20_000, 100_000]
-# pin.Data allocates nv^3 tensors (docs/design.md, "Reference engines"): 0.5 GB at 200 DOF, 13.4 GB at 600 DOF.
+# pin.Data allocates nv^3 tensors (docs/design.md, "Reference engines"): 0.5 GB at 200 DOF,
+# 13.4 GB at 600 DOF.
 PIN_MAX_DOF = 400
 
 

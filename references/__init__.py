@@ -2,8 +2,10 @@
 
 Every adapter has the shape of :class:`references.base.Engine` (build from a Case or Chain;
 ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``tip``, ``simulate``, ``version``, ``limits``).
-Importing this package imports no engine: a missing one raises :class:`EngineUnavailable`
-(naming the package) only when it is used::
+Every adapter builds every joint the core can express (R and P about/along any axis, U, S),
+from the per-joint elementary axes of :func:`joint_axes`. Importing this package imports no
+engine: a missing one raises :class:`EngineUnavailable` (naming the package) only when it is
+used::
 
     from redysim import references
     eng = references.get("mujoco")(chain)     # or references.get("mujoco").limits(case)
@@ -12,11 +14,14 @@ Importing this package imports no engine: a missing one raises :class:`EngineUna
 from __future__ import annotations
 
 from .base import (
+    Axis,
     Engine,
     EngineLimitExceeded,
     EngineUnavailable,
+    JointAxes,
     Limits,
     Trajectory,
+    joint_axes,
     load_limits,
 )
 from .dart_engine import DART
@@ -38,6 +43,6 @@ def get(name: str) -> type[Engine]:
         raise KeyError(f"no engine {name!r}; known engines: {', '.join(ENGINES)}") from None
 
 
-__all__ = ["ENGINES", "Engine", "EngineLimitExceeded", "EngineUnavailable", "Limits",
-           "Trajectory", "get", "load_limits", "DART", "Exudyn", "MuJoCo", "PinocchioABA",
-           "PinocchioABARyRz", "PinocchioCRBA"]
+__all__ = ["ENGINES", "Axis", "Engine", "EngineLimitExceeded", "EngineUnavailable", "JointAxes",
+           "Limits", "Trajectory", "get", "joint_axes", "load_limits", "DART", "Exudyn", "MuJoCo",
+           "PinocchioABA", "PinocchioABARyRz", "PinocchioCRBA"]

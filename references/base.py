@@ -1,20 +1,32 @@
-"""The common shape of every reference-engine adapter (STYLE.md habit 9).
+"""The common shape of every reference-engine adapter (docs/design.md, "Reference engines").
 
-An adapter builds the SAME chain as the core (DESIGN.md section 2: gravity -Y, link frame at the
-proximal joint, x along the link, U = Ry(q1) then Rz(q2), R about z, inertia about the COM in the
-link frame, joint k at length[k-1] along the parent's x axis, base fixed at the origin) and answers
-in the core's names and units:
+An adapter builds the SAME chain as the core (``redysim/chain.py``: link frame at the proximal
+joint, x along the link, joint k at length[k-1] along the parent's x axis, base fixed at the
+origin, inertia about the COM in the link frame, the chain's gravity vector) and answers in the
+core's names and units:
 
 =========================  ==================================================================
 ``qdd(q, qd, tau=None)``   joint accelerations from I(q) qdd = phi(q, qd, tau)
 ``mass_matrix(q)``         the GIM I(q), (n, n), symmetric
 ``bias(q, qd)``            phi with tau = 0: -(C(q, qd) qd + gravity terms), as ``redysim.phi``
-``energy(q, qd)``          (T, V) in J; V = sum m_k g y_Ck (zero with every COM at y = 0)
+``energy(q, qd)``          (T, V) in J; V = -sum m_k g . r_Ck (zero with every COM at the origin)
 ``tip(q, qd)``             world position of the distal end of the last link
 ``simulate(q0, qd0, ...)`` the engine's own fixed-step integrator -> :class:`Trajectory`
 ``version``                the engine package's version string
 ``limits(case_or_chain)``  :class:`Limits`: can the engine take this case, and if not, why
 =========================  ==================================================================
+
+Joints: :func:`joint_axes` is the one place that turns a chain into what the adapters build. It
+reads the core's own per-DOF tables (``Chain.dof_kind``, ``dof_u``, ``joint_qoff``, the
+arrays the kernels run on) and gives, per joint, its elementary 1-DOF axes in
+order: an :class:`Axis` is "R" (revolute about ``u``) or "P" (prismatic along ``u``), ``u`` a unit
+vector in the frame left by the axes before it (the parent link's frame for the first axis). The
+frame after a revolute axis is R Rot(u, q); a prismatic axis moves the joint's origin by R u q
+(the link frame then starts there: O_{k+1} = O_k + l_k x_k from the moved O_k). So an R joint
+about -z gives the axis (0, 0, -1), never +z; U = R about y, then R about the rotated z; S = the
+U axes, then R about the link's own x. Every engine builds the axes one after the other, each
+axis's frame at the previous one's (see each module's docstring for how); an engine refuses, in
+:meth:`Engine.limits`, only a joint it has no construction for (:meth:`Engine.unsupported`).
 
 A missing engine package raises :class:`EngineUnavailable` naming the package, never a bare
 ImportError. ``limits`` reads the measured limits in ``references/limits.toml`` (how each was
@@ -32,9 +44,10 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from redysim import Case, Chain
+from redysim.chain import KIND_CODES
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
-SUPPORTED_JOINTS = ("R", "U")  # R about z, U = Ry Rz (DESIGN.md section 2)
+KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes
 
 
 class EngineUnavailable(RuntimeError):
@@ -90,18 +103,80 @@ def as_chain(case_or_chain: Case | Chain) -> Chain:
     raise TypeError(f"expected a redysim Case or Chain, got {type(case_or_chain).__name__}")
 
 
-def joint_kinds(chain: Chain) -> list[str]:
-    """The chain's joint types as "R" (about z) or "U"; anything else raises ValueError."""
-    out = []
-    for k, j in enumerate(chain.joints):
-        axes = j.axes()
-        if j.type == "R" and np.array_equal(axes[0][1], [0.0, 0.0, 1.0]):
-            out.append("R")
-        elif j.type == "U":
-            out.append("U")
+class Axis(NamedTuple):
+    """One elementary 1-DOF axis of a joint, as the core's kernels read it.
+
+    ``kind`` "R" (revolute about ``u``) or "P" (prismatic along ``u``); ``u`` the unit axis in
+    the frame left by the axes before it; ``coordinate`` 0, 1 or 2 when ``u`` is exactly +x, +y
+    or +z (the core's axis code), None for any other direction, -x, -y and -z included.
+    """
+
+    kind: str
+    u: tuple[float, float, float]
+    coordinate: int | None
+
+    @property
+    def vector(self) -> np.ndarray:
+        """``u`` as a new float array."""
+        return np.array(self.u, dtype=float)
+
+    @property
+    def signed_coordinate(self) -> tuple[int, float] | None:
+        """(i, +1.0 or -1.0) when ``u`` is exactly +e_i or -e_i, else None."""
+        for i in range(3):
+            if all(self.u[j] == 0.0 for j in range(3) if j != i) and abs(self.u[i]) == 1.0:
+                return i, float(self.u[i])
+        return None
+
+    def describe(self) -> str:
+        """E.g. "R about -z", "P along (0.267, -0.535, 0.802)"."""
+        sc = self.signed_coordinate
+        if sc:
+            where = ("+" if sc[1] > 0 else "-") + "xyz"[sc[0]]
         else:
-            raise ValueError(f"joint {k}: type {j.type!r} with axes {[a[1] for a in axes]} is not "
-                             f"modelled by the reference adapters (only R about z and U = Ry Rz)")
+            where = "(" + ", ".join(f"{x:.6g}" for x in self.u) + ")"
+        return f"{self.kind} {'about' if self.kind == 'R' else 'along'} {where}"
+
+
+class JointAxes(NamedTuple):
+    """A joint of the chain: its type name (a key of ``redysim.chain.JOINT_TYPES``) and its
+    elementary axes in order."""
+
+    type: str
+    axes: tuple[Axis, ...]
+
+    def describe(self) -> str:
+        """E.g. "U = R about +y then R about +z"."""
+        return f"{self.type} = " + " then ".join(a.describe() for a in self.axes)
+
+
+def joint_axes(chain: Chain) -> list[JointAxes]:
+    """Per joint, its elementary axes (see the module docstring), from the chain's own per-DOF
+    tables; one :class:`JointAxes` per link. Joints shared by several links (a uniform chain
+    repeats one Joint object) are read once. Raises ValueError on a DOF kind it does not know."""
+    kinds, units, qoff = chain.dof_kind, chain.dof_u, chain.joint_qoff
+    seen: dict = {}
+    out = []
+    for k, joint in enumerate(chain.joints):
+        try:
+            hash(joint)
+            key = joint  # equal Joints have equal rows in the tables
+        except TypeError:  # an axis given as a list or an array
+            key = id(joint)
+        ja = seen.get(key)
+        if ja is None:
+            axes = []
+            for i in range(int(qoff[k]), int(qoff[k + 1])):
+                kind = KIND_NAMES.get(int(kinds[i]))
+                if kind is None:
+                    raise ValueError(f"joint {k} ({joint.type}): DOF kind {int(kinds[i])} is not "
+                                     f"modelled by the reference adapters (only R and P axes)")
+                u = tuple(float(x) for x in units[i])
+                # exactly +x, +y or +z (the rule of the core's coordinate-axis codes)
+                plus = [j for j in range(3) if u[j] == 1.0 and u[j - 1] == u[j - 2] == 0.0]
+                axes.append(Axis(kind, u, plus[0] if plus else None))
+            ja = seen[key] = JointAxes(joint.type, tuple(axes))
+        out.append(ja)
     return out
 
 
@@ -139,7 +214,7 @@ class Engine:
             lim = self.limits(self.chain)
             if not lim.ok:
                 raise EngineLimitExceeded(f"{self.name}: {lim.reason}")
-        self.kinds = joint_kinds(self.chain)
+        self.joints = joint_axes(self.chain)
         self._build()
 
     # ----------------------------------------------------------------------- availability
@@ -168,9 +243,14 @@ class Engine:
         measured limits in ``references/limits.toml``, before anything is built."""
         chain = as_chain(case_or_chain)
         try:
-            joint_kinds(chain)
+            joints = joint_axes(chain)
         except ValueError as exc:
-            return Limits(False, str(exc))
+            return Limits(False, f"{cls.name}: {exc}")
+        for k, ja in enumerate(joints):
+            why = cls.unsupported(ja)
+            if why:
+                return Limits(False, f"{cls.name}: joint {k} ({ja.describe()}) cannot be built: "
+                                     f"{why}")
         entry = load_limits()["engine"][cls.name]
         n, nl = chain.n_dof, chain.n_links
         max_dof, max_links = int(entry["max_dof"]), int(entry.get("max_links", 10**9))
@@ -179,6 +259,12 @@ class Engine:
             return Limits(False, f"{cls.name}: {what} exceeds its limit on this machine "
                                  f"(max {max_dof:,} DOF, {max_links:,} links): {entry['stops']}")
         return Limits(True, "")
+
+    @classmethod
+    def unsupported(cls, joint: JointAxes) -> str:
+        """Why this engine cannot build ``joint`` ("" when it can). Every adapter here builds
+        any sequence of R and P axes unless it overrides this."""
+        return ""
 
     # ----------------------------------------------------------------------- public API
     def qdd(self, q, qd, tau=None) -> np.ndarray:

@@ -1,27 +1,46 @@
 """Exudyn adapter: one ``ObjectKinematicTree`` (minimal coordinates) on a ``NodeGenericODE2``.
 
-What the model contains and why (DESIGN.md section 6):
+What the model contains and why (docs/design.md, "Reference engines"):
 
-- ``ObjectKinematicTree`` has only 1-DOF joints, so a U joint is two tree links: a massless
-  ``RevoluteY`` link (zero mass and inertia) at the joint's offset, then a ``RevoluteZ`` link at
-  zero offset carrying the link's mass, COM and inertia about the COM; an R joint is one
-  ``RevoluteZ`` link. ``jointHTs`` translate l_{k-1} along the parent's x; ``linkParents`` is the
-  chain (-1 = ground). ``gravity = chain.gravity`` (the tree's own gravity parameter).
+- ``ObjectKinematicTree`` has only 1-DOF joints, each ``RevoluteX/Y/Z`` or ``PrismaticX/Y/Z``
+  of its own joint frame, so every elementary axis of a joint (``references.base.joint_axes``) is
+  one tree link, in order: the axes before the last are massless links (zero mass and inertia)
+  at zero offset from the previous one, the last carries the link's mass, COM and inertia about
+  the COM. A U joint is thus a massless ``RevoluteY`` link at the joint's offset, then a
+  ``RevoluteZ`` link with the mass; an R joint about z one ``RevoluteZ`` link. ``linkParents``
+  is the chain (-1 = ground); ``gravity = chain.gravity`` (the tree's own gravity parameter).
+- An axis u that is not +x, +y or +z of its frame gets a rotated joint frame. The tree link's
+  frame is then the core's frame after the axis times a constant rotation A (its columns the
+  tree frame's axes in the core's frame), chosen with A e = u for the joint type's axis e:
+  -x, -y, -z take the X, Y or Z joint type and A a half-turn about the next coordinate axis
+  (entries 0 and +-1 only: exact), any other u the Z type and A = [a, u x a, u] with a a unit
+  vector normal to u. With Rot(u, q) = A Rz(q) A^T, the tree link's rotation is
+  R_before A Rz(q) = R_after A, and a prismatic link moves its origin by R_before u q, as in the
+  core. Everything given in the tree link's frame is the core's quantity turned by A^T: the
+  link's COM A^T c and inertia A^T I_C A, the sensors' local points, and the next axis's
+  ``jointHTs`` entry (rotation A_prev^T A_next, translation A_prev^T (l_k, 0, 0) for the next
+  joint's first axis, zero for the next axis of the same joint), which maps the next joint frame
+  to the previous tree link's frame (position in parent = R p + o). For +x, +y, +z axes A is the
+  identity and nothing is turned (the R and U models are built exactly as before).
 - No markers, loads, connectors, contacts or graphics; visualisation off (``show=False``); no
   joint P/D control, force vectors or user functions (all empty/zero by default).
 - Solver settings: ``linearSolver.solverType = EigenDense`` (the default EXUdense was ~17x slower
-  and inaccurate at 1,000 links, DESIGN.md section 6); no solution file, no sensors written,
-  verbose off.
+  and inaccurate at 1,000 links; docs/design.md, "Reference engines"); no solution file, no
+  sensors written, verbose off. Above 1,000 coordinates Exudyn prints, at every solve, a
+  multi-line advice to consider a sparse solver: it does not apply here (a chain's kinematic tree
+  couples every joint, so its mass matrix is dense; EigenSparse measured 0.144 s per qdd at
+  1,200 DOF against EigenDense's 0.105 s, 2026-11-23), so that one message is dropped
+  (:func:`_without_sparse_advice`); anything else Exudyn prints passes through.
 
-``qdd`` uses Exudyn's own solver (DESIGN.md section 6's trick): the state is written as the
+``qdd`` uses Exudyn's own solver (Exudyn has no public qdd call): the state is written as the
 initial state, one ``ExplicitEuler`` step of 1e-12 s is taken with
 ``timeIntegration.explicit.computeEndOfStepAccelerations = False``, and
 ``GetODE2Coordinates_tt()`` then holds the acceleration at the start of the step, i.e. at the
 given state. ``tau`` enters through the tree's ``jointForceVector``.
 ``mass_matrix`` and ``bias`` are the solver's ``ComputeMassMatrix`` and ``ComputeODE2RHS`` (the
 ODE2 right-hand side, which is phi with tau = 0). ``energy``: T = qd^T M qd / 2 with Exudyn's M,
-V = sum m g y_C with the COM positions from ``SensorKinematicTree`` (Exudyn has no energy call
-for the tree). ``tip``: a ``SensorKinematicTree`` on the last link at (l, 0, 0).
+V = -sum m g . r_C with the COM positions from ``SensorKinematicTree`` (Exudyn has no energy call
+for the tree). ``tip``: a ``SensorKinematicTree`` on the last link at (l, 0, 0) (turned by A^T).
 ``simulate``: Exudyn's explicit ``RK44`` at the fixed step h.
 
 Limit: the tree's mass matrix is dense (O(n^2) memory) and factorised every right-hand side
@@ -30,17 +49,63 @@ Limit: the tree's mass matrix is dense (O(n^2) memory) and factorised every righ
 
 from __future__ import annotations
 
+import contextlib
+import io
+import re
+import sys
+
 import numpy as np
 
 from .base import Engine
 
+# the start of Exudyn's advice, printed at every solve of more than 1,000 coordinates
+SPARSE_ADVICE = "The number of total coordinates (unknowns) is larger than 1000. Consider a sparse"
+
+
+@contextlib.contextmanager
+def _without_sparse_advice():
+    """Run the block with stdout captured, then print what it printed without Exudyn's advice to
+    use a sparse solver (module docstring); every other line passes through."""
+    buf = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(buf):
+            yield
+    finally:
+        # one message per "Python WARNING" (each starts on a new line)
+        messages = re.split(r"(?=\nPython WARNING)", buf.getvalue())
+        out = "".join(m for m in messages if SPARSE_ADVICE not in m)
+        if out.strip():
+            sys.stdout.write(out)
+
 QDD_STEP = 1e-12  # length of the single explicit Euler step whose start-acceleration is qdd
 
 
-def _ht(p) -> np.ndarray:
+def _ht(p, rot=None) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = p
+    if rot is not None:
+        T[:3, :3] = rot
     return T
+
+
+def joint_frame(axis) -> tuple[int, np.ndarray | None]:
+    """(i, A) for one elementary axis: the tree joint's type axis i (0, 1, 2: X, Y, Z) and the
+    rotation A of its joint frame in the core's frame before the axis, A e_i = u (None: the
+    identity, for u exactly +e_i)."""
+    if axis.coordinate is not None:
+        return axis.coordinate, None
+    sc = axis.signed_coordinate
+    if sc is not None:  # -e_i: a half-turn about e_j, j the next axis (exact entries 0, +-1)
+        i, _ = sc
+        A = -np.eye(3)
+        A[(i + 1) % 3, (i + 1) % 3] = 1.0
+        return i, A
+    u = axis.vector
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(u)))] = 1.0  # the coordinate axis farthest from u
+    a = e - (e @ u) * u
+    a /= np.linalg.norm(a)
+    return 2, np.column_stack([a, np.cross(u, a), u])
 
 
 class Exudyn(Engine):
@@ -55,22 +120,37 @@ class Exudyn(Engine):
         exu = self.lib
         from exudyn.itemInterface import NodeGenericODE2, ObjectKinematicTree, VObjectKinematicTree
         c = self.chain
+        kinds = {"R": (exu.JointType.RevoluteX, exu.JointType.RevoluteY, exu.JointType.RevoluteZ),
+                 "P": (exu.JointType.PrismaticX, exu.JointType.PrismaticY,
+                       exu.JointType.PrismaticZ)}
         types, hts, inertias, coms, masses, tree_of_link = [], [], [], [], [], []
-        for k, kind in enumerate(self.kinds):
-            off = [c.length[k - 1], 0.0, 0.0] if k > 0 else [0.0, 0.0, 0.0]
-            if kind == "U":
-                types.append(exu.JointType.RevoluteY)
-                hts.append(_ht(off))
-                inertias.append(np.zeros((3, 3)))
-                coms.append([0.0, 0.0, 0.0])
-                masses.append(0.0)
-                off = [0.0, 0.0, 0.0]
-            types.append(exu.JointType.RevoluteZ)
-            hts.append(_ht(off))
-            inertias.append(np.array(c.inertia_com[k]))
-            coms.append([float(x) for x in c.com[k]])
+        turn = None  # A of the tree link built last (None: the identity)
+        self.turn_of_link = []  # A of each chain link's tree link
+        for k, joint in enumerate(self.joints):
+            off = np.array([c.length[k - 1], 0.0, 0.0]) if k > 0 else np.zeros(3)
+            last = len(joint.axes) - 1
+            for i, axis in enumerate(joint.axes):
+                e, A = joint_frame(axis)
+                types.append(kinds[axis.kind][e])
+                if turn is None:
+                    hts.append(_ht(off, A))
+                else:
+                    hts.append(_ht(turn.T @ off, turn.T if A is None else turn.T @ A))
+                turn = A
+                off = np.zeros(3)
+                if i < last:
+                    inertias.append(np.zeros((3, 3)))
+                    coms.append([0.0, 0.0, 0.0])
+                    masses.append(0.0)
+            com, inertia = np.array(c.com[k]), np.array(c.inertia_com[k])
+            if turn is not None:
+                com, inertia = turn.T @ com, turn.T @ inertia @ turn
+                inertia = 0.5 * (inertia + inertia.T)
+            inertias.append(inertia)
+            coms.append([float(x) for x in com])
             masses.append(float(c.mass[k]))
             tree_of_link.append(len(types) - 1)
+            self.turn_of_link.append(turn)
         n = len(types)
         self.SC = exu.SystemContainer()
         mbs = self.SC.AddSystem()
@@ -124,12 +204,14 @@ class Exudyn(Engine):
 
     def _qdd(self, q, qd, tau):
         self._set_state(q, qd, tau)
-        self.solver.SolveSystem(self.mbs, self.ss_qdd)
+        with _without_sparse_advice():
+            self.solver.SolveSystem(self.mbs, self.ss_qdd)
         return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
 
     def _current(self, q, qd):
         if not self._init_rhs:
-            self.solver.InitializeSolver(self.mbs, self.ss_qdd)
+            with _without_sparse_advice():
+                self.solver.InitializeSolver(self.mbs, self.ss_qdd)
             self._init_rhs = True
         self._set_state(q, qd, None, which="Current")
 
@@ -149,13 +231,18 @@ class Exudyn(Engine):
             objectNumber=self.tree, linkNumber=link, localPosition=list(map(float, point)),
             outputVariableType=self.lib.OutputVariableType.Position, writeToFile=False))
 
+    def _local(self, k, point) -> np.ndarray:
+        """A point given in chain link k's frame, in its tree link's frame."""
+        A = self.turn_of_link[k]
+        return np.asarray(point, dtype=float) if A is None else A.T @ np.asarray(point, float)
+
     def _positions(self, sensors):
         return np.array([self.mbs.GetSensorValues(s) for s in sensors])
 
     def _energy(self, q, qd):
         c = self.chain
         if self._com_sensors is None:
-            self._com_sensors = [self._sensor(self.tree_of_link[k], c.com[k])
+            self._com_sensors = [self._sensor(self.tree_of_link[k], self._local(k, c.com[k]))
                                  for k in range(c.n_links)]
             self.mbs.Assemble()
             self._init_rhs = False
@@ -168,7 +255,7 @@ class Exudyn(Engine):
     def _tip(self, q, qd):
         if self._tip_sensor is None:
             self._tip_sensor = self._sensor(self.tree_of_link[-1],
-                                            [self.chain.length[-1], 0.0, 0.0])
+                                            self._local(-1, [self.chain.length[-1], 0.0, 0.0]))
             self.mbs.Assemble()
             self._init_rhs = False
         self._current(q, qd)
@@ -179,7 +266,8 @@ class Exudyn(Engine):
         self._set_state(q0, qd0, None)
 
     def _sim_step(self):
-        self.solver.SolveSystem(self.mbs, self.ss_step)
+        with _without_sparse_advice():
+            self.solver.SolveSystem(self.mbs, self.ss_step)
         sd = self.mbs.systemData
         self._set_state(np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t()),
                         None)

@@ -1,10 +1,16 @@
 """MuJoCo adapter, built programmatically with ``mujoco.MjSpec`` (no XML).
 
-What the model contains and why (DESIGN.md sections 5-6):
+What the model contains and why (docs/design.md, "Reference engines"):
 
-- one body per link, nested (a chain), at ``pos = (l_{k-1}, 0, 0)`` in its parent; a U joint is two
-  hinge joints in the same body, axis y then z (MuJoCo composes a body's joints in order, so the
-  second axis is the rotated z: R = Ry(q1) Rz(q2)); an R joint is one hinge about z.
+- one body per link, nested (a chain), at ``pos = (l_{k-1}, 0, 0)`` in its parent, holding one
+  joint per elementary axis of the link's joint (``references.base.joint_axes``), in order: a
+  ``hinge`` for an R axis, a ``slide`` for a P axis, ``axis = u`` as given (-z stays -z; a
+  general direction is passed as the unit vector the core uses) and ``pos = 0``. MuJoCo composes
+  a body's joints in order, each axis in the frame left by the joints before it (``mj_kinematics``
+  rotates the next joint's axis by the body's quaternion so far; a slide moves the body's origin
+  by the rotated axis times q, a hinge turns the frame about the current origin), which is the
+  core's convention: a U joint is two hinges, y then the rotated z (R = Ry(q1) Rz(q2)), an S
+  joint three (y, z, x), an R or P joint one.
 - ``explicitinertial`` with mass, ``ipos`` = COM and the inertia's principal moments + ``iquat``
   (the eigen-decomposition of ``chain.inertia_com``, done here). No geoms at all: nothing to
   collide, nothing to draw, and no inertia inferred from geometry.
@@ -13,8 +19,8 @@ What the model contains and why (DESIGN.md sections 5-6):
   ``enableflags = ENERGY`` so ``data.energy`` holds (V, T). Joint damping, armature, friction
   loss, stiffness and limits are left at their zero/off defaults and asserted zero after compile.
 - ``compiler.balanceinertia`` only when a link's inertia violates the triangle inequality (the
-  paper's rod model does, DESIGN.md section 2); the exact principal moments are then written back
-  into ``model.body_inertia`` after compiling.
+  paper's rod model does; docs/design.md, "Chain conventions"); the exact principal moments are
+  then written back into ``model.body_inertia`` after compiling.
 - ``option.gravity = chain.gravity``.
 
 ``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
@@ -64,7 +70,8 @@ class MuJoCo(Engine):
         principal = []
         balance = False
         parent = spec.worldbody
-        for k, kind in enumerate(self.kinds):
+        hinge, slide = mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE
+        for k, joint in enumerate(self.joints):
             body = parent.add_body()
             body.name = f"link{k}"
             body.pos = [c.length[k - 1], 0.0, 0.0] if k > 0 else [0.0, 0.0, 0.0]
@@ -76,18 +83,22 @@ class MuJoCo(Engine):
             balance |= bool(w[0] + w[1] < w[2] or w[0] + w[2] < w[1] or w[1] + w[2] < w[0])
             body.inertia = w
             body.iquat = quat
-            axes = ([0.0, 0.0, 1.0],) if kind == "R" else ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
-            for i, axis in enumerate(axes):
+            for i, axis in enumerate(joint.axes):
                 j = body.add_joint()
                 j.name = f"j{k}_{i}"
-                j.type = mj.mjtJoint.mjJNT_HINGE
-                j.axis = axis
+                j.type = hinge if axis.kind == "R" else slide
+                j.axis = axis.u
             parent = body
         spec.compiler.balanceinertia = balance
         model = spec.compile()
         model.body_inertia[1:] = np.array(principal)  # exact moments (balanceinertia moved them)
-        for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness"):
+        for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness",
+                     "qpos0", "jnt_pos"):
             assert not np.any(getattr(model, name)), name
+        axes = [a for joint in self.joints for a in joint.axes]
+        # the compiled axes are the chain's (MuJoCo normalises them: a unit vector stays within
+        # rounding of itself, and a -z axis must not have become +z)
+        assert np.abs(model.jnt_axis - np.array([a.u for a in axes])).max() < 1e-15
         self.model, self.data = model, mj.MjData(model)
         self.last_body = model.nbody - 1
         if model.nv != c.n_dof:
