@@ -278,3 +278,18 @@ def test_a_link_length_that_underflows_is_named(tmp_path):
     case = load_case(path)  # a length is a length; what it does to the dynamics is named there
     with pytest.raises(StateError, match="singular at DOF"):
         forward_dynamics(case.chain, [0.1, 0.1, 0.1], case.qd0)
+
+
+def test_every_field_naming_error_has_one_base():
+    """CaseError, SettingsError, SweepError and GatesError (which was not a RedysimError) are all
+    FieldErrors: one way to catch a bad field, with its source, field and value."""
+    from redysim.errors import RedysimError, SettingsError
+    from redysim.harness.gates import GatesError
+    from redysim.harness.sweep import SweepError
+
+    for cls in (CaseError, SettingsError, SweepError, GatesError):
+        assert issubclass(cls, FieldError) and issubclass(cls, RedysimError), cls
+        err = cls("file.toml", "a.b", 3, "must be 4")
+        assert str(err) == "file.toml: a.b = 3: must be 4"
+        assert (err.source, err.field, err.value, err.problem) == ("file.toml", "a.b", 3,
+                                                                   "must be 4")

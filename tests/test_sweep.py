@@ -19,6 +19,7 @@ import pytest
 from redysim.harness.cli import main
 from redysim.harness.spec import RunSpec
 from redysim.harness.store import (
+    FILE_MODE,
     TEMP_PREFIX,
     TEMP_SUFFIX,
     parquet_files,
@@ -236,6 +237,9 @@ def test_a_sweep_takes_the_case_s_settings_and_reruns_an_edited_case(tmp_path):
     assert (spec.integrator, spec.rtol, spec.atol) == ("dop853", 1e-7, 1e-6)
     out = tmp_path / "out"
     first = run_sweep(load_sweep(path).specs, out, progress=False)
+    # result files get the umask's mode (readable by others sharing the folder), not mkstemp's
+    # private 0600
+    assert all(p.stat().st_mode & 0o777 == FILE_MODE for p in out.rglob("*.parquet"))
     assert first["n_dof"].tolist() == [3] and first["integrator"].tolist() == ["dop853"]
     case.write_text(case.read_text().replace("links = 3", "links = 5"))
     again = run_sweep(load_sweep(path).specs, out, progress=False)
@@ -499,7 +503,7 @@ def test_cli_saves_csv_by_its_suffix(tmp_path, capsys):
     samples = pd.read_csv(out)
     assert list(samples.columns[:2]) == ["run_id", "t"] and len(samples) == 3
     assert pd.read_csv(tmp_path / "tip.summary.csv")["status"].tolist() == ["ok"]
-    assert out.stat().st_mode & 0o044 == 0o044  # readable by others (umask 022), not 0600
+    assert out.stat().st_mode & 0o777 == FILE_MODE  # the umask's mode, not mkstemp's 0600
 
 
 def test_cli_max_wall_stops_a_long_run_and_keeps_its_samples(capsys):
