@@ -44,6 +44,7 @@ from redysim.integrate import (
     SolverState,
     advance,
     check_settings,
+    compile_kernels,
     sample_times,
 )
 
@@ -178,6 +179,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     E0 = sum(energy(chain, case.q0, case.qd0, ws=ws))
     t0 = time.perf_counter()
     rhs(0.0, y0)
+    compile_kernels()
     jit_s = time.perf_counter() - t0
     now = {"code": code_digest(), "case": case.name, "case_digest": case.digest, "n_dof": n,
            "t_end": t_end, **how}
