@@ -48,6 +48,7 @@ from redysim.integrate import (
     sample_times,
 )
 
+from .cli import positive
 from .provenance import code_digest
 from .reference import results_dir
 from .store import write_npz_atomic
@@ -267,16 +268,6 @@ def summary(ck: dict) -> str:
             f"{len(s)} samples; time to finish at this rate {eta / 3600:.1f} h")
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
-    return value
-
-
 FLAGS = {"t_end": "--t-end", "integrator": "--integrator", "rtol": "--rtol", "atol": "--atol",
          "h": "--h"}
 
@@ -287,16 +278,16 @@ def main(argv=None) -> int:
         description="Run a case on the core, checkpointing so that a stopped run resumes where "
                     "it was. Example: python -m redysim.harness.longrun RE-U50000-L1000")
     ap.add_argument("case", help="a case name or the path of a case file")
-    ap.add_argument("--t-end", type=_positive, help="horizon [s] (default: the case's)")
+    ap.add_argument("--t-end", type=positive, help="horizon [s] (default: the case's)")
     ap.add_argument("--integrator", choices=INTEGRATORS,
                     help="default: the case file's (ode45 unless it says otherwise)")
-    ap.add_argument("--rtol", type=_positive, help="default: the case file's")
-    ap.add_argument("--atol", type=_positive, help="default: the case file's")
-    ap.add_argument("--h", type=_positive, help="step of rk4 (default: the case file's)")
-    ap.add_argument("--every", type=_positive, default=DEFAULT_EVERY_S,
+    ap.add_argument("--rtol", type=positive, help="default: the case file's")
+    ap.add_argument("--atol", type=positive, help="default: the case file's")
+    ap.add_argument("--h", type=positive, help="step of rk4 (default: the case file's)")
+    ap.add_argument("--every", type=positive, default=DEFAULT_EVERY_S,
                     help=f"wall seconds between checkpoints (default {DEFAULT_EVERY_S:g})")
     ap.add_argument("--out", type=Path, default=None, help="folder of the checkpoint")
-    ap.add_argument("--stop-after", type=_positive, default=math.inf,
+    ap.add_argument("--stop-after", type=positive, default=math.inf,
                     help="stop (with a checkpoint) after this many wall seconds")
     ap.add_argument("--status", action="store_true", help="print the checkpoint and exit")
     args = ap.parse_args(argv)
