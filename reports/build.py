@@ -273,9 +273,10 @@ def setup_section(ctx: Ctx) -> Section:
                    "adapter compiles with balanceinertia and writes the exact values back "
                    "(docs/design.md, 'Chain conventions'). The physical cylinder model is "
                    "available in the case files' `inertia` field.")
-    s.notes.append("Timings run one BLAS thread per process (OPENBLAS_NUM_THREADS=1, set by "
-                   "reports/__init__.py): with OpenBLAS's default threads on this shared 2-core "
-                   "machine SciPy's Cholesky of a 250 x 250 GIM took 0.23 s instead of 1.5 ms.")
+    s.notes.append("Timings run one BLAS thread per process (redysim.harness sets it with "
+                   "threadpoolctl unless the environment sets a thread count): with OpenBLAS's "
+                   "default threads on this shared 2-core machine SciPy's Cholesky of a 250 x 250 "
+                   "GIM took 0.23 s instead of 1.5 ms.")
     sec.items.append(s)
     src = Table("sources", "Results found", ["result", "where"],
                 [Row([a, b]) for a, b in ctx.res.sources()])
