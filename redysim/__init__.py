@@ -11,6 +11,7 @@ References:
     with large number of degrees-of-freedom", Multibody System Dynamics (2014).
 """
 
+from . import rbda
 from .cases import Case, case_from_dict, list_cases, load_case, load_published
 from .chain import JOINT_TYPES, Chain, Joint, Link
 from .dynamics import (
@@ -29,14 +30,17 @@ from .dynamics import (
     tip,
     udu_factors,
 )
-from .errors import CaseError, RedysimError, StateError
+from .errors import CaseError, FieldError, RedysimError, SettingsError, StateError
+from .importers import ModelFileError, load_model
+from .model import Body, Model, TreeJoint
 from .workspace import Workspace
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Case", "CaseError", "Chain", "Elimination", "JOINT_TYPES", "Joint", "Link", "METHODS",
-    "RedysimError", "StateError", "Tip", "UDU", "Workspace", "case_from_dict", "delta_M",
-    "eliminate", "energy", "forward_dynamics", "inverse_dynamics", "joint_positions",
-    "list_cases", "load_case", "load_published", "mass_matrix", "phi", "tip", "udu_factors",
+    "Body", "Case", "CaseError", "Chain", "Elimination", "FieldError", "JOINT_TYPES", "Joint",
+    "Link", "METHODS", "Model", "ModelFileError", "RedysimError", "SettingsError", "StateError",
+    "Tip", "TreeJoint", "UDU", "Workspace", "case_from_dict", "delta_M", "eliminate", "energy",
+    "forward_dynamics", "inverse_dynamics", "joint_positions", "list_cases", "load_case",
+    "load_model", "load_published", "mass_matrix", "phi", "rbda", "tip", "udu_factors",
 ]
