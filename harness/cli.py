@@ -56,6 +56,16 @@ examples:
   redysim sweep sweeps/smoke.toml --dask local           # a 2-worker Dask cluster on this machine
   redysim sweep big.toml --dask tcp://scheduler:8786     # an existing Dask cluster"""
 
+INFO_HELP = """\
+Print a model's kinematic tree: each body under its parent, its joint (type, name, axes) and
+mass, the named frames, and what the importer dropped from the file (geometry, limits, ...).
+URDF and MJCF are read by MuJoCo's parser (the 'models' extra).
+
+examples:
+  redysim info RE-U125-L1
+  redysim info ur5_robot.urdf
+  redysim info solo12.urdf --floating"""
+
 CASES_HELP = """\
 List the case files in cases/ (every chain of the paper) with their descriptions. Any of these
 names, or the path of your own case file, can be given to `redysim simulate`.
@@ -154,6 +164,17 @@ def build_parser() -> argparse.ArgumentParser:
     cs = sub.add_parser("cases", description=CASES_HELP, formatter_class=fmt,
                         help="list the chains of the paper that come with redysim")
     cs.set_defaults(func=cmd_cases)
+
+    info = sub.add_parser("info", description=INFO_HELP, formatter_class=fmt,
+                          help="print a model's tree: bodies, joints, masses, what was dropped")
+    info.add_argument("model", metavar="MODEL",
+                      help="a .urdf, an MJCF .xml, a case .toml, or a case name")
+    info.add_argument("--floating", action="store_true",
+                      help="a URDF's root link gets a free joint (a legged or flying robot)")
+    info.add_argument("--mimic", choices=("refuse", "independent"), default="refuse",
+                      help="a URDF's mimic joints: refuse them (default) or let them move "
+                           "independently")
+    info.set_defaults(func=cmd_info)
     return ap
 
 
@@ -270,6 +291,55 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if len(failed) > MAX_FAILED_SHOWN:
         print(f"  ... and {len(failed) - MAX_FAILED_SHOWN} more (see {out / RUNS_FILE})")
     return EXIT_RUN_FAILED if len(failed) else EXIT_OK
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """``redysim info``: the model's tree, one line per body, children indented under parents."""
+    from redysim import Model, load_model
+
+    if Path(args.model).suffix.lower() in (".urdf", ".xml", ".toml"):
+        model = load_model(args.model, floating=args.floating, mimic=args.mimic)
+    else:
+        model = Model.from_chain(load_case(args.model).chain)
+    print(f"{model.name}: {model.n_bodies} bodies, n_q = {model.n_q}, n_v = {model.n_v}, "
+          f"mass {model.total_mass:.6g} kg, gravity {tuple(float(g) for g in model.gravity)}")
+    children: dict[int, list[int]] = {}
+    for k, p in enumerate(model.parent):
+        children.setdefault(int(p), []).append(k)
+    width = max(map(len, model.body_names)) + 2 * _depth(model)
+
+    def show(k: int, depth: int) -> None:
+        axes = ", ".join(_axis_text(model, j) for j in range(model.joint_voff[k],
+                                                            model.joint_voff[k + 1]))
+        label = f"{'  ' * depth}{model.body_names[k]}"
+        print(f"  {label:<{width}}  {model.joint_types[k]:<5} {model.joint_names[k]} "
+              f"[{axes}]  m = {model.mass[k]:.6g} kg")
+        for c in children.get(k, []):
+            show(c, depth + 1)
+
+    for root in children.get(-1, []):
+        show(root, 0)
+    for name, (body, point) in model.frames.items():
+        print(f"  frame {name}: on {model.body_names[body]} at {tuple(float(x) for x in point)}")
+    for note in model.notes:
+        print(f"  dropped: {note}")
+    return EXIT_OK
+
+
+def _depth(model) -> int:
+    depth = [0] * model.n_bodies
+    for k, p in enumerate(model.parent):
+        depth[k] = 0 if p < 0 else depth[p] + 1
+    return max(depth, default=0)
+
+
+def _axis_text(model, j: int) -> str:
+    kind = ("R", "P", "ball")[int(model.dof_kind[j])]
+    u = model.dof_u[j]
+    names = {(1, 0, 0): "x", (0, 1, 0): "y", (0, 0, 1): "z", (-1, 0, 0): "-x", (0, -1, 0): "-y",
+             (0, 0, -1): "-z"}
+    key = tuple(int(x) if x in (-1.0, 0.0, 1.0) else None for x in u)
+    return f"{kind} {names.get(key, '(' + ', '.join(f'{x:.4g}' for x in u) + ')')}"
 
 
 def cmd_cases(args: argparse.Namespace) -> int:

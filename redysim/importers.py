@@ -95,7 +95,7 @@ def _check_urdf(path: Path, mimic: str = "refuse") -> tuple[ET.Element, list[str
             if element.tag in (*DROPPED, "mimic"):
                 counts[element.tag] = counts.get(element.tag, 0) + 1
                 parent.remove(element)
-    notes = [f"{n} <{tag}> element{'s' if n > 1 else ''} dropped"
+    notes = [f"{n} <{tag}> element{'s' if n > 1 else ''}"
              + (" (those joints move independently)" if tag == "mimic" else "")
              for tag, n in sorted(counts.items())]
     return root, notes
@@ -297,8 +297,8 @@ def load_mjcf(path: str | os.PathLike) -> Model:
                                     rotation=tuple(map(tuple, _quat_matrix(m.body_quat[b]))),
                                     translation=tuple(float(x) for x in m.body_pos[b])))
         parents.append(parent)
-    notes = ["geometry, actuators, sensors, tendons, equality constraints, contacts and joint "
-             "limits, damping, armature and friction dropped"]
+    notes = ["geometry, actuators, sensors, tendons, equality constraints, contacts",
+             "joint limits, damping, armature and friction"]
     model = _finish(bodies, joints, parents, tuple(float(g) for g in m.opt.gravity), path.stem,
                     src, notes)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))

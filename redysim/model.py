@@ -152,7 +152,7 @@ class Model:
     mass_com: np.ndarray
     gravity: np.ndarray
     frames: Mapping[str, tuple[int, tuple[float, float, float]]] = field(default_factory=dict)
-    notes: tuple[str, ...] = ()  # what an importer dropped from the file (redysim.importers)
+    notes: tuple[str, ...] = ()  # what the importer dropped from the file (redysim.importers)
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
 
     # ----------------------------------------------------------------------- building

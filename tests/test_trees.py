@@ -356,7 +356,7 @@ def test_what_the_importer_drops_it_says():
     pytest.importorskip("mujoco")
     model = load_urdf(robot_urdf("ur_description/urdf/ur5_robot.urdf"))
     assert model.n_v == 6 and model.joint_names[0] == "shoulder_pan_joint"
-    assert "6 <limit> elements dropped" in model.notes
+    assert "6 <limit> elements" in model.notes
     assert any("visual" in n for n in model.notes)
     panda = load_urdf(robot_urdf("panda_description/urdf/panda.urdf"), mimic="independent")
     assert any("mimic" in n and "independently" in n for n in panda.notes)
@@ -369,3 +369,27 @@ def test_load_model_names_what_it_cannot_read(tmp_path):
     other.write_text("<sdf/>")
     with pytest.raises(ModelFileError, match="a model file is .urdf, MJCF .xml or a case .toml"):
         load_model(other)
+
+
+@pytest.mark.engine
+def test_redysim_info_prints_the_tree(capsys, tmp_path):
+    from redysim.harness.cli import main
+
+    pytest.importorskip("mujoco")
+    path = tmp_path / "tree.xml"
+    path.write_text(MJCF)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "tree: 4 bodies, n_q = 10, n_v = 9, mass 8.70767 kg, gravity (0.3, -0.2, " \
+                     "-9.81)"
+    assert out[1].split() == ["base", "free", "root", "[P", "x,", "P", "y,", "P", "z,", "ball",
+                              "x,", "ball", "y,", "ball", "z]", "m", "=", "6.4", "kg"]
+    assert out[3].startswith("      hand") and out[4].startswith("    leg")  # under their parents
+    assert out[-1].startswith("  dropped: joint limits")
+    assert main(["info", robot_urdf("solo12.urdf"), "--floating"]) == 0
+    text = capsys.readouterr().out
+    assert "n_q = 19, n_v = 18" in text and "dropped: 16 <limit> elements" in text
+    assert main(["info", "STUDY-R3"]) == 0
+    assert "frame tip: on link3 at (1.0, 0.0, 0.0)" in capsys.readouterr().out
+    assert main(["info", robot_urdf("panda_description/urdf/panda.urdf")]) == 2
+    assert "mimic" in capsys.readouterr().err
