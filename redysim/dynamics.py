@@ -111,12 +111,24 @@ def overflow_error(what: str, **inputs) -> StateError:
 def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
     if ws is None:
         return Workspace(chain)
-    if not isinstance(ws, Workspace):
-        raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
-    if ws.chain is not chain:
+    if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
+        if not isinstance(ws, Workspace):
+            raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
         raise FieldError("dynamics", "ws", repr(ws.chain), f"was made for another chain than "
                          f"{chain!r}; make one with Workspace(chain)")
     return ws
+
+
+def first_bad_pivot(pivots: np.ndarray, *, from_base: bool, positive: bool) -> int | None:
+    """The first pivot, in elimination order (from index 0 with ``from_base``, else from the
+    last), that cannot be divided by: 0, not finite, so small that 1/p overflows, or (with
+    ``positive``, for a symmetric positive definite GIM) not > 0. None when there is none."""
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        bad = ~np.isfinite(pivots) | ~np.isfinite(1.0 / pivots)
+        if positive:
+            bad |= ~(pivots > 0)
+    idx = np.flatnonzero(bad)
+    return None if not idx.size else int(idx.min() if from_base else idx.max())
 
 
 def _run_kinematics(chain, ws, q, qd, qdd, base_accel):
@@ -240,9 +252,8 @@ def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> Stat
         pivots = ws.planar[:, 8] if planar else ws.Ihat  # Ihat: the planar kernel's column 8
     else:
         pivots = np.diag(gim)
-    bad = np.flatnonzero(~(pivots > 0) | ~np.isfinite(1.0 / np.where(pivots == 0, 1, pivots)))
-    if bad.size:
-        j = int(bad.min() if first else bad.max())
+    j = first_bad_pivot(pivots, from_base=first, positive=True)
+    if j is not None:
         k = int(np.searchsorted(chain.joint_qoff, j, side="right") - 1)
         axis = j - int(chain.joint_qoff[k])
         return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
@@ -324,8 +335,7 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
     kernels[method](A, b, mult, x)
     if not np.isfinite(x).all():
         pivots = np.diag(A)  # the factor's diagonal: GE-N eliminates from the first column on,
-        order = range(n) if method == "ge-n" else range(n - 1, -1, -1)  # RGE-N from the last
-        c = next((c for c in order if not (np.isfinite(pivots[c]) and pivots[c] != 0)), None)
+        c = first_bad_pivot(pivots, from_base=method == "ge-n", positive=False)  # RGE-N the last
         if c is not None:
             raise StateError(f"gim is singular for {method.upper()} (no pivoting): the pivot of "
                              f"column {c} is {float(pivots[c])!r}")

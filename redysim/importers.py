@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import FieldError
 from .model import FIXED, FREE, Body, Model, TreeJoint
+from .rbda import quaternion_matrix
 
 URDF_GRAVITY = (0.0, 0.0, -9.81)  # URDF has no gravity; robots are described z up
 MASSLESS_TOL = 1e-12  # an articulated inertia below this (relative) is none
@@ -45,10 +46,9 @@ def _mujoco(path):
 
 
 def _quat_matrix(q) -> np.ndarray:
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """The rotation of a quaternion (w, x, y, z) as MuJoCo stores it (normalised here)."""
+    q = np.asarray(q, dtype=float)
+    return quaternion_matrix(*(q / np.linalg.norm(q)))
 
 
 # --------------------------------------------------------------------------- URDF
