@@ -55,8 +55,11 @@ def base_kernels(rev: str, into: Path):
     has_entry = "redysim/_kernels/entry.py" in names
     if has_entry:
         names.append("redysim/workspace.py")
+        # the workspace's imports from outside the kernels: the working tree's
         (pkg / "chain.py").write_text("from redysim.chain import *  # noqa\n"
                                       "from redysim.chain import kernel_alias  # noqa\n")
+        for module in ("errors", "model"):
+            (pkg / f"{module}.py").write_text(f"from redysim.{module} import *  # noqa\n")
     for name in [*names, "redysim/_jit.py"]:
         if name.endswith(".py"):
             text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{name}"],
@@ -74,16 +77,24 @@ def calls(rge_a, kin, entry, workspace, chain: Chain, q, qd) -> tuple[list, np.n
 
     entry: forward dynamics' compiled entry point, as ``forward_dynamics`` calls it (None for a
     revision without one: not timed); whole: ``rge_a_forward_dynamics``, the three passes by
-    their 23 arrays."""
+    their arrays (a revision with named bundles: by its workspace's ``tree`` and ``s``; before
+    them: by 23 positional arrays)."""
     ws = workspace(chain)
     out = np.empty(chain.n_dof)
-    head = ws.rge_a_head  # length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u, qoff
-    whole = (*head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
-    kin_args = (head[0], head[4], head[5], head[6], head[7], q, qd, ws.zeros, ws.base_accel,
-                ws.oR, ws.oO, ws.oP, ws.t, ws.td, True)
-    bw_args = (head[1], head[2], head[3], head[4], head[7], ws.oR, ws.oO, ws.oP, ws.t, ws.td,
-               ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
-    fw_args = (head[7], ws.oO, ws.oP, ws.Psihat, ws.phitil, ws.td, ws.base_accel, out)
+    if hasattr(ws, "tree"):  # the kernels take named bundles
+        tree, s = ws.tree, ws.s
+        whole = (tree, q, qd, ws.zeros, ws.base_accel, ws.zeros, s, out)
+        kin_args = (tree, q, qd, ws.zeros, ws.base_accel, s, True)
+        bw_args = (tree, s, ws.zeros)
+        fw_args = (tree, s, ws.base_accel, out)
+    else:
+        head = ws.rge_a_head  # length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u, qoff
+        whole = (*head, q, qd, ws.zeros, ws.base_accel, ws.zeros, *ws.rge_a_tail, out)
+        kin_args = (head[0], head[4], head[5], head[6], head[7], q, qd, ws.zeros, ws.base_accel,
+                    ws.oR, ws.oO, ws.oP, ws.t, ws.td, True)
+        bw_args = (head[1], head[2], head[3], head[4], head[7], ws.oR, ws.oO, ws.oP, ws.t, ws.td,
+                   ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
+        fw_args = (head[7], ws.oO, ws.oP, ws.Psihat, ws.phitil, ws.td, ws.base_accel, out)
     fns = [(lambda: entry.RGE_A.compiled(ws.kernel_f, ws.kernel_i, q, qd, ws.zeros, ws.scratch,
                                          out)) if entry else None,
            lambda: rge_a.rge_a_forward_dynamics(*whole), lambda: kin.kinematics(*kin_args),

@@ -316,12 +316,10 @@ def rge_a_on_phi(chain, q, qd) -> np.ndarray:
     from redysim._kernels.rge_a import rge_a_backward, rge_a_forward
     c, ws = chain, Workspace(chain)
     ph = phi(c, q, qd).copy()
-    kinematics(c.length, c.dof_kind, c.dof_axis, c.dof_u, c.joint_qoff, q, ws.zeros, ws.zeros,
-               ws.no_accel, ws.oR, ws.oO, ws.oP, ws.t, ws.td)
-    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.joint_qoff, ws.oR, ws.oO,
-                   ws.oP, ws.zeros6, ws.zeros6, ph, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
+    kinematics(ws.tree, q, ws.zeros, ws.zeros, ws.no_accel, ws.s)
+    rge_a_backward(ws.tree, ws.table_a1, ph)
     qdd = np.empty(c.n_dof)
-    rge_a_forward(c.joint_qoff, ws.oO, ws.oP, ws.Psihat, ws.phitil, ws.zeros6, ws.no_accel, qdd)
+    rge_a_forward(ws.tree, ws.table_a1, ws.no_accel, qdd)
     return qdd
 
 

@@ -60,6 +60,7 @@ from redysim._kernels import kinematics as _kinematics
 from redysim._kernels import planar as _planar
 from redysim._kernels import rge_a as _rge_a
 from redysim.precision import rebind
+from redysim.workspace import bundles_in
 
 DEFAULT_DPS = 50
 
@@ -190,18 +191,23 @@ def rge_a_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) ->
     """
     arith = arith or mpf_arithmetic()
     c = chain
-    nl, n = c.n_links, c.n_dof
+    n = c.n_dof
     fd = kernel_function(_rge_a.rge_a_forward_dynamics, arith)
     with arith.context():
-        a = chain_arrays(c, arith)
+        tree, s = _bundles(c, arith)
         q, qd, tau = _state(c, arith, q, qd, tau)
-        z = arith.zeros
-        qdd = z(n)
-        fd(a["length"], a["mass"], a["inertia_O"], a["mass_com"], c.dof_kind, c.dof_axis,
-           a["dof_u"], c.joint_qoff, q, qd, tau, arith.array(-c.gravity), z(n),
-           z((nl, 3, 3)), z((nl, 3)), z((n, 6)), z((nl, 6)), z((nl, 6)), z(n), z((n, 6)),
-           z(n), z(n), qdd)
+        qdd = arith.zeros(n)
+        fd(tree, q, qd, tau, arith.array(-c.gravity), arith.zeros(n), s, qdd)
     return qdd
+
+
+def _bundles(chain: Chain, arith: Arithmetic):
+    """The kernels' Tree and Scratch bundles in ``arith``, the tree's arrays from
+    :func:`chain_arrays`."""
+    a = chain_arrays(chain, arith)
+    along = np.concatenate((arith.zeros(1), a["length"][:-1]))
+    return bundles_in(chain, arith.array, arith.zeros, along=along, mass=a["mass"],
+                      inertia_O=a["inertia_O"], mass_com=a["mass_com"], dof_u=a["dof_u"])
 
 
 def planar_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
@@ -227,21 +233,18 @@ def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None =
     same inputs as RGE-A in another arithmetic (``harness.nonsymmetric``)."""
     arith = arith or mpf_arithmetic()
     c = chain
-    nl, n = c.n_links, c.n_dof
+    n = c.n_dof
     kin = kernel_function(_kinematics.kinematics, arith)
     rnea = kernel_function(_inverse_dynamics.rnea_backward, arith)
     with arith.context():
         a = chain_arrays(c, arith)
+        tree, s = _bundles(c, arith)
         q, qd, tau = _state(c, arith, q, qd, tau)
-        z = arith.zeros
-        oR, oO, oP, t, td = z((nl, 3, 3)), z((nl, 3)), z((n, 6)), z((nl, 6)), z((nl, 6))
-        kin(a["length"], c.dof_kind, c.dof_axis, a["dof_u"], c.joint_qoff, q, qd, z(n),
-            arith.array(-c.gravity), oR, oO, oP, t, td)
-        bias = z(n)
-        rnea(a["mass"], a["inertia_O"], a["mass_com"], c.joint_qoff, oR, oO, oP, t, td, bias,
-             z((nl, 6)))
+        kin(tree, q, qd, arith.zeros(n), arith.array(-c.gravity), s)
+        bias = arith.zeros(n)
+        rnea(tree, s, bias)
         phi = tau - bias
-    return oR, oO, oP, phi, a
+    return s.oR, s.oO, s.oP, phi, a
 
 
 # --------------------------------------------------------------------------- the reference

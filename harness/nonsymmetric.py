@@ -61,8 +61,7 @@ def _inputs(chain: Chain, q, qd, tau, dtype):
         q = np.ascontiguousarray(q, dtype=float)
         qd = np.ascontiguousarray(qd, dtype=float)
         phi = _phi(c, q, qd, tau)
-        _kinematics(c.length, c.dof_kind, c.dof_axis, c.dof_u, c.joint_qoff, q, qd, ws.zeros,
-                    ws.base_accel, ws.oR, ws.oO, ws.oP, ws.t, ws.td)
+        _kinematics(ws.tree, q, qd, ws.zeros, ws.base_accel, ws.s)
         return ws.oR, ws.oO, ws.oP, phi, c.inertia_O, c.mass_com, c.mass
     if dtype == np.float32:
         oR, oO, oP, phi, a = kinematics_and_phi(chain, q, qd, tau, FLOAT32)

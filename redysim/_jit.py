@@ -27,6 +27,15 @@ STRICT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
 jit_strict = numba.njit(**STRICT_OPTIONS)
 
 
+# Kernels that allocate nothing and take the named bundles (redysim._kernels.bundles) compile
+# without numba's reference counting (NRT): every array they see is borrowed from their caller,
+# which keeps it alive for the call. With it, reading a bundle's fields cost an atomic increment
+# and a decrement per array per call, ~300 ns a kernel for the 28 arrays of two bundles (more
+# than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
+BORROWED_OPTIONS = dict(OPTIONS, _nrt=False)
+jit_borrowed = numba.njit(**BORROWED_OPTIONS)
+
+
 def inline(func):
     """A helper small enough to inline into every caller (numba ``inline='always'``)."""
     return numba.njit(inline="always", cache=True, nogil=True, error_model="numpy")(func)
@@ -53,10 +62,11 @@ class EntryPoint:
     ``tests/test_identities.py`` checks that they do not.
     """
 
-    def __init__(self, func, signature, callees=()):
+    def __init__(self, func, signature, callees=(), options=BORROWED_OPTIONS):
         self.func = func
         self.signature = signature
         self.callees = callees
+        self.options = options
 
     @cached_property
     def compiled(self):
@@ -65,4 +75,4 @@ class EntryPoint:
         if not numba.config.DISABLE_JIT:  # with NUMBA_DISABLE_JIT the kernels are Python
             for kernel, signature in self.callees:
                 kernel.compile(signature)
-        return numba.njit(self.signature, **OPTIONS)(self.func)
+        return numba.njit(self.signature, **self.options)(self.func)

@@ -390,6 +390,16 @@ class Chain:
         return int(self.dof_kind.shape[0])
 
     @property
+    def n_q(self) -> int:
+        """Length of q (n: a chain's joints have one coordinate per DOF)."""
+        return self.n_dof
+
+    @property
+    def n_v(self) -> int:
+        """Length of qd, qdd and tau (n)."""
+        return self.n_dof
+
+    @property
     def total_mass(self) -> float:
         """M, the total mass [kg] (Eq. 11 divides the energy change by it)."""
         return float(self.mass.sum())

@@ -1,8 +1,10 @@
 """The public dynamics functions: checked at the door, then handed to the kernels.
 
-Every function takes a :class:`~redysim.chain.Chain` and numpy vectors in SI units and returns
-numpy arrays. An optional :class:`~redysim.workspace.Workspace` avoids reallocating scratch space
-in a loop (an integrator's right-hand side).
+Every function takes a :class:`~redysim.chain.Chain` or a :class:`~redysim.model.Model` (a
+kinematic tree: a chain is one) and numpy vectors in SI units and returns numpy arrays: q of length
+``n_q``, velocities, accelerations and forces of length ``n_v`` (both ``n_dof`` for a chain; a
+free joint has 7 and 6). An optional :class:`~redysim.workspace.Workspace` avoids reallocating
+scratch space in a loop (an integrator's right-hand side).
 """
 
 from __future__ import annotations
@@ -26,7 +28,10 @@ from ._kernels.rge_a import rge_a_backward
 from ._kernels.udu import udu_assemble
 from .chain import NUMERIC_KINDS, Chain
 from .errors import FieldError, StateError
+from .model import Model
 from .workspace import Workspace
+
+System = Chain | Model
 
 # The one registry of forward-dynamics methods: name -> the paper's name. Everything that takes a
 # method (the command line, run specs, sweep files, the precision study, the reports) reads it.
@@ -42,18 +47,20 @@ def _plain_vector(x, n: int) -> bool:
             and x.strides == FLOAT64_STRIDES)
 
 
-def check_state(chain: Chain, name: str, x, *, optional: bool = False,
+def check_state(chain: System, name: str, x, *, optional: bool = False,
                 finite: bool = True) -> np.ndarray | None:
-    """Return ``x`` as a float vector of length n, or raise StateError naming it.
+    """Return ``x`` as a float vector of length n (``n_q`` for the configuration ``q``, else
+    ``n_v``), or raise StateError naming it.
 
     ``finite=False`` skips the NaN/Inf scan (the hot path of :func:`forward_dynamics` checks its
     result instead and only then looks for the offending input).
     """
+    n = chain.n_q if name == "q" else chain.n_v
     if x is None:
         if optional:
             return None
-        raise StateError(f"{name} is required (a vector of {chain.n_dof} values)")
-    if _plain_vector(x, chain.n_dof):  # the hot path: as given
+        raise StateError(f"{name} is required (a vector of {n} values)")
+    if _plain_vector(x, n):  # the hot path: as given
         if finite:
             require_finite(name, x)
         return x
@@ -65,22 +72,23 @@ def check_state(chain: Chain, name: str, x, *, optional: bool = False,
         raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
                          f"{arr.dtype}; need int or float)")
     arr = np.asarray(arr, dtype=float)
-    if arr.shape != (chain.n_dof,):
-        raise StateError(f"{name} has shape {arr.shape}; chain {chain.name!r} has "
-                         f"{chain.n_dof} DOF, so {name} must have shape ({chain.n_dof},)")
+    if arr.shape != (n,):
+        what = "configuration coordinates" if name == "q" else "DOF"
+        raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
+                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},)")
     arr = np.ascontiguousarray(arr)
     if finite:
         require_finite(name, arr)
     return arr
 
 
-def check_out(chain: Chain, out) -> np.ndarray:
+def check_out(chain: System, out) -> np.ndarray:
     """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
 
     The kernels index without bounds checks: a short or strided ``out`` would be written past
     its end, so it is refused here, never converted (a copy would not reach the caller).
     """
-    n = chain.n_dof
+    n = chain.n_v
     if out is None:
         return np.empty(n)
     if _plain_vector(out, n) and out.flags.writeable:
@@ -89,7 +97,7 @@ def check_out(chain: Chain, out) -> np.ndarray:
             f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
             else f"a {type(out).__name__}")
     raise StateError(f"out ({what}) must be a writeable, contiguous float64 array of shape "
-                     f"({n},): chain {chain.name!r} has {n} DOF")
+                     f"({n},): {chain.name!r} has {n} DOF")
 
 
 def require_finite(name: str, arr: np.ndarray) -> None:
@@ -108,7 +116,7 @@ def overflow_error(what: str, **inputs) -> StateError:
     return StateError(f"{what} is not finite for finite {names} ({sizes}): overflow?")
 
 
-def _ws(chain: Chain, ws: Workspace | None) -> Workspace:
+def _ws(chain: System, ws: Workspace | None) -> Workspace:
     if ws is None:
         return Workspace(chain)
     if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
@@ -132,17 +140,14 @@ def first_bad_pivot(pivots: np.ndarray, *, from_base: bool, positive: bool) -> i
 
 
 def _run_kinematics(chain, ws, q, qd, qdd, base_accel):
-    c = chain
-    _kinematics(c.length, c.dof_kind, c.dof_axis, c.dof_u, c.joint_qoff, q, qd, qdd, base_accel,
-                ws.oR, ws.oO, ws.oP, ws.t, ws.td)
+    _kinematics(ws.tree, q, qd, qdd, base_accel, ws.s)
 
 
 def _phi(chain, ws, q, qd, tau):
     """phi = tau - (C qd + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
     c = chain
     _run_kinematics(c, ws, q, qd, ws.zeros, ws.base_accel)
-    rnea_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
-                  ws.phi, ws.W)
+    rnea_backward(ws.tree, ws.s, ws.phi)
     ws.phi *= -1.0
     if tau is not None:
         ws.phi += tau
@@ -150,7 +155,7 @@ def _phi(chain, ws, q, qd, tau):
 
 
 # --------------------------------------------------------------------------- inverse dynamics
-def inverse_dynamics(chain: Chain, q, qd, qdd, *, ws: Workspace | None = None) -> np.ndarray:
+def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None) -> np.ndarray:
     """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9)."""
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
@@ -158,15 +163,14 @@ def inverse_dynamics(chain: Chain, q, qd, qdd, *, ws: Workspace | None = None) -
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, qd, qdd, ws.base_accel)
-    tau = np.empty(c.n_dof)
-    rnea_backward(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, ws.t, ws.td,
-                  tau, ws.W)
+    tau = np.empty(c.n_v)
+    rnea_backward(ws.tree, ws.s, tau)
     if not np.isfinite(tau).all():
         raise overflow_error("tau", q=q, qd=qd, qdd=qdd)
     return tau
 
 
-def phi(chain: Chain, q, qd, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
+def phi(chain: System, q, qd, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
     """phi = tau - C(q, qd) qd - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
@@ -178,7 +182,7 @@ def phi(chain: Chain, q, qd, tau=None, *, ws: Workspace | None = None) -> np.nda
 
 
 # --------------------------------------------------------------------------- forward dynamics
-def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
+def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
                      planar: bool | None = None, ws: Workspace | None = None,
                      out: np.ndarray | None = None) -> np.ndarray:
     """qdd from I(q) qdd = phi(q, qd, tau).
@@ -187,7 +191,8 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
         ``"rge-a"``: O(n) Reverse Gaussian Elimination done analytically (Table A.1), the default;
         ``"ge-n"``:  the GIM by composite masses, then Gaussian elimination, O(n^3);
         ``"rge-n"``: the GIM, then reverse Gaussian elimination, O(n^3) (section 5.2).
-    planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``);
+    planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``,
+        a Chain's property: a Model always takes the spatial recursion);
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
 
@@ -197,14 +202,15 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
     strided) after numba refuses their types, ~0.1 ms a call here.
     """
     ws = _ws(chain, ws)
+    is_planar = type(chain) is Chain and chain.is_planar
     if planar is None:
-        planar = chain.is_planar
-    elif planar and not chain.is_planar:
+        planar = is_planar
+    elif planar and not is_planar:
         raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
     if method == "rge-a":
         entry = _PLANAR.compiled if planar else _RGE_A.compiled
-        qdd = np.empty(chain.n_dof) if out is None else out
+        qdd = np.empty(chain.n_v) if out is None else out
         t = ws.zeros if tau is None else tau
         if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
                 and type(qdd) is ndarray:
@@ -228,8 +234,8 @@ def forward_dynamics(chain: Chain, q, qd, tau=None, method: str = "rge-a", *,
                           ws.scratch, out)
     else:
         rhs = _phi(c, ws, q, qd, tau).copy()
-        A = np.empty((c.n_dof, c.n_dof))
-        gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, A)
+        A = np.empty((c.n_v, c.n_v))
+        gim_composite(ws.tree, ws.s, A)
         mult = np.zeros_like(A)
         (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
         nonfinite = float(np.sum(out * 0.0))
@@ -254,10 +260,13 @@ def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> Stat
         pivots = np.diag(gim)
     j = first_bad_pivot(pivots, from_base=first, positive=True)
     if j is not None:
-        k = int(np.searchsorted(chain.joint_qoff, j, side="right") - 1)
-        axis = j - int(chain.joint_qoff[k])
+        voff = ws.tree.joint_voff
+        k = int(np.searchsorted(voff, j, side="right") - 1)
+        axis = j - int(voff[k])
+        kind, joint = ((chain.joints[k].type, f"joint {k}") if type(chain) is Chain else
+                       (chain.joint_types[k], f"joint {k}, {chain.joint_names[k]!r}"))
         return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
-                          f"{j} (joint {k}, axis {axis} of its {chain.joints[k].type} joint): "
+                          f"{j} ({joint}, axis {axis} of its {kind} joint): "
                           f"the inertia about that axis of everything it moves is "
                           f"{float(pivots[j])!r} (a link with no mass or inertia that the axis "
                           "can move, e.g. a point mass on the joint axis, or a length that "
@@ -266,14 +275,14 @@ def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> Stat
 
 
 # --------------------------------------------------------------------------- GIM and factors
-def mass_matrix(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
+def mass_matrix(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
     """The GIM I(q) (n, n) from composite masses (Eq. 10a); exactly symmetric."""
     q = check_state(chain, "q", q)
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    out = np.empty((c.n_dof, c.n_dof))
-    gim_composite(c.mass, c.inertia_O, c.mass_com, c.joint_qoff, ws.oR, ws.oO, ws.oP, out)
+    out = np.empty((c.n_v, c.n_v))
+    gim_composite(ws.tree, ws.s, out)
     return out
 
 
@@ -285,17 +294,16 @@ class UDU(NamedTuple):
     D: np.ndarray
 
 
-def udu_factors(chain: Chain, q, *, ws: Workspace | None = None) -> UDU:
+def udu_factors(chain: System, q, *, ws: Workspace | None = None) -> UDU:
     """The explicit analytic factors I = U D U^T of RGE-A (Appendix A.1), dense (n, n) arrays."""
     q = check_state(chain, "q", q)
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    rge_a_backward(c.mass, c.inertia_O, c.mass_com, c.dof_kind, c.joint_qoff, ws.oR, ws.oO, ws.oP,
-                   ws.zeros6, ws.zeros6, ws.zeros, ws.Ihat, ws.Psihat, ws.phitil, ws.phihat)
-    U = np.zeros((c.n_dof, c.n_dof))
-    D = np.zeros((c.n_dof, c.n_dof))
-    udu_assemble(c.joint_qoff, ws.oO, ws.oP, ws.Ihat, ws.Psihat, U, D)
+    rge_a_backward(ws.tree, ws.table_a1, ws.zeros)
+    U = np.zeros((c.n_v, c.n_v))
+    D = np.zeros((c.n_v, c.n_v))
+    udu_assemble(ws.tree, ws.s, U, D)
     return UDU(U, D)
 
 
@@ -344,20 +352,20 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
 
 
 # --------------------------------------------------------------------------- energy and tip
-def energy(chain: Chain, q, qd, *, ws: Workspace | None = None) -> tuple[float, float]:
+def energy(chain: System, q, qd, *, ws: Workspace | None = None) -> tuple[float, float]:
     """(T, V): kinetic and potential energy [J] (V = 0 with every COM at height y = 0)."""
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, qd, ws.zeros, ws.no_accel)
-    T, V = _energy(c.mass, c.inertia_O, c.mass_com, c.gravity, ws.oR, ws.oO, ws.t)
+    T, V = _energy(ws.tree, ws.gravity, ws.s)
     if not (math.isfinite(T) and math.isfinite(V)):
         raise overflow_error("the energy", q=q, qd=qd)
     return float(T), float(V)
 
 
-def delta_M(chain: Chain, q, qd, E0: float, *, ws: Workspace | None = None) -> float:
+def delta_M(chain: System, q, qd, E0: float, *, ws: Workspace | None = None) -> float:
     """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
     T, V = energy(chain, q, qd, ws=ws)
     return (T + V - E0) / chain.total_mass

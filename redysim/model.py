@@ -325,6 +325,11 @@ class Model:
         return int(self.joint_voff[-1])
 
     @property
+    def n_dof(self) -> int:
+        """The number of degrees of freedom, n_v."""
+        return self.n_v
+
+    @property
     def total_mass(self) -> float:
         return float(self.mass.sum())
 

@@ -72,6 +72,7 @@ from ._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamic
 from ._kernels.udu import udu_assemble
 from .chain import Chain
 from .dynamics import METHODS, check_state, mass_matrix, phi
+from .workspace import bundles_in
 
 ARITHMETICS = ("double", "decimal")
 IEEE_DTYPES = (np.float16, np.float32, np.float64)
@@ -330,12 +331,10 @@ def _rge_a(chain, q, qd, tau, number, fused_phi):
                 N(c.mass_com[:, 1]), N(gravity), N(q), N(qd_in), N(tau_in), qdd,
                 _empty((nl, 12), number))
         else:
-            E = lambda *s: _empty(s, number)  # noqa: E731
+            tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
             kernel_source(rge_a_forward_dynamics, number)(
-                N(c.length), N(c.mass), N(c.inertia_O), N(c.mass_com), c.dof_kind, c.dof_axis,
-                N(c.dof_u), c.joint_qoff, N(q), N(qd_in), N(tau_in), N(-np.asarray(gravity)),
-                E(n), E(nl, 3, 3), E(nl, 3), E(n, 6), E(nl, 6), E(nl, 6), E(n), E(n, 6), E(n),
-                E(n), qdd)
+                tree, N(q), N(qd_in), N(tau_in), N(-np.asarray(gravity)), _empty(n, number), s,
+                qdd)
     return qdd
 
 
@@ -369,24 +368,17 @@ def reduced_factors(chain: Chain, q, qd, method: str = "ge-n", decimals: int = 3
         if method == "ge-n":
             return Factors(method, mult, A, b, x)
         return Factors(method, A, mult, b, x)
-    c, n, nl = chain, chain.n_dof, chain.n_links
+    c, n = chain, chain.n_dof
     N = lambda a: _numbers(a, number)  # noqa: E731
     E = lambda *s: _empty(s, number)  # noqa: E731
-    oR, oO, oP, t, td = E(nl, 3, 3), E(nl, 3), E(n, 6), E(nl, 6), E(nl, 6)
-    Ihat, Psihat, phitil, ph, qdd = E(n), E(n, 6), E(n), E(n), E(n)
-    U, D = E(n, n), E(n, n)
-    zeros = E(n)
-    with np.errstate(all="ignore"):
-        kernel_source(kinematics, number)(N(c.length), c.dof_kind, c.dof_axis, N(c.dof_u),
-                                          c.joint_qoff, N(q), zeros, zeros, E(3), oR, oO, oP, t,
-                                          td)
-        kernel_source(rge_a_backward, number)(N(c.mass), N(c.inertia_O), N(c.mass_com),
-                                              c.dof_kind, c.joint_qoff, oR, oO, oP, t, td,
-                                              N(phi(c, q, qd, tau)), Ihat, Psihat, phitil, ph)
-        kernel_source(udu_assemble, number)(c.joint_qoff, oO, oP, Ihat, Psihat, U, D)
-        kernel_source(rge_a_forward, number)(c.joint_qoff, oO, oP, Psihat, phitil, E(nl, 6), E(3),
-                                             qdd)
-        L = Ihat[:, None] * U.T  # L' = D U^T, each product rounded
+    tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
+    qdd, U, D, zeros = E(n), E(n, n), E(n, n), E(n)
+    with np.errstate(all="ignore"):  # qd = 0 and no gravity: t = td = 0 (Table A.1 as printed)
+        kernel_source(kinematics, number)(tree, N(q), zeros, zeros, E(3), s)
+        kernel_source(rge_a_backward, number)(tree, s, N(phi(c, q, qd, tau)))
+        kernel_source(udu_assemble, number)(tree, s, U, D)
+        kernel_source(rge_a_forward, number)(tree, s, E(3), qdd)
+        L = s.Ihat[:, None] * U.T  # L' = D U^T, each product rounded
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 
 

@@ -1,15 +1,16 @@
-"""Preallocated per-chain scratch arrays (Pinocchio's ``Data``): the kernels write into these."""
+"""Preallocated per-system scratch arrays (Pinocchio's ``Data``): the kernels write into these."""
 
 from __future__ import annotations
 
-import math
 from functools import cached_property
 
 import numpy as np
 
 from ._kernels import entry as E
-from .chain import Chain, kernel_alias
+from ._kernels.bundles import GATHER_MASS, Scratch, Tree
+from .chain import Chain
 from .errors import FieldError
+from .model import FREE, Model
 
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
@@ -33,83 +34,132 @@ def _pack(segments: dict[int, np.ndarray], dtype, header: np.ndarray, start: int
     return packed
 
 
-class Workspace:
-    """O(n) scratch for one chain. Not thread-safe: use one workspace per thread.
+def tree_tables(system: Chain | Model) -> dict:
+    """The :class:`~redysim._kernels.bundles.Tree` fields of a chain or model, as numpy arrays
+    (plus ``n_q``). A chain, and a model that is one (parent k - 1, every joint placed along its
+    parent's x, no free joint), is ``serial`` with empty tree tables."""
+    if isinstance(system, Chain):
+        c = system
+        along = np.concatenate(([0.0], c.length[:-1]))
+        return dict(serial=1, parent=np.zeros(0, np.int64), gather=np.zeros(0, np.int64),
+                    placement_code=np.zeros(0, np.int64), qshift=np.zeros(0, np.int64),
+                    along=along, placement_R=np.zeros((0, 3, 3)), placement_p=np.zeros((0, 3)),
+                    joint_voff=c.joint_qoff, dof_kind=c.dof_kind, dof_axis=c.dof_axis,
+                    dof_u=c.dof_u, mass=c.mass, inertia_O=c.inertia_O, mass_com=c.mass_com,
+                    n_q=c.n_dof)
+    m = system
+    nb = m.n_bodies
+    serial = m.is_chain and not m.placement_code.any() and FREE not in m.joint_types
+    needs = np.zeros(nb, dtype=bool)  # a child that does not follow it
+    for k in range(1, nb):
+        if 0 <= m.parent[k] != k - 1:
+            needs[m.parent[k]] = True
+    gather = np.where(needs, np.cumsum(needs) - 1, -1).astype(np.int64)
+    nt = 0 if serial else nb
+    return dict(serial=int(serial), parent=m.parent[:nt], gather=gather[:nt],
+                placement_code=m.placement_code[:nt],
+                qshift=(m.joint_qoff[:-1] - m.joint_voff[:-1])[:nt], along=m.placement_p[:, 0],
+                placement_R=m.placement_R[:nt], placement_p=m.placement_p[:nt],
+                joint_voff=m.joint_voff, dof_kind=m.dof_kind, dof_axis=m.dof_axis,
+                dof_u=m.dof_u, mass=m.mass, inertia_O=m.inertia_O, mass_com=m.mass_com,
+                n_q=m.n_q)
 
-    Arrays (nl links, n DOF), all world frame: ``oR`` (nl,3,3) link rotations, ``oO`` (nl,3) joint
-    positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nl,6) twists and twist-rates,
-    ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phihat`` (n,), ``planar`` (nl,12)
-    for the planar kernel: views of one array, ``scratch``. Besides: ``W`` (nl,6) resultant
-    wrenches, ``phi`` (n,), and ``zeros`` (n,), ``zeros6`` (nl,6) that no kernel writes.
-    ``kernel_f`` and ``kernel_i`` hold copies of the chain's arrays, packed with ``scratch`` for
-    forward dynamics' entry points (:mod:`redysim._kernels.entry`: 7 arguments instead of 23).
+
+FLOAT_FIELDS = ("along", "placement_R", "placement_p", "dof_u", "mass", "inertia_O", "mass_com")
+
+
+def bundles_in(system: Chain | Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
+    """The two bundles with the tree's float arrays passed through ``convert`` (or given in
+    ``arrays`` by field name) and the scratch made by ``zeros(shape)``: for running the kernels'
+    Python source in another arithmetic (``redysim.precision``, ``harness.hiprec``)."""
+    t = tree_tables(system)
+    tree = Tree(**{f: arrays[f] if f in arrays else convert(t[f]) if f in FLOAT_FIELDS else t[f]
+                   for f in Tree._fields})
+    nb, n, ng = t["mass"].shape[0], t["dof_kind"].shape[0], int((t["gather"] >= 0).sum())
+    shapes = ((nb, 3, 3), (nb, 3), (n, 6), (nb, 6), (nb, 6), (n,), (n, 6), (n,), (n,), (nb, 6),
+              (ng, GATHER_MASS), (ng, 6), (ng, 6))
+    return tree, Scratch(*(zeros(shape) for shape in shapes))
+
+
+class Workspace:
+    """O(n) scratch for one chain or model. Not thread-safe: use one workspace per thread.
+
+    ``tree`` and ``s``: the named bundles the kernels take (:mod:`redysim._kernels.bundles`), the
+    system's arrays (copies: the system is immutable) and the scratch, views of three packed
+    arrays, ``kernel_f`` and ``kernel_i`` (the tree's floats and ints, with a header) and
+    ``scratch``, which forward dynamics' entry points take (:mod:`redysim._kernels.entry`: 7
+    arguments instead of 28). The scratch arrays are also attributes, all world frame (nb bodies,
+    n DOF): ``oR`` (nb,3,3) body rotations, ``oO`` (nb,3) joint positions, ``oP`` (n,6) motion
+    subspaces, ``t`` and ``td`` (nb,6) twists and twist-rates, ``Ihat`` (n,) and ``Psihat`` (n,6)
+    of RGE-A, ``phitil``/``phihat`` (n,), ``W`` (nb,6) resultant wrenches, ``planar`` (nb,12) for
+    the planar kernel. Besides: ``phi`` (n,), and ``zeros`` (n,), ``zeros6`` (nb,6) that no
+    kernel writes.
     """
 
-    def __init__(self, chain: Chain):
-        if not isinstance(chain, Chain):
-            raise FieldError("Workspace", "chain", type(chain).__name__,
-                             "must be a redysim.Chain (Chain.build, Chain.uniform or "
-                             "load_case(...).chain)")
-        nl, n = chain.n_links, chain.n_dof
-        c = chain
-        self.chain = chain
+    def __init__(self, system: Chain | Model):
+        if not isinstance(system, Chain | Model):
+            raise FieldError("Workspace", "chain", type(system).__name__,
+                             "must be a redysim.Chain or redysim.Model (Chain.build, "
+                             "Chain.uniform, load_case(...).chain, load_model(...))")
+        tables = tree_tables(system)
+        nb, n = tables["mass"].shape[0], tables["dof_kind"].shape[0]
+        ng = int((tables["gather"] >= 0).sum())
+        nt = tables["parent"].shape[0]
+        planar = isinstance(system, Chain) and system.is_planar
+        self.chain = system  # the chain or model it was made for
+        gravity = np.asarray(system.gravity, dtype=float)
         header = np.zeros(E.HEADER, dtype=np.int64)
-        header[E.H_NL], header[E.H_N] = nl, n
-        floats = {E.F_LENGTH: c.length, E.F_MASS: c.mass, E.F_INERTIA_O: c.inertia_O,
-                  E.F_MASS_COM: c.mass_com, E.F_DOF_U: c.dof_u,
-                  E.F_BASE_ACCEL: -np.asarray(c.gravity, dtype=float),
-                  E.F_GRAVITY: np.asarray(c.gravity, dtype=float), E.F_ZEROS: np.zeros(n)}
-        if chain.is_planar:
-            floats.update({E.F_IZZ_O: c.inertia_O[:, 2, 2], E.F_MC_X: c.mass_com[:, 0],
-                           E.F_MC_Y: c.mass_com[:, 1]})
+        header[[E.H_NB, E.H_NV, E.H_NQ, E.H_NG, E.H_SERIAL]] = nb, n, tables["n_q"], ng, \
+            tables["serial"]
+        t = tables
+        floats = {E.F_ALONG: t["along"], E.F_PLACEMENT_R: t["placement_R"],
+                  E.F_PLACEMENT_P: t["placement_p"], E.F_DOF_U: t["dof_u"], E.F_MASS: t["mass"],
+                  E.F_INERTIA_O: t["inertia_O"], E.F_MASS_COM: t["mass_com"],
+                  E.F_BASE_ACCEL: -gravity, E.F_GRAVITY: gravity, E.F_ZEROS: np.zeros(n)}
+        if planar:
+            c = system
+            floats.update({E.F_LENGTH: c.length, E.F_IZZ_O: c.inertia_O[:, 2, 2],
+                           E.F_MC_X: c.mass_com[:, 0], E.F_MC_Y: c.mass_com[:, 1]})
         self.kernel_f = _pack(floats, np.float64, header)
-        ints = {E.I_DOF_KIND: c.dof_kind, E.I_DOF_AXIS: c.dof_axis, E.I_JOINT_QOFF: c.joint_qoff}
+        ints = {E.I_PARENT: t["parent"], E.I_GATHER: t["gather"],
+                E.I_PLACEMENT_CODE: t["placement_code"], E.I_QSHIFT: t["qshift"],
+                E.I_JOINT_VOFF: t["joint_voff"], E.I_DOF_KIND: t["dof_kind"],
+                E.I_DOF_AXIS: t["dof_axis"]}
         ints_packed = _pack(ints, np.int64, header, start=E.HEADER)  # after the header
-        shapes = {E.S_OR: (nl, 3, 3), E.S_OO: (nl, 3), E.S_OP: (n, 6), E.S_T: (nl, 6),
-                  E.S_TD: (nl, 6), E.S_IHAT: (n,), E.S_PSIHAT: (n, 6), E.S_PHITIL: (n,),
-                  E.S_PHIHAT: (n,)}
-        if chain.is_planar:
-            shapes[E.S_PLANAR] = (nl, 12)
-        self.scratch = np.empty(_layout({s: math.prod(shape) for s, shape in shapes.items()},
-                                        header))
+        sizes = {E.S_OR: 9 * nb, E.S_OO: 3 * nb, E.S_OP: 6 * n, E.S_T: 6 * nb, E.S_TD: 6 * nb,
+                 E.S_IHAT: n, E.S_PSIHAT: 6 * n, E.S_PHITIL: n, E.S_PHIHAT: n, E.S_W: 6 * nb,
+                 E.S_GATHER_MASS: GATHER_MASS * ng, E.S_GATHER_WRENCH: 6 * ng,
+                 E.S_GATHER_TWIST: 6 * ng}
+        if planar:
+            sizes[E.S_PLANAR] = 12 * nb
+        self.scratch = np.empty(_layout(sizes, header))
         self.kernel_i = np.concatenate((header, ints_packed))
-        view = self._view
-        self.oR, self.oO, self.oP = view(E.S_OR, shapes), view(E.S_OO, shapes), view(E.S_OP, shapes)
-        self.t, self.td = view(E.S_T, shapes), view(E.S_TD, shapes)
-        self.Ihat, self.Psihat = view(E.S_IHAT, shapes), view(E.S_PSIHAT, shapes)
-        self.phitil, self.phihat = view(E.S_PHITIL, shapes), view(E.S_PHIHAT, shapes)
-        self.planar = view(E.S_PLANAR, shapes) if chain.is_planar else None
-        self.W = np.empty((nl, 6))
+        bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
+        self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
+        assert nt == self.tree.parent.shape[0]
+        s = self.s
+        self.oR, self.oO, self.oP, self.t, self.td = s.oR, s.oO, s.oP, s.t, s.td
+        self.Ihat, self.Psihat, self.phitil, self.phihat, self.W = \
+            s.Ihat, s.Psihat, s.phitil, s.phihat, s.W
+        self.planar = (self.scratch[header[E.S_PLANAR]:header[E.S_PLANAR] + 12 * nb]
+                       .reshape((nb, 12)) if planar else None)
         self.phi = np.empty(n)
-        # views of the packed chain data that the other functions take too: no kernel writes them
+        # views of the packed data that the other functions take too: no kernel writes them
         self.zeros = self.kernel_f[header[E.F_ZEROS]:header[E.F_ZEROS] + n]  # (n,) of zeros
-        self.zeros6 = np.zeros((nl, 6))
+        self.zeros6 = np.zeros((nb, 6))
         self.base_accel = self.kernel_f[header[E.F_BASE_ACCEL]:header[E.F_BASE_ACCEL] + 3]  # -g
+        self.gravity = self.kernel_f[header[E.F_GRAVITY]:header[E.F_GRAVITY] + 3]
         self.no_accel = np.zeros(3)
 
     @cached_property
-    def rge_a_head(self) -> tuple:
-        """The spatial kernel's (``rge_a_forward_dynamics``) arguments before the state, for
-        calling it directly (benchmarks/ab_kernels.py): the chain's arrays as writeable aliases
-        (chain.kernel_alias: numba types read-only arrays on a slow path)."""
-        c, k = self.chain, kernel_alias
-        return (k(c.length), k(c.mass), k(c.inertia_O), k(c.mass_com), k(c.dof_kind),
-                k(c.dof_axis), k(c.dof_u), k(c.joint_qoff))
-
-    @property
-    def rge_a_tail(self) -> tuple:
-        """The spatial kernel's scratch arguments, after the state (the workspace's arrays)."""
-        return (self.oR, self.oO, self.oP, self.t, self.td, self.Ihat, self.Psihat, self.phitil,
-                self.phihat)
-
-    def _view(self, slot: int, shapes: dict) -> np.ndarray:
-        start = self.kernel_i[slot]
-        size = math.prod(shapes[slot])
-        return self.scratch[start:start + size].reshape(shapes[slot])
+    def table_a1(self) -> Scratch:
+        """The scratch with td a zero array that no kernel writes: RGE-A's backward pass run on it
+        with zero twists reads c = 0 (Table A.1 as printed; the factors alone)."""
+        return self.s._replace(t=self.zeros6, td=self.zeros6)
 
     @property
     def nbytes(self) -> int:
-        """Bytes held by the workspace's own arrays (O(n); views of ``scratch`` not counted
-        twice, the chain's arrays not counted)."""
+        """Bytes held by the workspace's own arrays (O(n); views not counted twice, the
+        system's arrays not counted)."""
         return sum(v.nbytes for v in vars(self).values()
                    if isinstance(v, np.ndarray) and v.base is None)

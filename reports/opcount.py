@@ -38,6 +38,7 @@ from redysim._kernels.rge_a import rge_a_forward_dynamics
 from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
 from redysim.precision import kernel_source
+from redysim.workspace import bundles_in
 
 DEFAULT_OUT = Path("results") / "opcount"
 OUT_FILE = "opcount.json"
@@ -161,13 +162,11 @@ def state(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
 
 def count_rge_a_spatial(chain: Chain) -> tuple[int, int]:
     """One ``rge_a_forward_dynamics`` call (tau = 0), the spatial kernels."""
-    c, n, nl = chain, chain.n_dof, chain.n_links
+    c, n = chain, chain.n_dof
     q, qd = state(c)
     fn = kernel_source(rge_a_forward_dynamics, Count)
-    args = (counts(c.length), counts(c.mass), counts(c.inertia_O), counts(c.mass_com),
-            c.dof_kind, c.dof_axis, counts(c.dof_u), c.joint_qoff, counts(q), counts(qd),
-            empty(n), counts(-np.asarray(c.gravity)), empty(n), empty(nl, 3, 3), empty(nl, 3),
-            empty(n, 6), empty(nl, 6), empty(nl, 6), empty(n), empty(n, 6), empty(n), empty(n),
+    tree, s = bundles_in(c, counts, lambda shape: empty(*shape))
+    args = (tree, counts(q), counts(qd), empty(n), counts(-np.asarray(c.gravity)), empty(n), s,
             empty(n))
     return tally(lambda: fn(*args))
 

@@ -169,7 +169,8 @@ def test_rebound_kernels_take_cos_and_sin_in_the_arithmetic():
     its 50- vs 70-digit self-check still agreed)."""
     import redysim._kernels.kinematics as kin
     a = hiprec.mpf_arithmetic(50)
-    sincos = hiprec.kernel_function(kin.kinematics, a).__globals__["jcalc"].__globals__["sincos"]
+    body = hiprec.kernel_function(kin.kinematics, a).__globals__["_kinematics"]  # (one source,
+    sincos = body.__globals__["jcalc"].__globals__["sincos"]  # compiled for chains and trees)
     with mpmath.workdps(50):
         c, s = sincos(mpmath.mpf(1) / 3)
         assert isinstance(c, mpmath.mpf) and abs(c - mpmath.cos(mpmath.mpf(1) / 3)) < 1e-45

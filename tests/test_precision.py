@@ -46,6 +46,7 @@ from redysim.reports.precision_tables import (
     table9_horizontal,
     verdict,
 )
+from redysim.workspace import bundles_in
 
 PUB = load_published()
 T10 = PUB["table10"]["rows"]
@@ -172,18 +173,17 @@ def test_float32_runs_stay_in_float32():
         qdd, scratch)
     assert _kinds(qdd, scratch) <= ok
     ch = Chain.uniform(4, "U", length=0.5, mass=1.5, radius=0.05, inertia="cylinder")
-    n, nl = ch.n_dof, ch.n_links
+    n = ch.n_dof
     rng = np.random.default_rng(3)
     q, qd = rng.normal(size=n), rng.normal(size=n)
-    E = lambda *s: _objects(np.zeros(s), t)  # noqa: E731
-    ws = [E(nl, 3, 3), E(nl, 3), E(n, 6), E(nl, 6), E(nl, 6), E(n), E(n, 6), E(n), E(n), E(n)]
+    tree, s = bundles_in(ch, lambda a: _objects(a, t), lambda shape: _objects(np.zeros(shape), t))
+    qdd = _objects(np.zeros(n), t)
     kernel_source(rge_a_forward_dynamics, t)(
-        _objects(ch.length, t), _objects(ch.mass, t), _objects(ch.inertia_O, t),
-        _objects(ch.mass_com, t), ch.dof_kind, ch.dof_axis, _objects(ch.dof_u, t), ch.joint_qoff,
-        _objects(q, t), _objects(qd, t), E(n), _objects(-ch.gravity, t), E(n), *ws)
-    assert _kinds(*ws) <= ok
+        tree, _objects(q, t), _objects(qd, t), _objects(np.zeros(n), t),
+        _objects(-ch.gravity, t), _objects(np.zeros(n), t), s, qdd)
+    assert _kinds(qdd, *s) <= ok
     ref = forward_dynamics(ch, q, qd)
-    assert np.abs(ws[-1].astype(float) - ref).max() < 1e-4 * np.abs(ref).max()
+    assert np.abs(qdd.astype(float) - ref).max() < 1e-4 * np.abs(ref).max()
 
 
 def test_ieee_errors_follow_conditioning():

@@ -16,14 +16,16 @@ import pytest
 from conftest import random_chain, random_inertia, random_state, rel, stable_seed
 from scipy.spatial.transform import Rotation
 
-from redysim import energy as chain_energy
 from redysim import (
+    Workspace,
     forward_dynamics,
     inverse_dynamics,
     mass_matrix,
     rbda,
     tip,
+    udu_factors,
 )
+from redysim import energy as system_energy
 from redysim.errors import CaseError
 from redysim.importers import ModelFileError, load_model, load_urdf
 from redysim.model import Body, Model, TreeJoint
@@ -49,7 +51,7 @@ def test_the_tree_recursions_on_a_chain_are_the_chain_kernels(mix, n_links):
     assert rel(rbda.mass_matrix(model, q), gim) < 1e-13
     assert rel(rbda.inverse_dynamics(model, q, qd, qdd), inverse_dynamics(chain, q, qd, qdd)) \
         < tol
-    assert np.allclose(rbda.energy(model, q, qd), chain_energy(chain, q, qd), rtol=1e-13,
+    assert np.allclose(rbda.energy(model, q, qd), system_energy(chain, q, qd), rtol=1e-13,
                        atol=1e-13)
     assert np.allclose(rbda.frame_position(model, q, "tip"), tip(chain, q, qd).position,
                        rtol=0, atol=1e-13)
@@ -112,6 +114,53 @@ def test_identities_on_random_trees(seed, free):
     assert np.allclose(M, M.T, rtol=0, atol=0)
     T, _ = rbda.energy(model, q, v)
     assert T == pytest.approx(0.5 * v @ M @ v, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("free", [True, False])
+def test_compiled_kernels_on_trees_equal_the_reference_recursions(seed, free):
+    """The compiled kernels (one source for chains and trees) against redysim.rbda on branched
+    trees, free base or not: qdd, GIM, inverse dynamics, energy, and the U D U^T factors."""
+    model = random_tree(stable_seed("tree-kernels", seed), n_bodies=10, free=free)
+    assert not model.is_chain
+    rng = np.random.default_rng(seed)
+    q, v, tau = random_configuration(rng, model), rng.normal(size=model.n_v), \
+        rng.normal(size=model.n_v)
+    vdot = forward_dynamics(model, q, v, tau)
+    M = mass_matrix(model, q)
+    assert rel(vdot, rbda.forward_dynamics(model, q, v, tau)) < 1e-12
+    assert rel(M, rbda.mass_matrix(model, q)) < 1e-13
+    assert np.array_equal(M, M.T)
+    assert rel(inverse_dynamics(model, q, v, vdot), rbda.inverse_dynamics(model, q, v, vdot)) \
+        < 1e-12
+    assert np.allclose(system_energy(model, q, v), rbda.energy(model, q, v), rtol=1e-13,
+                       atol=1e-13)
+    U, D = udu_factors(model, q)
+    assert rel(U @ D @ U.T, M) < 1e-13
+    assert np.array_equal(np.tril(U, -1), np.zeros_like(U))
+
+
+def test_a_quaternion_off_the_unit_sphere_is_normalised():
+    """An integrator's stage leaves a free joint's quaternion slightly off norm 1: the kernels
+    read its direction (as MuJoCo does), so a scaled quaternion gives the same dynamics."""
+    model = random_tree(stable_seed("tree-norm"), n_bodies=5)
+    rng = np.random.default_rng(3)
+    q, v = random_configuration(rng, model), rng.normal(size=model.n_v)
+    scaled = q.copy()
+    scaled[model.quaternions[0]:model.quaternions[0] + 4] *= 1.0 + 1e-6
+    assert rel(forward_dynamics(model, scaled, v), forward_dynamics(model, q, v)) < 1e-13
+
+
+@pytest.mark.parametrize("mix", MIXES, ids="".join)
+def test_a_chain_as_a_model_runs_the_chains_code_bit_for_bit(mix):
+    """Model.from_chain(chain) is serial: the same compiled code, the same bits as the Chain."""
+    rng = np.random.default_rng(stable_seed("serial-model", mix))
+    chain = random_chain(rng, 12, mix)
+    model = Model.from_chain(chain)
+    q, qd, tau = random_state(rng, chain, "wide")
+    assert Workspace(model).tree.serial == 1
+    assert np.array_equal(forward_dynamics(model, q, qd, tau), forward_dynamics(chain, q, qd, tau))
+    assert np.array_equal(mass_matrix(model, q), mass_matrix(chain, q))
 
 
 def test_a_fixed_joint_is_fused_as_a_locked_one():

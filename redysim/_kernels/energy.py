@@ -10,12 +10,14 @@ References:
 
 from __future__ import annotations
 
-from .._jit import jit
+from .._jit import jit_borrowed
 
 
-@jit
-def energy(mass, inertia_O, mass_com, gravity, oR, oO, t):
-    """(T, V) from the kinematics pass."""
+@jit_borrowed
+def energy(tree, gravity, s):
+    """(T, V) from the kinematics pass (s.oR, s.oO, s.t)."""
+    mass, inertia_O, mass_com, oR, oO, t = tree.mass, tree.inertia_O, tree.mass_com, s.oR, \
+        s.oO, s.t
     nl = mass.shape[0]
     T = 0.0
     V = 0.0

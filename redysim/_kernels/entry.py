@@ -1,13 +1,12 @@
-"""Forward dynamics' entry points: a workspace's packed arrays in, 7 arguments instead of 23.
+"""Forward dynamics' entry points: a workspace's packed arrays in, 7 arguments instead of 28.
 
 numba's dispatcher types and unboxes every argument of every call, at a cost per array that
-matters for small chains (docs/design.md, "Performance notes"). A
-:class:`~redysim.workspace.Workspace` therefore packs the chain's arrays into one float
-and one int array (copies: the chain is immutable) and its scratch arrays into one float array,
-and these entries slice the kernels' arrays back out of them (views: nothing is copied or
-allocated). The int array starts with a header, ``nl``, ``n`` and the offset of every
-segment, written by the workspace (the one place that lays the arrays out) and read here by the
-slot numbers below.
+matters for small systems (docs/design.md, "Performance notes"). A
+:class:`~redysim.workspace.Workspace` therefore packs the tree's arrays into one float and one
+int array and its scratch arrays into one float array, and these entries slice the named bundles
+(:mod:`.bundles`) back out of them (views: nothing is copied or allocated). The int array starts
+with a header, the sizes and the offset of every segment, written by the workspace (the one place
+that lays the arrays out) and read here by the slot numbers below.
 
 Each entry is compiled for exactly one signature (:class:`redysim._jit.EntryPoint`): q, qd and tau
 C-contiguous float64 vectors, read-only or not; the packed arrays and qdd writeable C-contiguous
@@ -17,88 +16,116 @@ these two are the whole of the type and size checks a plain call needs; the call
 converts anything else (:func:`redysim.dynamics.forward_dynamics`).
 
 Both return 0.0, NaN when some qdd is not finite, or SIZE_MISMATCH, having written nothing, when
-q, qd, tau or qdd is not of length n.
+q is not of length n_q or qd, tau or qdd not of length n_v.
 """
 
 from __future__ import annotations
 
 from numba import types
 
-from .._jit import EntryPoint
+from .._jit import EntryPoint, inline
+from .bundles import GATHER_MASS, Scratch, Tree
 from .kinematics import kinematics
 from .planar import planar_forward_dynamics
 from .rge_a import rge_a_backward, rge_a_forward
 
 SIZE_MISMATCH = -1.0
 
-# slots of the int array's header: nl, n, then the offset of each segment in its array
-H_NL, H_N = 0, 1
-# float array (the chain's): length, mass, inertia_O, mass_com, dof_u, -g, g, zeros (n) and, for
-# a planar chain, izz_O, m c_x, m c_y
-(F_LENGTH, F_MASS, F_INERTIA_O, F_MASS_COM, F_DOF_U, F_BASE_ACCEL, F_GRAVITY, F_ZEROS, F_IZZ_O,
- F_MC_X, F_MC_Y) = range(2, 13)
-# int array (the chain's): dof_kind, dof_axis, joint_qoff
-I_DOF_KIND, I_DOF_AXIS, I_JOINT_QOFF = range(13, 16)
-# scratch array: the workspace's oR, oO, oP, t, td, Ihat, Psihat, phitil, phihat, planar
-(S_OR, S_OO, S_OP, S_T, S_TD, S_IHAT, S_PSIHAT, S_PHITIL, S_PHIHAT, S_PLANAR) = range(16, 26)
-HEADER = 26
+# the int array's header: sizes (bodies, velocity and configuration coordinates, gathering
+# bodies), the serial flag, then the offset of each segment in its array
+H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(5)
+# float array (the tree's): along, placement_R, placement_p, dof_u, mass, inertia_O, mass_com,
+# -g, g, zeros (n_v) and, for a planar chain, length, izz_O, m c_x, m c_y
+(F_ALONG, F_PLACEMENT_R, F_PLACEMENT_P, F_DOF_U, F_MASS, F_INERTIA_O, F_MASS_COM, F_BASE_ACCEL,
+ F_GRAVITY, F_ZEROS, F_LENGTH, F_IZZ_O, F_MC_X, F_MC_Y) = range(5, 19)
+# int array (the tree's): parent, gather, placement_code, qshift, joint_voff, dof_kind, dof_axis
+(I_PARENT, I_GATHER, I_PLACEMENT_CODE, I_QSHIFT, I_JOINT_VOFF, I_DOF_KIND,
+ I_DOF_AXIS) = range(19, 26)
+# scratch array: the Scratch bundle's arrays, then the planar kernel's
+(S_OR, S_OO, S_OP, S_T, S_TD, S_IHAT, S_PSIHAT, S_PHITIL, S_PHIHAT, S_W, S_GATHER_MASS,
+ S_GATHER_WRENCH, S_GATHER_TWIST, S_PLANAR) = range(26, 40)
+HEADER = 40
 
 _F1, _F2, _F3 = (types.Array(types.float64, d, "C") for d in (1, 2, 3))
 _RO = types.Array(types.float64, 1, "C", readonly=True)
 _I1 = types.Array(types.int64, 1, "C")
+TREE = types.NamedTuple((types.int64, _I1, _I1, _I1, _I1, _F1, _F3, _F2, _I1, _I1, _I1, _F2,
+                         _F1, _F3, _F2), Tree)
+SCRATCH = types.NamedTuple((_F3, _F2, _F2, _F2, _F2, _F1, _F2, _F1, _F1, _F2, _F2, _F2, _F2),
+                           Scratch)
 SIGNATURE = types.float64(_F1, _I1, _RO, _RO, _RO, _F1, _F1)
-# the kernels as the entries call them (the segments' types), loaded before the entries
+# the kernels as the entries call them (the bundles' types), loaded before the entries
 # (redysim._jit.EntryPoint: the callees' own machine code, not the entries' copies of it)
 RGE_A_CALLEES = (
-    (kinematics, (_F1, _I1, _I1, _F2, _I1, _RO, _RO, _F1, _F1, _F3, _F2, _F2, _F2, _F2,
-                  types.literal(True))),  # local_rates=True
-    (rge_a_backward, (_F1, _F3, _F2, _I1, _I1, _F3, _F2, _F2, _F2, _F2, _RO, _F1, _F2, _F1,
-                      _F1)),
-    (rge_a_forward, (_I1, _F2, _F2, _F2, _F1, _F2, _F1, _F1)))
+    (kinematics, (TREE, _RO, _RO, _F1, _F1, SCRATCH, types.literal(True))),  # local_rates=True
+    (rge_a_backward, (TREE, SCRATCH, _RO)),
+    (rge_a_forward, (TREE, SCRATCH, _F1, _F1)))
 PLANAR_CALLEES = (
     (planar_forward_dynamics, (_F1, _F1, _F1, _F1, _F1, _F1, _RO, _RO, _RO, _F1, _F2)),)
+
+
+@inline
+def bundles(fdata, idata, scratch):
+    """The Tree and Scratch bundles as views of a workspace's packed arrays (its Python source
+    also runs in the workspace itself: one layout, read in one place)."""
+    h = idata
+    nb, nv, ng = h[H_NB], h[H_NV], h[H_NG]
+    nt = 0 if h[H_SERIAL] else nb  # a serial chain's tree tables are empty
+    # the segments, sliced out inline: a helper taking the slot (a literal int) was compiled
+    # once per slot, 3 s of the cold compile
+    tree = Tree(
+        h[H_SERIAL],
+        idata[h[I_PARENT]:h[I_PARENT] + nt],
+        idata[h[I_GATHER]:h[I_GATHER] + nt],
+        idata[h[I_PLACEMENT_CODE]:h[I_PLACEMENT_CODE] + nt],
+        idata[h[I_QSHIFT]:h[I_QSHIFT] + nt],
+        fdata[h[F_ALONG]:h[F_ALONG] + nb],
+        fdata[h[F_PLACEMENT_R]:h[F_PLACEMENT_R] + 9 * nt].reshape((nt, 3, 3)),
+        fdata[h[F_PLACEMENT_P]:h[F_PLACEMENT_P] + 3 * nt].reshape((nt, 3)),
+        idata[h[I_JOINT_VOFF]:h[I_JOINT_VOFF] + nb + 1],
+        idata[h[I_DOF_KIND]:h[I_DOF_KIND] + nv],
+        idata[h[I_DOF_AXIS]:h[I_DOF_AXIS] + nv],
+        fdata[h[F_DOF_U]:h[F_DOF_U] + 3 * nv].reshape((nv, 3)),
+        fdata[h[F_MASS]:h[F_MASS] + nb],
+        fdata[h[F_INERTIA_O]:h[F_INERTIA_O] + 9 * nb].reshape((nb, 3, 3)),
+        fdata[h[F_MASS_COM]:h[F_MASS_COM] + 3 * nb].reshape((nb, 3)))
+    s = Scratch(
+        scratch[h[S_OR]:h[S_OR] + 9 * nb].reshape((nb, 3, 3)),
+        scratch[h[S_OO]:h[S_OO] + 3 * nb].reshape((nb, 3)),
+        scratch[h[S_OP]:h[S_OP] + 6 * nv].reshape((nv, 6)),
+        scratch[h[S_T]:h[S_T] + 6 * nb].reshape((nb, 6)),
+        scratch[h[S_TD]:h[S_TD] + 6 * nb].reshape((nb, 6)),
+        scratch[h[S_IHAT]:h[S_IHAT] + nv],
+        scratch[h[S_PSIHAT]:h[S_PSIHAT] + 6 * nv].reshape((nv, 6)),
+        scratch[h[S_PHITIL]:h[S_PHITIL] + nv],
+        scratch[h[S_PHIHAT]:h[S_PHIHAT] + nv],
+        scratch[h[S_W]:h[S_W] + 6 * nb].reshape((nb, 6)),
+        scratch[h[S_GATHER_MASS]:h[S_GATHER_MASS] + GATHER_MASS * ng].reshape((ng, GATHER_MASS)),
+        scratch[h[S_GATHER_WRENCH]:h[S_GATHER_WRENCH] + 6 * ng].reshape((ng, 6)),
+        scratch[h[S_GATHER_TWIST]:h[S_GATHER_TWIST] + 6 * ng].reshape((ng, 6)))
+    return tree, s
 
 
 def rge_a_entry(fdata, idata, q, qd, tau, scratch, qdd):
     """Kinematics and RGE-A's two passes, as :func:`rge_a_forward_dynamics`, on a workspace's
     packed arrays (module docstring)."""
     h = idata
-    nl, n = h[H_NL], h[H_N]
-    if q.shape[0] != n or qd.shape[0] != n or tau.shape[0] != n or qdd.shape[0] != n:
+    nv = h[H_NV]
+    if q.shape[0] != h[H_NQ] or qd.shape[0] != nv or tau.shape[0] != nv or qdd.shape[0] != nv:
         return SIZE_MISMATCH
-    # the segments, sliced out inline: a helper taking the slot (a literal int) was compiled
-    # once per slot, 3 s of the cold compile
-    length = fdata[h[F_LENGTH]:h[F_LENGTH] + nl]
-    mass = fdata[h[F_MASS]:h[F_MASS] + nl]
-    inertia_O = fdata[h[F_INERTIA_O]:h[F_INERTIA_O] + 9 * nl].reshape((nl, 3, 3))
-    mass_com = fdata[h[F_MASS_COM]:h[F_MASS_COM] + 3 * nl].reshape((nl, 3))
-    dof_u = fdata[h[F_DOF_U]:h[F_DOF_U] + 3 * n].reshape((n, 3))
+    tree, s = bundles(fdata, idata, scratch)
     base_accel = fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3]
-    zeros = fdata[h[F_ZEROS]:h[F_ZEROS] + n]
-    dof_kind = idata[h[I_DOF_KIND]:h[I_DOF_KIND] + n]
-    dof_axis = idata[h[I_DOF_AXIS]:h[I_DOF_AXIS] + n]
-    joint_qoff = idata[h[I_JOINT_QOFF]:h[I_JOINT_QOFF] + nl + 1]
-    oR = scratch[h[S_OR]:h[S_OR] + 9 * nl].reshape((nl, 3, 3))
-    oO = scratch[h[S_OO]:h[S_OO] + 3 * nl].reshape((nl, 3))
-    oP = scratch[h[S_OP]:h[S_OP] + 6 * n].reshape((n, 6))
-    t = scratch[h[S_T]:h[S_T] + 6 * nl].reshape((nl, 6))
-    c = scratch[h[S_TD]:h[S_TD] + 6 * nl].reshape((nl, 6))
-    Ihat = scratch[h[S_IHAT]:h[S_IHAT] + n]
-    Psihat = scratch[h[S_PSIHAT]:h[S_PSIHAT] + 6 * n].reshape((n, 6))
-    phitil = scratch[h[S_PHITIL]:h[S_PHITIL] + n]
-    phihat = scratch[h[S_PHIHAT]:h[S_PHIHAT] + n]
+    zeros = fdata[h[F_ZEROS]:h[F_ZEROS] + nv]
     # rge_a_forward_dynamics' three passes, called directly (one level of calls less to compile)
-    kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, zeros, base_accel,
-               oR, oO, oP, t, c, True)
-    rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, c, tau,
-                   Ihat, Psihat, phitil, phihat)
-    return rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd)
+    kinematics(tree, q, qd, zeros, base_accel, s, True)
+    rge_a_backward(tree, s, tau)
+    return rge_a_forward(tree, s, base_accel, qdd)
 
 
 def planar_entry(fdata, idata, q, qd, tau, scratch, qdd):
     """:func:`planar_forward_dynamics` on a planar chain's packed arrays (module docstring)."""
     h = idata
-    nl, n = h[H_NL], h[H_N]
+    nl, n = h[H_NB], h[H_NV]
     if q.shape[0] != n or qd.shape[0] != n or tau.shape[0] != n or qdd.shape[0] != n:
         return SIZE_MISMATCH
     return planar_forward_dynamics(

@@ -1,9 +1,9 @@
 """Recursive inverse dynamics (Newton-Euler with the DeNOC matrices) and phi.
 
-Backward pass k = nl..1 over the kinematics pass's twists and twist-rates:
-    link wrench about O_k:  w_k = M_k td_k + W_k M_k t_k  (Newton-Euler),
+Backward pass k = nb..1 (children first) over the kinematics pass's twists and twist-rates:
+    body wrench about O_k:  w_k = M_k td_k + W_k M_k t_k  (Newton-Euler),
         f = m vd + wd x (m d) + w x (w x m d),   n = I_O wd + w x (I_O w) + (m d) x vd,
-    resultant:             W_k = w_k + A_{k+1,k}^T W_{k+1},
+    resultant:             W_k = w_k + sum over the children c of A_{c,k}^T W_c,
     joint torques:         tau_k = P_k^T W_k.
 With qdd = 0 and the base's twist-rate [0; -g] the same pass gives C qd + gravity terms, so
 phi = tau - (C qd + gravity terms) (Eq. 12).
@@ -15,14 +15,22 @@ References:
 
 from __future__ import annotations
 
-from .._jit import jit
+from .._jit import jit_borrowed
 
 
-@jit
-def rnea_backward(mass, inertia_O, mass_com, joint_qoff, oR, oO, oP, t, td, tau, W):
-    """tau = P^T W from the kinematics pass; W (nl, 6) receives the resultant wrenches about O_k."""
+@jit_borrowed
+def rnea_backward(tree, s, tau):
+    """tau = P^T W from the kinematics pass; s.W (nb, 6) receives the resultant wrenches about
+    O_k. A child that does not follow its parent (k + 1) adds its wrench, moved to the parent's
+    O, to the parent's row of s.gather_wrench."""
+    mass, inertia_O, mass_com, joint_voff = tree.mass, tree.inertia_O, tree.mass_com, \
+        tree.joint_voff
+    serial, parent, gather = tree.serial, tree.parent, tree.gather
+    oR, oO, oP, t, td, W, gw = s.oR, s.oO, s.oP, s.t, s.td, s.W, s.gather_wrench
+    for g in range(gw.shape[0]):
+        gw[g, :] = 0.0
     nl = mass.shape[0]
-    # backward: k = nl..1
+    # backward: k = nb..1, children first
     for k in range(nl - 1, -1, -1):
         R = oR[k]
         IO = inertia_O[k]
@@ -64,8 +72,16 @@ def rnea_backward(mass, inertia_O, mass_com, joint_qoff, oR, oO, oP, t, td, tau,
         n0 = g0 + (w1 * h2 - w2 * h1) + (md1 * b2 - md2 * b1)
         n1 = g1 + (w2 * h0 - w0 * h2) + (md2 * b0 - md0 * b2)
         n2 = g2 + (w0 * h1 - w1 * h0) + (md0 * b1 - md1 * b0)
+        if serial == 0 and gather[k] >= 0:  # the children that do not follow
+            g = gather[k]
+            n0 += gw[g, 0]
+            n1 += gw[g, 1]
+            n2 += gw[g, 2]
+            f0 += gw[g, 3]
+            f1 += gw[g, 4]
+            f2 += gw[g, 5]
         # W_k = w_k + A_{k+1,k}^T W_{k+1}: move W_{k+1}'s moment from O_{k+1} to O_k
-        if k < nl - 1:
+        if k < nl - 1 and (serial != 0 or parent[k + 1] == k):
             r0 = oO[k + 1, 0] - oO[k, 0]
             r1 = oO[k + 1, 1] - oO[k, 1]
             r2 = oO[k + 1, 2] - oO[k, 2]
@@ -82,7 +98,19 @@ def rnea_backward(mass, inertia_O, mass_com, joint_qoff, oR, oO, oP, t, td, tau,
         W[k, 3] = f0
         W[k, 4] = f1
         W[k, 5] = f2
+        p = k - 1 if serial != 0 else parent[k]
+        if p >= 0 and serial == 0 and parent[k] != k - 1:  # into the parent's gather row, at O_p
+            g = gather[p]
+            r0 = oO[k, 0] - oO[p, 0]
+            r1 = oO[k, 1] - oO[p, 1]
+            r2 = oO[k, 2] - oO[p, 2]
+            gw[g, 0] += n0 + (r1 * f2 - r2 * f1)
+            gw[g, 1] += n1 + (r2 * f0 - r0 * f2)
+            gw[g, 2] += n2 + (r0 * f1 - r1 * f0)
+            gw[g, 3] += f0
+            gw[g, 4] += f1
+            gw[g, 5] += f2
         # tau_k = P_k^T W_k
-        for j in range(joint_qoff[k], joint_qoff[k + 1]):
+        for j in range(joint_voff[k], joint_voff[k + 1]):
             p = oP[j]
             tau[j] = (p[0] * n0 + p[1] * n1 + p[2] * n2 + p[3] * f0 + p[4] * f1 + p[5] * f2)

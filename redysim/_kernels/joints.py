@@ -3,7 +3,9 @@
 A joint is a sequence of elementary axes (see :data:`redysim.chain.JOINT_TYPES`); this module maps
 (kind, axis, q_j) and the frame before the axis to the axis's motion-subspace column
 P = [p_ang; p_lin] in the world frame and the frame after it: a rotation of the frame (revolute)
-or a translation of the joint's origin (prismatic). The recursions call :func:`jcalc`,
+or a translation of the joint's origin (prismatic), and a third kind, BALL: the three rotational
+DOF of a free joint, about the body's own axes, its rotation given by a unit quaternion in q. The
+recursions call :func:`jcalc`,
 :func:`axis_rates` and :func:`column_mass` and never branch on the joint type themselves; each
 skips the half of P that is zero for its kind (work a revolute chain does not need).
 
@@ -24,6 +26,7 @@ from .._jit import inline
 
 REVOLUTE = 0
 PRISMATIC = 1
+BALL = 2
 
 
 def sincos(x):
@@ -70,16 +73,46 @@ def _sincos_compiled(x):
 
 
 @inline
-def jcalc(kind, code, u, qj, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+def jcalc(kind, code, u, qj, q1, q2, q3, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21,
+          r22):
     """One elementary axis: returns (p0..p5, s0..s2, r00..r22).
 
-    p = [e; 0] (revolute) or [0; e] (prismatic) with e = R u the axis in the world frame; s the
-    joint origin's offset, moved by e qj along a prismatic axis (else as given); r the
-    frame after the axis: R Rot(u, qj) for a revolute axis, R for a prismatic one. ``code`` 0, 1,
-    2 names the x, y or z axis of the frame (two columns mix), 3 a general unit vector u
+    p = [e; 0] (revolute, ball) or [0; e] (prismatic) with e = R u the axis in the world frame;
+    s the joint origin's offset, moved by e q_j along a prismatic axis (else as given); r the
+    frame after the axis: R Rot(u, q_j) for a revolute axis, R for a prismatic one. ``code`` 0,
+    1, 2 names the x, y or z axis of the frame (two columns mix), 3 a general unit vector u
     (Rodrigues). ``u`` is the axis's row of ``dof_u``, read only for code 3: a chain of x, y and
     z axes never loads it (48 bytes a U joint less to stream).
+
+    BALL (codes 0, 1, 2: the body's x, y, z): the first of the three turns the frame by the
+    quaternion (w, x, y, z) = (q_j, q1, q2, q3) (the caller reads q1..q3 for it alone),
+    normalised (as MuJoCo does: an integrator's stage may leave it slightly off the unit
+    sphere), and each gives the turned frame's column. Scalars only: an array passed to an
+    inlined helper costs a reference count per call, more than a rope's whole axis.
     """
+    if kind == BALL:
+        if code == 0:
+            qw, qx, qy, qz = qj, q1, q2, q3
+            two = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+            g00, g01, g02 = (1.0 - two * (qy * qy + qz * qz), two * (qx * qy - qw * qz),
+                             two * (qx * qz + qw * qy))
+            g10, g11, g12 = (two * (qx * qy + qw * qz), 1.0 - two * (qx * qx + qz * qz),
+                             two * (qy * qz - qw * qx))
+            g20, g21, g22 = (two * (qx * qz - qw * qy), two * (qy * qz + qw * qx),
+                             1.0 - two * (qx * qx + qy * qy))
+            r00, r01, r02 = (r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
+                             r00 * g02 + r01 * g12 + r02 * g22)
+            r10, r11, r12 = (r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
+                             r10 * g02 + r11 * g12 + r12 * g22)
+            r20, r21, r22 = (r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
+                             r20 * g02 + r21 * g12 + r22 * g22)
+            e0, e1, e2 = r00, r10, r20
+        elif code == 1:
+            e0, e1, e2 = r01, r11, r21
+        else:
+            e0, e1, e2 = r02, r12, r22
+        return (e0, e1, e2, 0.0, 0.0, 0.0, s0, s1, s2,
+                r00, r01, r02, r10, r11, r12, r20, r21, r22)
     if code == 0:
         e0, e1, e2 = r00, r10, r20
     elif code == 1:
@@ -133,7 +166,7 @@ def column_mass(kind, e0, e1, e2, x00, x01, x02, x11, x12, x22,
     Only the non-zero half of p is multiplied: half the work of a 6 x 6 product, and a shorter
     serial chain in RGE-A's backward pass. Returns (Psi_0..Psi_5, Ihat).
     """
-    if kind == PRISMATIC:
+    if kind == PRISMATIC:  # (a ball's columns are rotational: the revolute branch)
         u0 = y00 * e0 + y01 * e1 + y02 * e2
         u1 = y10 * e0 + y11 * e1 + y12 * e2
         u2 = y20 * e0 + y21 * e1 + y22 * e2
@@ -151,16 +184,30 @@ def column_mass(kind, e0, e1, e2, x00, x01, x02, x11, x12, x22,
 
 
 @inline
-def axis_rates(kind, p0, p1, p2, p3, p4, p5, x, y, om0, om1, om2,
-               dv0, dv1, dv2, da0, da1, da2, db0, db1, db2):
+def axis_rates(kind, code, p0, p1, p2, p3, p4, p5, x, y, om0, om1, om2,
+               dv0, dv1, dv2, da0, da1, da2, db0, db1, db2, bw0, bw1, bw2):
     """One axis's part of the link's twist and local twist-rate, the column's zero half skipped.
 
     P = [p_ang; p_lin]; x, y: the axis's qd and qdd; om: the angular velocity of the frame the
     axis is fixed in (a revolute axis adds e x to it, the frame of the next axis). Adds P x to
     (om, dv) and P y + Pd x to (da, db), with Pd = om x P (both halves of the column rotate with
-    that frame). Returns (om, dv, da, db) updated: 12 scalars.
+    that frame). A ball's columns are fixed in the body itself: Pd x summed over the three is
+    (om + R w) x (R w) = om x (R w) with om the parent's angular velocity, so their P x gather
+    in (bw), added to om with the last of the three (``code`` 2; a ball ends its joint). Returns
+    (om, dv, da, db, bw) updated: 15 scalars.
     """
-    if kind == PRISMATIC:
+    if kind == BALL:
+        da0 += p0 * y + (om1 * p2 - om2 * p1) * x
+        da1 += p1 * y + (om2 * p0 - om0 * p2) * x
+        da2 += p2 * y + (om0 * p1 - om1 * p0) * x
+        bw0 += p0 * x
+        bw1 += p1 * x
+        bw2 += p2 * x
+        if code == 2:
+            om0 += bw0
+            om1 += bw1
+            om2 += bw2
+    elif kind == PRISMATIC:
         dv0 += p3 * x
         dv1 += p4 * x
         dv2 += p5 * x
@@ -174,4 +221,4 @@ def axis_rates(kind, p0, p1, p2, p3, p4, p5, x, y, om0, om1, om2,
         om0 += p0 * x
         om1 += p1 * x
         om2 += p2 * x
-    return (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2)
+    return (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2, bw0, bw1, bw2)

@@ -27,10 +27,10 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from .._jit import jit_borrowed
 
 
-@jit
+@jit_borrowed
 def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau, qdd, scratch):
     """qdd for a planar R chain; tau may be all zeros. scratch: (nl, 12) work array.
 

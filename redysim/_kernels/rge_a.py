@@ -43,6 +43,11 @@ Implementation notes:
   paper's tables).
 - The running quantities stay in scalars rather than being read back from arrays
   (docs/design.md, "Performance notes").
+- On a tree, body k's articulated body goes to its parent p: Mhat_p gathers A_{k,p}^T Mbar_k
+  A_{k,p} (and the bias A^T p_k) from every child, and the forward pass starts each body from its
+  parent's mu_p. A child that directly follows its parent (k = p + 1: every body of a chain) hands
+  both on in the registers; any other child leaves them in its parent's row of the scratch's
+  gather arrays (``bundles.Tree.gather``).
 
 References:
     Agarwal et al., Appendix A.1, Eq. (A.1)-(A.8) and Table A.1; Eq. (9)-(12) for phi.
@@ -54,30 +59,50 @@ References:
 
 from __future__ import annotations
 
-from .._jit import jit
+from .._jit import inline, jit_borrowed
 from .joints import column_mass
 from .kinematics import kinematics
 
 
-@jit
-def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, c, tau,
-                   Ihat, Psihat, phitil, phihat):
+@jit_borrowed
+def rge_a_backward(tree, s, tau):
     """Backward pass: articulated masses, the bias of every articulated body, phitil (Table A.1).
 
-    Reads the kinematics pass run with ``local_rates`` (oR, oO, oP, t, and c: each link's local
-    velocity-product twist-rate c_k) and tau. Writes Ihat (n,) (the diagonal D of
-    I = U D U^T), Psihat (n, 6), phitil (n,) and phihat (n,).
+    Reads the kinematics pass run with ``local_rates`` (s.oR, s.oO, s.oP, s.t, and s.td: each
+    body's local velocity-product twist-rate c_k) and tau. Writes s.Ihat (n,) (the diagonal D of
+    I = U D U^T), s.Psihat (n, 6), s.phitil (n,) and s.phihat (n,).
     With t = c = 0 and tau = phi it is Table A.1 as printed (the bias carry-over p is then eta);
     with t = c = 0 and tau = 0 it gives the factors alone.
+
+    Compiled twice from one source (:func:`_rge_a_backward`), for a serial chain and for any
+    tree, as :func:`~.kinematics.kinematics` is.
     """
-    nl = mass.shape[0]
-    # Mbar_{k+1} (blocks X, Y, Z) and p_{k+1}: zero beyond the tip
+    if tree.serial != 0:
+        _rge_a_backward(tree, s, tau, True)
+    else:
+        _rge_a_backward(tree, s, tau, False)
+
+
+@inline
+def _rge_a_backward(tree, s, tau, serial):
+    """:func:`rge_a_backward`, ``serial`` a constant."""
+    mass, inertia_O, mass_com, dof_kind, joint_voff = (tree.mass, tree.inertia_O, tree.mass_com,
+                                                       tree.dof_kind, tree.joint_voff)
+    parent, gather = tree.parent, tree.gather
+    oR, oO, oP, t, c = s.oR, s.oO, s.oP, s.t, s.td
+    Ihat, Psihat, phitil, phihat = s.Ihat, s.Psihat, s.phitil, s.phihat
+    gm, gw = s.gather_mass, s.gather_wrench
+    for g in range(gm.shape[0]):
+        gm[g, :] = 0.0
+        gw[g, :] = 0.0
+    nb = mass.shape[0]
+    # Mbar_{k+1} (blocks X, Y, Z) and p_{k+1} moved to O_k: zero beyond the tip
     x00 = x01 = x02 = x11 = x12 = x22 = 0.0
     y00 = y01 = y02 = y10 = y11 = y12 = y20 = y21 = y22 = 0.0
     z00 = z01 = z02 = z11 = z12 = z22 = 0.0
     n0 = n1 = n2 = f0 = f1 = f2 = 0.0
-    # backward: k = nl..1
-    for k in range(nl - 1, -1, -1):
+    # backward: k = nb..1, children first
+    for k in range(nb - 1, -1, -1):
         # ---- M_k in the world frame: X = R I_O R^T, m d = R (m c), Z = m 1
         R = oR[k]
         J = inertia_O[k]
@@ -130,51 +155,36 @@ def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, 
         ln0 = w1 * h2 - w2 * h1
         ln1 = w2 * h0 - w0 * h2
         ln2 = w0 * h1 - w1 * h0
-        if k < nl - 1:
-            # ---- shift to O_k with a = O_k - O_{k+1} (A_{k+1,k}):
-            #      p <- A^T p (n <- n - a x f);  Mbar <- A^T Mbar A
-            s0 = oO[k, 0] - oO[k + 1, 0]
-            s1 = oO[k, 1] - oO[k + 1, 1]
-            s2 = oO[k, 2] - oO[k + 1, 2]
-            n0 -= s1 * f2 - s2 * f1
-            n1 -= s2 * f0 - s0 * f2
-            n2 -= s0 * f1 - s1 * f0
-            # S = Y C(a): column j of C(a) is a x e_j
-            S00 = y01 * s2 - y02 * s1
-            S01 = y02 * s0 - y00 * s2
-            S02 = y00 * s1 - y01 * s0
-            S10 = y11 * s2 - y12 * s1
-            S11 = y12 * s0 - y10 * s2
-            S12 = y10 * s1 - y11 * s0
-            S20 = y21 * s2 - y22 * s1
-            S21 = y22 * s0 - y20 * s2
-            S22 = y20 * s1 - y21 * s0
-            # CZ = C(a) Z
-            q00 = s1 * z02 - s2 * z01
-            q01 = s1 * z12 - s2 * z11
-            q02 = s1 * z22 - s2 * z12
-            q10 = s2 * z00 - s0 * z02
-            q11 = s2 * z01 - s0 * z12
-            q12 = s2 * z02 - s0 * z22
-            q20 = s0 * z01 - s1 * z00
-            q21 = s0 * z11 - s1 * z01
-            q22 = s0 * z12 - s1 * z02
-            # X <- X + S + S^T - CZ C(a) (upper triangle);  Y <- Y - CZ;  Z unchanged
-            x00 += 2.0 * S00 - (q01 * s2 - q02 * s1)
-            x01 += S01 + S10 - (q02 * s0 - q00 * s2)
-            x02 += S02 + S20 - (q00 * s1 - q01 * s0)
-            x11 += 2.0 * S11 - (q12 * s0 - q10 * s2)
-            x12 += S12 + S21 - (q10 * s1 - q11 * s0)
-            x22 += 2.0 * S22 - (q20 * s1 - q21 * s0)
-            y00 -= q00
-            y01 -= q01
-            y02 -= q02
-            y10 -= q10
-            y11 -= q11
-            y12 -= q12
-            y20 -= q20
-            y21 -= q21
-            y22 -= q22
+        if not serial and gather[k] >= 0:
+            # ---- the children that do not follow body k left theirs in its gather row
+            g = gather[k]
+            x00 += gm[g, 0]
+            x01 += gm[g, 1]
+            x02 += gm[g, 2]
+            x11 += gm[g, 3]
+            x12 += gm[g, 4]
+            x22 += gm[g, 5]
+            y00 += gm[g, 6]
+            y01 += gm[g, 7]
+            y02 += gm[g, 8]
+            y10 += gm[g, 9]
+            y11 += gm[g, 10]
+            y12 += gm[g, 11]
+            y20 += gm[g, 12]
+            y21 += gm[g, 13]
+            y22 += gm[g, 14]
+            z00 += gm[g, 15]
+            z01 += gm[g, 16]
+            z02 += gm[g, 17]
+            z11 += gm[g, 18]
+            z12 += gm[g, 19]
+            z22 += gm[g, 20]
+            n0 += gw[g, 0]
+            n1 += gw[g, 1]
+            n2 += gw[g, 2]
+            f0 += gw[g, 3]
+            f1 += gw[g, 4]
+            f2 += gw[g, 5]
         # ---- Mhat_k = M_k + A^T Mbar_{k+1} A;  p_k = (link's wrench) + A^T p_{k+1}
         x00 += X00
         x01 += X01
@@ -198,7 +208,7 @@ def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, 
         f1 += lf1
         f2 += lf2
         # ---- eliminate joint k's axes, last first (Table A.1, axis by axis)
-        for j in range(joint_qoff[k + 1] - 1, joint_qoff[k] - 1, -1):
+        for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
             p0, p1, p2, p3, p4, p5 = oP[j, 0], oP[j, 1], oP[j, 2], oP[j, 3], oP[j, 4], oP[j, 5]
             # phihat_j = tau_j - P^T p (Table A.1's phi_j - P^T eta, without forming phi_j)
             ph = tau[j] - (p0 * n0 + p1 * n1 + p2 * n2 + p3 * f0 + p4 * f1 + p5 * f2)
@@ -257,28 +267,140 @@ def rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, 
         f0 += (y00 * ca0 + y10 * ca1 + y20 * ca2) + (z00 * cb0 + z01 * cb1 + z02 * cb2)
         f1 += (y01 * ca0 + y11 * ca1 + y21 * ca2) + (z01 * cb0 + z11 * cb1 + z12 * cb2)
         f2 += (y02 * ca0 + y12 * ca1 + y22 * ca2) + (z02 * cb0 + z12 * cb1 + z22 * cb2)
+        p = k - 1 if serial else parent[k]
+        if p >= 0:
+            # ---- hand on to the parent p: shift to O_p with a = O_p - O_k (A_{k,p}):
+            #      p <- A^T p (n <- n - a x f);  Mbar <- A^T Mbar A
+            s0 = oO[p, 0] - oO[k, 0]
+            s1 = oO[p, 1] - oO[k, 1]
+            s2 = oO[p, 2] - oO[k, 2]
+            n0 -= s1 * f2 - s2 * f1
+            n1 -= s2 * f0 - s0 * f2
+            n2 -= s0 * f1 - s1 * f0
+            # S = Y C(a): column j of C(a) is a x e_j
+            S00 = y01 * s2 - y02 * s1
+            S01 = y02 * s0 - y00 * s2
+            S02 = y00 * s1 - y01 * s0
+            S10 = y11 * s2 - y12 * s1
+            S11 = y12 * s0 - y10 * s2
+            S12 = y10 * s1 - y11 * s0
+            S20 = y21 * s2 - y22 * s1
+            S21 = y22 * s0 - y20 * s2
+            S22 = y20 * s1 - y21 * s0
+            # CZ = C(a) Z
+            q00 = s1 * z02 - s2 * z01
+            q01 = s1 * z12 - s2 * z11
+            q02 = s1 * z22 - s2 * z12
+            q10 = s2 * z00 - s0 * z02
+            q11 = s2 * z01 - s0 * z12
+            q12 = s2 * z02 - s0 * z22
+            q20 = s0 * z01 - s1 * z00
+            q21 = s0 * z11 - s1 * z01
+            q22 = s0 * z12 - s1 * z02
+            # X <- X + S + S^T - CZ C(a) (upper triangle);  Y <- Y - CZ;  Z unchanged
+            x00 += 2.0 * S00 - (q01 * s2 - q02 * s1)
+            x01 += S01 + S10 - (q02 * s0 - q00 * s2)
+            x02 += S02 + S20 - (q00 * s1 - q01 * s0)
+            x11 += 2.0 * S11 - (q12 * s0 - q10 * s2)
+            x12 += S12 + S21 - (q10 * s1 - q11 * s0)
+            x22 += 2.0 * S22 - (q20 * s1 - q21 * s0)
+            y00 -= q00
+            y01 -= q01
+            y02 -= q02
+            y10 -= q10
+            y11 -= q11
+            y12 -= q12
+            y20 -= q20
+            y21 -= q21
+            y22 -= q22
+        if not serial and parent[k] != k - 1:
+            if p >= 0:  # into the parent's gather row, and start the next body from zero
+                g = gather[p]
+                gm[g, 0] += x00
+                gm[g, 1] += x01
+                gm[g, 2] += x02
+                gm[g, 3] += x11
+                gm[g, 4] += x12
+                gm[g, 5] += x22
+                gm[g, 6] += y00
+                gm[g, 7] += y01
+                gm[g, 8] += y02
+                gm[g, 9] += y10
+                gm[g, 10] += y11
+                gm[g, 11] += y12
+                gm[g, 12] += y20
+                gm[g, 13] += y21
+                gm[g, 14] += y22
+                gm[g, 15] += z00
+                gm[g, 16] += z01
+                gm[g, 17] += z02
+                gm[g, 18] += z11
+                gm[g, 19] += z12
+                gm[g, 20] += z22
+                gw[g, 0] += n0
+                gw[g, 1] += n1
+                gw[g, 2] += n2
+                gw[g, 3] += f0
+                gw[g, 4] += f1
+                gw[g, 5] += f2
+            x00 = x01 = x02 = x11 = x12 = x22 = 0.0
+            y00 = y01 = y02 = y10 = y11 = y12 = y20 = y21 = y22 = 0.0
+            z00 = z01 = z02 = z11 = z12 = z22 = 0.0
+            n0 = n1 = n2 = f0 = f1 = f2 = 0.0
 
 
-@jit
-def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
-    """Forward pass of Table A.1: qdd_k = phitil_k - Psihat_k^T mu_{k,k-1}, axis by axis.
+@jit_borrowed
+def rge_a_forward(tree, s, base_accel, qdd):
+    """Forward pass of Table A.1: qdd_k = phitil_k - Psihat_k^T mu_{k,p}, axis by axis.
 
-    mu starts from the base's twist-rate [0; base_accel] and takes in each link's local
+    mu starts from the base's twist-rate [0; base_accel] and takes in each body's local
     twist-rate c_k (zeros and zero for Table A.1 as printed, where both are inside phi).
-    The step to the next link is taken with each joint's last axis (every joint has one), so
-    that its qdd enters through a single multiply-add: the pass is bound by that chain of
-    dependent operations (docs/design.md, "Performance notes").
+    The step to a body that follows its parent (k + 1 from k) is taken with the parent joint's
+    last axis (every joint has one), so that its qdd enters through a single multiply-add: the
+    pass is bound by that chain of dependent operations (docs/design.md, "Performance notes").
+    A body with a child that does not follow it leaves mu_k in its gather row for that child.
     Returns 0.0, or NaN when some qdd is not finite.
+
+    Compiled twice from one source (:func:`_rge_a_forward`), for a serial chain and for any tree.
     """
-    nl = joint_qoff.shape[0] - 1
+    if tree.serial != 0:
+        return _rge_a_forward(tree, s, base_accel, qdd, True)
+    return _rge_a_forward(tree, s, base_accel, qdd, False)
+
+
+@inline
+def _rge_a_forward(tree, s, base_accel, qdd, serial):
+    """:func:`rge_a_forward`, ``serial`` a constant."""
+    joint_voff = tree.joint_voff
+    parent, gather = tree.parent, tree.gather
+    oO, oP, Psihat, phitil, c, gt = s.oO, s.oP, s.Psihat, s.phitil, s.td, s.gather_twist
+    nb = joint_voff.shape[0] - 1
     # mu_1 = A_{1,0} mu_0 + c_1 with mu_0 = [0; base_accel] (no shift at the base)
     m0, m1, m2 = c[0, 0], c[0, 1], c[0, 2]
     m3, m4, m5 = base_accel[0] + c[0, 3], base_accel[1] + c[0, 4], base_accel[2] + c[0, 5]
     nonfinite = 0.0  # stays 0 unless a qdd is NaN or +-inf (x * 0 is then NaN)
-    # forward: k = 1..nl
-    for k in range(nl):
-        jl = joint_qoff[k + 1] - 1  # the joint's last axis
-        for j in range(joint_qoff[k], jl + 1):
+    # forward: k = 1..nb, parents first
+    for k in range(nb):
+        if not serial and parent[k] != k - 1:  # from the parent's mu (its gather row) or base
+            p = parent[k]
+            if p < 0:
+                m0, m1, m2 = c[k, 0], c[k, 1], c[k, 2]
+                m3, m4, m5 = (base_accel[0] + c[k, 3], base_accel[1] + c[k, 4],
+                              base_accel[2] + c[k, 5])
+            else:  # mu_{k,p} = A_{k,p} mu_p + c_k,  A [w; v] = [w; v + a x w],  a = O_p - O_k
+                g = gather[p]
+                a0 = oO[p, 0] - oO[k, 0]
+                a1 = oO[p, 1] - oO[k, 1]
+                a2 = oO[p, 2] - oO[k, 2]
+                u0, u1, u2 = gt[g, 0], gt[g, 1], gt[g, 2]
+                m3 = (gt[g, 3] + c[k, 3]) + (a1 * u2 - a2 * u1)
+                m4 = (gt[g, 4] + c[k, 4]) + (a2 * u0 - a0 * u2)
+                m5 = (gt[g, 5] + c[k, 5]) + (a0 * u1 - a1 * u0)
+                m0, m1, m2 = u0 + c[k, 0], u1 + c[k, 1], u2 + c[k, 2]
+        jl = joint_voff[k + 1] - 1  # the joint's last axis
+        onward = k + 1 < nb and (serial or parent[k + 1] == k)  # body k + 1 hangs from k
+        keep = not serial and gather[k] >= 0  # mu_k wanted by another child
+        for j in range(joint_voff[k], jl + 1):
             # qdd_j = phitil_j - Psihat_j^T mu, summed as a tree (a shorter dependency chain)
             x = ((phitil[j] - (Psihat[j, 0] * m0 + Psihat[j, 1] * m1))
                  - ((Psihat[j, 2] * m2 + Psihat[j, 3] * m3)
@@ -286,7 +408,15 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
             qdd[j] = x
             nonfinite += x * 0.0
             p0, p1, p2, p3, p4, p5 = oP[j, 0], oP[j, 1], oP[j, 2], oP[j, 3], oP[j, 4], oP[j, 5]
-            if j < jl or k == nl - 1:
+            if keep and j == jl:  # mu_k = mu + P qdd, for the children that do not follow
+                g = gather[k]
+                gt[g, 0] = m0 + p0 * x
+                gt[g, 1] = m1 + p1 * x
+                gt[g, 2] = m2 + p2 * x
+                gt[g, 3] = m3 + p3 * x
+                gt[g, 4] = m4 + p4 * x
+                gt[g, 5] = m5 + p5 * x
+            if j < jl or not onward:
                 # mu <- mu + P qdd
                 m0 += p0 * x
                 m1 += p1 * x
@@ -295,7 +425,7 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
                 m4 += p4 * x
                 m5 += p5 * x
             else:
-                # the joint's last axis, and on to link k+1 at once:
+                # the joint's last axis, and on to body k+1 at once:
                 #   mu_{k+1} = A_{k+1,k} (mu + P qdd) + c_{k+1},  A [w; v] = [w; v + a x w],
                 # a = O_k - O_{k+1}, grouped as (terms known before qdd) + qdd (A P): only
                 # one multiply-add waits for qdd
@@ -314,16 +444,12 @@ def rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd):
     return nonfinite
 
 
-@jit
-def rge_a_forward_dynamics(length, mass, inertia_O, mass_com, dof_kind, dof_axis, dof_u,
-                           joint_qoff, q, qd, tau, base_accel, zeros,
-                           oR, oO, oP, t, c, Ihat, Psihat, phitil, phihat, qdd):
+@jit_borrowed
+def rge_a_forward_dynamics(tree, q, qd, tau, base_accel, zeros, s, qdd):
     """qdd = I^-1 phi in O(n): the kinematics pass (local twist-rates c_k, qdd = 0), then Table
     A.1's backward pass (with the bias of each articulated body) and its forward pass from the
     base's twist-rate [0; base_accel] = [0; -g]. One call from Python for the three passes.
     Returns 0.0, or NaN when some qdd is not finite."""
-    kinematics(length, dof_kind, dof_axis, dof_u, joint_qoff, q, qd, zeros, base_accel,
-               oR, oO, oP, t, c, True)
-    rge_a_backward(mass, inertia_O, mass_com, dof_kind, joint_qoff, oR, oO, oP, t, c, tau,
-                   Ihat, Psihat, phitil, phihat)
-    return rge_a_forward(joint_qoff, oO, oP, Psihat, phitil, c, base_accel, qdd)
+    kinematics(tree, q, qd, zeros, base_accel, s, True)
+    rge_a_backward(tree, s, tau)
+    return rge_a_forward(tree, s, base_accel, qdd)
