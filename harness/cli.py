@@ -15,7 +15,13 @@ from pathlib import Path
 
 from redysim.cases import CASES_DIR, list_cases, load_case
 from redysim.errors import RedysimError, SettingsError
-from redysim.integrate import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL, INTEGRATORS
+from redysim.integrate import (
+    DEFAULT_ATOL,
+    DEFAULT_METHOD,
+    DEFAULT_RTOL,
+    INTEGRATORS,
+    check_settings,
+)
 
 PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -38,10 +44,18 @@ Simulate one case and print its summary: E(0), steps, rejected steps, RHS calls,
 compile time (timed apart), average |delta_M| (energy drift per unit mass) and the tip position
 at every sample. Horizon and sample interval default to the case file's.
 
+A robot (a .urdf or MJCF .xml file) falls passively under gravity from its file's configuration
+(every joint at zero, unless the MJCF gives one) at rest, simulated by the core: the summary
+gives the energy drift and the centre of mass at every sample (with --floating, a URDF's root
+gets a free joint and the robot falls freely: its centre of mass follows a parabola).
+Horizon 1 s and 10 samples unless given.
+
 examples:
   redysim simulate RE-U125-L1 --t-end 0.1 --sample 0.01
   redysim simulate STUDY-R3 --integrator rk4 --h 1e-3 --t-end 1
-  redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet"""
+  redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet
+  redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
+  redysim simulate solo12.urdf --floating"""
 
 SWEEP_HELP = """\
 Run a sweep file: a TOML [sweep] table whose lists (cases, engines, methods, integrators, rtols,
@@ -109,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="run one case with one engine and integrator; print energy "
                               "drift and tip position")
     sim.add_argument("case", metavar="CASE",
-                     help="a case name (see `redysim cases`) or the path of a case file")
+                     help="a case name (see `redysim cases`), the path of a case file, or a "
+                          "robot: a .urdf or MJCF .xml file")
     sim.add_argument("--engine", default=CORE, choices=(CORE, *references.ENGINES), metavar="E",
                      help=f"who computes qdd: {CORE} (the core) or a reference engine: "
                           f"{', '.join(references.ENGINES)} (default: {CORE})")
@@ -140,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", type=Path, metavar="FILE.parquet|FILE.csv",
                      help="also save the samples to FILE and the summary row to "
                           "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
+    _model_flags(sim)
     sim.set_defaults(func=cmd_simulate)
 
     sw = sub.add_parser("sweep", description=SWEEP_HELP, formatter_class=fmt,
@@ -169,13 +185,17 @@ def build_parser() -> argparse.ArgumentParser:
                           help="print a model's tree: bodies, joints, masses, what was dropped")
     info.add_argument("model", metavar="MODEL",
                       help="a .urdf, an MJCF .xml, a case .toml, or a case name")
-    info.add_argument("--floating", action="store_true",
-                      help="a URDF's root link gets a free joint (a legged or flying robot)")
-    info.add_argument("--mimic", choices=("refuse", "independent"), default="refuse",
-                      help="a URDF's mimic joints: refuse them (default) or let them move "
-                           "independently")
+    _model_flags(info)
     info.set_defaults(func=cmd_info)
     return ap
+
+
+def _model_flags(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--floating", action="store_true",
+                        help="a URDF's root link gets a free joint (a legged or flying robot)")
+    parser.add_argument("--mimic", choices=("refuse", "independent"), default="refuse",
+                        help="a URDF's mimic joints: refuse them (default) or let them move "
+                             "independently")
 
 
 # --------------------------------------------------------------------------- commands
@@ -213,8 +233,13 @@ def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
           file=sys.stderr, flush=True)
 
 
+MODEL_SUFFIXES = (".urdf", ".xml")  # files `redysim simulate` runs as a model (a robot)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``redysim simulate``: one run, printed."""
+    if Path(args.case).suffix.lower() in MODEL_SUFFIXES:
+        return _simulate_model(args)
     from redysim.harness.run import execute
     from redysim.harness.spec import RunSpec
 
@@ -239,6 +264,84 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(f"{PROG}: run failed: {res.summary['reason']}", file=sys.stderr)
         return EXIT_RUN_FAILED
     return EXIT_OK
+
+
+def _simulate_model(args: argparse.Namespace) -> int:
+    """``redysim simulate ROBOT.urdf``: a passive fall of a model, printed (and saved)."""
+    import numpy as np
+
+    from redysim.harness.run import PROGRESS_EVERY_S
+    from redysim.harness.spec import CORE, RunSpec
+    from redysim.importers import load_model
+    from redysim.simulation import simulate
+
+    if args.engine != CORE:
+        raise SettingsError(SOURCE, "--engine", args.engine, "a robot file runs on the core; "
+                            "the engines take models through redysim.references (Python)")
+    if args.method != RunSpec.method:
+        raise SettingsError(SOURCE, "--method", args.method, "a robot file runs RGE-A")
+    if args.max_wall is not None:
+        raise SettingsError(SOURCE, "--max-wall", args.max_wall, "not available for a robot "
+                            "file (its runs are short)")
+    model = load_model(args.case, floating=args.floating, mimic=args.mimic)
+    t_end = args.t_end or 1.0
+    integrator = args.integrator or DEFAULT_METHOD
+    fixed = integrator in ("rk4",)
+    rtol, atol = args.rtol or DEFAULT_RTOL, args.atol or DEFAULT_ATOL
+    check_settings(SOURCE, FLAGS, method=integrator, rtol=None if fixed else rtol,
+                   atol=None if fixed else atol, h=args.h, t_end=t_end, sample=args.sample)
+    if fixed and args.h is None:
+        raise SettingsError(SOURCE, "--h", None, f"{integrator} needs its step: give --h")
+    if args.out is not None:
+        _check_out(args.out)
+    sim = simulate(model, t_end, integrator=integrator, rtol=rtol, atol=atol, h=args.h,
+                   sample=args.sample, progress=_progress_every(PROGRESS_EVERY_S))
+    base = "floating base" if model.quaternions.size else "fixed base"
+    print(f"{model.name}   ({args.case}: {model.n_bodies} bodies, n_q = {model.n_q}, "
+          f"n_v = {model.n_v}, {model.total_mass:.6g} kg, {base})")
+    settings = f"h {args.h:g} s" if fixed else f"rtol {rtol:g}, atol {atol:g}"
+    print(f"  run           passive fall from rest, {t_end:g} s, {integrator} ({settings})")
+    print(f"  status        {'ok' if sim.status == 0 else 'failed: ' + sim.message}")
+    print(f"  E(0)          {sim.E0:.6f} J")
+    print(f"  steps         {sim.steps} ({sim.rejected} rejected), {sim.nfev} RHS calls")
+    print(f"  CPU           {sim.cpu_s:.3f} s (wall {sim.wall_s:.3f} s; JIT compile or cache "
+          f"load {sim.jit_s:.3f} s, timed apart)")
+    if sim.delta_M.size:
+        print(f"  |delta_M|     average {np.abs(sim.delta_M).mean():.3e} J/kg, max "
+              f"{np.abs(sim.delta_M).max():.3e} J/kg over {sim.t.size} samples")
+    if model.quaternions.size:
+        print(f"  quaternion    largest | |q| - 1 | after a step, before its projection: "
+              f"{sim.quaternion_error:.1e}")
+    print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'COM x [m]':>12} {'COM y [m]':>12} "
+          f"{'COM z [m]':>12}")
+    for t, dM, c in zip(sim.t, sim.delta_M, sim.com, strict=True):
+        print(f"{t:10.4f} {dM:15.3e} {c[0]:12.6f} {c[1]:12.6f} {c[2]:12.6f}")
+    if args.out is not None:
+        import pandas as pd
+
+        cols = {"t": sim.t, "energy": sim.energy, "delta_M": sim.delta_M,
+                **{f"com_{a}": sim.com[:, i] for i, a in enumerate("xyz")},
+                **{f"q{i}": sim.q[:, i] for i in range(model.n_q)},
+                **{f"v{i}": sim.v[:, i] for i in range(model.n_v)}}
+        _save(pd.DataFrame(cols), args.out)
+        print(f"saved: {args.out} (samples: t, energy, delta_M, COM, q, v)")
+    if sim.status != 0:
+        print(f"{PROG}: run failed: {sim.message}", file=sys.stderr)
+        return EXIT_RUN_FAILED
+    return EXIT_OK
+
+
+def _progress_every(seconds: float):
+    """A progress callback that reports at most every ``seconds`` of wall time."""
+    import time
+
+    next_report = [time.perf_counter() + seconds]
+
+    def report(t, t_end, steps, wall):
+        if time.perf_counter() >= next_report[0]:
+            _report_progress(t, t_end, steps, wall)
+            next_report[0] = time.perf_counter() + seconds
+    return report
 
 
 def print_run(summary: dict, samples) -> None:

@@ -1,10 +1,15 @@
-"""redysim: O(n) dynamics of very long serial chains (DeNOC + Reverse Gaussian Elimination).
+"""redysim: O(n) dynamics of very long serial chains and kinematic trees (DeNOC + Reverse
+Gaussian Elimination).
 
 The public surface; everything else is internal::
 
     from redysim import load_case, forward_dynamics
     case = load_case("RE-U125-L1")
     qdd = forward_dynamics(case.chain, case.q0, case.qd0)
+
+    from redysim import load_model, simulate
+    robot = load_model("ur5_robot.urdf")          # or an MJCF .xml
+    fall = simulate(robot, 1.0, rtol=1e-8, atol=1e-10)
 
 References:
     A. Agarwal, S. V. Shah, S. Bandyopadhyay, S. K. Saha, "Dynamics of serial kinematic chains
@@ -33,14 +38,16 @@ from .dynamics import (
 from .errors import CaseError, FieldError, RedysimError, SettingsError, StateError
 from .importers import ModelFileError, load_model
 from .model import Body, Model, TreeJoint
+from .simulation import Simulation, simulate
 from .workspace import Workspace
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Body", "Case", "CaseError", "Chain", "Elimination", "FieldError", "JOINT_TYPES", "Joint",
-    "Link", "METHODS", "Model", "ModelFileError", "RedysimError", "SettingsError", "StateError",
-    "Tip", "TreeJoint", "UDU", "Workspace", "case_from_dict", "delta_M", "eliminate", "energy",
-    "forward_dynamics", "inverse_dynamics", "joint_positions", "list_cases", "load_case",
-    "load_model", "load_published", "mass_matrix", "phi", "rbda", "tip", "udu_factors",
+    "Link", "METHODS", "Model", "ModelFileError", "RedysimError", "SettingsError", "Simulation",
+    "StateError", "Tip", "TreeJoint", "UDU", "Workspace", "case_from_dict", "delta_M",
+    "eliminate", "energy", "forward_dynamics", "inverse_dynamics", "joint_positions",
+    "list_cases", "load_case", "load_model", "load_published", "mass_matrix", "phi", "rbda",
+    "simulate", "tip", "udu_factors",
 ]

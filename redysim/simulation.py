@@ -1,0 +1,213 @@
+"""Simulate a chain or a model from a state: the motion, the energy balance, the centre of mass.
+
+:func:`simulate` integrates dy/dt = (dq/dt, vdot) with y = (q, v), vdot from
+:func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
+free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
+trees"). Any of :data:`redysim.integrate.INTEGRATORS` steps it. A quaternion integrated so drifts
+off the unit sphere by the integrator's error; after every accepted step it is projected back
+(divided by its norm; so are the samples interpolated between steps), the largest norm error
+seen before a projection is reported, and the kernels read any quaternion's direction only (so
+a stage's slightly-off quaternion is harmless).
+
+The energy E = T + V is sampled with the motion; with no joint torques it is conserved, and its
+change per unit mass delta_M = (E - E0) / M (the paper's Eq. 11) measures the integration error.
+The centre of mass is sampled too: in a free fall (a floating base, no contact) it follows
+c(t) = c0 + cdot0 t + g t^2 / 2 exactly, a check that needs no reference solution.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .chain import Chain
+from .dynamics import check_state, energy, forward_dynamics
+from .errors import SettingsError, StateError
+from .integrate import (
+    DEFAULT_ATOL,
+    DEFAULT_METHOD,
+    DEFAULT_RTOL,
+    FIXED_STEP,
+    advance,
+    check_settings,
+    compile_kernels,
+    make_solver,
+    sample_times,
+)
+from .model import FREE, Model
+from .workspace import Workspace
+
+DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
+
+
+@dataclass
+class Simulation:
+    """Samples at ``t`` (m,): ``q`` (m, n_q), ``v`` (m, n_v), ``energy`` (m,) [J], ``delta_M``
+    (m,) [J/kg], ``com`` (m, 3) [m]; the run's counts and times; ``status`` 0 done, 1 stopped, -1
+    failed (``message`` says why); ``quaternion_error``: the largest | |q| - 1 | of a free
+    joint's quaternion before its projection after a step (0 without one)."""
+
+    name: str
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    energy: np.ndarray
+    delta_M: np.ndarray
+    com: np.ndarray
+    steps: int
+    rejected: int
+    nfev: int
+    status: int
+    message: str
+    cpu_s: float
+    wall_s: float
+    jit_s: float
+    quaternion_error: float
+
+    @property
+    def E0(self) -> float:
+        return float(self.energy[0]) if self.energy.size else math.nan
+
+
+class _Motion:
+    """The right-hand side (dq/dt, vdot) of a system, with its workspace."""
+
+    def __init__(self, system: Chain | Model):
+        self.system = system
+        self.ws = Workspace(system)
+        self.nq, self.nv = system.n_q, system.n_v
+        # a free joint's (q index of x, v index of its linear velocity); every other coordinate
+        # moves as its velocity
+        free = [] if isinstance(system, Chain) else \
+            [(int(system.joint_qoff[k]), int(system.joint_voff[k]))
+             for k, t in enumerate(system.joint_types) if t == FREE]
+        self.free = free
+        self.quaternions = np.array([qs + 3 for qs, _ in free], dtype=np.int64)
+        plain_q, plain_v = [], []
+        qoff = system.joint_qoff
+        voff = system.joint_qoff if isinstance(system, Chain) else system.joint_voff
+        for k in range(qoff.shape[0] - 1):
+            if (int(qoff[k]), int(voff[k])) in free:
+                continue
+            plain_q.extend(range(qoff[k], qoff[k + 1]))
+            plain_v.extend(range(voff[k], voff[k + 1]))
+        self.plain_q = np.array(plain_q, dtype=np.int64)
+        self.plain_v = np.array(plain_v, dtype=np.int64)
+        self.mass = system.total_mass
+
+    def rhs(self, _t, y):
+        nq = self.nq
+        out = np.empty(nq + self.nv)
+        q, v = y[:nq], y[nq:]
+        forward_dynamics(self.system, q, v, ws=self.ws, out=out[nq:])
+        if not self.free:
+            out[:nq] = v
+            return out
+        out[self.plain_q] = v[self.plain_v]
+        for qs, vs in self.free:
+            out[qs:qs + 3] = v[vs:vs + 3]
+            qw, qx, qy, qz = y[qs + 3:qs + 7]
+            wx, wy, wz = v[vs + 3:vs + 6]
+            out[qs + 3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
+            out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
+            out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
+            out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+        return out
+
+    def project(self, y) -> float:
+        """Divide each quaternion of ``y`` by its norm, in place; the largest | |q| - 1 |."""
+        worst = 0.0
+        for i in self.quaternions:
+            norm = math.sqrt(float(y[i:i + 4] @ y[i:i + 4]))
+            worst = max(worst, abs(norm - 1.0))
+            y[i:i + 4] /= norm
+        return worst
+
+    def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
+        """E = T + V, and the centre of mass from the same kinematics pass."""
+        T, V = energy(self.system, q, v, ws=self.ws)
+        tree, ws = self.ws.tree, self.ws
+        md = np.einsum("kij,kj->ki", ws.oR, tree.mass_com)  # m_k R_k c_k
+        com = (tree.mass @ ws.oO + md.sum(axis=0)) / self.mass
+        return T + V, com
+
+
+def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
+             integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
+             atol: float = DEFAULT_ATOL, h: float | None = None, sample: float | None = None,
+             progress: Callable[[float, float, int, float], None] | None = None
+             ) -> Simulation:
+    """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques).
+
+    q0: default the model's own configuration (:meth:`Model.initial`: the file's, else every
+    joint at zero, quaternions the identity), zeros for a chain; v0: default zeros.
+    integrator, rtol, atol, h: as :func:`redysim.integrate.integrate` (h for rk4 only).
+    sample: the sample interval (default t_end / 10). progress: called as
+    ``progress(t, t_end, steps, wall_s)`` after each step. Raises SettingsError for a setting out
+    of range and StateError for a bad q0 or v0.
+    """
+    if not isinstance(system, Chain | Model):
+        raise TypeError(f"simulate takes a redysim.Chain or redysim.Model, not "
+                        f"{type(system).__name__}")
+    fixed = integrator in FIXED_STEP
+    if fixed and h is None:
+        raise SettingsError("simulate", "h", h, f"{integrator} is a fixed-step integrator: give "
+                            "its step h [s]")
+    check_settings("simulate", method=integrator, rtol=None if fixed else rtol,
+                   atol=None if fixed else atol, h=h, t_end=t_end,
+                   sample=sample)
+    sample = sample if sample is not None else t_end / DEFAULT_SAMPLES
+    if q0 is None:
+        q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
+    q0 = check_state(system, "q", q0)
+    v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
+    motion = _Motion(system)
+    y0 = np.concatenate((q0, v0))
+    q_error = motion.project(y0)
+    if q_error > 1e-6:
+        raise StateError(f"q0's quaternion has norm {1 + q_error:.9g}: give a unit quaternion "
+                         "(w, x, y, z)")
+    t_jit = time.perf_counter()
+    motion.rhs(0.0, y0)  # the first call: JIT compile or on-disk cache load, timed apart
+    compile_kernels()
+    jit_s = time.perf_counter() - t_jit
+    ts, ys, energies, coms = [], [], [], []
+    worst = [0.0]
+
+    def on_sample(t, y):
+        y = y.copy()
+        motion.project(y)  # a sample between steps is interpolated: back on the unit sphere too
+        E, com = motion.energy_and_com(y[:motion.nq], y[motion.nq:])
+        ts.append(t)
+        ys.append(y)
+        energies.append(E)
+        coms.append(com)
+        return None if math.isfinite(E) else f"non-finite energy at t = {t:.6g}"
+
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+
+    def on_step(s):
+        worst[0] = max(worst[0], motion.project(s.y))
+        if progress is not None:
+            progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
+        return None
+
+    solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h)
+    try:
+        status, message = advance(solver, sample_times(0.0, t_end, sample), on_sample=on_sample,
+                                  on_step=on_step)
+    except StateError as exc:  # qdd not defined or overflowed at a stage
+        status, message = -1, f"at t = {solver.t:.6g}: {exc}"
+    c = solver.counters
+    Y = np.array(ys) if ys else np.empty((0, y0.size))
+    E = np.array(energies)
+    return Simulation(
+        name=system.name, t=np.array(ts), q=Y[:, :motion.nq], v=Y[:, motion.nq:], energy=E,
+        delta_M=(E - E[0]) / motion.mass if E.size else E, com=np.array(coms).reshape(-1, 3),
+        steps=c.steps, rejected=c.rejected, nfev=c.nfev, status=status, message=message,
+        cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
+        quaternion_error=worst[0])

@@ -1,0 +1,93 @@
+"""redysim.simulate on models: the quaternion of a free joint, momentum, energy, the command.
+
+Checks that need no reference solution: a floating tree in free fall has its centre of mass on
+the parabola c0 + cdot0 t + g t^2 / 2 (only gravity acts on it), its energy conserved to the
+integrator's tolerance, and its quaternion on the unit sphere after every step, whichever
+integrator steps it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_chain, random_state, stable_seed
+from test_trees import random_configuration, random_tree, robot_urdf
+
+from redysim import Model
+from redysim.errors import SettingsError, StateError
+from redysim.harness.cli import main
+from redysim.simulation import simulate
+
+SETTINGS = {"ode45": dict(rtol=1e-9, atol=1e-11), "dop853": dict(rtol=1e-10, atol=1e-12),
+            "rk4": dict(h=2e-4), "scipy-RK45": dict(rtol=1e-9, atol=1e-11),
+            "scipy-DOP853": dict(rtol=1e-10, atol=1e-12), "scipy-LSODA": dict(rtol=1e-9,
+                                                                              atol=1e-11),
+            "scipy-Radau": dict(rtol=1e-8, atol=1e-10)}
+
+
+def _parabola_error(sim, gravity) -> float:
+    """Largest distance of the sampled COM from its least-squares line after the gravity term
+    is taken off: c(t) - g t^2 / 2 must be c0 + cdot0 t."""
+    A = np.column_stack([np.ones_like(sim.t), sim.t])
+    rest = sim.com - 0.5 * np.outer(sim.t ** 2, gravity)
+    coef, *_ = np.linalg.lstsq(A, rest, rcond=None)
+    return float(np.abs(A @ coef - rest).max())
+
+
+@pytest.mark.parametrize("integrator", SETTINGS)
+def test_a_floating_tree_falls_freely_with_every_integrator(integrator):
+    model = random_tree(stable_seed("free-fall"), n_bodies=5)
+    rng = np.random.default_rng(7)
+    q0, v0 = random_configuration(rng, model), rng.normal(size=model.n_v)
+    sim = simulate(model, 0.3, q0=q0, v0=v0, integrator=integrator, sample=0.03,
+                   **SETTINGS[integrator])
+    assert sim.status == 0, sim.message
+    quats = sim.q[:, model.quaternions[0]:model.quaternions[0] + 4]
+    assert np.abs(np.linalg.norm(quats, axis=1) - 1).max() < 1e-15
+    assert 0 < sim.quaternion_error < 1e-6  # it did drift, and was projected back
+    assert _parabola_error(sim, model.gravity) < 1e-8
+    assert np.abs(sim.delta_M).max() < 1e-6
+
+
+def test_a_chain_and_its_model_simulate_alike_bit_for_bit():
+    rng = np.random.default_rng(stable_seed("sim-chain"))
+    chain = random_chain(rng, 6, ("R", "U", "S"))
+    q0, qd0, _ = random_state(rng, chain, "gentle")
+    a = simulate(chain, 0.2, q0=q0, v0=qd0)
+    b = simulate(Model.from_chain(chain), 0.2, q0=q0, v0=qd0)
+    assert a.steps == b.steps and np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v)
+    assert np.array_equal(a.energy, b.energy)
+
+
+def test_bad_settings_and_states_are_refused():
+    model = random_tree(stable_seed("sim-bad"), n_bodies=3)
+    with pytest.raises(SettingsError, match="h"):
+        simulate(model, 0.1, integrator="rk4")
+    with pytest.raises(SettingsError, match="rtol"):
+        simulate(model, 0.1, rtol=2.0)
+    q0 = model.neutral()
+    q0[model.quaternions[0]] = 2.0
+    with pytest.raises(StateError, match="unit quaternion"):
+        simulate(model, 0.1, q0=q0)
+    with pytest.raises(StateError, match="shape"):
+        simulate(model, 0.1, v0=np.zeros(model.n_v + 1))
+
+
+def test_redysim_simulate_runs_a_urdf(capsys, tmp_path):
+    """The command on a robot no one here wrote: a passive fall, the drift and the COM printed,
+    the samples saved."""
+    out = tmp_path / "fall.csv"
+    path = robot_urdf("solo12.urdf")
+    assert main(["simulate", path, "--floating", "--t-end", "0.2", "--rtol", "1e-9", "--atol",
+                 "1e-11", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "floating base" in text and "|delta_M|" in text and "COM z [m]" in text
+    import pandas as pd
+
+    df = pd.read_csv(out)
+    assert {"t", "delta_M", "com_z", "q0", "v0"} <= set(df.columns) and len(df) == 11
+    g = 9.81  # the URDF importer's gravity, -z: the COM falls g t^2 / 2 from rest
+    assert df["com_z"].iloc[0] - df["com_z"].iloc[-1] == pytest.approx(0.5 * g * 0.2 ** 2,
+                                                                        rel=1e-6)
+    assert main(["simulate", path, "--engine", "mujoco"]) == 2
+    assert "runs on the core" in capsys.readouterr().err
