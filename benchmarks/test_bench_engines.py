@@ -7,6 +7,9 @@
     .venv/bin/python -m redysim.references.report_bench results/bench_engines.json
 
 The chain is the RE-U steel rod (20 mm links, rod inertia); the state a seeded small-angle one.
+Robots (``test_qdd_robot``): URDFs of example-robot-data, an arm (UR5, fixed base) and a humanoid
+(Talos, reduced, floating base), the core beside ``pin.aba`` called from Python on Pinocchio's
+own model of the same file (tests/test_trees.py checks the two models agree to 1e-13).
 Models are built once per module (build time is not timed here; references/limits.toml has it).
 The core is warmed up (numba JIT) before timing. A size beyond an engine's limit is skipped with
 the limit's reason, never attempted.
@@ -86,6 +89,59 @@ def test_qdd(benchmark, name, dof):
         info["version"] = eng.version
         benchmark.extra_info.update(info)
         out = benchmark(eng.qdd, q, qd)
+    assert np.all(np.isfinite(out))
+
+
+ROBOTS = {"ur5": ("ur_description/urdf/ur5_robot.urdf", False),
+          "talos": ("talos_reduced.urdf", True)}
+
+
+def robot_path(file: str) -> str:
+    from importlib import metadata
+
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        pytest.skip("example-robot-data is not installed (the test extra installs it)")
+    return str(dist.locate_file(next(f for f in dist.files if str(f).endswith("/" + file))))
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+@pytest.mark.parametrize("name", ["core", "pinocchio-aba"])
+def test_qdd_robot(benchmark, name, robot):
+    """qdd per call on a robot at a seeded state near the neutral one; mimic joints (Talos's
+    grippers) move independently in both (Pinocchio's default)."""
+    file, floating = ROBOTS[robot]
+    path = robot_path(file)
+    rng = np.random.default_rng(1)
+    benchmark.group = f"qdd-robot-{robot}"
+    if name == "core":
+        model = redysim.load_model(path, floating=floating, mimic="independent")
+        q = model.neutral()
+        quaternion = [i + j for i in model.quaternions for j in range(4)]
+        plain = np.setdiff1d(np.arange(model.n_q), quaternion)
+        q[plain] += rng.uniform(-0.3, 0.3, plain.size)
+        v = rng.uniform(-0.3, 0.3, model.n_v)
+        ws = Workspace(model)
+        redysim.forward_dynamics(model, q, v, ws=ws)  # JIT warm-up, not timed
+        version, dof = redysim.__version__, model.n_v
+        call = (redysim.forward_dynamics, model, q, v)
+        kw = {"ws": ws}
+    else:
+        pin = pytest.importorskip("pinocchio")
+        pm = (pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer()) if floating
+              else pin.buildModelFromUrdf(path))
+        data = pm.createData()
+        q = pin.neutral(pm)
+        q[7 if floating else 0:] += rng.uniform(-0.3, 0.3, pm.nq - (7 if floating else 0))
+        v = rng.uniform(-0.3, 0.3, pm.nv)
+        tau = np.zeros(pm.nv)
+        version, dof = pin.__version__, pm.nv
+        call = (pin.aba, pm, data, q, v, tau)
+        kw = {}
+    benchmark.extra_info.update({"engine": name, "dof": dof, "robot": robot, "kind": "qdd",
+                                 "version": version, **machine()})
+    out = benchmark(*call, **kw)
     assert np.all(np.isfinite(out))
 
 

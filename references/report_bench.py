@@ -22,14 +22,17 @@ def rows(doc: dict) -> list[dict]:
         if "engine" not in x:
             continue
         out.append({"kind": x.get("kind", "qdd"), "engine": x["engine"],
-                    "version": x.get("version", ""), "dof": int(x["dof"]),
+                    "robot": x.get("robot", ""), "version": x.get("version", ""),
+                    "dof": int(x["dof"]),
                     "mean_s": b["stats"]["mean"], "min_s": b["stats"]["min"],
                     "rounds": b["stats"]["rounds"]})
-    core = {r["dof"]: r["min_s"] for r in out if r["engine"] == "core" and r["kind"] == "qdd"}
+    core = {(r["robot"], r["dof"]): r["min_s"] for r in out
+            if r["engine"] == "core" and r["kind"] == "qdd"}
     for r in out:
+        key = (r["robot"], r["dof"])
         r["ns_per_dof"] = r["min_s"] * 1e9 / r["dof"]
-        r["ratio"] = r["min_s"] / core[r["dof"]] if r["dof"] in core else float("nan")
-    out.sort(key=lambda r: (r["kind"], r["dof"], r["min_s"]))
+        r["ratio"] = r["min_s"] / core[key] if key in core else float("nan")
+    out.sort(key=lambda r: (r["kind"], r["robot"], r["dof"], r["min_s"]))
     return out
 
 
@@ -41,8 +44,9 @@ def fmt_time(s: float) -> str:
 
 
 def table(rs: list[dict], markdown: bool = False) -> str:
-    head = ["kind", "engine", "version", "DOF", "time/call (min)", "ns/DOF", "x core"]
-    body = [[r["kind"], r["engine"], r["version"], f"{r['dof']:,}", fmt_time(r["min_s"]),
+    head = ["kind", "robot", "engine", "version", "DOF", "time/call (min)", "ns/DOF", "x core"]
+    body = [[r["kind"], r["robot"] or "U chain", r["engine"], r["version"], f"{r['dof']:,}",
+             fmt_time(r["min_s"]),
              f"{r['ns_per_dof']:,.0f}", f"{r['ratio']:.3g}"] for r in rs]
     if markdown:
         lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
