@@ -261,7 +261,9 @@ def _check_inertia_to_move(model: Model, src: str) -> None:
 # --------------------------------------------------------------------------- MJCF
 def load_mjcf(path: str | os.PathLike) -> Model:
     """An MJCF model's tree as MuJoCo compiles it (inertias from geometry where the file gives
-    none, default classes applied), with its gravity."""
+    none, default classes applied), with its gravity. A body with several hinge and slide joints
+    (MuJoCo composes them in order, each axis in the frame the ones before it leave) becomes a
+    chain of massless bodies, one joint each, the last carrying the body."""
     path = Path(path)
     src = str(path)
     mj = _mujoco(path)
@@ -270,22 +272,31 @@ def load_mjcf(path: str | os.PathLike) -> Model:
     except Exception as exc:  # MuJoCo reports a bad file with a ValueError
         raise ModelFileError(src, "<mujoco>", None, f"MuJoCo's compiler: {exc}") from None
     bodies, joints, parents = [], [], []
+    ours = {0: -1}  # MuJoCo's body id -> our index of it (its last body); the world is -1
     for b in range(1, m.nbody):
         name = mj.mj_id2name(m, mj.mjtObj.mjOBJ_BODY, b) or f"body{b}"
-        parent = int(m.body_parentid[b]) - 1  # MuJoCo's world is body 0
-        ids = np.flatnonzero(m.jnt_bodyid == b)
-        if len(ids) > 1:
-            raise ModelFileError(src, f"body[@name='{name}']", len(ids),
-                                 "several joints in one body are not read yet")
-        if len(ids):
-            j = int(ids[0])
+        parent = ours[int(m.body_parentid[b])]
+        specs = []  # (type, axis, name) of each of the body's joints, in order
+        for j in map(int, np.flatnonzero(m.jnt_bodyid == b)):
             jname = mj.mj_id2name(m, mj.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
             if np.abs(m.jnt_pos[j]).max() > 0:
                 raise ModelFileError(src, f"joint[@name='{jname}'].pos", list(m.jnt_pos[j]),
                                      "a joint away from its body's origin is not read yet")
             jtype, axis = _joint(mj, src, m.jnt_type[j], m.jnt_axis[j], jname, parent == -1)
-        else:
-            jtype, axis, jname = FIXED, None, f"{name}_fixed"
+            if jtype == FREE and len(np.flatnonzero(m.jnt_bodyid == b)) > 1:
+                raise ModelFileError(src, f"body[@name='{name}']", "free",
+                                     "a free joint must be its body's only joint")
+            specs.append((jtype, axis, jname))
+        if not specs:
+            specs = [(FIXED, None, f"{name}_fixed")]
+        placement = dict(rotation=tuple(map(tuple, _quat_matrix(m.body_quat[b]))),
+                         translation=tuple(float(x) for x in m.body_pos[b]))
+        for i, (jtype, axis, jname) in enumerate(specs[:-1]):  # massless, one joint each
+            bodies.append(Body(f"{name}_{jname}", 0.0, physical=False))
+            joints.append(TreeJoint(jname, jtype, axis, **(placement if i == 0 else {})))
+            parents.append(parent)
+            parent = len(bodies) - 1
+        jtype, axis, jname = specs[-1]
         R = _quat_matrix(m.body_iquat[b])
         inertia = R @ np.diag(m.body_inertia[b]) @ R.T
         bodies.append(Body(name, float(m.body_mass[b]), tuple(m.body_ipos[b]),
@@ -293,10 +304,9 @@ def load_mjcf(path: str | os.PathLike) -> Model:
         if jtype == FREE:  # the body's pose is the joint's initial configuration (qpos0)
             joints.append(TreeJoint(jname, jtype))
         else:
-            joints.append(TreeJoint(jname, jtype, axis,
-                                    rotation=tuple(map(tuple, _quat_matrix(m.body_quat[b]))),
-                                    translation=tuple(float(x) for x in m.body_pos[b])))
+            joints.append(TreeJoint(jname, jtype, axis, **(placement if len(specs) == 1 else {})))
         parents.append(parent)
+        ours[b] = len(bodies) - 1
     notes = ["geometry, actuators, sensors, tendons, equality constraints, contacts",
              "joint limits, damping, armature and friction"]
     model = _finish(bodies, joints, parents, tuple(float(g) for g in m.opt.gravity), path.stem,
