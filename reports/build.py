@@ -418,19 +418,87 @@ def bench_table(res: Results) -> Table:
     from redysim.references.report_bench import rows as bench_rows
 
     t = Table("bench", "Benchmarks (pytest-benchmark): qdd per call, core vs engines",
-              ["kind", "engine", "version", "DOF", "fastest per call", "ns/DOF", "x core"])
+              ["kind", "system", "engine", "version", "DOF", "fastest per call", "ns/DOF",
+               "x core"])
     doc = res.bench("engines")
     if doc is None:
         t.not_run = "not run: make bench-engines"
         return t
     for r in bench_rows(doc):
-        t.rows.append(Row([r["kind"], r["engine"], r["version"], f"{r['dof']:,}",
+        t.rows.append(Row([r["kind"], r["robot"] or "U chain", r["engine"], r["version"],
+                           f"{r['dof']:,}",
                            seconds(r["min_s"]), num(r["ns_per_dof"], 3),
                            num(r["ratio"], 3)]))
     info = doc.get("machine_info", {})
     t.provenance = (f"results/bench/engines.json: {info.get('cpu', {}).get('brand_raw', '')}, "
                     f"Python {info.get('python_version', '')}, {doc.get('datetime', '')}")
     return t
+
+
+# --------------------------------------------------------------------------- robots and trees
+ROBOTS_NOT_RUN = "not run: python -m redysim.reports.robots (make reproduce runs it)"
+
+
+def robots_section(res: Results) -> Section:
+    """Robots no one here wrote, in the core and every engine (reports/robots.py)."""
+    from .robots import STAGES
+
+    sec = Section("robots", "Robots and trees")
+    sec.intro.append("The core runs kinematic trees (fixed or floating base) with the same "
+                     "compiled kernels as the rope. Here: robots of the example-robot-data "
+                     "package (URDF read by MuJoCo's parser) and the DH robots of cases/robots, "
+                     "in the core and in every engine, each engine building the core's own tree "
+                     "(redysim.references); per-call cost beside pin.aba; passive falls.")
+    doc = res.robots
+    agree = Table("robots-agreement", "Agreement with the engines: worst relative difference "
+                  "over seeded random states", ["robot", "engine", *STAGES, "verdict"])
+    percall = Table("robots-percall", "qdd per call from Python: the core and pin.aba, side by "
+                    "side", ["robot", "DOF", "core", "pin.aba", "pin.aba / core"])
+    falls = Table("robots-falls", "Passive falls, 1 s (ode45, rtol 1e-8, atol 1e-10)",
+                  ["robot", "DOF", "steps", "CPU", "max |delta_M| [J/kg]",
+                   "COM off its parabola [m]"])
+    if doc is None:
+        for t in (agree, percall, falls):
+            t.not_run = ROBOTS_NOT_RUN
+        sec.items += [agree, percall, falls]
+        return sec
+    tol = doc["tolerance"]
+    for r in doc["agreement"]:
+        if r["status"] != "ok":
+            agree.rows.append(Row([r["robot"], r["engine"], *([""] * len(STAGES)),
+                                   f"{r['status']}: {r['reason']}"], NOT_RUN))
+            continue
+        worst = max(r[s] for s in STAGES)
+        ok = worst <= tol
+        agree.rows.append(Row([r["robot"], r["engine"], *(sci(r[s], 1) for s in STAGES),
+                               f"agree within {tol:g}" if ok else f"differ: {sci(worst, 1)}"],
+                              MATCH if ok else DIFFER))
+    agree.notes.append(f"max |engine - core| / max |core| over {doc['states']} seeded states "
+                       "(joint angles in [-1.2, 1.2] rad, random velocities and torques, a "
+                       "random base pose); bias = phi with tau = 0; energy = (T, V). A row "
+                       "without numbers: the engine refused the model before building it (its "
+                       "limits say why) or failed (its words).")
+    for r in doc["per_call"]:
+        percall.rows.append(Row([r["robot"], integer(r["n_v"]), seconds(r["core_s"]),
+                                 seconds(r["pin_aba_s"]), num(r["ratio"], 3)]))
+    percall.notes.append("The fastest of 9 rounds of 2,000 calls each, alternating; the core "
+                         "with a reused Workspace, pin.aba on Pinocchio's own model of the same "
+                         "URDF (tests/test_trees.py: the two agree to 1e-13). make "
+                         "bench-engines measures the same with pytest-benchmark.")
+    for r in doc["falls"]:
+        falls.rows.append(Row([r["robot"], integer(r["n_v"]), integer(r["steps"]),
+                               seconds(r["cpu_s"]), sci(r["max_abs_delta_M"], 2),
+                               "" if not finite(r["parabola_m"]) else sci(r["parabola_m"], 1)],
+                              INFO if r["status"] == "ok" else DIFFER))
+    falls.notes.append("A fixed base falls from rest; a floating base tumbles (seeded joint and "
+                       "base velocities), its quaternion projected onto the unit sphere after "
+                       "every step. In free fall the centre of mass must follow c0 + cdot0 t + "
+                       "g t^2 / 2 whatever the joints do: its distance from that parabola "
+                       "checks the floating-base dynamics without a reference solution.")
+    for t in (agree, percall, falls):
+        t.provenance = provenance_line(doc.get("provenance"), what="results/robots/robots.json")
+    sec.items += [agree, percall, falls]
+    return sec
 
 
 # --------------------------------------------------------------------------- assembling
@@ -459,7 +527,7 @@ def build_report(res: Results) -> Report:
                             bench_table(res)])
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
-                  [setup_section(ctx), paper, figs, beyond],
+                  [setup_section(ctx), paper, figs, beyond, robots_section(res)],
                   provenance_line(here, what="report built with"))
 
 

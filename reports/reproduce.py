@@ -17,7 +17,8 @@ the precision tables 8, 10, 11, A.2 and IEEE (:mod:`reports.precision_tables`, T
 its sensitivity runs); Table 9 and the conditioning study (:mod:`reports.gim_study`); the
 operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 links
 (:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
-then the report (:mod:`reports.build`).
+robots and trees in the core and every engine (:mod:`reports.robots`); then the report
+(:mod:`reports.build`).
 
 Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
 ``drift-ensemble.toml`` and ``work-precision-RE-U125-L1.toml`` (Table 6's GE-N on the larger
@@ -187,6 +188,15 @@ class Reproduction:
                 + ", ".join(f"{a} {g['n_dof'].max():,}" for a, g in ok.groupby("algorithm",
                                                                                sort=False)))
 
+    def robots(self) -> str:
+        from . import robots
+
+        doc = robots.run(self.results / "robots", log=self.say)
+        ok = [r for r in doc["agreement"] if r["status"] == "ok"]
+        worst = max((max(r[s] for s in robots.STAGES) for r in ok), default=float("nan"))
+        return (f"{len(doc['falls'])} robots, {len(ok)} robot x engine pairs built, worst "
+                f"relative difference {worst:.1e}")
+
     def build(self) -> str:
         from .build import write_report
 
@@ -217,6 +227,7 @@ class Reproduction:
             p.add("Table 7, operation counts", self.opcount)
             p.add("true-error study", lambda: self.error_study(QUICK_ERROR_SIZES))
             p.add("CPU scaling", self.scaling)
+            p.add("robots and trees", self.robots)
         else:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
@@ -227,6 +238,7 @@ class Reproduction:
             p.add("Table 7, operation counts", self.opcount)
             p.add("CPU scaling", self.scaling)
             p.add("true-error study", lambda: self.error_study(None))
+            p.add("robots and trees", self.robots)
         p.add("report", self.build)
         return p
 

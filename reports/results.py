@@ -45,6 +45,7 @@ TABLE9_FILE = Path("gim_study") / "table9.json"
 COND_FILE = Path("gim_study") / "cond.parquet"
 OPCOUNT_FILE = Path("opcount") / "opcount.json"
 SCALING_FILE = Path("scaling") / "scaling.parquet"
+ROBOTS_FILE = Path("robots") / "robots.json"
 BENCH_DIR = "bench"
 REPRODUCE_GLOB = "reproduce-*.json"
 LONGRUN_DIR = "longrun"
@@ -186,6 +187,11 @@ class Results:
     @functools.cached_property
     def opcount(self) -> dict | None:
         return _json(self.root / OPCOUNT_FILE)
+
+    @functools.cached_property
+    def robots(self) -> dict | None:
+        """``robots/robots.json`` (:mod:`reports.robots`), or None."""
+        return _json(self.root / ROBOTS_FILE)
 
     @functools.cached_property
     def scaling(self) -> pd.DataFrame | None:

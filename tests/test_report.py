@@ -25,7 +25,7 @@ from redysim.harness.sweep import run_sweep
 from redysim.reports import figures as F
 from redysim.reports import gim_study, opcount, scaling
 from redysim.reports import precision_tables as pt
-from redysim.reports.build import build_report, render_html, write_report
+from redysim.reports.build import build_report, render_html, robots_section, write_report
 from redysim.reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
 from redysim.reports.pdf import write_pdf
 from redysim.reports.results import Results
@@ -37,7 +37,7 @@ SMALL_LINKS = 10
 LONG_CASE = "RE-U5000-L100"  # Table 5's first chain, as a long run stopped after LONG_RUN_S
 LONG_RUN_S = 1.0
 SCALING_MAX_DOF = 20
-SECTIONS = ("headline", "setup", "paper", "figures", "beyond")
+SECTIONS = ("headline", "setup", "paper", "figures", "beyond", "robots")
 PAPER_TABLES = ("table1", "table2", "table3", "table4", "table5", "table6", "table7", "table8",
                 "table9", "table10", "table11", "tableA2")
 FIGURE_FAMILIES = ("tip-path", "tip-speed", "drift", "conditioning", "scaling", "opcount",
@@ -195,3 +195,35 @@ def test_render_is_deterministic_given_the_model(report):
     a, b = render_html(report), render_html(report)
     assert a == b
     assert re.search(r"<h1>redysim: paper vs ours</h1>", a)
+
+
+def test_the_robots_section_judges_each_engine_and_says_what_did_not_run(tmp_path):
+    """robots.json (reports/robots.py) -> verdicts: within the tolerance a match, beyond it a
+    difference with its size, a refused engine not run with its reason; no file: how to get it."""
+    import json
+
+    nan = float("nan")
+    doc = {"tolerance": 1e-10, "states": 3, "fall": {}, "provenance": provenance(),
+           "agreement": [
+               {"robot": "arm", "engine": "mujoco", "n_v": 6, "status": "ok", "reason": "",
+                "qdd": 3e-14, "GIM": 1e-15, "bias": 2e-14, "energy": 0.0},
+               {"robot": "arm", "engine": "dart", "n_v": 6, "status": "ok", "reason": "",
+                "qdd": 4e-9, "GIM": 1e-15, "bias": 2e-14, "energy": 0.0},
+               {"robot": "arm", "engine": "exudyn", "n_v": 6, "status": "refused",
+                "reason": "no free joint", "qdd": nan, "GIM": nan, "bias": nan,
+                "energy": nan}],
+           "per_call": [{"robot": "arm", "n_v": 6, "core_s": 1.6e-6, "pin_aba_s": 1.7e-6,
+                         "ratio": 1.06, "pinocchio": "4"}],
+           "falls": [{"robot": "arm", "n_v": 6, "status": "ok", "reason": "", "steps": 100,
+                      "cpu_s": 0.01, "max_abs_delta_M": 1e-9, "parabola_m": nan,
+                      "quaternion_error": 0.0}]}
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "robots.json").write_text(json.dumps(doc))
+    tables = {t.id: t for t in robots_section(Results(tmp_path)).items}
+    kinds = [r.kind for r in tables["robots-agreement"].rows]
+    assert kinds == [MATCH, DIFFER, NOT_RUN]
+    assert "4.0e-09" in tables["robots-agreement"].rows[1].cells[-1]
+    assert "no free joint" in tables["robots-agreement"].rows[2].cells[-1]
+    assert len(tables["robots-percall"].rows) == 1 and len(tables["robots-falls"].rows) == 1
+    empty = {t.id: t for t in robots_section(Results(tmp_path / "none")).items}
+    assert all("reports.robots" in t.not_run for t in empty.values())
