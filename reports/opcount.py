@@ -16,6 +16,11 @@ What is counted, per row:
     RGE-A planar   ``planar_forward_dynamics``: the planar specialisation (R chains in a plane);
     GE-N elimination  ``ge_n`` on a given GIM and phi: the sweep-out and back substitution only
                    (the GIM's O(n^2) assembly and phi are not counted).
+And, under ``robots`` (the talk's serial robots, beside its counts in the report's "Robots and
+trees" section), on serial robots of R joints about z placed by DH transforms (a general rotation
+and shift per joint, the tree kernels' PLACED path):
+    forward dynamics   ``rge_a_forward_dynamics``, as above;
+    inverse dynamics   the kinematics pass (with qdd) and ``rnea_backward`` (Newton-Euler).
 Our kernels are written for any joint axis and any link frame (full 3 x 3 rotations, general
 inertias), so they do more arithmetic than a count specialised to the paper's joints.
 
@@ -33,6 +38,8 @@ import numpy as np
 
 from redysim import Chain, mass_matrix, phi
 from redysim._kernels.elimination import ge_n
+from redysim._kernels.inverse_dynamics import rnea_backward
+from redysim._kernels.kinematics import kinematics
 from redysim._kernels.planar import planar_forward_dynamics
 from redysim._kernels.rge_a import rge_a_forward_dynamics
 from redysim.harness.provenance import provenance
@@ -245,6 +252,67 @@ def polynomial_text(coef: list[Fraction]) -> str:
     return text.replace("+ -", "- ").replace("+ (-", "- (")
 
 
+def dh_robot(n: int):
+    """A serial robot of n R joints about z, each placed by a DH transform Rx(alpha) and a shift
+    (a, 0, d) with seeded values (only the shapes matter to the counts; none is a coordinate
+    axis or zero, so no work is skipped)."""
+    from redysim import Body, Model, TreeJoint
+
+    rng = np.random.default_rng(SEED)
+    bodies, joints = [], []
+    for k in range(n):
+        alpha = rng.uniform(-1.5, 1.5)
+        c, s = np.cos(alpha), np.sin(alpha)
+        R = ((1.0, 0.0, 0.0), (0.0, c, -s), (0.0, s, c))
+        m = rng.uniform(1.0, 5.0)
+        bodies.append(Body(f"link{k + 1}", m, tuple(rng.uniform(-0.1, 0.1, 3)),
+                           ((0.1 * m, 0.0, 0.0), (0.0, 0.12 * m, 0.0), (0.0, 0.0, 0.08 * m))))
+        joints.append(TreeJoint(f"joint{k + 1}", "R", "z", R if k else None,
+                                tuple(rng.uniform(0.05, 0.5, 3)) if k else (0.0, 0.0, 0.0)))
+    return Model.build(bodies, joints, list(range(-1, n - 1)), gravity=(0.0, 0.0, -9.81),
+                       name=f"DH{n}")
+
+
+def count_inverse_dynamics(system) -> tuple[int, int]:
+    """One inverse dynamics: the kinematics pass with qdd and Newton-Euler's backward pass."""
+    n = system.n_dof
+    q, qd = state(system)
+    kin, rnea = kernel_source(kinematics, Count), kernel_source(rnea_backward, Count)
+    tree, s = bundles_in(system, counts, lambda shape: empty(*shape))
+    g = counts(-np.asarray(system.gravity))
+
+    def run():
+        kin(tree, counts(q), counts(qd), counts(qd), g, s)
+        rnea(tree, s, empty(n))
+    return tally(run)
+
+
+ROBOT_ROWS = (  # (row label, counter): on dh_robot(n), R joints
+    ("forward dynamics (RGE-A)", count_rge_a_spatial),
+    ("inverse dynamics (Newton-Euler)", count_inverse_dynamics),
+)
+
+
+def measure_robots() -> dict:
+    """The counts of :data:`ROBOT_ROWS` on DH robots of LINEAR_SIZES joints, fitted a*n + b on
+    two sizes and checked on the third."""
+    rows, fits = [], []
+    for label, counter in ROBOT_ROWS:
+        ns, mults, adds = [], [], []
+        for n in LINEAR_SIZES:
+            m, a = counter(dh_robot(n))
+            ns.append(n)
+            mults.append(m)
+            adds.append(a)
+            rows.append({"algorithm": label, "n_dof": n, "mult": m, "add": a})
+        cm, ca = fit(ns, mults, 1), fit(ns, adds, 1)
+        exact = evaluate(cm, ns[2]) == mults[2] and evaluate(ca, ns[2]) == adds[2]
+        fits.append({"algorithm": label, "mult": polynomial_text(cm), "add": polynomial_text(ca),
+                     "mult_coef": [float(c) for c in cm], "add_coef": [float(c) for c in ca],
+                     "checked_at_dof": ns[2:], "exact": bool(exact)})
+    return {"rows": rows, "fits": fits}
+
+
 def measure() -> dict:
     """The counts of every row of :data:`ROWS` at its sizes, and the fitted polynomials."""
     rows, fits = [], []
@@ -273,6 +341,7 @@ def measure() -> dict:
 def run(out: Path) -> dict:
     """Count and write ``opcount.json`` into ``out``; returns the counts and fits."""
     res = measure()
+    res["robots"] = measure_robots()
     write_json_atomic({"provenance": provenance(), **res}, out / OUT_FILE)
     return res
 
@@ -282,8 +351,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output directory")
     args = ap.parse_args(argv)
     res = run(args.out)
-    for f in res["fits"]:
-        print(f"{f['algorithm']:26} mult/div {f['mult']:>28}   add/sub {f['add']:>28}   "
+    for f in res["fits"] + res["robots"]["fits"]:
+        print(f"{f['algorithm']:32} mult/div {f['mult']:>28}   add/sub {f['add']:>28}   "
               f"{'exact' if f['exact'] else 'NOT exact'} at DOF {f['checked_at_dof']}")
     print(f"written to {args.out / OUT_FILE}")
     return 0

@@ -48,6 +48,12 @@ ROBOTS = (  # label, file in example-robot-data, floating base
 TIMED = ("UR5 arm", "Talos humanoid (reduced), floating base")
 FALL = dict(t_end=1.0, rtol=1e-8, atol=1e-10)
 STAGES = ("qdd", "GIM", "bias", "energy")
+# The talk's operation counts for a serial robot of n revolute joints (the seed talk, "Comparison"
+# slides; its OCR is garbled, e.g. "187 — 325" and "TIT7A": these are the formulas the issue reads
+# from it, and at n = 6 they give the slide's printed totals, 862M 797A and 676M 527A).
+TALK_COUNTS = {"forward dynamics (RGE-A)": ((191, -284), (187, -325)),
+               "inverse dynamics (Newton-Euler)": ((120, -44), (97, -55))}
+TALK_N = 6
 
 
 def robot_file(name: str) -> str | None:
