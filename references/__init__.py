@@ -9,6 +9,13 @@ used::
 
     from redysim import references
     eng = references.get("mujoco")(chain)     # or references.get("mujoco").limits(case)
+
+Kinematic trees (:class:`redysim.Model`, fixed or free base) go to the same engines' tree
+adapters (:mod:`references.trees`: ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``limits`` in
+the core's coordinates, a free joint's included)::
+
+    eng = references.get("dart")(model)       # = references.tree_engine("dart", model)
+    references.get("dart").limits(model)      # = references.TREE_ENGINES["dart"].limits(model)
 """
 
 from __future__ import annotations
@@ -24,15 +31,32 @@ from .base import (
     joint_axes,
     load_limits,
 )
-from .dart_engine import DART
-from .exudyn_engine import Exudyn
-from .mujoco_engine import MuJoCo
-from .pinocchio_engine import PinocchioABA, PinocchioABARyRz, PinocchioCRBA
+from .dart_engine import DART, DARTTree
+from .exudyn_engine import Exudyn, ExudynTree
+from .mujoco_engine import MuJoCo, MuJoCoTree
+from .pinocchio_engine import (
+    PinocchioABA,
+    PinocchioABARyRz,
+    PinocchioCRBA,
+    PinocchioTreeABA,
+    PinocchioTreeABARyRz,
+    PinocchioTreeCRBA,
+)
+from .trees import TreeEngine, TreeJointAxes, tree_class, tree_engine, tree_joints
 
 ENGINES: dict[str, type[Engine]] = {
     cls.name: cls
     for cls in (PinocchioABA, PinocchioABARyRz, PinocchioCRBA, MuJoCo, DART, Exudyn)
 }
+
+
+# the same engines on kinematic trees (redysim.Model), by the same names
+TREE_ENGINES: dict[str, type[TreeEngine]] = {
+    cls.name: cls
+    for cls in (PinocchioTreeABA, PinocchioTreeABARyRz, PinocchioTreeCRBA, MuJoCoTree, DARTTree,
+                ExudynTree)
+}
+assert set(TREE_ENGINES) == set(ENGINES)
 
 
 def get(name: str) -> type[Engine]:
@@ -43,6 +67,9 @@ def get(name: str) -> type[Engine]:
         raise KeyError(f"no engine {name!r}; known engines: {', '.join(ENGINES)}") from None
 
 
-__all__ = ["ENGINES", "Axis", "Engine", "EngineLimitExceeded", "EngineUnavailable", "JointAxes",
-           "Limits", "Trajectory", "get", "joint_axes", "load_limits", "DART", "Exudyn", "MuJoCo",
-           "PinocchioABA", "PinocchioABARyRz", "PinocchioCRBA"]
+__all__ = ["ENGINES", "TREE_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
+           "EngineUnavailable", "JointAxes", "Limits", "Trajectory", "TreeEngine",
+           "TreeJointAxes", "get", "joint_axes", "load_limits", "tree_class", "tree_engine",
+           "tree_joints", "DART", "DARTTree", "Exudyn", "ExudynTree", "MuJoCo", "MuJoCoTree",
+           "PinocchioABA", "PinocchioABARyRz", "PinocchioCRBA", "PinocchioTreeABA",
+           "PinocchioTreeABARyRz", "PinocchioTreeCRBA"]

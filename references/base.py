@@ -28,6 +28,9 @@ U axes, then R about the link's own x. Every engine builds the axes one after th
 axis's frame at the previous one's (see each module's docstring for how); an engine refuses, in
 :meth:`Engine.limits`, only a joint it has no construction for (:meth:`Engine.unsupported`).
 
+A :class:`redysim.Model` (a kinematic tree) handed to an adapter class, ``cls(model)`` or
+``cls.limits(model)``, goes to the same engine's tree adapter (``references/trees.py``).
+
 A missing engine package raises :class:`EngineUnavailable` naming the package, never a bare
 ImportError. ``limits`` reads the measured limits in ``references/limits.toml`` (how each was
 measured is written there) and refuses a case BEFORE anything is built.
@@ -43,11 +46,24 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from redysim import Case, Chain
+from redysim import Case, Chain, Model
 from redysim.chain import KIND_CODES
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes
+
+
+# engine name -> its tree adapter (a ``references.trees.TreeEngine`` subclass, registered when
+# it is defined, next to the engine's chain adapter in the same module)
+TREE_ADAPTERS: dict[str, type] = {}
+
+
+def tree_adapter(name: str) -> type:
+    """The tree adapter registered under ``name`` (the chain adapters' names)."""
+    try:
+        return TREE_ADAPTERS[name]
+    except KeyError:
+        raise KeyError(f"no tree engine {name!r}; known: {', '.join(TREE_ADAPTERS)}") from None
 
 
 class EngineUnavailable(RuntimeError):
@@ -207,6 +223,13 @@ class Engine:
     module: ClassVar[str] = ""  # the module to import
     integrator: ClassVar[str] = ""  # what simulate() uses
 
+    def __new__(cls, case_or_chain=None, *args, **kwargs):
+        # a kinematic tree goes to the engine's tree adapter (references/trees.py), which is
+        # not a subclass of this one, so its own __init__ runs and this class's does not
+        if isinstance(case_or_chain, Model) and cls.name:
+            return tree_adapter(cls.name)(case_or_chain, *args, **kwargs)
+        return super().__new__(cls)
+
     def __init__(self, case_or_chain: Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
         self.chain = as_chain(case_or_chain)
@@ -240,7 +263,10 @@ class Engine:
     @classmethod
     def limits(cls, case_or_chain: Case | Chain) -> Limits:
         """Can this engine take the case? Decided from the chain's size and joints and the
-        measured limits in ``references/limits.toml``, before anything is built."""
+        measured limits in ``references/limits.toml``, before anything is built. A
+        :class:`redysim.Model` is judged by the engine's tree adapter (references/trees.py)."""
+        if isinstance(case_or_chain, Model):
+            return tree_adapter(cls.name).limits(case_or_chain)
         chain = as_chain(case_or_chain)
         try:
             joints = joint_axes(chain)

@@ -43,13 +43,22 @@ nothing and the constraint solver has no constraint to solve.
 
 Limit: building the skeleton costs ~n^3 in time (54 s at 2,000 DOF; docs/design.md, "Reference
 engines"), so time, not memory, stops it (references/limits.toml).
+
+Trees (``references.trees``): ``DARTTree`` builds a :class:`redysim.Model` with the same
+joints, each at ``mT_ParentBodyToJoint`` = its placement, roots on the world (a Skeleton holds
+several trees), a free joint as ``FreeJoint``, whose coordinates differ from the core's
+(rotation vector and translation; velocity (w_world, v_world)): converted both ways (class
+docstring). It refuses a massless body (no massless BodyNodes, as above).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from redysim.model import FREE
+
 from .base import Engine
+from .trees import FreeBlock, TreeEngine, free_rotation
 
 
 def _construction(axes) -> str | None:
@@ -204,3 +213,145 @@ class DART(Engine):
 
     def _sim_state(self):
         return np.array(self.skel.getPositions()), np.array(self.skel.getVelocities())
+
+
+# --------------------------------------------------------------------------- trees
+class DARTTree(TreeEngine):
+    """DART on a :class:`redysim.Model` (``references.trees``).
+
+    One Joint + BodyNode pair per Model body, built as for chains (``_construction``), the
+    parent BodyNode the parent body's (None for a root: a Skeleton holds several trees),
+    ``mT_ParentBodyToJoint`` the placement (R, p) (times P for an EulerJoint); a free joint is a
+    ``FreeJoint`` at the identity. DART numbers DOF tree by tree; the adapter maps them by
+    ``getIndexInSkeleton``.
+
+    Free joint, converted both ways: dartpy 6.20's FreeJoint has positions (rotation vector,
+    translation) and velocities (w_world, v_world), the angular velocity in the WORLD frame first
+    (its relative Jacobian is diag(R^T, R^T), measured). Positions come from
+    ``FreeJoint.convertToPositions(Isometry3(R, p))``; the two halves of the velocity are
+    swapped by the index map, so that y = (v_world, w_world) in the core's slots, and then
+    B = diag(1, R^T) and c = 0, as d/dt (R^T w_world) = R^T dw_world/dt (w x w = 0).
+
+    Refused by ``limits``: a massless body (DART warns that a zero mass "can cause invalid
+    physical behavior or segfault"), and joints no DART joint composes (none of the Model's).
+    """
+
+    name = "dart"
+    package = "dartpy"
+    module = "dartpy"
+
+    @classmethod
+    def unsupported(cls, model, joints):
+        for k, joint in enumerate(joints):
+            if joint.type != FREE and _construction(joint.axes) is None:
+                return (f"body {k} ({model.body_names[k]}), joint {joint.describe()}: DART has "
+                        f"one joint type per BodyNode and none that composes these axes")
+            if not model.mass[k] > 0.0:
+                return (f"body {k} ({model.body_names[k]}) is massless: DART warns that a zero "
+                        f"mass 'can cause invalid physical behavior or segfault'")
+        return ""
+
+    def _build(self):
+        dart = self.lib
+        dyn = dart.dynamics
+        m = self.model
+        skel = dyn.Skeleton(m.name)
+        makers = {"revolute": (dyn.RevoluteJointProperties,
+                               skel.createRevoluteJointAndBodyNodePair),
+                  "prismatic": (dyn.PrismaticJointProperties,
+                                skel.createPrismaticJointAndBodyNodePair),
+                  "universal": (dyn.UniversalJointProperties,
+                                skel.createUniversalJointAndBodyNodePair),
+                  "euler": (dyn.EulerJointProperties, skel.createEulerJointAndBodyNodePair),
+                  "free": (dyn.FreeJointProperties, skel.createFreeJointAndBodyNodePair)}
+        bodies, djoints = [], []
+        for k, joint in enumerate(self.joints):
+            how = "free" if joint.type == FREE else _construction(joint.axes)
+            props_cls, make = makers[how]
+            props = props_cls()
+            T = dart.math.Isometry3()
+            T.set_identity()
+            T.set_translation(joint.p)
+            T.set_rotation(joint.R)
+            if how == "euler":
+                _check_euler_order(dart)
+                P = np.array([a.u for a in joint.axes]).T
+                T.set_rotation(joint.R @ P)
+                C = dart.math.Isometry3()
+                C.set_identity()
+                C.set_rotation(P)
+                props.mT_ChildBodyToJoint = C
+            elif how == "universal":
+                props.mAxis = [joint.axes[0].vector, joint.axes[1].vector]
+            elif how in ("revolute", "prismatic"):
+                props.mAxis = joint.axes[0].vector
+            props.mT_ParentBodyToJoint = T
+            props.mName = f"j{k}"
+            dj, body = make(None if joint.parent < 0 else bodies[joint.parent], props)
+            body.setInertia(dyn.Inertia(float(m.mass[k]), np.array(m.com[k]),
+                                        np.array(m.inertia_com[k])))
+            bodies.append(body)
+            djoints.append(dj)
+        skel.setGravity(np.asarray(m.gravity, dtype=float))
+        for j in skel.getJoints():
+            assert not j.areLimitsEnforced()
+            for i in range(j.getNumDofs()):
+                assert j.getDampingCoefficient(i) == 0 and j.getSpringStiffness(i) == 0
+                assert j.getCoulombFriction(i) == 0
+        assert not skel.getSelfCollisionCheck()
+        if skel.getNumDofs() != m.n_v:
+            raise AssertionError(f"skeleton has {skel.getNumDofs()} DOF, the tree {m.n_v}")
+        # the core's slots -> DART's (a free joint's DART DOF are w_world, v_world: swapped)
+        self.free = []
+        for k, (joint, dj) in enumerate(zip(self.joints, djoints, strict=True)):
+            vs = int(m.joint_voff[k])
+            idx = [dj.getIndexInSkeleton(i) for i in range(dj.getNumDofs())]
+            if joint.type == FREE:
+                self.eidx[vs:vs + 6] = idx[3:] + idx[:3]
+                self.free.append((int(m.joint_qoff[k]), vs, idx))
+            else:
+                self.eidx[vs:vs + len(idx)] = idx
+        self.skel = skel
+
+    def _engine_state(self, q, v):
+        m = self.model
+        qe = np.zeros(m.n_v)
+        blocks = []
+        for k, joint in enumerate(self.joints):
+            if joint.type != FREE:
+                qe[self.eidx[m.joint_voff[k]:m.joint_voff[k + 1]]] = \
+                    q[m.joint_qoff[k]:m.joint_qoff[k + 1]]
+        for qs, vs, idx in self.free:
+            R = free_rotation(q, qs)
+            T = self.lib.math.Isometry3()
+            T.set_identity()
+            T.set_rotation(R)
+            T.set_translation(q[qs:qs + 3])
+            qe[idx] = self.lib.dynamics.FreeJoint.convertToPositions(T)
+            B = np.eye(6)  # y gathered in the core's slots (eidx) is (v_world, w_world)
+            B[3:, 3:] = R.T
+            blocks.append(FreeBlock(vs, B, np.zeros(6)))
+        return qe, blocks
+
+    def _set(self, qe, y, tau_e=None):
+        s = self.skel
+        s.setPositions(qe)
+        s.setVelocities(y)
+        s.setForces(np.zeros(self.n_e) if tau_e is None else tau_e)
+
+    def _raw_qdd(self, qe, y, tau_e):
+        self._set(qe, y, tau_e)
+        self.skel.computeForwardDynamics()
+        return np.array(self.skel.getAccelerations())
+
+    def _raw_mass_matrix(self, qe):
+        self._set(qe, np.zeros(self.n_e))
+        return np.array(self.skel.getMassMatrix())
+
+    def _raw_bias(self, qe, y):
+        self._set(qe, y)
+        return -np.array(self.skel.getCoriolisAndGravityForces())
+
+    def _raw_energy(self, qe, y):
+        self._set(qe, y)
+        return self.skel.computeKineticEnergy(), self.skel.computePotentialEnergy()

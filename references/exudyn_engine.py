@@ -45,6 +45,15 @@ for the tree). ``tip``: a ``SensorKinematicTree`` on the last link at (l, 0, 0) 
 
 Limit: the tree's mass matrix is dense (O(n^2) memory) and factorised every right-hand side
 (O(n^3) time): time stops it first (references/limits.toml).
+
+Trees (``references.trees``): ``ExudynTree`` builds a :class:`redysim.Model` as one tree link
+per axis as above, each body's first axis hanging from its parent body's last link, its
+``jointHTs`` entry the placement turned into that link's frame. A free joint, which the tree's
+1-DOF joints cannot be, is PrismaticX/Y/Z along the world axes then RevoluteX/Y/Z in a frame
+turned by the body's rotation at the state asked (rewritten at every call): a chart of the
+rotation centred at the state, where its rates are exactly the body-frame angular velocity, so
+it is never near an Euler-angle singularity; its one correction, dE/dt w, is added to the
+angular acceleration (class docstring).
 """
 
 from __future__ import annotations
@@ -56,7 +65,10 @@ import sys
 
 import numpy as np
 
-from .base import Engine
+from redysim.model import FREE
+
+from .base import Axis, Engine
+from .trees import FreeBlock, TreeEngine, free_rotation
 
 # the start of Exudyn's advice, printed at every solve of more than 1,000 coordinates
 SPARSE_ADVICE = "The number of total coordinates (unknowns) is larger than 1000. Consider a sparse"
@@ -106,6 +118,22 @@ def joint_frame(axis) -> tuple[int, np.ndarray | None]:
     a = e - (e @ u) * u
     a /= np.linalg.norm(a)
     return 2, np.column_stack([a, np.cross(u, a), u])
+
+
+def _settings(exu, solver_type, t_end, steps):
+    """The solver settings of every solve here (module docstring)."""
+    ss = exu.SimulationSettings()
+    ti = ss.timeIntegration
+    ti.solverType = solver_type
+    ti.endTime = t_end
+    ti.numberOfSteps = steps
+    ti.verboseMode = 0
+    ti.explicit.computeEndOfStepAccelerations = False
+    ss.linearSolver.solverType = exu.LinearSolverType.EigenDense
+    ss.solution.file.write = False
+    ss.show.computationTime = False
+    ss.show.statistics = False
+    return ss
 
 
 class Exudyn(Engine):
@@ -178,19 +206,7 @@ class Exudyn(Engine):
         self._init_rhs = False
 
     def _settings(self, solver_type, t_end, steps):
-        exu = self.lib
-        ss = exu.SimulationSettings()
-        ti = ss.timeIntegration
-        ti.solverType = solver_type
-        ti.endTime = t_end
-        ti.numberOfSteps = steps
-        ti.verboseMode = 0
-        ti.explicit.computeEndOfStepAccelerations = False
-        ss.linearSolver.solverType = exu.LinearSolverType.EigenDense
-        ss.solution.file.write = False
-        ss.show.computationTime = False
-        ss.show.statistics = False
-        return ss
+        return _settings(self.lib, solver_type, t_end, steps)
 
     def _set_state(self, q, qd, tau, which="Initial"):
         cfg = getattr(self.lib.ConfigurationType, which)
@@ -275,3 +291,176 @@ class Exudyn(Engine):
     def _sim_state(self):
         sd = self.mbs.systemData
         return np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
+
+
+# --------------------------------------------------------------------------- trees
+# a free joint as six 1-DOF tree links: P along the world's x, y, z, then R about x, y, z of a
+# frame turned by the body's rotation at the state (module docstring, "Trees")
+FREE_AXES = tuple(Axis(kind, tuple(float(i == j) for j in range(3)), i)
+                  for kind in "PR" for i in range(3))
+
+
+class ExudynTree(TreeEngine):
+    """Exudyn's ObjectKinematicTree on a :class:`redysim.Model` (``references.trees``; module
+    docstring, "Trees").
+
+    One tree link per elementary axis as for chains, massless but the body's last, the turned
+    joint frames of :func:`joint_frame` for axes other than +x, +y, +z; ``linkParents`` the
+    parent body's last link (-1 for a root; the Model's order puts parents first, as Exudyn
+    requires); the first axis's ``jointHTs`` entry maps the joint frame (R A, p) to the parent's
+    last link's frame, turned by that link's A^T.
+
+    Free joint: the tree has only 1-DOF joints (RevoluteX/Y/Z, PrismaticX/Y/Z), so a free body is
+    six massless-but-the-last links: PrismaticX, Y, Z along the world axes (their coordinates are
+    the origin's world position, their rates v_world), then RevoluteX, Y, Z in a joint frame
+    turned by R0, the body's rotation AT THE STATE ASKED (its ``jointHTs`` entry is rewritten at
+    every call), with the three angles zero. The angles are then a chart of the rotation centred
+    at the state, R = R0 Rx(a) Ry(b) Rz(c), whose rates at the centre are exactly the body-frame
+    angular velocity (w_body = E(a, b, c) (a, b, c)' with E(0) = 1): no Euler-angle singularity is
+    ever near. So B = 1 and c = (0, dE/dt (a, b, c)') = (0, 0, 0, w_y w_z, -w_x w_z, w_x w_y)
+    (d/dt of E at the centre applied to w), which the adapter adds to the angular acceleration.
+    The applied force is the core's (E(0)^T = 1).
+    """
+
+    name = "exudyn"
+    package = "exudyn"
+    module = "exudyn"
+
+    def _build(self):
+        exu = self.lib
+        from exudyn.itemInterface import NodeGenericODE2, ObjectKinematicTree, VObjectKinematicTree
+        m = self.model
+        kinds = {"R": (exu.JointType.RevoluteX, exu.JointType.RevoluteY, exu.JointType.RevoluteZ),
+                 "P": (exu.JointType.PrismaticX, exu.JointType.PrismaticY,
+                       exu.JointType.PrismaticZ)}
+        types, parents, hts, inertias, coms, masses = [], [], [], [], [], []
+        self.link_of_body, self.turn_of_body = [], []
+        self.free = []  # (qs, vs, index of the link whose joint frame is turned by R0)
+        for k, joint in enumerate(self.joints):
+            link = -1 if joint.parent < 0 else self.link_of_body[joint.parent]
+            turn = None if joint.parent < 0 else self.turn_of_body[joint.parent]
+            axes = FREE_AXES if joint.type == FREE else joint.axes
+            last = len(axes) - 1
+            for i, axis in enumerate(axes):
+                e, A = joint_frame(axis)
+                Rj = np.eye(3) if A is None else A
+                if i == 0:  # the joint's frame (R, p) in the parent body's last link's frame
+                    Rj, pj = joint.R @ Rj, joint.p
+                else:
+                    pj = np.zeros(3)
+                if turn is not None:
+                    Rj, pj = turn.T @ Rj, turn.T @ pj
+                if joint.type == FREE and i == 3:
+                    self.free.append((int(m.joint_qoff[k]), int(m.joint_voff[k]), len(types)))
+                types.append(kinds[axis.kind][e])
+                parents.append(link)
+                hts.append(_ht(pj, Rj))
+                link, turn = len(types) - 1, A
+                if i < last:
+                    inertias.append(np.zeros((3, 3)))
+                    coms.append([0.0, 0.0, 0.0])
+                    masses.append(0.0)
+            com, inertia = np.array(m.com[k]), np.array(m.inertia_com[k])
+            if turn is not None:
+                com, inertia = turn.T @ com, turn.T @ inertia @ turn
+                inertia = 0.5 * (inertia + inertia.T)
+            inertias.append(inertia)
+            coms.append([float(x) for x in com])
+            masses.append(float(m.mass[k]))
+            self.link_of_body.append(link)
+            self.turn_of_body.append(turn)
+        n = len(types)
+        if n != m.n_v:
+            raise AssertionError(f"tree has {n} coordinates, the model {m.n_v}")
+        self.hts = hts
+        self.SC = exu.SystemContainer()
+        mbs = self.SC.AddSystem()
+        self.node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
+                                                initialCoordinates=[0.0] * n,
+                                                initialCoordinates_t=[0.0] * n,
+                                                numberOfODE2Coordinates=n))
+        self.tree = mbs.AddObject(ObjectKinematicTree(
+            nodeNumber=self.node, jointTypes=types, linkParents=parents, jointHTs=hts,
+            linkInertiasCOM=exu.Matrix3DList(inertias), linkCOMs=exu.Vector3DList(coms),
+            linkMasses=masses, gravity=[float(g) for g in m.gravity],
+            jointForceVector=[0.0] * n, visualization=VObjectKinematicTree(show=False)))
+        self.mbs = mbs
+        self._com_sensors = None
+        mbs.Assemble()
+        self._tau_set = False
+        self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
+        self.solver = exu.MainSolverExplicit()
+        self._init_rhs = False
+
+    # the engine's coordinates: the Model's order, a free joint's (x, y, z, a, b, c) in its six
+    # slots (eidx is the identity); the "state" is the coordinate vector, the chart set already
+    def _engine_state(self, q, v):
+        m = self.model
+        qe = np.zeros(m.n_v)
+        blocks = []
+        for k, joint in enumerate(self.joints):
+            if joint.type != FREE:
+                qe[m.joint_voff[k]:m.joint_voff[k + 1]] = q[m.joint_qoff[k]:m.joint_qoff[k + 1]]
+        if self.free:
+            for qs, vs, link in self.free:
+                qe[vs:vs + 3] = q[qs:qs + 3]  # the angles are 0: the chart's centre
+                self.hts[link] = _ht(np.zeros(3), free_rotation(q, qs))
+                w = v[vs + 3:vs + 6]
+                c = np.array([0.0, 0.0, 0.0, w[1] * w[2], -w[0] * w[2], w[0] * w[1]])
+                blocks.append(FreeBlock(vs, np.eye(6), c))
+            self.mbs.SetObjectParameter(self.tree, "jointHTs", self.hts)
+        return qe, blocks
+
+    def _set_state(self, qe, y, tau_e, which="Initial"):
+        cfg = getattr(self.lib.ConfigurationType, which)
+        sd = self.mbs.systemData
+        sd.SetODE2Coordinates(qe, configuration=cfg)
+        sd.SetODE2Coordinates_t(y, configuration=cfg)
+        if tau_e is not None or self._tau_set:
+            f = np.zeros(self.n_e) if tau_e is None else tau_e
+            self.mbs.SetObjectParameter(self.tree, "jointForceVector", list(map(float, f)))
+            self._tau_set = tau_e is not None
+
+    def _current(self, qe, y):
+        if not self._init_rhs:
+            with _without_sparse_advice():
+                self.solver.InitializeSolver(self.mbs, self.ss_qdd)
+            self._init_rhs = True
+        self._set_state(qe, y, None, which="Current")
+
+    def _raw_qdd(self, qe, y, tau_e):
+        self._set_state(qe, y, tau_e)
+        with _without_sparse_advice():
+            self.solver.SolveSystem(self.mbs, self.ss_qdd)
+        return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
+
+    def _raw_mass_matrix(self, qe):
+        self._current(qe, np.zeros(self.n_e))
+        self.solver.ComputeMassMatrix(self.mbs)
+        return np.array(self.solver.GetSystemMassMatrix())
+
+    def _raw_bias(self, qe, y):
+        self._current(qe, y)
+        self.solver.ComputeODE2RHS(self.mbs)
+        return np.array(self.solver.GetSystemResidual())
+
+    def _raw_energy(self, qe, y):
+        from exudyn.itemInterface import SensorKinematicTree
+        m = self.model
+        if self._com_sensors is None:
+            self._com_sensors = []
+            for k in range(m.n_bodies):
+                A = self.turn_of_body[k]
+                point = np.array(m.com[k]) if A is None else A.T @ np.array(m.com[k])
+                self._com_sensors.append(self.mbs.AddSensor(SensorKinematicTree(
+                    objectNumber=self.tree, linkNumber=self.link_of_body[k],
+                    localPosition=list(map(float, point)),
+                    outputVariableType=self.lib.OutputVariableType.Position,
+                    writeToFile=False)))
+            self.mbs.Assemble()
+            self._init_rhs = False
+        M = self._raw_mass_matrix(qe)
+        self._current(qe, y)
+        r = np.array([self.mbs.GetSensorValues(s) for s in self._com_sensors])
+        V = -float(np.sum(m.mass[:, None] * r * m.gravity[None, :]))
+        return 0.5 * y @ M @ y, V

@@ -29,13 +29,22 @@ What the model contains and why (docs/design.md, "Reference engines"):
 
 Limits: MuJoCo refuses a body tree deeper than 1,024 ("depth limit exceeded in signature
 computation"), and compile time grows ~n^3 (references/limits.toml).
+
+Trees (``references.trees``): ``MuJoCoTree`` builds a :class:`redysim.Model` as nested
+bodies at their placements (``pos``, ``quat``), MuJoCo's ``freejoint`` for a free joint (its
+convention is the core's: no conversion), and maps MuJoCo's depth-first DOF order to the Model's
+by joint name. It refuses a body with mass or a principal moment below mjMINVAL (1e-15), which
+MuJoCo's compiler rejects even with massive children (class docstring).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from redysim.model import FREE
+
 from .base import Engine
+from .trees import TreeEngine
 
 
 def _principal(I):
@@ -145,3 +154,136 @@ class MuJoCo(Engine):
 
     def _sim_state(self):
         return self.data.qpos.copy(), self.data.qvel.copy()
+
+
+# --------------------------------------------------------------------------- trees
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: a moving body needs mass and inertia above it
+
+
+class MuJoCoTree(TreeEngine):
+    """MuJoCo on a :class:`redysim.Model` (``references.trees``).
+
+    One MjSpec body per Model body, nested as the tree, at ``pos = placement_p`` and ``quat`` the
+    placement's rotation (``mju_mat2Quat``), holding one hinge/slide per elementary axis as for
+    chains, or one ``freejoint``; inertias, options and asserted zeros as for chains. MuJoCo
+    numbers bodies and DOF depth-first; the adapter maps them to the Model's order by name.
+
+    Free joint: MuJoCo's free joint IS the core's convention (q = position, quaternion w first;
+    v = world linear velocity of the origin, body-frame angular velocity), so B = 1, c = 0: no
+    conversion but the order.
+
+    Refused by ``limits``: a body with mass or a principal moment below mjMINVAL = 1e-15 (a
+    massless body between joints): MuJoCo's compiler stops with "mass and inertia of moving bodies
+    must be larger than mjMINVAL", even when the body's children have mass (measured, 4.0.0).
+    """
+
+    name = "mujoco"
+    package = "mujoco"
+    module = "mujoco"
+    depth_limited = True
+
+    @classmethod
+    def unsupported(cls, model, joints):
+        for k in range(model.n_bodies):
+            w = np.linalg.eigvalsh(np.asarray(model.inertia_com[k]))
+            if model.mass[k] < MJMINVAL or w.min() < MJMINVAL:
+                return (f"body {k} ({model.body_names[k]}) has mass {model.mass[k]:.3g} kg and "
+                        f"smallest principal moment {w.min():.3g} kg m^2: MuJoCo's compiler "
+                        f"refuses it ('mass and inertia of moving bodies must be larger than "
+                        f"mjMINVAL' = 1e-15), even when its children have mass")
+        return ""
+
+    def _build(self):
+        mj = self.lib
+        m = self.model
+        spec = mj.MjSpec()
+        spec.option.gravity = np.asarray(m.gravity, dtype=float)
+        spec.option.disableflags |= int(mj.mjtDisableBit.mjDSBL_CONTACT)
+        spec.option.disableflags |= int(mj.mjtDisableBit.mjDSBL_CONSTRAINT)
+        spec.option.enableflags |= int(mj.mjtEnableBit.mjENBL_ENERGY)
+        spec.compiler.inertiafromgeom = int(mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
+        principal, balance, bodies = [], False, []
+        hinge, slide = mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE
+        for k, joint in enumerate(self.joints):
+            parent = spec.worldbody if joint.parent < 0 else bodies[joint.parent]
+            body = parent.add_body()
+            body.name = f"b{k}"
+            body.pos = joint.p
+            quat = np.zeros(4)
+            mj.mju_mat2Quat(quat, np.ascontiguousarray(joint.R).ravel())
+            body.quat = quat
+            body.explicitinertial = True
+            body.mass = float(m.mass[k])
+            body.ipos = np.array(m.com[k])
+            w, iquat = _principal(np.array(m.inertia_com[k]))
+            principal.append(w)
+            balance |= bool(w[0] + w[1] < w[2] or w[0] + w[2] < w[1] or w[1] + w[2] < w[0])
+            body.inertia = w
+            body.iquat = iquat
+            if joint.type == FREE:
+                j = body.add_freejoint()
+                j.name = f"j{k}_free"
+            for i, axis in enumerate(joint.axes):
+                j = body.add_joint()
+                j.name = f"j{k}_{i}"
+                j.type = hinge if axis.kind == "R" else slide
+                j.axis = axis.u
+            bodies.append(body)
+        spec.compiler.balanceinertia = balance
+        model = spec.compile()
+        ids = [model.body(f"b{k}").id for k in range(m.n_bodies)]
+        model.body_inertia[ids] = np.array(principal)  # exact moments (balanceinertia)
+        for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness",
+                     "jnt_pos"):
+            assert not np.any(getattr(model, name)), name
+        # the core's slots -> MuJoCo's, by joint name
+        self.qidx = np.zeros(m.n_q, dtype=np.int64)
+        for k, joint in enumerate(self.joints):
+            qs, vs = int(m.joint_qoff[k]), int(m.joint_voff[k])
+            if joint.type == FREE:
+                mj_joint = model.joint(f"j{k}_free")
+                self.qidx[qs:qs + 7] = mj_joint.qposadr[0] + np.arange(7)
+                self.eidx[vs:vs + 6] = mj_joint.dofadr[0] + np.arange(6)
+                continue
+            for i, axis in enumerate(joint.axes):
+                mj_joint = model.joint(f"j{k}_{i}")
+                assert np.abs(mj_joint.axis - axis.vector).max() < 1e-15
+                self.qidx[qs + i] = mj_joint.qposadr[0]
+                self.eidx[vs + i] = mj_joint.dofadr[0]
+        self.free = [int(m.joint_qoff[k]) for k, j in enumerate(self.joints) if j.type == FREE]
+        self.mjmodel, self.mjdata = model, mj.MjData(model)
+        if model.nv != m.n_v or model.nq != m.n_q:
+            raise AssertionError(f"model has nq={model.nq}, nv={model.nv}; the tree "
+                                 f"{m.n_q}, {m.n_v}")
+
+    def _engine_state(self, q, v):
+        qe = np.empty(self.model.n_q)
+        q = q.copy()
+        for qs in self.free:
+            q[qs + 3:qs + 7] /= np.linalg.norm(q[qs + 3:qs + 7])
+        qe[self.qidx] = q
+        return qe, []
+
+    def _forward(self, qe, y, tau_e=None):
+        d = self.mjdata
+        d.qpos[:] = qe
+        d.qvel[:] = y
+        d.qfrc_applied[:] = 0.0 if tau_e is None else tau_e
+        self.lib.mj_forward(self.mjmodel, d)
+        return d
+
+    def _raw_qdd(self, qe, y, tau_e):
+        return self._forward(qe, y, tau_e).qacc.copy()
+
+    def _raw_mass_matrix(self, qe):
+        d = self._forward(qe, np.zeros(self.n_e))
+        M = np.zeros((self.n_e, self.n_e))
+        self.lib.mj_fullM(self.mjmodel, d, M)
+        return M
+
+    def _raw_bias(self, qe, y):
+        return -self._forward(qe, y).qfrc_bias.copy()
+
+    def _raw_energy(self, qe, y):
+        e = self._forward(qe, y).energy
+        return e[1], e[0]  # MuJoCo stores (potential, kinetic)

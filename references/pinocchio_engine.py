@@ -40,14 +40,30 @@ Limit (references/limits.toml): ``pin.Data`` allocates the second-order-derivati
 ``simulate``: Pinocchio has no time integrator; the adapter steps semi-implicit (symplectic)
 Euler with a fixed step h: qd += h qdd(q, qd); q = pin.integrate(q, h qd) (plain addition for
 these joints, whose configuration is the angle or displacement vector).
+
+Trees (``references.trees``): ``PinocchioTreeABA``, ``PinocchioTreeABARyRz``,
+``PinocchioTreeCRBA`` build a :class:`redysim.Model` the same way, body by body, each body's
+first joint at ``pin.SE3(placement_R, placement_p)`` on its parent body's last joint, a free joint
+as ``JointModelFreeFlyer``. Bodies are added depth-first: Pinocchio's CRBA assumes each subtree's
+DOF contiguous (``Model.check`` fails otherwise; stack-of-tasks/pinocchio#1897, "expected
+behavior"), and on a tree in the Model's parents-first order it gave a GIM wrong by 5e-2 while
+``pin.aba`` was right. Free joint: Pinocchio's q is (x, y, z, qx, qy, qz, qw) and v the
+origin's velocity and the angular velocity in the BODY frame; converted both ways (class
+docstring).
 """
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 import scipy.linalg
 
+from redysim.model import FREE
+from redysim.rbda import quaternion_matrix
+
 from .base import Engine
+from .trees import FreeBlock, TreeEngine, depth_first
 
 
 def _axis_model(pin, axis):
@@ -57,6 +73,17 @@ def _axis_model(pin, axis):
     if axis.kind == "R":
         return pin.JointModelRevoluteUnaligned(axis.vector)
     return pin.JointModelPrismaticUnaligned(axis.vector)
+
+
+def _joint_models(pin, axes, universal: str) -> list:
+    """The Pinocchio joint models of one joint's elementary axes, in order: one per axis, or
+    (``universal == "universal"``) one ``JointModelUniversal`` for two leading orthogonal
+    revolute axes."""
+    if (universal == "universal" and len(axes) >= 2 and axes[0].kind == "R"
+            and axes[1].kind == "R" and float(np.dot(axes[0].u, axes[1].u)) == 0.0):
+        return ([pin.JointModelUniversal(axes[0].vector, axes[1].vector)]
+                + [_axis_model(pin, a) for a in axes[2:]])
+    return [_axis_model(pin, a) for a in axes]
 
 
 class _PinocchioBase(Engine):
@@ -93,12 +120,7 @@ class _PinocchioBase(Engine):
 
     def _joint_models(self, axes) -> list:
         """The Pinocchio joint models of one joint's elementary axes, in order."""
-        pin = self.lib
-        if (self.universal == "universal" and len(axes) >= 2 and axes[0].kind == "R"
-                and axes[1].kind == "R" and float(np.dot(axes[0].u, axes[1].u)) == 0.0):
-            return ([pin.JointModelUniversal(axes[0].vector, axes[1].vector)]
-                    + [_axis_model(pin, a) for a in axes[2:]])
-        return [_axis_model(pin, a) for a in axes]
+        return _joint_models(self.lib, axes, self.universal)
 
     # ------------------------------------------------------------------ stages
     def _mass_matrix(self, q):
@@ -161,4 +183,125 @@ class PinocchioCRBA(_PinocchioBase):
         rhs = -pin.nonLinearEffects(self.model, self.data, q, qd)
         if tau is not None:
             rhs = rhs + tau
+        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(M, lower=False), rhs)
+
+
+# --------------------------------------------------------------------------- trees
+class _PinocchioTree(TreeEngine):
+    """Pinocchio on a :class:`redysim.Model` (``references.trees``).
+
+    One Pinocchio joint per elementary axis as for chains (``JointModelUniversal`` for U in
+    ``pinocchio-aba``/``-crba``), the first at ``pin.SE3(placement_R, placement_p)`` on the
+    parent body's last joint (0, the universe, for a root), the link's inertia
+    ``pin.Inertia(m, c, I_C)`` on the body's last joint; a free joint is one
+    ``JointModelFreeFlyer`` at the identity placement.
+
+    Free joint, converted both ways: Pinocchio's q is (x, y, z, qx, qy, qz, qw) (w last) and its
+    v = (R^T v_world, w_body), the origin's velocity in the BODY frame, so B = diag(R, 1) and
+    c = (R (w_body x R^T v_world), 0): d/dt (R v_local) = R (a_local + w x v_local). The applied
+    force's linear part turns by R^T. Energies are invariant.
+    """
+
+    package = "pin"
+    module = "pinocchio"
+    universal: ClassVar[str] = "universal"
+
+    def _build(self):
+        pin = self.lib
+        m = self.model
+        pm = pin.Model()
+        pm.gravity.linear = np.asarray(m.gravity, dtype=float)
+        last = {}  # the Pinocchio joint id of each body's last axis (the body's frame)
+        first = {}  # the Pinocchio joint id of each body's first axis
+        for k in depth_first(m):  # Pinocchio's CRBA needs each subtree's DOF contiguous
+            joint = self.joints[k]
+            parent = 0 if joint.parent < 0 else last[joint.parent]
+            placement = pin.SE3(joint.R, joint.p)
+            if joint.type == FREE:
+                models = [pin.JointModelFreeFlyer()]
+            else:
+                models = _joint_models(pin, joint.axes, self.universal)
+            for i, jm in enumerate(models):
+                parent = pm.addJoint(parent, jm, placement if i == 0 else pin.SE3.Identity(),
+                                     f"b{k}_{i}")
+                if i == 0:
+                    first[k] = parent
+            pm.appendBodyToJoint(parent, pin.Inertia(float(m.mass[k]), np.array(m.com[k]),
+                                                     np.array(m.inertia_com[k])),
+                                 pin.SE3.Identity())
+            last[k] = parent
+        if pm.nv != m.n_v or pm.nq != m.n_q:
+            raise AssertionError(f"model has nq={pm.nq}, nv={pm.nv}; the tree {m.n_q}, {m.n_v}")
+        self.pm, self.data = pm, pin.Data(pm)
+        assert pm.check(self.data), "Pinocchio's Model.check failed"
+        # the core's slots -> Pinocchio's: each body's coordinates are consecutive in both
+        self.qidx = np.zeros(m.n_q, dtype=np.int64)
+        for k in range(m.n_bodies):
+            jm = pm.joints[first[k]]
+            nq, nv = m.joint_qoff[k + 1] - m.joint_qoff[k], m.joint_voff[k + 1] - m.joint_voff[k]
+            self.qidx[m.joint_qoff[k]:m.joint_qoff[k + 1]] = jm.idx_q + np.arange(nq)
+            self.eidx[m.joint_voff[k]:m.joint_voff[k + 1]] = jm.idx_v + np.arange(nv)
+        self.free = [(int(m.joint_qoff[k]), int(m.joint_voff[k]))
+                     for k, j in enumerate(self.joints) if j.type == FREE]
+
+    def _engine_state(self, q, v):
+        q = q.copy()
+        blocks = []
+        for qs, vs in self.free:
+            quat = q[qs + 3:qs + 7] / np.linalg.norm(q[qs + 3:qs + 7])
+            q[qs + 3:qs + 7] = [quat[1], quat[2], quat[3], quat[0]]  # Pinocchio's: w last
+            R = quaternion_matrix(*quat)
+            B = np.eye(6)
+            B[:3, :3] = R
+            w, v_local = v[vs + 3:vs + 6], R.T @ v[vs:vs + 3]
+            c = np.zeros(6)
+            c[:3] = R @ np.cross(w, v_local)
+            blocks.append(FreeBlock(vs, B, c))
+        qp = np.empty(self.model.n_q)
+        qp[self.qidx] = q
+        return qp, blocks
+
+    def _raw_mass_matrix(self, qp):
+        M = self.lib.crba(self.pm, self.data, qp).copy()
+        return np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle only
+
+    def _raw_bias(self, qp, y):
+        return -self.lib.nonLinearEffects(self.pm, self.data, qp, y).copy()
+
+    def _raw_energy(self, qp, y):
+        pin = self.lib
+        return (pin.computeKineticEnergy(self.pm, self.data, qp, y),
+                pin.computePotentialEnergy(self.pm, self.data, qp))
+
+
+class PinocchioTreeABA(_PinocchioTree):
+    """``pin.aba`` on the tree, U joints as ``JointModelUniversal``."""
+
+    name = "pinocchio-aba"
+    universal = "universal"
+
+    def _raw_qdd(self, qp, y, tau_e):
+        tau_e = np.zeros(self.model.n_v) if tau_e is None else tau_e
+        return self.lib.aba(self.pm, self.data, qp, y, tau_e).copy()
+
+
+class PinocchioTreeABARyRz(PinocchioTreeABA):
+    """``pin.aba`` on the tree, each elementary axis its own joint (massless bodies between)."""
+
+    name = "pinocchio-aba-ryrz"
+    universal = "ryrz"
+
+
+class PinocchioTreeCRBA(_PinocchioTree):
+    """``pin.crba`` + ``pin.nonLinearEffects`` + upper Cholesky (scipy) on the tree."""
+
+    name = "pinocchio-crba"
+    universal = "universal"
+
+    def _raw_qdd(self, qp, y, tau_e):
+        pin = self.lib
+        M = pin.crba(self.pm, self.data, qp)  # upper triangle filled
+        rhs = -pin.nonLinearEffects(self.pm, self.data, qp, y)
+        if tau_e is not None:
+            rhs = rhs + tau_e
         return scipy.linalg.cho_solve(scipy.linalg.cho_factor(M, lower=False), rhs)
