@@ -38,7 +38,7 @@ from redysim import Workspace, energy, forward_dynamics, load_case, tip
 from redysim.errors import RedysimError, SettingsError, StateError
 from redysim.integrate import (
     FIXED_STEP,
-    TABLEAUS,
+    TABLEAU_NAMES,
     Counters,
     Solver,
     SolverState,
@@ -57,7 +57,7 @@ CHECKPOINT = "checkpoint.npz"
 PREVIOUS = "checkpoint.prev.npz"  # the checkpoint before the last, kept in case it is damaged
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
 SAMPLE_FIELDS = ("t", "tip_x", "tip_y", "tip_z", "E", "delta_M")
-INTEGRATORS = tuple(TABLEAUS)  # ours: ode45, dop853, rk4 (their state can be saved)
+INTEGRATORS = TABLEAU_NAMES  # ours: ode45, dop853, rk4 (their state can be saved)
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 

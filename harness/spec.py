@@ -19,9 +19,9 @@ from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 from redysim.cases import case_path, file_digest
-from redysim.dynamics import METHODS as CORE_METHODS
 from redysim.errors import SettingsError
 from redysim.integrate import FIXED_STEP, check_settings
+from redysim.methods import METHODS as CORE_METHODS
 
 CORE = "redysim"  # the engine name of our own core
 NATIVE = "native"  # integrator name: the engine's own time stepping

@@ -11,43 +11,49 @@ The public surface; everything else is internal::
     robot = load_model("ur5_robot.urdf")          # or an MJCF .xml
     fall = simulate(robot, 1.0, rtol=1e-8, atol=1e-10)
 
+The names are imported on first use (PEP 562): ``import redysim`` itself loads neither numba nor
+SciPy, so that a command's ``--help`` answers at once.
+
 References:
     A. Agarwal, S. V. Shah, S. Bandyopadhyay, S. K. Saha, "Dynamics of serial kinematic chains
     with large number of degrees-of-freedom", Multibody System Dynamics (2014).
 """
 
-from . import rbda
-from .cases import Case, case_from_dict, list_cases, load_case, load_published
-from .chain import JOINT_TYPES, Chain, Joint, Link
-from .dynamics import (
-    METHODS,
-    UDU,
-    Elimination,
-    Tip,
-    delta_M,
-    eliminate,
-    energy,
-    forward_dynamics,
-    inverse_dynamics,
-    joint_positions,
-    mass_matrix,
-    phi,
-    tip,
-    udu_factors,
-)
-from .errors import CaseError, FieldError, RedysimError, SettingsError, StateError
-from .importers import ModelFileError, load_model
-from .model import Body, Model, TreeJoint
-from .simulation import Simulation, simulate
-from .workspace import Workspace
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Body", "Case", "CaseError", "Chain", "Elimination", "FieldError", "JOINT_TYPES", "Joint",
-    "Link", "METHODS", "Model", "ModelFileError", "RedysimError", "SettingsError", "Simulation",
-    "StateError", "Tip", "TreeJoint", "UDU", "Workspace", "case_from_dict", "delta_M",
-    "eliminate", "energy", "forward_dynamics", "inverse_dynamics", "joint_positions",
-    "list_cases", "load_case", "load_model", "load_published", "mass_matrix", "phi", "rbda",
-    "simulate", "tip", "udu_factors",
-]
+# public name -> the module that defines it (a module itself when the two are equal)
+_WHERE = {
+    **dict.fromkeys(("Case", "case_from_dict", "list_cases", "load_case", "load_published"),
+                    "cases"),
+    **dict.fromkeys(("JOINT_TYPES", "Chain", "Joint", "Link"), "chain"),
+    **dict.fromkeys(("METHODS", "UDU", "Elimination", "Tip", "delta_M", "eliminate", "energy",
+                     "forward_dynamics", "inverse_dynamics", "joint_positions", "mass_matrix",
+                     "phi", "tip", "udu_factors"), "dynamics"),
+    **dict.fromkeys(("CaseError", "FieldError", "RedysimError", "SettingsError", "StateError"),
+                    "errors"),
+    **dict.fromkeys(("ModelFileError", "load_model"), "importers"),
+    **dict.fromkeys(("Body", "Model", "TreeJoint"), "model"),
+    **dict.fromkeys(("Simulation", "simulate"), "simulation"),
+    "Workspace": "workspace",
+    "rbda": "rbda",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    mod = importlib.import_module(f".{module}", __name__)
+    value = mod if module == name else getattr(mod, name)
+    globals()[name] = value  # once imported, an ordinary attribute
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

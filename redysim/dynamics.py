@@ -28,16 +28,12 @@ from ._kernels.rge_a import rge_a_backward
 from ._kernels.udu import udu_assemble
 from .chain import NUMERIC_KINDS, Chain
 from .errors import FieldError, StateError
+from .methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
 from .model import Model
 from .workspace import Workspace
 
 System = Chain | Model
 
-# The one registry of forward-dynamics methods: name -> the paper's name. Everything that takes a
-# method (the command line, run specs, sweep files, the precision study, the reports) reads it.
-PAPER_NAMES = {"rge-a": "RGE-A", "ge-n": "GE-N", "rge-n": "RGE-N"}
-METHODS = tuple(PAPER_NAMES)
-ELIMINATIONS = ("ge-n", "rge-n")  # the numerical O(n^3) comparators: on a formed GIM
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 

@@ -33,6 +33,7 @@ References:
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -40,7 +41,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._kernels.rk import combine, error_norm
 from .errors import FieldError, SettingsError
 
 # --------------------------------------------------------------------------- controller constants
@@ -117,8 +117,11 @@ NTRP45_BI = np.array([
 ])
 
 
+@functools.cache
 def _dop853() -> tuple[Tableau, dict]:
-    # Hairer's coefficients as SciPy ships them (a data module; the pinned SciPy is tested).
+    """DOP853's tableau and dense-output data, built on first use: the coefficients are
+    Hairer's as SciPy ships them (a data module; the pinned SciPy is tested), and importing them
+    imports scipy.integrate, a quarter of a second nothing else here needs."""
     from scipy.integrate._ivp import dop853_coefficients as d
 
     s = d.N_STAGES  # 12 stages; E3/E5 span 13 entries (the 13th is f(t + h, y_new))
@@ -138,11 +141,35 @@ def _rk4() -> Tableau:
 
 
 DP45 = _dp45()
-DOP853, _DOP853_DENSE = _dop853()
 RK4 = _rk4()
-TABLEAUS = {t.name: t for t in (DP45, DOP853, RK4)}
+TABLEAU_NAMES = ("ode45", "dop853", "rk4")  # our schemes; tableau(name) gives each
+
+
+def tableau(name: str) -> Tableau:
+    """The tableau of one of our schemes (:data:`TABLEAU_NAMES`)."""
+    if name == "dop853":
+        return _dop853()[0]
+    return {"ode45": DP45, "rk4": RK4}[name]
+
+
+def __getattr__(name: str):
+    """DOP853 and TABLEAUS, built on first use (see :func:`_dop853`)."""
+    if name == "DOP853":
+        return _dop853()[0]
+    if name == "TABLEAUS":
+        return {n: tableau(n) for n in TABLEAU_NAMES}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _rk():
+    """The compiled stage sums (:mod:`._kernels.rk`), imported on first use: numba's import
+    is a sixth of a second that a command's ``--help`` does not need."""
+    from ._kernels import rk
+    return rk
+
+
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
-INTEGRATORS = (*TABLEAUS, *(f"scipy-{m}" for m in SCIPY_METHODS))
+INTEGRATORS = (*TABLEAU_NAMES, *(f"scipy-{m}" for m in SCIPY_METHODS))
 FIXED_STEP = ("rk4",)
 DEFAULT_METHOD, DEFAULT_RTOL, DEFAULT_ATOL = "ode45", 1e-4, 1e-6  # the paper's ode45 settings
 ADAPTIVE = tuple(m for m in INTEGRATORS if m not in FIXED_STEP)
@@ -251,10 +278,12 @@ class Solver:
     def __init__(self, rhs: Callable, t0: float, y0, t_end: float, method: str = "ode45", *,
                  rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
                  hmax: float | None = None, state: SolverState | None = None):
-        if method not in TABLEAUS:
+        if method not in TABLEAU_NAMES:
             raise ValueError(f"method = {method!r}: unknown; choose one of "
-                             f"{', '.join(TABLEAUS)} (or scipy-*)")
-        self.tab = TABLEAUS[method]
+                             f"{', '.join(TABLEAU_NAMES)} (or scipy-*)")
+        self.tab = tableau(method)
+        rk = _rk()
+        self._combine, self._error_norm = rk.combine, rk.error_norm
         self.rhs = rhs
         self.t_end = float(t_end)
         span = abs(self.t_end - t0)
@@ -327,8 +356,9 @@ class Solver:
         tab, K = self.tab, self.K
         K[0] = f
         for i in range(1, tab.stages):
-            K[i] = self._call(t + tab.c[i] * h, combine(y, h, tab.A[i], K, i, np.empty(self.n)))
-        y_new = combine(y, h, tab.b, K, tab.stages, np.empty(self.n))
+            K[i] = self._call(t + tab.c[i] * h,
+                              self._combine(y, h, tab.A[i], K, i, np.empty(self.n)))
+        y_new = self._combine(y, h, tab.b, K, tab.stages, np.empty(self.n))
         if tab.fsal:
             K[tab.stages] = self._call(t + h, y_new)
         return y_new
@@ -338,8 +368,8 @@ class Solver:
         estimate is err5 |err5| / hypot(err5, 0.1 err3), componentwise."""
         tab = self.tab
         E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
-        return float(error_norm(h, tab.E, E3, self.K, tab.E.size, y, y_new, self._threshold(),
-                                self._err, self._err3))
+        return float(self._error_norm(h, tab.E, E3, self.K, tab.E.size, y, y_new,
+                                      self._threshold(), self._err, self._err3))
 
     def step(self, t_stop: float | None = None) -> None:
         """Take one accepted step (retrying rejected ones); stop no later than ``t_stop``."""
@@ -409,29 +439,29 @@ class Solver:
             for i, si in enumerate(s.tolist()):
                 w = [((b[0] * si + b[1] * si ** 2) + b[2] * si ** 3) + b[3] * si ** 4
                      for b in _NTRP45_ROWS]
-                combine(self.y_old, h, np.array(w), self.K, len(w), out[i])
+                self._combine(self.y_old, h, np.array(w), self.K, len(w), out[i])
             return out
-        if self.tab is DOP853:
+        if self.tab.name == "dop853":
             return self._dense_dop853(h, s)
         # rk4: its steps land on the sample times; in between, cubic Hermite
         return _hermite(self.y_old, self.f_old, self.y, self.f, h, s)
 
     def _dense_dop853(self, h, s):
         if self._dense_K is None:
-            d = _DOP853_DENSE
+            d = _dop853()[1]
             Kx = np.empty((d["C_extra"].size + self.K.shape[0], self.n))
             Kx[:self.K.shape[0]] = self.K
             for i, (a, c) in enumerate(zip(d["A_extra"], d["C_extra"], strict=True)):
                 j = self.K.shape[0] + i
                 Kx[j] = self._call(self.t_old + c * h,
-                                   combine(self.y_old, h, a, Kx, j, np.empty(self.n)))
+                                   self._combine(self.y_old, h, a, Kx, j, np.empty(self.n)))
             dy = self.y - self.y_old
             F = np.empty((7, self.n))
             F[0] = dy
             F[1] = h * Kx[0] - dy
             F[2] = 2 * dy - h * (self.f + Kx[0])
             for r, weights in enumerate(d["D"]):
-                combine(_NO_WEIGHTS, h, weights, Kx, Kx.shape[0], F[3 + r])
+                self._combine(_NO_WEIGHTS, h, weights, Kx, Kx.shape[0], F[3 + r])
             self._dense_K = F
         F = self._dense_K
         x = s[:, None]
@@ -593,10 +623,11 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
 
 def compile_kernels() -> None:
     """Compile (or load from numba's disk cache) the stage-sum kernels every scheme calls, by a
-    few steps of each on a 2-state problem: so that a timed integration does not include it."""
-    for method, kw in (("ode45", {}), ("dop853", {}), ("rk4", {"h": 1e-3})):
-        integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], method, t_eval=[0.0, 1e-3, 2e-3],
-                  **kw)
+    few ode45 steps on a 2-state problem (with samples: its dense output too): so that a timed
+    integration does not include it. Every scheme calls the two kernels with the same argument
+    types (``tests/test_integrate.py`` checks that DOP853 and RK4 compile nothing more), and
+    DOP853's tableau would import SciPy's integrate package, 0.2 s."""
+    integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], "ode45", t_eval=[0.0, 1e-3, 2e-3])
 
 
 def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,

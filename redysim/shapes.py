@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 XTOL = 1e-15  # root-finding tolerance on x and on the catenary's parameter [m]
 
@@ -13,6 +12,8 @@ XTOL = 1e-15  # root-finding tolerance on x and on the catenary's parameter [m]
 def _sag(dX: float, arc_length: float) -> float:
     """u = dX / (2 a) of the catenary through (0, 0) and (dX, 0) with this arc length:
     sinh(u) / u = arc_length / dX."""
+    from scipy.optimize import brentq  # imported when needed: 0.27 s no command's start needs
+
     ratio = arc_length / dX
     return brentq(lambda x: math.sinh(x) / x - ratio, 1e-12, 50.0, xtol=1e-15, rtol=1e-15)
 
@@ -33,6 +34,8 @@ def catenary_angles(n_links: int, length: float, dX: float) -> np.ndarray:
 
     References: Agarwal et al., section 3.1 and Table 1 (RE-R229-L1.02, after Tomaszewski et al.).
     """
+    from scipy.optimize import brentq
+
     if not (0 < dX <= length):
         raise ValueError(f"dX = {dX!r}: the span must be in (0, length = {length}]")
     if math.isclose(dX, length, rel_tol=1e-12):

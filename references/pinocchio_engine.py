@@ -57,7 +57,6 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-import scipy.linalg
 
 from redysim.model import FREE
 from redysim.rbda import quaternion_matrix
@@ -171,6 +170,14 @@ class PinocchioABARyRz(PinocchioABA):
     universal = "ryrz"
 
 
+def _upper_cholesky_solve(M, rhs):
+    """M x = rhs by the upper Cholesky factor, which reads only M's upper triangle (SciPy's
+    linalg imported here, on first use: 0.12 s that ``redysim --help`` does not need)."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    return cho_solve(cho_factor(M, lower=False), rhs)
+
+
 class PinocchioCRBA(_PinocchioBase):
     """Pinocchio ``pin.crba`` + ``pin.nonLinearEffects`` + upper Cholesky (scipy)."""
 
@@ -183,7 +190,7 @@ class PinocchioCRBA(_PinocchioBase):
         rhs = -pin.nonLinearEffects(self.model, self.data, q, qd)
         if tau is not None:
             rhs = rhs + tau
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(M, lower=False), rhs)
+        return _upper_cholesky_solve(M, rhs)
 
 
 # --------------------------------------------------------------------------- trees
@@ -304,4 +311,4 @@ class PinocchioTreeCRBA(_PinocchioTree):
         rhs = -pin.nonLinearEffects(self.pm, self.data, qp, y)
         if tau_e is not None:
             rhs = rhs + tau_e
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(M, lower=False), rhs)
+        return _upper_cholesky_solve(M, rhs)

@@ -270,3 +270,17 @@ def test_the_same_bits_whatever_openblas_kernel_runs():
                              text=True, timeout=300, check=True)
         digests[coretype] = out.stdout.strip()
     assert len(set(digests.values())) == 1, digests
+
+
+def test_compile_kernels_compiles_what_every_scheme_calls():
+    """After compile_kernels (ode45 alone), DOP853 and RK4 with dense output add no signature
+    to the stage-sum kernels: a timed run of any scheme compiles nothing."""
+    from redysim._kernels import rk
+    from redysim.integrate import compile_kernels
+
+    compile_kernels()
+    before = {k: len(k.signatures) for k in (rk.combine, rk.error_norm)}
+    for method, kw in (("dop853", {}), ("rk4", {"h": 1e-3})):
+        integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], method, t_eval=[0.0, 1e-3, 2e-3],
+                  **kw)
+    assert {k: len(k.signatures) for k in (rk.combine, rk.error_norm)} == before
