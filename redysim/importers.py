@@ -319,7 +319,8 @@ def load_mjcf(path: str | os.PathLike) -> Model:
 def load_model(path: str | os.PathLike, *, floating: bool = False,
                mimic: str = "refuse") -> Model:
     """The model in ``path``: ``.urdf`` (``floating``: a free joint at the root; ``mimic``: see
-    :func:`load_urdf`), MJCF ``.xml``, or a case ``.toml`` (its chain). Raises
+    :func:`load_urdf`), MJCF ``.xml``, a robot ``.toml`` (a DH table, :mod:`redysim.dh`) or a
+    case ``.toml`` (its chain). Raises
     FileNotFoundError, ModelFileError or CaseError."""
     p = Path(path)
     if not p.is_file():
@@ -329,7 +330,10 @@ def load_model(path: str | os.PathLike, *, floating: bool = False,
         return load_urdf(p, floating=floating, mimic=mimic)
     if suffix == ".xml":
         return load_mjcf(p)
-    if suffix == ".toml":
+    if suffix == ".toml":  # a robot's DH table (redysim.dh), else a rope case file
+        from .dh import is_robot_file, load_robot
+        if is_robot_file(p):
+            return load_robot(p).model
         from .cases import load_case
         return Model.from_chain(load_case(p).chain)
     raise ModelFileError(str(p), "<file>", suffix, "a model file is .urdf, MJCF .xml or a case "
