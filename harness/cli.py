@@ -44,18 +44,21 @@ Simulate one case and print its summary: E(0), steps, rejected steps, RHS calls,
 compile time (timed apart), average |delta_M| (energy drift per unit mass) and the tip position
 at every sample. Horizon and sample interval default to the case file's.
 
-A robot (a .urdf or MJCF .xml file) falls passively under gravity from its file's configuration
-(every joint at zero, unless the MJCF gives one) at rest, simulated by the core: the summary
-gives the energy drift and the centre of mass at every sample (with --floating, a URDF's root
-gets a free joint and the robot falls freely: its centre of mass follows a parabola).
-Horizon 1 s and 10 samples unless given.
+A robot (a .urdf, an MJCF .xml, or a DH robot file such as cases/robots/puma560.toml) falls
+passively under gravity from its file's configuration (every joint at zero, unless the MJCF
+gives one) at rest, simulated by the core: the summary gives the energy drift and the centre of
+mass at every sample (with --floating, a URDF's root gets a free joint and the robot falls
+freely: its centre of mass follows a parabola). --lock holds joints at given values (a reduced
+model). Horizon 1 s and 10 samples unless given.
 
 examples:
   redysim simulate RE-U125-L1 --t-end 0.1 --sample 0.01
   redysim simulate STUDY-R3 --integrator rk4 --h 1e-3 --t-end 1
   redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet
   redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
-  redysim simulate solo12.urdf --floating"""
+  redysim simulate solo12.urdf --floating
+  redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \
+      --lock joint6=0                           # the talk's free fall of joints 2 and 3"""
 
 SWEEP_HELP = """\
 Run a sweep file: a TOML [sweep] table whose lists (cases, engines, methods, integrators, rtols,
@@ -156,6 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="also save the samples to FILE and the summary row to "
                           "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
     _model_flags(sim)
+    sim.add_argument("--lock", type=_lock, action="append", default=[], metavar="JOINT=VALUE",
+                     help="a robot file: hold a joint at a coordinate (radians, metres; several "
+                          "comma-separated for a U, S or free joint); repeat for more joints")
     sim.set_defaults(func=cmd_simulate)
 
     sw = sub.add_parser("sweep", description=SWEEP_HELP, formatter_class=fmt,
@@ -188,6 +194,19 @@ def build_parser() -> argparse.ArgumentParser:
     _model_flags(info)
     info.set_defaults(func=cmd_info)
     return ap
+
+
+def _lock(text: str) -> tuple[str, list[float]]:
+    """An argparse type: NAME=VALUE or NAME=V1,V2,... (a joint held at its coordinates)."""
+    name, sep, values = text.partition("=")
+    try:
+        numbers = [float(v) for v in values.split(",")]
+    except ValueError:
+        numbers = []
+    if not (sep and name and numbers and all(math.isfinite(x) for x in numbers)):
+        raise argparse.ArgumentTypeError(f"{text!r}: give NAME=VALUE (radians or metres), or "
+                                         "NAME=V1,V2,... for a joint of several coordinates")
+    return name, numbers
 
 
 def _model_flags(parser: argparse.ArgumentParser) -> None:
@@ -236,10 +255,25 @@ def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
 MODEL_SUFFIXES = (".urdf", ".xml")  # files `redysim simulate` runs as a model (a robot)
 
 
+def _is_model_file(name: str) -> bool:
+    """A robot: a .urdf or .xml, or a .toml DH robot file (redysim.dh), not a rope case."""
+    suffix = Path(name).suffix.lower()
+    if suffix in MODEL_SUFFIXES:
+        return True
+    if suffix == ".toml" and Path(name).is_file():
+        from redysim.dh import is_robot_file
+
+        return is_robot_file(name)
+    return False
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``redysim simulate``: one run, printed."""
-    if Path(args.case).suffix.lower() in MODEL_SUFFIXES:
+    if _is_model_file(args.case):
         return _simulate_model(args)
+    if args.lock:
+        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
+                            "(.urdf, .xml, cases/robots/*.toml); a rope case has no named joints")
     from redysim.harness.run import execute
     from redysim.harness.spec import RunSpec
 
@@ -284,6 +318,8 @@ def _simulate_model(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--max-wall", args.max_wall, "not available for a robot "
                             "file (its runs are short)")
     model = load_model(args.case, floating=args.floating, mimic=args.mimic)
+    if args.lock:
+        model = model.locked(dict(args.lock))
     t_end = args.t_end or 1.0
     integrator = args.integrator or DEFAULT_METHOD
     fixed = integrator in ("rk4",)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FieldError
-from .model import FIXED, FREE, Body, Model, TreeJoint
+from .model import FIXED, FREE, Body, Model, TreeJoint, drop_world_fixed
 from .rbda import quaternion_matrix
 
 URDF_GRAVITY = (0.0, 0.0, -9.81)  # URDF has no gravity; robots are described z up
@@ -212,30 +212,10 @@ def _finish(bodies, joints, parents, gravity, name, src, notes) -> Model:
 
 
 def _build_dropping_world_fixed(bodies, joints, parents, gravity, name, src) -> Model:
-    keep = [True] * len(bodies)
-    R = [np.eye(3)] * len(bodies)
-    p = [np.zeros(3)] * len(bodies)
-    new_parent = list(parents)
-    for k, (j, par) in enumerate(zip(joints, parents, strict=True)):
-        Rk = np.asarray(j.rotation if j.rotation is not None else np.eye(3))
-        pk = np.asarray(j.translation)
-        if par >= 0 and not keep[par]:  # its parent was fixed to the world: compose
-            Rk, pk = R[par] @ Rk, R[par] @ pk + p[par]
-            new_parent[k] = -1 if new_parent[par] == -1 else new_parent[par]
-            joints[k] = TreeJoint(j.name, j.type, j.axis, tuple(map(tuple, Rk)), tuple(pk))
-        if new_parent[k] == -1 and joints[k].type == FIXED:
-            keep[k] = False
-            R[k], p[k] = Rk, pk
-    index, kept = {}, []
-    for k in range(len(bodies)):
-        if keep[k]:
-            index[k] = len(kept)
-            kept.append(k)
-    if not kept:
+    bodies, joints, parents, _ = drop_world_fixed(bodies, joints, parents)
+    if not bodies:
         raise ModelFileError(src, "<model>", None, "no body moves: every joint is fixed")
-    return Model.build([bodies[k] for k in kept], [joints[k] for k in kept],
-                       [-1 if new_parent[k] == -1 else index[new_parent[k]] for k in kept],
-                       gravity=gravity, name=name, source=src)
+    return Model.build(bodies, joints, parents, gravity=gravity, name=name, source=src)
 
 
 def _check_inertia_to_move(model: Model, src: str) -> None:

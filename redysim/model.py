@@ -28,6 +28,7 @@ velocity coordinate.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -96,6 +97,57 @@ def _rotation(source, field_name, value) -> np.ndarray:
     if np.abs(R.T @ R - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(R) < 0:
         _fail(source, field_name, value, "must be a rotation (orthonormal, determinant +1)")
     return R
+
+
+def drop_world_fixed(bodies: Sequence[Body], joints: Sequence[TreeJoint], parents: Sequence[int]
+                     ) -> tuple[list[Body], list[TreeJoint], list[int], dict[int, int]]:
+    """Leave out the bodies welded to the world (a fixed joint from the base, or from such a
+    body): they do not move. Their children hang from the world instead, their placements
+    composed. Returns the kept bodies, joints and parents and {old index: new index}."""
+    joints = list(joints)
+    keep = [True] * len(bodies)
+    R = [np.eye(3)] * len(bodies)
+    p = [np.zeros(3)] * len(bodies)
+    new_parent = list(parents)
+    for k, (j, par) in enumerate(zip(joints, parents, strict=True)):
+        Rk = np.asarray(j.rotation if j.rotation is not None else np.eye(3), dtype=float)
+        pk = np.asarray(j.translation, dtype=float)
+        if par >= 0 and not keep[par]:  # its parent is welded to the world: compose
+            Rk, pk = R[par] @ Rk, R[par] @ pk + p[par]
+            new_parent[k] = -1
+            joints[k] = TreeJoint(j.name, j.type, j.axis, tuple(map(tuple, Rk)), tuple(pk))
+        if new_parent[k] == -1 and joints[k].type == FIXED:
+            keep[k] = False
+            R[k], p[k] = Rk, pk
+    kept = [k for k in range(len(bodies)) if keep[k]]
+    index = {k: i for i, k in enumerate(kept)}
+    return ([bodies[k] for k in kept], [joints[k] for k in kept],
+            [-1 if new_parent[k] == -1 else index[new_parent[k]] for k in kept], index)
+
+
+def quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
+    """The rotation of a unit quaternion (w, x, y, z)."""
+    return np.array([
+        [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
+        [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
+        [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)]])
+
+
+def joint_transform(axes: Sequence[tuple[int, np.ndarray]], values: Sequence[float]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(R, p): the motion of a joint's elementary axes (kind, unit vector, each in the frame the
+    axes before it leave) at the given coordinates: a revolute axis turns, a prismatic one
+    slides."""
+    R, p = np.eye(3), np.zeros(3)
+    for (kind, u), x in zip(axes, values, strict=True):
+        if kind == KIND_CODES["P"]:
+            p = p + R @ (np.asarray(u) * x)
+        else:
+            u = np.asarray(u)
+            c, s = math.cos(x), math.sin(x)
+            C = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+            R = R @ (c * np.eye(3) + s * C + (1 - c) * np.outer(u, u))
+    return R, p
 
 
 def _combine(m1, c1, I1, m2, c2, I2):
@@ -308,6 +360,50 @@ class Model:
                   for k, j in enumerate(chain.joints)]
         return cls.build(bodies, joints, list(range(-1, nl - 1)), gravity=chain.gravity,
                          name=chain.name, frames={"tip": (nl - 1, (chain.length[-1], 0, 0))})
+
+    def locked(self, values: Mapping[str, float | Sequence[float]]) -> Model:
+        """The model with the named joints held at the given coordinates (a reduced model, as
+        Pinocchio's ``buildReducedModel``): each becomes a fixed joint placed where its motion
+        at those values leaves its body, fused into its parent (a body so welded to the world
+        is left out). ``values``: joint name -> its coordinate (R, P) or coordinates (U: 2,
+        S: 3, free: the 7 of q). Raises CaseError naming an unknown joint or a wrong count."""
+        where = f"{self.name}.locked"
+        index = {name: k for k, name in enumerate(self.joint_names)}
+        for name, value in values.items():
+            if name not in index:
+                _fail(where, "joint", name, f"no such joint; joints: {', '.join(self.joint_names)}")
+            k = index[name]
+            want = int(self.joint_qoff[k + 1] - self.joint_qoff[k])
+            got = np.atleast_1d(np.asarray(value, dtype=float))
+            if got.shape != (want,) or not np.isfinite(got).all():
+                _fail(where, name, value, f"a {self.joint_types[k]} joint takes {want} finite "
+                      f"coordinate{'s' if want > 1 else ''}")
+        bodies, joints = [], []
+        for k in range(self.n_bodies):
+            bodies.append(Body(self.body_names[k], float(self.mass[k]), tuple(self.com[k]),
+                               tuple(map(tuple, self.inertia_com[k])), physical=False))
+            R, p, jt, name = self.placement_R[k], self.placement_p[k], self.joint_types[k], \
+                self.joint_names[k]
+            sl = slice(self.joint_voff[k], self.joint_voff[k + 1])
+            if name in values:
+                x = np.atleast_1d(np.asarray(values[name], dtype=float))
+                if jt == FREE:
+                    Rj, pj = quaternion_matrix(*(x[3:7] / np.linalg.norm(x[3:7]))), x[:3]
+                else:
+                    Rj, pj = joint_transform(list(zip(self.dof_kind[sl], self.dof_u[sl],
+                                                      strict=True)), x)
+                joints.append(TreeJoint(name, FIXED, rotation=tuple(map(tuple, R @ Rj)),
+                                        translation=tuple(p + R @ pj)))
+            else:
+                axis = tuple(self.dof_u[sl][0]) if jt in ("R", "P") else None
+                joints.append(TreeJoint(name, jt, axis, tuple(map(tuple, R)), tuple(p)))
+        bodies, joints, parents, kept = drop_world_fixed(bodies, joints, list(self.parent))
+        if not bodies:
+            _fail(where, "values", sorted(values), "every joint is locked: nothing moves")
+        frames = {f: (kept[b], tuple(pt)) for f, (b, pt) in self.frames.items() if b in kept}
+        return Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
+                           name=f"{self.name} ({len(values)} joints locked)", frames=frames,
+                           source=where)
 
     # ----------------------------------------------------------------------- derived facts
     @cached_property

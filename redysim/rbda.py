@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .chain import KIND_CODES
-from .model import BALL, Model
+from .model import BALL, Model, quaternion_matrix  # noqa: F401  (re-exported)
 
 REVOLUTE, PRISMATIC = KIND_CODES["R"], KIND_CODES["P"]
 
@@ -48,14 +48,6 @@ def rotation(u, angle) -> np.ndarray:
     """Rotation by ``angle`` about the unit axis u (Rodrigues)."""
     c, s = np.cos(angle), np.sin(angle)
     return c * np.eye(3) + s * cross(u) + (1 - c) * np.outer(u, u)
-
-
-def quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
-    """The rotation of a unit quaternion (w, x, y, z)."""
-    return np.array([
-        [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
-        [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
-        [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)]])
 
 
 def body_mass(model: Model, k: int, R) -> np.ndarray:

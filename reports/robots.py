@@ -14,7 +14,9 @@ and with a floating base, a humanoid), read by :func:`redysim.load_model`, and t
 - per call: qdd from Python, the core (a reused workspace) and ``pin.aba`` on Pinocchio's own
   model of the same URDF (its parser; the fastest honest way to call it), side by side in this
   process, alternating, the fastest of several rounds of many calls;
-- a passive fall for 1 s (ode45, rtol 1e-8, atol 1e-10) from the file's configuration: a fixed
+- a passive fall for 1 s (ode45, rtol 1e-8, atol 1e-10) from the file's configuration (and,
+  for the DH arms, the talk's free fall: joints 1, 4, 5, 6 held at zero, joints 2 and 3 free,
+  :meth:`redysim.Model.locked`): a fixed
   base from rest; a floating base tumbling (seeded joint and base velocities: from rest a uniform
   gravity field moves nothing inside it): steps, CPU, the largest energy drift per unit mass,
   and for a floating base the distance of the centre of mass from its free-fall parabola (zero
@@ -211,6 +213,10 @@ def run(out: Path, log=print) -> dict:
         if label in TIMED and path is not None and (pc := per_call(label, model, path)):
             doc["per_call"].append(pc)
         doc["falls"].append(fall(label, model))
+        if path is None and model.n_v == 6:  # a DH arm of cases/robots: the talk's free fall
+            held = {n: 0.0 for i, n in enumerate(model.joint_names) if i not in (1, 2)}
+            doc["falls"].append(fall(f"{model.name}, joints 2 and 3 free (the talk's free fall)",
+                                     model.locked(held)))
     doc["provenance"] = provenance()
     out.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out / "robots.json")

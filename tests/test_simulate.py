@@ -91,3 +91,25 @@ def test_redysim_simulate_runs_a_urdf(capsys, tmp_path):
                                                                         rel=1e-6)
     assert main(["simulate", path, "--engine", "mujoco"]) == 2
     assert "runs on the core" in capsys.readouterr().err
+
+
+def test_the_talks_free_fall_of_puma_joints_2_and_3_conserves_energy(capsys):
+    """The talk's 'free fall: joints 2 and 3' on the PUMA 560 of cases/robots (joints 1, 4, 5,
+    6 held at zero): energy conserved to the integrator's tolerance, by the command line too."""
+    from pathlib import Path
+
+    from redysim import load_model
+
+    path = Path(__file__).resolve().parents[1] / "cases" / "robots" / "puma560.toml"
+    puma = load_model(path).locked({"joint1": 0.0, "joint4": 0.0, "joint5": 0.0,
+                                    "joint6": 0.0})
+    assert puma.joint_names == ("joint2", "joint3")
+    sim = simulate(puma, 2.0, rtol=1e-10, atol=1e-12, sample=0.1)
+    assert sim.status == 0 and np.ptp(sim.q[:, 0]) > 1.0  # it swings
+    assert np.abs(sim.delta_M).max() < 1e-8
+    argv = ["simulate", str(path), "--t-end", "0.5"]
+    argv += [x for j in (1, 4, 5, 6) for x in ("--lock", f"joint{j}=0")]
+    assert main(argv) == 0
+    assert "4 joints locked" in capsys.readouterr().out
+    assert main(["simulate", str(path), "--lock", "joint9=0"]) == 2
+    assert "no such joint" in capsys.readouterr().err

@@ -442,3 +442,40 @@ def test_redysim_info_prints_the_tree(capsys, tmp_path):
     assert "frame tip: on link3 at (1.0, 0.0, 0.0)" in capsys.readouterr().out
     assert main(["info", robot_urdf("panda_description/urdf/panda.urdf")]) == 2
     assert "mimic" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_locked_model_is_the_full_one_with_those_joints_held(seed):
+    """Locking joints (a reduced model) keeps the rest of the dynamics: the locked model's GIM
+    is the full GIM's block of the free coordinates, and its qdd solves that block against the
+    full model's phi with the locked velocities zero."""
+    model = random_tree(stable_seed("locked", seed), n_bodies=9, free=False, fixed=0)
+    rng = np.random.default_rng(seed)
+    q = random_configuration(rng, model)
+    names = [n for k, n in enumerate(model.joint_names) if k % 3 == 1]  # a few, root included
+    names.append(model.joint_names[0])
+    values = {n: q[model.joint_qoff[k]:model.joint_qoff[k + 1]]
+              for k, n in enumerate(model.joint_names) if n in names}
+    small = model.locked(values)
+    free = np.concatenate([np.arange(model.joint_voff[k], model.joint_voff[k + 1])
+                           for k, n in enumerate(model.joint_names) if n not in values])
+    assert small.n_v == free.size and model.joint_names[0] not in small.joint_names
+    v = np.zeros(model.n_v)
+    v[free] = rng.normal(size=free.size)
+    M = mass_matrix(model, q)
+    assert rel(mass_matrix(small, q[free]), M[np.ix_(free, free)]) < 1e-13
+    from redysim import phi
+    expect = np.linalg.solve(M[np.ix_(free, free)], phi(model, q, v)[free])
+    assert rel(forward_dynamics(small, q[free], v[free]), expect) < 1e-11
+
+
+def test_locking_names_a_bad_joint_or_value():
+    model = random_tree(stable_seed("locked-bad"), n_bodies=4, free=True, fixed=0)
+    with pytest.raises(CaseError, match="no such joint"):
+        model.locked({"nope": 0.0})
+    with pytest.raises(CaseError, match="takes 7"):
+        model.locked({"base": [0.0, 0.0]})
+    with pytest.raises(CaseError, match="nothing moves"):
+        model.locked({n: ([0, 0, 0, 1, 0, 0, 0] if t == "free" else np.zeros(
+            model.joint_qoff[k + 1] - model.joint_qoff[k]))
+            for k, (n, t) in enumerate(zip(model.joint_names, model.joint_types, strict=True))})
