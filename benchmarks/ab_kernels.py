@@ -8,9 +8,11 @@ tree's kernels, both compiled afresh (a temporary numba cache); both are called 
 chain (the RE-U steel rod, as ``make bench``) and state, alternating base and head call by call so
 that the machine's drift falls on both alike, and each is read as its fastest call. JIT compile
 happens before the timing. "entry" is forward dynamics' compiled entry point (as
-``forward_dynamics`` calls it), "whole" ``rge_a_forward_dynamics`` (the three passes by their 23
-arrays). The passes are timed through their own numba dispatch (~1 us each), so at small sizes
-they add up to more than the whole call.
+``forward_dynamics`` calls it), "whole" ``rge_a_forward_dynamics`` (the three passes by their
+arrays: 23 positional ones before the kernels took named bundles, the two bundles since). The
+passes are timed through their own numba dispatch from Python (~1 us each; ~3 us with the
+bundles, whose 28 arrays the dispatcher unboxes one by one), so at small sizes they add up to
+more than the whole call: compare passes at 100,000 DOF, and the entry at every size.
 
 Speed changes to the kernels are claimed from this script's output, never from two separate runs.
 """

@@ -87,7 +87,6 @@ from .model import Body, Model, TreeJoint
 CONVENTIONS = ("standard", "modified")
 DH_JOINTS = ("R", "P")
 ROBOT_GRAVITY = (0.0, 0.0, -9.81)  # z up, the usual robot convention (not the rope cases' -y)
-MASSLESS_TOL = 1e-12  # an articulated inertia below this (relative) is none
 
 _ROBOT_FIELDS = {"name", "description", "convention", "gravity", "flange"}
 _LINK_REQUIRED = ("joint", "a", "alpha_deg", "d", "theta_deg", "mass", "com", "inertia")
@@ -273,21 +272,14 @@ def dh_model(links: Sequence[DHLink], **kwargs) -> Model:
 def _check_inertia_to_move(model: Model, source: str, prefix: str) -> None:
     """Refuse a table whose GIM is singular at q = 0 because a joint moves nothing with inertia
     about its axis (massless links at the tip), naming the row."""
-    from .rbda import forward_dynamics
+    from .rbda import massless_axis
 
-    q = model.neutral()
-    with np.errstate(divide="ignore", invalid="ignore"):  # a zero pivot is what is looked for
-        _, art = forward_dynamics(model, q, np.zeros(model.n_v), factors=True)
-    scale = max(float(np.max(np.abs(art.Ihat))), math.ulp(1.0))
-    bad = np.flatnonzero(~(art.Ihat > MASSLESS_TOL * scale))
-    if bad.size:
-        k = int(bad.max())
-        what, unit = ("mass along", "kg") if model.joint_types[k] == "P" else \
-            ("inertia about", "kg m^2")
+    k = massless_axis(model)  # one axis per joint in a DH table: the joint's index
+    if k is not None:
+        what = "mass along" if model.joint_types[k] == "P" else "inertia about"
         _fail(source, f"{prefix}[{k}]", None,
               f"joint {k + 1} moves links {k + 1}..{model.n_bodies}, which have no {what} its "
-              f"axis ({float(art.Ihat[k])!r} {unit}): the GIM is singular; give them mass and "
-              "inertia")
+              "axis: the GIM is singular; give them mass and inertia")
 
 
 # --------------------------------------------------------------------------- robot files

@@ -22,6 +22,7 @@ References:
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -229,6 +230,21 @@ def forward_dynamics(model: Model, q, v, tau=None, *, factors: bool = False):
             m = m + kin.S[:, j] * vdot[j]
         mu[k] = m
     return (vdot, Articulated(Ihat, Psihat, phitil)) if factors else vdot
+
+
+MASSLESS_TOL = 1e-12  # an articulated inertia below this (relative to the largest) is none
+
+
+def massless_axis(model: Model) -> int | None:
+    """The last DOF (in elimination order, from the tip) whose articulated inertia vanishes at
+    the neutral configuration: a joint that moves nothing with inertia about its axis (a
+    massless body at its end), so the GIM is singular. None when there is none."""
+    q = model.neutral()
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero pivot is what is looked for
+        _, art = forward_dynamics(model, q, np.zeros(model.n_v), factors=True)
+    scale = max(float(np.max(np.abs(art.Ihat))), math.ulp(1.0))
+    bad = np.flatnonzero(~(art.Ihat > MASSLESS_TOL * scale))
+    return int(bad.max()) if bad.size else None
 
 
 def energy(model: Model, q, v) -> tuple[float, float]:

@@ -214,7 +214,34 @@ def check_vec(chain: Chain, name: str, x, optional: bool = False) -> np.ndarray 
     return a
 
 
-class Engine:
+class EnginePackage:
+    """An adapter's package: whether it imports, and its version (shared by the chain adapters
+    and the tree adapters, :mod:`.trees`). Subclasses set ``name``, ``package``, ``module``."""
+
+    name: ClassVar[str] = ""
+    package: ClassVar[str] = ""  # the pip package that provides the engine
+    module: ClassVar[str] = ""
+
+    @classmethod
+    def available(cls) -> bool:
+        """True when the engine's package imports."""
+        try:
+            import_engine(cls.name, cls.package, cls.module)
+        except EngineUnavailable:
+            return False
+        return True
+
+    @classmethod
+    def package_version(cls) -> str:
+        return import_engine(cls.name, cls.package, cls.module).__version__
+
+    @property
+    def version(self) -> str:
+        """The engine package's version."""
+        return self.package_version()
+
+
+class Engine(EnginePackage):
     """Base class of the adapters. Subclasses set the class attributes and the ``_build`` and
     ``_qdd`` ... hooks; the public methods here check sizes at the door and call them."""
 
@@ -239,25 +266,6 @@ class Engine:
                 raise EngineLimitExceeded(f"{self.name}: {lim.reason}")
         self.joints = joint_axes(self.chain)
         self._build()
-
-    # ----------------------------------------------------------------------- availability
-    @classmethod
-    def available(cls) -> bool:
-        """True when the engine's package imports."""
-        try:
-            import_engine(cls.name, cls.package, cls.module)
-        except EngineUnavailable:
-            return False
-        return True
-
-    @classmethod
-    def package_version(cls) -> str:
-        return import_engine(cls.name, cls.package, cls.module).__version__
-
-    @property
-    def version(self) -> str:
-        """The engine package's version."""
-        return self.package_version()
 
     # ----------------------------------------------------------------------- limits
     @classmethod

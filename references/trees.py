@@ -55,7 +55,7 @@ from .base import (
     TREE_ADAPTERS,
     Axis,
     EngineLimitExceeded,
-    EngineUnavailable,
+    EnginePackage,
     Limits,
     import_engine,
     load_limits,
@@ -148,7 +148,7 @@ def _check_model(model) -> Model:
     return model
 
 
-class TreeEngine:
+class TreeEngine(EnginePackage):
     """Base class of the tree adapters (module docstring). A subclass sets ``name``,
     ``package``, ``module`` and implements ``_build`` and the raw hooks, which take and return
     the ENGINE's coordinates; the public methods here convert.
@@ -180,23 +180,6 @@ class TreeEngine:
         self.joints = tree_joints(model)
         self.eidx = np.arange(model.n_v)
         self._build()
-
-    # ----------------------------------------------------------------------- availability
-    @classmethod
-    def available(cls) -> bool:
-        try:
-            import_engine(cls.name, cls.package, cls.module)
-        except EngineUnavailable:
-            return False
-        return True
-
-    @classmethod
-    def package_version(cls) -> str:
-        return import_engine(cls.name, cls.package, cls.module).__version__
-
-    @property
-    def version(self) -> str:
-        return self.package_version()
 
     # ----------------------------------------------------------------------- limits
     @classmethod

@@ -73,6 +73,19 @@ def _sincos_compiled(x):
 
 
 @inline
+def turned(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+           g00, g01, g02, g10, g11, g12, g20, g21, g22):
+    """The frame R turned by G in its own axes: R G, row by row (9 scalars in the order of
+    R's entries)."""
+    return (r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
+            r00 * g02 + r01 * g12 + r02 * g22,
+            r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
+            r10 * g02 + r11 * g12 + r12 * g22,
+            r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
+            r20 * g02 + r21 * g12 + r22 * g22)
+
+
+@inline
 def jcalc(kind, code, u, qj, q1, q2, q3, s0, s1, s2, r00, r01, r02, r10, r11, r12, r20, r21,
           r22):
     """One elementary axis: returns (p0..p5, s0..s2, r00..r22).
@@ -100,12 +113,9 @@ def jcalc(kind, code, u, qj, q1, q2, q3, s0, s1, s2, r00, r01, r02, r10, r11, r1
                              two * (qy * qz - qw * qx))
             g20, g21, g22 = (two * (qx * qz - qw * qy), two * (qy * qz + qw * qx),
                              1.0 - two * (qx * qx + qy * qy))
-            r00, r01, r02 = (r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
-                             r00 * g02 + r01 * g12 + r02 * g22)
-            r10, r11, r12 = (r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
-                             r10 * g02 + r11 * g12 + r12 * g22)
-            r20, r21, r22 = (r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
-                             r20 * g02 + r21 * g12 + r22 * g22)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                g00, g01, g02, g10, g11, g12, g20, g21, g22)
             e0, e1, e2 = r00, r10, r20
         elif code == 1:
             e0, e1, e2 = r01, r11, r21
@@ -143,15 +153,11 @@ def jcalc(kind, code, u, qj, q1, q2, q3, s0, s1, s2, r00, r01, r02, r10, r11, r1
     else:  # R Rot(u, q), Rot = c 1 + s C(u) + (1 - c) u u^T
         u0, u1, u2 = u[0], u[1], u[2]
         t = 1.0 - c
-        g00, g01, g02 = c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1
-        g10, g11, g12 = t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0
-        g20, g21, g22 = t * u2 * u0 - s * u1, t * u2 * u1 + s * u0, c + t * u2 * u2
-        r00, r01, r02 = (r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
-                         r00 * g02 + r01 * g12 + r02 * g22)
-        r10, r11, r12 = (r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
-                         r10 * g02 + r11 * g12 + r12 * g22)
-        r20, r21, r22 = (r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
-                         r20 * g02 + r21 * g12 + r22 * g22)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
+            r00, r01, r02, r10, r11, r12, r20, r21, r22,
+            c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1,
+            t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0,
+            t * u2 * u0 - s * u1, t * u2 * u1 + s * u0, c + t * u2 * u2)
     return (e0, e1, e2, 0.0, 0.0, 0.0, s0, s1, s2,
             r00, r01, r02, r10, r11, r12, r20, r21, r22)
 

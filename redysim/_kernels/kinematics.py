@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from .._jit import inline, jit_borrowed
 from .bundles import ALONG_X
-from .joints import BALL, axis_rates, jcalc
+from .joints import BALL, axis_rates, jcalc, turned
 
 
 @jit_borrowed
@@ -93,15 +93,9 @@ def _kinematics(tree, q, qd, qdd, base_accel, s, local_rates, serial):
             s1 = r10 * pp[0] + r11 * pp[1] + r12 * pp[2]
             s2 = r20 * pp[0] + r21 * pp[1] + r22 * pp[2]
             G = placement_R[k]
-            r00, r01, r02 = (r00 * G[0, 0] + r01 * G[1, 0] + r02 * G[2, 0],
-                             r00 * G[0, 1] + r01 * G[1, 1] + r02 * G[2, 1],
-                             r00 * G[0, 2] + r01 * G[1, 2] + r02 * G[2, 2])
-            r10, r11, r12 = (r10 * G[0, 0] + r11 * G[1, 0] + r12 * G[2, 0],
-                             r10 * G[0, 1] + r11 * G[1, 1] + r12 * G[2, 1],
-                             r10 * G[0, 2] + r11 * G[1, 2] + r12 * G[2, 2])
-            r20, r21, r22 = (r20 * G[0, 0] + r21 * G[1, 0] + r22 * G[2, 0],
-                             r20 * G[0, 1] + r21 * G[1, 1] + r22 * G[2, 1],
-                             r20 * G[0, 2] + r21 * G[1, 2] + r22 * G[2, 2])
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                G[0, 0], G[0, 1], G[0, 2], G[1, 0], G[1, 1], G[1, 2], G[2, 0], G[2, 1], G[2, 2])
         if not serial:
             qs = qshift[k]
         # joint k: columns, frame update; accumulate P qd and P qdd + Pd qd
