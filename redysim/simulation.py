@@ -172,7 +172,8 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         raise StateError(f"q0's quaternion has norm {1 + q_error:.9g}: give a unit quaternion "
                          "(w, x, y, z)")
     t_jit = time.perf_counter()
-    motion.rhs(0.0, y0)  # the first call: JIT compile or on-disk cache load, timed apart
+    motion.rhs(0.0, y0)  # the first calls: JIT compile or on-disk cache load, timed apart
+    motion.energy_and_com(q0, v0)
     compile_kernels()
     jit_s = time.perf_counter() - t_jit
     ts, ys, energies, coms = [], [], [], []
