@@ -27,7 +27,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from redysim import StateError, energy, forward_dynamics, load_case, tip
-from redysim.integrate import advance, compile_kernels, make_solver, sample_times
+from redysim.integrate import (
+    TABLEAU_NAMES,
+    CompiledSolver,
+    advance,
+    compile_kernels,
+    make_solver,
+    sample_times,
+)
 
 from .provenance import provenance
 from .reference import load_reference
@@ -85,6 +92,11 @@ class _Dynamics:
             self.engine = cls(case)
             self.build_s = time.perf_counter() - t0
             self.version = self.engine.version
+
+    def compiled_steps(self, integrator: str) -> bool:
+        """Whether ``integrator`` steps in compiled code here: one of ours (ode45, dop853,
+        rk4) on the core's RGE-A (the same steps as the Python loop, bit for bit)."""
+        return self.engine is None and self.method == "rge-a" and integrator in TABLEAU_NAMES
 
     def qdd(self, q, qd) -> np.ndarray:
         if self.engine is not None:
@@ -203,15 +215,23 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         next_report = [time.perf_counter() + PROGRESS_EVERY_S]
 
         def on_step(s):
-            if progress is not None and time.perf_counter() >= next_report[0]:
-                progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
-                next_report[0] = time.perf_counter() + PROGRESS_EVERY_S
+            now = time.perf_counter()
+            if progress is not None and now >= next_report[0]:
+                progress(s.t, t_end, s.counters.steps, now - wall0)
+                next_report[0] = now + PROGRESS_EVERY_S
+            if now > deadline:  # (a compiled solver's steps call no Python rhs to check it)
+                return f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at t = {s.t:.6g}"
             return None
 
         solver = None
         try:  # the limit can strike inside the constructor too (its first RHS calls)
-            solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
-                                 atol=spec.atol, h=spec.h or None)
+            if dyn.compiled_steps(spec.integrator):
+                solver = CompiledSolver(rhs, 0.0, y0, t_end, spec.integrator, ws=dyn.ws,
+                                        planar=dyn.chain.is_planar, rtol=spec.rtol,
+                                        atol=spec.atol, h=spec.h or None)
+            else:
+                solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
+                                     atol=spec.atol, h=spec.h or None)
             status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
         finally:
             if solver is not None:

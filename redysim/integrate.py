@@ -485,6 +485,84 @@ def _hermite(y0, f0, y1, f1, h, s):
     return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
 
 
+# --------------------------------------------------------------------------- compiled stepping
+CHUNK_S = 0.25  # s of wall time a CompiledSolver.step call aims at (it adapts max_steps)
+MAX_CHUNK_STEPS = 100_000
+
+
+class CompiledSolver(Solver):
+    """A :class:`Solver` whose steps run in compiled code (:mod:`redysim._kernels.rk_run`),
+    for the motion of a chain or a tree without a free joint: y = (q, qd), dy/dt = (qd, qdd).
+
+    ``ws``: the system's :class:`~redysim.workspace.Workspace`; ``planar``: the planar kernel.
+    The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
+    :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
+    reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
+    between calls), and :meth:`dense` interpolates in that last step as Solver does. ``rhs``
+    (Python) is still given: DOP853's dense output calls it for its extra stages.
+    """
+
+    def __init__(self, rhs: Callable, t0: float, y0, t_end: float, method: str = "ode45", *,
+                 ws, planar: bool = False, rtol: float = 1e-4, atol: float = 1e-6,
+                 h: float | None = None, hmax: float | None = None,
+                 state: SolverState | None = None, max_steps: int = 1000):
+        from ._kernels import rk_run
+
+        super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
+                         state=state)
+        self._run = rk_run
+        self.max_steps = int(max_steps)
+        self._ws = ws
+        self._kind = rk_run.PLANAR if planar else rk_run.RGE_A
+        tab = self.tab
+        self._E = tab.E if tab.E is not None else _NO_WEIGHTS
+        self._E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
+        self._ctl = np.array([self.rtol if self.adaptive else 1.0,
+                              self.atol if self.adaptive else 1.0, self.hmax,
+                              getattr(self, "power", 0.0), self.t_end, float(self.adaptive)])
+        self._consts = np.array([SAFETY, MAX_GROWTH, FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS,
+                                 FINISH_SLACK, SAMPLE_EPS])
+        self._ts = np.array([self.t, self.t_old, self.h_next])
+        self.y, self.f = self.y.copy(), self.f.copy()
+        self.y_old, self.f_old = self.y.copy(), self.f.copy()
+        self._counts = np.zeros(3, dtype=np.int64)
+        self._tmp, self._y_new = np.empty(self.n), np.empty(self.n)
+
+    def step(self, t_stop: float | None = None) -> None:
+        """Steps up to the first that reaches ``t_stop`` (t_end when None), or max_steps."""
+        c = self.counters
+        self._ts[:] = self.t, self.t_old, self.h_next
+        self._counts[:] = c.steps, c.rejected, c.nfev
+        steps0, wall0 = c.steps, time.perf_counter()
+        status = self._run.rk_steps(
+            self._kind, self._ws.kernel_f, self._ws.kernel_i, self._ws.scratch, self._ws.zeros,
+            self.tab.A, self.tab.b, self.tab.c, self._E, self._E3, self.tab.fsal, self._ctl,
+            self._consts, self._ts, self.y, self.f, self.y_old, self.f_old, self.K,
+            self._counts, self._tmp, self._y_new, self._err, self._err3,
+            self.t_end if t_stop is None else float(t_stop), self.max_steps)
+        self.t, self.t_old, self.h_next = (float(x) for x in self._ts)
+        c.steps, c.rejected, c.nfev = (int(x) for x in self._counts)
+        taken, wall = c.steps - steps0, time.perf_counter() - wall0
+        if taken:  # about CHUNK_S of wall time a call: the caller's clock and progress run
+            self.max_steps = max(1, min(MAX_CHUNK_STEPS, int(CHUNK_S * taken / max(wall,
+                                                                                  1e-9))))
+        self._dense_K = None
+        if status == self._run.ERR_NONFINITE:
+            raise IntegrationError(f"non-finite error estimate at t = {self.t:.6g}: the state "
+                                   "or qdd is not finite")
+        if status == self._run.ERR_HMIN:
+            hmin = self._hmin(self.t)
+            raise IntegrationError(f"step size fell below hmin = {hmin:.3g} at t = "
+                                   f"{self.t:.6g}: tolerances cannot be met")
+        if status == self._run.ERR_QDD:  # the checked call says why (StateError)
+            n = self.n // 2
+            from .dynamics import forward_dynamics
+
+            forward_dynamics(self._ws.chain, self.y[:n], self.y[n:], ws=self._ws)
+            raise IntegrationError(f"qdd not finite in a stage of the step from t = "
+                                   f"{self.t:.6g}")
+
+
 # --------------------------------------------------------------------------- SciPy solvers
 class ScipySolver:
     """A SciPy ``solve_ivp`` solver with the same interface as :class:`Solver`.
@@ -596,13 +674,14 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     i = 0
     t_eval = np.asarray(t_eval, dtype=float)
     fixed = isinstance(solver, Solver) and not solver.adaptive
+    chunks = isinstance(solver, CompiledSolver)  # steps to the next sample in one call
     while i < t_eval.size and t_eval[i] <= solver.t * (1 + SAMPLE_EPS):
         if on_sample and (msg := on_sample(float(t_eval[i]), solver.y.copy())):
             return 1, msg
         i += 1
     try:
         while i < t_eval.size and not solver.done:
-            solver.step(t_eval[i] if fixed else None)
+            solver.step(t_eval[i] if fixed or chunks else None)
             j = i
             while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
                 j += 1
@@ -626,8 +705,18 @@ def compile_kernels() -> None:
     few ode45 steps on a 2-state problem (with samples: its dense output too): so that a timed
     integration does not include it. Every scheme calls the two kernels with the same argument
     types (``tests/test_integrate.py`` checks that DOP853 and RK4 compile nothing more), and
-    DOP853's tableau would import SciPy's integrate package, 0.2 s."""
+    DOP853's tableau would import SciPy's integrate package, 0.2 s. And the compiled stepping
+    (:class:`CompiledSolver`), by two steps of a one-link chain: its types are every chain's."""
     integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], "ode45", t_eval=[0.0, 1e-3, 2e-3])
+    from .chain import Chain
+    from .workspace import Workspace
+
+    chain = Chain.uniform(1, "U", mass=1.0)
+    ws = Workspace(chain)
+    y0 = np.full(2 * chain.n_dof, 0.1)
+    solver = CompiledSolver(lambda _t, y: np.zeros_like(y), 0.0, y0, 1e-3, "ode45", ws=ws,
+                            max_steps=2)
+    solver.step(1e-3)
 
 
 def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,
