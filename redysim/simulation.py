@@ -3,7 +3,9 @@
 :func:`simulate` integrates dy/dt = (dq/dt, vdot) with y = (q, v), vdot from
 :func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
-trees"). Any of :data:`redysim.integrate.INTEGRATORS` steps it. A quaternion integrated so drifts
+trees"). Any of :data:`redysim.integrate.INTEGRATORS` steps it; ours (ode45, dop853, rk4) in
+compiled code (:class:`redysim.integrate.CompiledSolver`) when there is no free joint. A
+quaternion integrated so drifts
 off the unit sphere by the integrator's error; after every accepted step it is projected back
 (divided by its norm; so are the samples interpolated between steps), the largest norm error
 seen before a projection is reported, and the kernels read any quaternion's direction only (so
@@ -32,6 +34,8 @@ from .integrate import (
     DEFAULT_METHOD,
     DEFAULT_RTOL,
     FIXED_STEP,
+    TABLEAU_NAMES,
+    CompiledSolver,
     advance,
     check_settings,
     compile_kernels,
@@ -197,7 +201,12 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
             progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
         return None
 
-    solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h)
+    if not motion.free and integrator in TABLEAU_NAMES:  # dq/dt = v: steps in compiled code
+        planar = isinstance(system, Chain) and system.is_planar
+        solver = CompiledSolver(motion.rhs, 0.0, y0, t_end, integrator, ws=motion.ws,
+                                planar=planar, rtol=rtol, atol=atol, h=h)
+    else:
+        solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h)
     try:
         status, message = advance(solver, sample_times(0.0, t_end, sample), on_sample=on_sample,
                                   on_step=on_step)
