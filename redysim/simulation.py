@@ -53,7 +53,9 @@ class Simulation:
     """Samples at ``t`` (m,): ``q`` (m, n_q), ``v`` (m, n_v), ``energy`` (m,) [J], ``delta_M``
     (m,) [J/kg], ``com`` (m, 3) [m]; the run's counts and times; ``status`` 0 done, 1 stopped, -1
     failed (``message`` says why); ``quaternion_error``: the largest | |q| - 1 | of a free
-    joint's quaternion before its projection after a step (0 without one)."""
+    joint's quaternion before its projection after a step (0 without one). With loops:
+    ``forces`` (m, rows) the loop forces at the samples [N], ``residual_q`` [m] and
+    ``residual_v`` [m/s] the largest loop residuals met after a step, before its projection."""
 
     name: str
     t: np.ndarray
@@ -71,6 +73,9 @@ class Simulation:
     wall_s: float
     jit_s: float
     quaternion_error: float
+    forces: np.ndarray | None = None
+    residual_q: float = 0.0
+    residual_v: float = 0.0
 
     @property
     def E0(self) -> float:
@@ -78,10 +83,14 @@ class Simulation:
 
 
 class _Motion:
-    """The right-hand side (dq/dt, vdot) of a system, with its workspace."""
+    """The right-hand side (dq/dt, vdot) of a system, with its workspace; with ``loops`` the
+    loops closed (:class:`redysim.loops.ClosedLoops`), with ``damping`` a viscous torque
+    -damping * v at every joint."""
 
-    def __init__(self, system: Chain | Model):
+    def __init__(self, system: Chain | Model, loops=None, damping: float = 0.0):
         self.system = system
+        self.loops, self.damping = loops, float(damping)
+        self.residual_q = self.residual_v = 0.0  # the largest met after a step
         self.ws = Workspace(system)
         self.nq, self.nv = system.n_q, system.n_v
         # a free joint's (q index of x, v index of its linear velocity); every other coordinate
@@ -107,7 +116,11 @@ class _Motion:
         nq = self.nq
         out = np.empty(nq + self.nv)
         q, v = y[:nq], y[nq:]
-        forward_dynamics(self.system, q, v, ws=self.ws, out=out[nq:])
+        tau = -self.damping * v if self.damping else None
+        if self.loops is not None:
+            out[nq:] = self.loops.forward_dynamics(q, v, tau)[0]
+        else:
+            forward_dynamics(self.system, q, v, tau, ws=self.ws, out=out[nq:])
         if not self.free:
             out[:nq] = v
             return out
@@ -122,8 +135,16 @@ class _Motion:
             out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
         return out
 
-    def project(self, y) -> float:
-        """Divide each quaternion of ``y`` by its norm, in place; the largest | |q| - 1 |."""
+    def project(self, y, record: bool = True) -> float:
+        """Divide each quaternion of ``y`` by its norm, in place; the largest | |q| - 1 |. With
+        loops, move (q, v) back onto them (in place), keeping the largest residuals met (when
+        ``record``: a step's, not an interpolated sample's)."""
+        if self.loops is not None:
+            nq = self.nq
+            y[:nq], y[nq:], rq, rv = self.loops.project(y[:nq], y[nq:])
+            if record:
+                self.residual_q, self.residual_v = max(self.residual_q, rq), \
+                    max(self.residual_v, rv)
         worst = 0.0
         for i in self.quaternions:
             norm = math.sqrt(float(y[i:i + 4] @ y[i:i + 4]))
@@ -143,9 +164,14 @@ class _Motion:
 def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
              integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
              atol: float = DEFAULT_ATOL, h: float | None = None, sample: float | None = None,
-             progress: Callable[[float, float, int, float], None] | None = None
-             ) -> Simulation:
+             progress: Callable[[float, float, int, float], None] | None = None,
+             loops=None, damping: float = 0.0) -> Simulation:
     """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques).
+
+    loops: a :class:`redysim.loops.ClosedLoops` of ``system``: the motion with its loops closed,
+    (q, v) projected back onto them after every step; the samples then carry the loop forces
+    and the run the largest residuals it met. damping: a viscous torque -damping * v at every
+    joint [N m s] (0: none; the energy then falls).
 
     q0: default the model's own configuration (:meth:`Model.initial`: the file's, else every
     joint at zero, quaternions the identity), zeros for a chain; v0: default zeros.
@@ -169,9 +195,11 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
     q0 = check_state(system, "q", q0)
     v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
-    motion = _Motion(system)
+    motion = _Motion(system, loops, damping)
     y0 = np.concatenate((q0, v0))
-    q_error = motion.project(y0)
+    if loops is not None:
+        loops.check_start(q0)
+    q_error = motion.project(y0, record=False)
     if q_error > 1e-6:
         raise StateError(f"q0's quaternion has norm {1 + q_error:.9g}: give a unit quaternion "
                          "(w, x, y, z)")
@@ -180,12 +208,15 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     motion.energy_and_com(q0, v0)
     compile_kernels()
     jit_s = time.perf_counter() - t_jit
-    ts, ys, energies, coms = [], [], [], []
+    ts, ys, energies, coms, forces = [], [], [], [], []
     worst = [0.0]
 
     def on_sample(t, y):
         y = y.copy()
-        motion.project(y)  # a sample between steps is interpolated: back on the unit sphere too
+        motion.project(y, record=False)  # interpolated between steps: back on the constraints
+        if loops is not None:
+            tau = -damping * y[motion.nq:] if damping else None
+            forces.append(loops.forward_dynamics(y[:motion.nq], y[motion.nq:], tau)[1])
         E, com = motion.energy_and_com(y[:motion.nq], y[motion.nq:])
         ts.append(t)
         ys.append(y)
@@ -201,7 +232,8 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
             progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
         return None
 
-    if not motion.free and integrator in TABLEAU_NAMES:  # dq/dt = v: steps in compiled code
+    if loops is None and not damping and not motion.free and integrator in TABLEAU_NAMES:
+        # dq/dt = v and the tree's own qdd: steps in compiled code
         planar = isinstance(system, Chain) and system.is_planar
         solver = CompiledSolver(motion.rhs, 0.0, y0, t_end, integrator, ws=motion.ws,
                                 planar=planar, rtol=rtol, atol=atol, h=h)
@@ -220,4 +252,5 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         delta_M=(E - E[0]) / motion.mass if E.size else E, com=np.array(coms).reshape(-1, 3),
         steps=c.steps, rejected=c.rejected, nfev=c.nfev, status=status, message=message,
         cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
-        quaternion_error=worst[0])
+        quaternion_error=worst[0], forces=np.array(forces) if loops is not None else None,
+        residual_q=motion.residual_q, residual_v=motion.residual_v)

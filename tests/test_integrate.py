@@ -314,7 +314,7 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
                  lambda: CompiledSolver(rhs, 0.0, y0, t_end, method, ws=ws,
                                         planar=chain.is_planar, max_steps=50, **kw)):
         solver, samples = make(), []
-        assert advance(solver, ts, on_sample=lambda _t, y: samples.append(y.copy()))[0] == 0
+        assert advance(solver, ts, on_sample=lambda _t, y, s=samples: s.append(y.copy()))[0] == 0
         c = solver.counters
         runs.append(((c.steps, c.rejected, c.nfev), np.array(samples)))
     assert runs[0][0] == runs[1][0] and runs[0][0][0] > 20
