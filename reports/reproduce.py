@@ -197,6 +197,15 @@ class Reproduction:
         return (f"{len(doc['falls'])} robots, {len(ok)} robot x engine pairs built, worst "
                 f"relative difference {worst:.1e}")
 
+    def loops(self, full: bool = False) -> str:
+        from . import loops
+
+        doc = loops.run(self.results / "loops", full=full, log=self.say)
+        lr = doc["long"]
+        return (f"four-bar path {doc['four_bar']['path_error_m']:.1e} m, slope "
+                f"{doc['slope']:.2f}, {lr['n']:,} rods for {lr['t_end']:g} s in "
+                f"{lr['cpu_s']:.0f} s")
+
     def build(self) -> str:
         from .build import write_report
 
@@ -228,6 +237,7 @@ class Reproduction:
             p.add("true-error study", lambda: self.error_study(QUICK_ERROR_SIZES))
             p.add("CPU scaling", self.scaling)
             p.add("robots and trees", self.robots)
+            p.add("closed loops", self.loops)
         else:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
@@ -239,6 +249,7 @@ class Reproduction:
             p.add("CPU scaling", self.scaling)
             p.add("true-error study", lambda: self.error_study(None))
             p.add("robots and trees", self.robots)
+            p.add("closed loops", lambda: self.loops(full=True))
         p.add("report", self.build)
         return p
 

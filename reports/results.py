@@ -46,6 +46,7 @@ COND_FILE = Path("gim_study") / "cond.parquet"
 OPCOUNT_FILE = Path("opcount") / "opcount.json"
 SCALING_FILE = Path("scaling") / "scaling.parquet"
 ROBOTS_FILE = Path("robots") / "robots.json"
+LOOPS_FILE = Path("loops") / "loops.json"
 BENCH_DIR = "bench"
 REPRODUCE_GLOB = "reproduce-*.json"
 LONGRUN_DIR = "longrun"
@@ -192,6 +193,11 @@ class Results:
     def robots(self) -> dict | None:
         """``robots/robots.json`` (:mod:`reports.robots`), or None."""
         return _json(self.root / ROBOTS_FILE)
+
+    @functools.cached_property
+    def loops(self) -> dict | None:
+        """``loops/loops.json`` (:mod:`reports.loops`), or None."""
+        return _json(self.root / LOOPS_FILE)
 
     @functools.cached_property
     def scaling(self) -> pd.DataFrame | None:

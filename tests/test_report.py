@@ -25,7 +25,13 @@ from redysim.harness.sweep import run_sweep
 from redysim.reports import figures as F
 from redysim.reports import gim_study, opcount, scaling
 from redysim.reports import precision_tables as pt
-from redysim.reports.build import build_report, render_html, robots_section, write_report
+from redysim.reports.build import (
+    build_report,
+    loops_section,
+    render_html,
+    robots_section,
+    write_report,
+)
 from redysim.reports.content import DIFFER, MATCH, NOT_RUN, PARTIAL
 from redysim.reports.pdf import write_pdf
 from redysim.reports.results import Results
@@ -37,7 +43,7 @@ SMALL_LINKS = 10
 LONG_CASE = "RE-U5000-L100"  # Table 5's first chain, as a long run stopped after LONG_RUN_S
 LONG_RUN_S = 1.0
 SCALING_MAX_DOF = 20
-SECTIONS = ("headline", "setup", "paper", "figures", "beyond", "robots")
+SECTIONS = ("headline", "setup", "paper", "figures", "beyond", "robots", "loops")
 PAPER_TABLES = ("table1", "table2", "table3", "table4", "table5", "table6", "table7", "table8",
                 "table9", "table10", "table11", "tableA2")
 FIGURE_FAMILIES = ("tip-path", "tip-speed", "drift", "conditioning", "scaling", "opcount",
@@ -227,3 +233,26 @@ def test_the_robots_section_judges_each_engine_and_says_what_did_not_run(tmp_pat
     assert len(tables["robots-percall"].rows) == 1 and len(tables["robots-falls"].rows) == 1
     empty = {t.id: t for t in robots_section(Results(tmp_path / "none")).items}
     assert all("reports.robots" in t.not_run for t in empty.values())
+
+
+def test_the_loops_section_checks_its_bounds(tmp_path):
+    """loops.json (reports/loops.py) -> a verdict per check against its bound; no file: how to
+    get it."""
+    import json
+
+    doc = {"four_bar": {"path_error_m": 7e-13, "max_abs_delta_M": 3e-8, "residual_q": 1e-12,
+                        "crank_range_rad": 3.2},
+           "catenary": {"settled_rad": 4e-13, "start_off_rad": 6e-4,
+                        "gaps": [{"n": 10, "max_joint_gap_m": 6e-5},
+                                 {"n": 20, "max_joint_gap_m": 1.5e-5}], "orders": [2.0]},
+           "cost": [{"n": 100, "seconds": 1e-4}, {"n": 1000, "seconds": 4e-4}], "slope": 0.9,
+           "long": {"t_end": 0.2, "steps": 10, "nfev": 70, "cpu_s": 1.0, "status": 0,
+                    "max_abs_delta_M": 1e-12, "residual_q": 1e-12, "residual_v": 1e-14},
+           "provenance": provenance()}
+    (tmp_path / "loops").mkdir()
+    (tmp_path / "loops" / "loops.json").write_text(json.dumps(doc))
+    tables = {t.id: t for t in loops_section(Results(tmp_path)).items}
+    kinds = [r.kind for r in tables["loops-checks"].rows]
+    assert kinds == [MATCH, DIFFER, MATCH, MATCH]  # the drift 3e-8 is beyond its 1e-8
+    empty = {t.id: t for t in loops_section(Results(tmp_path / "none")).items}
+    assert all("reports.loops" in t.not_run for t in empty.values())
