@@ -38,6 +38,7 @@ _WHERE = {
     **dict.fromkeys(("ModelFileError", "load_model"), "importers"),
     **dict.fromkeys(("Body", "Model", "TreeJoint"), "model"),
     **dict.fromkeys(("Simulation", "simulate"), "simulation"),
+    **dict.fromkeys(("ClosedLoops", "CutJoint"), "loops"),
     "Workspace": "workspace",
     "rbda": "rbda",
 }
