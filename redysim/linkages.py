@@ -271,6 +271,28 @@ def straight_band(points) -> tuple[float, np.ndarray, np.ndarray]:
 # (horizontal) and l (vertical) from the fixed pivot to the crank axle, in his units. Published
 # by Jansen (strandbeest.com, "The Legsystem"; Jansen, The Great Pretender, 2007) and drawn with
 # these letters in Wikipedia's figure "Strandbeest Leg Proportions" (article "Jansen's linkage").
+def crossings(points, centre, direction) -> int:
+    """How many times a path crosses the line through ``centre`` along ``direction``."""
+    normal = np.array([-direction[1], direction[0]])
+    side = np.sign((np.asarray(points) - centre) @ normal)
+    return int(np.count_nonzero(np.diff(side[side != 0])))
+
+
+def hoekens_straight_part(a: float = 1.0) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """The straight part of Hoeken's path, read the way the published statement is: the
+    narrowest strip holding the path between the crank angles (90 and 270 deg) that put it
+    exactly on the line y = -4a, and the crank range theta1 .. 360 - theta1 [deg] over which the
+    path stays in that strip. Returns (theta1, width, centre, direction)."""
+    from scipy.optimize import brentq
+
+    t = np.radians(np.linspace(90.0, 270.0, 20001))
+    width, centre, direction = straight_band(hoekens_path(t, a))
+    bottom = centre[1] - width / 2
+    theta1 = brentq(lambda deg: hoekens_path(math.radians(deg), a)[1] - bottom, 60.0, 89.99,
+                    xtol=1e-13)
+    return theta1, width, centre, direction
+
+
 JANSEN_HOLY_NUMBERS = {"a": 38.0, "b": 41.5, "c": 39.3, "d": 40.1, "e": 55.8, "f": 39.4,
                        "g": 36.7, "h": 65.7, "i": 49.0, "j": 50.0, "k": 61.9, "l": 7.8,
                        "m": 15.0}

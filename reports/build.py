@@ -577,6 +577,18 @@ def loops_section(res: Results) -> Section:
     check("four-bar: energy drift, passive [J/kg]", fb["max_abs_delta_M"],
           LOOP_TOLERANCES["drift"])
     check("four-bar: loop residual after a step [m]", fb["residual_q"], LOOP_TOLERANCES["path"])
+    hk = doc.get("hoekens")
+    if hk is not None:
+        check("Hoeken's linkage: tracing point off its closed-form path [m]", hk["path_error_m"],
+              LOOP_TOLERANCES["path"])
+        pub = hk["published"]
+        ok = round(hk["width_percent_of_crank"]) == pub["percent"] and \
+            hk["crossings"] == pub["crossings"]
+        checks.rows.append(Row([
+            "Hoeken's linkage: straight part (simulated) within a strip of the crank's "
+            "length, crossing its middle line", f"{hk['width_percent_of_crank']:.3f} %, "
+            f"{hk['crossings']} times", f"published: within {pub['percent']} %, "
+            f"{pub['crossings']} times", "pass" if ok else "FAIL"], MATCH if ok else DIFFER))
     check(f"pinned chain, 10 rods: at rest after 10 s of damping, off the discrete catenary "
           f"[rad] (released {cat['start_off_rad']:.1e} rad off)", cat["settled_rad"],
           LOOP_TOLERANCES["settled"])

@@ -6,6 +6,8 @@ pinned chain (the report's "Closed loops" section).
 - four-bar (crank-rocker, ground 0.3, crank 0.1, coupler 0.35, rocker 0.3 m): released from rest
   for 2 s (ode45, rtol 1e-10, atol 1e-12); the coupler point against the closed-form position
   analysis at every sample, the energy drift, the loop residuals;
+- Hoeken's straight-line linkage (crank 0.1 m) set turning, passive: its tracing point against
+  the closed-form path, and its straight part against the published "within 1 %" and "6 times";
 - pinned chain of 10 rods (1 m, span 0.8 m): released with joint damping from the continuous
   catenary, against the discrete catenary's closed form after 10 s; and, from the closed forms
   alone, how the discrete catenary approaches the continuous one as n grows (joint positions;
@@ -47,6 +49,42 @@ def four_bar_check() -> dict:
             "residual_q": sim.residual_q, "residual_v": sim.residual_v,
             "crank_range_rad": float(np.ptp(sim.q[:, 0])),
             "max_force_N": float(np.abs(sim.forces).max())}
+
+
+# Hoeken's (Chebyshev's lambda) linkage, published: "stays within 1% positional tolerance while
+# intersecting the ideal straight line 6 times" (Wikipedia, "Chebyshev lambda linkage"; the 1 %
+# read as of the crank a, cases/loops/README.md)
+HOEKEN_PUBLISHED = {"percent": 1, "crossings": 6}
+
+
+def hoekens_check() -> dict:
+    """Hoeken's linkage (crank 0.1 m) set turning at 10 rad/s, passive, loop closed: its
+    tracing point against the closed-form path, and its straight part's strip and crossings."""
+    from redysim import simulate
+    from redysim.linkages import (
+        crossings,
+        hoekens_linkage,
+        hoekens_path,
+        hoekens_straight_part,
+        straight_band,
+    )
+
+    a = 0.1
+    fb = hoekens_linkage(a)
+    q0 = fb.configuration(math.radians(60.0))
+    null = np.linalg.svd(fb.loops.evaluate(q0, np.zeros(3))[1])[2][-1]
+    sim = simulate(fb.model, 0.45, q0=q0, v0=10.0 * null / null[0], loops=fb.loops,
+                   rtol=1e-10, atol=1e-12, sample=0.002)
+    points = np.array([fb.coupler_point(q) for q in sim.q])
+    theta1 = math.radians(hoekens_straight_part()[0])
+    crank = np.unwrap(sim.q[:, 0])
+    straight = (crank >= theta1) & (crank <= 2 * math.pi - theta1)
+    width, centre, direction = straight_band(points[straight])
+    return {"path_error_m": float(np.abs(points - hoekens_path(sim.q[:, 0], a)).max()),
+            "width_percent_of_crank": float(100 * width / a),
+            "crossings": crossings(points[straight], centre, direction),
+            "max_abs_delta_M": float(np.abs(sim.delta_M).max()), "steps": sim.steps,
+            "published": HOEKEN_PUBLISHED}
 
 
 def _joints(q, length):
@@ -119,6 +157,8 @@ def run(out: Path, full: bool = False, log=print) -> dict:
 
     log("loops: four-bar")
     doc = {"four_bar": four_bar_check()}
+    log("loops: Hoeken's straight-line linkage")
+    doc["hoekens"] = hoekens_check()
     log("loops: pinned chain and catenaries")
     doc["catenary"] = catenary_checks()
     log("loops: cost against n")

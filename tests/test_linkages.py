@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 
 from redysim import simulate
 from redysim.errors import CaseError
@@ -44,10 +43,12 @@ from redysim.linkage_files import load_linkage
 from redysim.linkages import (
     JANSEN_HOLY_NUMBERS,
     assemble,
+    crossings,
     four_bar,
     four_bar_position,
     hoekens_linkage,
     hoekens_path,
+    hoekens_straight_part,
     jansen_leg,
     pinned_chain,
     straight_band,
@@ -68,13 +69,6 @@ HOLY = {"a": 38.0, "b": 41.5, "c": 39.3, "d": 40.1, "e": 55.8, "f": 39.4, "g": 3
 
 def _closed(loops, q) -> float:
     return float(np.abs(loops.evaluate(np.asarray(q, dtype=float), np.zeros(len(q)))[0]).max())
-
-
-def _crossings(points, centre, direction) -> int:
-    """How many times the path crosses the line through ``centre`` along ``direction``."""
-    normal = np.array([-direction[1], direction[0]])
-    side = np.sign((np.asarray(points) - centre) @ normal)
-    return int(np.count_nonzero(np.diff(side[side != 0])))
 
 
 # --------------------------------------------------------------------------- the files
@@ -132,19 +126,6 @@ def test_the_chain_file_is_the_pinned_chain_and_starts_on_the_catenary():
 
 
 # --------------------------------------------------------------------------- Hoeken
-def _hoekens_straight_part(a: float = 1.0):
-    """The straight part of Hoeken's path, read the way the published statement is: the
-    narrowest strip holding the path between the crank angles (90 and 270 deg) that put it
-    exactly on the line y = -4a, and the crank range theta1 .. 360 - theta1 [deg] over which the
-    path stays in that strip. Returns (theta1, width, centre, direction)."""
-    t = np.radians(np.linspace(90.0, 270.0, 20001))
-    width, centre, direction = straight_band(hoekens_path(t, a))
-    bottom = centre[1] - width / 2
-    theta1 = brentq(lambda deg: hoekens_path(math.radians(deg), a)[1] - bottom, 60.0, 89.99,
-                    xtol=1e-13)
-    return theta1, width, centre, direction
-
-
 def test_hoekens_closed_form_is_straight_as_published():
     """Closed form (redysim.linkages.hoekens_path): at crank 90, 180 and 270 deg the tracing point
     is exactly on y = -4a (the ends and middle of the straight part, as Chebyshev's design puts
@@ -156,7 +137,7 @@ def test_hoekens_closed_form_is_straight_as_published():
     a = 1.0
     np.testing.assert_allclose(hoekens_path(np.radians([90.0, 180.0, 270.0]), a),
                                [[0.0, -4.0], [2.0, -4.0], [4.0, -4.0]], rtol=0, atol=1e-15)
-    theta1, width, centre, direction = _hoekens_straight_part(a)
+    theta1, width, centre, direction = hoekens_straight_part(a)
     assert abs(direction[1]) < 1e-12  # by symmetry the line is horizontal
     assert round(100 * width / a) == PUBLISHED_TOLERANCE and width / a <= 0.01
     assert width / a == pytest.approx(0.0097537, abs=1e-7)
@@ -166,7 +147,7 @@ def test_hoekens_closed_form_is_straight_as_published():
     path = hoekens_path(t, a)
     wide, mid, along = straight_band(path)
     assert wide == pytest.approx(width, rel=1e-6)  # equioscillation: the same strip
-    assert _crossings(path, mid, along) == PUBLISHED_CROSSINGS
+    assert crossings(path, mid, along) == PUBLISHED_CROSSINGS
     # the same strip against the straight part's length, 4a
     assert 100 * width / np.ptp(hoekens_path(np.radians([90.0, 270.0]), a)[:, 0]) \
         == pytest.approx(0.2438, abs=1e-4)
@@ -198,7 +179,7 @@ def test_a_simulated_hoekens_linkage_draws_the_published_straight_line():
                    sample=0.002)
     assert sim.status == 0, sim.message
     crank = np.unwrap(sim.q[:, 0])
-    theta1 = math.radians(_hoekens_straight_part()[0])
+    theta1 = math.radians(hoekens_straight_part()[0])
     assert crank[0] < theta1 and crank.max() > 2 * math.pi - theta1  # through the straight part
     points = np.array([fb.coupler_point(q) for q in sim.q])
     assert np.abs(points - hoekens_path(sim.q[:, 0], a)).max() < 1e-8
@@ -207,7 +188,7 @@ def test_a_simulated_hoekens_linkage_draws_the_published_straight_line():
     width, centre, direction = straight_band(points[straight])
     assert round(100 * width / a) == PUBLISHED_TOLERANCE
     assert width / a == pytest.approx(0.0097537, rel=1e-3)  # the closed form's, sampled
-    assert _crossings(points[straight], centre, direction) == PUBLISHED_CROSSINGS
+    assert crossings(points[straight], centre, direction) == PUBLISHED_CROSSINGS
 
 
 def test_the_hoekens_file_traces_the_closed_form_path():
