@@ -16,6 +16,12 @@ the core's coordinates, a free joint's included)::
 
     eng = references.get("dart")(model)       # = references.tree_engine("dart", model)
     references.get("dart").limits(model)      # = references.TREE_ENGINES["dart"].limits(model)
+
+Closed loops (:class:`redysim.loops.ClosedLoops`: a tree and its cut joints) go to the loop
+adapters (:mod:`references.loops`), which close the cuts with each engine's own constraint::
+
+    eng = references.loop_engine("exudyn", loops)   # references.LOOP_ENGINES lists them
+    qdd, lam = eng.forward_dynamics(q, v, tau)      # as ClosedLoops.forward_dynamics
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from .base import (
 )
 from .dart_engine import DART, DARTTree
 from .exudyn_engine import Exudyn, ExudynTree
+from .loops import LOOP_ENGINES, LoopEngine, LoopStateUnsupported, loop_engine
 from .mujoco_engine import MuJoCo, MuJoCoTree
 from .pinocchio_engine import (
     PinocchioABA,
@@ -67,9 +74,10 @@ def get(name: str) -> type[Engine]:
         raise KeyError(f"no engine {name!r}; known engines: {', '.join(ENGINES)}") from None
 
 
-__all__ = ["ENGINES", "TREE_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
+__all__ = ["ENGINES", "LOOP_ENGINES", "TREE_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
            "EngineUnavailable", "JointAxes", "Limits", "Trajectory", "TreeEngine",
-           "TreeJointAxes", "get", "joint_axes", "load_limits", "tree_class", "tree_engine",
+           "LoopEngine", "LoopStateUnsupported", "TreeJointAxes", "get", "joint_axes",
+           "load_limits", "loop_engine", "tree_class", "tree_engine",
            "tree_joints", "DART", "DARTTree", "Exudyn", "ExudynTree", "MuJoCo", "MuJoCoTree",
            "PinocchioABA", "PinocchioABARyRz", "PinocchioCRBA", "PinocchioTreeABA",
            "PinocchioTreeABARyRz", "PinocchioTreeCRBA"]

@@ -230,9 +230,16 @@ class MuJoCoTree(TreeEngine):
                 j.axis = axis.u
             bodies.append(body)
         spec.compiler.balanceinertia = balance
-        model = spec.compile()
+        # kept so that an adapter can add to the spec and compile it again (references/loops.py)
+        self.spec, self.spec_bodies, self.principal = spec, bodies, np.array(principal)
+        self._compile()
+
+    def _compile(self):
+        """Compile ``self.spec`` (built by ``_build``) and map the core's slots to MuJoCo's."""
+        m = self.model
+        model = self.spec.compile()
         ids = [model.body(f"b{k}").id for k in range(m.n_bodies)]
-        model.body_inertia[ids] = np.array(principal)  # exact moments (balanceinertia)
+        model.body_inertia[ids] = self.principal  # exact moments (balanceinertia)
         for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness",
                      "jnt_pos"):
             assert not np.any(getattr(model, name)), name
@@ -251,7 +258,7 @@ class MuJoCoTree(TreeEngine):
                 self.qidx[qs + i] = mj_joint.qposadr[0]
                 self.eidx[vs + i] = mj_joint.dofadr[0]
         self.free = [int(m.joint_qoff[k]) for k, j in enumerate(self.joints) if j.type == FREE]
-        self.mjmodel, self.mjdata = model, mj.MjData(model)
+        self.mjmodel, self.mjdata = model, self.lib.MjData(model)
         if model.nv != m.n_v or model.nq != m.n_q:
             raise AssertionError(f"model has nq={model.nq}, nv={model.nv}; the tree "
                                  f"{m.n_q}, {m.n_v}")

@@ -1,0 +1,673 @@
+"""The reference engines on closed loops: a :class:`redysim.loops.ClosedLoops` in each engine.
+
+Each adapter builds the loops' tree (its :class:`redysim.Model`) exactly as the engine's tree
+adapter does (:mod:`.trees`), then adds every cut joint (:class:`redysim.loops.CutJoint`) as the
+engine's OWN loop-closure constraint, and answers in the core's names and coordinates:
+
+==============================  ===============================================================
+``forward_dynamics(q, v, tau)`` (qdd, lam), as :meth:`ClosedLoops.forward_dynamics`: the
+                                constrained accelerations (n_v,) and the loop forces (m,): on
+                                body a at its point, world frame, per equation of each cut, in
+                                the order of ``ClosedLoops.rows`` (-lam on body b)
+``qdd(q, v, tau=None)``         the first of the two
+``refusal(q, v)``               "" when the engine can answer at this state, else why not
+                                (``forward_dynamics`` then raises :class:`LoopStateUnsupported`)
+``limits(loops)``               decided before building: can the engine build these loops
+``simulate(q0, v0, t_end, h)``  the engine's own integrator with its own loop constraints ->
+                                :class:`.base.Trajectory` (Pinocchio: refused, it has none)
+``available()``, ``version``    as the other adapters'
+==============================  ===============================================================
+
+What each engine builds (details and measurements in ``references/README.md``, "Loops"):
+
+- ``pinocchio``: the tree of ``pinocchio-crba`` (``JointModelUniversal`` for U), one
+  ``RigidConstraintModel(CONTACT_3D, joint_a, SE3(1, point_a), joint_b, SE3(1, point_b),
+  LOCAL_WORLD_ALIGNED)`` per cut (joint 0, the universe, for a world point), solved by
+  ``pin.constraintDynamics`` (the KKT system, ``ProximalSettings`` mu = 1e-8, iterated to
+  1e-13). A "planar" cut is the same 3-D constraint: its z row is identically zero in a planar
+  mechanism, a rank deficiency the proximal iterations absorb (without them, mu = 0, Pinocchio's
+  Cholesky returns NaN). ``data.lambda_c`` is already the core's lam (world-aligned force on
+  joint a's point); a planar cut's z multiplier is returned as 0 and dropped.
+- ``mujoco``: the tree of ``mujoco`` with constraints enabled, one site at each point and one
+  ``mjEQ_CONNECT`` equality between the two sites per cut (a ball joint), ``solimp`` at
+  MuJoCo's hardest, d = mjMAXIMP = 0.9999, Newton solver. MuJoCo's constraints are soft: it
+  solves (A + R) f = -(J a0 + Jdot v) on an assembled state with J v = 0 (A = J M^-1 J^T;
+  aref = 0 there; the velocity term is in, measured), R = (1 - d)/d diagApprox = 1e-4 diagApprox
+  (``efc_R``; diagApprox is MuJoCo's estimate of A's diagonal from the bodies' ``invweight0``),
+  so its qdd and forces differ from the hard answer by that regularisation, ~R / lambda_min(A);
+  :meth:`MuJoCoLoops.regularisation` returns R for the test to predict it. ``mjENBL_DIAGEXACT``
+  (the exact diagonal) makes R larger here, and so MuJoCo softer (measured): not set.
+  ``efc_force`` of the equality rows is the core's lam (world frame, force on body a). A
+  "planar" cut is a connect too: its z row has J = 0 and gets f = 0 (the soft solve needs no
+  full rank).
+- ``dart``: the tree of ``dart`` in a ``World`` with one ``BallJointConstraint`` per cut (rebuilt
+  at every call, at the given assembled state, since DART takes the joint's world position and
+  derives each body's offset from the current pose), error reduction 0, the default constraint
+  force mixing 1e-9 (DART's floor); DART resolves constraints only inside ``World.step()``, by
+  velocity impulses, so qdd = (v_new - v) / h of one step (h = 1e-3 s; at v = 0 the result does
+  not depend on h). The impulse makes J v_new = 0, i.e. J qdd = 0, not J qdd = -Jdot v: at a
+  nonzero velocity the answer lacks the velocity-product term, an O(|Jdot v|) error no step size
+  removes, so ``refusal`` refuses any v != 0. The loop forces: DART's ``getConstraintForces``
+  drops the impulse on body b when both bodies are in one Skeleton (measured on the four-bar:
+  0 on the rocker), so lam is solved from DART's own generalized constraint force M (qdd - qdd0)
+  = J^T lam, M, qdd0 and J (``Skeleton.getLinearJacobian`` of the two points) all DART's.
+- ``exudyn``: the tree of ``exudyn``, one ``ObjectJointSpherical`` per cut between a
+  ``MarkerKinematicTreeRigid`` on each body (a ``MarkerBodyPosition`` on an ``ObjectGround`` for a
+  world point), ``constrainedAxes = [1, 1, 0]`` for a planar cut (Exudyn's own 2-equation
+  form); qdd from Exudyn's implicit solver (``MainSolverImplicitSecondOrder``, GeneralizedAlpha)
+  computing its consistent initial accelerations (``computeInitialAccelerations``: the index-1
+  system with M, the constraint Jacobian and -d2g/dq2 qd^2) in ``InitializeSolver``, no step
+  taken; the Lagrange multipliers (``GetAECoordinates``) are the core's lam. Exudyn's explicit
+  solvers (which the tree adapter uses) cannot close a loop: by default they abort ("contains
+  constraints that cannot be solved"), with ``explicit.eliminateConstraints = False`` they warn
+  "WILL IGNORE CONSTRAINTS" and return the open tree's qdd (measured). Exudyn forms the velocity
+  term d2g/dq2 qd^2 by
+  numerical differentiation (``newton.numericalDifferentiation.relativeEpsilon``, 1e-7): its
+  error at v != 0 follows that epsilon (README).
+
+Planar cuts: Pinocchio, MuJoCo and DART hold a point in all three directions only, so they
+build a "planar" cut as a ball joint, which is the cut only when the world z equation is void:
+``limits`` refuses the loops when anything on the cut bodies' paths moves their points along z
+(:func:`non_planar`), and ``forward_dynamics`` a state whose cut points are apart in z. Exudyn
+builds the planar cut itself (``constrainedAxes = [1, 1, 0]``) and takes it on any mechanism.
+
+Thin bodies: the linkages' slender bars have a zero moment about their own axis. MuJoCo's
+compiler refuses a moment below mjMINVAL and DART calls it invalid. Where such a moment is about
+an axis e normal to EVERY revolute axis on the body's path to the base, and those axes are all
+parallel (a planar mechanism turning about n, so the body's angular velocity is always along n),
+the moment cannot enter the dynamics: I w = w_n I n and w x I w involve I only through I n,
+and I + delta e e^T has the same I n for e normal to n. There (and only there) the MuJoCo and
+DART adapters add delta = 1e-6 x the body's largest moment about e (:func:`inert_moments`);
+anywhere else the tree adapter's own refusal stands.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from redysim.loops import ClosedLoops
+from redysim.model import Model
+
+from .base import (
+    EngineLimitExceeded,
+    EnginePackage,
+    Limits,
+    Trajectory,
+    import_engine,
+    tree_adapter,
+)
+
+THIN = 1e-15  # a principal moment below this is "zero" (MuJoCo's mjMINVAL)
+THIN_RAISE = 1e-6  # the inert moment's value, relative to the body's largest moment
+PARALLEL = 1e-12  # |u x n| below which two unit axes are parallel, |e . n| for normal
+
+
+class LoopStateUnsupported(RuntimeError):
+    """The engine cannot give the constrained dynamics at this state (the message says why)."""
+
+
+# --------------------------------------------------------------------------- thin bodies
+def inert_moments(model: Model) -> tuple[Model, list[int], str]:
+    """(model', bodies changed, why not): the model with each zero principal moment that cannot
+    enter the dynamics raised to THIN_RAISE x the body's largest moment (module docstring), or
+    the model unchanged and the reason when a zero moment could enter them."""
+    from redysim.rbda import kinematics
+
+    kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
+    inertia = np.array(model.inertia_com, dtype=float)
+    changed = []
+    for k in range(model.n_bodies):
+        w, E = np.linalg.eigh(inertia[k])
+        thin = np.flatnonzero(w < THIN)
+        if thin.size == 0 or model.mass[k] <= 0.0:
+            continue
+        axes, b = [], k  # the revolute axes on the body's path, in body k's frame at q = 0
+        while b >= 0:
+            for i in range(int(model.joint_voff[b]), int(model.joint_voff[b + 1])):
+                if int(model.dof_kind[i]) == 0:  # R (a free joint's BALL turns about anything)
+                    axes.append(kin.R[k].T @ kin.R[b] @ np.asarray(model.dof_u[i], dtype=float))
+                elif int(model.dof_kind[i]) != 1:
+                    axes.append(None)
+            b = int(model.parent[b])
+        name = f"body {k} ({model.body_names[k]})"
+        if not axes or any(a is None for a in axes):
+            return model, [], f"{name} has a zero principal moment and turns about any axis"
+        n = axes[0] / np.linalg.norm(axes[0])
+        if any(np.linalg.norm(np.cross(a, n)) > PARALLEL for a in axes):
+            return model, [], (f"{name} has a zero principal moment and turns about "
+                               "non-parallel axes, so the moment can enter its dynamics")
+        for j in thin:
+            e = E[:, j]
+            if abs(e @ n) > PARALLEL:
+                return model, [], f"{name} has a zero principal moment about its axis of rotation"
+            delta = THIN_RAISE * float(w.max()) - float(w[j])
+            inertia[k] = inertia[k] + delta * np.outer(e, e)
+        inertia[k] = 0.5 * (inertia[k] + inertia[k].T)
+        changed.append(k)
+    if not changed:
+        return model, [], ""
+    return dataclasses.replace(model, inertia_com=inertia), changed, ""
+
+
+# --------------------------------------------------------------------------- planar cuts
+def non_planar(loops: ClosedLoops, cut) -> str:
+    """Why a "planar" cut's third equation (world z) is NOT void on these loops ("" when it is):
+    an engine that can only hold a point in all three directions builds a planar cut as a ball
+    joint, which is the cut only when nothing on the paths of its two bodies moves the points
+    along z (revolute axes along z, prismatic axes normal to it: their z stays constant)."""
+    from redysim.rbda import kinematics
+
+    model = loops.model
+    kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
+    z = np.array([0.0, 0.0, 1.0])
+    for body in (cut.body_a, cut.body_b):
+        while body >= 0:
+            for i in range(int(model.joint_voff[body]), int(model.joint_voff[body + 1])):
+                u = kin.R[body] @ np.asarray(model.dof_u[i], dtype=float)  # world, at q = 0
+                kind = int(model.dof_kind[i])
+                if (kind == 0 and np.linalg.norm(np.cross(u, z)) > PARALLEL) or \
+                        (kind == 1 and abs(u @ z) > PARALLEL) or kind not in (0, 1):
+                    return (f"the planar cut {cut.name!r} leaves world z free, but body {body} "
+                            f"({model.body_names[body]}) moves its points along z; this engine's "
+                            "ball constraint would hold z too")
+            body = int(model.parent[body])
+    return ""
+
+
+# --------------------------------------------------------------------------- base class
+class LoopEngine(EnginePackage):
+    """Base class of the loop adapters (module docstring). A subclass sets ``name``, ``tree_name``
+    (the engine's tree adapter), ``package``, ``module`` and implements ``_build`` and
+    ``_solve`` (and ``_simulate`` with ``integrator`` where the engine has one)."""
+
+    name: ClassVar[str] = ""
+    tree_name: ClassVar[str] = ""
+    package: ClassVar[str] = ""
+    module: ClassVar[str] = ""
+    thin_ok: ClassVar[bool] = False  # raise the inert zero moments (module docstring)
+    planar_exact: ClassVar[bool] = False  # has a 2-equation (x, y) point constraint of its own
+    PLANAR_GAP = 1e-9  # |z_a - z_b| [m, relative to the model's size] a ball may hold as planar
+
+    def __init__(self, loops: ClosedLoops, *, check_limits: bool = True):
+        self.lib = import_engine(self.name, self.package, self.module)
+        if not isinstance(loops, ClosedLoops):
+            raise TypeError(f"expected a redysim.loops.ClosedLoops, got {type(loops).__name__}")
+        if check_limits:
+            lim = self.limits(loops)
+            if not lim.ok:
+                raise EngineLimitExceeded(f"{self.name}: {lim.reason}")
+        self.loops = loops
+        self.model, self.thin_bodies, _ = (inert_moments(loops.model) if self.thin_ok
+                                           else (loops.model, [], ""))
+        self.tree = tree_adapter(self.tree_name)(self.model, check_limits=False)
+        self._build()
+
+    @classmethod
+    def limits(cls, loops: ClosedLoops) -> Limits:
+        """Can this engine build the loops? The tree adapter's verdict on the tree (after the
+        inert moments are raised, for the engines that need it), then the cuts'."""
+        if not isinstance(loops, ClosedLoops):
+            raise TypeError(f"expected a redysim.loops.ClosedLoops, got {type(loops).__name__}")
+        model, why = loops.model, ""
+        if cls.thin_ok:
+            model, _, why = inert_moments(model)
+        lim = tree_adapter(cls.tree_name).limits(model)
+        if not lim.ok:
+            return Limits(False, lim.reason + (f" ({why})" if why else ""))
+        for c in loops.cuts:
+            if c.kind not in cls.kinds:
+                return Limits(False, f"{cls.name}: cut {c.name!r} is {c.kind!r}, which this "
+                                     f"adapter has no construction for")
+            why = "" if c.kind != "planar" or cls.planar_exact else non_planar(loops, c)
+            if why:
+                return Limits(False, f"{cls.name}: {why}")
+        return Limits(True, "")
+
+    kinds: ClassVar[tuple[str, ...]] = ("point", "planar")
+
+    def refusal(self, q, v) -> str:
+        """Why the engine cannot answer at (q, v) ("" when it can)."""
+        return ""
+
+    def _check(self, q, v, tau):
+        m = self.model
+        q = np.asarray(q, dtype=float)
+        v = np.asarray(v, dtype=float)
+        if q.shape != (m.n_q,) or v.shape != (m.n_v,):
+            raise ValueError(f"q, v have shapes {q.shape}, {v.shape}; the model has n_q = "
+                             f"{m.n_q}, n_v = {m.n_v}")
+        if tau is not None:
+            tau = np.asarray(tau, dtype=float)
+            if tau.shape != (m.n_v,):
+                raise ValueError(f"tau has shape {tau.shape}; the model has n_v = {m.n_v}")
+        return q, v, tau
+
+    def forward_dynamics(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
+        """(qdd, lam) with the loops closed, in the core's coordinates and convention."""
+        q, v, tau = self._check(q, v, tau)
+        why = self.refusal(q, v) or self._planar_gap(q)
+        if why:
+            raise LoopStateUnsupported(f"{self.name}: {why}")
+        self.loops.check_start(q)  # every engine here takes an assembled state only
+        return self._solve(q, v, tau)
+
+    def _planar_gap(self, q) -> str:
+        """A planar cut built as a ball: its points must also meet in z (constant on a planar
+        mechanism, see :func:`non_planar`)."""
+        if self.planar_exact:
+            return ""
+        from redysim.rbda import kinematics
+
+        kin = None
+        for c in self.loops.cuts:
+            if c.kind != "planar":
+                continue
+            kin = kin or kinematics(self.model, q, np.zeros(self.model.n_v))
+            za, zb = (float(np.asarray(p, dtype=float)[2]) if b < 0 else
+                      float((kin.O[b] + kin.R[b] @ np.asarray(p, dtype=float))[2])
+                      for b, p in ((c.body_a, c.point_a), (c.body_b, c.point_b)))
+            if abs(za - zb) > self.PLANAR_GAP * self.loops.size:
+                return (f"the planar cut {c.name!r} has its points {abs(za - zb):.3g} m apart in "
+                        "world z, which it leaves free; this engine's ball constraint would "
+                        "close that gap")
+        return ""
+
+    def qdd(self, q, v, tau=None) -> np.ndarray:
+        return self.forward_dynamics(q, v, tau)[0]
+
+    integrator: ClassVar[str] = ""  # the native integrator simulate() uses ("": none)
+
+    def simulate(self, q0, v0, t_end: float, h: float, *, every: int = 1) -> Trajectory:
+        """The passive motion (no joint torques) from the assembled (q0, v0) to t_end with the
+        engine's own fixed-step integrator and its own handling of the loops, step h; every
+        ``every``-th step is kept (and the start). Raises LoopStateUnsupported for an engine
+        without an integrator."""
+        if not self.integrator:
+            raise LoopStateUnsupported(f"{self.name}: {self.no_integrator}")
+        q0, v0, _ = self._check(q0, v0, None)
+        if not (h > 0 and t_end > 0 and every >= 1):
+            raise ValueError(f"need h > 0, t_end > 0, every >= 1; got {h}, {t_end}, {every}")
+        self.loops.check_start(q0)
+        steps = int(round(t_end / h))
+        ts, qs, vs = self._simulate(q0, v0, h, steps, every)
+        return Trajectory(np.asarray(ts), np.asarray(qs), np.asarray(vs), self.integrator)
+
+    no_integrator: ClassVar[str] = ""
+
+    def _simulate(self, q0, v0, h, steps, every):
+        """(times, q samples, v samples) in the core's coordinates, the start included."""
+        raise NotImplementedError
+
+    def _rows(self, per_cut: np.ndarray) -> np.ndarray:
+        """(n_cuts, 3) per-cut 3-D values -> the core's rows (the first 2 of a planar cut)."""
+        return np.array([per_cut[i, r] for i, r in self.loops.rows])
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}({self.model.name!r}, {len(self.loops.cuts)} cuts, "
+                f"m = {self.loops.m})")
+
+    def _build(self) -> None:
+        raise NotImplementedError
+
+    def _solve(self, q, v, tau):
+        raise NotImplementedError
+
+
+# --------------------------------------------------------------------------- Pinocchio
+class PinocchioLoops(LoopEngine):
+    """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut."""
+
+    name = "pinocchio"
+    tree_name = "pinocchio-crba"
+    package = "pin"
+    module = "pinocchio"
+    no_integrator = ("Pinocchio has no time integrator (its constraintDynamics gives qdd only; "
+                     "any trajectory would be this adapter's integrator, not Pinocchio's)")
+    MU = 1e-8  # proximal parameter (any small value: the iterations converge to mu = 0's answer)
+    ACCURACY = 1e-13
+    MAX_ITER = 50
+
+    def _build(self):
+        pin, t = self.lib, self.tree
+        last = {}  # body -> its last axis's joint id (the body's frame); joints named b{k}_{i}
+        for jid, nm in enumerate(t.pm.names):
+            if nm.startswith("b") and "_" in nm:
+                k, i = (int(x) for x in nm[1:].split("_"))
+                if i >= last.get(k, (-1, 0))[0]:
+                    last[k] = (i, jid)
+        models = pin.StdVec_RigidConstraintModel()
+        for c in self.loops.cuts:
+            ja = last[c.body_a][1]
+            jb = 0 if c.body_b < 0 else last[c.body_b][1]
+            models.append(pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D, t.pm, ja, pin.SE3(np.eye(3), np.array(c.point_a)),
+                jb, pin.SE3(np.eye(3), np.array(c.point_b)),
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+        datas = pin.StdVec_RigidConstraintData()
+        for cm in models:
+            datas.append(cm.createData())
+        pin.initConstraintDynamics(t.pm, t.data, models, datas)
+        self.cmodels, self.cdatas = models, datas
+        self.settings = pin.ProximalSettings(self.ACCURACY, self.MU, self.MAX_ITER)
+
+    def _solve(self, q, v, tau):
+        pin, t = self.lib, self.tree
+        qp, blocks = t._engine_state(q, v)
+        y = t._to_engine(v, blocks)
+        tau_e = np.zeros(t.n_e) if tau is None else t._to_engine(tau, blocks)
+        a = pin.constraintDynamics(t.pm, t.data, qp, y, tau_e, self.cmodels, self.cdatas,
+                                   self.settings)
+        if self.settings.iter >= self.MAX_ITER or not np.all(np.isfinite(a)):
+            raise LoopStateUnsupported(
+                f"{self.name}: constraintDynamics did not converge in {self.MAX_ITER} proximal "
+                f"iterations (residual {self.settings.absolute_residual:.3g})")
+        lam = np.asarray(t.data.lambda_c, dtype=float).reshape(-1, 3)
+        return t._from_engine(a, blocks), self._rows(lam)
+
+
+# --------------------------------------------------------------------------- MuJoCo
+class MuJoCoLoops(LoopEngine):
+    """MuJoCo's ``mjEQ_CONNECT`` between two sites per cut, solimp at mjMAXIMP (module doc)."""
+
+    name = "mujoco"
+    tree_name = "mujoco"
+    package = "mujoco"
+    module = "mujoco"
+    thin_ok = True
+    TOLERANCE = 1e-15  # opt.tolerance; Newton stops after 1 iteration on these problems
+
+    def _build(self):
+        mj, t = self.lib, self.tree
+        spec, bodies = t.spec, t.spec_bodies
+        spec.option.disableflags &= ~int(mj.mjtDisableBit.mjDSBL_CONSTRAINT)  # contacts stay off
+        spec.option.solver = mj.mjtSolver.mjSOL_NEWTON
+        spec.option.tolerance = self.TOLERANCE
+        solimp = np.array([mj.mjMAXIMP, mj.mjMAXIMP, 0.001, 0.5, 2.0])
+        for i, c in enumerate(self.loops.cuts):
+            sites = []
+            for side, body, point in (("a", c.body_a, c.point_a), ("b", c.body_b, c.point_b)):
+                s = (spec.worldbody if body < 0 else bodies[body]).add_site()
+                s.name, s.pos = f"cut{i}{side}", np.array(point, dtype=float)
+                sites.append(s.name)
+            eq = spec.add_equality()
+            eq.name, eq.type, eq.objtype = f"cut{i}", mj.mjtEq.mjEQ_CONNECT, mj.mjtObj.mjOBJ_SITE
+            eq.name1, eq.name2 = sites
+            eq.solimp = solimp
+        t._compile()
+        mm = t.mjmodel
+        assert mm.neq == len(self.loops.cuts)
+        assert not np.any(mm.opt.disableflags & int(mj.mjtDisableBit.mjDSBL_CONSTRAINT))
+        self.eq_ids = [mm.equality(f"cut{i}").id for i in range(len(self.loops.cuts))]
+
+    def _forward(self, q, v, tau):
+        t = self.tree
+        qe, blocks = t._engine_state(q, v)
+        d = t._forward(qe, t._to_engine(v, blocks),
+                       None if tau is None else t._to_engine(tau, blocks))
+        n = d.nefc
+        eq = int(self.lib.mjtConstraint.mjCNSTR_EQUALITY)
+        if n != 3 * len(self.loops.cuts) or np.any(d.efc_type[:n] != eq):
+            raise AssertionError(f"expected {3 * len(self.loops.cuts)} equality rows, got {n}")
+        order = np.argsort([self.eq_ids.index(int(e)) for e in d.efc_id[:n]], kind="stable")
+        return d, blocks, order
+
+    def _solve(self, q, v, tau):
+        t = self.tree
+        d, blocks, order = self._forward(q, v, tau)
+        f = np.asarray(d.efc_force[:d.nefc])[order].reshape(-1, 3)
+        return t._from_engine(d.qacc, blocks), self._rows(f)
+
+    integrator = "mj_step, mjINT_RK4 (soft connect constraints, default solref)"
+
+    def _simulate(self, q0, v0, h, steps, every):
+        mj, t = self.lib, self.tree
+        m, d = t.mjmodel, t.mjdata
+        saved = (m.opt.timestep, m.opt.integrator)
+        m.opt.timestep, m.opt.integrator = h, mj.mjtIntegrator.mjINT_RK4
+        try:
+            mj.mj_resetData(m, d)
+            qe, blocks = t._engine_state(q0, v0)
+            d.qpos[:], d.qvel[:] = qe, t._to_engine(v0, blocks)
+            ts, qs, vs = [0.0], [q0.copy()], [v0.copy()]
+            for i in range(1, steps + 1):
+                mj.mj_step(m, d)
+                if i % every == 0 or i == steps:
+                    ts.append(i * h)
+                    qs.append(d.qpos[t.qidx].copy())
+                    vs.append(d.qvel[t.eidx].copy())
+        finally:
+            m.opt.timestep, m.opt.integrator = saved
+        return ts, qs, vs
+
+    def regularisation(self, q, v) -> np.ndarray:
+        """MuJoCo's constraint regulariser R (``efc_R``) at (q, v), one per core row: MuJoCo's
+        forces solve (A + R) f = aref - J a0 instead of A f = -J a0 - Jdot v (aref = 0 and the
+        velocity term is in a0's J a0, measured, on an assembled state with J v = 0)."""
+        d, _, order = self._forward(*self._check(q, v, None)[:2], None)
+        return self._rows(np.asarray(d.efc_R[:d.nefc])[order].reshape(-1, 3))
+
+
+# --------------------------------------------------------------------------- DART
+class DARTLoops(LoopEngine):
+    """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc)."""
+
+    name = "dart"
+    tree_name = "dart"
+    package = "dartpy"
+    module = "dartpy"
+    thin_ok = True
+    STEP = 1e-3  # s; at v = 0 (the only state taken) the answer does not depend on it
+    CFM = 1e-9  # DART's default and floor; its relative error in qdd and lam is ~CFM (measured)
+
+    def _build(self):
+        dart, t = self.lib, self.tree
+        self.world = dart.simulation.World()
+        self.world.setGravity(np.asarray(self.model.gravity, dtype=float))
+        self.world.addSkeleton(t.skel)  # also sets the skeleton's gravity to the world's
+        self.world.setTimeStep(self.STEP)
+        self.bodynodes = [t.skel.getJoint(f"j{k}").getChildBodyNode()
+                          for k in range(self.model.n_bodies)]
+
+    def refusal(self, q, v) -> str:
+        if np.any(np.asarray(v) != 0.0):
+            return ("DART resolves a loop by a velocity impulse inside World.step() (J v_new = 0, "
+                    "so J qdd = 0): at v != 0 its (v_new - v)/h lacks the loop's velocity-product "
+                    "term -Jdot v, an error of O(|Jdot v|) that no step size removes; only v = 0 "
+                    "is taken")
+        return ""
+
+    def _constraints(self, q, erp=0.0):
+        """Rebuild the ball constraints at the assembled q, with error reduction ``erp``: DART
+        derives each body's offset from the skeleton's pose at construction, so it is set to q
+        first."""
+        from redysim.rbda import kinematics
+
+        dart, t = self.lib, self.tree
+        t.skel.setPositions(t._engine_state(q, np.zeros(self.model.n_v))[0])
+        kin = kinematics(self.model, q, np.zeros(self.model.n_v))
+        solver = self.world.getConstraintSolver()
+        solver.removeAllConstraints()
+        for c in self.loops.cuts:
+            a = self.bodynodes[c.body_a]
+            if c.body_b < 0:
+                con = dart.constraint.BallJointConstraint(a, np.array(c.point_b, dtype=float))
+            else:
+                x = kin.O[c.body_a] + kin.R[c.body_a] @ np.asarray(c.point_a, dtype=float)
+                con = dart.constraint.BallJointConstraint(a, self.bodynodes[c.body_b], x)
+            con.setErrorReductionParameter(erp)
+            con.setConstraintForceMixing(self.CFM)  # a static in DART: set it every time
+            solver.addConstraint(con)
+
+    integrator = ("World.step: semi-implicit Euler, BallJointConstraint impulses, DART's default "
+                  "error reduction 0.01")
+    ERP = 0.01  # DART's default (JointConstraint), for simulate: its drift correction
+
+    def _simulate(self, q0, v0, h, steps, every):
+        t = self.tree
+        self._constraints(q0, self.ERP)
+        qe, blocks = t._engine_state(q0, v0)
+        t._set(qe, t._to_engine(v0, blocks))
+        self.world.setTimeStep(h)
+        try:
+            ts, qs, vs = [0.0], [q0.copy()], [v0.copy()]
+            for i in range(1, steps + 1):
+                self.world.step()
+                if i % every == 0 or i == steps:
+                    ts.append(i * h)
+                    qs.append(np.array(t.skel.getPositions())[t.eidx])
+                    vs.append(np.array(t.skel.getVelocities())[t.eidx])
+        finally:
+            self.world.setTimeStep(self.STEP)
+        return ts, qs, vs
+
+    def _jacobian(self):
+        """(3 n_cuts, n_e): DART's world-frame Jacobian of point a minus point b, per cut."""
+        skel, rows = self.tree.skel, []
+        for c in self.loops.cuts:
+            Ja = np.array(skel.getLinearJacobian(self.bodynodes[c.body_a],
+                                                 np.array(c.point_a, dtype=float)))
+            if c.body_b >= 0:
+                Ja = Ja - np.array(skel.getLinearJacobian(self.bodynodes[c.body_b],
+                                                          np.array(c.point_b, dtype=float)))
+            rows.append(Ja)
+        return np.vstack(rows)
+
+    def _solve(self, q, v, tau):
+        t = self.tree
+        qe, blocks = t._engine_state(q, v)
+        y = t._to_engine(v, blocks)
+        tau_e = None if tau is None else t._to_engine(tau, blocks)
+        t._set(qe, y, tau_e)
+        skel = t.skel
+        skel.computeForwardDynamics()
+        a0 = np.array(skel.getAccelerations())
+        M = np.array(skel.getMassMatrix())
+        J = self._jacobian()
+        self._constraints(q)
+        t._set(qe, y, tau_e)
+        self.world.step()
+        a = (np.array(skel.getVelocities()) - y) / self.STEP
+        keep = [3 * i + r for i, r in self.loops.rows]
+        lam, *_ = np.linalg.lstsq(J[keep].T, M @ (a - a0), rcond=None)
+        return t._from_engine(a, blocks), lam
+
+
+# --------------------------------------------------------------------------- Exudyn
+class ExudynLoops(LoopEngine):
+    """Exudyn's ``ObjectJointSpherical`` per cut; qdd = the implicit solver's initial
+    accelerations (module docstring)."""
+
+    name = "exudyn"
+    tree_name = "exudyn"
+    package = "exudyn"
+    module = "exudyn"
+    planar_exact = True  # ObjectJointSpherical's constrainedAxes = [1, 1, 0]
+
+    def _build(self):
+        exu, t = self.lib, self.tree
+        from exudyn.itemInterface import (
+            MarkerBodyPosition,
+            MarkerKinematicTreeRigid,
+            ObjectGround,
+            ObjectJointSpherical,
+            VObjectJointSpherical,
+        )
+
+        from .exudyn_engine import _settings
+
+        mbs = t.mbs
+        ground = None
+
+        def marker(body, point):
+            nonlocal ground
+            p = np.asarray(point, dtype=float)
+            if body < 0:
+                if ground is None:
+                    ground = mbs.AddObject(ObjectGround())
+                return mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground,
+                                                        localPosition=[float(x) for x in p]))
+            A = t.turn_of_body[body]
+            p = p if A is None else A.T @ p
+            return mbs.AddMarker(MarkerKinematicTreeRigid(
+                objectNumber=t.tree, linkNumber=t.link_of_body[body],
+                localPosition=[float(x) for x in p]))
+
+        self.joints = []
+        for c in self.loops.cuts:
+            pair = [marker(c.body_a, c.point_a), marker(c.body_b, c.point_b)]
+            self.joints.append(mbs.AddObject(ObjectJointSpherical(
+                markerNumbers=pair, constrainedAxes=[1, 1, 1] if c.kind == "point" else [1, 1, 0],
+                visualization=VObjectJointSpherical(show=False))))
+        mbs.Assemble()
+        ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, 1e-6, 1)
+        ss.timeIntegration.generalizedAlpha.computeInitialAccelerations = True
+        self.settings = ss
+        self.solver = exu.MainSolverImplicitSecondOrder()
+        self._sensors = None
+
+    def _solve(self, q, v, tau):
+        from .exudyn_engine import _without_sparse_advice
+
+        exu, t = self.lib, self.tree
+        qe, blocks = t._engine_state(q, v)
+        t._set_state(qe, t._to_engine(v, blocks),
+                     None if tau is None else t._to_engine(tau, blocks))
+        with _without_sparse_advice():
+            self.solver.InitializeSolver(t.mbs, self.settings)  # computes the initial qdd
+        sd, cur = t.mbs.systemData, exu.ConfigurationType.Current
+        a = np.array(sd.GetODE2Coordinates_tt(configuration=cur))
+        lam = np.array(sd.GetAECoordinates(configuration=cur)).reshape(-1, 3)
+        return t._from_engine(a, blocks), self._rows(lam)
+
+
+    integrator = ("GeneralizedAlpha (Exudyn's defaults: index-3 constraints, spectral radius 0.9), "
+                  "Newton tolerances 1e-12")
+
+    def _simulate(self, q0, v0, h, steps, every):
+        from exudyn.itemInterface import SensorNode
+
+        from .exudyn_engine import _settings, _without_sparse_advice
+
+        exu, t = self.lib, self.tree
+        mbs = t.mbs
+        if self._sensors is None:
+            ovt = exu.OutputVariableType
+            self._sensors = [mbs.AddSensor(SensorNode(nodeNumber=t.node, storeInternal=True,
+                                                      writeToFile=False, outputVariableType=o))
+                             for o in (ovt.Coordinates, ovt.Coordinates_t)]
+            mbs.Assemble()
+        ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, steps * h, steps)
+        ss.timeIntegration.newton.relativeTolerance = 1e-12
+        ss.timeIntegration.newton.absoluteTolerance = 1e-12
+        ss.solution.sensors.writePeriod = every * h
+        qe, blocks = t._engine_state(q0, v0)
+        t._set_state(qe, t._to_engine(v0, blocks), None)
+        with _without_sparse_advice():
+            if not exu.MainSolverImplicitSecondOrder().SolveSystem(mbs, ss):
+                raise LoopStateUnsupported(f"{self.name}: the GeneralizedAlpha solve failed")
+        qd, vd = (np.array(mbs.GetSensorStoredData(s)) for s in self._sensors)
+        want = [i * h for i in range(0, steps + 1, every)]
+        if steps % every:
+            want.append(steps * h)
+        rows = [int(np.argmin(np.abs(qd[:, 0] - w))) for w in want]
+        if any(abs(qd[r, 0] - w) > 0.5 * h for r, w in zip(rows, want, strict=True)):
+            raise AssertionError(f"Exudyn's sensor samples {qd[:, 0]} miss the times {want}")
+        return (want, [qd[r, 1:][t.eidx] for r in rows], [vd[r, 1:][t.eidx] for r in rows])
+
+
+LOOP_ENGINES: dict[str, type[LoopEngine]] = {
+    cls.name: cls for cls in (PinocchioLoops, MuJoCoLoops, DARTLoops, ExudynLoops)}
+
+
+def loop_engine(name: str, loops: ClosedLoops, *, check_limits: bool = True) -> LoopEngine:
+    """Engine ``name`` (a key of :data:`LOOP_ENGINES`) on ``loops``: raises
+    EngineLimitExceeded with the reason when its ``limits`` refuse them, EngineUnavailable when
+    its package is missing."""
+    try:
+        cls = LOOP_ENGINES[name]
+    except KeyError:
+        raise KeyError(f"no loop engine {name!r}; known: {', '.join(LOOP_ENGINES)}") from None
+    return cls(loops, check_limits=check_limits)
