@@ -611,9 +611,26 @@ def loops_section(res: Results) -> Section:
                         INFO if lr["status"] == 0 else DIFFER))
     run.notes.append("From the continuous catenary at rest (ode45 at the paper's tolerances); "
                      "make reproduce-full runs 1 s.")
-    for t in (checks, cost, run):
+    engines = Table("loops-engines", "The engines on the same loops: worst relative difference "
+                    "from the core, at rest and moving", ["mechanism", "engine", "qdd",
+                                                          "loop force", "note"])
+    for r in doc.get("engines", []):
+        done = finite(r["qdd"])
+        engines.rows.append(Row([r["mechanism"], r["engine"], sci(r["qdd"], 1) if done else "",
+                                 sci(r["force"], 1) if done else "", r["refused"].strip()],
+                                INFO if done else NOT_RUN))
+    engines.notes.append("Each engine closes the cut with its own constraint (references/"
+                         "loops.py; references/README.md, 'Loops'): Pinocchio's "
+                         "RigidConstraintModel, MuJoCo's connect equality (always softened by a "
+                         "regulariser of 1e-4 of each constraint's diagonal, which sets its "
+                         "difference), DART's BallJointConstraint (a velocity impulse inside a "
+                         "step, without the -Jdot v term: refused in motion), Exudyn's "
+                         "spherical joint (its velocity term by finite differences).")
+    if not engines.rows:
+        engines.not_run = LOOPS_NOT_RUN
+    for t in (checks, engines, cost, run):
         t.provenance = provenance_line(doc.get("provenance"), what="results/loops/loops.json")
-    sec.items += [checks, cost, run]
+    sec.items += [checks, engines, cost, run]
     return sec
 
 

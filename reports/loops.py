@@ -87,6 +87,57 @@ def hoekens_check() -> dict:
             "published": HOEKEN_PUBLISHED}
 
 
+def _null_velocity(loops, q, speed: float) -> np.ndarray:
+    """A velocity the loops allow: the first null-space direction of J, scaled."""
+    J = loops.evaluate(q, np.zeros(loops.model.n_v))[1]
+    null = np.linalg.svd(J)[2][-1]
+    return speed * null / np.abs(null).max()
+
+
+def engines_check() -> list[dict]:
+    """Each engine's constrained qdd and loop forces against the core's (references.loops), on
+    the four-bar and a 20-rod pinned chain, at rest and moving: the worst relative differences
+    (qdd by the larger of the constrained and the open tree's |qdd|), or the refusal."""
+    import redysim
+    from redysim.linkages import four_bar, pinned_chain
+    from redysim.references.loops import LOOP_ENGINES, loop_engine
+    from redysim.shapes import catenary_angles
+
+    fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
+    chain = pinned_chain(20, 0.1, 0.1, 1.6)
+    mechanisms = {"four-bar": (fb.loops, fb.configuration(1.0)),
+                  "pinned chain, 20 rods": (chain.loops, catenary_angles(20, 2.0, 1.6))}
+    rows = []
+    for mech, (loops, q) in mechanisms.items():
+        states = {"rest": np.zeros(loops.model.n_v), "moving": _null_velocity(loops, q, 2.0)}
+        for name, cls in LOOP_ENGINES.items():
+            row = {"mechanism": mech, "engine": name, "qdd": math.nan, "force": math.nan,
+                   "refused": ""}
+            try:
+                if not cls.available():
+                    row["refused"] = f"package {cls.package!r} not installed"
+                elif not (lim := cls.limits(loops)).ok:
+                    row["refused"] = lim.reason
+                else:
+                    eng = loop_engine(name, loops)
+                    for label, v in states.items():
+                        if why := eng.refusal(q, v):
+                            row["refused"] += f"{label}: {why} "
+                            continue
+                        qdd, lam = eng.forward_dynamics(q, v)
+                        qdd_c, lam_c = loops.forward_dynamics(q, v)
+                        tree = redysim.forward_dynamics(loops.model, q, v)
+                        scale = max(np.abs(qdd_c).max(), np.abs(tree).max())
+                        row["qdd"] = np.nanmax([row["qdd"], np.abs(qdd - qdd_c).max() / scale])
+                        row["force"] = np.nanmax([row["force"], np.abs(lam - lam_c).max()
+                                                  / np.abs(lam_c).max()])
+            except Exception as exc:  # an engine's failure is a result, in its own words
+                row["refused"] = f"failed: {type(exc).__name__}: {exc}"
+            rows.append({k: (float(x) if isinstance(x, np.floating) else x)
+                         for k, x in row.items()})
+    return rows
+
+
 def _joints(q, length):
     """Joint positions (n + 1, 2) of a planar chain of equal links from relative angles."""
     theta = np.cumsum(q)
@@ -159,6 +210,8 @@ def run(out: Path, full: bool = False, log=print) -> dict:
     doc = {"four_bar": four_bar_check()}
     log("loops: Hoeken's straight-line linkage")
     doc["hoekens"] = hoekens_check()
+    log("loops: the engines")
+    doc["engines"] = engines_check()
     log("loops: pinned chain and catenaries")
     doc["catenary"] = catenary_checks()
     log("loops: cost against n")
