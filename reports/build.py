@@ -628,9 +628,39 @@ def loops_section(res: Results) -> Section:
                          "spherical joint (its velocity term by finite differences).")
     if not engines.rows:
         engines.not_run = LOOPS_NOT_RUN
-    for t in (checks, engines, cost, run):
+    traj = Table("loops-trajectories", "The engines' own integrators on the four-bar: 0.5 s from "
+                 "rest, max |q - q_core| at the samples", ["engine", "integrator", "h = 1e-3 s",
+                                                         "h = 1e-4 s", "loop residual [m]"])
+    for r in doc.get("engine_trajectories", []):
+        if r.get("note"):
+            traj.rows.append(Row([r["engine"], r["note"], "", "", ""], NOT_RUN))
+            continue
+        traj.rows.append(Row([r["engine"], r["integrator"], sci(r["q_error_h0.001"], 1),
+                              sci(r["q_error_h0.0001"], 1),
+                              sci(max(r["residual_h0.001"], r["residual_h0.0001"]), 1)]))
+    traj.notes.append("Against the core's run at rtol 1e-11 with its loops projected. MuJoCo's "
+                      "error does not fall with h (its soft constraint), DART's falls as h "
+                      "(first order), Exudyn's as h^2.")
+    scale = Table("loops-engine-cost", "Constrained qdd per call on pinned chains: the core and "
+                  "each engine, up to its limits (at rest)", ["engine", "rods n", "per call",
+                                                              "build", "note"])
+    for r in doc.get("engine_scale", []):
+        done = finite(r["seconds"])
+        scale.rows.append(Row([r["engine"], integer(r["n"]),
+                               seconds(r["seconds"]) if done else "",
+                               seconds(r["build_s"]) if "build_s" in r else "", r["note"]],
+                              INFO if done else NOT_RUN))
+    largest = {}
+    for r in doc.get("engine_scale", []):
+        if finite(r["seconds"]):
+            largest[r["engine"]] = max(largest.get(r["engine"], 0), r["n"])
+    scale.notes.append("Largest chain each took here: " + ", ".join(
+        f"{e} {n:,}" for e, n in largest.items()) + f" rods (the core: {doc['cost'][-1]['n']:,} "
+        "in the table above, and the 10,000-rod run below); an engine slower than 0.5 s a call "
+        "is not tried larger; make reproduce-full adds 1,000 rods.")
+    for t in (checks, engines, traj, cost, scale, run):
         t.provenance = provenance_line(doc.get("provenance"), what="results/loops/loops.json")
-    sec.items += [checks, engines, cost, run]
+    sec.items += [checks, engines, traj, cost, scale, run]
     return sec
 
 

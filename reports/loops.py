@@ -13,7 +13,9 @@ pinned chain (the report's "Closed loops" section).
   alone, how the discrete catenary approaches the continuous one as n grows (joint positions;
   the observed order);
 - cost: :meth:`ClosedLoops.forward_dynamics` per call on pinned chains of 100 to 10,000 rods
-  (fastest of repeated calls, this process), and its log-log slope;
+  (fastest of repeated calls, this process), and its log-log slope; each engine's constrained
+  qdd on pinned chains of 20 to 300 rods (``--full``: 1,000) up to its limits;
+- the engines' own integrators on the four-bar (0.5 s at h = 1e-3 and 1e-4 s) against the core;
 - the pinned chain at 10,000 rods (100 m, span 80 m) simulated from the continuous catenary at
   rest: 0.2 s (``--full``: 1 s), steps, CPU, residuals, energy drift.
 
@@ -138,6 +140,84 @@ def engines_check() -> list[dict]:
     return rows
 
 
+ENGINE_SIZES = (20, 100, 300)  # rods of the pinned chains the engines are timed on
+ENGINE_SIZES_FULL = (20, 100, 300, 1000)  # --full: MuJoCo and DART take ~20 s to build 1,000
+ENGINE_CALL_CAP_S = 0.5  # an engine slower than this per call is not tried on a larger chain
+
+
+def engines_trajectories() -> list[dict]:
+    """The four-bar from rest at crank 0.3 rad for 0.5 s in each engine's own integrator (h =
+    1e-3 and 1e-4 s) against the core's (ode45, rtol 1e-11, projected): max |q - q_core| at the
+    samples every 0.1 s, and the largest loop residual of the engine's run."""
+    from redysim import simulate
+    from redysim.linkages import four_bar
+    from redysim.references.loops import LOOP_ENGINES, loop_engine
+
+    fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
+    q0, v0 = fb.configuration(0.3), np.zeros(3)
+    core = simulate(fb.model, 0.5, q0=q0, loops=fb.loops, rtol=1e-11, atol=1e-13, sample=0.1)
+    rows = []
+    for name, cls in LOOP_ENGINES.items():
+        row = {"engine": name, "note": ""}
+        if not cls.available() or not cls.integrator:
+            row["note"] = ("not installed" if not cls.available()
+                           else f"no integrator: {cls.no_integrator}")
+            rows.append(row)
+            continue
+        eng = loop_engine(name, fb.loops)
+        for h in (1e-3, 1e-4):
+            traj = eng.simulate(q0, v0, 0.5, h, every=int(round(0.1 / h)))
+            row[f"q_error_h{h:g}"] = float(np.abs(traj.q - core.q).max())
+            row[f"residual_h{h:g}"] = max(fb.loops.residuals(q, v)[0]
+                                          for q, v in zip(traj.q, traj.qd, strict=True))
+        row["integrator"] = traj.integrator
+        rows.append(row)
+    return rows
+
+
+def engines_scale(sizes=ENGINE_SIZES) -> list[dict]:
+    """Constrained qdd per call (at rest: DART takes no moving state) on pinned chains of
+    ``sizes`` rods, each engine up to its limits or ENGINE_CALL_CAP_S a call; the core
+    beside."""
+    from redysim.linkages import pinned_chain
+    from redysim.references.loops import LOOP_ENGINES, loop_engine
+    from redysim.shapes import catenary_angles
+
+    rows, stopped = [], set()
+    for n in sizes:
+        chain = pinned_chain(n, 100.0 / n, 100.0 / n, 80.0)
+        q, v = catenary_angles(n, 100.0, 80.0), np.zeros(n)
+        for name, call in (("core", None), *LOOP_ENGINES.items()):
+            row = {"engine": name, "n": n, "seconds": math.nan, "note": ""}
+            if name in stopped:
+                continue
+            if name == "core":
+                fn = lambda s=chain.loops, q=q, v=v: s.forward_dynamics(q, v)  # noqa: E731
+            elif not call.available():
+                continue
+            elif not (lim := call.limits(chain.loops)).ok:
+                row["note"] = lim.reason
+                rows.append(row)
+                stopped.add(name)
+                continue
+            else:
+                t0 = time.perf_counter()
+                eng = loop_engine(name, chain.loops)
+                row["build_s"] = time.perf_counter() - t0
+                fn = lambda eng=eng, q=q, v=v: eng.forward_dynamics(q, v)  # noqa: E731
+            fn()
+            best = math.inf
+            for _ in range(3):
+                t0 = time.perf_counter()
+                fn()
+                best = min(best, time.perf_counter() - t0)
+            row["seconds"] = best
+            rows.append(row)
+            if best > ENGINE_CALL_CAP_S:
+                stopped.add(name)
+    return rows
+
+
 def _joints(q, length):
     """Joint positions (n + 1, 2) of a planar chain of equal links from relative angles."""
     theta = np.cumsum(q)
@@ -212,6 +292,9 @@ def run(out: Path, full: bool = False, log=print) -> dict:
     doc["hoekens"] = hoekens_check()
     log("loops: the engines")
     doc["engines"] = engines_check()
+    log("loops: the engines' trajectories and cost")
+    doc["engine_trajectories"] = engines_trajectories()
+    doc["engine_scale"] = engines_scale(ENGINE_SIZES_FULL if full else ENGINE_SIZES)
     log("loops: pinned chain and catenaries")
     doc["catenary"] = catenary_checks()
     log("loops: cost against n")
