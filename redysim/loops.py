@@ -4,7 +4,12 @@ A closed-loop mechanism is a spanning tree (a :class:`~redysim.model.Model`) and
 to open it (:class:`CutJoint`): each keeps a point of one body on a point of another body (or of
 the world), in all three directions (``"point"``: a ball joint, 3 equations) or in the world's
 x and y only (``"planar"``: a pin of a mechanism moving in the xy plane, 2 equations; the third
-would repeat the other two).
+would repeat the other two); ``"revolute"`` (5 equations) also keeps the z axes of two frames
+fixed on the bodies (``rot_a``, ``rot_b``) aligned, ``"weld"`` (6) the whole frames. Their
+rotation rows are velocity-level equations on the relative angular velocity: for a weld
+w_a - w_b = 0 along the world axes, for a revolute joint its components along the x and y axes
+of frame B; at position level the residuals 1/2 sum_k b_k x a_k (the frames' columns) and
+(z_A . x_B, -z_A . y_B), whose rates are those equations on the constraint.
 
 Forward dynamics with the loops closed (:meth:`ClosedLoops.forward_dynamics`) is Featherstone's
 method on the tree's O(n) recursions (Rigid Body Dynamics Algorithms, 2008, section 8.3):
@@ -42,7 +47,8 @@ import numpy as np
 from .errors import CaseError, StateError
 from .model import FREE, Model
 
-KINDS = {"point": 3, "planar": 2}  # cut joint -> constraint equations
+KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> constraint equations
+ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a cut frame's rotation
 WORLD = -1
 SINGULAR = 1e-10  # smallest / largest singular value of J X below which the loops are redundant
 PROJECTION_TOL = 1e-12  # |phi| (m) the position projection aims at, relative to the model's size
@@ -52,7 +58,9 @@ PROJECTION_ITERATIONS = 8
 @dataclass(frozen=True)
 class CutJoint:
     """Point ``point_a`` of body ``body_a`` kept on point ``point_b`` of body ``body_b`` (each
-    in its body's frame; ``body_b = -1``: the world, ``point_b`` in world coordinates)."""
+    in its body's frame; ``body_b = -1``: the world, ``point_b`` in world coordinates); for a
+    revolute or weld cut also the frames ``rot_a``, ``rot_b`` (3 x 3 rotations in the bodies'
+    frames, default the bodies' own; the revolute axis is their z) kept aligned."""
 
     name: str
     body_a: int
@@ -60,6 +68,8 @@ class CutJoint:
     body_b: int
     point_b: tuple[float, float, float]
     kind: str = "point"
+    rot_a: tuple | None = None
+    rot_b: tuple | None = None
 
 
 class ClosedLoops:
@@ -93,12 +103,21 @@ class ClosedLoops:
                 a = np.asarray(p, dtype=float)
                 if a.shape != (3,) or not np.isfinite(a).all():
                     raise CaseError(source, f"{where}.{side}", p, "must be 3 finite numbers")
+            for side, R in (("rot_a", c.rot_a), ("rot_b", c.rot_b)):
+                if R is None:
+                    continue
+                a = np.asarray(R, dtype=float)
+                if a.shape != (3, 3) or not np.isfinite(a).all() or \
+                        np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
+                    raise CaseError(source, f"{where}.{side}", R, "must be a 3 x 3 rotation")
         self.model, self.cuts = model, tuple(cuts)
         self.rows = [(i, r) for i, c in enumerate(cuts) for r in range(KINDS[c.kind])]
         self.m = len(self.rows)
         self.ws = Workspace(model)
         self.ws0 = Workspace(dataclasses.replace(model, gravity=np.zeros(3)))
         self._paths = [(self._path(c.body_a), self._path(c.body_b)) for c in cuts]
+        self._rots = [tuple(np.eye(3) if R is None else np.asarray(R, dtype=float)
+                            for R in (c.rot_a, c.rot_b)) for c in cuts]
         self._zeros = np.zeros(model.n_v)
         self.size = max(1.0, float(np.abs(model.placement_p).sum()))  # for the tolerance
 
@@ -140,20 +159,57 @@ class ClosedLoops:
             J[:, axes] = (P[:, 3:] + np.cross(P[:, :3], x - ws.oO[owners])).T
         return J
 
+    def _angular_block(self, ws, path) -> np.ndarray:
+        """(3, n): the angular velocity of the body at the path's start."""
+        axes, _ = path
+        J = np.zeros((3, self.model.n_v))
+        if axes.size:
+            J[:, axes] = ws.oP[axes][:, :3].T
+        return J
+
+    @staticmethod
+    def _frame(ws, body, rot):
+        """World rotation, angular velocity and angular acceleration (qdd = 0, no gravity) of
+        a frame fixed to a body (the world: fixed)."""
+        if body < 0:
+            return rot, np.zeros(3), np.zeros(3)
+        return ws.oR[body] @ rot, ws.t[body, :3], ws.td[body, :3]
+
+    def _rotation_rows(self, ws, c, rots, paths):
+        """(phi, J, J v, Jdot v) of a revolute or weld cut's rotation equations."""
+        RA, wa, aa = self._frame(ws, c.body_a, rots[0])
+        RB, wb, ab = self._frame(ws, c.body_b, rots[1])
+        Jw = self._angular_block(ws, paths[0])
+        if c.body_b >= 0:
+            Jw = Jw - self._angular_block(ws, paths[1])
+        w, alpha = wa - wb, aa - ab
+        if c.kind == "weld":  # w_a - w_b = 0 along the world axes
+            phi = 0.5 * sum(np.cross(RB[:, k], RA[:, k]) for k in range(3))
+            return phi, Jw, w, alpha
+        u = np.column_stack([RB[:, 1], RB[:, 0]])  # along y_B and x_B: fixed on body b
+        zA = RA[:, 2]
+        phi = np.array([zA @ RB[:, 0], -(zA @ RB[:, 1])])
+        Jdv = u.T @ alpha + np.array([w @ np.cross(wb, u[:, 0]), w @ np.cross(wb, u[:, 1])])
+        return phi, u.T @ Jw, u.T @ w, Jdv
+
     def evaluate(self, q, v):
         """(phi (m,), J (m, n), J v (m,), Jdot v (m,)) at (q, v)."""
         ws = self._kinematics(q, v)
         phi, J, Jv, Jdv = [], [], [], []
-        for c, (pa, pb) in zip(self.cuts, self._paths, strict=True):
+        for i, (c, (pa, pb)) in enumerate(zip(self.cuts, self._paths, strict=True)):
             xa, va, aa = self._point(ws, c.body_a, c.point_a)
             xb, vb, ab = self._point(ws, c.body_b, c.point_b)
             Jc = self._jacobian_block(ws, pa, xa) - (self._jacobian_block(ws, pb, xb)
                                                      if c.body_b >= 0 else 0.0)
-            k = KINDS[c.kind]
+            k = min(KINDS[c.kind], 3)
             phi.append((xa - xb)[:k])
             J.append(Jc[:k])
             Jv.append((va - vb)[:k])
             Jdv.append((aa - ab)[:k])
+            if c.kind in ("revolute", "weld"):
+                rows = self._rotation_rows(ws, c, self._rots[i], (pa, pb))
+                for out, x in zip((phi, J, Jv, Jdv), rows, strict=True):
+                    out.append(x)
         return (np.concatenate(phi), np.vstack(J), np.concatenate(Jv), np.concatenate(Jdv))
 
     def residuals(self, q, v) -> tuple[float, float]:

@@ -105,3 +105,54 @@ def test_redundant_loops_and_a_broken_start_are_refused_naming_the_cut():
     assert once.residuals(q, np.zeros(2))[0] < 1e-15
     with pytest.raises(StateError, match="'pin'"):
         simulate(model, 0.1, q0=q + 0.01, loops=once)
+
+
+def _spherical_chain():
+    """Three links on S joints from the origin (9 DOF), a random configuration."""
+    bodies = [Body(f"b{k}", 1.0 + 0.3 * k, (0.3, 0.02, -0.01),
+                   ((0.02, 0.001, 0), (0.001, 0.05, 0), (0, 0, 0.05))) for k in range(3)]
+    joints = [TreeJoint("j0", "S"), TreeJoint("j1", "S", translation=(0.6, 0, 0)),
+              TreeJoint("j2", "S", translation=(0.6, 0, 0))]
+    model = Model.build(bodies, joints, [-1, 0, 1], gravity=(0.0, -9.81, 0.0))
+    q0 = np.array([0.3, -0.2, 0.4, 0.5, 0.3, -0.6, -0.4, 0.2, 0.1])
+    return model, q0
+
+
+@pytest.mark.parametrize("kind, dof", [("point", 6), ("revolute", 4), ("weld", 3)])
+def test_revolute_and_weld_cuts_hold_and_keep_the_energy(kind, dof):
+    """Three S links whose tip frame is held to where it starts, by a ball (3 equations), a
+    revolute joint (5) or a weld (6): qdd agrees with the dense KKT system (the GIM and phi
+    assembled, not RGE-A), the mechanism keeps 9 - m DOF, and passive motion from a velocity the
+    loop allows keeps the energy and the loop, the residual before each projection at the
+    integrator's error."""
+    from redysim import mass_matrix, phi
+    from redysim.rbda import kinematics
+
+    model, q0 = _spherical_chain()
+    kin = kinematics(model, q0, np.zeros(9))
+    tip = kin.O[2] + kin.R[2] @ np.array([0.6, 0.0, 0.0])
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # z along the link
+    cut = CutJoint("tip", 2, (0.6, 0, 0), -1, tuple(tip), kind, rot_a=turn,
+                   rot_b=kin.R[2] @ turn)
+    loops = ClosedLoops(model, [cut])
+    phi0, J, _, _ = loops.evaluate(q0, np.zeros(9))
+    assert np.abs(phi0).max() < 1e-15 and np.linalg.matrix_rank(J) == 9 - dof
+    v0 = 2.0 * np.linalg.svd(J)[2][-1]  # a velocity the loop allows
+    v0 = v0 - np.linalg.pinv(J) @ (J @ v0)
+    w = np.random.default_rng(1).normal(size=9)  # any direction: J is the residual's derivative
+    eps = 1e-6
+    rate = (loops.evaluate(q0 + eps * w, np.zeros(9))[0]
+            - loops.evaluate(q0 - eps * w, np.zeros(9))[0]) / (2 * eps)
+    assert np.abs(rate - J @ w).max() < 1e-8 * np.abs(J @ w).max()
+    qdd, lam = loops.forward_dynamics(q0, v0)
+    _, _, Jv, Jdv = loops.evaluate(q0, v0)
+    M = mass_matrix(model, q0)
+    m = J.shape[0]
+    K = np.block([[M, -J.T], [J, np.zeros((m, m))]])
+    dense = np.linalg.solve(K, np.concatenate((phi(model, q0, v0), -Jdv)))
+    assert np.abs(qdd - dense[:9]).max() < 1e-9 * np.abs(dense[:9]).max()
+    assert np.abs(lam - dense[9:]).max() < 1e-9 * np.abs(dense[9:]).max()
+    sim = simulate(model, 0.5, q0=q0, v0=v0, loops=loops, rtol=1e-10, atol=1e-12, sample=0.1)
+    assert sim.status == 0, sim.message
+    assert np.abs(sim.delta_M).max() < 1e-8
+    assert sim.residual_q < 1e-9 and sim.residual_v < 1e-8
