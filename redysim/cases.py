@@ -158,22 +158,28 @@ def file_digest(path: str | os.PathLike) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def load_case(name_or_path: str | os.PathLike) -> Case:
-    """Load a case by name (``"RE-U125-L1"``, from ``cases/``) or by the path of a TOML file
-    (see :func:`case_path`)."""
-    path = case_path(name_or_path)
+def read_toml(path: str | os.PathLike) -> tuple[dict, bytes]:
+    """(document, raw bytes) of a UTF-8 TOML file (a case, robot or linkage file); its syntax
+    errors and non-UTF-8 bytes as a CaseError naming the file."""
     src = str(path)
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
-        doc = tomllib.loads(raw.decode("utf-8"))
+        return tomllib.loads(raw.decode("utf-8")), raw
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(src, "<toml syntax>", None, str(exc)) from None
-    except UnicodeDecodeError as exc:  # a case file is UTF-8 text
+    except UnicodeDecodeError as exc:  # these files are UTF-8 text
         raise CaseError(src, "<toml syntax>", None,
                         f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
                         f"{exc.start})") from None
-    return case_from_dict(doc, source=src, path=path,
+
+
+def load_case(name_or_path: str | os.PathLike) -> Case:
+    """Load a case by name (``"RE-U125-L1"``, from ``cases/``) or by the path of a TOML file
+    (see :func:`case_path`)."""
+    path = case_path(name_or_path)
+    doc, raw = read_toml(path)
+    return case_from_dict(doc, source=str(path), path=path,
                           digest=hashlib.sha256(raw).hexdigest())
 
 

@@ -301,17 +301,11 @@ def is_robot_file(path: str | os.PathLike) -> bool:
 
 def load_robot(path: str | os.PathLike) -> DHRobot:
     """The robot of a TOML robot file (module doc; ``cases/robots/README.md``)."""
+    from .cases import read_toml
+
     path = Path(path)
     src = str(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.loads(fh.read().decode("utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(src, "<toml syntax>", None, str(exc)) from None
-    except UnicodeDecodeError as exc:
-        raise CaseError(src, "<toml syntax>", None,
-                        f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
-                        f"{exc.start})") from None
+    doc = read_toml(path)[0]
     return robot_from_dict(doc, source=src, default_name=path.stem)
 
 

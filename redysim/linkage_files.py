@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -499,17 +498,11 @@ def _catenary(src, bodies, cuts) -> np.ndarray:
 # --------------------------------------------------------------------------- the file
 def load_linkage(path: str | os.PathLike) -> Linkage:
     """The linkage of a TOML file (module docstring, ``cases/loops/README.md``)."""
+    from .cases import read_toml
+
     path = Path(path)
-    src = str(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.loads(fh.read().decode("utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(src, "<toml syntax>", None, str(exc)) from None
-    except UnicodeDecodeError as exc:
-        raise CaseError(src, "<toml syntax>", None, f"not UTF-8 text (byte "
-                        f"{exc.object[exc.start]:#04x} at offset {exc.start})") from None
-    return linkage_from_dict(doc, source=src, default_name=path.stem, path=path)
+    doc = read_toml(path)[0]
+    return linkage_from_dict(doc, source=str(path), default_name=path.stem, path=path)
 
 
 def linkage_from_dict(doc: dict, *, source: str = "<dict>", default_name: str = "linkage",

@@ -24,12 +24,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from test_loops import spatial_loop
 
 import redysim
 from redysim import Body, Model, TreeJoint
 from redysim.linkages import four_bar, pinned_chain
 from redysim.loops import ClosedLoops, CutJoint
-from redysim.rbda import kinematics
 from redysim.references import EngineLimitExceeded
 from redysim.references.loops import (
     LOOP_ENGINES,
@@ -66,20 +66,6 @@ assert set(TOLERANCE) == set(LOOP_ENGINES)
 
 
 # --------------------------------------------------------------------------- mechanisms
-def spatial_loop() -> tuple[ClosedLoops, np.ndarray]:
-    """tests/test_loops.py's spatial loop: U, S, U, S from the origin, the tip on a world point."""
-    bodies = [Body(f"b{k}", 1.0 + 0.2 * k, (0.25, 0.0, 0.0),
-                   ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03))) for k in range(4)]
-    joints = [TreeJoint("j0", "U"), TreeJoint("j1", "S", translation=(0.5, 0, 0)),
-              TreeJoint("j2", "U", translation=(0.5, 0, 0)),
-              TreeJoint("j3", "S", translation=(0.5, 0, 0))]
-    model = Model.build(bodies, joints, [-1, 0, 1, 2], gravity=(0.0, -9.81, 0.0))
-    q0 = np.array([0.3, 0.2, 0.1, -0.4, 0.2, -0.5, 0.3, -0.6, 0.1, 0.2])
-    kin = kinematics(model, q0, np.zeros(10))
-    tip = kin.O[3] + kin.R[3] @ np.array([0.5, 0.0, 0.0])
-    return ClosedLoops(model, [CutJoint("ball", 3, (0.5, 0, 0), -1, tuple(tip))]), q0
-
-
 def null_velocity(loops, q, speed, seed) -> np.ndarray:
     """A velocity in the null space of J at q (so J v = 0), max |v| = speed."""
     _, J, _, _ = loops.evaluate(q, np.zeros(loops.model.n_v))

@@ -54,9 +54,11 @@ def test_a_pinned_chain_settles_on_the_discrete_catenary():
     assert np.all(np.diff(sim.energy) < 0)  # the damping only takes energy out
 
 
-def test_a_spatial_loop_conserves_energy():
-    """Four links on U and S joints from the origin, the tip held at a world point by a ball
-    ('point' cut, 3 equations): passive motion keeps the energy and the loop."""
+def spatial_loop() -> tuple[ClosedLoops, np.ndarray]:
+    """Four links on U and S joints from the origin, the tip held at the world point where a
+    configuration q0 puts it by a ball ('point' cut, 3 equations): (loops, q0)."""
+    from redysim.rbda import kinematics
+
     bodies = [Body(f"b{k}", 1.0 + 0.2 * k, (0.25, 0.0, 0.0),
                    ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03))) for k in range(4)]
     joints = [TreeJoint("j0", "U"), TreeJoint("j1", "S", translation=(0.5, 0, 0)),
@@ -64,11 +66,15 @@ def test_a_spatial_loop_conserves_energy():
               TreeJoint("j3", "S", translation=(0.5, 0, 0))]
     model = Model.build(bodies, joints, [-1, 0, 1, 2], gravity=(0.0, -9.81, 0.0))
     q0 = np.array([0.3, 0.2, 0.1, -0.4, 0.2, -0.5, 0.3, -0.6, 0.1, 0.2])
-    from redysim.rbda import kinematics
-
     kin = kinematics(model, q0, np.zeros(10))
     tip = kin.O[3] + kin.R[3] @ np.array([0.5, 0.0, 0.0])
-    loops = ClosedLoops(model, [CutJoint("ball", 3, (0.5, 0, 0), -1, tuple(tip))])
+    return ClosedLoops(model, [CutJoint("ball", 3, (0.5, 0, 0), -1, tuple(tip))]), q0
+
+
+def test_a_spatial_loop_conserves_energy():
+    """The spatial loop: passive motion keeps the energy and the loop."""
+    loops, q0 = spatial_loop()
+    model = loops.model
     sim = simulate(model, 1.0, q0=q0, loops=loops, rtol=1e-10, atol=1e-12)
     assert sim.status == 0, sim.message
     assert np.abs(sim.delta_M).max() < 1e-8 and sim.residual_q < 1e-8
