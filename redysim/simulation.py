@@ -198,6 +198,9 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     motion = _Motion(system, loops, damping)
     y0 = np.concatenate((q0, v0))
     if loops is not None:
+        if getattr(loops, "model", None) is not system:
+            raise SettingsError("simulate", "loops", type(loops).__name__, "must be the "
+                                "ClosedLoops of the model simulated (ClosedLoops(model, cuts))")
         loops.check_start(q0)
     q_error = motion.project(y0, record=False)
     if q_error > 1e-6:

@@ -162,3 +162,12 @@ def test_revolute_and_weld_cuts_hold_and_keep_the_energy(kind, dof):
     assert sim.status == 0, sim.message
     assert np.abs(sim.delta_M).max() < 1e-8
     assert sim.residual_q < 1e-9 and sim.residual_v < 1e-8
+
+
+def test_simulate_refuses_loops_of_another_model():
+    from redysim.errors import SettingsError
+
+    loops, q0 = spatial_loop()
+    other = _two_links()
+    with pytest.raises(SettingsError, match="ClosedLoops of the model"):
+        simulate(other, 0.1, loops=loops)
