@@ -58,7 +58,9 @@ examples:
   redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
   redysim simulate solo12.urdf --floating
   redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \
-      --lock joint6=0                           # the talk's free fall of joints 2 and 3"""
+      --lock joint6=0                           # the talk's free fall of joints 2 and 3
+  redysim simulate cases/loops/hoekens_straight_line.toml --rtol 1e-10 --atol 1e-12
+                                                # a linkage file: its loops closed"""
 
 SWEEP_HELP = """\
 Run a sweep file: a TOML [sweep] table whose lists (cases, engines, methods, integrators, rtols,
@@ -126,8 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="run one case with one engine and integrator; print energy "
                               "drift and tip position")
     sim.add_argument("case", metavar="CASE",
-                     help="a case name (see `redysim cases`), the path of a case file, or a "
-                          "robot: a .urdf or MJCF .xml file")
+                     help="a case name (see `redysim cases`), the path of a case file, a "
+                          "robot (.urdf, MJCF .xml, cases/robots/*.toml) or a closed-loop "
+                          "linkage (cases/loops/*.toml)")
     sim.add_argument("--engine", default=CORE, choices=(CORE, *references.ENGINES), metavar="E",
                      help=f"who computes qdd: {CORE} (the core) or a reference engine: "
                           f"{', '.join(references.ENGINES)} (default: {CORE})")
@@ -262,9 +265,24 @@ def _is_model_file(name: str) -> bool:
         return True
     if suffix == ".toml" and Path(name).is_file():
         from redysim.dh import is_robot_file
+        from redysim.linkage_files import is_linkage_file
 
-        return is_robot_file(name)
+        return is_robot_file(name) or is_linkage_file(name)
     return False
+
+
+def _load_system(args: argparse.Namespace):
+    """(model, loops, q0) of a robot or linkage file (loops and q0 None for a robot)."""
+    from redysim.importers import load_model
+    from redysim.linkage_files import is_linkage_file, load_linkage
+
+    if Path(args.model if hasattr(args, "model") else args.case).suffix.lower() == ".toml":
+        path = args.model if hasattr(args, "model") else args.case
+        if is_linkage_file(path):
+            linkage = load_linkage(path)
+            return linkage.model, linkage.loops, linkage.q0
+    path = args.model if hasattr(args, "model") else args.case
+    return load_model(path, floating=args.floating, mimic=args.mimic), None, None
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -306,7 +324,6 @@ def _simulate_model(args: argparse.Namespace) -> int:
 
     from redysim.harness.run import PROGRESS_EVERY_S
     from redysim.harness.spec import CORE, RunSpec
-    from redysim.importers import load_model
     from redysim.simulation import simulate
 
     if args.engine != CORE:
@@ -317,8 +334,11 @@ def _simulate_model(args: argparse.Namespace) -> int:
     if args.max_wall is not None:
         raise SettingsError(SOURCE, "--max-wall", args.max_wall, "not available for a robot "
                             "file (its runs are short)")
-    model = load_model(args.case, floating=args.floating, mimic=args.mimic)
+    model, loops, q0 = _load_system(args)
     if args.lock:
+        if loops is not None:
+            raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a robot's joint; a "
+                                "linkage file's driver and cuts set its motion")
         model = model.locked(dict(args.lock))
     t_end = args.t_end or 1.0
     integrator = args.integrator or DEFAULT_METHOD
@@ -330,8 +350,8 @@ def _simulate_model(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--h", None, f"{integrator} needs its step: give --h")
     if args.out is not None:
         _check_out(args.out)
-    sim = simulate(model, t_end, integrator=integrator, rtol=rtol, atol=atol, h=args.h,
-                   sample=args.sample, progress=_progress_every(PROGRESS_EVERY_S))
+    sim = simulate(model, t_end, q0=q0, integrator=integrator, rtol=rtol, atol=atol, h=args.h,
+                   sample=args.sample, progress=_progress_every(PROGRESS_EVERY_S), loops=loops)
     base = "floating base" if model.quaternions.size else "fixed base"
     print(f"{model.name}   ({args.case}: {model.n_bodies} bodies, n_q = {model.n_q}, "
           f"n_v = {model.n_v}, {model.total_mass:.6g} kg, {base})")
@@ -348,6 +368,11 @@ def _simulate_model(args: argparse.Namespace) -> int:
     if model.quaternions.size:
         print(f"  quaternion    largest | |q| - 1 | after a step, before its projection: "
               f"{sim.quaternion_error:.1e}")
+    if loops is not None:
+        print(f"  loops         {len(loops.cuts)} cut joint{'s' if len(loops.cuts) > 1 else ''}, "
+              f"{loops.m} equations; largest residual after a step, before its projection: "
+              f"{sim.residual_q:.1e} m, {sim.residual_v:.1e} m/s; largest loop force "
+              f"{np.abs(sim.forces).max():.4g} N")
     print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'COM x [m]':>12} {'COM y [m]':>12} "
           f"{'COM z [m]':>12}")
     for t, dM, c in zip(sim.t, sim.delta_M, sim.com, strict=True):
@@ -433,10 +458,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """``redysim info``: the model's tree, one line per body, children indented under parents."""
-    from redysim import Model, load_model
+    from redysim import Model
 
+    loops = None
     if Path(args.model).suffix.lower() in (".urdf", ".xml", ".toml"):
-        model = load_model(args.model, floating=args.floating, mimic=args.mimic)
+        model, loops, _ = _load_system(args)
     else:
         model = Model.from_chain(load_case(args.model).chain)
     print(f"{model.name}: {model.n_bodies} bodies, n_q = {model.n_q}, n_v = {model.n_v}, "
@@ -461,6 +487,11 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"  frame {name}: on {model.body_names[body]} at {tuple(float(x) for x in point)}")
     for note in model.notes:
         print(f"  dropped: {note}")
+    for c in loops.cuts if loops is not None else ():
+        where_b = "the world" if c.body_b < 0 else model.body_names[c.body_b]
+        print(f"  cut joint {c.name}: {c.kind}, {model.body_names[c.body_a]} at "
+              f"{tuple(float(x) for x in c.point_a)} to {where_b} at "
+              f"{tuple(float(x) for x in c.point_b)}")
     return EXIT_OK
 
 

@@ -305,8 +305,13 @@ def load_model(path: str | os.PathLike, *, floating: bool = False,
         return load_mjcf(p)
     if suffix == ".toml":  # a robot's DH table (redysim.dh), else a rope case file
         from .dh import is_robot_file, load_robot
+        from .linkage_files import is_linkage_file
         if is_robot_file(p):
             return load_robot(p).model
+        if is_linkage_file(p):
+            raise ModelFileError(str(p), "[linkage]", None, "a closed-loop linkage: a tree alone "
+                                 "would drop its cut joints; load it with "
+                                 "redysim.load_linkage(path) -> (model, loops, q0)")
         from .cases import load_case
         return Model.from_chain(load_case(p).chain)
     raise ModelFileError(str(p), "<file>", suffix, "a model file is .urdf, MJCF .xml or a case "

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -496,6 +497,16 @@ def _catenary(src, bodies, cuts) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- the file
+def is_linkage_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a TOML linkage file (it has a ``[linkage]`` table); False for any
+    other file, or unreadable TOML (the other loaders report that)."""
+    try:
+        with open(path, "rb") as fh:
+            return "linkage" in tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return False
+
+
 def load_linkage(path: str | os.PathLike) -> Linkage:
     """The linkage of a TOML file (module docstring, ``cases/loops/README.md``)."""
     from .cases import read_toml

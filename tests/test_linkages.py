@@ -327,3 +327,20 @@ def test_a_linkage_file_with_broken_toml_or_no_cut_is_refused(tmp_path):
     path.write_text(GOOD[:start] + GOOD[GOOD.index("[initial]"):])
     with pytest.raises(CaseError, match=r"cut: missing \[\[cut\]\]"):
         load_linkage(path)
+
+
+def test_the_command_line_takes_a_linkage_file(capsys):
+    """`redysim info` lists the cut joints; `redysim simulate` runs with the loops closed and
+    reports residuals and forces; load_model refuses a linkage (a tree would drop its cuts)."""
+    from redysim.harness.cli import main
+    from redysim.importers import ModelFileError, load_model
+
+    path = str(LOOPS / "crank_rocker.toml")
+    assert main(["info", path]) == 0
+    assert "cut joint coupler-rocker pin: planar" in capsys.readouterr().out
+    assert main(["simulate", path, "--t-end", "0.2", "--rtol", "1e-10", "--atol", "1e-12"]) == 0
+    out = capsys.readouterr().out
+    assert "1 cut joint, 2 equations" in out and "largest loop force" in out
+    assert main(["simulate", path, "--lock", "crank=0"]) == 2
+    with pytest.raises(ModelFileError, match="load_linkage"):
+        load_model(path)
