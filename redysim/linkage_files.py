@@ -183,13 +183,7 @@ def _points(src, where, spec, unit, known: dict[str, np.ndarray]) -> dict[str, n
                 if key not in ("from", "distances", "side"):
                     _fail(src, f"{fname}.{key}", value[key], "unknown field; a point by "
                           "distances gives from = [p, q], distances = [r1, r2], side")
-            ends = value.get("from")
-            if not (isinstance(ends, list) and len(ends) == 2):
-                _fail(src, f"{fname}.from", ends, "must be two point names [p, q]")
-            for e in ends:
-                if e not in out:
-                    _fail(src, f"{fname}.from", e, "unknown point; known here: "
-                          + _listing(out))
+            ends = _point_pair(src, f"{fname}.from", value.get("from"), out)
             dist = value.get("distances")
             if not (isinstance(dist, list) and len(dist) == 2):
                 _fail(src, f"{fname}.distances", dist, "must be two distances [r1, r2]")
@@ -260,12 +254,7 @@ def _inertial(src, where, row, unit, points, name) -> tuple[Body, dict]:
             _fail(src, f"{where}.bars", bars, "must be a list of point pairs [[p, q], ...]")
         segments = []
         for i, pair in enumerate(bars):
-            if not (isinstance(pair, list) and len(pair) == 2):
-                _fail(src, f"{where}.bars[{i}]", pair, "must be a pair of point names [p, q]")
-            for e in pair:
-                if e not in points:
-                    _fail(src, f"{where}.bars[{i}]", e, "unknown point; known: "
-                          + _listing(points))
+            pair = _point_pair(src, f"{where}.bars[{i}]", pair, points)
             segments.append((points[pair[0]], points[pair[1]]))
         return bars_body(name, segments, density), points
     if "mass" not in has:
@@ -497,6 +486,16 @@ def _catenary(src, bodies, cuts) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- the file
+def _point_pair(src: str, field_name: str, value, known) -> list:
+    """``value`` as a pair of known point names [p, q], or a CaseError naming the field."""
+    if not (isinstance(value, list) and len(value) == 2):
+        _fail(src, field_name, value, "must be a pair of point names [p, q]")
+    for e in value:
+        if e not in known:
+            _fail(src, field_name, e, "unknown point; known here: " + _listing(known))
+    return value
+
+
 def is_linkage_file(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a TOML linkage file (it has a ``[linkage]`` table); False for any
     other file, or unreadable TOML (the other loaders report that)."""

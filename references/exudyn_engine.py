@@ -136,6 +136,13 @@ def _settings(exu, solver_type, t_end, steps):
     return ss
 
 
+def _joint_kinds(exu) -> dict:
+    """Exudyn's 1-DOF joint types by kind ("R", "P") and axis index (x, y, z)."""
+    J = exu.JointType
+    return {"R": (J.RevoluteX, J.RevoluteY, J.RevoluteZ),
+            "P": (J.PrismaticX, J.PrismaticY, J.PrismaticZ)}
+
+
 class Exudyn(Engine):
     """Exudyn ObjectKinematicTree with its own explicit solver and EigenDense (module doc)."""
 
@@ -148,9 +155,7 @@ class Exudyn(Engine):
         exu = self.lib
         from exudyn.itemInterface import NodeGenericODE2, ObjectKinematicTree, VObjectKinematicTree
         c = self.chain
-        kinds = {"R": (exu.JointType.RevoluteX, exu.JointType.RevoluteY, exu.JointType.RevoluteZ),
-                 "P": (exu.JointType.PrismaticX, exu.JointType.PrismaticY,
-                       exu.JointType.PrismaticZ)}
+        kinds = _joint_kinds(exu)
         types, hts, inertias, coms, masses, tree_of_link = [], [], [], [], [], []
         turn = None  # A of the tree link built last (None: the identity)
         self.turn_of_link = []  # A of each chain link's tree link
@@ -330,9 +335,7 @@ class ExudynTree(TreeEngine):
         exu = self.lib
         from exudyn.itemInterface import NodeGenericODE2, ObjectKinematicTree, VObjectKinematicTree
         m = self.model
-        kinds = {"R": (exu.JointType.RevoluteX, exu.JointType.RevoluteY, exu.JointType.RevoluteZ),
-                 "P": (exu.JointType.PrismaticX, exu.JointType.PrismaticY,
-                       exu.JointType.PrismaticZ)}
+        kinds = _joint_kinds(exu)
         types, parents, hts, inertias, coms, masses = [], [], [], [], [], []
         self.link_of_body, self.turn_of_body = [], []
         self.free = []  # (qs, vs, index of the link whose joint frame is turned by R0)
