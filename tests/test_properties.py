@@ -52,7 +52,9 @@ RESIDUAL_FACTOR = 16
 FORWARD_FACTOR = 10
 FORWARD_FLOOR = 100
 
-SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the examples are drawn from a seed fixed per test, so a run is the same on every
+# machine and every day (a random test with a stable seed)
+SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 
 
 # --------------------------------------------------------------------------- valid case dicts
@@ -231,7 +233,16 @@ def test_a_missing_required_field_is_named(path):
 def test_an_unknown_field_is_named(table, key, value):
     doc = base_case()
     node = doc if table == "<top>" else doc[table]
-    assume(key not in node)
+    # a key the file format knows is not unknown, even when this case leaves it out (an
+    # alternative such as total_mass beside link_mass is refused as a clash instead)
+    known = {"<top>": {"case", "chain", "initial", "simulation"}, "case": {"paper"},
+             "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass",
+                       "total_mass", "linear_density", "density", "radius", "inertia", "com",
+                       "gravity", "link"},
+             "initial": {"q", "qd", "shape", "dX"},
+             "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval",
+                            "note"}}[table]
+    assume(key not in node and key not in known)
     node[key] = value
     with pytest.raises(CaseError) as err:
         case_from_dict(doc, source="mutated.toml")
