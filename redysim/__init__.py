@@ -39,6 +39,7 @@ _WHERE = {
     **dict.fromkeys(("Body", "Model", "TreeJoint"), "model"),
     **dict.fromkeys(("Simulation", "simulate"), "simulation"),
     **dict.fromkeys(("ClosedLoops", "CutJoint"), "loops"),
+    **dict.fromkeys(("Coarsening", "coarsen"), "coarse"),
     **dict.fromkeys(("Linkage", "load_linkage"), "linkage_files"),
     "Workspace": "workspace",
     "rbda": "rbda",
