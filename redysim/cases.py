@@ -6,6 +6,8 @@ A case file has these tables (see ``cases/README.md`` for every field):
     [chain]       links = N with uniform link fields, or [[chain.link]] entries; joint; gravity
     [initial]     q and qd (a number, a list, or {fill, set, unit}), or shape = "catenary"
     [simulation]  t_end, integrator, rtol, atol, sample_interval
+    [load]        tip_force = [Fx, Fy, Fz]: a constant world-frame force [N] at the chain's tip
+                  (optional; :mod:`redysim.loads` gives its joint forces and potential)
 
 Every bad value raises :class:`~redysim.errors.CaseError` naming the file, the field and the value.
 """
@@ -57,7 +59,9 @@ _FIELDS = {
     "link": {"length", "mass", "radius", "inertia", "com", "joint", "axis"},
     "initial": {"q", "qd", "shape", "dX"},
     "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval", "note"},
+    "load": {"tip_force"},
 }
+TOP_TABLES = {"case", "chain", "initial", "simulation", "load"}  # ("link" is chain.link's)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +73,8 @@ class Case:
     table's, or the defaults (ode45, 1e-4, 1e-6, no step, t_end / 20); ``simulation`` is the
     table as written. ``digest``: SHA-256 of the file's bytes (of the document, for a case built
     from a dict), so that results computed from another version of the file are never reused.
+    ``tip_force``: the ``[load]`` table's constant world-frame force at the tip [N], read-only,
+    or None without one (:func:`redysim.loads.tip_force_torques` turns it into joint forces).
     """
 
     name: str
@@ -87,6 +93,7 @@ class Case:
     h: float | None = None
     sample_interval: float = 0.0
     digest: str = ""
+    tip_force: np.ndarray | None = None
 
     def published(self) -> dict[str, Any]:
         """The published.toml entries this case is compared with: {table: entry or matching row}."""
@@ -391,7 +398,7 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     if not isinstance(doc, dict):
         raise CaseError(source, "<top>", type(doc).__name__, "a case is a table (a parsed TOML "
                         "document, a dict)")
-    _no_unknown(doc, set(_FIELDS), source, "<top>")
+    _no_unknown(doc, TOP_TABLES, source, "<top>")
     meta = _table(doc, "case", source)
     _no_unknown(meta, _FIELDS["case"], source, "case")
     name = _require(meta, "name", source, "case")
@@ -483,6 +490,13 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
         raise CaseError(source, f"simulation.{key}", sim[key],
                         f"applies to adaptive integrators; {integrator!r} steps at h")
     t_end = float(t_end)
+
+    load = _table(doc, "load", source, required=False)
+    _no_unknown(load, _FIELDS["load"], source, "load")
+    tip_force = None
+    if "tip_force" in load:  # a copy: a dict's own array must stay as the caller left it
+        tip_force = np.array(check_vector(source, "load.tip_force", load["tip_force"], 3))
+        tip_force.flags.writeable = False
     q0.flags.writeable = False
     qd0.flags.writeable = False
     if digest is None:
@@ -495,4 +509,4 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
                 h=float(sim["h"]) if "h" in sim else None,
                 sample_interval=min(float(sim.get("sample_interval", t_end / DEFAULT_SAMPLES)),
                                     t_end),
-                digest=digest)
+                digest=digest, tip_force=tip_force)

@@ -235,7 +235,7 @@ def test_an_unknown_field_is_named(table, key, value):
     node = doc if table == "<top>" else doc[table]
     # a key the file format knows is not unknown, even when this case leaves it out (an
     # alternative such as total_mass beside link_mass is refused as a clash instead)
-    known = {"<top>": {"case", "chain", "initial", "simulation"}, "case": {"paper"},
+    known = {"<top>": {"case", "chain", "initial", "simulation", "load"}, "case": {"paper"},
              "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass",
                        "total_mass", "linear_density", "density", "radius", "inertia", "com",
                        "gravity", "link"},
