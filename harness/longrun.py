@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Workspace, energy, forward_dynamics, load_case, tip
-from redysim.errors import RedysimError, SettingsError, StateError
+from redysim.errors import CaseError, RedysimError, SettingsError, StateError
 from redysim.integrate import (
     FIXED_STEP,
     TABLEAU_NAMES,
@@ -166,6 +166,10 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     :class:`LongrunError` (or a case or settings error) when it cannot start or resume."""
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
+    if case.tip_force is not None:
+        raise CaseError(str(case.path), "load.tip_force", [float(x) for x in case.tip_force],
+                        "long runs integrate unloaded chains: run a loaded case with "
+                        "'redysim simulate' or a sweep")
     t_end = float(t_end or case.t_end)
     check_settings(str(case.path), names, t_end=t_end)
     how = settings(case, integrator=integrator, rtol=rtol, atol=atol, h=h, names=names)

@@ -32,6 +32,7 @@ import numpy as np
 
 from redysim import Workspace, forward_dynamics, tip
 from redysim.integrate import advance, make_solver, sample_times
+from redysim.loads import tip_force_torques
 
 from .provenance import code_digest
 from .store import write_npz_atomic
@@ -88,9 +89,12 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
 def _solve(case, t_end, interval, method, rtol):
     chain, n = case.chain, case.chain.n_dof
     ws = Workspace(chain)
+    load_ws = Workspace(chain)
 
     def rhs(_t, y):
-        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
+        tau = (None if case.tip_force is None else
+               tip_force_torques(chain, y[:n], case.tip_force, ws=load_ws))
+        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], tau, ws=ws)))
 
     ts = sample_times(0.0, t_end, interval)
     ys = []

@@ -9,9 +9,10 @@ delta_M = (E - E0) / M (Eq. 11), all computed by the core from the run's state (
 measurement, the same for every engine). The tip acceleration needs qdd at the sample: one extra
 call of the run's own qdd per sample, not counted in ``nfev`` (the integrator's count).
 
-Per run: steps, rejected steps, RHS evaluations, CPU and wall time of the integration, the JIT
-compile (or cache load) of the first qdd call and an engine's model build, both timed apart and
-excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance; and, when a cached
+Per run: the model's size (links, DOF, and for the core the bytes of its Workspace: every array
+the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall time of the
+integration, the JIT compile (or cache load) of the first qdd call and an engine's model build,
+both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance; and, when a cached
 reference solution exists for the case, horizon and sampling (:mod:`harness.reference`), the max
 tip-position error over the samples and the final-state error against it.
 """
@@ -67,18 +68,41 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def run_case(spec: RunSpec, case):
+    """The case as the run models it, and its coarsening (None for the case's own chain):
+    with ``spec.links``, the chain coarse-grained to that many links and the initial state mapped
+    by the coarsening's chord projection (:mod:`redysim.coarse`)."""
+    if not spec.links or spec.links == case.chain.n_links:
+        return case, None
+    from dataclasses import replace
+
+    from redysim.coarse import coarsen
+
+    cz = coarsen(case.chain, links=spec.links, name=f"{case.name}@{spec.links}")
+    q0, qd0 = cz.to_coarse(case.q0, case.qd0)
+    q0.flags.writeable = qd0.flags.writeable = False
+    return replace(case, chain=cz.coarse, q0=q0, qd0=qd0), cz
+
+
 class _Dynamics:
-    """The run's qdd: the core (RGE-A, GE-N or RGE-N) or a reference engine's."""
+    """The run's qdd: the core (RGE-A, GE-N or RGE-N, in float64 or float32) or a reference
+    engine's; with the case's tip force, if it has one."""
 
     def __init__(self, spec: RunSpec, case):
         self.chain = case.chain
         self.n = self.chain.n_dof
         self.build_s = 0.0
         self.engine = None
+        self.force = case.tip_force
+        self.precision = spec.precision
+        if self.force is not None and spec.engine != CORE:
+            raise RunFailed(f"the case's [load] tip_force is applied by the core only, not by "
+                            f"engine {spec.engine!r}")
         if spec.engine == CORE:
             from redysim import Workspace
 
             self.ws = Workspace(self.chain)
+            self.load_ws = Workspace(self.chain)
             self.method = spec.method or "rge-a"
             self.version = ""
         else:
@@ -96,12 +120,30 @@ class _Dynamics:
     def compiled_steps(self, integrator: str) -> bool:
         """Whether ``integrator`` steps in compiled code here: one of ours (ode45, dop853,
         rk4) on the core's RGE-A (the same steps as the Python loop, bit for bit)."""
-        return self.engine is None and self.method == "rge-a" and integrator in TABLEAU_NAMES
+        return (self.engine is None and self.method == "rge-a" and integrator in TABLEAU_NAMES
+                and self.force is None and self.precision == "float64")
 
     def qdd(self, q, qd) -> np.ndarray:
         if self.engine is not None:
             return self.engine.qdd(q, qd)
-        return forward_dynamics(self.chain, q, qd, method=self.method, ws=self.ws)
+        tau = None
+        if self.force is not None:
+            from redysim.loads import tip_force_torques
+            tau = tip_force_torques(self.chain, q, self.force, ws=self.load_ws)
+        if self.precision == "float32":
+            from redysim.precision import ieee_qdd
+            # fused_phi: the core's own formulation, bias terms inside the recursion, every
+            # operation in float32 (not Table A.1's float64 phi rounded to float32)
+            return ieee_qdd(self.chain, q, qd, self.method, np.float32, tau=tau,
+                            fused_phi=True)
+        return forward_dynamics(self.chain, q, qd, tau, method=self.method, ws=self.ws)
+
+    def load_potential(self, q) -> float:
+        """The tip force's potential -F . p_tip (0 without one), part of the run's energy."""
+        if self.force is None:
+            return 0.0
+        from redysim.loads import tip_force_potential
+        return tip_force_potential(self.chain, q, self.force, ws=self.load_ws)
 
     def rhs(self, _t, y):
         n = self.n
@@ -122,18 +164,23 @@ def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
     row = {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "ok",
            "reason": "", "steps": 0, "rejected": 0, "nfev": 0, "cpu_s": math.nan,
            "wall_s": math.nan, "jit_s": math.nan, "build_s": math.nan, "peak_rss_mib": math.nan,
-           "n_dof": 0, "E0": math.nan, "avg_abs_delta_M": math.nan, "max_abs_delta_M": math.nan,
+           "n_dof": 0, "n_links": 0, "model_mib": math.nan, "E0": math.nan,
+           "avg_abs_delta_M": math.nan, "max_abs_delta_M": math.nan,
            "t_reached": 0.0, "n_samples": 0, "max_tip_err": math.nan, "final_state_err": math.nan,
            "ref_tol_estimate": math.nan}
     samples: list[tuple] = []
     last = {}  # the state at the last sample, for the final-state error
     engine_version = ""
+    coarsening = None
     try:
         case = load_case(spec.case)
-        row["n_dof"] = case.chain.n_dof
         spec = spec.resolved(case)
+        case, coarsening = run_case(spec, case)
+        row.update(n_dof=case.chain.n_dof, n_links=case.chain.n_links)
         row.update(spec.to_dict(), label=spec.label)
         dyn = _Dynamics(spec, case)
+        if dyn.engine is None:
+            row["model_mib"] = dyn.ws.nbytes / 2**20
         engine_version = dyn.version
         row["build_s"] = dyn.build_s
         _integrate(spec, case, dyn, row, samples, last, progress)
@@ -151,7 +198,7 @@ def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
     row["n_samples"] = len(df)
     row["peak_rss_mib"] = peak_rss_mib()
     if reference and row["status"] == "ok" and len(df):
-        _compare_with_reference(spec, row, df, last.get("y"))
+        _compare_with_reference(spec, row, df, last.get("y"), coarsening)
     row.update(provenance(engine_version))
     return RunResult(spec, row, df)
 
@@ -172,7 +219,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     ts = sample_times(0.0, t_end, spec.sample)
     y0 = initial_state(spec, case)
     T0, V0 = energy(chain, y0[:n], y0[n:])
-    E0 = T0 + V0
+    E0 = T0 + V0 + dyn.load_potential(y0[:n])
     row["E0"] = E0
     run_id, mass, bound = spec.run_id, chain.total_mass, spec.energy_bound
 
@@ -182,6 +229,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
             qdd = dyn.qdd(q, qd)
             tp = tip(chain, q, qd, qdd)
             T, V = energy(chain, q, qd)
+            V += dyn.load_potential(q)
         except StateError as exc:  # the state overflowed (or went NaN) between samples
             return f"at t = {t:.6g}: {type(exc).__name__}: {exc}"
         dM = (T + V - E0) / mass
@@ -278,7 +326,10 @@ def _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row):
     return 0, "ok"
 
 
-def _compare_with_reference(spec: RunSpec, row: dict, df, y_final) -> None:
+def _compare_with_reference(spec: RunSpec, row: dict, df, y_final, coarsening=None) -> None:
+    """Errors against the case's reference solution. A coarse-grained run is compared with the
+    case's own (fine) reference: its tip is the same point of the rope, and its final state is
+    compared with the reference's mapped to the coarse model (the chord projection)."""
     case = load_case(spec.case)
     ref = load_reference(case, row["t_end"], row["sample"])
     if ref is None or len(ref.t) != len(df):
@@ -287,4 +338,8 @@ def _compare_with_reference(spec: RunSpec, row: dict, df, y_final) -> None:
     row["max_tip_err"] = float(np.linalg.norm(pos - ref.tip, axis=1).max())
     row["ref_tol_estimate"] = ref.tol_estimate
     if y_final is not None:
-        row["final_state_err"] = float(np.abs(y_final - ref.y[-1]).max())
+        y_ref = ref.y[-1]
+        if coarsening is not None:
+            n = case.chain.n_dof
+            y_ref = np.concatenate(coarsening.to_coarse(y_ref[:n], y_ref[n:]))
+        row["final_state_err"] = float(np.abs(y_final - y_ref).max())

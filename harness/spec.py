@@ -26,8 +26,9 @@ from redysim.methods import METHODS as CORE_METHODS
 CORE = "redysim"  # the engine name of our own core
 NATIVE = "native"  # integrator name: the engine's own time stepping
 STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerances
+PRECISIONS = ("float64", "float32")  # RunSpec.precision: the arithmetic of the core's qdd
 
-__all__ = ["CORE", "CORE_METHODS", "NATIVE", "STEPPED", "RunSpec", "case_digest"]
+__all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,18 @@ class RunSpec:
                  becomes y0_i + perturb * max(|y0_i|, 1), and E(0) is that state's energy. 0 (the
                  default) runs the case's own state. Ensembles of runs with perturb ~ 1e-13 show
                  how much a result depends on round-off (``sweeps/drift-ensemble.toml``).
+    links:       the model's link count: the case's chain coarse-grained to this many links
+                 (:func:`redysim.coarsen`: every k = n_links / links consecutive links lumped
+                 into one; it must divide the case's count), its initial state mapped by the
+                 coarsening's chord projection. 0 (the default): the case's own chain.
+                 Refinement studies run one rope at several counts (``sweeps/refine-*.toml``).
+    precision:   the arithmetic of the dynamics (qdd): ``"float64"`` (default) or
+                 ``"float32"`` (the core only: every operation of the same kernel source
+                 rounded to IEEE single, bias terms included,
+                 :func:`redysim.precision.ieee_qdd` with ``fused_phi``; numpy-emulated, so
+                 slow, and its CPU time says nothing of float32's speed:
+                 ``benchmarks/float32_speed.py`` measures that). The integrator's
+                 state and stage sums stay float64.
     """
 
     case: str
@@ -68,6 +81,8 @@ class RunSpec:
     energy_bound: float = 1e3
     max_wall_s: float = 0.0
     perturb: float = 0.0
+    links: int = 0
+    precision: str = "float64"
 
     def __post_init__(self):
         if self.engine != CORE and self.method in CORE_METHODS:
@@ -83,6 +98,20 @@ class RunSpec:
         A step given to an adaptive integrator, or tolerances to a fixed-step one, are refused
         rather than ignored."""
         names = names or {}
+        if self.links:
+            nl = case.chain.n_links
+            if isinstance(self.links, bool) or int(self.links) != self.links or \
+                    self.links < 1 or nl % int(self.links):
+                raise SettingsError(source, names.get("links", "links"), self.links,
+                                    f"must be a whole number that divides the case's {nl} "
+                                    "links (a coarse link lumps the same number of fine ones)")
+        if self.precision not in PRECISIONS:
+            raise SettingsError(source, names.get("precision", "precision"), self.precision,
+                                f"choose one of {', '.join(PRECISIONS)}")
+        if self.precision != "float64" and self.engine != CORE:
+            raise SettingsError(source, names.get("precision", "precision"), self.precision,
+                                f"reduced precision is the core's only (engine {self.engine!r} "
+                                "computes in its own arithmetic)")
         integrator = self.integrator or case.integrator
         stepped = integrator in STEPPED
         t_end = self.t_end or case.t_end
@@ -106,6 +135,7 @@ class RunSpec:
                        atol=None if stepped else atol, h=h, t_end=t_end,
                        sample=min(sample, t_end), extra_methods=(NATIVE,))
         return replace(self, integrator=integrator, rtol=rtol, atol=atol, h=h or 0.0,
+                       links=int(self.links),
                        t_end=float(t_end), sample=float(min(sample, t_end)))
 
     @property
@@ -133,6 +163,10 @@ class RunSpec:
         else:
             step = "" if integrator in STEPPED else " case's rtol"
         extra = f" perturb={self.perturb:g}" if self.perturb else ""
+        if self.links:
+            extra += f" links={self.links}"
+        if self.precision != "float64":
+            extra += f" {self.precision}"
         return f"{self.case} {algo} {integrator}{step}{extra}"
 
     def to_dict(self) -> dict:

@@ -16,6 +16,9 @@ method x integrator x tolerance or step)::
     h = [1e-3]                           # fixed-step integrators (rk4, native): one run per h
     perturbs = [0, 1e-13]                # optional: one run per initial-state perturbation
                                          # (RunSpec.perturb; default [0], the case's state)
+    links = [0, 25, 5]                   # optional: one run per model size (RunSpec.links: the
+                                         # case's chain coarse-grained; 0 = the case's own)
+    precisions = ["float64", "float32"]  # optional: the arithmetic of the core's qdd
     t_end = 0.01                         # scalars shared by every run (RunSpec's meanings)
     sample = 0.005
     energy_bound = 1e3
@@ -53,6 +56,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import itertools
 import json
 import logging
 import math
@@ -80,7 +84,7 @@ from redysim.errors import CaseError, FieldError, SettingsError
 from redysim.integrate import INTEGRATORS
 
 from .run import execute
-from .spec import CORE, CORE_METHODS, NATIVE, STEPPED, RunSpec
+from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec
 from .store import (
     FILE_MODE,
     PARQUET_SUFFIX,
@@ -94,13 +98,15 @@ from .store import (
 )
 
 # a run's settings, and the sweep-file list each comes from
-SETTINGS = ("integrator", "rtol", "atol", "h", "t_end", "sample")
+SETTINGS = ("integrator", "rtol", "atol", "h", "t_end", "sample", "links", "precision")
 LIST_NAMES = {"integrator": "integrators", "rtol": "rtols", "atol": "atols", "h": "h",
-              "t_end": "t_end", "sample": "sample"}
+              "t_end": "t_end", "sample": "sample", "links": "links",
+              "precision": "precisions"}
 SWEEP_TABLE = "sweep"
 PRODUCT_TABLE = "product"
 EXTRA_TABLE = "extra"
-LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h", "perturbs")
+LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h", "perturbs",
+               "links", "precisions")
 SCALAR_FIELDS = ("atol_ratio", "t_end", "sample", "energy_bound", "max_wall_s")
 SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_wall_s")  # handed down to extra runs
 TEXT_FIELDS = ("name", "description")
@@ -310,6 +316,12 @@ class _Checker:
             return self.choice(field, value, CORE_METHODS, "method of the core")
         if key == "integrators":
             return self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+        if key == "precisions":
+            return self.choice(field, value, PRECISIONS, "precision")
+        if key == "links":
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                self.fail(field, value, "must be a whole number of links >= 1 (0: the case's)")
+            return value
         return self.number(field, value, strict=key != "perturbs")  # rtols, atols, h; perturbs >= 0
 
     def values(self, field: str, key: str, value: Any) -> list:
@@ -348,9 +360,13 @@ class _Checker:
                 methods = settings.get("methods", [RunSpec.method]) if engine == CORE else [""]
                 for method in methods:
                     for integrator in integrators:
-                        for perturb in settings.get("perturbs", [RunSpec.perturb]):
+                        for perturb, links, precision in itertools.product(
+                                settings.get("perturbs", [RunSpec.perturb]),
+                                settings.get("links", [RunSpec.links]),
+                                settings.get("precisions", [RunSpec.precision])):
                             run = dict(case=case, engine=engine, method=method,
-                                       integrator=integrator, perturb=perturb, **common)
+                                       integrator=integrator, perturb=perturb, links=links,
+                                       precision=precision, **common)
                             if integrator in STEPPED_INTEGRATORS:
                                 runs = [RunSpec(**run, h=h) for h in settings.get("h", [0.0])]
                             else:
@@ -374,6 +390,10 @@ class _Checker:
                 run[key] = self.choice(field, value, CORE_METHODS, "method of the core")
             elif key == "integrator":
                 run[key] = self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+            elif key == "precision":
+                run[key] = self.choice(field, value, PRECISIONS, "precision")
+            elif key == "links":
+                run[key] = self.item(field, "links", value)
             else:
                 run[key] = self.scalar(field, key, value)
         if "case" not in run:

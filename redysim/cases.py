@@ -55,7 +55,8 @@ UNIFORM_ONLY = ("link_length", "total_length", "link_mass", "total_mass", "linea
 _FIELDS = {
     "case": {"name", "description", "paper"},
     "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass", "total_mass",
-              "linear_density", "density", "radius", "inertia", "com", "gravity", "link"},
+              "linear_density", "density", "radius", "inertia", "com", "gravity", "link",
+              "tip_mass"},
     "link": {"length", "mass", "radius", "inertia", "com", "joint", "axis"},
     "initial": {"q", "qd", "shape", "dX"},
     "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval", "note"},
@@ -300,6 +301,23 @@ def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
     return [link] * nl, [joint] * nl
 
 
+def _with_tip_mass(link: Link, tip_mass: float) -> Link:
+    """``link`` carrying a point mass at its distal end (length, 0, 0): the two bodies' mass,
+    centre of mass and inertia about it (the parallel-axis theorem for each)."""
+    m, c = link.mass, np.array(link.com, dtype=float)
+    end = np.array([link.length, 0.0, 0.0])
+    total = m + tip_mass
+    com = (m * c + tip_mass * end) / total
+    eye = np.eye(3)
+
+    def shift(mass, r):
+        return mass * ((r @ r) * eye - np.outer(r, r))
+
+    inertia = np.array(link.inertia, dtype=float) + shift(m, c - com) + shift(tip_mass, end - com)
+    return Link(link.length, total, tuple(com), tuple(map(tuple, inertia)),
+                physical=link.physical)
+
+
 def _link_inertia(source, prefix, length, mass, radius, inertia, com) -> Link:
     if isinstance(inertia, str):
         link = Link.uniform(length, mass, radius, inertia, source=source, field_name=prefix)
@@ -434,6 +452,9 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     else:
         raise CaseError(source, "chain.links", None,
                         "missing field: give links = N (uniform) or [[chain.link]] entries")
+    if "tip_mass" in chain_t:
+        links[-1] = _with_tip_mass(links[-1], check_positive(source, "chain.tip_mass",
+                                                             chain_t["tip_mass"]))
     gravity = chain_t.get("gravity", [0.0, -9.81, 0.0])
     chain = Chain.build(links, joints, gravity=gravity, name=name, source=source)
 

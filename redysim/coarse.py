@@ -151,7 +151,7 @@ def coarsen(chain: Chain, k: int | None = None, *, links: int | None = None,
         raise CaseError(where, "k", k, f"must divide the chain's {nl} links")
     k = int(k)
     starts = np.arange(0, nl + 1, k)
-    for g, s in enumerate(starts[:-1]):
+    for s in starts[:-1]:
         joint = chain.joints[s]
         if joint.type not in MAPPABLE:
             raise CaseError(where, f"joints[{s}]", joint.type,

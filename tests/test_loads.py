@@ -27,6 +27,7 @@ from redysim import (
     energy,
     forward_dynamics,
     load_case,
+    mass_matrix,
     tip,
 )
 from redysim.loads import tip_force_potential, tip_force_torques
@@ -238,3 +239,28 @@ def test_a_top_level_link_table_is_refused_not_ignored():
     with pytest.raises(CaseError) as err:
         case_from_dict(doc, source="p.toml")
     assert err.value.field == "<top>.link"
+
+
+def test_a_tip_mass_is_a_point_mass_at_the_last_links_end():
+    """One rod of mass m and length l carrying M at its end: about the joint, m l^2 / 3 + M l^2
+    (the GIM of a planar link), and its centre of mass and total mass."""
+    doc = pulled_case()
+    doc["chain"] = {"links": 1, "joint": "R", "link_length": 0.5, "link_mass": 2.0,
+                    "tip_mass": 3.0}
+    chain = case_from_dict(doc).chain
+    assert chain.total_mass == 5.0
+    np.testing.assert_allclose(chain.com[0], [(2.0 * 0.25 + 3.0 * 0.5) / 5.0, 0.0, 0.0])
+    gim = mass_matrix(chain, [0.3])
+    np.testing.assert_allclose(gim, [[2.0 * 0.25 / 3 + 3.0 * 0.25]], rtol=1e-14)
+    doc["chain"]["links"] = 3  # only the last link carries it
+    chain = case_from_dict(doc).chain
+    np.testing.assert_array_equal(chain.mass, [2.0, 2.0, 5.0])
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, "heavy", math.inf])
+def test_a_bad_tip_mass_is_named(bad):
+    doc = pulled_case()
+    doc["chain"]["tip_mass"] = bad
+    with pytest.raises(CaseError) as err:
+        case_from_dict(doc, source="p.toml")
+    assert err.value.field == "chain.tip_mass"

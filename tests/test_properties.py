@@ -238,7 +238,7 @@ def test_an_unknown_field_is_named(table, key, value):
     known = {"<top>": {"case", "chain", "initial", "simulation", "load"}, "case": {"paper"},
              "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass",
                        "total_mass", "linear_density", "density", "radius", "inertia", "com",
-                       "gravity", "link"},
+                       "gravity", "link", "tip_mass"},
              "initial": {"q", "qd", "shape", "dX"},
              "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval",
                             "note"}}[table]
