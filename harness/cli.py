@@ -85,6 +85,20 @@ examples:
   redysim info ur5_robot.urdf
   redysim info solo12.urdf --floating"""
 
+ADVISE_HELP = """\
+How many links does a scene need? From a refinement study (one rope at several link counts, each
+at several integrator tolerances, measured against the finest model: `python -m
+redysim.harness.refine`, which `make reproduce` runs), print the run of least CPU whose tip
+path stayed within --tip-tol of the finest model's, what the finest model cost for the same
+tolerance, and the command that runs the advised model. For the hanging chain, the coarsest
+model whose first --modes frequencies are within --freq-tol of the continuum's.
+
+examples:
+  redysim advise fall --tip-tol 0.01
+  redysim advise spin --tip-tol 1e-3
+  redysim advise hanging --modes 3 --freq-tol 0.001
+  redysim advise results/refine/pulled --tip-tol 0.05"""
+
 CASES_HELP = """\
 List the case files in cases/ (every chain of the paper) with their descriptions. Any of these
 names, or the path of your own case file, can be given to `redysim simulate`.
@@ -102,6 +116,17 @@ def positive(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return value
+
+
+def _whole(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
     return value
 
 
@@ -158,6 +183,13 @@ def build_parser() -> argparse.ArgumentParser:
                      help="stop the run after S seconds of wall time, keeping its samples so "
                           "far (default: no limit; a run longer than a few seconds prints its "
                           "progress on stderr)")
+    sim.add_argument("--links", type=_whole, metavar="N",
+                     help="a rope case: coarse-grain its chain to N links (N must divide its "
+                          "link count; each coarse link lumps the same number of fine ones, "
+                          "its initial state mapped along the chords); see `redysim advise`")
+    sim.add_argument("--precision", choices=PRECISION_CHOICES, default="float64",
+                     help="the arithmetic of the core's qdd: float64 (default) or float32 "
+                          "(numpy-emulated IEEE single: slow, for accuracy studies)")
     sim.add_argument("--out", type=Path, metavar="FILE.parquet|FILE.csv",
                      help="also save the samples to FILE and the summary row to "
                           "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
@@ -189,6 +221,26 @@ def build_parser() -> argparse.ArgumentParser:
     cs = sub.add_parser("cases", description=CASES_HELP, formatter_class=fmt,
                         help="list the chains of the paper that come with redysim")
     cs.set_defaults(func=cmd_cases)
+
+    adv = sub.add_parser("advise", description=ADVISE_HELP, formatter_class=fmt,
+                         help="the coarsest model and cheapest integrator setting that meet a "
+                              "tolerance, from a refinement study's measurements")
+    adv.add_argument("scene", metavar="SCENE",
+                     help="spin, fall, whip, pulled (their studies under RESULTS/refine/), "
+                          "hanging (the hanging chain's modes), or the folder of a refinement "
+                          "sweep's results")
+    adv.add_argument("--tip-tol", type=positive, metavar="M",
+                     help="tip-path tolerance [m]: the largest distance from the finest "
+                          "model's tip over the samples")
+    adv.add_argument("--modes", type=_whole, metavar="M",
+                     help="hanging: how many of the lowest frequencies must be within "
+                          "--freq-tol")
+    adv.add_argument("--freq-tol", type=positive, metavar="F",
+                     help="hanging: relative tolerance of those frequencies against the "
+                          "continuum's (0.01 = 1 %%)")
+    adv.add_argument("--results", type=Path, default=Path("results"), metavar="DIR",
+                     help="where the refinement studies are (default: results)")
+    adv.set_defaults(func=cmd_advise)
 
     info = sub.add_parser("info", description=INFO_HELP, formatter_class=fmt,
                           help="print a model's tree: bodies, joints, masses, what was dropped")
@@ -223,7 +275,9 @@ def _model_flags(parser: argparse.ArgumentParser) -> None:
 # --------------------------------------------------------------------------- commands
 # simulate's flags by the RunSpec field they set (in a refusal's message)
 FLAGS = {"integrator": "--integrator", "rtol": "--rtol", "atol": "--atol", "h": "--h",
-         "t_end": "--t-end", "sample": "--sample"}
+         "t_end": "--t-end", "sample": "--sample", "links": "--links",
+         "precision": "--precision"}
+PRECISION_CHOICES = ("float64", "float32")  # harness.spec.PRECISIONS (not imported at start-up)
 OUT_SUFFIXES = (".parquet", ".csv")
 SOURCE = "command line"  # where a bad flag came from, in its message
 
@@ -299,7 +353,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
                    integrator=args.integrator or "", rtol=args.rtol or 0.0,
                    atol=args.atol or 0.0, h=args.h or 0.0, t_end=args.t_end or 0.0,
-                   sample=args.sample or 0.0, max_wall_s=args.max_wall or 0.0)
+                   sample=args.sample or 0.0, max_wall_s=args.max_wall or 0.0,
+                   links=args.links or 0, precision=args.precision)
     spec.resolved(case, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
     if args.out is not None:
         _check_out(args.out)
@@ -509,6 +564,60 @@ def _axis_text(model, j: int) -> str:
              (0, 0, -1): "-z"}
     key = tuple(int(x) if x in (-1.0, 0.0, 1.0) else None for x in u)
     return f"{kind} {names.get(key, '(' + ', '.join(f'{x:.4g}' for x in u) + ')')}"
+
+
+def cmd_advise(args: argparse.Namespace) -> int:
+    """``redysim advise``: the coarsest model and cheapest setting that meet a tolerance."""
+    from redysim.harness import refine
+
+    if args.scene == "hanging":
+        if args.modes is None or args.freq_tol is None:
+            raise SettingsError(SOURCE, "--modes/--freq-tol", None,
+                                "the hanging chain's advice needs both (e.g. --modes 3 "
+                                "--freq-tol 0.01)")
+        study = refine.modes_study(m=args.modes)
+        a = refine.advise_modes(study, args.modes, args.freq_tol)
+        if a is None:
+            finest = study["levels"][-1]
+            print(f"no model up to {finest['links']} links has its first {args.modes} "
+                  f"frequencies within {args.freq_tol:g} (the finest: "
+                  f"{max(finest['rel_err'][:args.modes]):.3g})")
+            return EXIT_RUN_FAILED
+        print(f"hanging chain: {a['links']} links have the first {args.modes} frequencies within "
+              f"{args.freq_tol:g} of the continuum's (worst {a['max_rel_err']:.3g})")
+        return EXIT_OK
+    if args.tip_tol is None:
+        raise SettingsError(SOURCE, "--tip-tol", None, "missing: the tip-path tolerance [m]")
+    if args.modes is not None or args.freq_tol is not None:
+        raise SettingsError(SOURCE, "--modes/--freq-tol", args.modes,
+                            "apply to the hanging chain only (advise hanging ...)")
+    folder = (refine.study_folder(args.results, args.scene) if args.scene in refine.SCENES
+              else Path(args.scene))
+    try:
+        study = refine.load_study(folder, args.scene)
+    except refine.StudyError as exc:
+        raise SettingsError(SOURCE, "SCENE", args.scene, str(exc)) from None
+    a = refine.advise(study, args.tip_tol)
+    ref = study.reference
+    print(f"{study.case}: reference {int(ref['n_links'])} links, {ref['integrator']} rtol "
+          f"{ref['rtol']:g} ({len(study.runs)} runs measured)")
+    if a is None:
+        best = study.runs["tip_err"].min()
+        print(f"no measured run met {args.tip_tol:g} m (the best: {best:.3g} m): tighten the "
+              "study (more links, tighter tolerances) or ask less")
+        return EXIT_RUN_FAILED
+    print(f"advice for a tip path within {a.tol:g} m: {a.links} links, {a.integrator} rtol "
+          f"{a.rtol:g} (atol {a.rtol * 1e-2:g})")
+    print(f"  measured: tip error {a.tip_err:.3g} m, CPU {a.cpu_s:.3g} s, {a.steps:,} steps "
+          f"({a.candidates} runs met the tolerance)")
+    if math.isfinite(a.finest_cpu_s):
+        print(f"  the finest model ({a.finest_links} links) meets it at rtol {a.finest_rtol:g} "
+              f"in {a.finest_cpu_s:.3g} s of CPU: {a.saved:.0f}x the advised run's")
+    else:
+        print(f"  no run of the finest model ({a.finest_links} links) met it")
+    print(f"  run it: redysim simulate {study.case} --links {a.links} --integrator "
+          f"{a.integrator} --rtol {a.rtol:g} --atol {a.rtol * 1e-2:g}")
+    return EXIT_OK
 
 
 def cmd_cases(args: argparse.Namespace) -> int:
