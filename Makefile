@@ -58,6 +58,7 @@ bench: bench-core
 bench-core: $(STAMP)
 	@mkdir -p results/bench
 	$(BIN)/python benchmarks/jit_times.py
+	$(BIN)/python benchmarks/float32_speed.py
 	$(BIN)/python -m pytest benchmarks/test_bench_core.py --benchmark-only --benchmark-enable \
 		--benchmark-columns=min,median,mean,rounds --benchmark-sort=name \
 		--benchmark-json=results/bench/core.json

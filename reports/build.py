@@ -37,6 +37,7 @@ from . import figures as F
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
 from .paper_tables import Ctx, paper_tables, printed_match
 from .precision_tables import sig_decimals
+from .refine import refine_section
 from .results import Results, finite
 from .scaling import slopes
 from .text import integer, num, provenance_line, sci, seconds
@@ -691,7 +692,7 @@ def build_report(res: Results) -> Report:
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
                   [setup_section(ctx), paper, figs, beyond, robots_section(res),
-                   loops_section(res)],
+                   loops_section(res), refine_section(res)],
                   provenance_line(here, what="report built with"))
 
 

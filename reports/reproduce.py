@@ -17,7 +17,9 @@ the precision tables 8, 10, 11, A.2 and IEEE (:mod:`reports.precision_tables`, T
 its sensitivity runs); Table 9 and the conditioning study (:mod:`reports.gim_study`); the
 operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 links
 (:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
-robots and trees in the core and every engine (:mod:`reports.robots`); then the report
+robots and trees in the core and every engine (:mod:`reports.robots`); closed loops
+(:mod:`reports.loops`); model size against accuracy, the refinement studies of
+``sweeps/refine-*.toml`` with their advice checked (:mod:`harness.refine`); then the report
 (:mod:`reports.build`).
 
 Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
@@ -206,6 +208,18 @@ class Reproduction:
                 f"{doc['slope']:.2f}, {lr['n']:,} rods for {lr['t_end']:g} s in "
                 f"{lr['cpu_s']:.0f} s")
 
+    def refine(self) -> str:
+        from redysim.harness import refine
+
+        doc = refine.run_all(self.results, workers=self.workers or os.cpu_count() or 1,
+                             log=self.say)
+        parts = []
+        for scene, s in doc["scenes"].items():
+            c = s["convergence"]
+            parts.append(f"{scene} order {c['order']:.2f}")
+        return ("; ".join(parts) + f"; hanging modes order "
+                f"{min(doc['hanging']['orders']):.2f}-{max(doc['hanging']['orders']):.2f}")
+
     def build(self) -> str:
         from .build import write_report
 
@@ -238,6 +252,7 @@ class Reproduction:
             p.add("CPU scaling", self.scaling)
             p.add("robots and trees", self.robots)
             p.add("closed loops", self.loops)
+            p.add("model size (refinement studies)", self.refine)
         else:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
@@ -250,6 +265,7 @@ class Reproduction:
             p.add("true-error study", lambda: self.error_study(None))
             p.add("robots and trees", self.robots)
             p.add("closed loops", lambda: self.loops(full=True))
+            p.add("model size (refinement studies)", self.refine)
         p.add("report", self.build)
         return p
 

@@ -47,6 +47,7 @@ OPCOUNT_FILE = Path("opcount") / "opcount.json"
 SCALING_FILE = Path("scaling") / "scaling.parquet"
 ROBOTS_FILE = Path("robots") / "robots.json"
 LOOPS_FILE = Path("loops") / "loops.json"
+REFINE_FILE = Path("refine") / "refine.json"
 BENCH_DIR = "bench"
 REPRODUCE_GLOB = "reproduce-*.json"
 LONGRUN_DIR = "longrun"
@@ -193,6 +194,11 @@ class Results:
     def robots(self) -> dict | None:
         """``robots/robots.json`` (:mod:`reports.robots`), or None."""
         return _json(self.root / ROBOTS_FILE)
+
+    @functools.cached_property
+    def refine(self) -> dict | None:
+        """``refine/refine.json`` (:mod:`redysim.harness.refine`), or None."""
+        return _json(self.root / REFINE_FILE)
 
     @functools.cached_property
     def loops(self) -> dict | None:

@@ -1,0 +1,541 @@
+"""Model size against accuracy: refinement studies, their observed orders, and advice.
+
+A refinement study is one physical rope at several link counts (a fine case file, coarse-grained
+by :func:`redysim.coarsen` through ``RunSpec.links``), each integrated at several tolerances:
+``sweeps/refine-*.toml``. This module reads a study's results and measures, per run, the tip-path
+error against the study's reference (the finest model at the tightest tolerance, DOP853 at
+1e-10): the largest distance between the two tips over the samples. From that:
+
+- the error against the link count at the tightest tolerance, its observed order p (the slope of
+  log error against log links, error ~ C links^-p, fitted on the levels at most a quarter of the
+  finest, where the finest model's own error biases the difference by at most 4^-p), and the
+  Richardson-extrapolated tip position at the horizon from the two finest levels;
+- :func:`advise`: for a tip-path tolerance, the run that meets it at the least CPU: the coarsest
+  model and cheapest integrator setting, from measured data;
+- :func:`check_advice`: runs the advised model afresh and compares it with the study's reference
+  and with a model twice as fine as the finest, by DOP853 at 1e-8 (so that the advice is checked
+  against a reference it was not chosen with).
+
+The hanging chain's small oscillations need no time integration: :func:`hanging_modes` linearises
+a planar chain about its straight hanging state, and :func:`modes_study` compares its frequencies
+at every level with the continuum's, omega_k = (z_k / 2) sqrt(g / L) (z_k: zeros of J0).
+
+    python -m redysim.harness.refine [--quick] [--out DIR]   # all scenes, then the JSON summary
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from redysim import coarsen, load_case, mass_matrix
+from redysim.cases import CASES_DIR, case_from_dict, read_toml
+
+from .provenance import REPO, provenance
+from .store import write_json_atomic
+
+SWEEPS = REPO / "sweeps"
+# scene -> its sweep file's stem. The falling chain is two scenes: its smooth fall (to 0.4 s),
+# and through the whip (to 0.8 s), whose continuum limit is singular: the tip speed grows with
+# the link count, and the path after it does not converge pointwise.
+SCENES = {"spin": "refine-spin", "fall": "refine-fall", "whip": "refine-whip",
+          "pulled": "refine-pulled"}
+SCENE_TITLES = {
+    "spin": "Spinning rope (RE-U125-L1's rod), falling: 0 to 0.4 s",
+    "fall": "Chain released from horizontal: the fall (0 to 0.4 s)",
+    "whip": "Chain released from horizontal: through the whip (0 to 0.8 s)",
+    "pulled": "Hanging chain with a hook, pulled at the hook: 0 to 1 s",
+    "hanging": "Small oscillations of a hanging chain (modes)",
+}
+HANGING_CASE = CASES_DIR / "refine" / "hanging-R1024.toml"
+HANGING_LEVELS = (1024, 512, 256, 128, 64, 32, 16, 8, 4, 2)
+N_MODES = 5
+ORDER_FRACTION = 4  # fit the order on levels at most finest / 4
+# DOP853's tolerance for the rope at twice the finest's links (the advice's second check): at
+# 1e-10 the 500-link spinning rod took 5 minutes here; on the finest models 1e-8 is within 1e-13 m
+# of 1e-10 before a whip (each study measures and reports it: rtol_error_on_finest)
+FINER_RTOL = 1e-8
+ADVICE_TOLERANCES = {"spin": (1e-2, 1e-3), "fall": (1e-2, 1e-3), "whip": (5e-2,),
+                     "pulled": (1e-2, 1e-3)}
+RESULTS_FILE = "refine.json"
+
+
+class StudyError(Exception):
+    """A study's results cannot be read as a refinement study (named: folder and why)."""
+
+
+# --------------------------------------------------------------------------- reading a study
+def study_folder(results: Path, scene: str) -> Path:
+    """Where a scene's sweep writes: ``results/refine/<sweep name without refine->``."""
+    return Path(results) / "refine" / SCENES[scene].removeprefix("refine-")
+
+
+@dataclass
+class Study:
+    """A refinement study's runs with their errors. ``runs``: one row per run (the sweep's
+    summary columns plus ``tip_err`` [m], the max tip distance to the reference over the samples,
+    and ``end_tip_err`` at the horizon); ``reference``: the reference run's row; ``tips``:
+    run_id -> (m, 3) tip positions at the samples; ``t``: the sample times."""
+
+    scene: str
+    case: str
+    runs: pd.DataFrame
+    reference: pd.Series
+    tips: dict
+    t: np.ndarray
+    folder: Path
+
+
+def load_study(out_dir: str | Path, scene: str = "") -> Study:
+    """Read a finished refinement sweep's folder (runs.parquet and samples.parquet, made by
+    :func:`redysim.harness.sweep.collect`)."""
+    from .sweep import collect
+
+    out = Path(out_dir)
+    if not (out / "runs").is_dir():
+        raise StudyError(f"{out}: no runs/ folder: not a sweep's results (run the study's sweep "
+                         "first, e.g. redysim sweep sweeps/refine-fall.toml --out DIR)")
+    runs = collect(out)
+    samples = pd.read_parquet(out / "samples.parquet")
+    ok = runs[runs["status"] == "ok"]
+    if ok.empty:
+        raise StudyError(f"{out}: no finished run")
+    if runs["case"].nunique() > 1:
+        raise StudyError(f"{out}: runs of {runs['case'].nunique()} cases; a refinement study is "
+                         "one case at several link counts")
+    full = ok[(ok["precision"] == "float64") & (ok["n_links"] == ok["n_links"].max())]
+    ref = full.sort_values(["rtol", "integrator"], ascending=[True, True]).iloc[0]
+    by_run = {k: g.sort_values("t") for k, g in samples.groupby("run_id")}
+    t = by_run[ref["run_id"]]["t"].to_numpy()
+    tips = {k: g[["tip_x", "tip_y", "tip_z"]].to_numpy() for k, g in by_run.items()}
+    speeds = {k: float(np.linalg.norm(g[["tip_vx", "tip_vy", "tip_vz"]].to_numpy(),
+                                      axis=1).max()) for k, g in by_run.items()}
+    ref_tip = tips[ref["run_id"]]
+    errs, ends = [], []
+    for _, row in runs.iterrows():
+        tip = tips.get(row["run_id"])
+        if row["status"] != "ok" or tip is None or tip.shape != ref_tip.shape:
+            errs.append(math.nan)
+            ends.append(math.nan)
+            continue
+        d = np.linalg.norm(tip - ref_tip, axis=1)
+        errs.append(float(d.max()))
+        ends.append(float(d[-1]))
+    runs = runs.assign(tip_err=errs, end_tip_err=ends,
+                       peak_tip_speed=[speeds.get(i, math.nan) for i in runs["run_id"]])
+    ref = runs[runs["run_id"] == ref["run_id"]].iloc[0]
+    return Study(scene, str(ref["case"]), runs, ref, tips, t, out)
+
+
+def convergence(study: Study) -> dict:
+    """Error against links at the tightest tolerance of each level (float64; ode45 and DOP853
+    both, the smaller error kept per level), the observed order and the Richardson-extrapolated
+    tip position at the horizon."""
+    r = study.runs
+    ok = r[(r["status"] == "ok") & (r["precision"] == "float64")]
+    ok = ok[ok["run_id"] != study.reference["run_id"]]
+    finest = int(study.reference["n_links"])
+    levels = []
+    for n, g in ok.groupby("n_links"):
+        tight = g[g["rtol"] == g["rtol"].min()].sort_values("tip_err").iloc[0]
+        levels.append({"links": int(n), "tip_err": float(tight["tip_err"]),
+                       "peak_tip_speed": float(tight["peak_tip_speed"]),
+                       "end_tip_err": float(tight["end_tip_err"]), "rtol": float(tight["rtol"]),
+                       "integrator": tight["integrator"], "cpu_s": float(tight["cpu_s"]),
+                       "run_id": tight["run_id"]})
+    levels.sort(key=lambda d: d["links"])
+    fit = [d for d in levels if d["links"] * ORDER_FRACTION <= finest and d["tip_err"] > 0]
+    order = math.nan
+    if len(fit) >= 2:
+        x = np.log([d["links"] for d in fit])
+        y = np.log([d["tip_err"] for d in fit])
+        order = float(-np.polyfit(x, y, 1)[0])
+    # Richardson: Q_inf = Q_f + (Q_f - Q_c) / (r^p - 1), Q = tip at the horizon
+    rich = None
+    coarser = [d for d in levels if d["links"] < finest]
+    if coarser and math.isfinite(order) and order > 0:
+        c = coarser[-1]
+        ratio = finest / c["links"]
+        q_f = study.tips[study.reference["run_id"]][-1]
+        q_c = study.tips[c["run_id"]][-1]
+        q_inf = q_f + (q_f - q_c) / (ratio ** order - 1.0)
+        rich = {"from_links": [c["links"], finest], "tip_end": q_inf.tolist(),
+                "finest_tip_end": q_f.tolist(),
+                "finest_error_estimate": float(np.linalg.norm(q_inf - q_f))}
+    return {"finest": finest, "finest_peak_tip_speed": float(study.reference["peak_tip_speed"]),
+            "t_end": float(study.t[-1]), "levels": levels, "order": order,
+            "order_levels": [d["links"] for d in fit], "richardson": rich}
+
+
+# --------------------------------------------------------------------------- advice
+@dataclass
+class Advice:
+    """The cheapest measured run that met a tip-path tolerance, and what the finest model cost
+    for the same tolerance."""
+
+    scene: str
+    tol: float
+    links: int
+    integrator: str
+    rtol: float
+    tip_err: float
+    cpu_s: float
+    steps: int
+    finest_links: int
+    finest_cpu_s: float  # the cheapest run of the finest model that meets tol (nan: none does)
+    finest_rtol: float
+    candidates: int  # runs that met tol
+
+    @property
+    def saved(self) -> float:
+        """CPU of the finest model's cheapest run meeting tol, over the advised run's."""
+        return self.finest_cpu_s / self.cpu_s if self.cpu_s > 0 else math.nan
+
+
+def advise(study: Study, tol: float, *, precision: str = "float64") -> Advice | None:
+    """The coarsest model and cheapest integrator setting, from measured data, whose tip path
+    stays within ``tol`` [m] of the reference's: of the study's runs that met ``tol``, the one
+    that took the least CPU. None when no run met it."""
+    if not tol > 0:
+        raise ValueError(f"tol = {tol!r}: must be a tip distance > 0 [m]")
+    r = study.runs
+    ok = r[(r["status"] == "ok") & (r["precision"] == precision)
+           & (r["run_id"] != study.reference["run_id"]) & (r["tip_err"] <= tol)]
+    if ok.empty:
+        return None
+    best = ok.sort_values(["cpu_s", "n_links"]).iloc[0]
+    finest = int(study.reference["n_links"])
+    fine = ok[ok["n_links"] == finest].sort_values("cpu_s")
+    return Advice(study.scene, float(tol), int(best["n_links"]), str(best["integrator"]),
+                  float(best["rtol"]), float(best["tip_err"]), float(best["cpu_s"]),
+                  int(best["steps"]), finest,
+                  float(fine["cpu_s"].iloc[0]) if len(fine) else math.nan,
+                  float(fine["rtol"].iloc[0]) if len(fine) else math.nan, int(len(ok)))
+
+
+def finer_case(case_file: str | Path, factor: int):
+    """The case's rope with ``factor`` times as many links (its [chain] links multiplied): the
+    same physical rope at a finer discretisation, for checking advice against a reference it was
+    not chosen with. The case's initial state must not depend on the link count (true of the
+    refinement scenes: a first-joint angle or rate, the rest zero)."""
+    doc, raw = read_toml(case_file)
+    doc = json.loads(json.dumps(doc))  # a deep copy
+    doc["chain"]["links"] = int(doc["chain"]["links"]) * factor
+    doc["case"]["name"] = f"{doc['case']['name']}x{factor}"
+    return case_from_dict(doc, source=f"{case_file} (links x {factor})")
+
+
+def _tips(case, links: int, integrator: str, rtol: float, atol: float, t_end: float,
+          sample: float, *, compiled: bool = False):
+    """Integrate ``case`` (coarse-grained to ``links``) and return (tips, cpu_s, steps);
+    ``compiled``: step in compiled code where the case allows it (no tip force)."""
+    from redysim import Workspace, forward_dynamics, tip
+    from redysim.integrate import CompiledSolver, advance, make_solver, sample_times
+    from redysim.loads import tip_force_torques
+
+    chain, q0, qd0 = case.chain, case.q0, case.qd0
+    if links != chain.n_links:
+        cz = coarsen(chain, links=links)
+        q0, qd0 = cz.to_coarse(q0, qd0)
+        chain = cz.coarse
+    n = chain.n_dof
+    ws, load_ws = Workspace(chain), Workspace(chain)
+
+    def rhs(_t, y):
+        tau = (None if case.tip_force is None else
+               tip_force_torques(chain, y[:n], case.tip_force, ws=load_ws))
+        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], tau, ws=ws)))
+
+    out = []
+    cpu0 = time.process_time()
+    y0 = np.concatenate((q0, qd0))
+    if compiled and case.tip_force is None:
+        solver = CompiledSolver(rhs, 0.0, y0, t_end, integrator, ws=ws, planar=chain.is_planar,
+                                rtol=rtol, atol=atol)
+    else:
+        solver = make_solver(rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol)
+    status, msg = advance(solver, sample_times(0.0, t_end, sample),
+                          on_sample=lambda t, y: out.append(tip(chain, y[:n], y[n:]).position))
+    if status != 0:
+        raise RuntimeError(f"{case.name} at {links} links: {msg}")
+    return np.array(out), time.process_time() - cpu0, solver.counters.steps
+
+
+def finer_reference(study: Study, finer: int = 2) -> dict:
+    """The study's rope at ``finer`` times the finest model's links, integrated by DOP853 at
+    :data:`FINER_RTOL` over the study's horizon and samples: a reference the advice was not
+    chosen with. Also the study's own measure of what that tolerance costs in accuracy: the
+    finest model's DOP853 run at FINER_RTOL against the reference (1e-10)."""
+    ref = study.reference
+    out = finer_tips(study.case, float(ref["t_end"]), float(ref["sample"]), finer)
+    out["rtol_error_on_finest"] = _rtol_error_on_finest(study)
+    return out
+
+
+def _rtol_error_on_finest(study: Study) -> float:
+    """The finest model's DOP853 run at FINER_RTOL against the reference (nan: none)."""
+    ref, r = study.reference, study.runs
+    same = r[(r["n_links"] == ref["n_links"]) & (r["integrator"] == "dop853")
+             & (r["rtol"] == FINER_RTOL) & (r["precision"] == "float64")]
+    return float(same["tip_err"].iloc[0]) if len(same) else math.nan
+
+
+def finer_tips(case_file: str, t_end: float, sample: float, finer: int = 2) -> dict:
+    """The tip path of the case's rope at ``finer`` times its links, DOP853 at FINER_RTOL (a
+    plain function of plain arguments, for a process pool)."""
+    fine_case = finer_case(case_file, finer)
+    tips, cpu, steps = _tips(fine_case, fine_case.chain.n_links, "dop853", FINER_RTOL,
+                             FINER_RTOL * 1e-2, t_end, sample, compiled=True)
+    return {"links": int(fine_case.chain.n_links), "tips": tips, "cpu_s": cpu, "steps": steps,
+            "rtol": FINER_RTOL}
+
+
+def check_advice(study: Study, advice: Advice, finer: dict | None = None) -> dict:
+    """Run the advised model afresh (the Python stepping loop, not the sweep's compiled one) and
+    measure its tip-path error against the study's reference and against ``finer`` (from
+    :func:`finer_reference`; computed here when not given)."""
+    ref = study.reference
+    case = load_case(study.case)
+    t_end, sample = float(ref["t_end"]), float(ref["sample"])
+    tips, cpu, steps = _tips(case, advice.links, advice.integrator, advice.rtol,
+                             advice.rtol * 1e-2, t_end, sample)
+    ref_tip = study.tips[ref["run_id"]]
+    finer = finer or finer_reference(study)
+    fine_tip, fine_cpu = finer["tips"], finer["cpu_s"]
+    fine_case_links = finer["links"]
+    return {"scene": study.scene, "tol": advice.tol, "links": advice.links,
+            "integrator": advice.integrator, "rtol": advice.rtol,
+            "error_vs_finest": float(np.linalg.norm(tips - ref_tip, axis=1).max()),
+            "finer_links": fine_case_links,
+            "error_vs_finer": float(np.linalg.norm(tips - fine_tip, axis=1).max()),
+            "finest_vs_finer": float(np.linalg.norm(ref_tip - fine_tip, axis=1).max()),
+            "cpu_s": cpu, "steps": int(steps), "sweep_cpu_s": advice.cpu_s,
+            "finest_cpu_s": advice.finest_cpu_s, "finer_cpu_s": fine_cpu,
+            "finer_rtol": finer["rtol"],
+            "finer_rtol_error_on_finest": finer["rtol_error_on_finest"]}
+
+
+def float32_pairs(study: Study) -> list[dict]:
+    """Each float32 run beside its float64 twin (same links, integrator and tolerances): both
+    errors against the reference, the distance between their tip paths, and their steps."""
+    r = study.runs
+    out = []
+    for _, a in r[r["precision"] == "float32"].iterrows():
+        twin = r[(r["precision"] == "float64") & (r["n_links"] == a["n_links"])
+                 & (r["integrator"] == a["integrator"]) & (r["rtol"] == a["rtol"])]
+        b = twin.iloc[0] if len(twin) else None
+        apart = math.nan
+        if b is not None and a["status"] == "ok" and b["status"] == "ok":
+            ta, tb = study.tips.get(a["run_id"]), study.tips.get(b["run_id"])
+            if ta is not None and tb is not None and ta.shape == tb.shape:
+                apart = float(np.linalg.norm(ta - tb, axis=1).max())
+        out.append({"links": int(a["n_links"]), "integrator": a["integrator"],
+                    "rtol": float(a["rtol"]), "status": a["status"],
+                    "reason": a["reason"], "t_reached": float(a["t_reached"]),
+                    "tip_err32": _plain(float(a["tip_err"])),
+                    "tip_err64": None if b is None else _plain(float(b["tip_err"])),
+                    "apart": _plain(apart), "steps32": int(a["steps"]),
+                    "steps64": None if b is None else int(b["steps"]),
+                    "cpu32_s": float(a["cpu_s"]),
+                    "cpu64_s": None if b is None else float(b["cpu_s"])})
+    return out
+
+
+# --------------------------------------------------------------------------- hanging modes
+def hanging_modes(chain, m: int = N_MODES) -> np.ndarray:
+    """The ``m`` lowest small-oscillation frequencies [rad/s] of a planar chain hanging straight
+    down (joint 1 at -90 degrees, the others at 0), gravity along -Y.
+
+    The stiffness is exact: with phi_j the angle of link j from the downward vertical, the
+    potential's Hessian at phi = 0 is diagonal, w_j = g (l_j (mass below link j) + m_j c_j,x),
+    and phi = T q with T the lower triangle of ones, so K = T^T diag(w) T, K_ab = sum of w_j over
+    j >= max(a, b). The mass matrix is the core's (composite bodies). Solved as the symmetric
+    generalised eigenproblem K x = omega^2 M x."""
+    from scipy.linalg import eigh
+
+    if not chain.is_planar:
+        raise ValueError(f"{chain.name}: hanging_modes needs a planar chain of revolute joints")
+    g = -float(chain.gravity[1])
+    below = np.concatenate((np.cumsum(chain.mass[::-1])[::-1][1:], [0.0]))
+    w = g * (chain.length * below + chain.mass * chain.com[:, 0])
+    s = np.cumsum(w[::-1])[::-1]  # s_j = sum of w over j' >= j
+    idx = np.arange(chain.n_dof)
+    K = s[np.maximum(idx[:, None], idx[None, :])]
+    q = np.zeros(chain.n_dof)
+    q[0] = -math.pi / 2
+    M = mass_matrix(chain, q)
+    lam = eigh(K, M, eigvals_only=True, subset_by_index=[0, min(m, chain.n_dof) - 1])
+    return np.sqrt(lam)
+
+
+def continuum_modes(length: float, g: float, m: int = N_MODES) -> np.ndarray:
+    """A heavy hanging string's frequencies: omega_k = (z_k / 2) sqrt(g / L), z_k the zeros of
+    the Bessel function J0."""
+    from scipy.special import jn_zeros
+
+    return jn_zeros(0, m) / 2.0 * math.sqrt(g / length)
+
+
+def modes_study(case_file: str | Path = HANGING_CASE, levels=HANGING_LEVELS,
+                m: int = N_MODES) -> dict:
+    """The hanging chain's first ``m`` frequencies at every level (coarse-grained from the case),
+    their relative error against the continuum, the observed order per mode and the Richardson
+    extrapolation from the two finest levels."""
+    case = load_case(case_file)
+    chain = case.chain
+    exact = continuum_modes(float(chain.length.sum()), -float(chain.gravity[1]), m)
+    rows = []
+    for n in sorted(levels):
+        c = chain if n == chain.n_links else coarsen(chain, links=n).coarse
+        t0 = time.process_time()
+        w = hanging_modes(c, m)
+        cpu = time.process_time() - t0
+        w = np.concatenate((w, np.full(m - w.size, math.nan)))
+        rows.append({"links": n, "omega": w.tolist(),
+                     "rel_err": (np.abs(w - exact) / exact).tolist(), "cpu_s": cpu})
+    links = np.array([r["links"] for r in rows], dtype=float)
+    err = np.array([r["rel_err"] for r in rows])
+    orders = []
+    for k in range(m):
+        ok = np.isfinite(err[:, k]) & (links >= 8 * (k + 1))
+        orders.append(float(-np.polyfit(np.log(links[ok]), np.log(err[ok, k]), 1)[0])
+                      if ok.sum() >= 2 else math.nan)
+    w_f, w_c = np.array(rows[-1]["omega"]), np.array(rows[-2]["omega"])
+    ratio = rows[-1]["links"] / rows[-2]["links"]
+    p = np.array(orders)
+    rich = w_f + (w_f - w_c) / (ratio ** p - 1.0)
+    return {"case": case.name, "length": float(chain.length.sum()), "modes": m,
+            "continuum": exact.tolist(), "levels": rows, "orders": orders,
+            "richardson": rich.tolist(),
+            "richardson_rel_err": (np.abs(rich - exact) / exact).tolist()}
+
+
+def advise_modes(study: dict, m: int, tol: float) -> dict | None:
+    """The coarsest level whose first ``m`` frequencies are all within ``tol`` (relative) of the
+    continuum's; None when none is."""
+    for row in study["levels"]:  # coarsest first
+        if max(row["rel_err"][:m]) <= tol:
+            return {"links": row["links"], "max_rel_err": max(row["rel_err"][:m]), "modes": m,
+                    "tol": tol}
+    return None
+
+
+# --------------------------------------------------------------------------- everything
+def run_all(results: Path, *, workers: int = 2, scenes=tuple(SCENES), check: bool = True,
+            log=print) -> dict:
+    """Run (or resume) every scene's sweep, analyse it, advise at the scene's tolerances and
+    check each advice; the modes study; write ``results/refine/refine.json``."""
+    from .sweep import load_sweep, run_sweep
+
+    out = results / "refine"
+    summary = {"scenes": {}, "provenance": provenance("")}
+    studies = {}
+    for scene in scenes:
+        sweep = load_sweep(SWEEPS / f"{SCENES[scene]}.toml")
+        folder = study_folder(results, scene)
+        run_sweep(sweep.specs, folder, name=sweep.name, workers=workers)
+        studies[scene] = load_study(folder, scene)
+    finer = finer_references(studies, workers, log) if check else {}
+    for scene, study in studies.items():
+        conv = convergence(study)
+        advice = []
+        for tol in ADVICE_TOLERANCES[scene]:
+            a = advise(study, tol)
+            entry = {"tol": tol, "advice": None if a is None else {**asdict(a), "saved": a.saved}}
+            if a is not None and check:
+                log(f"refine: {scene}: checking the advice for {tol:g} m "
+                    f"({a.links} links, {a.integrator} rtol {a.rtol:g})")
+                entry["check"] = check_advice(study, a, finer[scene])
+            advice.append(entry)
+        cols = ["n_links", "integrator", "rtol", "precision", "status", "tip_err", "cpu_s",
+                "steps", "nfev", "avg_abs_delta_M", "model_mib", "reason"]
+        table = study.runs[cols + ["run_id"]].copy()
+        summary["scenes"][scene] = {
+            "title": SCENE_TITLES[scene], "case": Path(study.case).name,
+            "reference": {k: _plain(study.reference[k]) for k in
+                          ("n_links", "integrator", "rtol", "cpu_s", "steps")},
+            "convergence": conv, "advice": advice,
+            "runs": [{k: _plain(v) for k, v in row.items()} for row in
+                     table.to_dict(orient="records")],
+            "float32": float32_pairs(study)}
+        log(f"refine: {scene}: order {conv['order']:.2f} on links {conv['order_levels']}")
+    summary["hanging"] = modes_study()
+    summary["hanging"]["advice"] = [advise_modes(summary["hanging"], m, tol)
+                                    for m, tol in ((1, 0.01), (3, 0.01), (5, 0.001))]
+    write_json_atomic(summary, out / RESULTS_FILE)
+    return summary
+
+
+def finer_references(studies: dict, workers: int, log=print) -> dict:
+    """:func:`finer_reference` of every study, on a process pool of ``workers``, each cached
+    under its study's folder (keyed by the case file, the horizon and samples, the tolerance
+    and the code): a resumed reproduction does not integrate them again."""
+    import hashlib
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from .provenance import code_digest
+    from .spec import case_digest
+    from .store import write_npz_atomic
+
+    out, todo = {}, {}
+    for scene, study in studies.items():
+        ref = study.reference
+        args = (study.case, float(ref["t_end"]), float(ref["sample"]), 2)
+        key = hashlib.sha256(json.dumps([case_digest(study.case), *args[1:], FINER_RTOL,
+                                         code_digest()]).encode()).hexdigest()[:16]
+        path = study.folder / f"finer-{key}.npz"
+        if path.is_file():
+            with np.load(path) as z:
+                out[scene] = {"links": int(z["links"]), "tips": z["tips"],
+                              "cpu_s": float(z["cpu_s"]), "steps": int(z["steps"]),
+                              "rtol": FINER_RTOL}
+        else:
+            todo[scene] = (args, path)
+    if todo:
+        log(f"refine: the ropes at twice the finest's links (DOP853 {FINER_RTOL:g}): "
+            f"{', '.join(todo)}")
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx) as pool:
+            futures = {scene: pool.submit(finer_tips, *args) for scene, (args, _) in
+                       todo.items()}
+            for scene, fut in futures.items():
+                out[scene] = fut.result()
+                write_npz_atomic(todo[scene][1], **{k: v for k, v in out[scene].items()
+                                                    if k != "rtol"})
+    for scene, study in studies.items():
+        out[scene]["rtol_error_on_finest"] = _rtol_error_on_finest(study)
+    return out
+
+
+def _plain(v):
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m redysim.harness.refine",
+                                 description="Refinement studies: model size against accuracy.")
+    ap.add_argument("--results", type=Path, default=Path("results"))
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--scene", action="append", choices=tuple(SCENES),
+                    help="only these scenes (default: all)")
+    ap.add_argument("--no-check", action="store_true", help="advise without checking")
+    args = ap.parse_args(argv)
+    run_all(args.results, workers=args.workers, scenes=tuple(args.scene or SCENES),
+            check=not args.no_check)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,194 @@
+"""Refinement studies (harness.refine) and the runs they are made of (RunSpec.links and
+.precision): the hanging chain's modes against an independent stiffness and the continuum's
+Bessel-zero frequencies, a small study end to end, the advice and its check."""
+
+import math
+
+import numpy as np
+import pytest
+
+import redysim
+from redysim.errors import SettingsError
+from redysim.harness import refine
+from redysim.harness.run import execute
+from redysim.harness.spec import RunSpec
+from redysim.harness.sweep import SweepError, run_sweep, sweep_from_dict
+
+SMALL_FALL = """
+[case]
+name = "small-fall"
+[chain]
+links = 8
+joint = "R"
+total_length = 1.0
+density = 7850.0
+radius = 0.005
+inertia = "cylinder"
+[initial]
+q = 0.0
+qd = 0.0
+[simulation]
+t_end = 0.1
+sample_interval = 0.02
+"""
+
+
+@pytest.fixture
+def small_fall(tmp_path):
+    path = tmp_path / "small-fall.toml"
+    path.write_text(SMALL_FALL)
+    return path
+
+
+def planar_chain(n=6):
+    rng = np.random.default_rng(11)
+    links = [redysim.Link(float(rng.uniform(0.1, 0.3)), float(rng.uniform(0.5, 2.0)),
+                          (float(rng.uniform(0.05, 0.1)), 0.0, 0.0),
+                          ((1e-4, 0, 0), (0, 2e-3, 0), (0, 0, 2e-3))) for _ in range(n)]
+    return redysim.Chain.build(links, ["R"] * n, name="planar")
+
+
+def test_the_hanging_stiffness_is_the_gradient_of_the_gravity_torques():
+    """K from the closed form against central differences of the core's inverse dynamics (the
+    joint torques that hold the chain still: the potential's gradient)."""
+    chain = planar_chain()
+    n = chain.n_dof
+    q0 = np.zeros(n)
+    q0[0] = -math.pi / 2
+    zero = np.zeros(n)
+    h = 1e-6
+    K_fd = np.empty((n, n))
+    for j in range(n):
+        dq = np.zeros(n)
+        dq[j] = h
+        K_fd[:, j] = (redysim.inverse_dynamics(chain, q0 + dq, zero, zero)
+                      - redysim.inverse_dynamics(chain, q0 - dq, zero, zero)) / (2 * h)
+    from scipy.linalg import eigh
+
+    M = redysim.mass_matrix(chain, q0)
+    expected = np.sqrt(eigh(0.5 * (K_fd + K_fd.T), M, eigvals_only=True))
+    np.testing.assert_allclose(refine.hanging_modes(chain, n), expected, rtol=1e-7)
+
+
+def test_hanging_chain_frequencies_converge_to_the_continuum_at_second_order(tmp_path):
+    study = refine.modes_study(levels=(8, 16, 32, 64, 128, 256), m=3)
+    for p in study["orders"]:
+        assert 1.9 < p < 2.1
+    finest = study["levels"][-1]["rel_err"]
+    for extrapolated, last in zip(study["richardson_rel_err"], finest, strict=True):
+        assert extrapolated < last / 20  # Richardson lands far closer to the Bessel zeros
+    advice = refine.advise_modes(study, 1, 1e-4)  # mode 1: 1.2e-4 at 16 links, 3.0e-5 at 32
+    assert advice["links"] == 32 and advice["max_rel_err"] <= 1e-4
+    assert refine.advise_modes(study, 3, 1e-9) is None
+
+
+def test_a_coarse_run_starts_from_the_same_state_and_records_its_size(small_fall):
+    fine = execute(RunSpec(str(small_fall), t_end=0.02, sample=0.01), reference=False).summary
+    coarse = execute(RunSpec(str(small_fall), t_end=0.02, sample=0.01, links=2),
+                     reference=False).summary
+    assert (fine["n_links"], coarse["n_links"], coarse["n_dof"]) == (8, 2, 2)
+    assert coarse["E0"] == pytest.approx(fine["E0"], rel=1e-13)  # straight at rest: exact map
+    assert coarse["model_mib"] < fine["model_mib"]
+
+
+def test_bad_links_and_precision_are_named(small_fall):
+    case = redysim.load_case(small_fall)
+    with pytest.raises(SettingsError, match="links = 3: must be a whole number that divides "
+                                            "the case's 8 links"):
+        RunSpec(str(small_fall), links=3).resolved(case)
+    with pytest.raises(SettingsError, match="precision = 'float16': choose one of"):
+        RunSpec(str(small_fall), precision="float16").resolved(case)
+    with pytest.raises(SettingsError, match="reduced precision is the core's only"):
+        RunSpec(str(small_fall), engine="mujoco", precision="float32").resolved(case)
+    doc = {"sweep": {"name": "s", "cases": [str(small_fall)], "links": [8, 3]}}
+    with pytest.raises(SweepError, match=r"sweep.links.*3"):
+        sweep_from_dict(doc, source="s.toml")
+    doc["sweep"]["links"] = [8, 2.5]
+    with pytest.raises(SweepError, match=r"sweep.links\[1\] = 2.5: must be a whole number"):
+        sweep_from_dict(doc, source="s.toml")
+
+
+@pytest.fixture
+def study(tmp_path, small_fall):
+    doc = {"sweep": {"name": "small", "cases": [str(small_fall)], "links": [8, 4, 2],
+                     "integrators": ["ode45"], "rtols": [1e-3, 1e-6],
+                     "extra": [{"case": str(small_fall), "links": 8, "integrator": "dop853",
+                                "rtol": 1e-10, "atol": 1e-12}]}}
+    sweep = sweep_from_dict(doc, source="small.toml")
+    run_sweep(sweep.specs, tmp_path / "out", name="small", workers=1, progress=False)
+    return refine.load_study(tmp_path / "out", "small")
+
+
+def test_a_study_measures_every_run_against_its_finest_tightest_run(study):
+    ref = study.reference
+    assert (ref["n_links"], ref["integrator"], ref["rtol"]) == (8, "dop853", 1e-10)
+    r = study.runs.set_index(["n_links", "rtol"])
+    assert study.runs.loc[study.runs["run_id"] == ref["run_id"], "tip_err"].iloc[0] == 0.0
+    # coarser models are further off; at 8 links the integrator's error is all there is
+    assert r.loc[(2, 1e-6), "tip_err"] > r.loc[(4, 1e-6), "tip_err"] > r.loc[(8, 1e-6),
+                                                                             "tip_err"]
+    conv = refine.convergence(study)
+    assert [lv["links"] for lv in conv["levels"]] == [2, 4, 8]
+    assert conv["order_levels"] == [2]  # only levels <= finest / 4 are fitted
+
+
+def test_advice_is_the_cheapest_run_that_met_the_tolerance(study):
+    r = study.runs
+    tol = float(r.loc[r["n_links"] == 4, "tip_err"].max()) * 1.01
+    a = refine.advise(study, tol)
+    met = r[(r["tip_err"] <= tol) & (r["run_id"] != study.reference["run_id"])]
+    assert a.cpu_s == met["cpu_s"].min() and a.tip_err <= tol
+    assert a.candidates == len(met)
+    assert refine.advise(study, 1e-30) is None
+    with pytest.raises(ValueError, match="tol = -1"):
+        refine.advise(study, -1)
+
+
+def test_the_check_reproduces_the_sweeps_error_and_a_finer_reference(study):
+    """The advised model run again by the Python stepping loop gives the sweep's error (the
+    compiled loop takes the same steps), and the rope at twice the links is a reference close to
+    the finest (the study's own error bound)."""
+    a = refine.advise(study, float(study.runs["tip_err"].max()))
+    check = refine.check_advice(study, a)
+    assert check["error_vs_finest"] == pytest.approx(a.tip_err, rel=1e-9, abs=1e-13)
+    assert check["finer_links"] == 16
+    assert check["finest_vs_finer"] < check["error_vs_finest"]
+
+
+def test_a_finer_case_is_the_same_rope(small_fall):
+    case = redysim.load_case(small_fall)
+    finer = refine.finer_case(small_fall, 3)
+    assert finer.chain.n_links == 24
+    assert finer.chain.total_mass == pytest.approx(case.chain.total_mass, rel=1e-14)
+    assert finer.chain.length.sum() == pytest.approx(1.0, rel=1e-14)
+
+
+def test_a_study_folder_that_is_not_one_is_named(tmp_path):
+    with pytest.raises(refine.StudyError, match="no runs/ folder"):
+        refine.load_study(tmp_path)
+
+
+def test_advise_from_the_command_line(study, capsys):
+    from redysim.harness.cli import main
+
+    tol = float(study.runs["tip_err"].max())
+    assert main(["advise", str(study.folder), "--tip-tol", f"{tol:.6g}"]) == 0
+    out = capsys.readouterr().out
+    assert "advice for a tip path within" in out and "--links" in out
+    assert main(["advise", str(study.folder), "--tip-tol", "1e-30"]) == 1
+    assert "no measured run met" in capsys.readouterr().out
+    assert main(["advise", "hanging", "--modes", "1", "--freq-tol", "0.01"]) == 0
+    assert "links have the first 1 frequencies within 0.01" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["advise", "fall"], "--tip-tol: missing"),
+    (["advise", "hanging", "--modes", "2"], "needs both"),
+    (["advise", "fall", "--tip-tol", "0.1", "--modes", "2"], "apply to the hanging chain only"),
+    (["advise", "/nonexistent/study", "--tip-tol", "0.1"], "no runs/ folder"),
+])
+def test_bad_advise_arguments_are_named(argv, fragment, capsys):
+    from redysim.harness.cli import main
+
+    assert main(argv) == 2
+    assert fragment in capsys.readouterr().err
