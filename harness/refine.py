@@ -149,7 +149,7 @@ def convergence(study: Study) -> dict:
                        "peak_tip_speed": float(tight["peak_tip_speed"]),
                        "end_tip_err": float(tight["end_tip_err"]), "rtol": float(tight["rtol"]),
                        "integrator": tight["integrator"], "cpu_s": float(tight["cpu_s"]),
-                       "run_id": tight["run_id"]})
+                       "model_mib": float(tight["model_mib"]), "run_id": tight["run_id"]})
     levels.sort(key=lambda d: d["links"])
     fit = [d for d in levels if d["links"] * ORDER_FRACTION <= finest and d["tip_err"] > 0]
     order = math.nan
@@ -460,7 +460,7 @@ def run_all(results: Path, *, workers: int = 2, scenes=tuple(SCENES), check: boo
         summary["scenes"][scene] = {
             "title": SCENE_TITLES[scene], "case": Path(study.case).name,
             "reference": {k: _plain(study.reference[k]) for k in
-                          ("n_links", "integrator", "rtol", "cpu_s", "steps")},
+                          ("n_links", "integrator", "rtol", "cpu_s", "steps", "model_mib")},
             "convergence": conv, "advice": advice,
             "runs": [{k: _plain(v) for k, v in row.items()} for row in
                      table.to_dict(orient="records")],

@@ -47,7 +47,7 @@ def refine_section(res) -> Section:
     conv = Table("refine-convergence", "Tip-path error against links, at the tightest "
                  "tolerance of each level", ["scene", "links", "DOF", "tip error [m]",
                                              "at the horizon [m]", "peak tip speed [m/s]",
-                                             "CPU", "steps"])
+                                             "CPU", "steps", "memory"])
     orders = Table("refine-orders", "Observed order in the link count and Richardson "
                    "extrapolation", ["scene", "order p", "fitted on links",
                                      "finest's error, Richardson estimate [m]",
@@ -80,11 +80,12 @@ def refine_section(res) -> Section:
             conv.rows.append(Row([scene, integer(lv["links"]), integer(_dof(run, scene)),
                                   _fmt_err(lv["tip_err"]), _fmt_err(lv["end_tip_err"]),
                                   num(lv["peak_tip_speed"], 3), seconds(lv["cpu_s"]),
-                                  integer(run["steps"])]))
+                                  integer(run["steps"]), _kib(lv.get("model_mib"))]))
         ref = s["reference"]
         conv.rows.append(Row([scene, integer(ref["n_links"]), integer(_dof(ref, scene)),
                               "reference", "", num(c["finest_peak_tip_speed"], 3),
-                              seconds(ref["cpu_s"]), integer(ref["steps"])], INFO))
+                              seconds(ref["cpu_s"]), integer(ref["steps"]),
+                              _kib(ref.get("model_mib"))], INFO))
         rich = c.get("richardson")
         orders.rows.append(Row([s["title"], num(c["order"], 3) if finite(c["order"]) else "",
                                 ", ".join(str(n) for n in c["order_levels"]),
@@ -122,7 +123,8 @@ def refine_section(res) -> Section:
                       "planar chains. Each level's row is its tightest tolerance (the smaller "
                       "error of ode45 and DOP853); its error is then the model's, not the "
                       "integrator's, down to the reference's own. Peak tip speed: the largest "
-                      "over the samples (every 0.01 s; 0.02 s for the spinning rope).")
+                      "over the samples (every 0.01 s; 0.02 s for the spinning rope). Memory: "
+                      "the model's Workspace, every array the kernels read or write (O(n)).")
     orders.notes.append("p: the slope of log(error) against log(links) on the levels at most a "
                         "quarter of the finest (where the finest's own error biases the "
                         "difference by at most 4^-p). Richardson: Q_inf = Q_f + (Q_f - Q_c) / "
@@ -213,6 +215,10 @@ def float32_speed_table(res) -> Table:
                     f"({m.get('llvm_cpu', '')}), numba {m.get('numba', '')}, numpy "
                     f"{m.get('numpy', '')}, Python {m.get('python', '')}")
     return t
+
+
+def _kib(mib) -> str:
+    return f"{mib * 1024:,.0f} KiB" if mib is not None and finite(mib) else ""
 
 
 def _dof(run: dict, scene: str) -> int:
