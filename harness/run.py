@@ -12,9 +12,10 @@ call of the run's own qdd per sample, not counted in ``nfev`` (the integrator's 
 Per run: the model's size (links, DOF, and for the core the bytes of its Workspace: every array
 the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall time of the
 integration, the JIT compile (or cache load) of the first qdd call and an engine's model build,
-both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance; and, when a cached
-reference solution exists for the case, horizon and sampling (:mod:`harness.reference`), the max
-tip-position error over the samples and the final-state error against it.
+both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance;
+and, when a cached reference solution exists for the case, horizon and sampling
+(:mod:`harness.reference`), the max tip-position error over the samples and the final-state error
+against it.
 """
 
 from __future__ import annotations
