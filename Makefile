@@ -59,6 +59,7 @@ bench-core: $(STAMP)
 	@mkdir -p results/bench
 	$(BIN)/python benchmarks/jit_times.py
 	$(BIN)/python benchmarks/float32_speed.py
+	$(BIN)/python benchmarks/step_cost.py
 	$(BIN)/python -m pytest benchmarks/test_bench_core.py --benchmark-only --benchmark-enable \
 		--benchmark-columns=min,median,mean,rounds --benchmark-sort=name \
 		--benchmark-json=results/bench/core.json
