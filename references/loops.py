@@ -382,7 +382,8 @@ class MuJoCoLoops(LoopEngine):
     def _build(self):
         mj, t = self.lib, self.tree
         spec, bodies = t.spec, t.spec_bodies
-        spec.option.disableflags &= ~int(mj.mjtDisableBit.mjDSBL_CONSTRAINT)  # contacts stay off
+        for stage in ("mjDSBL_CONSTRAINT", "mjDSBL_EQUALITY"):  # the cuts; contacts stay off
+            spec.option.disableflags &= ~int(getattr(mj.mjtDisableBit, stage))
         spec.option.solver = mj.mjtSolver.mjSOL_NEWTON
         spec.option.tolerance = self.TOLERANCE
         solimp = np.array([mj.mjMAXIMP, mj.mjMAXIMP, 0.001, 0.5, 2.0])
@@ -399,7 +400,8 @@ class MuJoCoLoops(LoopEngine):
         t._compile()
         mm = t.mjmodel
         assert mm.neq == len(self.loops.cuts)
-        assert not np.any(mm.opt.disableflags & int(mj.mjtDisableBit.mjDSBL_CONSTRAINT))
+        assert not np.any(mm.opt.disableflags & int(mj.mjtDisableBit.mjDSBL_CONSTRAINT
+                                                     | mj.mjtDisableBit.mjDSBL_EQUALITY))
         self.eq_ids = [mm.equality(f"cut{i}").id for i in range(len(self.loops.cuts))]
 
     def _forward(self, q, v, tau):
