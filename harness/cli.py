@@ -615,8 +615,10 @@ def cmd_advise(args: argparse.Namespace) -> int:
               f"in {a.finest_cpu_s:.3g} s of CPU: {a.saved:.0f}x the advised run's")
     else:
         print(f"  no run of the finest model ({a.finest_links} links) met it")
-    print(f"  run it: redysim simulate {study.case} --links {a.links} --integrator "
-          f"{a.integrator} --rtol {a.rtol:g} --atol {a.rtol * 1e-2:g}")
+    case = os.path.relpath(study.case) if study.case.startswith(os.getcwd() + os.sep) \
+        else study.case
+    print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
+          f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {study.reference['t_end']:g}")
     return EXIT_OK
 
 
