@@ -130,16 +130,6 @@ def _whole(text: str) -> int:
     return value
 
 
-def _workers(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command."""
     from redysim import references
@@ -205,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("sweep_file", metavar="SWEEP.toml", type=Path, help="the sweep file")
     sw.add_argument("--out", type=Path, metavar="DIR",
                     help=f"results folder (default: {DEFAULT_SWEEP_ROOT}/<sweep name>)")
-    sw.add_argument("--workers", type=_workers, metavar="N",
+    sw.add_argument("--workers", type=_whole, metavar="N",
                     help="processes of the local pool (default: the number of CPU cores; "
                          "ignored with --dask)")
     sw.add_argument("--dask", metavar="ADDRESS|local",
