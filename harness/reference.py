@@ -86,7 +86,9 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
         return None  # damaged (the writer is atomic, so only outside damage does this)
 
 
-def _solve(case, t_end, interval, method, rtol):
+def state_rhs(case):
+    """dy/dt = (qd, qdd) of ``case``'s chain, its tip force included, and the Workspace its qdd
+    calls use: ``(rhs, ws)``."""
     chain, n = case.chain, case.chain.n_dof
     ws = Workspace(chain)
     load_ws = Workspace(chain)
@@ -95,6 +97,13 @@ def _solve(case, t_end, interval, method, rtol):
         tau = (None if case.tip_force is None else
                tip_force_torques(chain, y[:n], case.tip_force, ws=load_ws))
         return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], tau, ws=ws)))
+
+    return rhs, ws
+
+
+def _solve(case, t_end, interval, method, rtol):
+    chain, n = case.chain, case.chain.n_dof
+    rhs, ws = state_rhs(case)
 
     ts = sample_times(0.0, t_end, interval)
     ys = []

@@ -236,26 +236,18 @@ def _tips(case, links: int, integrator: str, rtol: float, atol: float, t_end: fl
           sample: float, *, compiled: bool = False):
     """Integrate ``case`` (coarse-grained to ``links``) and return (tips, cpu_s, steps);
     ``compiled``: step in compiled code where the case allows it (no tip force)."""
-    from redysim import Workspace, forward_dynamics, tip
+    from redysim import tip
     from redysim.integrate import CompiledSolver, advance, make_solver, sample_times
-    from redysim.loads import tip_force_torques
 
-    chain, q0, qd0 = case.chain, case.q0, case.qd0
-    if links != chain.n_links:
-        cz = coarsen(chain, links=links)
-        q0, qd0 = cz.to_coarse(q0, qd0)
-        chain = cz.coarse
-    n = chain.n_dof
-    ws, load_ws = Workspace(chain), Workspace(chain)
+    from .reference import state_rhs
+    from .run import coarse_case
 
-    def rhs(_t, y):
-        tau = (None if case.tip_force is None else
-               tip_force_torques(chain, y[:n], case.tip_force, ws=load_ws))
-        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], tau, ws=ws)))
-
+    case, _ = coarse_case(case, links)
+    chain, n = case.chain, case.chain.n_dof
+    rhs, ws = state_rhs(case)
     out = []
     cpu0 = time.process_time()
-    y0 = np.concatenate((q0, qd0))
+    y0 = np.concatenate((case.q0, case.qd0))
     if compiled and case.tip_force is None:
         solver = CompiledSolver(rhs, 0.0, y0, t_end, integrator, ws=ws, planar=chain.is_planar,
                                 rtol=rtol, atol=atol)

@@ -73,13 +73,19 @@ def run_case(spec: RunSpec, case):
     """The case as the run models it, and its coarsening (None for the case's own chain):
     with ``spec.links``, the chain coarse-grained to that many links and the initial state mapped
     by the coarsening's chord projection (:mod:`redysim.coarse`)."""
-    if not spec.links or spec.links == case.chain.n_links:
+    return coarse_case(case, spec.links)
+
+
+def coarse_case(case, links: int):
+    """``case`` with its chain coarse-grained to ``links`` links (0 or its own count: as it
+    is) and its initial state mapped along the chords; and the coarsening (None: none)."""
+    if not links or links == case.chain.n_links:
         return case, None
     from dataclasses import replace
 
     from redysim.coarse import coarsen
 
-    cz = coarsen(case.chain, links=spec.links, name=f"{case.name}@{spec.links}")
+    cz = coarsen(case.chain, links=links, name=f"{case.name}@{links}")
     q0, qd0 = cz.to_coarse(case.q0, case.qd0)
     q0.flags.writeable = qd0.flags.writeable = False
     return replace(case, chain=cz.coarse, q0=q0, qd0=qd0), cz
