@@ -7,6 +7,8 @@
     .venv/bin/python -m redysim.references.report_bench results/bench_engines.json
 
 The chain is the RE-U steel rod (20 mm links, rod inertia); the state a seeded small-angle one.
+Batches (``test_qdd_batch``): 64 states at 20, 250 and 2,000 DOF, the core's batch beside the
+core and ``pin.aba`` called state by state.
 Robots (``test_qdd_robot``): URDFs of example-robot-data, an arm (UR5, fixed base) and a humanoid
 (Talos, reduced, floating base), the core beside ``pin.aba`` called from Python on Pinocchio's
 own model of the same file (tests/test_trees.py checks the two models agree to 1e-13).
@@ -90,6 +92,50 @@ def test_qdd(benchmark, name, dof):
         benchmark.extra_info.update(info)
         out = benchmark(eng.qdd, q, qd)
     assert np.all(np.isfinite(out))
+
+
+BATCH_STATES = 64
+BATCH_DOF = (20, 250, 2000)
+
+
+@pytest.mark.parametrize("dof", BATCH_DOF)
+@pytest.mark.parametrize("name", ["core", "core-single", "pinocchio-aba"])
+def test_qdd_batch(benchmark, name, dof):
+    """qdd of 64 states: the core's batch (rows split over every core), the core called state
+    by state from Python, and pin.aba (through its adapter) state by state. Time per 64 states;
+    the report gives ns per DOF per state."""
+    benchmark.group = f"qdd-batch-{dof}"
+    chain = chain_of(dof)
+    rng = np.random.default_rng(2)
+    Q = rng.uniform(-0.1, 0.1, (BATCH_STATES, dof))
+    QD = rng.uniform(-0.1, 0.1, (BATCH_STATES, dof))
+    info = {"engine": name, "dof": dof, "kind": "batch", "states": BATCH_STATES, **machine()}
+    if name.startswith("core"):
+        ws = Workspace(chain)
+        out = np.empty((BATCH_STATES, dof))
+        redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out)  # JIT warm-up, not timed
+        info["version"] = redysim.__version__
+        info["threads"] = redysim.dynamics.default_threads() if name == "core" else 1
+        if name == "core":
+            def call():
+                return redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out)
+        else:
+            def call():
+                for i in range(BATCH_STATES):
+                    redysim.forward_dynamics(chain, Q[i], QD[i], ws=ws, out=out[i])
+                return out
+    else:
+        eng = engine_for(name, dof)
+        info["version"] = eng.version
+        out = np.empty((BATCH_STATES, dof))
+
+        def call():
+            for i in range(BATCH_STATES):
+                out[i] = eng.qdd(Q[i], QD[i])
+            return out
+    benchmark.extra_info.update(info)
+    result = benchmark(call)
+    assert np.all(np.isfinite(result))
 
 
 ROBOTS = {"ur5": ("ur_description/urdf/ur5_robot.urdf", False),

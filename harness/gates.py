@@ -256,16 +256,19 @@ def _engine_errors(chain, eng, stages, states) -> dict[str, tuple[float, str]]:
     from .random_chains import random_state
 
     out = {}
+    drawn = [random_state(chain, kind, seed) for kind, seed in states]
+    if "qdd" in stages:  # the core's qdd of every state in one batch
+        qdd = redysim.forward_dynamics(chain, *(np.array(x) for x in zip(*drawn, strict=True)))
     for stage in stages:
         worst = (-1.0, "")
-        for kind, seed in states:
-            q, qd, tau = random_state(chain, kind, seed)
+        for i, (kind, _seed) in enumerate(states):
+            q, qd, tau = drawn[i]
             if stage == "gim":
                 ref, got = redysim.mass_matrix(chain, q), eng.mass_matrix(q)
             elif stage == "phi":
                 ref, got = redysim.phi(chain, q, qd), eng.bias(q, qd)
             elif stage == "qdd":
-                ref, got = redysim.forward_dynamics(chain, q, qd, tau), eng.qdd(q, qd, tau)
+                ref, got = qdd[i], eng.qdd(q, qd, tau)
             else:
                 raise ValueError(f"stage {stage!r}: one of {', '.join(ENGINE_STAGES)}")
             err = float(np.abs(np.asarray(got) - ref).max() / np.abs(ref).max())

@@ -10,12 +10,14 @@ scratch space in a loop (an integrator's right-hand side).
 from __future__ import annotations
 
 import math
+import os
 import reprlib
 from typing import NamedTuple
 
 import numpy as np
 from numpy import ndarray
 
+from ._kernels import batch as _batch
 from ._kernels.elimination import ge_n, rge_n
 from ._kernels.energy import energy as _energy
 from ._kernels.entry import PLANAR as _PLANAR
@@ -151,8 +153,15 @@ def _phi(chain, ws, q, qd, tau):
 
 
 # --------------------------------------------------------------------------- inverse dynamics
-def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None) -> np.ndarray:
-    """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9)."""
+def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
+                     threads: int | None = None) -> np.ndarray:
+    """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
+
+    A batch: q (B, n_q), qd and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
+    rows split over threads (``threads``, as for :func:`forward_dynamics`).
+    """
+    if np.ndim(q) == 2:
+        return _inverse_batch(chain, _ws(chain, ws), q, qd, qdd, threads)
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
     qdd = check_state(chain, "qdd", qdd)
@@ -180,7 +189,7 @@ def phi(chain: System, q, qd, tau=None, *, ws: Workspace | None = None) -> np.nd
 # --------------------------------------------------------------------------- forward dynamics
 def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
                      planar: bool | None = None, ws: Workspace | None = None,
-                     out: np.ndarray | None = None) -> np.ndarray:
+                     out: np.ndarray | None = None, threads: int | None = None) -> np.ndarray:
     """qdd from I(q) qdd = phi(q, qd, tau).
 
     method:
@@ -191,6 +200,12 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
         a Chain's property: a Model always takes the spatial recursion);
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
+
+    A batch: q (B, n_q) and qd (B, n_v) give qdd (B, n_v), row i the single call's for row i
+    (bit for bit); tau (B, n_v), or (n_v,) for every state; ``out`` (B, n_v). The rows run in
+    compiled code split over ``threads`` threads (default: every core this process may use, one
+    for batches under ~5,000 DOF-states, where handing rows to a thread costs more than it
+    saves), each with its own scratch of ``ws`` (:meth:`Workspace.scratches`). RGE-A only.
 
     Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
     these go to the compiled entry point as they are, which checks their types and sizes
@@ -210,6 +225,8 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
         t = ws.zeros if tau is None else tau
         if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
                 and type(qdd) is ndarray:
+            if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
+                return _forward_batch(chain, ws, planar, q, qd, tau, out, threads)
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, qd, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
@@ -220,6 +237,11 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
                 raise _nonfinite_qdd(chain, ws, planar, q, qd, tau)
     elif method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
+    if np.ndim(q) == 2:
+        if method != "rge-a":
+            raise ValueError(f"method = {method!r} with a batch of states: batches run "
+                             "'rge-a' only")
+        return _forward_batch(chain, ws, planar, q, qd, tau, out, threads)
     q = check_state(chain, "q", q, finite=False)
     qd = check_state(chain, "qd", qd, finite=False)
     tau = check_state(chain, "tau", tau, optional=True, finite=False)
@@ -238,6 +260,115 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     if nonfinite != 0.0:
         raise _nonfinite_qdd(chain, ws, method == "rge-a" and planar, q, qd, tau,
                              gim=None if method == "rge-a" else A, first=method == "ge-n")
+    return out
+
+
+# --------------------------------------------------------------------------- batches
+THREAD_MIN_WORK = 5000  # DOF x states below which a batch runs on the calling thread alone
+_POOL = None  # the batches' thread pool, made on first use
+
+
+def default_threads() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def check_batch(chain: System, name: str, x, rows: int | None) -> np.ndarray:
+    """``x`` as a C-contiguous float64 (B, n) array (n = ``n_q`` for ``q``, else ``n_v``) with
+    ``rows`` rows when given, or StateError naming it."""
+    n = chain.n_q if name == "q" else chain.n_v
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric array ({exc})") from None
+    if arr.dtype.kind not in NUMERIC_KINDS:
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric array (its entries are "
+                         f"{arr.dtype}; need int or float)")
+    want = f"({rows if rows is not None else 'B'}, {n})"
+    if arr.ndim != 2 or arr.shape[1] != n or (rows is not None and arr.shape[0] != rows):
+        raise StateError(f"{name} has shape {arr.shape}; a batch of states of "
+                         f"{type(chain).__name__.lower()} {chain.name!r} needs shape {want}, "
+                         "one state a row")
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> int:
+    """call(scratch, first, last) over the rows, split into one contiguous block per thread;
+    the first failing row (the lowest of the blocks') or -1."""
+    global _POOL
+    count = default_threads() if threads is None else int(threads)
+    if count < 1:
+        raise FieldError("dynamics", "threads", threads, "must be a whole number >= 1")
+    if threads is None and rows * n < THREAD_MIN_WORK:
+        count = 1
+    count = min(count, rows) or 1
+    scratches = ws.scratches(count)
+    if count == 1:
+        return call(scratches[0], 0, rows)
+    if _POOL is None or _POOL._max_workers < count - 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(max_workers=max(count - 1, default_threads() - 1),
+                                   thread_name_prefix="redysim-batch")
+    edges = [rows * i // count for i in range(count + 1)]
+    futures = [_POOL.submit(call, scratches[i], edges[i], edges[i + 1])
+               for i in range(1, count)]
+    results = [call(scratches[0], edges[0], edges[1]), *(f.result() for f in futures)]
+    failed = [r for r in results if r >= 0]
+    return min(failed) if failed else -1
+
+
+def _forward_batch(chain, ws, planar, q, qd, tau, out, threads) -> np.ndarray:
+    Q = check_batch(chain, "q", q, None)
+    B = Q.shape[0]
+    QD = check_batch(chain, "qd", qd, B)
+    if tau is None:
+        TAU = ws.zeros.reshape(1, -1)
+    elif np.ndim(tau) == 1:
+        TAU = check_state(chain, "tau", tau, finite=False).reshape(1, -1)
+    else:
+        TAU = check_batch(chain, "tau", tau, B)
+    if out is None:
+        out = np.empty((B, chain.n_v))
+    elif not (type(out) is ndarray and out.shape == (B, chain.n_v) and out.dtype is FLOAT64
+              and out.flags.c_contiguous and out.flags.writeable):
+        what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
+                else f"a {type(out).__name__}")
+        raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
+                         f"shape ({B}, {chain.n_v})")
+    rows = _batch.planar_rows if planar else _batch.forward_rows
+    f, i = ws.kernel_f, ws.kernel_i
+    bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: rows(
+        f, i, Q, QD, TAU, scratch, out, first, last))
+    if bad >= 0:  # the single call of that row says why
+        t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
+        try:
+            forward_dynamics(chain, Q[bad], QD[bad], t, planar=planar, ws=ws)
+        except StateError as exc:
+            raise StateError(f"state {bad} of the batch (row {bad} of q and qd): {exc}") from None
+        raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)
+    return out
+
+
+def _inverse_batch(chain, ws, q, qd, qdd, threads) -> np.ndarray:
+    Q = check_batch(chain, "q", q, None)
+    B = Q.shape[0]
+    QD, QDD = check_batch(chain, "qd", qd, B), check_batch(chain, "qdd", qdd, B)
+    for name, arr in (("q", Q), ("qd", QD), ("qdd", QDD)):
+        if not np.isfinite(arr).all():
+            row, col = np.argwhere(~np.isfinite(arr))[0]
+            raise StateError(f"{name}[{row}, {col}] = {float(arr[row, col])!r}: not finite (state "
+                             f"{row} of the batch)")
+    out = np.empty((B, chain.n_v))
+    f, i = ws.kernel_f, ws.kernel_i
+    bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: _batch.inverse_rows(
+        f, i, Q, QD, QDD, scratch, out, first, last))
+    if bad >= 0:
+        raise StateError(f"state {bad} of the batch: " + str(overflow_error(
+            "tau", q=Q[bad], qd=QD[bad], qdd=QDD[bad])))
     return out
 
 

@@ -157,9 +157,19 @@ class Workspace:
         with zero twists reads c = 0 (Table A.1 as printed; the factors alone)."""
         return self.s._replace(t=self.zeros6, td=self.zeros6)
 
+    def scratches(self, count: int) -> list[np.ndarray]:
+        """``count`` scratch arrays of this workspace's layout, the first its own: one for each
+        thread of a batch (:func:`redysim.forward_dynamics` with (B, n) arrays). Made on first
+        use and kept."""
+        extra = self.__dict__.setdefault("_extra_scratch", [])
+        while len(extra) < count - 1:
+            extra.append(np.empty_like(self.scratch))
+        return [self.scratch, *extra[:count - 1]]
+
     @property
     def nbytes(self) -> int:
         """Bytes held by the workspace's own arrays (O(n); views not counted twice, the
         system's arrays not counted)."""
-        return sum(v.nbytes for v in vars(self).values()
-                   if isinstance(v, np.ndarray) and v.base is None)
+        own = sum(v.nbytes for v in vars(self).values()
+                  if isinstance(v, np.ndarray) and v.base is None)
+        return own + sum(a.nbytes for a in self.__dict__.get("_extra_scratch", ()))

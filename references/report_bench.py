@@ -2,8 +2,9 @@
 
     .venv/bin/python -m redysim.references.report_bench results/bench_engines.json [--markdown]
 
-Columns: kind (qdd or native step), engine, version, DOF, time per call, ns/DOF, and the
-ratio to the core's qdd at the same DOF. Times are each benchmark's fastest round (pytest-
+Columns: kind (qdd, batch of ``states`` states, or native step), engine, version, DOF, time per
+call, ns per DOF (per DOF and state for a batch), and the ratio to the core's qdd at the same
+DOF (to the core's batch for a batch). Times are each benchmark's fastest round (pytest-
 benchmark's min): the calls are deterministic and this shared 2-core VM only ever adds time (one
 run here: the core at 200 DOF, min 17.8 us, mean 28.9 us; pin.aba min 48.4, mean 54.2).
 """
@@ -23,14 +24,15 @@ def rows(doc: dict) -> list[dict]:
             continue
         out.append({"kind": x.get("kind", "qdd"), "engine": x["engine"],
                     "robot": x.get("robot", ""), "version": x.get("version", ""),
-                    "dof": int(x["dof"]),
+                    "dof": int(x["dof"]), "states": int(x.get("states", 1)),
                     "mean_s": b["stats"]["mean"], "min_s": b["stats"]["min"],
                     "rounds": b["stats"]["rounds"]})
-    core = {(r["robot"], r["dof"]): r["min_s"] for r in out
-            if r["engine"] == "core" and r["kind"] == "qdd"}
+    # the core's qdd at the same size: its batch for a batch, its single call for the rest
+    core = {(r["kind"] == "batch", r["robot"], r["dof"]): r["min_s"] for r in out
+            if r["engine"] == "core" and r["kind"] in ("qdd", "batch")}
     for r in out:
-        key = (r["robot"], r["dof"])
-        r["ns_per_dof"] = r["min_s"] * 1e9 / r["dof"]
+        key = (r["kind"] == "batch", r["robot"], r["dof"])
+        r["ns_per_dof"] = r["min_s"] * 1e9 / (r["dof"] * r["states"])
         r["ratio"] = r["min_s"] / core[key] if key in core else float("nan")
     out.sort(key=lambda r: (r["kind"], r["robot"], r["dof"], r["min_s"]))
     return out

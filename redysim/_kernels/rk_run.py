@@ -28,14 +28,13 @@ import math
 import numpy as np
 
 from .._jit import jit_borrowed
-from .entry import planar_entry, rge_a_entry
+from .batch import planar_call as _planar
+from .batch import rge_a_call as _rge_a
 from .rk import combine, error_norm
 
 ERR_NONFINITE, ERR_HMIN, ERR_QDD = -1, -2, -3
 RGE_A, PLANAR = 0, 1  # which entry computes qdd
 
-_rge_a = jit_borrowed(rge_a_entry)
-_planar = jit_borrowed(planar_entry)
 
 
 @jit_borrowed
