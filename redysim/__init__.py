@@ -37,7 +37,7 @@ _WHERE = {
                     "errors"),
     **dict.fromkeys(("ModelFileError", "load_model"), "importers"),
     **dict.fromkeys(("Body", "Model", "TreeJoint"), "model"),
-    **dict.fromkeys(("Simulation", "simulate"), "simulation"),
+    **dict.fromkeys(("Simulation", "simulate", "simulate_batch"), "simulation"),
     **dict.fromkeys(("ClosedLoops", "CutJoint"), "loops"),
     **dict.fromkeys(("Coarsening", "coarsen"), "coarse"),
     **dict.fromkeys(("Linkage", "load_linkage"), "linkage_files"),

@@ -295,28 +295,46 @@ def check_batch(chain: System, name: str, x, rows: int | None) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 
-def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> int:
-    """call(scratch, first, last) over the rows, split into one contiguous block per thread;
-    the first failing row (the lowest of the blocks') or -1."""
-    global _POOL
-    count = default_threads() if threads is None else int(threads)
-    if count < 1:
+def thread_count(threads: int | None, rows: int, work: float | None = None) -> int:
+    """Threads for ``rows`` rows: ``threads`` (checked), or every core this process may use;
+    one when ``threads`` is None and ``work`` (DOF x states) is under THREAD_MIN_WORK."""
+    count = default_threads() if threads is None else threads
+    if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1:
         raise FieldError("dynamics", "threads", threads, "must be a whole number >= 1")
-    if threads is None and rows * n < THREAD_MIN_WORK:
+    if threads is None and work is not None and work < THREAD_MIN_WORK:
         count = 1
-    count = min(count, rows) or 1
-    scratches = ws.scratches(count)
+    return max(1, min(int(count), rows))
+
+
+def _run_rows_plain(rows: int, threads: int | None, call, count: int | None = None) -> list:
+    """call(block, first, last) for one contiguous block of rows per thread (the first block on
+    the calling thread), the results in block order; the first exception raised is re-raised."""
+    global _POOL
+    count = thread_count(threads, rows) if count is None else count
+    edges = [rows * i // count for i in range(count + 1)]
     if count == 1:
-        return call(scratches[0], 0, rows)
+        return [call(0, 0, rows)]
     if _POOL is None or _POOL._max_workers < count - 1:
         from concurrent.futures import ThreadPoolExecutor
 
         _POOL = ThreadPoolExecutor(max_workers=max(count - 1, default_threads() - 1),
                                    thread_name_prefix="redysim-batch")
-    edges = [rows * i // count for i in range(count + 1)]
-    futures = [_POOL.submit(call, scratches[i], edges[i], edges[i + 1])
-               for i in range(1, count)]
-    results = [call(scratches[0], edges[0], edges[1]), *(f.result() for f in futures)]
+    futures = [_POOL.submit(call, i, edges[i], edges[i + 1]) for i in range(1, count)]
+    try:
+        first = call(0, edges[0], edges[1])
+    finally:  # every block finishes before this returns or raises
+        for f in futures:
+            f.exception()
+    return [first, *(f.result() for f in futures)]
+
+
+def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> int:
+    """call(scratch, first, last) over the rows, one block a thread, each with its own scratch
+    of ``ws``; the first failing row (the lowest of the blocks') or -1."""
+    count = thread_count(threads, rows, rows * n)
+    scratches = ws.scratches(count)
+    results = _run_rows_plain(rows, threads, lambda i, first, last: call(scratches[i], first,
+                                                                         last), count)
     failed = [r for r in results if r >= 0]
     return min(failed) if failed else -1
 

@@ -227,7 +227,9 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         coms.append(com)
         return None if math.isfinite(E) else f"non-finite energy at t = {t:.6g}"
 
-    cpu0, wall0 = time.process_time(), time.perf_counter()
+    # CPU time of this thread: the compiled steps run on it, and a batch's other threads'
+    # runs are not this run's (simulate_batch)
+    cpu0, wall0 = time.thread_time(), time.perf_counter()
 
     def on_step(s):
         worst[0] = max(worst[0], motion.project(s.y))
@@ -254,6 +256,38 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         name=system.name, t=np.array(ts), q=Y[:, :motion.nq], v=Y[:, motion.nq:], energy=E,
         delta_M=(E - E[0]) / motion.mass if E.size else E, com=np.array(coms).reshape(-1, 3),
         steps=c.steps, rejected=c.rejected, nfev=c.nfev, status=status, message=message,
-        cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
+        cpu_s=time.thread_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
         quaternion_error=worst[0], forces=np.array(forces) if loops is not None else None,
         residual_q=motion.residual_q, residual_v=motion.residual_v)
+
+
+def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
+                   threads: int | None = None, **settings) -> list[Simulation]:
+    """Independent motions of one system from the rows of q0 (B, n_q) and v0 (B, n_v) (default
+    zeros): :func:`simulate` of each row, each with its own step sizes, the rows split over
+    ``threads`` threads (default: every core this process may use). The steps run in compiled
+    code without the GIL (:class:`redysim.integrate.CompiledSolver`), so the threads run at once;
+    each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
+    (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. A row that
+    fails raises its StateError or SettingsError, naming the row.
+    """
+    from .dynamics import _run_rows_plain, check_batch
+
+    for key in ("progress", "loops"):
+        if key in settings:
+            raise SettingsError("simulate_batch", key, settings[key], "is not taken by a batch; "
+                                "simulate the rows one by one")
+    Q0 = check_batch(system, "q", q0, None)
+    V0 = np.zeros((Q0.shape[0], system.n_v)) if v0 is None else \
+        check_batch(system, "qd", v0, Q0.shape[0])
+    out: list[Simulation | None] = [None] * Q0.shape[0]
+
+    def rows(_block, first, last):
+        for i in range(first, last):
+            try:
+                out[i] = simulate(system, t_end, q0=Q0[i], v0=V0[i], **settings)
+            except StateError as exc:
+                raise StateError(f"row {i} of q0 and v0: {exc}") from None
+
+    _run_rows_plain(Q0.shape[0], threads, rows)
+    return out

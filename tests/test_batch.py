@@ -109,3 +109,29 @@ def test_batch_settings_are_checked():
         forward_dynamics(s, Q, QD, method="ge-n")
     with pytest.raises(StateError, match=r"out \(shape \(3, 16\)"):
         forward_dynamics(s, Q, QD, out=np.empty((3, 16)))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_batch_of_motions_is_each_rows_own_simulation(threads):
+    """simulate_batch: row i's motion is simulate's from row i, sample for sample, with its own
+    steps (the rows start apart, so their step sizes differ)."""
+    s = rope(10)
+    rng = np.random.default_rng(7)
+    Q0 = rng.uniform(-0.5, 0.5, (3, s.n_q))
+    V0 = rng.uniform(-0.5, 0.5, (3, s.n_v))
+    sims = redysim.simulate_batch(s, 0.05, q0=Q0, v0=V0, threads=threads, rtol=1e-6, atol=1e-8)
+    for i, sim in enumerate(sims):
+        one = redysim.simulate(s, 0.05, q0=Q0[i], v0=V0[i], rtol=1e-6, atol=1e-8)
+        assert np.array_equal(sim.q, one.q) and np.array_equal(sim.v, one.v)
+        assert (sim.steps, sim.nfev) == (one.steps, one.nfev)
+    assert len({sim.steps for sim in sims}) > 1
+
+
+def test_a_bad_row_of_a_batch_of_motions_is_named():
+    s = rope(4)
+    Q0 = np.zeros((3, s.n_q))
+    Q0[2, 1] = np.inf
+    with pytest.raises(StateError, match=r"row 2 of q0 and v0: q\[1\] = inf"):
+        redysim.simulate_batch(s, 0.01, q0=Q0, threads=2)
+    with pytest.raises(redysim.SettingsError, match="progress"):
+        redysim.simulate_batch(s, 0.01, q0=Q0[:2], progress=print)
