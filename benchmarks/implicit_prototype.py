@@ -9,16 +9,26 @@ q1 = q0 + h w, v1 = 2 w - v0, and w solves
 
     R(w) = w - v0 - (h/2) a(q0 + (h/2) w, w) = 0,        a = the core's qdd (RGE-A, O(n)).
 
-Newton on R from w = v0 (an explicit predictor overshoots the stiff modes), to |R| <= 1e-6 |w|
-(``--newton-tol``), each correction by
-GMRES (relative tolerance 1e-3) on J u = u - (h/2) [a(q_m + (h/2) e u, w + e u) - a] / e (one qdd
-a product), with a backtracking line search on |R|. Preconditioner: the tension stiffens each
-link's orientation (a string's geometric stiffness; for a hanging chain it is the exact K), so
-J ~ M^-1 (M + (h^2/4) K) with K = sum_k J_k^T (T_k l_k (1 - d d^T)) J_k: the GIM of the chain
-whose links carry the added rotational inertia (h^2/4) T_k l_k about their transverse axes. So
-P^-1 r = (M + (h^2/4) K)^-1 M r costs one inverse-dynamics call (M r, no gravity or velocity) and
-one RGE-A call on a workspace with augmented inertias: O(n), no matrix. T_k: the mean axial
-tension of link k from the Newton-Euler wrenches at the step's start (clipped at 0).
+Newton on R from w = v0 (an explicit predictor overshoots the stiff modes), each correction by
+GMRES (relative tolerance 1e-3) on the preconditioned system P^-1 J u = -P^-1 R, with
+J u = u - (h/2) [a(q_m + (h/2) e u, w + e u) - a] / e (one qdd a product, e |u| = 1e-3 (1 + |w|));
+Newton stops when |P^-1 R| <= 1e-6 |w| (``--newton-tol``): with P^-1 J ~ 1 that is the size of the
+next correction. Preconditioner: the tension stiffens each link's orientation (a string's
+geometric stiffness; for a hanging chain it is the exact K), so J ~ M^-1 (M + c K), c = h^2/4,
+with K = sum_k J_k^T (T_k l_k (1 - d d^T)) J_k (J_k: link k's angular Jacobian, d its axis): the
+GIM of the chain whose links carry the added rotational inertia c T_k l_k about their transverse
+axes. Applied as P^-1 r = (M + c K)^-1 M r = r - (M + c K)^-1 (c K r): c K r is a torque on every
+link from its rotation J_k r (one pass down the chain and one back, numpy), and the solve one
+RGE-A call on a workspace with augmented inertias: O(n), no matrix. T_k: the mean axial tension
+of link k from the Newton-Euler wrenches at the step's start (clipped at 0).
+
+Three things the first version did otherwise, and why they matter at 100,000 DOF (docs/design.md,
+"Toward an implicit integrator"): it formed M r by inverse dynamics and solved (M + c K) x = M r,
+which loses the smooth components of r entirely there (the GIM's condition number: M^-1 (M r)
+came back 150x off for a smooth r); its finite-difference products took e |u| = 1e-7, at which a
+smooth u's product is pure round-off (it scaled as 1/e), and Newton then fed that noise back into
+the motion; and it tested |R|, which the stiff modes dominate long after the correction they
+ask for is below round-off, so GMRES ran to its cap at every step.
 
 Compared with the core's ode45 at the paper's tolerances and with DOP853 at 1e-10 as the
 reference: CPU, qdd calls, Newton and GMRES iterations, max tip error over the samples. The
@@ -42,16 +52,21 @@ from redysim.integrate import CompiledSolver, advance
 class ImplicitMidpoint:
     """Fixed-step implicit midpoint on a chain, Newton-Krylov with the O(n) preconditioner."""
 
-    def __init__(self, chain, precondition: bool = True, newton_tol: float = 1e-6):
+    def __init__(self, chain, precondition: bool = True, newton_tol: float = 1e-6,
+                 fd_eps: float = 1e-3):
         self.chain, self.n = chain, chain.n_dof
         self.ws, self.ws_id = Workspace(chain), Workspace(chain)
-        self.ws_p, self.ws_m = Workspace(chain), Workspace(chain)  # augmented; M r
-        for w in (self.ws_p, self.ws_m):  # linear solves: no gravity
-            w.base_accel[:] = 0.0
-            w.gravity[:] = 0.0
+        self.ws_p = Workspace(chain)  # augmented inertias, for the linear solves: no gravity
+        self.ws_p.base_accel[:] = 0.0
+        self.ws_p.gravity[:] = 0.0
         self.inertia0 = self.ws_p.tree.inertia_O.copy()
         self.precondition = precondition
         self.newton_tol = newton_tol
+        self.fd_eps = fd_eps
+        self.ws_k = Workspace(chain)  # frames at the Newton iterate
+        off = chain.joint_qoff
+        self.link_of = np.repeat(np.arange(len(off) - 1), np.diff(off))  # each DOF's link
+        self.last_dof = off[1:] - 1
         self.zeros = np.zeros(self.n)
         self.stats = {"steps": 0, "newton": 0, "krylov": 0, "qdd_calls": 0}
 
@@ -72,15 +87,27 @@ class ImplicitMidpoint:
         return np.maximum(0.5 * (t_in + t_out), 0.0)
 
     def set_preconditioner(self, q, v, h):
-        add = (h * h / 4.0) * self.tensions(q, v) * self.chain.length
+        self.add = (h * h / 4.0) * self.tensions(q, v) * self.chain.length  # c T_k l_k
         inertia = self.ws_p.tree.inertia_O  # a view of the workspace's packed arrays
         inertia[:] = self.inertia0
-        inertia[:, 1, 1] += add
-        inertia[:, 2, 2] += add
+        inertia[:, 1, 1] += self.add
+        inertia[:, 2, 2] += self.add
+
+    def set_frames(self, q):
+        """Joint axes and link axes (world) at q, for c K r."""
+        forward_dynamics(self.chain, q, self.zeros, ws=self.ws_k, planar=False)
+        self.axes = self.ws_k.oP[:, :3].copy()
+        self.link_x = self.ws_k.oR[:, :, 0].copy()
 
     def apply_preconditioner(self, q, r):
-        Mr = inverse_dynamics(self.chain, q, self.zeros, r, ws=self.ws_m)
-        return forward_dynamics(self.chain, q, self.zeros, Mr, ws=self.ws_p, planar=False)
+        """r - (M + c K)^-1 (c K r), at the frames of :meth:`set_frames`."""
+        e, d = self.axes, self.link_x
+        turn = np.cumsum(e * r[:, None], axis=0)[self.last_dof]  # link k's rotation J_k r
+        turn -= d * np.einsum("ki,ki->k", d, turn)[:, None]  # its transverse part
+        torque = -self.add[:, None] * turn
+        outboard = np.cumsum(torque[::-1], axis=0)[::-1]  # the torques at and beyond link k
+        Q = np.einsum("ji,ji->j", e, outboard[self.link_of])  # generalized forces
+        return r + forward_dynamics(self.chain, q, self.zeros, Q, ws=self.ws_p, planar=False)
 
     def step(self, q0, v0, h):
         w = v0.copy()
@@ -91,31 +118,31 @@ class ImplicitMidpoint:
             qm = q0 + 0.5 * h * w
             am = self.qdd(qm, w)
             R = w - v0 - 0.5 * h * am
-            if np.linalg.norm(R) <= self.newton_tol * (np.linalg.norm(w) + 1e-30):
+            if self.precondition:
+                self.set_frames(qm)
+
+            def pre(r, qm=qm):
+                return self.apply_preconditioner(qm, r) if self.precondition else r
+
+            pr = pre(R)
+            if np.linalg.norm(pr) <= self.newton_tol * (np.linalg.norm(w) + 1e-30):
                 break
 
-            def jv(u, qm=qm, w=w, am=am):
+            def jv(u, qm=qm, w=w, am=am, pre=pre):
                 u = np.asarray(u).ravel()
                 nu = np.linalg.norm(u)
                 if nu == 0.0:
                     return np.zeros_like(u)
-                e = 1e-7 * (1.0 + np.linalg.norm(w)) / nu
-                return u - 0.5 * h * (self.qdd(qm + 0.5 * h * e * u, w + e * u) - am) / e
+                e = self.fd_eps * (1.0 + np.linalg.norm(w)) / nu
+                return pre(u - 0.5 * h * (self.qdd(qm + 0.5 * h * e * u, w + e * u) - am) / e)
 
-            P = (LinearOperator((n, n), matvec=lambda r, qm=qm: self.apply_preconditioner(
-                qm, np.asarray(r).ravel())) if self.precondition else None)
-            du, _ = gmres(LinearOperator((n, n), matvec=jv), -R, M=P, rtol=1e-3, atol=0.0,
-                          restart=60, maxiter=20,
-                          callback=self._count, callback_type="pr_norm")
+            du, _ = gmres(LinearOperator((n, n), matvec=jv), -pr, rtol=1e-3, atol=0.0,
+                          restart=60, maxiter=20, callback=self._count,
+                          callback_type="pr_norm")
             self.stats["newton"] += 1
-            lam, norm_r = 1.0, np.linalg.norm(R)
-            while True:  # backtracking on |R|
-                trial = w + lam * du
-                r_trial = trial - v0 - 0.5 * h * self.qdd(q0 + 0.5 * h * trial, trial)
-                if np.linalg.norm(r_trial) < norm_r or lam < 1e-3:
-                    break
-                lam *= 0.5
-            w = trial
+            w = w + du
+        else:
+            raise RuntimeError(f"Newton did not converge in 20 iterations (h = {h:g})")
         self.stats["steps"] += 1
         return q0 + h * w, 2.0 * w - v0
 
