@@ -160,7 +160,7 @@ def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
     A batch: q (B, n_q), qd and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
     rows split over threads (``threads``, as for :func:`forward_dynamics`).
     """
-    if np.ndim(q) == 2:
+    if _is_batch(q):
         return _inverse_batch(chain, _ws(chain, ws), q, qd, qdd, threads)
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
@@ -237,7 +237,7 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
                 raise _nonfinite_qdd(chain, ws, planar, q, qd, tau)
     elif method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
-    if np.ndim(q) == 2:
+    if _is_batch(q):
         if method != "rge-a":
             raise ValueError(f"method = {method!r} with a batch of states: batches run "
                              "'rge-a' only")
@@ -276,6 +276,15 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
+def _is_batch(x) -> bool:
+    """True for a 2-D array (or nested list) of states; False for anything else, ragged lists
+    included (the single call's checks then say what is wrong)."""
+    try:
+        return np.ndim(x) == 2
+    except ValueError:
+        return False
+
+
 def check_batch(chain: System, name: str, x, rows: int | None) -> np.ndarray:
     """``x`` as a C-contiguous float64 (B, n) array (n = ``n_q`` for ``q``, else ``n_v``) with
     ``rows`` rows when given, or StateError naming it."""
@@ -289,9 +298,10 @@ def check_batch(chain: System, name: str, x, rows: int | None) -> np.ndarray:
                          f"{arr.dtype}; need int or float)")
     want = f"({rows if rows is not None else 'B'}, {n})"
     if arr.ndim != 2 or arr.shape[1] != n or (rows is not None and arr.shape[0] != rows):
-        raise StateError(f"{name} has shape {arr.shape}; a batch of states of "
-                         f"{type(chain).__name__.lower()} {chain.name!r} needs shape {want}, "
-                         "one state a row")
+        what = "configuration coordinates" if name == "q" else "DOF"
+        raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
+                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},) for "
+                         f"one state, or {want} for a batch of states, one a row")
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 
