@@ -31,6 +31,13 @@ smooth u's product is pure round-off (it scaled as 1/e), and Newton then fed tha
 the motion; and it tested |R|, which the stiff modes dominate long after the correction they
 ask for is below round-off, so GMRES ran to its cap at every step.
 
+A long run (``--long OUT.npz``) keeps the tip and delta_M every sample as it goes:
+
+    .venv/bin/python benchmarks/implicit_prototype.py --case RE-U50000-L1000 --h 5e-4 \
+        --t-end 5 --sample 0.01 --long results/bench/implicit-U50000-5s.npz
+    .venv/bin/python benchmarks/implicit_prototype.py --case RE-U50000-L1000 --h 0 \
+        --t-end 0.48 --sample 0.01 --long results/bench/ode45-U50000-0.48s.npz
+
 Compared with the core's ode45 at the paper's tolerances and with DOP853 at 1e-10 as the
 reference: CPU, qdd calls, Newton and GMRES iterations, max tip error over the samples. The
 Newton-Krylov loop here is plain Python and SciPy; a production version would compile it.
@@ -46,7 +53,7 @@ from pathlib import Path
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from redysim import Workspace, forward_dynamics, inverse_dynamics, load_case, tip
+from redysim import Workspace, energy, forward_dynamics, inverse_dynamics, load_case, tip
 from redysim.integrate import CompiledSolver, advance
 
 # Newton stops short of newton_tol when |P^-1 R| no longer halves and is below this (relative to
@@ -190,6 +197,55 @@ def explicit_run(case, t_end, sample, method, rtol):
     return np.array(tips), time.process_time() - cpu0, s.counters
 
 
+def long_run(case, t_end, sample, h, out: Path) -> dict:
+    """One long run, the implicit prototype at step h (or ode45 at the case's tolerances when h
+    is None): tip and delta_M every ``sample`` s, saved to ``out`` (.npz) every 10 samples and at
+    the end, so that a killed run keeps what it did. Returns its counts, CPU and peak RSS."""
+    import resource
+
+    chain, n = case.chain, case.chain.n_dof
+    E0, mass = sum(energy(chain, case.q0, case.qd0)), chain.total_mass
+    times, tips, dM, stats = [], [], [], {}
+    cpu0 = time.process_time()
+
+    def record(t, q, v):
+        times.append(t)
+        tips.append(tip(chain, q, v).position)
+        dM.append((sum(energy(chain, q, v)) - E0) / mass)
+        stats.update(cpu_s=time.process_time() - cpu0,
+                     peak_rss_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+        print(f"t = {t:.3f} s, CPU {stats['cpu_s']:.0f} s, {stats}", flush=True)
+        if len(times) % 10 == 0 or t >= t_end - 1e-12:
+            np.savez(out, t=np.array(times), tip=np.array(tips), delta_M=np.array(dM),
+                     stats=json.dumps(stats))
+
+    if h is None:
+        ws = Workspace(chain)
+
+        def rhs(_t, y):
+            return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
+
+        s = CompiledSolver(rhs, 0.0, np.concatenate((case.q0, case.qd0)), t_end, "ode45",
+                           ws=ws, planar=chain.is_planar, rtol=case.rtol, atol=case.atol)
+
+        def on_sample(t, y):
+            stats.update(steps=s.counters.steps, qdd_calls=s.counters.nfev)
+            record(t, y[:n], y[n:])
+
+        advance(s, np.arange(0.0, t_end + 1e-12, sample), on_sample=on_sample)
+        return stats
+    integ = ImplicitMidpoint(chain)
+    q, v = case.q0.copy(), case.qd0.copy()
+    every = int(round(sample / h))
+    record(0.0, q, v)
+    for i in range(int(round(t_end / h))):
+        q, v = integ.step(q, v, h)
+        if (i + 1) % every == 0:
+            stats.update(integ.stats)
+            record((i + 1) * h, q, v)
+    return stats
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default="RE-U750-L6")
@@ -201,8 +257,16 @@ def main(argv=None) -> int:
                     help="Newton stops at |R| <= tol |w| (default 1e-6: on RE-U750-L6 1e-8 and "
                          "1e-10 gave the same tip error, at 1.2x and 5x the qdd calls)")
     ap.add_argument("--out", type=Path, default=Path("results/bench/implicit.json"))
+    ap.add_argument("--long", type=Path, metavar="OUT.npz",
+                    help="one long run instead (the first --h, or ode45 with --h 0), its "
+                         "samples kept in OUT.npz as it goes")
     args = ap.parse_args(argv)
     case = load_case(args.case)
+    if args.long is not None:
+        args.long.parent.mkdir(parents=True, exist_ok=True)
+        h = args.h[0] or None
+        print(long_run(case, args.t_end, args.sample, h, args.long))
+        return 0
     ref, ref_cpu, ref_c = explicit_run(case, args.t_end, args.sample, "dop853", 1e-10)
     rows = []
     tips, cpu, c = explicit_run(case, args.t_end, args.sample, "ode45", case.rtol)
