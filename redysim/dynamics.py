@@ -316,7 +316,7 @@ def thread_count(threads: int | None, rows: int, work: float | None = None) -> i
     return max(1, min(int(count), rows))
 
 
-def _run_rows_plain(rows: int, threads: int | None, call, count: int | None = None) -> list:
+def run_blocks(rows: int, threads: int | None, call, count: int | None = None) -> list:
     """call(block, first, last) for one contiguous block of rows per thread (the first block on
     the calling thread), the results in block order; the first exception raised is re-raised."""
     global _POOL
@@ -343,7 +343,7 @@ def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> in
     of ``ws``; the first failing row (the lowest of the blocks') or -1."""
     count = thread_count(threads, rows, rows * n)
     scratches = ws.scratches(count)
-    results = _run_rows_plain(rows, threads, lambda i, first, last: call(scratches[i], first,
+    results = run_blocks(rows, threads, lambda i, first, last: call(scratches[i], first,
                                                                          last), count)
     failed = [r for r in results if r >= 0]
     return min(failed) if failed else -1

@@ -271,7 +271,7 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
     (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. A row that
     fails raises its StateError or SettingsError, naming the row.
     """
-    from .dynamics import _run_rows_plain, check_batch
+    from .dynamics import check_batch, run_blocks
 
     for key in ("progress", "loops"):
         if key in settings:
@@ -289,5 +289,5 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
             except StateError as exc:
                 raise StateError(f"row {i} of q0 and v0: {exc}") from None
 
-    _run_rows_plain(Q0.shape[0], threads, rows)
+    run_blocks(Q0.shape[0], threads, rows)
     return out
