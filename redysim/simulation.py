@@ -269,7 +269,7 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
     code without the GIL (:class:`redysim.integrate.CompiledSolver`), so the threads run at once;
     each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
     (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. A row that
-    fails raises its StateError or SettingsError, naming the row.
+    fails raises its StateError, naming the row; a bad setting raises SettingsError.
     """
     from .dynamics import check_batch, run_blocks
 
