@@ -266,6 +266,7 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
 # --------------------------------------------------------------------------- batches
 THREAD_MIN_WORK = 5000  # DOF x states below which a batch runs on the calling thread alone
 _POOL = None  # the batches' thread pool, made on first use
+_POOL_SIZE = 0  # its workers
 
 
 def default_threads() -> int:
@@ -319,16 +320,16 @@ def thread_count(threads: int | None, rows: int, work: float | None = None) -> i
 def run_blocks(rows: int, threads: int | None, call, count: int | None = None) -> list:
     """call(block, first, last) for one contiguous block of rows per thread (the first block on
     the calling thread), the results in block order; the first exception raised is re-raised."""
-    global _POOL
+    global _POOL, _POOL_SIZE
     count = thread_count(threads, rows) if count is None else count
     edges = [rows * i // count for i in range(count + 1)]
     if count == 1:
         return [call(0, 0, rows)]
-    if _POOL is None or _POOL._max_workers < count - 1:
+    if _POOL_SIZE < count - 1:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL = ThreadPoolExecutor(max_workers=max(count - 1, default_threads() - 1),
-                                   thread_name_prefix="redysim-batch")
+        _POOL_SIZE = max(count - 1, default_threads() - 1)
+        _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE, thread_name_prefix="redysim-batch")
     futures = [_POOL.submit(call, i, edges[i], edges[i + 1]) for i in range(1, count)]
     try:
         first = call(0, edges[0], edges[1])

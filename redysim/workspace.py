@@ -150,6 +150,7 @@ class Workspace:
         self.base_accel = self.kernel_f[header[E.F_BASE_ACCEL]:header[E.F_BASE_ACCEL] + 3]  # -g
         self.gravity = self.kernel_f[header[E.F_GRAVITY]:header[E.F_GRAVITY] + 3]
         self.no_accel = np.zeros(3)
+        self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
 
     @cached_property
     def table_a1(self) -> Scratch:
@@ -161,7 +162,7 @@ class Workspace:
         """``count`` scratch arrays of this workspace's layout, the first its own: one for each
         thread of a batch (:func:`redysim.forward_dynamics` with (B, n) arrays). Made on first
         use and kept."""
-        extra = self.__dict__.setdefault("_extra_scratch", [])
+        extra = self._extra_scratch
         while len(extra) < count - 1:
             extra.append(np.empty_like(self.scratch))
         return [self.scratch, *extra[:count - 1]]
@@ -172,4 +173,4 @@ class Workspace:
         system's arrays not counted)."""
         own = sum(v.nbytes for v in vars(self).values()
                   if isinstance(v, np.ndarray) and v.base is None)
-        return own + sum(a.nbytes for a in self.__dict__.get("_extra_scratch", ()))
+        return own + sum(a.nbytes for a in self._extra_scratch)
