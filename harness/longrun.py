@@ -12,9 +12,10 @@ bit the same step sequence.
     python -m redysim.harness.longrun RE-U50000-L1000 --status  # what the checkpoint holds, ETA
 
 The integrator and its tolerances (or step) are the case file's ``[simulation]`` settings, or
-the flags': one of ours (ode45, dop853, rk4), whose state can be saved; SciPy's cannot.
+the flags': one of ours (ode45, dop853, rk4, midpoint alias implicit, midpoint-fixed), whose
+state can be saved; SciPy's cannot. ``--sample`` sets the sample interval (default the case's).
 A checkpoint is resumed only by the same code, case file (its SHA-256 and DOF), integrator,
-tolerances and horizon; anything else is refused, naming both sides. A checkpoint that cannot
+tolerances, horizon and sample interval; anything else is refused, naming both sides. A checkpoint that cannot
 be read is moved aside and the previous one (or a fresh start) is used, saying so.
 
 Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M.
@@ -36,14 +37,18 @@ import numpy as np
 
 from redysim import Workspace, energy, forward_dynamics, load_case, tip
 from redysim.errors import CaseError, RedysimError, SettingsError, StateError
+from redysim.implicit import MidpointSolver, TensionPreconditioner
 from redysim.integrate import (
+    ALIASES,
     FIXED_STEP,
+    IMPLICIT,
     TABLEAU_NAMES,
     CompiledSolver,
     Counters,
     Solver,
     SolverState,
     advance,
+    canonical,
     check_settings,
     compile_kernels,
     sample_times,
@@ -58,7 +63,7 @@ CHECKPOINT = "checkpoint.npz"
 PREVIOUS = "checkpoint.prev.npz"  # the checkpoint before the last, kept in case it is damaged
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
 SAMPLE_FIELDS = ("t", "tip_x", "tip_y", "tip_z", "E", "delta_M")
-INTEGRATORS = TABLEAU_NAMES  # ours: ode45, dop853, rk4 (their state can be saved)
+INTEGRATORS = (*TABLEAU_NAMES, *IMPLICIT)  # ours (their state can be saved)
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
@@ -127,7 +132,7 @@ def _refuse_other(path: Path, ck: dict, now: dict) -> None:
         raise LongrunError(f"{path}: the checkpoint was written for {then_case}; this is "
                            f"{now_case}: resuming would continue one chain's state with another's "
                            "dynamics; use another --out or delete it")
-    for key in ("t_end", "integrator", "rtol", "atol", "fixed_h"):
+    for key in ("t_end", "integrator", "rtol", "atol", "fixed_h", "sample"):
         then = ck.get(key)
         then = then.item() if isinstance(then, np.ndarray) else then
         if then != now[key]:
@@ -140,7 +145,7 @@ def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
     """The run's integrator and its tolerances (``rtol``, ``atol``) or step (``fixed_h``): the
     arguments', else the case's; one of ours (its state can be checkpointed). Raises
     SettingsError naming the field."""
-    method = integrator or case.integrator
+    method = canonical(integrator or case.integrator)
     if method not in INTEGRATORS:
         field = (names or {}).get("integrator", "integrator") if integrator else \
             "simulation.integrator"
@@ -161,8 +166,8 @@ def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
 
 def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_EVERY_S,
         out: Path | None = None, integrator: str | None = None, rtol: float | None = None,
-        atol: float | None = None, h: float | None = None, stop_after_s: float = math.inf,
-        log=print, names: dict | None = None) -> dict:
+        atol: float | None = None, h: float | None = None, sample: float | None = None,
+        stop_after_s: float = math.inf, log=print, names: dict | None = None) -> dict:
     """Run (or resume) ``case_name`` to ``t_end``; return the final checkpoint. Raises
     :class:`LongrunError` (or a case or settings error) when it cannot start or resume."""
     case = load_case(case_name)
@@ -172,9 +177,9 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
                         "long runs integrate unloaded chains: run a loaded case with "
                         "'redysim simulate' or a sweep")
     t_end = float(t_end or case.t_end)
-    check_settings(str(case.path), names, t_end=t_end)
+    check_settings(str(case.path), names, t_end=t_end, sample=sample)
     how = settings(case, integrator=integrator, rtol=rtol, atol=atol, h=h, names=names)
-    interval = min(case.sample_interval, t_end)
+    interval = min(sample or case.sample_interval, t_end)
     path = (out or out_dir_for(case.name)) / CHECKPOINT
     ws = Workspace(chain)
 
@@ -188,25 +193,34 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     compile_kernels()
     jit_s = time.perf_counter() - t0
     now = {"code": code_digest(), "case": case.name, "case_digest": case.digest, "n_dof": n,
-           "t_end": t_end, **how}
+           "t_end": t_end, "sample": interval, **how}
     kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
           dict(rtol=how["rtol"], atol=how["atol"]))
-    # steps in compiled code: the same steps, bit for bit, as the Python loop (Solver), so a
-    # checkpoint of either resumes in the other; the stage sums over 2n states cost no numpy
-    # call per stage
-    kw.update(ws=ws, planar=chain.is_planar)
+    if how["integrator"] in IMPLICIT:  # the implicit midpoint, the chain's preconditioner
+        kw.update(preconditioner=TensionPreconditioner(chain))
+
+        def solver_of(state=None):
+            return MidpointSolver(rhs, 0.0, y0, t_end, state=state, **kw)
+    else:
+        # steps in compiled code: the same steps, bit for bit, as the Python loop (Solver), so
+        # a checkpoint of either resumes in the other; the stage sums over 2n states cost no
+        # numpy call per stage
+        kw.update(ws=ws, planar=chain.is_planar)
+
+        def solver_of(state=None):
+            return CompiledSolver(rhs, 0.0, y0, t_end, how["integrator"], state=state, **kw)
     ck = load_checkpoint(path, repair=True, log=log)
     if ck is not None:
         _refuse_other(path, ck, now)
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
-        solver = CompiledSolver(rhs, 0.0, y0, t_end, how["integrator"], state=state, **kw)
+        solver = solver_of(state)
         samples = [tuple(r) for r in ck["samples"]]
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
         log(f"{case.name}: resuming at t = {state.t:.6g} s, {state.counters.steps:,} steps, "
             f"{len(samples)} samples ({wall_prev:,.0f} s of wall time so far)")
     else:
-        solver = CompiledSolver(rhs, 0.0, y0, t_end, how["integrator"], **kw)
+        solver = solver_of()
         samples, cpu_prev, wall_prev = [], 0.0, 0.0
         step = (f"h {how['fixed_h']:g}" if how["fixed_h"] else
                 f"rtol {how['rtol']:g} atol {how['atol']:g}")
@@ -221,7 +235,9 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
         return {**now, "E0": E0, "mass": chain.total_mass,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,
-                "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+                "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                # the implicit midpoint's Newton and GMRES iterations (this session's)
+                "newton": getattr(solver, "newton", 0), "krylov": getattr(solver, "krylov", 0)}
 
     def on_sample(t, y):
         if samples and t <= samples[-1][0]:
@@ -278,7 +294,7 @@ def summary(ck: dict) -> str:
 
 
 FLAGS = {"t_end": "--t-end", "integrator": "--integrator", "rtol": "--rtol", "atol": "--atol",
-         "h": "--h"}
+         "h": "--h", "sample": "--sample"}
 
 
 def main(argv=None) -> int:
@@ -288,11 +304,14 @@ def main(argv=None) -> int:
                     "it was. Example: python -m redysim.harness.longrun RE-U50000-L1000")
     ap.add_argument("case", help="a case name or the path of a case file")
     ap.add_argument("--t-end", type=positive, help="horizon [s] (default: the case's)")
-    ap.add_argument("--integrator", choices=INTEGRATORS,
+    ap.add_argument("--integrator", choices=(*INTEGRATORS, *ALIASES),
                     help="default: the case file's (ode45 unless it says otherwise)")
     ap.add_argument("--rtol", type=positive, help="default: the case file's")
     ap.add_argument("--atol", type=positive, help="default: the case file's")
-    ap.add_argument("--h", type=positive, help="step of rk4 (default: the case file's)")
+    ap.add_argument("--h", type=positive, help="step of rk4 or midpoint-fixed (default: the "
+                    "case file's)")
+    ap.add_argument("--sample", type=positive, help="sample interval [s] (default: the case "
+                    "file's)")
     ap.add_argument("--every", type=positive, default=DEFAULT_EVERY_S,
                     help=f"wall seconds between checkpoints (default {DEFAULT_EVERY_S:g})")
     ap.add_argument("--out", type=Path, default=None, help="folder of the checkpoint")
@@ -313,7 +332,7 @@ def main(argv=None) -> int:
             return EXIT_OK if ck is not None else EXIT_FAILED
         ck = run(args.case, t_end=args.t_end, every_s=args.every, out=args.out,
                  integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
-                 stop_after_s=args.stop_after, log=lambda m: print(m, flush=True), names=FLAGS)
+                 sample=args.sample, stop_after_s=args.stop_after, log=lambda m: print(m, flush=True), names=FLAGS)
     except (RedysimError, FileNotFoundError) as exc:
         err(f"longrun: error: {exc}")
         return EXIT_USAGE

@@ -15,6 +15,11 @@ an embedded error estimate and a step-size controller; a fixed-step scheme has n
             tolerance means the same thing for both.
 ``rk4``     classical Runge-Kutta at a fixed step ``h``; steps are shortened to land on the sample
             times; outputs are the step values.
+``midpoint`` (alias ``implicit``) and ``midpoint-fixed``: the implicit midpoint rule for
+            second-order systems y = (q, v), dq/dt = v, each step O(n) (Newton-Krylov with a
+            chain's tension preconditioner, :mod:`redysim.implicit`), with error control by
+            rtol and atol, or at a fixed step h: for chains whose explicit steps are bound by
+            waves they need not resolve.
 ``scipy-RK45``, ``scipy-DOP853``, ``scipy-LSODA``, ``scipy-Radau``: SciPy's ``solve_ivp`` solvers
             (RMS error norm, their own controllers; docs/design.md, "Integrators", explains why
             equal tolerances do not mean equal accuracy), stepped one step at a time so that
@@ -169,10 +174,18 @@ def _rk():
 
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
-INTEGRATORS = (*TABLEAU_NAMES, *(f"scipy-{m}" for m in SCIPY_METHODS))
-FIXED_STEP = ("rk4",)
+# the implicit midpoint rule (redysim.implicit), with error control and at a fixed step
+IMPLICIT = ("midpoint", "midpoint-fixed")
+INTEGRATORS = (*TABLEAU_NAMES, *IMPLICIT, *(f"scipy-{m}" for m in SCIPY_METHODS))
+ALIASES = {"implicit": "midpoint"}  # other names a user may give; canonical() maps them
+FIXED_STEP = ("rk4", "midpoint-fixed")
 DEFAULT_METHOD, DEFAULT_RTOL, DEFAULT_ATOL = "ode45", 1e-4, 1e-6  # the paper's ode45 settings
 ADAPTIVE = tuple(m for m in INTEGRATORS if m not in FIXED_STEP)
+
+
+def canonical(method: str) -> str:
+    """The integrator's own name for ``method`` (an alias of :data:`ALIASES`, or itself)."""
+    return ALIASES.get(method, method)
 
 
 def check_settings(source: str = "integrate", names: dict[str, str] | None = None, *,
@@ -188,7 +201,7 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
     interval may be; case files, run specs, sweep files and the command line all call it.
     ``names`` renames fields in the message (``{"rtol": "--rtol"}``); ``None`` skips a setting.
 
-    - ``method``: one of :data:`INTEGRATORS` (or ``extra_methods``).
+    - ``method``: one of :data:`INTEGRATORS` or :data:`ALIASES` (or ``extra_methods``).
     - ``rtol``: ``RTOL_MIN <= rtol < 1`` (MATLAB's ode45 floor is 100 eps; a relative tolerance
       of 100 % controls nothing). ``atol``: finite and > 0.
     - ``h``: finite and > 0; a step belongs to a fixed-step method only (an adaptive method
@@ -208,9 +221,10 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
             fail(field, value, "must be finite")
         return float(value)
 
-    if method is not None and method not in INTEGRATORS + extra_methods:
-        fail("integrator", method, f"unknown integrator; known: "
-                                   f"{', '.join(INTEGRATORS + extra_methods)}")
+    known = INTEGRATORS + tuple(ALIASES) + extra_methods
+    if method is not None and method not in known:
+        fail("integrator", method, f"unknown integrator; known: {', '.join(known)}")
+    method = None if method is None else canonical(method)
     if rtol is not None:
         rtol = number("rtol", rtol)
         if not rtol < 1.0:
@@ -346,6 +360,12 @@ class Solver:
     @property
     def done(self) -> bool:
         return self.t >= self.t_end
+
+    @property
+    def takes_t_stop(self) -> bool:
+        """Whether :meth:`step` takes the next sample time (:func:`advance`): a fixed step
+        lands on it."""
+        return not self.adaptive
 
     # ----------------------------------------------------------------------- the stepping kernel
     def _stages(self, t, y, f, h) -> np.ndarray:
@@ -528,6 +548,10 @@ class CompiledSolver(Solver):
         self._counts = np.zeros(3, dtype=np.int64)
         self._tmp, self._y_new = np.empty(self.n), np.empty(self.n)
 
+    @property
+    def takes_t_stop(self) -> bool:
+        return True  # every step up to the next sample in one call
+
     def step(self, t_stop: float | None = None) -> None:
         """Steps up to the first that reaches ``t_stop`` (t_end when None), or max_steps."""
         c = self.counters
@@ -644,8 +668,19 @@ class Solution:
 
 
 def make_solver(rhs, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=None,
-                hmax=None):
-    """A :class:`Solver` (ours) or :class:`ScipySolver` (``"scipy-..."``) by name."""
+                hmax=None, preconditioner=None):
+    """A :class:`Solver` (ours), a :class:`redysim.implicit.MidpointSolver` (``"midpoint"``,
+    ``"midpoint-fixed"``: y = (q, v) with dq/dt = v, ``preconditioner`` its
+    :class:`~redysim.implicit.TensionPreconditioner` or None) or a :class:`ScipySolver`
+    (``"scipy-..."``) by name."""
+    method = canonical(method)
+    if method in IMPLICIT:
+        from .implicit import MidpointSolver
+
+        if method == "midpoint-fixed" and h is None:
+            raise ValueError("midpoint-fixed needs a step h > 0")
+        return MidpointSolver(rhs, t0, y0, t_end, rtol=rtol, atol=atol, h=h, hmax=hmax,
+                              preconditioner=preconditioner)
     if method.startswith("scipy-"):
         return ScipySolver(rhs, t0, y0, t_end, method[len("scipy-"):], rtol=rtol, atol=atol,
                            hmax=hmax)
@@ -673,15 +708,15 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     :class:`Solution`."""
     i = 0
     t_eval = np.asarray(t_eval, dtype=float)
-    fixed = isinstance(solver, Solver) and not solver.adaptive
-    chunks = isinstance(solver, CompiledSolver)  # steps to the next sample in one call
+    # a fixed step lands on the sample times; a compiled solver steps to the next one per call
+    stops = getattr(solver, "takes_t_stop", False)
     while i < t_eval.size and t_eval[i] <= solver.t * (1 + SAMPLE_EPS):
         if on_sample and (msg := on_sample(float(t_eval[i]), solver.y.copy())):
             return 1, msg
         i += 1
     try:
         while i < t_eval.size and not solver.done:
-            solver.step(t_eval[i] if fixed or chunks else None)
+            solver.step(t_eval[i] if stops else None)
             j = i
             while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
                 j += 1
@@ -726,15 +761,18 @@ def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode
     ``t_eval`` (default: every accepted step's end). ``callback(t, y)`` at each sample may
     return a message to stop.
 
-    ``method``: one of :data:`INTEGRATORS`. ``h``: the step of a fixed-step method (given to an
-    adaptive scheme it steps that scheme at a fixed step, for convergence studies).
+    ``method``: one of :data:`INTEGRATORS` (or :data:`ALIASES`); ``midpoint`` needs y = (q, v)
+    with dq/dt = v. ``h``: the step of a fixed-step method (given to an adaptive scheme it
+    steps that scheme at a fixed step, for convergence studies).
     ``t_eval``: strictly increasing times within ``t_span``, as SciPy's ``solve_ivp`` requires;
     anything else raises ValueError (unsorted times gave wrong values, a time before t0 the
     initial state, and times past t_end were dropped).
     Raises ValueError (:class:`~redysim.errors.SettingsError` for a setting out of range).
     """
-    if method not in INTEGRATORS:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(INTEGRATORS)}")
+    if canonical(method) not in INTEGRATORS:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(INTEGRATORS)}"
+                         f" (or {', '.join(ALIASES)})")
+    method = canonical(method)
     t0, t1 = map(float, t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"t_span = {t_span!r}: need finite t0 < t_end (forward in time)")

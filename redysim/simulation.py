@@ -29,14 +29,17 @@ import numpy as np
 from .chain import Chain
 from .dynamics import check_state, energy, forward_dynamics
 from .errors import SettingsError, StateError
+from .implicit import TensionPreconditioner
 from .integrate import (
     DEFAULT_ATOL,
     DEFAULT_METHOD,
     DEFAULT_RTOL,
     FIXED_STEP,
+    IMPLICIT,
     TABLEAU_NAMES,
     CompiledSolver,
     advance,
+    canonical,
     check_settings,
     compile_kernels,
     make_solver,
@@ -175,7 +178,8 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
 
     q0: default the model's own configuration (:meth:`Model.initial`: the file's, else every
     joint at zero, quaternions the identity), zeros for a chain; v0: default zeros.
-    integrator, rtol, atol, h: as :func:`redysim.integrate.integrate` (h for rk4 only).
+    integrator, rtol, atol, h: as :func:`redysim.integrate.integrate` (h for the fixed-step
+    rk4 and midpoint-fixed only); ``implicit`` is ``midpoint``.
     sample: the sample interval (default t_end / 10). progress: called as
     ``progress(t, t_end, steps, wall_s)`` after each step. Raises SettingsError for a setting out
     of range and StateError for a bad q0 or v0.
@@ -183,6 +187,7 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     if not isinstance(system, Chain | Model):
         raise TypeError(f"simulate takes a redysim.Chain or redysim.Model, not "
                         f"{type(system).__name__}")
+    integrator = canonical(integrator) if isinstance(integrator, str) else integrator
     fixed = integrator in FIXED_STEP
     if fixed and h is None:
         raise SettingsError("simulate", "h", h, f"{integrator} is a fixed-step integrator: give "
@@ -242,6 +247,15 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         planar = isinstance(system, Chain) and system.is_planar
         solver = CompiledSolver(motion.rhs, 0.0, y0, t_end, integrator, ws=motion.ws,
                                 planar=planar, rtol=rtol, atol=atol, h=h)
+    elif integrator in IMPLICIT:
+        if motion.free:
+            raise SettingsError("simulate", "integrator", integrator, "steps systems whose "
+                                "dq/dt is v; a free joint's quaternion moves otherwise: use "
+                                "ode45 or dop853")
+        # a chain's tension preconditioner (redysim.implicit); a tree steps without one
+        pre = TensionPreconditioner(system) if isinstance(system, Chain) else None
+        solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h,
+                             preconditioner=pre)
     else:
         solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h)
     try:
