@@ -16,10 +16,13 @@ from pathlib import Path
 from redysim.cases import CASES_DIR, list_cases, load_case
 from redysim.errors import RedysimError, SettingsError
 from redysim.integrate import (
+    ALIASES,
     DEFAULT_ATOL,
     DEFAULT_METHOD,
     DEFAULT_RTOL,
+    FIXED_STEP,
     INTEGRATORS,
+    canonical,
     check_settings,
 )
 
@@ -152,10 +155,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default=RunSpec.method, choices=CORE_METHODS, metavar="M",
                      help=f"the core's algorithm: {', '.join(CORE_METHODS)}; rge-a is O(n) "
                           f"(default: {RunSpec.method})")
-    sim.add_argument("--integrator", choices=(*INTEGRATORS, NATIVE), metavar="I",
+    sim.add_argument("--integrator", choices=(*INTEGRATORS, *ALIASES, NATIVE), metavar="I",
                      help=f"{', '.join((*INTEGRATORS, NATIVE))}; adaptive ones take "
-                          f"--rtol/--atol, rk4 and native (an engine's own stepper) take --h "
-                          f"(default: the case file's, else {DEFAULT_METHOD})")
+                          f"--rtol/--atol, rk4, midpoint-fixed and native (an engine's own "
+                          f"stepper) take --h; implicit is midpoint, the implicit midpoint "
+                          f"rule with error control, for chains whose explicit steps are bound "
+                          f"by waves (default: the case file's, else {DEFAULT_METHOD})")
     sim.add_argument("--rtol", type=positive, metavar="R",
                      help=f"relative tolerance of an adaptive integrator, in [100 eps, 1) "
                           f"(default: the case file's, else {DEFAULT_RTOL:g})")
@@ -163,7 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"absolute tolerance of an adaptive integrator (default: the case "
                           f"file's, else {DEFAULT_ATOL:g})")
     sim.add_argument("--h", type=positive, metavar="H",
-                     help="step [s] of a fixed-step integrator (rk4, native); adaptive "
+                     help="step [s] of a fixed-step integrator (rk4, midpoint-fixed, "
+                          "native); adaptive "
                           "integrators choose their own steps and refuse one")
     sim.add_argument("--t-end", type=positive, metavar="T",
                      help="horizon [s] (default: the case's)")
@@ -387,7 +393,7 @@ def _simulate_model(args: argparse.Namespace) -> int:
         model = model.locked(dict(args.lock))
     t_end = args.t_end or 1.0
     integrator = args.integrator or DEFAULT_METHOD
-    fixed = integrator in ("rk4",)
+    fixed = canonical(integrator) in FIXED_STEP
     rtol, atol = args.rtol or DEFAULT_RTOL, args.atol or DEFAULT_ATOL
     check_settings(SOURCE, FLAGS, method=integrator, rtol=None if fixed else rtol,
                    atol=None if fixed else atol, h=args.h, t_end=t_end, sample=args.sample)

@@ -15,8 +15,9 @@ The integrator and its tolerances (or step) are the case file's ``[simulation]``
 the flags': one of ours (ode45, dop853, rk4, midpoint alias implicit, midpoint-fixed), whose
 state can be saved; SciPy's cannot. ``--sample`` sets the sample interval (default the case's).
 A checkpoint is resumed only by the same code, case file (its SHA-256 and DOF), integrator,
-tolerances, horizon and sample interval; anything else is refused, naming both sides. A checkpoint that cannot
-be read is moved aside and the previous one (or a fresh start) is used, saying so.
+tolerances, horizon and sample interval; anything else is refused, naming both sides. A
+checkpoint that cannot be read is moved aside and the previous one (or a fresh start) is used,
+saying so.
 
 Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M.
 Exit codes: 0 done (or stopped by ``--stop-after``), 1 the run failed, 2 bad input.
@@ -71,8 +72,10 @@ class LongrunError(RedysimError):
     """A long run cannot start or resume as asked (the message says why and what to do)."""
 
 
-def out_dir_for(case_name: str) -> Path:
-    return results_dir() / "longrun" / case_name
+def out_dir_for(case_name: str, integrator: str = "ode45") -> Path:
+    """results/longrun/<case> for ode45 (the paper's), <case>-<integrator> for another."""
+    name = case_name if integrator == "ode45" else f"{case_name}-{integrator}"
+    return results_dir() / "longrun" / name
 
 
 def save_checkpoint(path: Path, solver: Solver, samples: list, meta: dict) -> None:
@@ -180,7 +183,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     check_settings(str(case.path), names, t_end=t_end, sample=sample)
     how = settings(case, integrator=integrator, rtol=rtol, atol=atol, h=h, names=names)
     interval = min(sample or case.sample_interval, t_end)
-    path = (out or out_dir_for(case.name)) / CHECKPOINT
+    path = (out or out_dir_for(case.name, how["integrator"])) / CHECKPOINT
     ws = Workspace(chain)
 
     def rhs(_t, y):
@@ -325,14 +328,16 @@ def main(argv=None) -> int:
 
     try:
         if args.status:
-            name = load_case(args.case).name
-            path = (args.out or out_dir_for(name)) / CHECKPOINT
+            case = load_case(args.case)
+            method = settings(case, integrator=args.integrator, names=FLAGS)["integrator"]
+            path = (args.out or out_dir_for(case.name, method)) / CHECKPOINT
             ck = load_checkpoint(path, log=err)
             print(summary(ck) if ck is not None else f"no readable checkpoint at {path}")
             return EXIT_OK if ck is not None else EXIT_FAILED
         ck = run(args.case, t_end=args.t_end, every_s=args.every, out=args.out,
                  integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
-                 sample=args.sample, stop_after_s=args.stop_after, log=lambda m: print(m, flush=True), names=FLAGS)
+                 sample=args.sample, stop_after_s=args.stop_after,
+                 log=lambda m: print(m, flush=True), names=FLAGS)
     except (RedysimError, FileNotFoundError) as exc:
         err(f"longrun: error: {exc}")
         return EXIT_USAGE

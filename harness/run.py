@@ -30,6 +30,7 @@ import numpy as np
 
 from redysim import StateError, energy, forward_dynamics, load_case, tip
 from redysim.integrate import (
+    IMPLICIT,
     TABLEAU_NAMES,
     CompiledSolver,
     advance,
@@ -285,8 +286,12 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                                         planar=dyn.chain.is_planar, rtol=spec.rtol,
                                         atol=spec.atol, h=spec.h or None)
             else:
+                pre = None
+                if spec.integrator in IMPLICIT:  # the chain's preconditioner, any engine's qdd
+                    from redysim.implicit import TensionPreconditioner
+                    pre = TensionPreconditioner(chain)
                 solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
-                                     atol=spec.atol, h=spec.h or None)
+                                     atol=spec.atol, h=spec.h or None, preconditioner=pre)
             status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
         finally:
             if solver is not None:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from redysim.cases import case_path, file_digest
 from redysim.errors import SettingsError
-from redysim.integrate import FIXED_STEP, check_settings
+from redysim.integrate import FIXED_STEP, canonical, check_settings
 from redysim.methods import METHODS as CORE_METHODS
 
 CORE = "redysim"  # the engine name of our own core
@@ -40,11 +40,13 @@ class RunSpec:
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
                  for an engine.
     integrator:  a name from ``redysim.integrate.INTEGRATORS`` (``"ode45"``, ``"dop853"``,
-                 ``"rk4"``, ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper;
+                 ``"rk4"``, ``"midpoint"`` alias ``"implicit"``, ``"midpoint-fixed"``,
+                 ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper;
                  needs ``h``); ``""``: the case's (ode45 unless its file says otherwise).
     rtol, atol:  tolerances of an adaptive integrator; 0: the case's (1e-4 and 1e-6 unless its
                  file says otherwise). A fixed-step integrator takes none.
-    h:           the step of a fixed-step integrator (``rk4``, ``native``); 0: the case's. An
+    h:           the step of a fixed-step integrator (``rk4``, ``midpoint-fixed``,
+                 ``native``); 0: the case's. An
                  adaptive integrator takes none: it chooses its own steps.
     t_end:       horizon [s]; 0: the case's ``t_end``.
     sample:      sample interval [s]; 0: the case's (``sample_interval``, else t_end / 20).
@@ -113,6 +115,7 @@ class RunSpec:
                                 f"reduced precision is the core's only (engine {self.engine!r} "
                                 "computes in its own arithmetic)")
         integrator = self.integrator or case.integrator
+        integrator = canonical(integrator) if isinstance(integrator, str) else integrator
         stepped = integrator in STEPPED
         t_end = self.t_end or case.t_end
         sample = self.sample or min(case.sample_interval, t_end)

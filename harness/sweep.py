@@ -81,7 +81,7 @@ from tqdm import tqdm
 from redysim import list_cases, load_case, references
 from redysim.cases import is_case_name
 from redysim.errors import CaseError, FieldError, SettingsError
-from redysim.integrate import INTEGRATORS
+from redysim.integrate import ALIASES, INTEGRATORS
 
 from .run import execute
 from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec
@@ -113,7 +113,7 @@ TEXT_FIELDS = ("name", "description")
 BOOL_FIELDS = ("reference",)  # reference = true: compute the cases' reference solutions first
 STRICTLY_POSITIVE = ("atol_ratio", "energy_bound", "rtol", "atol")  # the others may be 0
 STEPPED_INTEGRATORS = STEPPED  # take h values; all others take rtols
-KNOWN_INTEGRATORS = (*INTEGRATORS, NATIVE)
+KNOWN_INTEGRATORS = (*INTEGRATORS, *ALIASES, NATIVE)
 DEFAULT_ATOL_RATIO = 1e-2  # the paper's ode45 setting: rtol 1e-4, atol 1e-6
 TOL_DIGITS = 12  # atol = rtol * atol_ratio is rounded to 12 significant digits: 1e-06, not
 #                  1.0000000000000002e-06 (the run_id hashes the exact float)

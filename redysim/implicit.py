@@ -76,7 +76,7 @@ NEWTON_TOL = 1e-6         # |P^-1 R| <= NEWTON_TOL |w| (fixed steps; adaptive: m
 # where a tolerance of 1e-6 alone stalled Newton for 20 iterations at 1.02e-6 to 1.07e-6.
 FLOOR_TOL = 1e-4
 FD_EPS = 1e-3             # e |u| = FD_EPS (1 + |w|): at 1e-7 a smooth u's product was round-off
-GMRES_RTOL, GMRES_RESTART, GMRES_MAXITER = 1e-3, 60, 20
+GMRES_RTOL, GMRES_RESTART, GMRES_MAXITER = 1e-3, 20, 20
 
 
 class TensionPreconditioner:
@@ -87,7 +87,8 @@ class TensionPreconditioner:
         from .workspace import Workspace
 
         self.chain, self.n = chain, chain.n_dof
-        self.ws_id, self.ws_k, self.ws_p = Workspace(chain), Workspace(chain), Workspace(chain)
+        # ws_k: the tensions' inverse dynamics, then the frames of each Newton iterate
+        self.ws_k, self.ws_p = Workspace(chain), Workspace(chain)
         self.ws_p.base_accel[:] = 0.0  # the linear solves: no gravity
         self.ws_p.gravity[:] = 0.0
         self.inertia0 = self.ws_p.tree.inertia_O.copy()
@@ -102,9 +103,9 @@ class TensionPreconditioner:
         """Mean axial tension of each link (>= 0) from the Newton-Euler wrenches at (q, v, a)."""
         from .dynamics import inverse_dynamics
 
-        inverse_dynamics(self.chain, q, v, a, ws=self.ws_id)
-        force = self.ws_id.s.W[:, 3:]  # the force each joint passes to its link and beyond
-        d = self.ws_id.oR[:, :, 0]  # link axes (world)
+        inverse_dynamics(self.chain, q, v, a, ws=self.ws_k)
+        force = self.ws_k.s.W[:, 3:]  # the force each joint passes to its link and beyond
+        d = self.ws_k.oR[:, :, 0]  # link axes (world)
         t_in = -np.einsum("ki,ki->k", force, d)
         t_out = -np.einsum("ki,ki->k", np.vstack([force[1:], np.zeros((1, 3))]), d)
         return np.maximum(0.5 * (t_in + t_out), 0.0)
@@ -274,7 +275,7 @@ class MidpointSolver:
             last = size
             e = FD_EPS * (1.0 + wn)
 
-            def jv(u, qm=qm, w=w, am=am):
+            def jv(u, qm=qm, w=w, am=am, e=e):
                 u = np.asarray(u).ravel()
                 nu = float(np.linalg.norm(u))
                 if nu == 0.0:

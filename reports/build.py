@@ -35,6 +35,7 @@ from redysim.harness.spec import CORE
 
 from . import figures as F
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
+from .implicit import implicit_section
 from .paper_tables import Ctx, paper_tables, printed_match
 from .precision_tables import sig_decimals
 from .refine import refine_section
@@ -693,7 +694,7 @@ def build_report(res: Results) -> Report:
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
                   [setup_section(ctx), paper, figs, beyond, robots_section(res),
-                   loops_section(res), refine_section(res)],
+                   loops_section(res), refine_section(res), implicit_section(res)],
                   provenance_line(here, what="report built with"))
 
 

@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from redysim.harness.spec import CORE, NATIVE  # noqa: E402
+from redysim.harness.spec import CORE, NATIVE, STEPPED  # noqa: E402
 
 from .content import Figure  # noqa: E402
 from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
@@ -411,7 +411,7 @@ def work_precision(ctx: Ctx) -> list[Figure]:
             keys = list(dict.fromkeys(part[colour_by]))
             for label, c in part.groupby(part.apply(_wp_label, axis=1)):
                 i = keys.index(c[colour_by].iloc[0])
-                key = "h" if c["integrator"].iloc[0] in ("rk4", NATIVE) else "rtol"
+                key = "h" if c["integrator"].iloc[0] in STEPPED else "rtol"
                 c = c.sort_values(key, ascending=False)
                 style = "--" if c["integrator"].iloc[0] == NATIVE else "-"
                 ax.loglog(c["cpu_s"], np.maximum(c["max_tip_err"], ERROR_FLOOR), style,

@@ -19,13 +19,16 @@ operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 li
 (:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
 robots and trees in the core and every engine (:mod:`reports.robots`); closed loops
 (:mod:`reports.loops`); model size against accuracy, the refinement studies of
-``sweeps/refine-*.toml`` with their advice checked (:mod:`harness.refine`); then the report
-(:mod:`reports.build`).
+``sweeps/refine-*.toml`` with their advice checked (:mod:`harness.refine`); the implicit
+integrator on RE-U50000-L1000 to 5 s beside ode45 to 0.05 s (:mod:`reports.implicit`); then
+the report (:mod:`reports.build`).
 
 Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
-``drift-ensemble.toml`` and ``work-precision-RE-U125-L1.toml`` (Table 6's GE-N on the larger
-chains takes hours), Table 5's huge chains as checkpointed long runs (:mod:`harness.longrun`:
-hours each, resumed from the last checkpoint when stopped), everything above at full size.
+``drift-ensemble.toml``, ``work-precision-RE-U125-L1.toml`` and
+``work-precision-RE-U750-L6.toml`` (Table 6's GE-N on the larger chains takes hours), the
+implicit integrator's ode45 reference to 0.48 s, Table 5's huge chains as checkpointed long
+runs (:mod:`harness.longrun`: hours each, resumed from the last checkpoint when stopped),
+everything above at full size.
 
 Everything resumes: a sweep skips the runs it has finished (harness.sweep), the error study the
 cells it has, and the other steps take seconds to minutes. Progress and each step's wall time are
@@ -57,10 +60,13 @@ TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6":
 # Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
 # Table 5's checkpointed long runs (hours each).
 FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
-               "work-precision-RE-U125-L1", "table6")
+               "work-precision-RE-U125-L1", "work-precision-RE-U750-L6", "table6")
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
+# the implicit integrator's long run is measured against ode45 to this horizon [s]
+IMPLICIT_REF_T = {QUICK: 0.05, FULL: 0.48}
+IMPLICIT_SAMPLE = 0.01  # s
 LOG_DIR = "logs"
 
 
@@ -135,6 +141,24 @@ class Reproduction:
                                  log=lambda msg: self.say(f"  {msg.strip()}"))
             except SystemExit as exc:  # a checkpoint made for another horizon or tolerance
                 raise RuntimeError(str(exc)) from None
+            done.append(longrun.summary(ck))
+        return " | ".join(done)
+
+    def implicit(self) -> str:
+        """The implicit midpoint on RE-U50000-L1000 to 5 s (about a minute), and the explicit
+        ode45 run it is measured against, to IMPLICIT_REF_T[mode] (35 ms a step at ~1e-5 s: 0.05
+        s is ~3 min, 0.48 s ~35 min): both checkpointed long runs sampled every 0.01 s."""
+        from redysim.harness import longrun
+
+        from .implicit import CASE
+
+        done = []
+        t_ref = IMPLICIT_REF_T[self.mode]
+        for kw, folder in ((dict(integrator="midpoint", t_end=5.0), f"{CASE}-midpoint"),
+                           (dict(t_end=t_ref), f"{CASE}-ode45-{t_ref:g}")):
+            ck = longrun.run(CASE, sample=IMPLICIT_SAMPLE, every_s=60.0,
+                             out=self.results / "longrun" / folder,
+                             log=lambda msg: self.say(f"  {msg.strip()}"), **kw)
             done.append(longrun.summary(ck))
         return " | ".join(done)
 
@@ -253,6 +277,7 @@ class Reproduction:
             p.add("robots and trees", self.robots)
             p.add("closed loops", self.loops)
             p.add("model size (refinement studies)", self.refine)
+            p.add("implicit integrator, 100,000 DOF", self.implicit)
         else:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
@@ -266,6 +291,7 @@ class Reproduction:
             p.add("robots and trees", self.robots)
             p.add("closed loops", lambda: self.loops(full=True))
             p.add("model size (refinement studies)", self.refine)
+            p.add("implicit integrator, 100,000 DOF", self.implicit)
         p.add("report", self.build)
         return p
 

@@ -133,7 +133,8 @@ class Results:
                 continue
             case, t, t_end = str(ck["case"]), float(ck["t"]), float(ck["t_end"])
             integrator = str(ck["integrator"]) if "integrator" in ck else "ode45"
-            run_id = f"{LONGRUN_DIR}:{case}"
+            # the folder names the run: a case's ode45 run is <case>, others <case>-<what>
+            run_id = f"{LONGRUN_DIR}:{path.parent.name}"
             samples = pd.DataFrame(ck["samples"], columns=list(LONGRUN_SAMPLE_FIELDS))
             self._longrun_samples[run_id] = samples
             done = t >= t_end * (1 - HORIZON_SLACK)
@@ -141,7 +142,10 @@ class Results:
                 "run_id": run_id, "case": case, "engine": CORE, "method": "rge-a",
                 "integrator": integrator, "rtol": float(ck["rtol"]), "atol": float(ck["atol"]),
                 "h": float(ck["fixed_h"]) if "fixed_h" in ck else 0.0, "t_end": t_end,
-                "sample": case_sample_interval(case),
+                "sample": float(ck["sample"]) if "sample" in ck else
+                case_sample_interval(case),
+                "newton": int(ck["newton"]) if "newton" in ck else 0,
+                "krylov": int(ck["krylov"]) if "krylov" in ck else 0,
                 "status": "ok" if done else PARTIAL,
                 "reason": "" if done else (f"checkpoint at t = {t:.4g} of {t_end:g} s: "
                                            f"python -m redysim.harness.longrun {case} resumes it"),
