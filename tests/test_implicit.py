@@ -1,0 +1,186 @@
+"""The implicit midpoint (redysim.implicit): its map against closed forms, its order, its error
+control, the chain's preconditioner against dense matrices built from their definitions, resuming
+a long run, and the names and refusals of the settings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from redysim import Body, Chain, Model, TreeJoint, mass_matrix, simulate, tip
+from redysim.errors import SettingsError
+from redysim.harness.longrun import run as longrun
+from redysim.harness.spec import RunSpec
+from redysim.implicit import MidpointSolver, TensionPreconditioner
+from redysim.integrate import ALIASES, IntegrationError, canonical, integrate
+
+
+def oscillator(_t, y):
+    return np.array([y[1], -y[0]])
+
+
+def pendulum(_t, y):
+    return np.array([y[1], -math.sin(y[0])])
+
+
+def test_on_the_oscillator_each_step_is_the_cayley_rotation():
+    """y'' = -y: the midpoint rule is the rotation by 2 atan(h / 2) per step, exactly (a closed
+    form: Hairer, Lubich, Wanner I.1), and it keeps q^2 + v^2."""
+    h, steps = 0.1, 200
+    ts = h * np.arange(steps + 1)
+    sol = integrate(oscillator, (0.0, ts[-1]), [1.0, 0.0], "midpoint-fixed", h=h, t_eval=ts)
+    angle = 2 * math.atan(h / 2) * np.arange(steps + 1)
+    np.testing.assert_allclose(sol.y[:, 0], np.cos(angle), atol=1e-12)
+    np.testing.assert_allclose(sol.y[:, 1], -np.sin(angle), atol=1e-12)
+    np.testing.assert_allclose((sol.y ** 2).sum(axis=1), 1.0, atol=1e-13)
+
+
+def test_fixed_steps_converge_at_second_order():
+    """The pendulum against SciPy's DOP853 at 1e-13 (another code)."""
+    from scipy.integrate import solve_ivp
+
+    y0, T = [1.2, 0.0], 3.0
+    ref = solve_ivp(pendulum, (0, T), y0, method="DOP853", rtol=1e-13, atol=1e-13).y[:, -1]
+    errs = [np.abs(integrate(pendulum, (0, T), y0, "midpoint-fixed", h=h, t_eval=[T]).y[-1]
+                   - ref).max() for h in (0.02, 0.01, 0.005)]
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    np.testing.assert_allclose(orders, 2.0, atol=0.1)
+
+
+def test_the_error_control_holds_the_local_error_and_tightens_with_rtol():
+    """Every accepted step's local error (the step from the same start by DOP853 at 1e-13) is
+    within a few times rtol on the scale ode45 uses, and a tighter rtol gives a smaller global
+    error with more steps."""
+    from scipy.integrate import solve_ivp
+
+    rtol, atol = 1e-6, 1e-8
+    s = MidpointSolver(pendulum, 0.0, [1.2, 0.0], 3.0, rtol=rtol, atol=atol)
+    worst = 0.0
+    while not s.done:
+        s.step()
+        exact = solve_ivp(pendulum, (s.t_old, s.t), s.y_old, method="DOP853", rtol=1e-13,
+                          atol=1e-13).y[:, -1]
+        scale = np.maximum(np.maximum(np.abs(s.y_old), np.abs(s.y)), atol / rtol)
+        worst = max(worst, float(np.max(np.abs(s.y - exact) / scale)))
+    assert s.counters.steps > 20 and worst < 3 * rtol, worst
+    prev_err, prev_steps = np.inf, 0
+    ref = solve_ivp(pendulum, (0, 3.0), [1.2, 0.0], method="DOP853", rtol=1e-13,
+                    atol=1e-13).y[:, -1]
+    for r in (1e-4, 1e-6, 1e-8):
+        sol = integrate(pendulum, (0, 3.0), [1.2, 0.0], "implicit", rtol=r, atol=r * 1e-2,
+                        t_eval=[3.0])
+        err = np.abs(sol.y[-1] - ref).max()
+        assert sol.status == 0 and err < prev_err and sol.steps > prev_steps
+        prev_err, prev_steps = err, sol.steps
+
+
+def hanging(links=6):
+    """A chain of U joints hanging straight down at rest: gravity along +X, the links' axis at
+    q = 0 (every joint axis, y and z, across the links)."""
+    chain = Chain.uniform(links, "U", mass=0.7, length=0.3, gravity=(9.81, 0.0, 0.0))
+    return chain, np.zeros(chain.n_dof)
+
+
+def test_the_tensions_of_a_hanging_chain_are_the_weight_below():
+    """Mean axial tension of link k at rest: g (the mass beyond it + m_k / 2)."""
+    chain, q = hanging()
+    pre = TensionPreconditioner(chain)
+    zero = np.zeros(chain.n_dof)
+    T = pre.tensions(q, zero, zero)
+    m = chain.mass
+    beyond = np.cumsum(m[::-1])[::-1] - m  # links k+1 .. n
+    np.testing.assert_allclose(T, 9.81 * (beyond + m / 2), rtol=1e-12)
+
+
+def test_the_preconditioner_is_m_plus_c_k_inverse_times_m():
+    """P^-1 r = (M + c K)^-1 M r with M the GIM and K = sum_k T_k l_k J_k^T (1 - d d^T) J_k built
+    densely from the hanging chain's geometry: every link along +X, every joint's axes y, z."""
+    chain, q = hanging()
+    n, nl = chain.n_dof, chain.n_links
+    h = 0.05
+    pre = TensionPreconditioner(chain)
+    zero = np.zeros(n)
+    pre.setup(q, zero, zero, h)
+    pre.at(q)
+    axes = np.array([[0, 1, 0], [0, 0, 1]] * nl, dtype=float)
+    beyond = np.cumsum(chain.mass[::-1])[::-1] - chain.mass
+    T = 9.81 * (beyond + chain.mass / 2)
+    d = np.array([1.0, 0.0, 0.0])
+    K = np.zeros((n, n))
+    for k in range(nl):
+        J = np.zeros((3, n))
+        J[:, :2 * (k + 1)] = axes[:2 * (k + 1)].T  # link k turns with every joint up to its own
+        K += T[k] * chain.length[k] * J.T @ (np.eye(3) - np.outer(d, d)) @ J
+    M = mass_matrix(chain, q)
+    r = np.random.default_rng(20261123).standard_normal(n)
+    want = np.linalg.solve(M + h * h / 4 * K, M @ r)
+    np.testing.assert_allclose(pre.apply(r), want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_chain_matches_the_explicit_reference():
+    """A 10-link chain released from horizontal, 1 s: the implicit midpoint's tip against DOP853
+    at 1e-11, and its energy change (delta_M) small; with and without error control."""
+    chain = Chain.uniform(10, "U", mass=0.5, length=0.2)
+    v0 = np.zeros(chain.n_dof)
+    v0[0] = 1.0
+    ref = simulate(chain, 1.0, v0=v0, integrator="dop853", rtol=1e-11, atol=1e-13, sample=0.1)
+
+    def tips(sim):
+        return np.array([tip(chain, q, v).position for q, v in zip(sim.q, sim.v, strict=True)])
+
+    for kw, bound in ((dict(integrator="implicit", rtol=1e-6, atol=1e-8), 1e-4),
+                      (dict(integrator="midpoint-fixed", h=1e-3), 1e-3)):
+        sim = simulate(chain, 1.0, v0=v0, sample=0.1, **kw)
+        err = np.linalg.norm(tips(sim) - tips(ref), axis=1).max()
+        assert sim.status == 0 and err < bound, (kw, err)
+        assert np.abs(sim.delta_M).max() < 1e-2 * abs(sim.E0) / chain.total_mass + 1e-3
+
+
+def test_a_stopped_long_run_resumes_to_the_same_bits(tmp_path):
+    """harness.longrun with the implicit midpoint: stopped after a checkpoint, resumed, it ends
+    where the uninterrupted run ends (the solver's state is t, y, f and the next step)."""
+    kw = dict(t_end=0.05, integrator="implicit", sample=0.01, log=lambda m: None)
+    whole = longrun("RE-U125-L1", every_s=1e9, out=tmp_path / "whole", **kw)
+    out = tmp_path / "stopped"
+    part = longrun("RE-U125-L1", every_s=0.0, stop_after_s=0.0, out=out, **kw)
+    assert 0 < float(part["t"]) < 0.05 and str(part["status"]) == "stopped"
+    resumed = longrun("RE-U125-L1", every_s=1e9, out=out, **kw)
+    assert np.array_equal(resumed["y"], whole["y"])
+    assert np.array_equal(resumed["samples"], whole["samples"])
+    assert int(resumed["steps"]) == int(whole["steps"])
+
+
+def test_names_and_refusals():
+    assert ALIASES["implicit"] == "midpoint" and canonical("implicit") == "midpoint"
+    case = RunSpec("RE-U125-L1", integrator="implicit").resolved(_case("RE-U125-L1"))
+    assert case.integrator == "midpoint"
+    chain = Chain.uniform(2, "U", mass=1.0)
+    with pytest.raises(SettingsError, match="h"):
+        simulate(chain, 0.1, integrator="midpoint", h=1e-3)
+    with pytest.raises(SettingsError, match="h"):
+        simulate(chain, 0.1, integrator="midpoint-fixed")
+    with pytest.raises(ValueError, match="second-order"):
+        integrate(lambda t, y: -y, (0, 1), [1.0, 0.5], "implicit")
+    free = Model.build([Body("b", 1.0, (0.0, 0.0, 0.0), ((0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))],
+                       [TreeJoint("base", "free")], [-1], name="free body")
+    with pytest.raises(SettingsError, match="quaternion"):
+        simulate(free, 0.1, integrator="implicit")
+
+
+def test_a_newton_failure_at_a_fixed_step_says_so():
+    def blows_up(t, y):
+        return np.array([y[1], -y[0] if t < 0.5 else math.nan])
+
+    sol = integrate(blows_up, (0, 1), [1.0, 0.0], "midpoint-fixed", h=0.1)
+    assert sol.status == -1 and "Newton failed" in sol.message and "smaller h" in sol.message
+    with pytest.raises(IntegrationError):
+        s = MidpointSolver(blows_up, 0.0, [1.0, 0.0], 1.0, h=0.1)
+        while not s.done:
+            s.step()
+
+
+def _case(name):
+    from redysim import load_case
+    return load_case(name)
