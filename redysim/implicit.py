@@ -34,9 +34,10 @@ v1), which is the next step's a0. (The trapezoidal difference alone, tried first
 f'f'f term: on a pendulum its estimate of v1's error was 100x low.) Like Radau5's (Hairer
 and Wanner, IV.8), the raw estimate is filtered by the preconditioner, e <- P^-1 e: a wave the
 step does not resolve then counts by its amplitude (the phase the step gets wrong), not by its
-acceleration times h^2. The error is ode45's max-norm, |e_i| / max(|y0_i|, |y1_i|, atol / rtol) <= rtol; the next step is
-h min(5, max(0.2, 0.8 (rtol / err)^(1/3))). A step whose Newton iteration fails is retried at
-h / 4. ``midpoint-fixed`` steps at a fixed h (no estimate), landing on the sample times.
+acceleration times h^2. The error is ode45's max-norm, |e_i| / max(|y0_i|, |y1_i|, atol /
+rtol) <= rtol; the next step is h min(5, max(0.2, 0.8 (rtol / err)^(1/3))). A step whose
+Newton iteration fails is retried at h / 4. ``midpoint-fixed`` steps at a fixed h (no
+estimate), landing on the sample times.
 
 References: E. Hairer, C. Lubich, G. Wanner, "Geometric Numerical Integration", 2nd ed. (2006),
 I.1 and VI.3 (the implicit midpoint rule); E. Hairer, G. Wanner, "Solving Ordinary Differential
