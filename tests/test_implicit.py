@@ -185,3 +185,32 @@ def test_a_newton_failure_at_a_fixed_step_says_so():
 def _case(name):
     from redysim import load_case
     return load_case(name)
+
+
+@pytest.mark.parametrize("spec", [
+    RunSpec("RE-U125-L1", integrator="implicit", t_end=0.02, sample=0.01),
+    RunSpec("RE-U125-L1", integrator="midpoint-fixed", h=1e-3, t_end=0.02, sample=0.01),
+])
+def test_a_run_spec_steps_with_it_and_meets_the_reference(spec, tmp_path, monkeypatch):
+    """Through the harness, as sweeps run it: the tip within what the settings give (the
+    reference solution is DOP853 at 1e-10)."""
+    from redysim.harness.reference import ensure_references
+    from redysim.harness.run import execute
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path))
+    ensure_references([spec])
+    r = execute(spec)
+    assert r.summary["status"] == "ok", r.summary["reason"]
+    assert r.summary["integrator"] in ("midpoint", "midpoint-fixed") and r.summary["steps"] > 0
+    assert r.summary["max_tip_err"] < 1e-6, r.summary["max_tip_err"]
+
+
+def test_the_command_line_takes_it_and_refuses_a_step_for_the_adaptive_one(capsys):
+    from redysim.harness.cli import main
+
+    assert main(["simulate", "RE-U125-L1", "--integrator", "implicit", "--t-end", "0.01"]) == 0
+    assert "midpoint" in capsys.readouterr().out
+    assert main(["simulate", "RE-U125-L1", "--integrator", "midpoint", "--h", "1e-3",
+                 "--t-end", "0.01"]) == 2
+    err = capsys.readouterr().err
+    assert "--h" in err and "midpoint" in err
