@@ -74,7 +74,9 @@ def implicit_section(res: Results) -> Section:
     caption = ("(a)-(c) tip X, Y, Z against time (the paper's Fig. 15, which stops at 0.75 s); "
                "(d) the distance between the two runs' tips at the times both sampled; (e) "
                "|delta_M(t)|, the change of energy per unit mass (Fig. 17b). Solid: implicit "
-               "midpoint; dashed: ode45 (to the horizon its run reached).")
+               "midpoint at the case's tolerances; dashed: ode45 (to the horizon its run "
+               "reached). (f) every implicit run in the table: CPU to 5 s against its largest "
+               "tip distance from the ode45 run.")
     implicit = runs[runs["integrator"].isin(IMPLICIT)] if len(runs) else runs
     if implicit.empty:
         table.not_run = HOW
@@ -110,11 +112,12 @@ def implicit_section(res: Results) -> Section:
     # the figure: the run at the case's tolerances (folder <case>-midpoint) when there is one
     main = implicit[implicit["run_id"] == f"{LONGRUN_DIR}:{CASE}-midpoint"]
     main = main.iloc[0] if len(main) else implicit.iloc[0]
-    sec.items += [table, _figure_of(res, main, ref, ref_s, fig_id, title, caption)]
+    sec.items += [table, _figure_of(res, main, implicit, ref_s, fig_id, title, caption,
+                                    ref=ref)]
     return sec
 
 
-def _figure_of(res, imp, ref, ref_s, fig_id, title, caption) -> Figure:
+def _figure_of(res, imp, implicit, ref_s, fig_id, title, caption, *, ref) -> Figure:
     s = res.samples(imp["run_id"])
     fig, axes = new_figure(3, 2, footer=provenance_line(what="results/longrun"))
     label = _settings(imp)
@@ -138,5 +141,18 @@ def _figure_of(res, imp, ref, ref_s, fig_id, title, caption) -> Figure:
                          label=_settings(ref))
     axes[4].set(xlabel="time [s]", ylabel="$|\\delta_M(t)|$ [J/kg]", title="(e) energy drift")
     axes[4].legend()
-    axes[5].axis("off")
+    # (f) every implicit run: its CPU against its largest tip distance from ode45
+    for _, r in implicit.iterrows():
+        d = tip_distance(res.samples(r["run_id"]), ref_s) if ref_s is not None else None
+        if d is not None and len(d) > 1:
+            axes[5].loglog(float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16), "o")
+            axes[5].annotate(_settings(r).replace("midpoint", "").strip(),
+                             (float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16)),
+                             fontsize=7, xytext=(3, 3), textcoords="offset points")
+    if ref is not None:
+        axes[5].set(xlabel="CPU to 5 s [s]",
+                    ylabel=f"max |tip - tip_ode45| to {float(ref['t_reached']):.3g} s [m]",
+                    title="(f) implicit runs: work against error")
+    else:
+        axes[5].axis("off")
     return _figure(fig_id, "tip-path", title, caption, fig)
