@@ -208,8 +208,7 @@ class MidpointSolver:
         self.newton = self.krylov = 0
         self._y = np.empty(2 * self.n)
         if state is not None:
-            self.t, self.y, self.f = state.t, state.y.copy(), state.f.copy()
-            self.h_next, self.counters = state.h, state.counters
+            state.resume(self)
         else:
             self.counters = Counters()
             self.t, self.y = float(t0), y0

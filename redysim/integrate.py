@@ -280,6 +280,11 @@ class SolverState:
     h: float
     counters: Counters = field(default_factory=Counters)
 
+    def resume(self, solver) -> None:
+        """Set ``solver``'s time, state, derivative, next step and counters from this state."""
+        solver.t, solver.y, solver.f = self.t, self.y.copy(), self.f.copy()
+        solver.h_next, solver.counters = self.h, self.counters
+
 
 class Solver:
     """One of our Runge-Kutta schemes, advanced one accepted step at a time.
@@ -322,8 +327,7 @@ class Solver:
         self._err3 = np.empty(self.n)
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
         if state is not None:
-            self.t, self.y, self.f = state.t, state.y.copy(), state.f.copy()
-            self.h_next, self.counters = state.h, state.counters
+            state.resume(self)
         else:
             self.counters = Counters()
             self.t, self.y = float(t0), y0
