@@ -66,7 +66,6 @@ from .integrate import (
     _hermite,
 )
 
-ADAPTIVE_NAME, FIXED_NAME = "midpoint", "midpoint-fixed"
 ERROR_ORDER = 2           # the local error is O(h^3): the controller's exponent is 1/3
 MIN_SHRINK = 0.2          # an accepted or rejected step's next size is at least 0.2 h
 NEWTON_FAIL_SHRINK = 0.25  # a step whose Newton iteration fails is retried at h / 4
