@@ -53,20 +53,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .integrate import (
-    FINISH_SLACK,
-    HMAX_FRACTION,
-    HMIN_EPS,
-    MAX_GROWTH,
-    SAFETY,
-    SAMPLE_EPS,
-    Counters,
-    IntegrationError,
-    SolverState,
-    _hermite,
-)
+from . import _steps as steps  # ode45's controller constants, counters, state, Hermite
+from ._steps import Counters, IntegrationError, SolverState
 
 ERROR_ORDER = 2           # the local error is O(h^3): the controller's exponent is 1/3
+POWER = 1.0 / (ERROR_ORDER + 1)
 MIN_SHRINK = 0.2          # an accepted or rejected step's next size is at least 0.2 h
 NEWTON_FAIL_SHRINK = 0.25  # a step whose Newton iteration fails is retried at h / 4
 MAX_NEWTON = 20
@@ -196,7 +187,7 @@ class MidpointSolver:
             if not (rtol > 0 and atol > 0):
                 raise ValueError(f"need rtol > 0 and atol > 0, got rtol={rtol!r}, atol={atol!r}")
             self.rtol, self.atol = float(rtol), float(atol)
-            self.hmax = float(hmax) if hmax else HMAX_FRACTION * span
+            self.hmax = float(hmax) if hmax else steps.HMAX_FRACTION * span
             self.newton_tol = newton_tol or min(NEWTON_TOL, 1e-2 * self.rtol)
             self.floor_tol = min(FLOOR_TOL, 0.1 * self.rtol)
         else:
@@ -247,10 +238,10 @@ class MidpointSolver:
         """ode45's rule at this scheme's order: min(hmax, span), cut to 1/rh."""
         absh = min(self.hmax, self.t_end - self.t)
         scale = np.maximum(np.abs(self.y), self.atol / self.rtol)
-        rh = np.max(np.abs(self.f) / scale) / (SAFETY * self.rtol ** (1.0 / (ERROR_ORDER + 1)))
+        rh = np.max(np.abs(self.f) / scale) / (steps.SAFETY * self.rtol ** POWER)
         if absh * rh > 1:
             absh = 1.0 / rh
-        return max(absh, HMIN_EPS * float(np.spacing(abs(self.t))))
+        return max(absh, steps.HMIN_EPS * float(np.spacing(abs(self.t))))
 
     # ----------------------------------------------------------------------- one step
     def _solve(self, t, q0, v0, a0, h) -> np.ndarray:
@@ -319,10 +310,10 @@ class MidpointSolver:
         """One accepted step (retrying rejected ones); a fixed step stops at ``t_stop``."""
         t = self.t
         t_stop = self.t_end if t_stop is None else min(t_stop, self.t_end)
-        hmin = HMIN_EPS * float(np.spacing(abs(t)))
+        hmin = steps.HMIN_EPS * float(np.spacing(abs(t)))
         if not self.adaptive:
             h, t_new = self.h_next, t + self.h_next
-            if t_stop - t_new <= SAMPLE_EPS * max(1.0, abs(t_stop)):  # land on the sample time
+            if t_stop - t_new <= steps.SAMPLE_EPS * max(1.0, abs(t_stop)):  # land on it
                 h, t_new = t_stop - t, t_stop
             try:
                 q1, v1, a1, _ = self._attempt(h)
@@ -334,7 +325,7 @@ class MidpointSolver:
         absh = min(self.hmax, max(hmin, self.h_next))
         nofailed = True
         while True:
-            done = FINISH_SLACK * absh >= self.t_end - t
+            done = steps.FINISH_SLACK * absh >= self.t_end - t
             h = self.t_end - t if done else absh
             try:
                 q1, v1, a1, err = self._attempt(h)
@@ -342,7 +333,7 @@ class MidpointSolver:
                 if ok and err <= self.rtol:
                     break
                 shrink = NEWTON_FAIL_SHRINK if not ok else \
-                    max(MIN_SHRINK, SAFETY * (self.rtol / err) ** (1.0 / (ERROR_ORDER + 1)))
+                    max(MIN_SHRINK, steps.SAFETY * (self.rtol / err) ** POWER)
             except NewtonFailed:
                 shrink = NEWTON_FAIL_SHRINK
             self.counters.rejected += 1
@@ -351,8 +342,8 @@ class MidpointSolver:
                                        f"t = {t:.6g}: tolerances cannot be met")
             absh = max(hmin, min(absh, h) * min(shrink, 0.5 if not nofailed else 1.0))
             nofailed = False
-        grow = MAX_GROWTH if err == 0.0 else \
-            min(MAX_GROWTH, SAFETY * (self.rtol / err) ** (1.0 / (ERROR_ORDER + 1)))
+        grow = steps.MAX_GROWTH if err == 0.0 else \
+            min(steps.MAX_GROWTH, steps.SAFETY * (self.rtol / err) ** POWER)
         self.h_next = h * (grow if nofailed else min(grow, 1.0))
         self._accept(self.t_end if done else t + h, q1, v1, a1)
 
@@ -367,4 +358,4 @@ class MidpointSolver:
         """y at times ``ts`` inside the last step: cubic Hermite on (q, v) with (v, a)."""
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         h = self.t - self.t_old
-        return _hermite(self.y_old, self.f_old, self.y, self.f, h, (ts - self.t_old) / h)
+        return steps.hermite(self.y_old, self.f_old, self.y, self.f, h, (ts - self.t_old) / h)

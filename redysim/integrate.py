@@ -42,21 +42,25 @@ import functools
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from ._steps import (  # noqa: F401 -- the shared stepping pieces, importable from here too
+    FINISH_SLACK,
+    FIRST_REJECT_MIN,
+    HMAX_FRACTION,
+    HMIN_EPS,
+    LATER_REJECT,
+    MAX_GROWTH,
+    SAFETY,
+    SAMPLE_EPS,
+    Counters,
+    IntegrationError,
+    SolverState,
+)
+from ._steps import hermite as _hermite
 from .errors import FieldError, SettingsError
-
-# --------------------------------------------------------------------------- controller constants
-SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
-MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
-FIRST_REJECT_MIN = 0.1  # ode45: a first rejection shrinks h by no more than 10x
-LATER_REJECT = 0.5      # ode45: later rejections of the same step halve h
-HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
-HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
-FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
-SAMPLE_EPS = 1e-12      # relative slack when matching sample times
 
 # --------------------------------------------------------------------------- settings' ranges
 RTOL_MIN = 100 * float(np.finfo(float).eps)  # ode45 raises a smaller rtol to this (MATLAB)
@@ -258,34 +262,7 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
                          f"{MAX_FIXED_STEPS:,}")
 
 
-class IntegrationError(RuntimeError):
-    """The integration cannot go on (step below hmin, a non-finite state)."""
-
-
 # --------------------------------------------------------------------------- the solver
-@dataclass
-class Counters:
-    steps: int = 0
-    rejected: int = 0
-    nfev: int = 0
-
-
-@dataclass
-class SolverState:
-    """Everything needed to resume: time, state, its derivative, the next step, counters."""
-
-    t: float
-    y: np.ndarray
-    f: np.ndarray
-    h: float
-    counters: Counters = field(default_factory=Counters)
-
-    def resume(self, solver) -> None:
-        """Set ``solver``'s time, state, derivative, next step and counters from this state."""
-        solver.t, solver.y, solver.f = self.t, self.y.copy(), self.f.copy()
-        solver.h_next, solver.counters = self.h, self.counters
-
-
 class Solver:
     """One of our Runge-Kutta schemes, advanced one accepted step at a time.
 
@@ -498,15 +475,6 @@ class Solver:
 
 _NO_WEIGHTS = np.empty(0)
 _NTRP45_ROWS = NTRP45_BI.tolist()
-
-
-def _hermite(y0, f0, y1, f1, h, s):
-    s = s[:, None]
-    h00 = (1 + 2 * s) * (1 - s) ** 2
-    h10 = s * (1 - s) ** 2
-    h01 = s * s * (3 - 2 * s)
-    h11 = s * s * (s - 1)
-    return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
 
 
 # --------------------------------------------------------------------------- compiled stepping

@@ -1,0 +1,60 @@
+"""What every stepper shares (ours, the implicit midpoint's): the step controller's constants,
+the counters, the resumable state, the error they raise and cubic Hermite interpolation.
+
+A module of its own so that :mod:`redysim.integrate` and :mod:`redysim.implicit` both build on
+it without importing each other (``tests/test_layout.py`` refuses import cycles); everything here
+is also importable from :mod:`redysim.integrate`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# --------------------------------------------------------------------------- controller constants
+SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
+MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
+FIRST_REJECT_MIN = 0.1  # ode45: a first rejection shrinks h by no more than 10x
+LATER_REJECT = 0.5      # ode45: later rejections of the same step halve h
+HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
+HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
+FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
+SAMPLE_EPS = 1e-12      # relative slack when matching sample times
+
+
+class IntegrationError(RuntimeError):
+    """The integration cannot go on (step below hmin, a non-finite state)."""
+
+
+@dataclass
+class Counters:
+    steps: int = 0
+    rejected: int = 0
+    nfev: int = 0
+
+
+@dataclass
+class SolverState:
+    """Everything needed to resume: time, state, its derivative, the next step, counters."""
+
+    t: float
+    y: np.ndarray
+    f: np.ndarray
+    h: float
+    counters: Counters = field(default_factory=Counters)
+
+    def resume(self, solver) -> None:
+        """Set ``solver``'s time, state, derivative, next step and counters from this state."""
+        solver.t, solver.y, solver.f = self.t, self.y.copy(), self.f.copy()
+        solver.h_next, solver.counters = self.h, self.counters
+
+
+def hermite(y0, f0, y1, f1, h, s):
+    """y at the fractions ``s`` (m,) of the step [y0, y1] of size h with slopes f0, f1 -> (m, n)."""
+    s = s[:, None]
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s * s * (3 - 2 * s)
+    h11 = s * s * (s - 1)
+    return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
