@@ -362,3 +362,19 @@ class MidpointSolver:
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         h = self.t - self.t_old
         return steps.hermite(self.y_old, self.f_old, self.y, self.f, h, (ts - self.t_old) / h)
+
+
+def compile_kernels() -> None:
+    """Load (or compile) the kernels an implicit step calls beyond qdd: inverse dynamics for the
+    tensions and the spatial forward dynamics for the preconditioner, by one application on a
+    one-link chain (its types are every chain's), so that a timed run does not include it. Not
+    :func:`redysim.integrate.compile_kernels`: the implicit step calls none of the Runge-Kutta
+    kernels, whose loading alone is ~135 MiB of resident memory."""
+    from .chain import Chain
+
+    chain = Chain.uniform(1, "U", mass=1.0)
+    pre = TensionPreconditioner(chain)
+    zero = np.zeros(chain.n_dof)
+    pre.setup(zero, zero, zero, 1e-3)
+    pre.at(zero)
+    pre.apply(zero)

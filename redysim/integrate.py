@@ -478,6 +478,7 @@ _NTRP45_ROWS = NTRP45_BI.tolist()
 
 
 # --------------------------------------------------------------------------- compiled stepping
+DENSE_DOUBLES = 1 << 20  # advance interpolates at most this many values (8 MiB) at a time
 CHUNK_S = 0.25  # s of wall time a CompiledSolver.step call aims at (it adapts max_steps)
 MAX_CHUNK_STEPS = 100_000
 
@@ -692,13 +693,17 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
             j = i
             while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
                 j += 1
-            if j > i:
-                ys = solver.dense(np.minimum(t_eval[i:j], solver.t))
-                ys[t_eval[i:j] >= solver.t] = solver.y  # the step's end: no interpolation
-                for t, y in zip(t_eval[i:j], ys, strict=True):
+            # the step's samples, interpolated a few at a time: a long implicit step holds
+            # ~50 samples, and at 200,000 states all at once were 80 MB an array
+            chunk = max(1, DENSE_DOUBLES // max(1, np.size(solver.y)))
+            for k in range(i, j, chunk):
+                ts = t_eval[k:min(j, k + chunk)]
+                ys = solver.dense(np.minimum(ts, solver.t))
+                ys[ts >= solver.t] = solver.y  # the step's end: no interpolation
+                for t, y in zip(ts, ys, strict=True):
                     if on_sample and (msg := on_sample(float(t), y)):
                         return 1, msg
-                i = j
+            i = j
             # after the step's samples: a checkpoint taken here holds every sample up to t
             if on_step and (msg := on_step(solver)):
                 return 1, msg
