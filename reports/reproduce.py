@@ -42,6 +42,7 @@ import argparse
 import contextlib
 import datetime as _dt
 import os
+import subprocess
 import sys
 import time
 import traceback
@@ -127,6 +128,33 @@ class Reproduction:
             ": " + "; ".join(f"{r.label}: {str(r.reason)[:80]}" for r in bad.itertuples())
             if len(bad) else "")
 
+    def _longrun(self, case: str, out: Path | None = None, **flags) -> dict:
+        """One checkpointed long run (:mod:`harness.longrun`) in a process of its own, so that the
+        peak RSS it records is its own, not this process's after every earlier step; its output
+        goes to the log line by line. Returns its final checkpoint."""
+        from redysim import load_case
+        from redysim.harness import longrun
+
+        argv = [sys.executable, "-m", "redysim.harness.longrun", case]
+        for key, value in flags.items():
+            argv += [f"--{key.replace('_', '-')}", str(value)]
+        if out is not None:
+            argv += ["--out", str(out)]
+        tail: list[str] = []
+        with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              text=True) as proc:
+            for line in proc.stdout:
+                self.say(f"  {line.rstrip()}")
+                tail = (tail + [line.rstrip()])[-5:]
+        if proc.returncode != 0:
+            raise RuntimeError(f"longrun {case} exited {proc.returncode}: " + " | ".join(tail))
+        integrator = longrun.canonical(flags.get("integrator", "ode45"))
+        path = (out or longrun.out_dir_for(load_case(case).name, integrator)) / longrun.CHECKPOINT
+        ck = longrun.load_checkpoint(path, log=self.say)
+        if ck is None:
+            raise RuntimeError(f"longrun {case}: no readable checkpoint at {path}")
+        return ck
+
     def long_runs(self) -> str:
         """Table 5: each huge chain to the paper's horizon as a checkpointed long run
         (:mod:`harness.longrun`, under the results folder): stopped at any point, it resumes
@@ -136,12 +164,7 @@ class Reproduction:
 
         done = []
         for row in load_published()["table5"]["rows"]:  # one at a time: each holds one core
-            try:
-                ck = longrun.run(row["case"], t_end=row["t_end"],
-                                 log=lambda msg: self.say(f"  {msg.strip()}"))
-            except SystemExit as exc:  # a checkpoint made for another horizon or tolerance
-                raise RuntimeError(str(exc)) from None
-            done.append(longrun.summary(ck))
+            done.append(longrun.summary(self._longrun(row["case"], t_end=row["t_end"])))
         return " | ".join(done)
 
     def implicit(self) -> str:
@@ -156,9 +179,8 @@ class Reproduction:
         t_ref = IMPLICIT_REF_T[self.mode]
         for kw, folder in ((dict(integrator="midpoint", t_end=5.0), f"{CASE}-midpoint"),
                            (dict(t_end=t_ref), f"{CASE}-ode45-{t_ref:g}")):
-            ck = longrun.run(CASE, sample=IMPLICIT_SAMPLE, every_s=60.0,
-                             out=self.results / "longrun" / folder,
-                             log=lambda msg: self.say(f"  {msg.strip()}"), **kw)
+            ck = self._longrun(CASE, out=self.results / "longrun" / folder,
+                               sample=IMPLICIT_SAMPLE, every=60.0, **kw)
             done.append(longrun.summary(ck))
         return " | ".join(done)
 

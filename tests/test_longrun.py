@@ -159,3 +159,18 @@ def test_a_missing_or_malformed_case_and_a_failed_run_exit_nonzero(tmp_path, cap
                  str(tmp_path / "b")]) == 1
     out = capsys.readouterr().out  # the compiled steps see qdd go non-finite in a stage
     assert "FAILED: qdd not finite in a stage of the step from t = " in out
+
+
+def test_reproduce_runs_a_long_run_in_a_process_of_its_own(tmp_path, monkeypatch):
+    """So that the peak RSS the checkpoint records is the run's, not the reproduction's after
+    its other steps (1,513 MiB once, for a run of ~415); a failing run raises with its output."""
+    from redysim.reports.reproduce import Reproduction
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path))
+    rep = Reproduction(tmp_path, tmp_path / "out", 1, "quick")
+    rep.say = lambda msg: None
+    ck = rep._longrun(CASE, t_end=0.02, integrator="implicit", sample=0.01)
+    assert float(ck["t"]) == 0.02 and str(ck["integrator"]) == "midpoint"
+    assert (tmp_path / "longrun" / f"{CASE}-midpoint" / CHECKPOINT).exists()
+    with pytest.raises(RuntimeError, match="exited 2"):
+        rep._longrun(CASE, t_end=0.02, rtol=-1)
