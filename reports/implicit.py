@@ -59,7 +59,7 @@ def implicit_section(res: Results) -> Section:
     sec.intro.append(
         "The explicit integrators' steps on this chain are bound by the transverse waves the "
         "centrifugal tension carries (a 2 cm link crossed in ~3e-5 s: ode45 steps ~1e-5 s, ~35 "
-        "ms each, ~11 h for 5 s). The implicit midpoint rule (integrator midpoint, alias "
+        "ms each, ~10 h for 5 s). The implicit midpoint rule (integrator midpoint, alias "
         "implicit; redysim.implicit) solves each step by Newton-Krylov in O(n), preconditioned "
         "by the chain's tension stiffness, with an error estimate filtered so that a wave the "
         "step does not resolve counts by its amplitude. Below, its run to 5 s beside the "
