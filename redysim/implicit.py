@@ -285,7 +285,7 @@ class MidpointSolver:
             def count(_residual):
                 self.krylov += 1
 
-            du, info = gmres(LinearOperator((n, n), matvec=jv), -pr, rtol=GMRES_RTOL, atol=0.0,
+            du, _ = gmres(LinearOperator((n, n), matvec=jv), -pr, rtol=GMRES_RTOL, atol=0.0,
                              restart=GMRES_RESTART, maxiter=GMRES_MAXITER, callback=count,
                              callback_type="pr_norm")
             if not np.isfinite(du).all():
@@ -367,9 +367,9 @@ class MidpointSolver:
 def compile_kernels() -> None:
     """Load (or compile) the kernels an implicit step calls beyond qdd: inverse dynamics for the
     tensions and the spatial forward dynamics for the preconditioner, by one application on a
-    one-link chain (its types are every chain's), so that a timed run does not include it. Not
-    :func:`redysim.integrate.compile_kernels`: the implicit step calls none of the Runge-Kutta
-    kernels, whose loading alone is ~135 MiB of resident memory."""
+    one-link chain (its types are every chain's), so that a timed run does not include it. In
+    place of :func:`redysim.integrate.compile_kernels`: the implicit step calls none of the
+    Runge-Kutta kernels."""
     from .chain import Chain
 
     chain = Chain.uniform(1, "U", mass=1.0)

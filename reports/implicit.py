@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from redysim.integrate import IMPLICIT
+from redysim.integrate import FIXED_STEP, IMPLICIT
 
 from .content import INFO, NOT_RUN, Figure, Row, Section, Table
 from .figures import _figure, missing, new_figure
@@ -49,7 +49,7 @@ def tip_distance(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
 
 
 def _settings(r) -> str:
-    if r["integrator"] in ("rk4", "midpoint-fixed"):
+    if r["integrator"] in FIXED_STEP:
         return f"{r['integrator']} h {float(r['h']):g}"
     return f"{r['integrator']} rtol {float(r['rtol']):g} atol {float(r['atol']):g}"
 
