@@ -4,7 +4,8 @@
 :func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
 trees"). Any of :data:`redysim.integrate.INTEGRATORS` steps it; ours (ode45, dop853, rk4) in
-compiled code (:class:`redysim.integrate.CompiledSolver`) when there is no free joint. A
+compiled code (:class:`redysim.integrate.CompiledSolver`) when there is no free joint, and the
+implicit midpoint (:mod:`redysim.implicit`) with a chain's tension preconditioner. A
 quaternion integrated so drifts
 off the unit sphere by the integrator's error; after every accepted step it is projected back
 (divided by its norm; so are the samples interpolated between steps), the largest norm error
