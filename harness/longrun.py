@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import resource
 import sys
 import time
 import zipfile
@@ -57,7 +56,7 @@ from redysim.integrate import (
 )
 
 from .cli import positive
-from .provenance import code_digest
+from .provenance import code_digest, peak_rss_mib, reset_peak_rss
 from .reference import results_dir
 from .store import write_npz_atomic
 
@@ -174,6 +173,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
         stop_after_s: float = math.inf, log=print, names: dict | None = None) -> dict:
     """Run (or resume) ``case_name`` to ``t_end``; return the final checkpoint. Raises
     :class:`LongrunError` (or a case or settings error) when it cannot start or resume."""
+    reset_peak_rss()  # the run's own peak, not its caller's before it
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
     if case.tip_force is not None:
@@ -240,7 +240,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
         return {**now, "E0": E0, "mass": chain.total_mass,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,
-                "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_rss_mib": peak_rss_mib(),
                 # the implicit midpoint's Newton and GMRES iterations (this session's)
                 "newton": getattr(solver, "newton", 0), "krylov": getattr(solver, "krylov", 0)}
 

@@ -65,6 +65,37 @@ def openblas_coretypes() -> list[str]:
     return [name for name, needs in OPENBLAS_CORETYPES if flags.issuperset(needs)]
 
 
+PROC_STATUS, PROC_CLEAR_REFS = Path("/proc/self/status"), Path("/proc/self/clear_refs")
+
+
+def reset_peak_rss() -> bool:
+    """Start this process's peak resident set size afresh from its current size (Linux 4.0+:
+    ``5`` written to /proc/self/clear_refs resets VmHWM), so that a run measures its own peak
+    and not that of the process it was forked from or of the runs before it in a worker.
+    False where that is not possible."""
+    try:
+        PROC_CLEAR_REFS.write_text("5")
+        return True
+    except OSError:
+        return False
+
+
+def peak_rss_mib() -> float:
+    """Peak resident set size of this process [MiB]: Linux's VmHWM (since the last
+    :func:`reset_peak_rss`; a new program starts its own), else ``ru_maxrss``, which a child
+    inherits from its parent across fork and exec (a long run started by the reproduction
+    recorded the reproduction's 1,522 MiB)."""
+    try:
+        for line in PROC_STATUS.read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 @functools.cache
 def code_digest() -> str:
     """SHA-256 of the code a result depends on: every ``.py`` of the core (``redysim/``: the

@@ -21,7 +21,6 @@ against it.
 from __future__ import annotations
 
 import math
-import resource
 import time
 import traceback
 from dataclasses import dataclass
@@ -39,7 +38,7 @@ from redysim.integrate import (
     sample_times,
 )
 
-from .provenance import provenance
+from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
 from .spec import CORE, NATIVE, RunSpec
 
@@ -63,11 +62,6 @@ class RunResult:
 
 class RunFailed(Exception):
     """Raised inside a run to stop it with a reason (caught by :func:`execute`)."""
-
-
-def peak_rss_mib() -> float:
-    """Peak resident set size of this process so far [MiB] (Linux reports KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def run_case(spec: RunSpec, case):
@@ -169,6 +163,7 @@ def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
     """
     import pandas as pd
 
+    reset_peak_rss()  # this run's peak, not the worker's before it
     row = {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "ok",
            "reason": "", "steps": 0, "rejected": 0, "nfev": 0, "cpu_s": math.nan,
            "wall_s": math.nan, "jit_s": math.nan, "build_s": math.nan, "peak_rss_mib": math.nan,

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -174,3 +175,21 @@ def test_reproduce_runs_a_long_run_in_a_process_of_its_own(tmp_path, monkeypatch
     assert (tmp_path / "longrun" / f"{CASE}-midpoint" / CHECKPOINT).exists()
     with pytest.raises(RuntimeError, match="exited 2"):
         rep._longrun(CASE, t_end=0.02, rtol=-1)
+
+
+def test_a_long_run_records_its_own_peak_rss_not_its_parents(tmp_path):
+    """ru_maxrss passes from parent to child across fork and exec: a long run the reproduction
+    started recorded the reproduction's 1,522 MiB. VmHWM is the child's own (Linux)."""
+    from redysim.harness.provenance import peak_rss_mib
+
+    if not Path("/proc/self/status").exists():
+        pytest.skip("no /proc: peak RSS is ru_maxrss here")
+    ballast = np.ones(96 * 2 ** 20)  # 768 MiB of touched pages in this, the parent
+    parent = peak_rss_mib()
+    assert parent > 768
+    out = tmp_path / "run"
+    subprocess.run([sys.executable, "-m", "redysim.harness.longrun", CASE, "--t-end", "0.01",
+                    "--out", str(out)], check=True, capture_output=True)
+    del ballast
+    child = float(load_checkpoint(out / CHECKPOINT)["peak_rss_mib"])
+    assert child < parent - 500, (child, parent)
