@@ -30,7 +30,7 @@ Implementation notes:
   independent divisions. The factors are the axis-by-axis ones (the same formulas, rearranged),
   and the update is still two symmetric rank-1 updates of the upper triangles. Axis by axis,
   the pass waits for a column product, a dot product, a division and a rank-1 update per axis;
-  this cut its time by 15-19 % at 2,000-100,000 DOF (docs/design.md, "Performance notes").
+  this cut its time by 15-16 % at 2,000-100,000 DOF (docs/design.md, "Performance notes").
 - Exact symmetry. The articulated mass is carried as its blocks [[X, Y], [Y^T, Z]] with X and Z
   symmetric (6 + 9 + 6 numbers); only those numbers are ever computed, so Mhat_k is exactly
   symmetric by construction. A literal 6 x 6 transcription lets rounding make Mhat_k slightly
