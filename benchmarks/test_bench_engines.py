@@ -7,8 +7,9 @@
     .venv/bin/python -m redysim.references.report_bench results/bench_engines.json
 
 The chain is the RE-U steel rod (20 mm links, rod inertia); the state a seeded small-angle one.
-Batches (``test_qdd_batch``): 64 states at 20, 250 and 2,000 DOF, the core's batch beside the
-core and ``pin.aba`` called state by state.
+Batches (``test_qdd_batch``): 64 states at 20, 250 and 2,000 DOF, the core's batch (SIMD tiles
+on numba's threads), the same batch row by row (``simd=False``: the single-state kernel on Python
+threads), and the core and ``pin.aba`` called state by state.
 Robots (``test_qdd_robot``): URDFs of example-robot-data, an arm (UR5, fixed base) and a humanoid
 (Talos, reduced, floating base), the core beside ``pin.aba`` called from Python on Pinocchio's
 own model of the same file (tests/test_trees.py checks the two models agree to 1e-13).
@@ -99,11 +100,12 @@ BATCH_DOF = (20, 250, 2000)
 
 
 @pytest.mark.parametrize("dof", BATCH_DOF)
-@pytest.mark.parametrize("name", ["core", "core-single", "pinocchio-aba"])
+@pytest.mark.parametrize("name", ["core", "core-rows", "core-single", "pinocchio-aba"])
 def test_qdd_batch(benchmark, name, dof):
-    """qdd of 64 states: the core's batch (rows split over every core), the core called state
-    by state from Python, and pin.aba (through its adapter) state by state. Time per 64 states;
-    the report gives ns per DOF per state."""
+    """qdd of 64 states: the core's batch (SIMD tiles, split over every core), the same batch
+    row by row (``simd=False``), the core called state by state from Python, and pin.aba
+    (through its adapter) state by state. Time per 64 states; the report gives ns per DOF per
+    state."""
     benchmark.group = f"qdd-batch-{dof}"
     chain = chain_of(dof)
     rng = np.random.default_rng(2)
@@ -113,12 +115,13 @@ def test_qdd_batch(benchmark, name, dof):
     if name.startswith("core"):
         ws = Workspace(chain)
         out = np.empty((BATCH_STATES, dof))
-        redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out)  # JIT warm-up, not timed
+        simd = name == "core"
+        redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out, simd=simd)  # JIT warm-up
         info["version"] = redysim.__version__
-        info["threads"] = redysim.dynamics.default_threads() if name == "core" else 1
-        if name == "core":
+        info["threads"] = redysim.dynamics.default_threads() if name != "core-single" else 1
+        if name in ("core", "core-rows"):
             def call():
-                return redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out)
+                return redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out, simd=simd)
         else:
             def call():
                 for i in range(BATCH_STATES):

@@ -17,6 +17,7 @@ from __future__ import annotations
 from functools import cached_property
 
 import numba
+from numba.core import cpu, options
 
 OPTIONS = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 jit = numba.njit(**OPTIONS)
@@ -34,6 +35,22 @@ jit_strict = numba.njit(**STRICT_OPTIONS)
 # than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
 BORROWED_OPTIONS = dict(OPTIONS, _nrt=False)
 jit_borrowed = numba.njit(**BORROWED_OPTIONS)
+
+# The SIMD tile kernels (redysim._kernels.tiles) also declare their array arguments free of
+# overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
+# checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only
+# for the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name
+# (numba 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every
+# array a tile kernel is given is a distinct buffer of the tile's own (tiles.tile_buffers) or a
+# chain table it only reads.
+cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
+TILE_OPTIONS = dict(BORROWED_OPTIONS, noalias=True)
+jit_tiles = numba.njit(**TILE_OPTIONS)
+# A batch's blocks of tiles run on numba's own threads (prange): its threading layer hands a
+# block to a thread in ~2 us here, a Python thread pool in ~80 us (a 64-state batch at 250 DOF
+# takes ~300 us on one core). redysim.dynamics serialises these launches (numba's workqueue
+# layer, its fallback without OpenMP or TBB, must not be entered from two threads at once).
+jit_parallel = numba.njit(**dict(OPTIONS, parallel=True))
 
 
 def inline(func):

@@ -8,6 +8,8 @@ import numpy as np
 
 from ._kernels import entry as E
 from ._kernels.bundles import GATHER_MASS, Scratch, Tree
+from ._kernels.joints import BALL
+from ._kernels.tiles import tile_sizes
 from .chain import Chain
 from .errors import FieldError
 from .model import FREE, Model
@@ -151,6 +153,10 @@ class Workspace:
         self.gravity = self.kernel_f[header[E.F_GRAVITY]:header[E.F_GRAVITY] + 3]
         self.no_accel = np.zeros(3)
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
+        self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
+        # batches of this system can run in SIMD tiles (redysim._kernels.tiles): a serial chain
+        # of revolute and prismatic axes
+        self.tiles_ok = bool(tables["serial"]) and not (tables["dof_kind"] == BALL).any()
 
     @cached_property
     def table_a1(self) -> Scratch:
@@ -167,10 +173,19 @@ class Workspace:
             extra.append(np.empty_like(self.scratch))
         return [self.scratch, *extra[:count - 1]]
 
+    def tile_buffer(self, count: int) -> np.ndarray:
+        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles
+        (:func:`redysim._kernels.tiles.tile_sizes`). Made on first use and kept (grown when more
+        threads are asked for)."""
+        if self._tiles is None or self._tiles.shape[0] < count:
+            nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
+            self._tiles = np.zeros((count, sum(tile_sizes(nb, n))))
+        return self._tiles[:count]
+
     @property
     def nbytes(self) -> int:
         """Bytes held by the workspace's own arrays (O(n); views not counted twice, the
         system's arrays not counted)."""
         own = sum(v.nbytes for v in vars(self).values()
                   if isinstance(v, np.ndarray) and v.base is None)
-        return own + sum(a.nbytes for a in self._extra_scratch)
+        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer is in own)

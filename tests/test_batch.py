@@ -1,4 +1,5 @@
-"""Batches: forward and inverse dynamics of (B, n) arrays, row for row the single calls.
+"""Batches: forward and inverse dynamics of (B, n) arrays, row for row the single calls
+(forward dynamics with ``simd=False``; the SIMD tiles are tests/test_tiles.py's).
 
 The expected values are the single calls' own results (one state at a time, through the checked
 public functions), so these tests pin the batch's row handling, threading and checks; the
@@ -42,10 +43,13 @@ def test_a_batch_is_the_single_calls_bit_for_bit(system, threads):
     Q, QD, TAU = states(s, 37, 1)  # 37: blocks of unequal length over the threads
     ws = Workspace(s)
     singles = np.array([forward_dynamics(s, Q[i], QD[i], TAU[i]) for i in range(len(Q))])
-    assert np.array_equal(forward_dynamics(s, Q, QD, TAU, ws=ws, threads=threads), singles)
+    # simd=False: the rows through the single-state kernel (the SIMD tiles, which agree to
+    # rounding, are tests/test_tiles.py's)
+    assert np.array_equal(forward_dynamics(s, Q, QD, TAU, ws=ws, threads=threads, simd=False),
+                          singles)
     # one tau for every state, and none
     for tau in (TAU[5], None):
-        got = forward_dynamics(s, Q, QD, tau, threads=threads)
+        got = forward_dynamics(s, Q, QD, tau, threads=threads, simd=False)
         want = np.array([forward_dynamics(s, Q[i], QD[i], tau) for i in range(len(Q))])
         assert np.array_equal(got, want)
     # inverse dynamics of the batch, row for row
@@ -69,7 +73,7 @@ def test_the_workspace_keeps_one_scratch_a_thread():
     ws = Workspace(s)
     before = ws.nbytes
     Q, QD, _ = states(s, 16, 3)
-    forward_dynamics(s, Q, QD, ws=ws, threads=2)
+    forward_dynamics(s, Q, QD, ws=ws, threads=2, simd=False)
     first, second = ws.scratches(2)
     assert first is ws.scratch and second.shape == ws.scratch.shape
     assert ws.nbytes == before + second.nbytes

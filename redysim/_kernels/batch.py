@@ -7,10 +7,8 @@ workspace's packed arrays and one scratch array, without returning to Python bet
 results are those of the single calls bit for bit. :mod:`redysim.dynamics` splits a batch's rows
 over threads, each with its own scratch (the kernels release the GIL).
 
-Why not SIMD lanes across states: ``benchmarks/batch_simd_prototype.py`` measured a tile of
-states in vector registers at 1.0-1.2x the single-state kernel per state (docs/design.md,
-"Performance notes"): the recursions' running values, kept in registers by the single-state
-kernels, go through memory at every step of a lane-parallel pass.
+A serial chain's forward dynamics runs its states in SIMD tiles instead (:mod:`.tiles`), unless
+asked for these rows' bits (:func:`redysim.forward_dynamics`, ``simd=False``).
 
 ``TAU`` (forward) has B rows or one (the same joint forces, zeros when none are given, for
 every state). Both return -1, or the first row whose result is not finite or whose lengths do

@@ -1,40 +1,41 @@
-"""Prototype, measured and not adopted: RGE-A for many states with SIMD lanes across states.
+"""RGE-A for many states of a serial chain at once: SIMD lanes across states.
 
-Issue 21 asks for batches "computed across states (SIMD lanes across states, threads across
-cores)". The library's batch (``redysim.forward_dynamics`` with (B, n) arrays) runs the
-single-state kernel state by state on every core. This script measures the other half, lanes
-across states, on a serial U chain: every array of a tile of LANES states is (rows, LANES),
-LANES a compile-time constant, and every step of the three passes a branch-free loop over the
-states that LLVM vectorises (one copy per joint kind and axis, so that no branch runs both of
-its sides); cos and sin by Cody-Waite reduction and fdlibm's polynomials, vectorisable.
+A tile is LANES states side by side: every array of the three passes is (rows, LANES), the
+states the last, contiguous axis, and every step of the passes a branch-free loop over the
+states with a constant trip count, which LLVM turns into vector instructions (4 doubles a ymm
+register here). The single-state kernels (:mod:`.rge_a`, :mod:`.kinematics`) keep a body's
+running values in registers and run one state at a time; here the same values live in a small
+tile array (``run``, ``car``, ``mu``) between steps. Measured (docs/design.md, "Performance
+notes"): ~2.5x the single-state kernel per state at 250 DOF, on one core.
 
-    .venv/bin/python benchmarks/batch_simd_prototype.py [--dof 250] [--batch 64]
+What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set_option("",
+"--pass-remarks-missed=loop-vectorize")``):
+- indices numba cannot take for negative (``at`` is unsigned): numba wraps a negative index by a
+  select that makes the address non-affine, and LLVM then gives up ("unsafe dependent memory
+  operations") or gathers;
+- no branch inside a loop over states: one copy of each loop per joint kind and axis code (the
+  branches on them are outside the loops), and cos and sin by Cody-Waite reduction and fdlibm's
+  polynomials with the quadrant applied by arithmetic;
+- the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
+  time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
 
-What it found (docs/design.md, "Performance notes"): the loops do vectorise (4 doubles a
-ymm register), the results agree with the single calls to 1e-14, and the tile runs 1.0-1.2x
-the single-state kernel per state, because the recursions' running values, which the
-single-state kernels keep in registers, here go through memory at every step.
+Scope: a serial chain (``Tree.serial``) whose joints are revolute and prismatic axes (R, P, U,
+...; no ball joint), the spatial recursion. The results agree with the single calls to rounding
+(the operations are the single kernels', grouped alike, but a U joint's two axes are eliminated
+one after the other, and LLVM fuses multiply-adds where it vectorises): not bit for bit.
+:func:`redysim.forward_dynamics` runs batches here unless asked for the rows' bits
+(``simd=False``).
+
+References: as :mod:`.rge_a` (Table A.1; Featherstone's ABA for the bias terms).
 """
 
 from __future__ import annotations
 
-import argparse
-import math
-import time
-import timeit
-
-import numba
 import numpy as np
-from numba.core import cpu, options
+from numba import prange
 
-from redysim._jit import BORROWED_OPTIONS, inline
-from redysim._kernels.joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
-
-# numba marks a function's array arguments noalias only inside its parallel loops; without it
-# LLVM must check at run time that no two of the ~15 arrays overlap and gives up (a prototype's
-# switch, not the library's: redysim compiles nothing with it)
-cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
-jit_borrowed = numba.njit(**dict(BORROWED_OPTIONS, noalias=True, cache=False))
+from .._jit import inline, jit, jit_parallel, jit_tiles
+from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
 
 TWO_OVER_PI = 6.36619772367581382433e-01
 # fdlibm's pi/2 in three parts (e_rem_pio2.c): pio2_1 (33 bits), pio2_2, pio2_2t
@@ -48,15 +49,18 @@ KIN_ROWS = 30
 # rows of the backward carry: X (6), Y (9), Z (6), n (3), f (3)
 BX, BY, BZ, BN, BF = 0, 6, 15, 21, 24
 BACK_ROWS = 27
-# states per tile: every batch array is (rows, LANES) flattened, LANES a compile-time constant,
-# so that the loops over states have a constant trip count and the rows constant strides
-LANES = 32
+# states per tile: every tile array is (rows, LANES) flattened, LANES a compile-time constant,
+# so that the loops over states have a constant trip count and the rows constant strides (16:
+# as fast per state as 32 here, and half the work lost in a batch's last, partial tile)
+LANES = 16
 
 
 @inline
 def at(row, b):
-    """The flat index of (row, lane b) in a tile's array."""
-    return row * LANES + b
+    """The flat index of (row, lane b) in a tile's array, unsigned: numba then skips the
+    wraparound of negative indices, whose select made the addresses non-affine (LLVM: "unsafe
+    dependent memory operations", or gathers)."""
+    return np.uint64(row * LANES + b)
 
 
 @inline
@@ -64,7 +68,7 @@ def sincos_reduced(x):
     """(cos x, sin x), branch-free: x reduced to r in [-pi/4, pi/4] by Cody-Waite, fdlibm's
     polynomials on r, then the quadrant's signs and swap. For |x| <= pi/4 the reduction is exact
     (k = 0) and the result is :func:`.joints.sincos`'s bit for bit."""
-    k = math.floor(x * TWO_OVER_PI + 0.5)
+    k = np.floor(x * TWO_OVER_PI + 0.5)
     r = (x - k * PIO2_1) - k * PIO2_1T
     # the tail of pio2_1t, as fdlibm's second round: negligible below |x| ~ 1e5
     z = r * r
@@ -74,19 +78,20 @@ def sincos_reduced(x):
     hz = 0.5 * z
     w = 1.0 - hz
     c = w + (((1.0 - w) - hz) + z * rc)
-    quadrant = k - 4.0 * math.floor(k * 0.25)  # 0, 1, 2, 3
-    swap = quadrant == 1.0 or quadrant == 3.0
-    cos_ = s if swap else c
-    sin_ = c if swap else s
-    if quadrant == 1.0 or quadrant == 2.0:
-        cos_ = -cos_
-    if quadrant >= 2.0:
-        sin_ = -sin_
+    quadrant = k - 4.0 * np.floor(k * 0.25)  # 0, 1, 2, 3
+    # the quadrant's swap and signs by arithmetic, not branches (a branch in the loop kept LLVM
+    # from vectorising it): 1 x s + 0 x c is s exactly
+    swap = quadrant - 2.0 * np.floor(quadrant * 0.5)  # 1 in quadrants 1 and 3
+    hc = np.floor((quadrant + 1.0) * 0.5)
+    hc = hc - 2.0 * np.floor(hc * 0.5)  # 1 in quadrants 1 and 2: cos negative
+    hs = np.floor(quadrant * 0.5)  # 1 in quadrants 2 and 3: sin negative
+    cos_ = (1.0 - 2.0 * hc) * (swap * s + (1.0 - swap) * c)
+    sin_ = (1.0 - 2.0 * hs) * (swap * c + (1.0 - swap) * s)
     return cos_, sin_
 
 
-@jit_borrowed
-def batch_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Q, QD, oR, oO, oP, W, C,
+@jit_tiles
+def tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Q, QD, oR, oO, oP, W, C,
                      run):
     """The kinematics pass with ``local_rates`` (:func:`.kinematics.kinematics`) for B states of
     a serial chain: Q, QD (n, B); writes oR (nb, 9, B), oO (nb, 3, B), oP (n, 6, B), W (nb, 3, B)
@@ -257,8 +262,8 @@ def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
         run[at(KDB + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
 
 
-@jit_borrowed
-def batch_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, TAU,
+@jit_tiles
+def tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, TAU,
                    Psihat, phitil, car):
     """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial) for B states: reads the
     batch kinematics and TAU (n, B); writes Psihat (n, 6, B) and phitil (n, B). ``car``:
@@ -498,8 +503,8 @@ def _bias_and_shift(k, shift, oO, C, car):
         car[at(BF + 2, b)] = f2
 
 
-@jit_borrowed
-def batch_forward(joint_voff, oO, oP, Psihat, phitil, C, base_accel, QDD, mu, bad):
+@jit_tiles
+def tile_forward(joint_voff, oO, oP, Psihat, phitil, C, base_accel, QDD, mu, bad):
     """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for B states: QDD (n, B).
     ``mu``: (6, B), carried from body to body; ``bad`` (B,): 0 where every qdd of that state is
     finite, NaN where one is not."""
@@ -567,16 +572,19 @@ def _forward_axis_on(j, k, oO, oP, Psihat, phitil, C, QDD, mu, bad):
         mu[at(2, b)] = (m2 + C[at((k + 1) * 6 + 2, b)]) + p2 * x
 
 
-@jit_borrowed
+@inline
 def tile_in(src, t0, count, dst):
-    """dst[(j, b)] = src[t0 + b, j] for b < count; the tile's spare lanes repeat state t0."""
+    """dst[(j, b)] = src[t0 + b, j] for b < count; the tile's spare lanes repeat state t0. A
+    one-row src is every state's."""
     n = src.shape[1]
-    for j in range(n):
-        for b in range(LANES):
-            dst[at(j, b)] = src[t0 + (b if b < count else 0), j]
+    one = src.shape[0] == 1
+    for b in range(LANES):
+        i = 0 if one else t0 + (b if b < count else 0)
+        for j in range(n):
+            dst[at(j, b)] = src[i, j]
 
 
-@jit_borrowed
+@inline
 def tile_out(src, t0, count, dst):
     """dst[t0 + b, j] = src[(j, b)] for b < count."""
     n = dst.shape[1]
@@ -585,68 +593,61 @@ def tile_out(src, t0, count, dst):
             dst[t0 + b, j] = src[at(j, b)]
 
 
-def main() -> None:
-    import redysim
-    from redysim.workspace import tree_tables
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dof", type=int, default=250)
-    ap.add_argument("--batch", type=int, default=64)
-    a = ap.parse_args()
-    L, B, n = LANES, a.batch, a.dof
-    ch = redysim.Chain.uniform(n // 2, "U", length=0.02, linear_density=61.6538, radius=0.05,
-                               inertia="rod")
-    t = tree_tables(ch)
-    nb = t["mass"].shape[0]
-    rng = np.random.default_rng(0)
-    Q, QD, TAU = (rng.uniform(-2, 2, (B, n)), rng.uniform(-1, 1, (B, n)),
-                  rng.uniform(-1, 1, (B, n)))
-    ws = redysim.Workspace(ch)
-    ref = np.array([redysim.forward_dynamics(ch, Q[i], QD[i], TAU[i], ws=ws) for i in range(B)])
-
-    def z(rows):
-        return np.zeros(rows * L)
-
-    oR, oO, oP, W, C = z(nb * 9), z(nb * 3), z(n * 6), z(nb * 3), z(nb * 6)
-    run, car, Ps, pt, mu, bad = z(KIN_ROWS), z(BACK_ROWS), z(n * 6), z(n), z(6), np.zeros(L)
-    Qt, QDt, Tt, QDDt = z(n), z(n), z(n), z(n)
-    out = np.empty((B, n))
-    ba = -np.asarray(ch.gravity, float)
-    kin = (t["along"], t["joint_voff"], t["dof_kind"], t["dof_axis"], t["dof_u"], Qt, QDt, oR,
-           oO, oP, W, C, run)
-    back = (t["mass"], t["inertia_O"], t["mass_com"], t["joint_voff"], t["dof_kind"], oR, oO,
-            oP, W, C, Tt, Ps, pt, car)
-    fwd = (t["joint_voff"], oO, oP, Ps, pt, C, ba, QDDt, mu, bad)
-
-    def batch():
-        for t0 in range(0, B, L):
-            count = min(L, B - t0)
-            tile_in(Q, t0, count, Qt)
-            tile_in(QD, t0, count, QDt)
-            tile_in(TAU, t0, count, Tt)
-            batch_kinematics(*kin)
-            batch_backward(*back)
-            batch_forward(*fwd)
-            tile_out(QDDt, t0, count, out)
-
-    t0 = time.perf_counter()
-    batch()
-    print(f"compile {time.perf_counter() - t0:.1f} s; LANES = {L}")
-    print(f"largest difference from the single calls: "
-          f"{np.abs(out - ref).max() / np.abs(ref).max():.1e} of max |qdd|")
-
-    def best(f, number):
-        return min(timeit.repeat(f, number=number, repeat=5)) / number * 1e6
-
-    tb = best(batch, 20)
-    ts = best(lambda: [redysim.forward_dynamics(ch, Q[i], QD[i], TAU[i], ws=ws)
-                       for i in range(B)], 20)
-    print(f"{B} states at {n} DOF: tiles {tb:.0f} us, {B} single calls {ts:.0f} us "
-          f"({ts / tb:.2f}x)")
-    for name, f, args in (("kinematics", batch_kinematics, kin),
-                          ("backward", batch_backward, back), ("forward", batch_forward, fwd)):
-        print(f"  {name:<10} {best(lambda f=f, args=args: f(*args), 50) / L:.2f} us a state")
+def tile_sizes(nb: int, n: int) -> tuple:
+    """The lengths of one thread's tile arrays (:func:`tile_views`), for a chain of nb bodies and
+    n DOF: oR, oO, oP, W, C, run, car, Psihat, phitil, mu, bad, Q, QD, TAU, QDD."""
+    return (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
+            KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
+            n * LANES, n * LANES, n * LANES, n * LANES)
 
 
-if __name__ == "__main__":
-    main()
+@inline
+def tile_views(buf, nb, n):
+    """One thread's tile arrays, as views of its row ``buf`` of the tile buffer."""
+    sizes = (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
+             KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
+             n * LANES, n * LANES, n * LANES, n * LANES)
+    o = np.zeros(16, dtype=np.int64)
+    for i in range(15):
+        o[i + 1] = o[i] + sizes[i]
+    return (buf[o[0]:o[1]], buf[o[1]:o[2]], buf[o[2]:o[3]], buf[o[3]:o[4]], buf[o[4]:o[5]],
+            buf[o[5]:o[6]], buf[o[6]:o[7]], buf[o[7]:o[8]], buf[o[8]:o[9]], buf[o[9]:o[10]],
+            buf[o[10]:o[11]], buf[o[11]:o[12]], buf[o[12]:o[13]], buf[o[13]:o[14]],
+            buf[o[14]:o[15]])
+
+
+@jit
+def forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O, mass_com,
+                  base_accel, Q, QD, TAU, QDD, first, last, buf):
+    """QDD rows first..last - 1 by tiles of LANES states (the last one possibly partial), in
+    the tile arrays of ``buf`` (a row of the workspace's tile buffer, :func:`tile_sizes`). TAU
+    has B rows or one (the same for every state). Returns -1, or the first row whose qdd is not
+    finite."""
+    nb, n = mass.shape[0], dof_kind.shape[0]
+    (oR, oO, oP, W, C, run, car, Ps, pt, mu, bad, Qt, QDt, Tt, QDDt) = tile_views(buf, nb, n)
+    for t0 in range(first, last, LANES):
+        count = min(LANES, last - t0)
+        tile_in(Q, t0, count, Qt)
+        tile_in(QD, t0, count, QDt)
+        tile_in(TAU, t0, count, Tt)
+        tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Qt, QDt, oR, oO, oP, W, C,
+                        run)
+        tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, Tt, Ps,
+                      pt, car)
+        tile_forward(joint_voff, oO, oP, Ps, pt, C, base_accel, QDDt, mu, bad)
+        for b in range(count):
+            if bad[b] != 0.0:
+                return t0 + b
+        tile_out(QDDt, t0, count, QDD)
+    return -1
+
+
+@jit_parallel
+def forward_tiles_parallel(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
+                           mass_com, base_accel, Q, QD, TAU, QDD, edges, bufs, failed):
+    """:func:`forward_tiles` for rows edges[i]..edges[i + 1] - 1 in row i of ``bufs``, the
+    blocks run by numba's threads; failed[i] is block i's result."""
+    for i in prange(edges.shape[0] - 1):
+        failed[i] = forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
+                                  mass_com, base_accel, Q, QD, TAU, QDD, edges[i], edges[i + 1],
+                                  bufs[i])

@@ -1,0 +1,168 @@
+"""Batches in SIMD tiles (redysim._kernels.tiles): a serial chain's states 16 at a time.
+
+The expected values are the single calls' (the single-state kernel, one state at a time through
+the checked public function), which the other files test against published numbers, identities,
+a 50-digit reference and the engines, and, for a few rows, a 40-digit reference of their own.
+The tiles compute the same passes, but eliminate a U joint's two axes one after the other where
+the single kernel takes them as one 2 x 2 block, and LLVM fuses multiply-adds differently in
+vector code: the rows agree to rounding, not bit for bit. Measured: within 4e-15 of max |qdd| on
+the ropes and 1.4e-13 on the random chains here (GIM condition numbers up to 5e5); against the
+40-digit reference the tiles' error is the single kernel's within 2x. TOL (1e-12) leaves 7x for
+other CPUs' vector widths; a wrong term in any pass moves qdd by far more.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+import pytest
+from test_trees import random_tree
+
+import redysim
+from redysim import StateError, Workspace, forward_dynamics
+from redysim._kernels import tiles
+from redysim.errors import FieldError
+from redysim.harness import hiprec
+from redysim.harness.random_chains import MIX_KINDS, _mix_joint, random_chain, random_link
+
+TOL = 1e-12  # of max |qdd| (module docstring)
+
+
+def rope(n_links=20, joint="U"):
+    return redysim.Chain.uniform(n_links, joint, length=0.02, linear_density=61.6538,
+                                 radius=0.05, inertia="rod")
+
+
+def mixed_chain(n_links=21, seed=5):
+    """Random links (off-axis centres of mass, full inertias) on every joint a tile has a loop
+    for: revolute about x, y, z, negative and general axes, prismatic ones, and U joints."""
+    rng = np.random.default_rng(seed)
+    kinds = [k for k in MIX_KINDS if k != "S"]
+    joints = [_mix_joint(rng, kinds[k % len(kinds)]) for k in range(n_links)]
+    return redysim.Chain.build([random_link(rng) for _ in joints], joints, name="mixed",
+                               gravity=(0.0, -9.81, 1.5))
+
+
+def states(chain, rows, seed, amplitude=2.0):
+    rng = np.random.default_rng(seed)
+    return (rng.uniform(-amplitude, amplitude, (rows, chain.n_q)),  # angles beyond pi/4
+            rng.uniform(-1, 1, (rows, chain.n_v)), rng.uniform(-1, 1, (rows, chain.n_v)))
+
+
+def singles(chain, Q, QD, TAU):
+    return np.array([forward_dynamics(chain, Q[i], QD[i], None if TAU is None else
+                                      (TAU if TAU.ndim == 1 else TAU[i]))
+                     for i in range(len(Q))])
+
+
+def close(got, want):
+    return np.abs(got - want).max() <= TOL * np.abs(want).max()
+
+
+CHAINS = {"U rope": rope, "spatial R rope": lambda: rope(30, "R"), "mixed R, P and U": mixed_chain,
+          "general R axes": lambda: random_chain("Rgen", 17, 3),
+          "negative R axes": lambda: random_chain("Rneg", 15, 4),
+          "P axes": lambda: random_chain("P", 12, 6),
+          "S rope (three R axes a joint)": lambda: rope(10, "S")}
+
+
+@pytest.mark.parametrize("rows", [16, 24, 37, 64])  # a tile; a partial tile; rows after tiles
+@pytest.mark.parametrize("chain", CHAINS)
+def test_the_tiles_are_the_single_calls(chain, rows):
+    c = CHAINS[chain]()
+    # an S joint's three axes near their gimbal configurations (middle angle +-pi/2) make the GIM
+    # ill-conditioned, and then both kernels' rounding (and so their difference) grows with it:
+    # the S rope's states stay away from there
+    Q, QD, TAU = states(c, rows, rows, amplitude=0.5 if chain.startswith("S rope") else 2.0)
+    ws = Workspace(c)
+    got = forward_dynamics(c, Q, QD, TAU, ws=ws, planar=False)
+    assert ws._tiles is not None  # the tiles ran
+    want = np.array([forward_dynamics(c, Q[i], QD[i], TAU[i], planar=False)
+                     for i in range(rows)])
+    assert close(got, want)
+
+
+@pytest.mark.parametrize("chain", ["negative R axes", "mixed R, P and U"])
+def test_the_tiles_error_is_the_single_kernels(chain):
+    c = CHAINS[chain]()
+    Q, QD, TAU = states(c, 16, 16)
+    got = forward_dynamics(c, Q, QD, TAU)
+    for i in (0, 9, 15):
+        ref = hiprec.qdd_reference(c, Q[i], QD[i], TAU[i], dps=40, output="dd")
+        single = hiprec.relative_errors(forward_dynamics(c, Q[i], QD[i], TAU[i]), ref)[1]
+        tiled = hiprec.relative_errors(got[i], ref)[1]
+        assert tiled <= 4 * single + 1e-15, (i, tiled, single)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_tiles_on_threads_and_one_tau_or_none(threads):
+    c = rope()
+    Q, QD, TAU = states(c, 53, 9)  # three full tiles and a partial one over unequal blocks
+    for tau in (TAU, TAU[3], None):
+        got = forward_dynamics(c, Q, QD, tau, threads=threads)
+        assert close(got, singles(c, Q, QD, tau))
+
+
+def test_what_does_not_run_in_tiles_runs_the_rows_bit_for_bit():
+    c = rope()
+    Q, QD, _ = states(c, 16, 1)
+    big = Q.copy()
+    big[2, 0] = 2e5  # beyond the tiles' angle reduction
+    for q, qd, kwargs in ((Q, QD, {"simd": False}),  # asked for the rows
+                          (Q[:7], QD[:7], {}),  # under half a tile
+                          (big, QD, {})):
+        ws = Workspace(c)
+        got = forward_dynamics(c, q, qd, ws=ws, **kwargs)
+        assert ws._tiles is None
+        assert np.array_equal(got, singles(c, q, qd, None))
+    planar = rope(10, "R")  # the planar kernel's rows
+    ws = Workspace(planar)
+    forward_dynamics(planar, *states(planar, 16, 2)[:2], ws=ws)
+    assert ws._tiles is None
+    assert Workspace(c).tiles_ok
+    assert not Workspace(random_tree(4, free=False)).tiles_ok  # a tree
+
+
+def test_a_state_whose_qdd_is_not_finite_is_named_by_its_row():
+    c = rope(8)
+    Q, QD, _ = states(c, 20, 3)
+    QD[13, 4] = 1e200  # finite input, the velocity products overflow
+    for threads in (1, 2):
+        with pytest.raises(StateError, match=r"state 13 of the batch"):
+            forward_dynamics(c, Q, QD, threads=threads)
+
+
+def test_the_tiles_keep_one_buffer_row_a_thread():
+    c = rope(8)
+    ws = Workspace(c)
+    before = ws.nbytes
+    Q, QD, _ = states(c, 64, 4)
+    forward_dynamics(c, Q, QD, ws=ws, threads=2)
+    buf = ws.tile_buffer(2)
+    assert buf.shape == (2, sum(tiles.tile_sizes(8, 16)))
+    assert ws.nbytes == before + buf.nbytes
+    with pytest.raises(FieldError, match="simd"):
+        forward_dynamics(c, Q, QD, simd="yes")
+
+
+@numba.njit
+def _sincos_many(x, out):
+    for i in range(x.shape[0]):
+        out[i, 0], out[i, 1] = tiles.sincos_reduced(x[i])
+
+
+def test_the_tiles_cos_and_sin_are_libms_to_an_ulp():
+    rng = np.random.default_rng(11)
+    quarter = math.pi / 4
+    x = np.concatenate([rng.uniform(-quarter, quarter, 2000), rng.uniform(-10, 10, 2000),
+                        rng.uniform(-1e5, 1e5, 2000), quarter * np.arange(-9, 10),
+                        np.nextafter(quarter * np.arange(-9, 10), np.inf), [0.0, -0.0]])
+    out = np.empty((x.size, 2))
+    _sincos_many(x, out)
+    for got, f in ((out[:, 0], np.cos), (out[:, 1], np.sin)):
+        want = f(x)
+        # an ulp of the result's magnitude, or of 1 where the result is near 0: the reduction
+        # by pi/2 in two parts leaves ~1e-21 absolute (module docstring of tiles)
+        assert np.all(np.abs(got - want) <= np.spacing(np.maximum(np.abs(want), 1.0)))
