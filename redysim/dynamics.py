@@ -213,7 +213,8 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     its states 16 at a time in SIMD lanes (:mod:`redysim._kernels.tiles`, ~2.5x the throughput
     a core at 250 DOF): row i then equals the single call to rounding (measured within 1e-14 of
     max |qdd|), not bit for bit; ``simd=False`` gives the single calls' bits. A batch's last
-    rows, when they fill less than half a tile, and any batch with |q| > 1e5 run row by row.
+    rows, when they fill less than half a tile, chains over 10,000 DOF and any batch with
+    |q| > 1e5 run row by row.
 
     Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
     these go to the compiled entry point as they are, which checks their types and sizes
@@ -361,6 +362,8 @@ def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> in
 _TILE_LOCK = threading.Lock()  # one parallel launch at a time (redysim._jit.jit_parallel)
 TILE_MIN_ROWS = _tiles.LANES // 2  # a batch's last tile runs as a tile from this many rows
 TILE_MAX_Q = 1e5  # |q| up to which the tiles' cos and sin reduce angles to within 1 ulp
+TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF, 35 MB here;
+# and at 2,000 DOF the tiles were already bound by memory, 1.3x the rows)
 
 
 def _forward_tiled(ws, Q, QD, TAU, out, threads) -> int:
@@ -414,6 +417,7 @@ def _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd=True) -> np
     if not isinstance(simd, bool | np.bool_):
         raise FieldError("forward_dynamics", "simd", simd, "must be True or False")
     if simd and not planar and ws.tiles_ok and B >= TILE_MIN_ROWS \
+            and chain.n_v <= TILE_MAX_DOF \
             and np.abs(Q).max() <= TILE_MAX_Q:  # (NaN compares False: the rows say why)
         bad = _forward_tiled(ws, Q, QD, TAU, out, threads)
     else:

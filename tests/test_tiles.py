@@ -117,6 +117,11 @@ def test_what_does_not_run_in_tiles_runs_the_rows_bit_for_bit():
         got = forward_dynamics(c, q, qd, ws=ws, **kwargs)
         assert ws._tiles is None
         assert np.array_equal(got, singles(c, q, qd, None))
+    long = rope(5001)  # over TILE_MAX_DOF: a thread's tile arrays would be ~35 MB
+    ws = Workspace(long)
+    Ql, QDl, _ = states(long, 16, 3, amplitude=0.1)
+    assert np.array_equal(forward_dynamics(long, Ql, QDl, ws=ws), singles(long, Ql, QDl, None))
+    assert ws._tiles is None
     planar = rope(10, "R")  # the planar kernel's rows
     ws = Workspace(planar)
     forward_dynamics(planar, *states(planar, 16, 2)[:2], ws=ws)
