@@ -421,7 +421,8 @@ def bench_table(res: Results) -> Table:
     from redysim.references.report_bench import rows as bench_rows
 
     t = Table("bench", "Benchmarks (pytest-benchmark): qdd per call, core vs engines; batches "
-              "of 64 states (the core's batch, the core and pin.aba state by state)",
+              "of 64 states (the core's batch in SIMD tiles and row by row, the core and "
+              "pin.aba state by state)",
               ["kind", "system", "engine", "version", "DOF", "fastest per call",
                "ns/DOF (a batch: per state)", "x core (a batch: x core's batch)"])
     doc = res.bench("engines")
