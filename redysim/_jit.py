@@ -41,8 +41,8 @@ jit_borrowed = numba.njit(**BORROWED_OPTIONS)
 # checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only
 # for the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name
 # (numba 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every
-# array a tile kernel is given is a distinct buffer of the tile's own (tiles.tile_buffers) or a
-# chain table it only reads.
+# array a tile kernel is given is a distinct view of its thread's tile buffer (tiles.tile_views)
+# or a chain table it only reads.
 cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
 TILE_OPTIONS = dict(BORROWED_OPTIONS, noalias=True)
 jit_tiles = numba.njit(**TILE_OPTIONS)

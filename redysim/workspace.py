@@ -179,7 +179,7 @@ class Workspace:
         threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
             nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
-            self._tiles = np.zeros((count, sum(tile_sizes(nb, n))))
+            self._tiles = np.zeros((count, sum(tile_sizes.py_func(nb, n))))
         return self._tiles[:count]
 
     @property

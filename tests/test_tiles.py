@@ -146,7 +146,7 @@ def test_the_tiles_keep_one_buffer_row_a_thread():
     Q, QD, _ = states(c, 64, 4)
     forward_dynamics(c, Q, QD, ws=ws, threads=2)
     buf = ws.tile_buffer(2)
-    assert buf.shape == (2, sum(tiles.tile_sizes(8, 16)))
+    assert buf.shape == (2, sum(tiles.tile_sizes.py_func(8, 16)))
     assert ws.nbytes == before + buf.nbytes
     with pytest.raises(FieldError, match="simd"):
         forward_dynamics(c, Q, QD, simd="yes")

@@ -593,9 +593,11 @@ def tile_out(src, t0, count, dst):
             dst[t0 + b, j] = src[at(j, b)]
 
 
-def tile_sizes(nb: int, n: int) -> tuple:
+@inline
+def tile_sizes(nb, n):
     """The lengths of one thread's tile arrays (:func:`tile_views`), for a chain of nb bodies and
-    n DOF: oR, oO, oP, W, C, run, car, Psihat, phitil, mu, bad, Q, QD, TAU, QDD."""
+    n DOF: oR, oO, oP, W, C, run, car, Psihat, phitil, mu, bad, Q, QD, TAU, QDD. (Python calls
+    its ``py_func``: one layout for both.)"""
     return (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
             KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
             n * LANES, n * LANES, n * LANES, n * LANES)
@@ -604,9 +606,7 @@ def tile_sizes(nb: int, n: int) -> tuple:
 @inline
 def tile_views(buf, nb, n):
     """One thread's tile arrays, as views of its row ``buf`` of the tile buffer."""
-    sizes = (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
-             KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
-             n * LANES, n * LANES, n * LANES, n * LANES)
+    sizes = tile_sizes(nb, n)
     o = np.zeros(16, dtype=np.int64)
     for i in range(15):
         o[i + 1] = o[i] + sizes[i]
