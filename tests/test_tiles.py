@@ -7,8 +7,8 @@ The tiles compute the same passes, but eliminate a U joint's two axes one after 
 the single kernel takes them as one 2 x 2 block, and LLVM fuses multiply-adds differently in
 vector code: the rows agree to rounding, not bit for bit. Measured: within 4e-15 of max |qdd| on
 the ropes and 1.4e-13 on the random chains here (GIM condition numbers up to 5e5); against the
-40-digit reference the tiles' error is the single kernel's within 2x. TOL (1e-12) leaves 7x for
-other CPUs' vector widths; a wrong term in any pass moves qdd by far more.
+40-digit reference the tiles' largest error over 16 states is 1.0-1.3x the single kernel's. TOL
+(1e-12) leaves 7x for other CPUs' vector widths; a wrong term in any pass moves qdd by far more.
 """
 
 from __future__ import annotations
@@ -86,14 +86,20 @@ def test_the_tiles_are_the_single_calls(chain, rows):
 
 @pytest.mark.parametrize("chain", ["negative R axes", "mixed R, P and U"])
 def test_the_tiles_error_is_the_single_kernels(chain):
+    # the largest error over 16 states, each against the 40-digit reference: one state's errors
+    # are two small numbers whose ratio is luck (up to 5x either way, measured), the largest of
+    # 16 is not (the tiles' 1.0-1.3x the single kernel's under three OpenBLAS kernel types,
+    # whose rounding reaches the random chains' inertias)
     c = CHAINS[chain]()
     Q, QD, TAU = states(c, 16, 16)
     got = forward_dynamics(c, Q, QD, TAU)
-    for i in (0, 9, 15):
+    single, tiled = 0.0, 0.0
+    for i in range(16):
         ref = hiprec.qdd_reference(c, Q[i], QD[i], TAU[i], dps=40, output="dd")
-        single = hiprec.relative_errors(forward_dynamics(c, Q[i], QD[i], TAU[i]), ref)[1]
-        tiled = hiprec.relative_errors(got[i], ref)[1]
-        assert tiled <= 4 * single + 1e-15, (i, tiled, single)
+        single = max(single, hiprec.relative_errors(forward_dynamics(c, Q[i], QD[i], TAU[i]),
+                                                    ref)[1])
+        tiled = max(tiled, hiprec.relative_errors(got[i], ref)[1])
+    assert tiled <= 2 * single, (tiled, single)
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
