@@ -93,9 +93,10 @@ def sincos_reduced(x):
 @jit_tiles
 def tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Q, QD, oR, oO, oP, W, C,
                      run):
-    """The kinematics pass with ``local_rates`` (:func:`.kinematics.kinematics`) for B states of
-    a serial chain: Q, QD (n, B); writes oR (nb, 9, B), oO (nb, 3, B), oP (n, 6, B), W (nb, 3, B)
-    (angular velocities) and C (nb, 6, B) (local twist-rates c_k). ``run``: (KIN_ROWS, B)."""
+    """The kinematics pass with ``local_rates`` (:func:`.kinematics.kinematics`) for a tile of
+    a serial chain's states (L = LANES; every array flat, :func:`at`): Q, QD (n, L); writes oR
+    (nb, 9, L), oO (nb, 3, L), oP (n, 6, L), W (nb, 3, L) (angular velocities) and C (nb, 6, L)
+    (local twist-rates c_k). ``run``: (KIN_ROWS, L)."""
     nb = along.shape[0]
     for b in range(LANES):
         for i in range(KIN_ROWS):
@@ -265,9 +266,9 @@ def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
 @jit_tiles
 def tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, TAU,
                    Psihat, phitil, car):
-    """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial) for B states: reads the
-    batch kinematics and TAU (n, B); writes Psihat (n, 6, B) and phitil (n, B). ``car``:
-    (BACK_ROWS, B), the articulated mass and bias carried from body to body."""
+    """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial, axis by axis) for a tile:
+    reads the tile's kinematics and TAU (n, L); writes Psihat (n, 6, L) and phitil (n, L).
+    ``car``: (BACK_ROWS, L), the articulated mass and bias carried from body to body."""
     nb = mass.shape[0]
     for b in range(LANES):
         for i in range(BACK_ROWS):
@@ -505,8 +506,8 @@ def _bias_and_shift(k, shift, oO, C, car):
 
 @jit_tiles
 def tile_forward(joint_voff, oO, oP, Psihat, phitil, C, base_accel, QDD, mu, bad):
-    """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for B states: QDD (n, B).
-    ``mu``: (6, B), carried from body to body; ``bad`` (B,): 0 where every qdd of that state is
+    """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for a tile: QDD (n, L).
+    ``mu``: (6, L), carried from body to body; ``bad`` (L,): 0 where every qdd of that state is
     finite, NaN where one is not."""
     nb = joint_voff.shape[0] - 1
     for b in range(LANES):
