@@ -72,6 +72,56 @@ from .joints import PRISMATIC, column_mass
 from .kinematics import kinematics
 
 
+@inline
+def articulated_bias(ca0, ca1, ca2, cb0, cb1, cb2, x00, x01, x02, x11, x12, x22,
+                     y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22):
+    """Mbar c, the increment of an articulated body's bias p = [n; f], with c = [ca; cb] the
+    body's local twist-rate and Mbar = [[X, Y], [Y^T, Z]] (upper triangles of X and Z): 6
+    scalars. The single-state pass and the SIMD tiles (:mod:`.tiles`) share it (and
+    :func:`shift_to_parent`). (Fewer than 31 arguments: Python passes more as a tuple, which
+    numba cannot inline.)"""
+    return ((x00 * ca0 + x01 * ca1 + x02 * ca2) + (y00 * cb0 + y01 * cb1 + y02 * cb2),
+            (x01 * ca0 + x11 * ca1 + x12 * ca2) + (y10 * cb0 + y11 * cb1 + y12 * cb2),
+            (x02 * ca0 + x12 * ca1 + x22 * ca2) + (y20 * cb0 + y21 * cb1 + y22 * cb2),
+            (y00 * ca0 + y10 * ca1 + y20 * ca2) + (z00 * cb0 + z01 * cb1 + z02 * cb2),
+            (y01 * ca0 + y11 * ca1 + y21 * ca2) + (z01 * cb0 + z11 * cb1 + z12 * cb2),
+            (y02 * ca0 + y12 * ca1 + y22 * ca2) + (z02 * cb0 + z12 * cb1 + z22 * cb2))
+
+
+@inline
+def shift_to_parent(s0, s1, s2, x00, x01, x02, x11, x12, x22,
+                    y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22):
+    """An articulated mass handed on to its parent's origin, a = (s0, s1, s2) = O_p - O_k
+    (A_{k,p}): Mbar <- A^T Mbar A, which leaves Z as it is. Returns X's upper triangle and Y:
+    15 scalars. (The bias's part, n <- n - a x f, is the caller's.)"""
+    # S = Y C(a): column j of C(a) is a x e_j
+    S00 = y01 * s2 - y02 * s1
+    S01 = y02 * s0 - y00 * s2
+    S02 = y00 * s1 - y01 * s0
+    S10 = y11 * s2 - y12 * s1
+    S11 = y12 * s0 - y10 * s2
+    S12 = y10 * s1 - y11 * s0
+    S20 = y21 * s2 - y22 * s1
+    S21 = y22 * s0 - y20 * s2
+    S22 = y20 * s1 - y21 * s0
+    # CZ = C(a) Z
+    q00 = s1 * z02 - s2 * z01
+    q01 = s1 * z12 - s2 * z11
+    q02 = s1 * z22 - s2 * z12
+    q10 = s2 * z00 - s0 * z02
+    q11 = s2 * z01 - s0 * z12
+    q12 = s2 * z02 - s0 * z22
+    q20 = s0 * z01 - s1 * z00
+    q21 = s0 * z11 - s1 * z01
+    q22 = s0 * z12 - s1 * z02
+    # X <- X + S + S^T - CZ C(a) (upper triangle);  Y <- Y - CZ
+    return (x00 + (2.0 * S00 - (q01 * s2 - q02 * s1)), x01 + (S01 + S10 - (q02 * s0 - q00 * s2)),
+            x02 + (S02 + S20 - (q00 * s1 - q01 * s0)), x11 + (2.0 * S11 - (q12 * s0 - q10 * s2)),
+            x12 + (S12 + S21 - (q10 * s1 - q11 * s0)), x22 + (2.0 * S22 - (q20 * s1 - q21 * s0)),
+            y00 - q00, y01 - q01, y02 - q02, y10 - q10, y11 - q11, y12 - q12,
+            y20 - q20, y21 - q21, y22 - q22)
+
+
 @jit_borrowed
 def rge_a_backward(tree, s, tau):
     """Backward pass: articulated masses, the bias of every articulated body, phitil (Table A.1).
@@ -360,14 +410,16 @@ def _rge_a_backward(tree, s, tau, serial):
             z12 -= v4 * u5
             z22 -= v5 * u5
         # ---- the articulated body's bias: p <- p + Mbar_k c_k (c_k = 0 with qd = 0)
-        ca0, ca1, ca2 = c[k, 0], c[k, 1], c[k, 2]
-        cb0, cb1, cb2 = c[k, 3], c[k, 4], c[k, 5]
-        n0 += (x00 * ca0 + x01 * ca1 + x02 * ca2) + (y00 * cb0 + y01 * cb1 + y02 * cb2)
-        n1 += (x01 * ca0 + x11 * ca1 + x12 * ca2) + (y10 * cb0 + y11 * cb1 + y12 * cb2)
-        n2 += (x02 * ca0 + x12 * ca1 + x22 * ca2) + (y20 * cb0 + y21 * cb1 + y22 * cb2)
-        f0 += (y00 * ca0 + y10 * ca1 + y20 * ca2) + (z00 * cb0 + z01 * cb1 + z02 * cb2)
-        f1 += (y01 * ca0 + y11 * ca1 + y21 * ca2) + (z01 * cb0 + z11 * cb1 + z12 * cb2)
-        f2 += (y02 * ca0 + y12 * ca1 + y22 * ca2) + (z02 * cb0 + z12 * cb1 + z22 * cb2)
+        d0, d1, d2, d3, d4, d5 = articulated_bias(
+            c[k, 0], c[k, 1], c[k, 2], c[k, 3], c[k, 4], c[k, 5],
+            x00, x01, x02, x11, x12, x22, y00, y01, y02, y10, y11, y12, y20, y21, y22,
+            z00, z01, z02, z11, z12, z22)
+        n0 += d0
+        n1 += d1
+        n2 += d2
+        f0 += d3
+        f1 += d4
+        f2 += d5
         p = k - 1 if serial else parent[k]
         if p >= 0:
             # ---- hand on to the parent p: shift to O_p with a = O_p - O_k (A_{k,p}):
@@ -378,42 +430,10 @@ def _rge_a_backward(tree, s, tau, serial):
             n0 -= s1 * f2 - s2 * f1
             n1 -= s2 * f0 - s0 * f2
             n2 -= s0 * f1 - s1 * f0
-            # S = Y C(a): column j of C(a) is a x e_j
-            S00 = y01 * s2 - y02 * s1
-            S01 = y02 * s0 - y00 * s2
-            S02 = y00 * s1 - y01 * s0
-            S10 = y11 * s2 - y12 * s1
-            S11 = y12 * s0 - y10 * s2
-            S12 = y10 * s1 - y11 * s0
-            S20 = y21 * s2 - y22 * s1
-            S21 = y22 * s0 - y20 * s2
-            S22 = y20 * s1 - y21 * s0
-            # CZ = C(a) Z
-            q00 = s1 * z02 - s2 * z01
-            q01 = s1 * z12 - s2 * z11
-            q02 = s1 * z22 - s2 * z12
-            q10 = s2 * z00 - s0 * z02
-            q11 = s2 * z01 - s0 * z12
-            q12 = s2 * z02 - s0 * z22
-            q20 = s0 * z01 - s1 * z00
-            q21 = s0 * z11 - s1 * z01
-            q22 = s0 * z12 - s1 * z02
-            # X <- X + S + S^T - CZ C(a) (upper triangle);  Y <- Y - CZ;  Z unchanged
-            x00 += 2.0 * S00 - (q01 * s2 - q02 * s1)
-            x01 += S01 + S10 - (q02 * s0 - q00 * s2)
-            x02 += S02 + S20 - (q00 * s1 - q01 * s0)
-            x11 += 2.0 * S11 - (q12 * s0 - q10 * s2)
-            x12 += S12 + S21 - (q10 * s1 - q11 * s0)
-            x22 += 2.0 * S22 - (q20 * s1 - q21 * s0)
-            y00 -= q00
-            y01 -= q01
-            y02 -= q02
-            y10 -= q10
-            y11 -= q11
-            y12 -= q12
-            y20 -= q20
-            y21 -= q21
-            y22 -= q22
+            (x00, x01, x02, x11, x12, x22,
+             y00, y01, y02, y10, y11, y12, y20, y21, y22) = shift_to_parent(
+                s0, s1, s2, x00, x01, x02, x11, x12, x22,
+                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
         if not serial and parent[k] != k - 1:
             if p >= 0:  # into the parent's gather row, and start the next body from zero
                 g = gather[p]

@@ -36,6 +36,7 @@ from numba import prange
 
 from .._jit import inline, jit, jit_parallel, jit_tiles
 from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
+from .rge_a import articulated_bias, shift_to_parent
 
 TWO_OVER_PI = 6.36619772367581382433e-01
 # fdlibm's pi/2 in three parts (e_rem_pio2.c): pio2_1 (33 bits), pio2_2, pio2_2t
@@ -442,20 +443,12 @@ def _bias_and_shift(k, shift, oO, C, car):
         y20, y21, y22 = car[at(BY + 6, b)], car[at(BY + 7, b)], car[at(BY + 8, b)]
         z00, z01, z02 = car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)]
         z11, z12, z22 = car[at(BZ + 3, b)], car[at(BZ + 4, b)], car[at(BZ + 5, b)]
-        ca0, ca1, ca2 = C[at(k * 6 + 0, b)], C[at(k * 6 + 1, b)], C[at(k * 6 + 2, b)]
-        cb0, cb1, cb2 = C[at(k * 6 + 3, b)], C[at(k * 6 + 4, b)], C[at(k * 6 + 5, b)]
-        n0 = car[at(BN + 0, b)] + ((x00 * ca0 + x01 * ca1 + x02 * ca2)
-                               + (y00 * cb0 + y01 * cb1 + y02 * cb2))
-        n1 = car[at(BN + 1, b)] + ((x01 * ca0 + x11 * ca1 + x12 * ca2)
-                               + (y10 * cb0 + y11 * cb1 + y12 * cb2))
-        n2 = car[at(BN + 2, b)] + ((x02 * ca0 + x12 * ca1 + x22 * ca2)
-                               + (y20 * cb0 + y21 * cb1 + y22 * cb2))
-        f0 = car[at(BF + 0, b)] + ((y00 * ca0 + y10 * ca1 + y20 * ca2)
-                               + (z00 * cb0 + z01 * cb1 + z02 * cb2))
-        f1 = car[at(BF + 1, b)] + ((y01 * ca0 + y11 * ca1 + y21 * ca2)
-                               + (z01 * cb0 + z11 * cb1 + z12 * cb2))
-        f2 = car[at(BF + 2, b)] + ((y02 * ca0 + y12 * ca1 + y22 * ca2)
-                               + (z02 * cb0 + z12 * cb1 + z22 * cb2))
+        d0, d1, d2, d3, d4, d5 = articulated_bias(
+            C[at(k * 6 + 0, b)], C[at(k * 6 + 1, b)], C[at(k * 6 + 2, b)], C[at(k * 6 + 3, b)],
+            C[at(k * 6 + 4, b)], C[at(k * 6 + 5, b)], x00, x01, x02, x11, x12, x22,
+            y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
+        n0, n1, n2 = car[at(BN + 0, b)] + d0, car[at(BN + 1, b)] + d1, car[at(BN + 2, b)] + d2
+        f0, f1, f2 = car[at(BF + 0, b)] + d3, car[at(BF + 1, b)] + d4, car[at(BF + 2, b)] + d5
         if shift:
             s0 = oO[at((k - 1) * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
             s1 = oO[at((k - 1) * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
@@ -463,39 +456,25 @@ def _bias_and_shift(k, shift, oO, C, car):
             n0 -= s1 * f2 - s2 * f1
             n1 -= s2 * f0 - s0 * f2
             n2 -= s0 * f1 - s1 * f0
-            S00 = y01 * s2 - y02 * s1
-            S01 = y02 * s0 - y00 * s2
-            S02 = y00 * s1 - y01 * s0
-            S10 = y11 * s2 - y12 * s1
-            S11 = y12 * s0 - y10 * s2
-            S12 = y10 * s1 - y11 * s0
-            S20 = y21 * s2 - y22 * s1
-            S21 = y22 * s0 - y20 * s2
-            S22 = y20 * s1 - y21 * s0
-            q00 = s1 * z02 - s2 * z01
-            q01 = s1 * z12 - s2 * z11
-            q02 = s1 * z22 - s2 * z12
-            q10 = s2 * z00 - s0 * z02
-            q11 = s2 * z01 - s0 * z12
-            q12 = s2 * z02 - s0 * z22
-            q20 = s0 * z01 - s1 * z00
-            q21 = s0 * z11 - s1 * z01
-            q22 = s0 * z12 - s1 * z02
-            car[at(BX + 0, b)] = x00 + (2.0 * S00 - (q01 * s2 - q02 * s1))
-            car[at(BX + 1, b)] = x01 + (S01 + S10 - (q02 * s0 - q00 * s2))
-            car[at(BX + 2, b)] = x02 + (S02 + S20 - (q00 * s1 - q01 * s0))
-            car[at(BX + 3, b)] = x11 + (2.0 * S11 - (q12 * s0 - q10 * s2))
-            car[at(BX + 4, b)] = x12 + (S12 + S21 - (q10 * s1 - q11 * s0))
-            car[at(BX + 5, b)] = x22 + (2.0 * S22 - (q20 * s1 - q21 * s0))
-            car[at(BY + 0, b)] = y00 - q00
-            car[at(BY + 1, b)] = y01 - q01
-            car[at(BY + 2, b)] = y02 - q02
-            car[at(BY + 3, b)] = y10 - q10
-            car[at(BY + 4, b)] = y11 - q11
-            car[at(BY + 5, b)] = y12 - q12
-            car[at(BY + 6, b)] = y20 - q20
-            car[at(BY + 7, b)] = y21 - q21
-            car[at(BY + 8, b)] = y22 - q22
+            (x00, x01, x02, x11, x12, x22,
+             y00, y01, y02, y10, y11, y12, y20, y21, y22) = shift_to_parent(
+                s0, s1, s2, x00, x01, x02, x11, x12, x22,
+                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
+            car[at(BX + 0, b)] = x00
+            car[at(BX + 1, b)] = x01
+            car[at(BX + 2, b)] = x02
+            car[at(BX + 3, b)] = x11
+            car[at(BX + 4, b)] = x12
+            car[at(BX + 5, b)] = x22
+            car[at(BY + 0, b)] = y00
+            car[at(BY + 1, b)] = y01
+            car[at(BY + 2, b)] = y02
+            car[at(BY + 3, b)] = y10
+            car[at(BY + 4, b)] = y11
+            car[at(BY + 5, b)] = y12
+            car[at(BY + 6, b)] = y20
+            car[at(BY + 7, b)] = y21
+            car[at(BY + 8, b)] = y22
         car[at(BN + 0, b)] = n0
         car[at(BN + 1, b)] = n1
         car[at(BN + 2, b)] = n2
