@@ -74,8 +74,11 @@ def check_state(chain: System, name: str, x, *, optional: bool = False,
     arr = np.asarray(arr, dtype=float)
     if arr.shape != (n,):
         what = "configuration coordinates" if name == "q" else "DOF"
+        batch = (f" (q is one state; for a batch of states give q as (B, {chain.n_q}) too)"
+                 if arr.ndim == 2 and name != "q" else "")
         raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
-                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},)")
+                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},)"
+                         + batch)
     arr = np.ascontiguousarray(arr)
     if finite:
         require_finite(name, arr)
@@ -296,24 +299,31 @@ def _is_batch(x) -> bool:
         return False
 
 
-def check_batch(chain: System, name: str, x, rows: int | None) -> np.ndarray:
+def check_batch(chain: System, name: str, x, rows: int | None, *,
+                label: str | None = None) -> np.ndarray:
     """``x`` as a C-contiguous float64 (B, n) array (n = ``n_q`` for ``q``, else ``n_v``) with
-    ``rows`` rows when given, or StateError naming it."""
+    ``rows`` rows when given (the rows of the batch's ``q``), or StateError naming it (as
+    ``label``, default ``name``) and saying what a batch needs."""
     n = chain.n_q if name == "q" else chain.n_v
+    label = label or name
     try:
         arr = np.asarray(x)
     except (TypeError, ValueError) as exc:
-        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric array ({exc})") from None
+        raise StateError(f"{label} = {reprlib.repr(x)}: not a numeric array ({exc})") from None
     if arr.dtype.kind not in NUMERIC_KINDS:
-        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric array (its entries are "
+        raise StateError(f"{label} = {reprlib.repr(x)}: not a numeric array (its entries are "
                          f"{arr.dtype}; need int or float)")
-    want = f"({rows if rows is not None else 'B'}, {n})"
-    if arr.ndim != 2 or arr.shape[1] != n or (rows is not None and arr.shape[0] != rows):
-        what = "configuration coordinates" if name == "q" else "DOF"
-        raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
-                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},) for "
-                         f"one state, or {want} for a batch of states, one a row")
-    return np.ascontiguousarray(arr, dtype=np.float64)
+    if arr.ndim == 2 and arr.shape[1] == n and (rows is None or arr.shape[0] == rows):
+        return np.ascontiguousarray(arr, dtype=np.float64)
+    what = "configuration coordinates" if name == "q" else "DOF"
+    has = f"{type(chain).__name__.lower()} {chain.name!r} has {n} {what}"
+    if rows is None:  # the batch's own rows: q
+        raise StateError(f"{label} has shape {arr.shape}; {has}, so {label} must have shape "
+                         f"({n},) for one state, or (B, {n}) for a batch, one state a row")
+    raise StateError(f"{label} has shape {arr.shape}; q is a batch of {rows} states, so {label} "
+                     f"must have shape ({rows}, {n}), one row per row of q ({has})"
+                     + (f"; for the same {label} in every row, np.tile({label}, ({rows}, 1))"
+                        if arr.shape == (n,) else ""))
 
 
 def thread_count(threads: int | None, rows: int, work: float | None = None) -> int:
@@ -582,15 +592,76 @@ def delta_M(chain: System, q, qd, E0: float, *, ws: Workspace | None = None) -> 
 
 
 class Tip(NamedTuple):
-    """Position, velocity and acceleration of the distal end of the last link (world frame)."""
+    """Position, velocity and acceleration of a point fixed in a body (world frame): the tip of
+    a chain (the distal end of its last link), or a model's named frame."""
 
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray | None
 
 
-def tip(chain: Chain, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
-    """The tip (distal end of the last link): position, velocity and, given qdd, acceleration."""
+TIP = "tip"  # the frame a chain's tip is (Model.from_chain names it so)
+
+
+def _frame_point(system: System, frame: str) -> tuple[int, np.ndarray]:
+    """(body index, point in the body's frame) of ``frame``: a frame of the model
+    (``Model.frames``; a chain has ``"tip"``) or a body (its origin, the joint's centre).
+    Raises FieldError naming the frame and listing the known ones."""
+    if type(system) is Chain:
+        if frame == TIP:
+            k = system.n_links - 1
+            return k, np.array([system.length[k], 0.0, 0.0])
+        names = {f"link{k + 1}": k for k in range(system.n_links)}
+        known = [TIP, "link1", "...", f"link{system.n_links}"]
+    else:
+        if isinstance(frame, str) and frame in system.frames:
+            b, point = system.frames[frame]
+            return int(b), np.asarray(point, dtype=float)
+        names = {name: k for k, name in enumerate(system.body_names)}
+        known = [*system.frames, *system.body_names]
+        if len(known) > 12:
+            known = [*known[:10], "...", known[-1]]
+    if isinstance(frame, str) and frame in names:
+        return names[frame], np.zeros(3)
+    where = "tip" if frame == TIP else "frame"
+    raise FieldError(f"{type(system).__name__.lower()} {system.name!r}", where, frame,
+                     "no such frame or body; known: " + ", ".join(known)
+                     + ("; give another with frame_motion(system, q, qd, frame=NAME)"
+                        if frame == TIP else ""))
+
+
+def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
+                 ws: Workspace | None = None) -> Tip:
+    """A point's motion in the world frame: position [m], velocity [m/s] and, given qdd,
+    acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
+    ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
+    frame, StateError for a bad state."""
+    q = check_state(system, "q", q)
+    qd = check_state(system, "qd", qd)
+    qdd = check_state(system, "qdd", qdd, optional=True)
+    k, point = _frame_point(system, frame)
+    ws = _ws(system, ws)
+    _run_kinematics(system, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
+    r = ws.oR[k] @ point
+    w, v = ws.t[k, :3], ws.t[k, 3:]
+    pos = ws.oO[k] + r
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
+        vel = v + np.cross(w, r)
+        acc = None
+        if qdd is not None:
+            wd, vd = ws.td[k, :3], ws.td[k, 3:]
+            acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+    if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
+        raise overflow_error(f"the motion of {frame!r}", q=q, qd=qd, qdd=qdd)
+    return Tip(pos, vel, acc)
+
+
+def tip(chain: System, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
+    """The tip (distal end of the last link): position, velocity and, given qdd, acceleration.
+    A :class:`~redysim.model.Model` answers for its frame ``"tip"`` (a chain's model has it;
+    for any other point use :func:`frame_motion`)."""
+    if type(chain) is not Chain:
+        return frame_motion(chain, q, qd, qdd, frame=TIP, ws=ws)
     q = check_state(chain, "q", q)
     qd = check_state(chain, "qd", qd)
     qdd = check_state(chain, "qdd", qdd, optional=True)
@@ -612,11 +683,18 @@ def tip(chain: Chain, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
     return Tip(pos, vel, acc)
 
 
-def joint_positions(chain: Chain, q, *, ws: Workspace | None = None) -> np.ndarray:
-    """(nl + 1, 3): the joint origins O_1..O_nl and the tip, for plotting the chain's shape."""
+def joint_positions(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
+    """The joint origins, for plotting a shape: a chain's (nl + 1, 3) O_1..O_nl and the tip; a
+    model's (nb, 3) body origins (each body's frame sits on its joint), then its ``"tip"``
+    frame's position when it has one (so a chain's model gives the chain's rows)."""
     q = check_state(chain, "q", q)
     ws = _ws(chain, ws)
     c = chain
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    if type(c) is not Chain:
+        if TIP not in c.frames:
+            return ws.oO.copy()
+        b, point = c.frames[TIP]
+        return np.vstack([ws.oO, ws.oO[b] + ws.oR[b] @ np.asarray(point, dtype=float)])
     k = c.n_links - 1
     return np.vstack([ws.oO, ws.oO[k] + c.length[k] * ws.oR[k][:, 0]])

@@ -1,0 +1,149 @@
+"""The public functions take a Model as they take a Chain: the tip, any frame's motion, the joint
+positions, coarse-graining; and batch shape errors say what a batch needs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_chain, random_state
+from test_trees import random_configuration, random_tree
+
+from redysim import (
+    CaseError,
+    Chain,
+    FieldError,
+    Model,
+    StateError,
+    coarsen,
+    forward_dynamics,
+    frame_motion,
+    inverse_dynamics,
+    joint_positions,
+    load_case,
+    tip,
+)
+from redysim.coarse import chain_of
+from redysim.rbda import configuration_rate, frame_position
+
+CHAIN_FIELDS = ("length", "mass", "com", "inertia_com", "gravity", "joint_qoff", "dof_kind",
+                "dof_axis", "dof_u", "inertia_O", "mass_com")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_chains_model_has_the_chains_tip_and_joint_positions(seed):
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, 7)
+    model = Model.from_chain(chain)
+    q, qd, _ = random_state(rng, chain)
+    qdd = forward_dynamics(chain, q, qd)
+    for a, b in zip(tip(chain, q, qd, qdd), tip(model, q, qd, qdd), strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(joint_positions(chain, q), joint_positions(model, q))
+
+
+def test_a_model_without_a_tip_names_its_frames():
+    model = random_tree(0, n_bodies=4)
+    q, v = random_configuration(np.random.default_rng(0), model), np.zeros(model.n_v)
+    with pytest.raises(FieldError, match=r"tip = 'tip': no such frame or body; known: .*b0.*"
+                                         r"frame_motion"):
+        tip(model, q, v)
+    with pytest.raises(FieldError, match=r"frame = 'nose': no such frame or body"):
+        frame_motion(model, q, v, frame="nose")
+    assert joint_positions(model, q).shape == (model.n_bodies, 3)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_frame_motion_is_the_derivative_of_the_frames_position(seed):
+    """Position against rbda's plain kinematics; velocity and acceleration against central
+    differences along the motion (dq/dt from v, a free joint's quaternion too; dv/dt = qdd)."""
+    rng = np.random.default_rng(100 + seed)
+    model = random_tree(seed, n_bodies=7)
+    point = rng.normal(scale=0.3, size=3)
+    body = int(rng.integers(model.n_bodies))
+    model = Model.build(*_parts(model), gravity=tuple(model.gravity),
+                        frames={"probe": (body, tuple(point))})
+    q, v = random_configuration(rng, model), rng.normal(size=model.n_v)
+    qdd = forward_dynamics(model, q, v)
+    m = frame_motion(model, q, v, qdd, frame="probe")
+    np.testing.assert_allclose(m.position, frame_position(model, q, "probe"), rtol=0,
+                               atol=1e-13)
+    qdot, h = configuration_rate(model, q, v), 1e-5
+
+    def at(s):
+        return frame_motion(model, q + s * qdot, v + s * qdd, frame="probe")
+
+    vel = (at(h).position - at(-h).position) / (2 * h)
+    acc = (at(h).velocity - at(-h).velocity) / (2 * h)
+    scale = 1 + np.abs(m.velocity).max() + np.abs(m.acceleration).max()
+    np.testing.assert_allclose(m.velocity, vel, rtol=0, atol=1e-7 * scale)
+    np.testing.assert_allclose(m.acceleration, acc, rtol=0, atol=1e-7 * scale)
+    # a body's name is its origin
+    origin = frame_motion(model, q, v, frame=model.body_names[body])
+    np.testing.assert_allclose(origin.position, m.position - _rotation(model, q, body) @ point,
+                               rtol=0, atol=1e-13)
+
+
+def _parts(model: Model):
+    """Bodies, joints, parents that rebuild ``model`` (no fixed joints left to fuse)."""
+    from redysim.model import Body, TreeJoint
+
+    bodies, joints = [], []
+    for k in range(model.n_bodies):
+        bodies.append(Body(model.body_names[k], float(model.mass[k]), tuple(model.com[k]),
+                           tuple(map(tuple, model.inertia_com[k])), physical=False))
+        jt = model.joint_types[k]
+        sl = slice(model.joint_voff[k], model.joint_voff[k + 1])
+        axis = tuple(model.dof_u[sl][0]) if jt in ("R", "P") else None
+        joints.append(TreeJoint(model.joint_names[k], jt, axis,
+                                tuple(map(tuple, model.placement_R[k])),
+                                tuple(model.placement_p[k])))
+    return bodies, joints, [int(p) for p in model.parent]
+
+
+def _rotation(model, q, body):
+    from redysim.rbda import kinematics
+
+    return kinematics(model, q, np.zeros(model.n_v)).R[body]
+
+
+@pytest.mark.parametrize("name", ["RE-U125-L1", "cases/refine/fall-R256.toml", "STUDY-R10"])
+def test_a_chains_model_is_read_back_as_the_chain(name):
+    chain = load_case(name).chain
+    back = chain_of(Model.from_chain(chain))
+    for field in CHAIN_FIELDS:
+        np.testing.assert_array_equal(getattr(chain, field), getattr(back, field), err_msg=field)
+    assert back.is_planar == chain.is_planar
+    fine, coarse = coarsen(chain, 2 if chain.n_links % 2 == 0 else 5), \
+        coarsen(Model.from_chain(chain), 2 if chain.n_links % 2 == 0 else 5)
+    for field in CHAIN_FIELDS:
+        np.testing.assert_array_equal(getattr(fine.coarse, field), getattr(coarse.coarse, field))
+
+
+def test_coarsen_refuses_a_model_that_is_not_a_chain():
+    with pytest.raises(CaseError, match=r"body 'b\d'.parent = \d+: the model is a tree"):
+        coarsen(random_tree(1, n_bodies=6, free=False, fixed=0), 2)
+    chain = Chain.uniform(4, "U", mass=1.0)
+    bent = Model.build(*_parts(Model.from_chain(chain)), gravity=tuple(chain.gravity))  # no tip
+    with pytest.raises(CaseError, match=r"frames.tip: a chain's model marks"):
+        coarsen(bent, 2)
+
+
+# --------------------------------------------------------------------------- batch shapes
+def test_batch_shape_errors_say_what_a_batch_needs():
+    chain = Chain.uniform(5, "U", mass=1.0)
+    Q, n = np.zeros((4, chain.n_dof)), chain.n_dof
+    with pytest.raises(StateError) as err:
+        forward_dynamics(chain, Q, np.zeros(n))
+    text = str(err.value)
+    assert "q is a batch of 4 states, so qd must have shape (4, 10)" in text
+    assert "np.tile(qd, (4, 1))" in text
+    assert "must have shape (10,)" not in text  # the single state's shape is not the answer
+    with pytest.raises(StateError, match=r"qd has shape \(4, 10\).*q is one state; for a batch "
+                                         r"of states give q as \(B, 10\) too"):
+        forward_dynamics(chain, np.zeros(n), Q)
+    with pytest.raises(StateError, match=r"q has shape \(4, 3\); .* has 10 configuration "
+                                         r"coordinates, so q must have shape \(10,\) for one "
+                                         r"state, or \(B, 10\) for a batch, one state a row"):
+        forward_dynamics(chain, np.zeros((4, 3)), Q)
+    with pytest.raises(StateError, match=r"qdd has shape \(3, 10\); q is a batch of 4 states"):
+        inverse_dynamics(chain, Q, Q, np.zeros((3, n)))
