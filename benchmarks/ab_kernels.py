@@ -12,7 +12,9 @@ happens before the timing. "entry" is forward dynamics' compiled entry point (as
 arrays: 23 positional ones before the kernels took named bundles, the two bundles since). The
 passes are timed through their own numba dispatch from Python (~1 us each; ~3 us with the
 bundles, whose 28 arrays the dispatcher unboxes one by one), so at small sizes they add up to
-more than the whole call: compare passes at 100,000 DOF, and the entry at every size.
+more than the whole call: compare passes at 100,000 DOF, and the entry at every size. Each
+column is timed in a loop of its own, so that one column's slow calls do not evict another's
+data from the caches.
 
 Speed changes to the kernels are claimed from this script's output, never from two separate runs.
 """
@@ -67,7 +69,12 @@ def base_kernels(rev: str, into: Path):
             text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{name}"],
                                   capture_output=True, text=True, check=True).stdout
             if name == "redysim/_kernels/bundles.py" \
-                    and text == (ROOT / "redysim/_kernels/bundles.py").read_text():
+                    and text != (ROOT / "redysim/_kernels/bundles.py").read_text():
+                print("note: the two revisions' bundles differ, so numba dispatches the second "
+                      "side's pass calls by its slow path (~0.2 ms a call): compare the entry "
+                      "column; the passes' columns only where the bundles are the same",
+                      file=sys.stderr)
+            elif name == "redysim/_kernels/bundles.py":
                 # the same bundles: the working tree's classes on both sides. Two NamedTuple
                 # classes of one name and fields sent the second side's calls by them through
                 # numba's slow dispatch, ~0.2 ms a call (the passes' columns; not the entry's)
@@ -143,9 +150,10 @@ def main(argv=None) -> int:
                      "head": calls(head_rge_a, head_kin, head_entry, Workspace, chain, q, qd)}
             best = {s: [np.inf] * len(PASSES) for s in sides}
             reps = a.reps or max(20, 2_000_000 // dof)
-            for r in range(reps):
-                for s in (("base", "head") if r % 2 else ("head", "base")):
-                    for i, f in enumerate(sides[s][0]):
+            for i in range(len(PASSES)):  # one column at a time: a slow call of one column
+                for r in range(reps):       # (below) cannot evict another's data from cache
+                    for s in (("base", "head") if r % 2 else ("head", "base")):
+                        f = sides[s][0][i]
                         if f is None:
                             continue
                         t0 = time.perf_counter()

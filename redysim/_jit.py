@@ -58,6 +58,16 @@ def inline(func):
     return numba.njit(inline="always", cache=True, nogil=True, error_model="numpy")(func)
 
 
+def inline_generated(source: str, name: str, namespace: dict):
+    """:func:`inline` for a helper whose source is generated (``source`` defines ``name``, with
+    ``namespace`` as its globals): the layout's slicer (``redysim._kernels.bundles``). numba
+    caches nothing of its own for it (it has no file to key a cache on); it is inlined, at the
+    IR level, into callers that are cached."""
+    scope = {"__name__": f"{__name__}.generated", **namespace}
+    exec(compile(source, f"<generated {name}>", "exec"), scope)  # noqa: S102
+    return numba.njit(inline="always", nogil=True, error_model="numpy")(scope[name])
+
+
 class EntryPoint:
     """A kernel compiled for exactly one signature, on first use of :attr:`compiled` (so importing
     redysim compiles nothing, and the first call pays the compile or the disk-cache load, as for

@@ -506,20 +506,23 @@ class CompiledSolver(Solver):
         self._run = rk_run
         self.max_steps = int(max_steps)
         self._ws = ws
-        self._kind = rk_run.PLANAR if planar else rk_run.RGE_A
         tab = self.tab
-        self._E = tab.E if tab.E is not None else _NO_WEIGHTS
-        self._E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
-        self._ctl = np.array([self.rtol if self.adaptive else 1.0,
-                              self.atol if self.adaptive else 1.0, self.hmax,
-                              getattr(self, "power", 0.0), self.t_end, float(self.adaptive)])
-        self._consts = np.array([SAFETY, MAX_GROWTH, FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS,
-                                 FINISH_SLACK, SAMPLE_EPS])
-        self._ts = np.array([self.t, self.t_old, self.h_next])
+        self._motion = rk_run.Motion(rk_run.PLANAR if planar else rk_run.RGE_A, ws.kernel_f,
+                                     ws.kernel_i, ws.scratch, ws.zeros)
+        self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
+                                     tab.E if tab.E is not None else _NO_WEIGHTS,
+                                     tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
+        self._ctl = rk_run.Control(
+            self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
+            float(self.hmax), float(getattr(self, "power", 0.0)), float(self.t_end),
+            bool(self.adaptive), SAFETY, MAX_GROWTH, FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS,
+            FINISH_SLACK, SAMPLE_EPS)
         self.y, self.f = self.y.copy(), self.f.copy()
         self.y_old, self.f_old = self.y.copy(), self.f.copy()
-        self._counts = np.zeros(3, dtype=np.int64)
-        self._tmp, self._y_new = np.empty(self.n), np.empty(self.n)
+        self._state = rk_run.StepState(
+            np.array([self.t, self.t_old, self.h_next]), self.y, self.f, self.y_old, self.f_old,
+            self.K, np.zeros(3, dtype=np.int64), np.empty(self.n), np.empty(self.n), self._err,
+            self._err3)
 
     @property
     def takes_t_stop(self) -> bool:
@@ -527,18 +530,18 @@ class CompiledSolver(Solver):
 
     def step(self, t_stop: float | None = None) -> None:
         """Steps up to the first that reaches ``t_stop`` (t_end when None), or max_steps."""
-        c = self.counters
-        self._ts[:] = self.t, self.t_old, self.h_next
-        self._counts[:] = c.steps, c.rejected, c.nfev
+        c, st = self.counters, self._state
+        if st.y is not self.y or st.f is not self.f or st.y_old is not self.y_old \
+                or st.f_old is not self.f_old:  # reassigned from outside: step those
+            st = self._state = st._replace(y=self.y, f=self.f, y_old=self.y_old, f_old=self.f_old)
+        st.ts[:] = self.t, self.t_old, self.h_next
+        st.counts[:] = c.steps, c.rejected, c.nfev
         steps0, wall0 = c.steps, time.perf_counter()
-        status = self._run.rk_steps(
-            self._kind, self._ws.kernel_f, self._ws.kernel_i, self._ws.scratch, self._ws.zeros,
-            self.tab.A, self.tab.b, self.tab.c, self._E, self._E3, self.tab.fsal, self._ctl,
-            self._consts, self._ts, self.y, self.f, self.y_old, self.f_old, self.K,
-            self._counts, self._tmp, self._y_new, self._err, self._err3,
-            self.t_end if t_stop is None else float(t_stop), self.max_steps)
-        self.t, self.t_old, self.h_next = (float(x) for x in self._ts)
-        c.steps, c.rejected, c.nfev = (int(x) for x in self._counts)
+        status = self._run.rk_steps(self._motion, self._scheme, self._ctl, st,
+                                    self.t_end if t_stop is None else float(t_stop),
+                                    self.max_steps)
+        self.t, self.t_old, self.h_next = (float(x) for x in st.ts)
+        c.steps, c.rejected, c.nfev = (int(x) for x in st.counts)
         taken, wall = c.steps - steps0, time.perf_counter() - wall0
         if taken:  # about CHUNK_S of wall time a call: the caller's clock and progress run
             self.max_steps = max(1, min(MAX_CHUNK_STEPS, int(CHUNK_S * taken / max(wall,

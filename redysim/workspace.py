@@ -7,7 +7,21 @@ from functools import cached_property
 import numpy as np
 
 from ._kernels import entry as E
-from ._kernels.bundles import GATHER_MASS, Scratch, Tree
+from ._kernels.bundles import (
+    FIELDS,
+    H_NB,
+    H_NG,
+    H_NQ,
+    H_NV,
+    H_SERIAL,
+    HEADER,
+    SLOT,
+    Scratch,
+    Tree,
+    segment_sizes,
+    shape_of,
+    sizes_of,
+)
 from ._kernels.joints import BALL
 from ._kernels.tiles import tile_sizes
 from .chain import Chain
@@ -17,21 +31,23 @@ from .model import FREE, Model
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
 
-def _layout(sizes: dict[int, int], header: np.ndarray, start: int = 0) -> int:
-    """Lay segments (slot -> number of items) back to back, each padded to ALIGN items: write
-    each one's offset, counted from ``start``, into ``header`` at its slot; return the total."""
+def _layout(sizes: dict[str, int], header: np.ndarray, start: int = 0) -> int:
+    """Lay segments (field name -> number of items) back to back, each padded to ALIGN items:
+    write each one's offset, counted from ``start``, into ``header`` at its slot; return the
+    total."""
     end = start
-    for slot, size in sizes.items():
-        header[slot] = end
+    for name, size in sizes.items():
+        header[SLOT[name]] = end
         end += -(-size // ALIGN) * ALIGN
     return end - start
 
 
-def _pack(segments: dict[int, np.ndarray], dtype, header: np.ndarray, start: int = 0
+def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int = 0
           ) -> np.ndarray:
-    """One array holding ``segments`` (slot -> array) as laid out by :func:`_layout`."""
+    """One array holding ``segments`` (field name -> array) as laid out by :func:`_layout`."""
     packed = np.zeros(_layout({k: a.size for k, a in segments.items()}, header, start), dtype)
-    for slot, a in segments.items():
+    for name, a in segments.items():
+        slot = SLOT[name]
         packed[header[slot] - start:header[slot] - start + a.size] = np.ravel(a)
     return packed
 
@@ -67,20 +83,17 @@ def tree_tables(system: Chain | Model) -> dict:
                 n_q=m.n_q)
 
 
-FLOAT_FIELDS = ("along", "placement_R", "placement_p", "dof_u", "mass", "inertia_O", "mass_com")
-
-
 def bundles_in(system: Chain | Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
     """The two bundles with the tree's float arrays passed through ``convert`` (or given in
     ``arrays`` by field name) and the scratch made by ``zeros(shape)``: for running the kernels'
     Python source in another arithmetic (``redysim.precision``, ``harness.hiprec``)."""
     t = tree_tables(system)
-    tree = Tree(**{f: arrays[f] if f in arrays else convert(t[f]) if f in FLOAT_FIELDS else t[f]
-                   for f in Tree._fields})
-    nb, n, ng = t["mass"].shape[0], t["dof_kind"].shape[0], int((t["gather"] >= 0).sum())
-    shapes = ((nb, 3, 3), (nb, 3), (n, 6), (nb, 6), (nb, 6), (n,), (n, 6), (n,), (n,), (nb, 6),
-              (ng, GATHER_MASS), (ng, 6), (ng, 6))
-    return tree, Scratch(*(zeros(shape) for shape in shapes))
+    tree = Tree(t["serial"], *(arrays[f] if f in arrays else convert(t[f])
+                               if FIELDS[f].dtype is np.float64 else t[f]
+                               for f in Tree._fields[1:]))
+    sizes = sizes_of(t["mass"].shape[0], t["dof_kind"].shape[0],
+                     int((t["gather"] >= 0).sum()), bool(t["serial"]))
+    return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
 
 
 class Workspace:
@@ -103,60 +116,49 @@ class Workspace:
             raise FieldError("Workspace", "chain", type(system).__name__,
                              "must be a redysim.Chain or redysim.Model (Chain.build, "
                              "Chain.uniform, load_case(...).chain, load_model(...))")
-        tables = tree_tables(system)
-        nb, n = tables["mass"].shape[0], tables["dof_kind"].shape[0]
-        ng = int((tables["gather"] >= 0).sum())
-        nt = tables["parent"].shape[0]
+        t = tree_tables(system)
+        nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
+        ng = int((t["gather"] >= 0).sum())
         planar = isinstance(system, Chain) and system.is_planar
         self.chain = system  # the chain or model it was made for
         gravity = np.asarray(system.gravity, dtype=float)
-        header = np.zeros(E.HEADER, dtype=np.int64)
-        header[[E.H_NB, E.H_NV, E.H_NQ, E.H_NG, E.H_SERIAL]] = nb, n, tables["n_q"], ng, \
-            tables["serial"]
-        t = tables
-        floats = {E.F_ALONG: t["along"], E.F_PLACEMENT_R: t["placement_R"],
-                  E.F_PLACEMENT_P: t["placement_p"], E.F_DOF_U: t["dof_u"], E.F_MASS: t["mass"],
-                  E.F_INERTIA_O: t["inertia_O"], E.F_MASS_COM: t["mass_com"],
-                  E.F_BASE_ACCEL: -gravity, E.F_GRAVITY: gravity, E.F_ZEROS: np.zeros(n)}
+        header = np.zeros(HEADER, dtype=np.int64)
+        header[[H_NB, H_NV, H_NQ, H_NG, H_SERIAL]] = nb, n, t["n_q"], ng, t["serial"]
+        arrays = {**t, "base_accel": -gravity, "gravity": gravity, "zeros": np.zeros(n)}
         if planar:
             c = system
-            floats.update({E.F_LENGTH: c.length, E.F_IZZ_O: c.inertia_O[:, 2, 2],
-                           E.F_MC_X: c.mass_com[:, 0], E.F_MC_Y: c.mass_com[:, 1]})
-        self.kernel_f = _pack(floats, np.float64, header)
-        ints = {E.I_PARENT: t["parent"], E.I_GATHER: t["gather"],
-                E.I_PLACEMENT_CODE: t["placement_code"], E.I_QSHIFT: t["qshift"],
-                E.I_JOINT_VOFF: t["joint_voff"], E.I_DOF_KIND: t["dof_kind"],
-                E.I_DOF_AXIS: t["dof_axis"]}
-        ints_packed = _pack(ints, np.int64, header, start=E.HEADER)  # after the header
-        sizes = {E.S_OR: 9 * nb, E.S_OO: 3 * nb, E.S_OP: 6 * n, E.S_T: 6 * nb, E.S_TD: 6 * nb,
-                 E.S_IHAT: n, E.S_PSIHAT: 6 * n, E.S_PHITIL: n, E.S_PHIHAT: n, E.S_W: 6 * nb,
-                 E.S_GATHER_MASS: GATHER_MASS * ng, E.S_GATHER_WRENCH: 6 * ng,
-                 E.S_GATHER_TWIST: 6 * ng}
-        if planar:
-            sizes[E.S_PLANAR] = 12 * nb
-        self.scratch = np.empty(_layout(sizes, header))
+            arrays.update(length=c.length, izz_O=c.inertia_O[:, 2, 2], mc_x=c.mass_com[:, 0],
+                          mc_y=c.mass_com[:, 1])
+        # the packed arrays, as the layout table lays them out (redysim._kernels.bundles)
+        sizes = sizes_of(nb, n, ng, bool(t["serial"]))
+        self.kernel_f = _pack({f: arrays[f] for f in segment_sizes("tree_f", sizes, planar)},
+                              np.float64, header)
+        ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar)},
+                            np.int64, header, start=HEADER)  # after the header
+        self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar), header))
         self.kernel_i = np.concatenate((header, ints_packed))
         bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
         self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
-        assert nt == self.tree.parent.shape[0]
         s = self.s
         self.oR, self.oO, self.oP, self.t, self.td = s.oR, s.oO, s.oP, s.t, s.td
         self.Ihat, self.Psihat, self.phitil, self.phihat, self.W = \
             s.Ihat, s.Psihat, s.phitil, s.phihat, s.W
-        self.planar = (self.scratch[header[E.S_PLANAR]:header[E.S_PLANAR] + 12 * nb]
-                       .reshape((nb, 12)) if planar else None)
+        slot = SLOT["planar"]
+        self.planar = (self.scratch[header[slot]:header[slot] + 12 * nb].reshape((nb, 12))
+                       if planar else None)
         self.phi = np.empty(n)
         # views of the packed data that the other functions take too: no kernel writes them
-        self.zeros = self.kernel_f[header[E.F_ZEROS]:header[E.F_ZEROS] + n]  # (n,) of zeros
+        f = self.kernel_f
+        self.zeros = f[header[SLOT["zeros"]]:header[SLOT["zeros"]] + n]  # (n,) of zeros
         self.zeros6 = np.zeros((nb, 6))
-        self.base_accel = self.kernel_f[header[E.F_BASE_ACCEL]:header[E.F_BASE_ACCEL] + 3]  # -g
-        self.gravity = self.kernel_f[header[E.F_GRAVITY]:header[E.F_GRAVITY] + 3]
+        self.base_accel = f[header[SLOT["base_accel"]]:header[SLOT["base_accel"]] + 3]  # -g
+        self.gravity = f[header[SLOT["gravity"]]:header[SLOT["gravity"]] + 3]
         self.no_accel = np.zeros(3)
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
         # batches of this system can run in SIMD tiles (redysim._kernels.tiles): a serial chain
         # of revolute and prismatic axes
-        self.tiles_ok = bool(tables["serial"]) and not (tables["dof_kind"] == BALL).any()
+        self.tiles_ok = bool(t["serial"]) and not (t["dof_kind"] == BALL).any()
 
     @cached_property
     def table_a1(self) -> Scratch:

@@ -147,3 +147,33 @@ def test_batch_shape_errors_say_what_a_batch_needs():
         forward_dynamics(chain, np.zeros((4, 3)), Q)
     with pytest.raises(StateError, match=r"qdd has shape \(3, 10\); q is a batch of 4 states"):
         inverse_dynamics(chain, Q, Q, np.zeros((3, n)))
+
+
+# --------------------------------------------------------------------------- the kernels' layout
+@pytest.mark.parametrize("system", ["chain", "planar", "tree"])
+def test_the_workspace_packs_what_the_layout_table_declares(system):
+    """Every array of the bundles, sliced by the compiled slicer's Python form out of the packed
+    arrays, has the shape the table gives it and holds the system's values."""
+    from redysim import Workspace
+    from redysim._kernels.bundles import FIELDS, shape_of, sizes_of
+    from redysim.workspace import tree_tables
+
+    sys_ = {"chain": lambda: random_chain(np.random.default_rng(3), 9),
+            "planar": lambda: Chain.uniform(6, "R", mass=1.0),
+            "tree": lambda: random_tree(2, n_bodies=7)}[system]()
+    ws = Workspace(sys_)
+    t = tree_tables(sys_)
+    sizes = sizes_of(t["mass"].shape[0], t["dof_kind"].shape[0], int((t["gather"] >= 0).sum()),
+                     bool(t["serial"]))
+    for bundle in (ws.tree, ws.s):
+        for name in bundle._fields:
+            if name == "serial":
+                assert bundle.serial == t["serial"]
+                continue
+            value = getattr(bundle, name)
+            assert value.shape == shape_of(FIELDS[name], sizes), name
+            assert value.dtype == FIELDS[name].dtype, name
+            if bundle is ws.tree:
+                np.testing.assert_array_equal(value, np.asarray(t[name]).reshape(value.shape))
+    np.testing.assert_array_equal(ws.base_accel, -np.asarray(sys_.gravity))
+    assert (ws.planar is not None) == (system == "planar")
