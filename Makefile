@@ -6,13 +6,13 @@ EXTRAS := test,harness,engines,models
 STAMP  := $(VENV)/.installed
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: help venv test test-fast reproduce bench bench-core bench-engines lint constraints clean
+.PHONY: help venv test test-fast test-rest reproduce bench bench-core bench-engines lint constraints clean
 
 help:
 	@echo "make reproduce     venv + install + quick reproduction (<15 min): runs, then reports/out/report.{html,pdf}"
 	@echo "make reproduce-full every table to the paper's horizons (hours; resumable), then the report"
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
-	@echo "make test          venv + install + the test suite"
+	@echo "make test          venv + install + the test suite (test-fast: ruff and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of gates.toml: a table, exit 1 if any fails"
 	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF"
@@ -29,11 +29,16 @@ $(STAMP): pyproject.toml requirements/constraints.txt | $(BIN)/python
 
 venv: $(STAMP)
 
-test: $(STAMP)
-	$(BIN)/python -m pytest
+# Two stages, the cheap checks first: lint and the fast tests fail in a minute or two; then
+# the slow and engine tests. Together they are the whole suite.
+test: test-fast test-rest
 
 test-fast: $(STAMP)
+	$(BIN)/ruff check --no-cache .
 	$(BIN)/python -m pytest -m "not slow and not engine"
+
+test-rest: $(STAMP)
+	$(BIN)/python -m pytest -m "slow or engine"
 
 .PHONY: gates
 gates: $(STAMP)
@@ -71,7 +76,7 @@ bench-engines: $(STAMP)
 	$(BIN)/python -m redysim.references.report_bench results/bench/engines.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check .
+	$(BIN)/ruff check --no-cache .
 
 constraints: $(BIN)/python
 	{ echo "# Exact versions the project was tested with (pip constraints: install with -c)."; \

@@ -13,6 +13,25 @@ from redysim.chain import JOINT_TYPES
 
 EPS = np.finfo(float).eps
 
+# Nothing writes into the checkout at test time: MuJoCo appends its warnings to MUJOCO_LOG.TXT
+# in the working directory unless a handler takes them (here: Python warnings), and Hypothesis
+# keeps no example database (.hypothesis/).
+try:
+    import mujoco
+except ImportError:  # a base install: no MuJoCo to silence
+    pass
+else:
+    import warnings
+
+    mujoco.set_mju_user_warning(lambda text: warnings.warn(f"MuJoCo: {text}", stacklevel=1))
+try:
+    from hypothesis import settings as _hypothesis
+except ImportError:
+    pass
+else:
+    _hypothesis.register_profile("redysim", database=None)
+    _hypothesis.load_profile("redysim")
+
 
 def random_inertia(rng, mass, length):
     """A physically valid inertia about the COM: a rotated box's principal moments."""
