@@ -8,6 +8,7 @@
     |   +-- SettingsError         a run's settings: integrator, tolerances, step, horizon, sampling
     |   +-- SweepError            a sweep file (redysim.harness.sweep)
     |   +-- GatesError            the accuracy gates file (redysim.harness.gates)
+    |   +-- ModelFileError        a URDF or MJCF file (redysim.importers)
     +-- StateError                a state (q, qd, qdd, tau) handed to a dynamics function
 """
 
@@ -20,9 +21,26 @@ class RedysimError(Exception):
     """Base class of every error redysim raises on purpose."""
 
 
+def plain(value):
+    """``value`` with numpy scalars and arrays turned into Python numbers and lists (inside
+    tuples, lists and dicts too), so that a message shows ``0.5``, not ``np.float64(0.5)``."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    if isinstance(value, list | tuple):
+        items = [plain(v) for v in value]
+        return items if isinstance(value, list) else tuple(items)
+    if isinstance(value, dict):
+        return {plain(k): plain(v) for k, v in value.items()}
+    return value
+
+
 def _short_repr(value, limit: int = 200) -> str:
-    """repr(value), abbreviated by reprlib when longer than ``limit`` characters (a whole table
-    given where a number was expected would otherwise flood the message)."""
+    """repr(value) with numpy numbers as plain ones (:func:`plain`), abbreviated by reprlib when
+    longer than ``limit`` characters (a whole table given where a number was expected would
+    otherwise flood the message)."""
+    value = plain(value)
     text = repr(value)
     if len(text) <= limit:
         return text
@@ -56,6 +74,12 @@ class CaseError(FieldError):
 
 class SettingsError(FieldError):
     """A run's settings (integrator, rtol, atol, h, t_end, sample interval) are out of range."""
+
+
+class ModelFileError(FieldError):
+    """A URDF or MJCF file (or an option of its loader) the importer cannot take:
+    ``<file>: <element>.<attribute> = <value>: <what is wrong>``, the element named as the file
+    names it (``joint 'knee'``, ``link 'base'``, ``body 'torso'``)."""
 
 
 class StateError(RedysimError, ValueError):

@@ -46,6 +46,7 @@ from .chain import (
     check_inertia,
     check_positive,
     check_vector,
+    numeric_array,
 )
 from .errors import CaseError
 
@@ -182,6 +183,8 @@ class Model:
         mass, com, inertia_com, inertia_O, mass_com: per body, as a Chain's per link.
         gravity:          (3,) world gravity [m/s^2].
         frames:           name -> (body, point in its frame): points of interest (a chain's tip).
+        notes:            what the model's file holds and the model does not, one line each
+                          (:mod:`redysim.importers`: dropped attributes, things not read).
     """
 
     name: str
@@ -204,7 +207,7 @@ class Model:
     mass_com: np.ndarray
     gravity: np.ndarray
     frames: Mapping[str, tuple[int, tuple[float, float, float]]] = field(default_factory=dict)
-    notes: tuple[str, ...] = ()  # what the importer dropped from the file (redysim.importers)
+    notes: tuple[str, ...] = ()  # what the file holds and the model does not, one line each
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
 
     # ----------------------------------------------------------------------- building
@@ -215,7 +218,8 @@ class Model:
               source: str = "model") -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
         ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here.
-        Raises CaseError naming ``source``, the field and the value."""
+        Raises CaseError naming ``source``, the field (a body or joint by its name and index:
+        ``body 'arm' (bodies[1]).mass``, ``joint 'elbow' (joints[1]).axis``) and the value."""
         nb = len(bodies)
         if nb == 0:
             _fail(source, "bodies", 0, "a model needs at least one body")
@@ -225,11 +229,11 @@ class Model:
         body_name, mass, com, inertia = [], [], [], []
         jname, jtype, axes, par, plR, plp = [], [], [], [], [], []
         for k, (b, j, p) in enumerate(zip(bodies, joints, parents, strict=True)):
-            where = f"bodies[{k}]"
             if not isinstance(b, Body):
-                _fail(source, where, b, "must be a redysim.Body")
+                _fail(source, f"bodies[{k}]", b, "must be a redysim.Body")
             if not isinstance(j, TreeJoint):
                 _fail(source, f"joints[{k}]", j, "must be a redysim.TreeJoint")
+            where, jwhere = f"body {b.name!r} (bodies[{k}])", f"joint {j.name!r} (joints[{k}])"
             if isinstance(p, bool) or not isinstance(p, int | np.integer) or not -1 <= p < k:
                 _fail(source, f"parents[{k}]", p, f"must be -1 (the base) or a body before it "
                       f"(0..{k - 1}): bodies are listed parents first")
@@ -237,14 +241,14 @@ class Model:
             c = check_vector(source, f"{where}.com", b.com, 3)
             I_c = check_inertia(source, f"{where}.inertia", b.inertia, physical=b.physical)
             if j.type not in TREE_JOINT_TYPES:
-                _fail(source, f"joints[{k}].type", j.type,
+                _fail(source, f"{jwhere}.type", j.type,
                       f"unknown joint type; known: {', '.join(TREE_JOINT_TYPES)}")
             if j.type == FREE and p != -1:
-                _fail(source, f"joints[{k}].type", j.type, "a free joint must hang from the base "
+                _fail(source, f"{jwhere}.type", j.type, "a free joint must hang from the base "
                       "(parent -1): it gives the body its world pose")
-            if j.type == FREE and (np.abs(_rotation(source, f"joints[{k}].rotation", j.rotation)
+            if j.type == FREE and (np.abs(_rotation(source, f"{jwhere}.rotation", j.rotation)
                                           - np.eye(3)).max() > 0 or any(j.translation)):
-                _fail(source, f"joints[{k}].translation", j.translation, "a free joint's body "
+                _fail(source, f"{jwhere}.translation", j.translation, "a free joint's body "
                       "pose is its configuration q, not a placement: give the pose in q")
             body_name.append(str(b.name))
             mass.append(m)
@@ -253,10 +257,10 @@ class Model:
             jname.append(str(j.name))
             jtype.append(j.type)
             axes.append(None if j.type in (FREE, FIXED) else
-                        Joint(j.type, j.axis).axes(source, f"joints[{k}]"))
+                        Joint(j.type, j.axis).axes(source, jwhere))
             par.append(int(p))
-            plR.append(_rotation(source, f"joints[{k}].rotation", j.rotation))
-            plp.append(check_vector(source, f"joints[{k}].translation", j.translation, 3))
+            plR.append(_rotation(source, f"{jwhere}.rotation", j.rotation))
+            plp.append(check_vector(source, f"{jwhere}.translation", j.translation, 3))
         frames = {fname: (int(fb), np.asarray(fp, dtype=float))
                   for fname, (fb, fp) in (frames or {}).items()}
         for fname, (fb, fp) in frames.items():
@@ -272,8 +276,8 @@ class Model:
             if jtype[k] != FIXED:
                 continue
             if par[k] == -1:
-                _fail(source, f"joints[{k}].type", FIXED, "a body fixed to the base does not move"
-                      ": leave it out (or give the model a frame for it)")
+                _fail(source, f"joint {jname[k]!r} (joints[{k}]).type", FIXED, "a body fixed to "
+                      "the base does not move: leave it out (or give the model a frame for it)")
             a = into[par[k]]
             R = to_kept_R[par[k]] @ plR[k]
             p = to_kept_R[par[k]] @ plp[k] + to_kept_p[par[k]]
@@ -365,19 +369,26 @@ class Model:
         """The model with the named joints held at the given coordinates (a reduced model, as
         Pinocchio's ``buildReducedModel``): each becomes a fixed joint placed where its motion
         at those values leaves its body, fused into its parent (a body so welded to the world
-        is left out). ``values``: joint name -> its coordinate (R, P) or coordinates (U: 2,
-        S: 3, free: the 7 of q). Raises CaseError naming an unknown joint or a wrong count."""
+        is left out). ``values``: a mapping joint name -> its coordinate (R, P) or coordinates
+        (U: 2, S: 3, free: the 7 of q). Raises CaseError naming ``values`` when it is not such a
+        mapping, an unknown joint, or a value that is not the joint's count of finite numbers."""
         where = f"{self.name}.locked"
+        if not isinstance(values, Mapping):
+            _fail(where, "values", values, "must be a mapping joint name -> coordinate(s), e.g. "
+                  f"{{{self.joint_names[0]!r}: 0.0}}")
         index = {name: k for k, name in enumerate(self.joint_names)}
         for name, value in values.items():
             if name not in index:
-                _fail(where, "joint", name, f"no such joint; joints: {', '.join(self.joint_names)}")
+                shown = ", ".join(self.joint_names[:12]) + (", ..." if self.n_bodies > 12 else "")
+                _fail(where, "joint", name, f"no such joint; joints: {shown}")
             k = index[name]
             want = int(self.joint_qoff[k + 1] - self.joint_qoff[k])
-            got = np.atleast_1d(np.asarray(value, dtype=float))
-            if got.shape != (want,) or not np.isfinite(got).all():
-                _fail(where, name, value, f"a {self.joint_types[k]} joint takes {want} finite "
-                      f"coordinate{'s' if want > 1 else ''}")
+            got = numeric_array(value)
+            got = None if got is None else np.atleast_1d(got)
+            if got is None or got.shape != (want,) or not np.isfinite(got).all():
+                _fail(where, f"values[{name!r}]", value, f"a {self.joint_types[k]} joint takes "
+                      f"{want} finite coordinate{'s' if want > 1 else ''}"
+                      + ("; this is not a number" if got is None else ""))
         bodies, joints = [], []
         for k in range(self.n_bodies):
             bodies.append(Body(self.body_names[k], float(self.mass[k]), tuple(self.com[k]),
@@ -447,8 +458,8 @@ class Model:
         return q
 
     def initial(self) -> np.ndarray:
-        """The configuration the model's file gives (a free body's pose in MJCF), else
-        :meth:`neutral`."""
+        """The configuration the model's file gives (MJCF: MuJoCo's qpos0, joint refs and free
+        bodies' poses; URDF: a floating base's pose), else :meth:`neutral`."""
         return self.neutral() if self.initial_q is None else self.initial_q.copy()
 
     def __repr__(self) -> str:

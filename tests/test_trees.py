@@ -215,15 +215,15 @@ def test_the_quaternion_rate_is_the_derivative_of_the_rotation():
      "must be -1"),
     (lambda: Model.build([Body("a", 1.0), Body("b", 1.0)],
                          [TreeJoint("j", "R"), TreeJoint("f", "free")], [-1, 0]),
-     "joints[1].type", "free joint must hang from the base"),
-    (lambda: Model.build([Body("a", 1.0)], [TreeJoint("j", "Q")], [-1]), "joints[0].type",
-     "unknown joint type"),
+     "joint 'f' (joints[1]).type", "free joint must hang from the base"),
+    (lambda: Model.build([Body("a", 1.0)], [TreeJoint("j", "Q")], [-1]),
+     "joint 'j' (joints[0]).type", "unknown joint type"),
     (lambda: Model.build([Body("a", 1.0)], [TreeJoint("j", "R", rotation=((1, 0, 0),
                                                                          (0, 1, 0),
                                                                          (0, 0, 2)))], [-1]),
-     "joints[0].rotation", "must be a rotation"),
-    (lambda: Model.build([Body("a", -1.0)], [TreeJoint("j", "R")], [-1]), "bodies[0].mass",
-     "must be >= 0"),
+     "joint 'j' (joints[0]).rotation", "must be a rotation"),
+    (lambda: Model.build([Body("a", -1.0)], [TreeJoint("j", "R")], [-1]),
+     "body 'a' (bodies[0]).mass", "must be >= 0"),
 ])
 def test_a_bad_tree_is_refused_naming_the_field(make, field, fragment):
     with pytest.raises(CaseError, match=fragment) as err:
@@ -382,14 +382,14 @@ def _robot(*joints):
     ("<link name='a'>", "<xml>", "not well-formed"),
     (_robot(("j", "revolute", "a", "b", ""), ("k", "revolute", "b", "c",
                                               '<mimic joint="j"/>')),
-     "joint[@name='k']/mimic.joint", "mimic joint couples"),
-    (_robot(("j", "planar", "a", "b", "")), "joint[@name='j'].type", "unsupported joint type"),
+     "joint 'k'/mimic.joint", "mimic joint couples"),
+    (_robot(("j", "planar", "a", "b", "")), "joint 'j'.type", "unsupported joint type"),
     (_robot(("j", "revolute", "a", "b", ""), ("k", "revolute", "c", "b", "")),
-     "joint[@name='k']/child.link", "kinematic loop"),
+     "joint 'k'/child.link", "kinematic loop"),
     ('<link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
-     '<child link="b"/><axis xyz="0 0 1"/></joint>', "joint[@name='j']", "no inertia"),
+     '<child link="b"/><axis xyz="0 0 1"/></joint>', "joint 'j'", "no inertia"),
     (_robot(("j", "revolute", "a", "b", ""), ("f", "floating", "b", "c", "")),
-     "joint[@name='f'].type", "must join a root body to the world"),
+     "joint 'f'.type", "must join a link fixed to the world"),
 ])
 def test_a_bad_urdf_is_refused_naming_file_element_and_attribute(tmp_path, body, element,
                                                                  fragment):
@@ -405,7 +405,8 @@ def test_what_the_importer_drops_it_says():
     pytest.importorskip("mujoco")
     model = load_urdf(robot_urdf("ur_description/urdf/ur5_robot.urdf"))
     assert model.n_v == 6 and model.joint_names[0] == "shoulder_pan_joint"
-    assert "6 <limit> elements" in model.notes
+    assert any(n.startswith("joint <limit> lower, upper dropped") and n.endswith("(6 joints)")
+               for n in model.notes)
     assert any("visual" in n for n in model.notes)
     panda = load_urdf(robot_urdf("panda_description/urdf/panda.urdf"), mimic="independent")
     assert any("mimic" in n and "independently" in n for n in panda.notes)
@@ -434,10 +435,11 @@ def test_redysim_info_prints_the_tree(capsys, tmp_path):
     assert out[1].split() == ["base", "free", "root", "[P", "x,", "P", "y,", "P", "z,", "ball",
                               "x,", "ball", "y,", "ball", "z]", "m", "=", "6.4", "kg"]
     assert out[3].startswith("      hand") and out[4].startswith("    leg")  # under their parents
-    assert out[-1].startswith("  dropped: joint limits")
+    assert out[-1] == "  dropped: body contact geometry dropped (no contacts in the core): " \
+                      "'arm', 'leg' (2 bodies)"
     assert main(["info", robot_urdf("solo12.urdf"), "--floating"]) == 0
     text = capsys.readouterr().out
-    assert "n_q = 19, n_v = 18" in text and "dropped: 16 <limit> elements" in text
+    assert "n_q = 19, n_v = 18" in text and "dropped: joint <limit> lower, upper" in text
     assert main(["info", "STUDY-R3"]) == 0
     assert "frame tip: on link3 at (1.0, 0.0, 0.0)" in capsys.readouterr().out
     assert main(["info", robot_urdf("panda_description/urdf/panda.urdf")]) == 2
