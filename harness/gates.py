@@ -10,7 +10,9 @@ threshold and the reason for that threshold. This module measures each one, prin
 A gate whose measurement raises (a broken core that returns NaN, say) is a FAIL row carrying the
 error, not a crash: the table always prints. A gate that cannot be measured on this machine (an
 engine's package is not installed) is a SKIP row saying why; it is never counted as a pass, and
-``--strict`` counts it as a failure.
+``--strict`` counts it as a failure. A gate that has used :data:`GATE_TIME_LIMIT_S` of CPU time
+is a FAIL row ("time limit"); one still going after :data:`GATE_WALL_GUARD_S` of wall time (it
+waits, or the machine is too busy) is given up as a SKIP row: a wall clock decides no result.
 
 The measurements reuse the project's own machinery: :func:`harness.run.execute` for the
 integration gates, :mod:`harness.reference` for the reference solution (computed afresh in a
@@ -58,10 +60,14 @@ REQUIRED_FIELDS = ("name", "quantity", "measure", "compare", "threshold", "reaso
 DEFAULT_WIDTH = 170  # table width when stdout is not a terminal
 MIN_REASON_WIDTH = 40  # the reason column wraps, but never narrower than this
 MAX_WHERE_WIDTH = 36  # the where column wraps beyond this
-# A gate still measuring after this long fails with "time limit" and the next one runs. Each
-# gate takes under a minute on this 2-core machine; a broken core can make an integration crawl
-# (a sign flipped in the velocity terms took the reference solver 590 s to give up).
+# A gate that has used this much CPU time fails with "time limit" and the next one runs. Each
+# gate takes under a minute of CPU on this 2-core machine; a broken core can make an integration
+# crawl (a sign flipped in the velocity terms took the reference solver 590 s to give up). CPU
+# time, not wall time: a limit that decides a gate's result must not depend on the machine's load.
 GATE_TIME_LIMIT_S = 300
+# Wall time after which a gate is given up for the user's patience only (it waits, or the machine
+# is too busy to finish it): a SKIP row that says so, never a measurement or a FAIL.
+GATE_WALL_GUARD_S = 3600
 
 # Engine agreement: the chains (joint, links) and states of tests/test_engines_agreement.py.
 ENGINE_CHAINS = ("R10", "R50", "U10", "U50")
@@ -468,32 +474,51 @@ class Row:
 
 
 class GateTimeout(Exception):
-    """A gate ran past its time limit."""
+    """A gate used more than its CPU-time limit."""
+
+
+class GateWallGuard(Exception):
+    """A gate ran past the wall-clock guard (the user's patience, not a result)."""
 
 
 @contextlib.contextmanager
-def _time_limit(seconds: float):
-    """Raise :class:`GateTimeout` in the main thread after ``seconds`` (SIGALRM; the numba
-    kernels return to Python at every qdd call, so the signal is handled within milliseconds)."""
-    if not seconds or seconds <= 0 or not hasattr(signal, "setitimer"):
+def _time_limit(seconds: float, wall_guard: float = 0.0):
+    """Raise :class:`GateTimeout` in the main thread after ``seconds`` of the process's CPU
+    time (SIGPROF: user and system time; the numba kernels return to Python at every qdd call,
+    so the signal is handled within milliseconds), and :class:`GateWallGuard` after
+    ``wall_guard`` seconds of wall time (SIGALRM; 0: none)."""
+    if not hasattr(signal, "setitimer"):
         yield
         return
 
     def expire(_signum, _frame):
-        raise GateTimeout(f"time limit: still measuring after {seconds:g} s")
+        raise GateTimeout(f"time limit: still measuring after {seconds:g} s of CPU time")
 
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    def guard(_signum, _frame):
+        raise GateWallGuard(f"given up after {wall_guard:g} s of wall time (the wall-clock "
+                            "guard: your patience, not a measurement; the gate waited, or the "
+                            "machine was too busy)")
+
+    armed = []
+    for which, signum, handler, after in ((signal.ITIMER_PROF, signal.SIGPROF, expire, seconds),
+                                          (signal.ITIMER_REAL, signal.SIGALRM, guard,
+                                           wall_guard)):
+        if after and after > 0:
+            armed.append((which, signum, signal.signal(signum, handler)))
+            signal.setitimer(which, after)
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
+        for which, signum, previous in armed:
+            signal.setitimer(which, 0)
+            signal.signal(signum, previous)
 
 
-def run_gate(gate: Gate, time_limit_s: float = GATE_TIME_LIMIT_S) -> list[Row]:
-    """Measure one gate; an exception (or running past ``time_limit_s``) becomes a FAIL row
-    carrying it, a :class:`Skip` a SKIP row."""
+def run_gate(gate: Gate, time_limit_s: float = GATE_TIME_LIMIT_S,
+             wall_guard_s: float = GATE_WALL_GUARD_S) -> list[Row]:
+    """Measure one gate; an exception (or using more than ``time_limit_s`` of CPU time) becomes
+    a FAIL row carrying it, a :class:`Skip` a SKIP row, and running past ``wall_guard_s`` of
+    wall time a SKIP row saying so (not measured: the user's patience decides nothing)."""
     t0 = time.perf_counter()
 
     def row(value, result, where, label=""):
@@ -503,11 +528,11 @@ def run_gate(gate: Gate, time_limit_s: float = GATE_TIME_LIMIT_S) -> list[Row]:
                    gate.reason, gate.quantity)
 
     try:
-        with _time_limit(time_limit_s):
+        with _time_limit(time_limit_s, wall_guard_s):
             measured = MEASURES[gate.measure](gate)
         rows = [row(m.value, PASS if gate.check(m.value) else FAIL, m.where, m.label)
                 for m in measured]
-    except Skip as exc:
+    except (Skip, GateWallGuard) as exc:
         rows = [row(math.nan, SKIP, str(exc))]
     except Exception as exc:  # a broken core or engine: a FAIL row, never a crash
         rows = [row(math.nan, FAIL, f"error: {type(exc).__name__}: {exc}")]

@@ -55,7 +55,7 @@ from redysim.integrate import (
     sample_times,
 )
 
-from .cli import positive
+from .cli import positive, time_to_go
 from .provenance import code_digest, peak_rss_mib, reset_peak_rss
 from .reference import results_dir
 from .store import write_npz_atomic
@@ -262,9 +262,10 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
             rate = (s.t - t_start) / (wall - wall0)
             eta = (t_end - s.t) / rate if rate > 0 else math.inf
             log(f"  checkpoint t = {s.t:.6g} s, {s.counters.steps:,} steps, h = {s.h_next:.2e}, "
-                f"wall {meta()['wall_s']:,.0f} s, ETA {eta / 3600:.1f} h")
+                f"wall {meta()['wall_s']:,.0f} s, time to finish {time_to_go(eta)}")
         if wall - wall0 > stop_after_s:
-            return "stopped by --stop-after"
+            return (f"stopped by --stop-after = {stop_after_s:g} s of wall time (your "
+                    "patience, not a result)")
         return None
 
     try:
@@ -295,7 +296,7 @@ def summary(ck: dict) -> str:
             f"{int(ck['steps']):,}, rejected {int(ck['rejected']):,}, RHS {int(ck['nfev']):,}; "
             f"wall {wall:,.0f} s, CPU {float(ck['cpu_s']):,.0f} s; peak RSS "
             f"{float(ck['peak_rss_mib']):,.0f} MiB; avg |delta_M| {dM.mean():.3e} J/kg over "
-            f"{len(s)} samples; time to finish at this rate {eta / 3600:.1f} h")
+            f"{len(s)} samples; time to finish at this rate: {time_to_go(eta)}")
 
 
 FLAGS = {"t_end": "--t-end", "integrator": "--integrator", "rtol": "--rtol", "atol": "--atol",

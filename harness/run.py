@@ -1,8 +1,11 @@
 """Execute one run: a case, simulated by one engine and algorithm with one integrator.
 
 :func:`execute` never raises for a run that goes wrong: a NaN, an energy blow-up past the spec's
-bound, an engine's refusal or a missing package, a time limit, any exception: the result's
-``status`` is ``"failed"`` and ``reason`` says why, with the samples finished before it.
+bound, an engine's refusal or a missing package, the spec's CPU-time limit, any exception: the
+result's ``status`` is ``"failed"`` and ``reason`` says why, with the samples finished before it.
+A run stopped by the caller's wall-clock limit (``execute(max_wall_s=...)``: the user's patience,
+``redysim simulate --max-wall``) is ``"stopped"``: not a result, and never kept as one by a
+sweep (which sets no wall-clock limit).
 
 Per sample (the spec's interval): tip position, velocity and acceleration, E = T + V and
 delta_M = (E - E0) / M (Eq. 11), all computed by the core from the run's state (the energy is a
@@ -62,6 +65,10 @@ class RunResult:
 
 class RunFailed(Exception):
     """Raised inside a run to stop it with a reason (caught by :func:`execute`)."""
+
+
+class RunStopped(RunFailed):
+    """Raised inside a run stopped by the caller's wall-clock limit: status "stopped"."""
 
 
 def run_case(spec: RunSpec, case):
@@ -152,7 +159,8 @@ class _Dynamics:
         return np.concatenate((y[n:], self.qdd(y[:n], y[n:])))
 
 
-def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
+def execute(spec: RunSpec, *, reference=True, progress=None,
+            max_wall_s: float | None = None) -> RunResult:
     """Run ``spec`` and return its summary row and samples (never raises for a failing run).
 
     The row holds the run's settings as run (:meth:`RunSpec.resolved`: the case's where the
@@ -160,6 +168,10 @@ def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
     ``reference``: compare with the cached reference solution when one exists (True), or not.
     ``progress``: called as ``progress(t, t_end, steps, wall_s)`` at most every
     ``PROGRESS_EVERY_S`` seconds of wall time while the run integrates.
+    ``max_wall_s``: the caller's patience: after this many seconds of wall time the run is
+    stopped, its samples so far kept, with status ``"stopped"`` (not a result: what a run
+    reaches in a given wall time depends on the machine's load). The spec's own limit is
+    ``spec.max_cpu_s``, in CPU time: a run past it is ``"failed"``.
     """
     import pandas as pd
 
@@ -186,7 +198,9 @@ def execute(spec: RunSpec, *, reference=True, progress=None) -> RunResult:
             row["model_mib"] = dyn.ws.nbytes / 2**20
         engine_version = dyn.version
         row["build_s"] = dyn.build_s
-        _integrate(spec, case, dyn, row, samples, last, progress)
+        _integrate(spec, case, dyn, row, samples, last, progress, max_wall_s)
+    except RunStopped as exc:
+        row.update(status="stopped", reason=str(exc))
     except RunFailed as exc:
         row.update(status="failed", reason=str(exc))
     except Exception as exc:  # an engine's or the core's error: recorded, never raised
@@ -215,8 +229,9 @@ def initial_state(spec: RunSpec, case) -> np.ndarray:
 
 
 def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict,
-               progress=None):
-    """Integrate a resolved spec (every setting explicit)."""
+               progress=None, max_wall_s: float | None = None):
+    """Integrate a resolved spec (every setting explicit); stop it past ``spec.max_cpu_s`` of
+    CPU time (RunFailed) or ``max_wall_s`` of wall time (RunStopped)."""
     chain, n = case.chain, case.chain.n_dof
     t_end = spec.t_end
     ts = sample_times(0.0, t_end, spec.sample)
@@ -255,17 +270,15 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         compile_kernels()
     row["jit_s"] = time.perf_counter() - t0
     cpu0, wall0 = time.process_time(), time.perf_counter()
-    deadline = wall0 + spec.max_wall_s if spec.max_wall_s else math.inf
+    limits = _Limits(spec.max_cpu_s, max_wall_s, cpu0, wall0)
 
     if spec.integrator == NATIVE:
-        status, msg = _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row)
+        status, msg = _native(spec, dyn, y0, t_end, ts, on_sample, limits, row)
     else:
         def rhs(t, y):
-            # the time limit is checked per RHS call: one step of an implicit solver (Newton
-            # iterations, finite-difference Jacobians) can take far longer than the limit
-            if time.perf_counter() > deadline:
-                raise RunFailed(f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at "
-                                f"t = {t:.6g}")
+            # the limits are checked per RHS call: one step of an implicit solver (Newton
+            # iterations, finite-difference Jacobians) can take far longer than a limit
+            limits.check(t)
             return dyn.rhs(t, y)
 
         next_report = [time.perf_counter() + PROGRESS_EVERY_S]
@@ -275,8 +288,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
             if progress is not None and now >= next_report[0]:
                 progress(s.t, t_end, s.counters.steps, now - wall0)
                 next_report[0] = now + PROGRESS_EVERY_S
-            if now > deadline:  # (a compiled solver's steps call no Python rhs to check it)
-                return f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at t = {s.t:.6g}"
+            limits.check(s.t)  # (a compiled solver's steps call no Python rhs to check them)
             return None
 
         solver = None
@@ -304,7 +316,26 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         raise RunFailed(msg)
 
 
-def _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row):
+class _Limits:
+    """A run's time limits: the spec's CPU time (a result: RunFailed) and the caller's wall time
+    (patience: RunStopped), each None or 0 for none."""
+
+    def __init__(self, cpu_s, wall_s, cpu0: float, wall0: float):
+        self.cpu_s, self.wall_s = cpu_s or 0.0, wall_s or 0.0
+        self.cpu_end = cpu0 + self.cpu_s if self.cpu_s else math.inf
+        self.wall_end = wall0 + self.wall_s if self.wall_s else math.inf
+
+    def check(self, t: float) -> None:
+        if time.process_time() > self.cpu_end:
+            raise RunFailed(f"time limit: max_cpu_s = {self.cpu_s:g} s of CPU reached at "
+                            f"t = {t:.6g}")
+        if time.perf_counter() > self.wall_end:
+            raise RunStopped(f"stopped by the wall-clock limit, max_wall_s = {self.wall_s:g} s "
+                             f"(the caller's patience, not a result), at t = {t:.6g}; the "
+                             "samples so far are kept")
+
+
+def _native(spec, dyn, y0, t_end, ts, on_sample, limits: _Limits, row):
     """The engine's own fixed-step stepper; samples must fall on whole steps."""
     if dyn.engine is None:
         raise RunFailed("integrator 'native' needs a reference engine (the core has no native "
@@ -331,9 +362,7 @@ def _native(spec, dyn, y0, t_end, ts, on_sample, deadline, row):
             if msg := on_sample(float(ts[i]), np.concatenate((q, qd))):
                 return 1, msg
             i += 1
-        if time.perf_counter() > deadline:
-            return 1, (f"time limit: max_wall_s = {spec.max_wall_s:g} s reached at "
-                       f"t = {step * h:.6g}")
+        limits.check(step * h)
     row["nfev"] = -1  # the engine's stepper does not report its qdd calls
     return 0, "ok"
 

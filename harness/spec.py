@@ -51,8 +51,14 @@ class RunSpec:
     t_end:       horizon [s]; 0: the case's ``t_end``.
     sample:      sample interval [s]; 0: the case's (``sample_interval``, else t_end / 20).
     energy_bound: a run whose |delta_M| exceeds this [J/kg] is stopped and recorded as failed.
-    max_wall_s:  a run still going after this many seconds is stopped and recorded as failed
-                 (its finished samples are kept); 0 means no limit.
+    max_cpu_s:   a run that has used this many seconds of CPU time (its process's, over the
+                 integration; the JIT compile is timed apart) is stopped and recorded as failed
+                 (its finished samples are kept); 0 means no limit. CPU time, not wall time:
+                 a limit that decides a result must not depend on what else the machine is
+                 doing (a wall-clock limit recorded a run as failed after 9.6 s of CPU on a
+                 busy machine). It still depends on the machine's speed. A wall-clock limit
+                 is the user's patience only: ``execute(max_wall_s=...)`` and ``redysim
+                 simulate --max-wall``, whose runs are "stopped", never a result.
     perturb:     a rounding-level change of the initial state: every component y0_i of (q0, qd0)
                  becomes y0_i + perturb * max(|y0_i|, 1), and E(0) is that state's energy. 0 (the
                  default) runs the case's own state. Ensembles of runs with perturb ~ 1e-13 show
@@ -81,7 +87,7 @@ class RunSpec:
     t_end: float = 0.0
     sample: float = 0.0
     energy_bound: float = 1e3
-    max_wall_s: float = 0.0
+    max_cpu_s: float = 0.0
     perturb: float = 0.0
     links: int = 0
     precision: str = "float64"
@@ -137,6 +143,8 @@ class RunSpec:
         check_settings(source, names, method=integrator, rtol=None if stepped else rtol,
                        atol=None if stepped else atol, h=h, t_end=t_end,
                        sample=min(sample, t_end), extra_methods=(NATIVE,))
+        if self.t_end and self.t_end > case.t_end:  # the case file checked its own horizon
+            _check_horizon(case, float(t_end), source, names.get("t_end", "t_end"))
         return replace(self, integrator=integrator, rtol=rtol, atol=atol, h=h or 0.0,
                        links=int(self.links),
                        t_end=float(t_end), sample=float(min(sample, t_end)))
@@ -178,6 +186,20 @@ class RunSpec:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+
+def _check_horizon(case, t_end: float, source: str, name: str) -> None:
+    """Refuse a horizon over which the case's fastest motion turns through more radians than a
+    run can integrate (:data:`redysim.cases.MAX_RADIANS`), as its file's own t_end would be."""
+    from redysim.cases import MAX_RADIANS, fastest_motion
+
+    motion = fastest_motion(case.chain, case.tip_force, case.qd0)
+    if motion.omega * t_end > MAX_RADIANS:
+        raise SettingsError(source, name, t_end,
+                            f"the case's fastest motion, ~{motion.omega:.3g} rad/s, turns "
+                            f"through ~{motion.omega * t_end:.3g} rad over it: more than the "
+                            f"{MAX_RADIANS:.0e} a run can integrate; at most "
+                            f"{MAX_RADIANS / motion.omega:.3g} s")
 
 
 def case_digest(case: str) -> str:

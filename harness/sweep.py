@@ -22,14 +22,14 @@ method x integrator x tolerance or step)::
     t_end = 0.01                         # scalars shared by every run (RunSpec's meanings)
     sample = 0.005
     energy_bound = 1e3
-    max_wall_s = 60
+    max_cpu_s = 60                       # a run's CPU-time limit [s] (RunSpec.max_cpu_s)
 
     [[sweep.product]]                    # another cross product: what it does not give, it
     engines = ["mujoco", "dart"]         # takes from [sweep]
     integrators = ["ode45"]
 
     [[sweep.extra]]                      # one explicit run: RunSpec's fields; t_end, sample,
-    case = "STUDY-R10"                   # energy_bound and max_wall_s default to [sweep]'s
+    case = "STUDY-R10"                   # energy_bound and max_cpu_s default to [sweep]'s
     integrator = "dop853"
     rtol = 1e-8
     atol = 1e-10
@@ -107,8 +107,12 @@ PRODUCT_TABLE = "product"
 EXTRA_TABLE = "extra"
 LIST_FIELDS = ("cases", "engines", "methods", "integrators", "rtols", "atols", "h", "perturbs",
                "links", "precisions")
-SCALAR_FIELDS = ("atol_ratio", "t_end", "sample", "energy_bound", "max_wall_s")
-SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_wall_s")  # handed down to extra runs
+SCALAR_FIELDS = ("atol_ratio", "t_end", "sample", "energy_bound", "max_cpu_s")
+SHARED_SCALARS = ("t_end", "sample", "energy_bound", "max_cpu_s")  # handed down to extra runs
+# fields renamed, and why: a sweep file that still gives one is told its new name
+RENAMED = {"max_wall_s": ("max_cpu_s", "a run's time limit counts seconds of CPU time: a "
+                          "wall-clock limit made a sweep's recorded results depend on the "
+                          "machine's load")}
 TEXT_FIELDS = ("name", "description")
 BOOL_FIELDS = ("reference",)  # reference = true: compute the cases' reference solutions first
 STRICTLY_POSITIVE = ("atol_ratio", "energy_bound", "rtol", "atol")  # the others may be 0
@@ -241,6 +245,12 @@ class _Checker:
     def fail(self, field: str, value: Any, problem: str):
         raise SweepError(self.source, field, value, problem)
 
+    def renamed(self, field: str, key: str, value: Any) -> None:
+        """Refuse a field by its old name, giving the new one (:data:`RENAMED`)."""
+        if key in RENAMED:
+            new, why = RENAMED[key]
+            self.fail(field, value, f"renamed {new}: {why}")
+
     def tables(self, table: dict, key: str) -> list[dict]:
         subs = table.get(key, [])
         if not isinstance(subs, list) or not all(isinstance(s, dict) for s in subs):
@@ -252,6 +262,7 @@ class _Checker:
         out = {}
         for key, value in node.items():
             field = f"{where}.{key}"
+            self.renamed(field, key, value)
             if key not in allowed:
                 self.fail(field, value, f"unknown field; allowed: {', '.join(allowed)}")
             if key in TEXT_FIELDS:
@@ -380,6 +391,7 @@ class _Checker:
         run = dict(shared)
         for key, value in node.items():
             field = f"{where}.{key}"
+            self.renamed(field, key, value)
             if key not in allowed:
                 self.fail(field, value, f"unknown field; allowed: {', '.join(allowed)}")
             if key == "case":
@@ -523,7 +535,9 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     its error against it.
 
     Done runs are skipped: those that finished, and those that failed for a reason of their own
-    (NaN, energy blow-up, an engine's refusal, a time limit: the same inputs fail the same way).
+    (NaN, energy blow-up, an engine's refusal, the spec's CPU-time limit: the same inputs fail
+    the same way). A run whose row says "stopped" (a wall-clock limit: the user's patience,
+    which a sweep never sets) is not a result and is run again.
     Runs whose worker died or raised are marked ``transient`` and run again; ``retry_failed``
     runs every failed run again. A run file that cannot be read is moved to ``damaged/`` (with
     a note on stderr) and the run is done again. Several sweeps may share ``out_dir``: each run
@@ -542,12 +556,15 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
         remove_temp_files(out / sub)
 
     def finished(spec: RunSpec) -> str | None:
-        """'ok', 'failed' (a result), or None (not run, damaged, or to be run again)."""
+        """'ok', 'failed' (a result), or None (not run, damaged, stopped by a wall-clock
+        limit, or to be run again)."""
         row = _read_run(out, spec.run_id)
         if row is None or not _samples_readable(out, spec.run_id):
             return None
         if row["status"] == "ok":
             return "ok"
+        if row["status"] != "failed":  # "stopped" (the user's patience) is never a result
+            return None
         return None if retry_failed or bool(row.get("transient", False)) else "failed"
 
     status = {s.run_id: finished(s) for s in specs}

@@ -150,7 +150,8 @@ def refine_section(res) -> Section:
             "these models' own errors. But the rounding noise of qdd (eps32 x cond(GIM), cond ~ "
             "links^4) is what the adaptive error test sees: at rtol "
             f"{tight:g} float32 took {min(ratios):.1f} to {max(ratios):.1f} times float64's "
-            "steps, and a run stopped at its 30 s limit is listed as failed.")
+            "steps, and a run stopped by its limit of 30 s of CPU time (max_cpu_s, which "
+            "does not depend on the machine's load) is listed as failed.")
     hang = doc.get("hanging")
     if hang:
         m = hang["modes"]

@@ -118,7 +118,7 @@ def test_an_engine_failing_inside_qdd_gives_a_failed_row(monkeypatch, mode, afte
 def test_a_mid_run_nan_fails_every_integrator_without_hanging(monkeypatch, integrator, h):
     misbehaving(monkeypatch, "nan", FAIL_AFTER_CALLS)
     res = execute(RunSpec(case="STUDY-R3", engine=Misbehaving.name, integrator=integrator, h=h,
-                          max_wall_s=60.0, **SHORT))
+                          max_cpu_s=60.0, **SHORT))
     assert res.summary["status"] == "failed"
     assert "time limit" not in res.summary["reason"]
     assert "nan" in res.summary["reason"] or "non-finite" in res.summary["reason"]
