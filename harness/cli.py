@@ -2,7 +2,8 @@
 
 A thin layer over :func:`harness.run.execute` and :mod:`harness.sweep`; the harness (pandas,
 pyarrow, Dask) is imported only inside the commands that need it. Exit codes: 0 all runs ok,
-1 a run failed, 2 bad usage or input (the message names what is wrong; no traceback).
+1 a run failed, 2 bad usage or input (the message names what is wrong; no traceback), 3 a run
+stopped by your ``--max-wall`` (its samples so far kept), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from redysim.integrate import (
 )
 
 PROG = "redysim"
-EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 DEFAULT_SWEEP_ROOT = Path("results") / "sweeps"  # redysim sweep's --out default: <root>/<name>
 MAX_FAILED_SHOWN = 20  # failed runs listed after a sweep
 
@@ -49,10 +50,17 @@ at every sample. Horizon and sample interval default to the case file's.
 
 A robot (a .urdf, an MJCF .xml, or a DH robot file such as cases/robots/puma560.toml) falls
 passively under gravity from its file's configuration (every joint at zero, unless the MJCF
-gives one) at rest, simulated by the core: the summary gives the energy drift and the centre of
-mass at every sample (with --floating, a URDF's root gets a free joint and the robot falls
-freely: its centre of mass follows a parabola). --lock holds joints at given values (a reduced
-model). Horizon 1 s and 10 samples unless given.
+gives one) at rest, simulated by the core: the summary gives the energy drift, the centre of
+mass at every sample and what the importer dropped from the file (damping, friction, limits:
+not simulated). With --floating, a URDF's or MJCF's root body gets a free joint and the robot
+falls freely: its centre of mass follows a parabola. --lock holds joints at given values (a
+reduced model). Horizon 1 s and 10 samples unless given. A flag that the kind of file given
+has no use for (--links or --precision float32 on a robot, --floating on a rope case, --mimic
+on anything but a URDF) is refused by name, never ignored.
+
+Time limits: --max-cpu S is part of the run (a run past S seconds of CPU time fails, whatever
+else the machine is doing); --max-wall S is your patience (the run is stopped after S seconds
+of wall time, its samples kept, and reported as stopped, exit code 3).
 
 examples:
   redysim simulate RE-U125-L1 --t-end 0.1 --sample 0.01
@@ -60,7 +68,7 @@ examples:
   redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet
   redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
   redysim simulate solo12.urdf --floating
-  redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \
+  redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \\
       --lock joint6=0                           # the talk's free fall of joints 2 and 3
   redysim simulate cases/loops/hoekens_straight_line.toml --rtol 1e-10 --atol 1e-12
                                                 # a linkage file: its loops closed"""
@@ -94,7 +102,9 @@ at several integrator tolerances, measured against the finest model: `python -m
 redysim.harness.refine`, which `make reproduce` runs), print the run of least CPU whose tip
 path stayed within --tip-tol of the finest model's, what the finest model cost for the same
 tolerance, and the command that runs the advised model. For the hanging chain, the coarsest
-model whose first --modes frequencies are within --freq-tol of the continuum's.
+model whose first --modes frequencies are within --freq-tol of the continuum's (a chain of n
+links has n modes: a model with fewer than --modes cannot meet it, and more modes than the
+study's finest model has are refused).
 
 examples:
   redysim advise fall --tip-tol 0.01
@@ -176,16 +186,21 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--sample", type=positive, metavar="S",
                      help="sample interval [s] (default: the case's)")
     sim.add_argument("--max-wall", type=positive, metavar="S",
-                     help="stop the run after S seconds of wall time, keeping its samples so "
-                          "far (default: no limit; a run longer than a few seconds prints its "
-                          "progress on stderr)")
+                     help="your patience: stop the run after S seconds of wall time, keeping "
+                          "its samples so far; the run is reported as stopped (exit code 3), "
+                          "not as a result (default: no limit; a run longer than a few seconds "
+                          "prints its progress on stderr)")
+    sim.add_argument("--max-cpu", type=positive, metavar="S",
+                     help="a limit that is part of the run (RunSpec.max_cpu_s): a run that has "
+                          "used S seconds of CPU time is stopped and recorded as failed, "
+                          "whatever else the machine is doing (default: no limit)")
     sim.add_argument("--links", type=_whole, metavar="N",
                      help="a rope case: coarse-grain its chain to N links (N must divide its "
                           "link count; each coarse link lumps the same number of fine ones, "
                           "its initial state mapped along the chords); see `redysim advise`")
-    sim.add_argument("--precision", choices=PRECISION_CHOICES, default="float64",
-                     help="the arithmetic of the core's qdd: float64 (default) or float32 "
-                          "(numpy-emulated IEEE single: slow, for accuracy studies)")
+    sim.add_argument("--precision", choices=PRECISION_CHOICES,
+                     help="a rope case: the arithmetic of the core's qdd: float64 (default) or "
+                          "float32 (numpy-emulated IEEE single: slow, for accuracy studies)")
     sim.add_argument("--out", type=Path, metavar="FILE.parquet|FILE.csv",
                      help="also save the samples to FILE and the summary row to "
                           "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
@@ -203,7 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"results folder (default: {DEFAULT_SWEEP_ROOT}/<sweep name>)")
     sw.add_argument("--workers", type=_whole, metavar="N",
                     help="processes of the local pool (default: the number of CPU cores; "
-                         "ignored with --dask)")
+                         "refused with --dask, whose cluster has its own workers)")
     sw.add_argument("--dask", metavar="ADDRESS|local",
                     help="run on a Dask cluster: a scheduler address, or 'local' for a "
                          "2-worker cluster on this machine")
@@ -234,8 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
     adv.add_argument("--freq-tol", type=positive, metavar="F",
                      help="hanging: relative tolerance of those frequencies against the "
                           "continuum's (0.01 = 1 %%)")
-    adv.add_argument("--results", type=Path, default=Path("results"), metavar="DIR",
-                     help="where the refinement studies are (default: results)")
+    adv.add_argument("--results", type=Path, metavar="DIR",
+                     help="where the studies of spin, fall, whip and pulled are (default: "
+                          "results)")
     adv.set_defaults(func=cmd_advise)
 
     info = sub.add_parser("info", description=INFO_HELP, formatter_class=fmt,
@@ -262,8 +278,9 @@ def _lock(text: str) -> tuple[str, list[float]]:
 
 def _model_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--floating", action="store_true",
-                        help="a URDF's root link gets a free joint (a legged or flying robot)")
-    parser.add_argument("--mimic", choices=("refuse", "independent"), default="refuse",
+                        help="a URDF's or MJCF's root body gets a free joint (a legged or "
+                             "flying robot)")
+    parser.add_argument("--mimic", choices=("refuse", "independent"),
                         help="a URDF's mimic joints: refuse them (default) or let them move "
                              "independently")
 
@@ -297,48 +314,103 @@ def _save(df, path: Path) -> None:
     (write_csv_atomic if path.suffix == ".csv" else write_parquet_atomic)(df, path)
 
 
+MAX_TO_GO_S = 1e7  # s (116 days): a longer time to go is shown as unknown, not as a number
+
+
+def time_to_go(seconds: float) -> str:
+    """A time to go as people read it: "about 40 s", "about 12 min", "about 5.3 h", "about 9.1
+    days"; "unknown (more than 116 days at this rate)" beyond :data:`MAX_TO_GO_S` (a rate
+    measured over a few seconds says nothing of years, and never a 200-digit number)."""
+    if not seconds >= 0:  # NaN: no rate yet
+        return "unknown"
+    if seconds > MAX_TO_GO_S:
+        return f"unknown (more than {MAX_TO_GO_S / 86400:.0f} days at this rate)"
+    for unit, size, digits in (("days", 86400.0, 1), ("h", 3600.0, 1), ("min", 60.0, 0)):
+        if seconds >= 2 * size:
+            return f"about {seconds / size:.{digits}f} {unit}"
+    return f"about {seconds:.0f} s"
+
+
 def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
     """A progress line on stderr: simulated time, steps, wall time, time to go."""
     rate = t / wall if wall > 0 else 0.0
-    to_go = f", about {(t_end - t) / rate:,.0f} s to go" if rate > 0 else ""
+    to_go = f", time to go {time_to_go((t_end - t) / rate)}" if rate > 0 else ""
     print(f"{PROG}: t = {t:.6g} of {t_end:g} s, {steps:,} steps, {wall:,.0f} s{to_go}",
           file=sys.stderr, flush=True)
 
 
-MODEL_SUFFIXES = (".urdf", ".xml")  # files `redysim simulate` runs as a model (a robot)
+KIND_NAMES = {"case": "a rope case", "urdf": "a URDF", "mjcf": "an MJCF file",
+              "dh": "a DH robot file", "linkage": "a linkage file"}
+# the flags each kind of file has no use for: refused by name rather than ignored
+UNUSED_FLAGS = {"case": ("floating", "mimic"), "urdf": ("links", "precision"),
+                "mjcf": ("links", "precision", "mimic"), "dh": ("links", "precision", "mimic"),
+                "linkage": ("links", "precision", "mimic", "floating")}
+FLAG_USES = {"links": "coarse-grains a rope case's chain",
+             "precision": "sets the arithmetic of a rope case's run (robot and linkage files "
+                          "run in float64)",
+             "mimic": "applies to a URDF's <mimic> joints",
+             "floating": "gives the root body of a URDF or an MJCF file a free joint"}
 
 
-def _is_model_file(name: str) -> bool:
-    """A robot: a .urdf or .xml, or a .toml DH robot file (redysim.dh), not a rope case."""
+def file_kind(name: str) -> str:
+    """What ``redysim simulate`` or ``info`` is given: ``"urdf"``, ``"mjcf"`` (.xml), ``"dh"``
+    (a DH robot .toml), ``"linkage"`` (a linkage .toml) or ``"case"`` (a case name, or any
+    other .toml: a rope case file)."""
     suffix = Path(name).suffix.lower()
-    if suffix in MODEL_SUFFIXES:
-        return True
+    if suffix == ".urdf":
+        return "urdf"
+    if suffix == ".xml":
+        return "mjcf"
     if suffix == ".toml" and Path(name).is_file():
         from redysim.dh import is_robot_file
         from redysim.linkage_files import is_linkage_file
 
-        return is_robot_file(name) or is_linkage_file(name)
-    return False
+        if is_robot_file(name):
+            return "dh"
+        if is_linkage_file(name):
+            return "linkage"
+    return "case"
+
+
+def _refuse_unused_flags(args: argparse.Namespace, kind: str) -> None:
+    """A flag that this kind of file would ignore is refused, by name; and so is a joint locked
+    twice."""
+    given = {"links": getattr(args, "links", None) is not None,
+             "precision": getattr(args, "precision", None) not in (None, "float64"),
+             "mimic": args.mimic is not None, "floating": args.floating}
+    for flag in UNUSED_FLAGS[kind]:
+        if given[flag]:
+            value = getattr(args, flag)
+            raise SettingsError(SOURCE, f"--{flag}", None if value is True else value,
+                                f"{FLAG_USES[flag]}; {KIND_NAMES[kind]} has no use for it")
+    seen: dict[str, list[float]] = {}
+    for name, values in getattr(args, "lock", []):
+        if name in seen:
+            raise SettingsError(SOURCE, "--lock", name,
+                                f"the joint {name!r} is locked twice (at "
+                                f"{','.join(f'{x:g}' for x in seen[name])} and at "
+                                f"{','.join(f'{x:g}' for x in values)}): give each joint once")
+        seen[name] = values
 
 
 def _load_system(args: argparse.Namespace):
     """(model, loops, q0) of a robot or linkage file (loops and q0 None for a robot)."""
     from redysim.importers import load_model
-    from redysim.linkage_files import is_linkage_file, load_linkage
+    from redysim.linkage_files import load_linkage
 
-    if Path(args.model if hasattr(args, "model") else args.case).suffix.lower() == ".toml":
-        path = args.model if hasattr(args, "model") else args.case
-        if is_linkage_file(path):
-            linkage = load_linkage(path)
-            return linkage.model, linkage.loops, linkage.q0
     path = args.model if hasattr(args, "model") else args.case
-    return load_model(path, floating=args.floating, mimic=args.mimic), None, None
+    if file_kind(path) == "linkage":
+        linkage = load_linkage(path)
+        return linkage.model, linkage.loops, linkage.q0
+    return load_model(path, floating=args.floating, mimic=args.mimic or "refuse"), None, None
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``redysim simulate``: one run, printed."""
-    if _is_model_file(args.case):
-        return _simulate_model(args)
+    kind = file_kind(args.case)
+    _refuse_unused_flags(args, kind)
+    if kind != "case":
+        return _simulate_model(args, kind)
     if args.lock:
         raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
                             "(.urdf, .xml, cases/robots/*.toml); a rope case has no named joints")
@@ -349,12 +421,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
                    integrator=args.integrator or "", rtol=args.rtol or 0.0,
                    atol=args.atol or 0.0, h=args.h or 0.0, t_end=args.t_end or 0.0,
-                   sample=args.sample or 0.0, max_wall_s=args.max_wall or 0.0,
-                   links=args.links or 0, precision=args.precision)
+                   sample=args.sample or 0.0, max_cpu_s=args.max_cpu or 0.0,
+                   links=args.links or 0, precision=args.precision or "float64")
     spec.resolved(case, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
     if args.out is not None:
         _check_out(args.out)
-    res = execute(spec, progress=_report_progress)
+    res = execute(spec, progress=_report_progress, max_wall_s=args.max_wall)
     print_run(res.summary, res.samples)
     if args.out is not None:
         import pandas as pd
@@ -363,13 +435,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         _save(res.samples, args.out)
         _save(pd.DataFrame([res.summary]), summary_path)
         print(f"saved: {args.out} (samples), {summary_path} (summary)")
-    if res.summary["status"] != "ok":
-        print(f"{PROG}: run failed: {res.summary['reason']}", file=sys.stderr)
-        return EXIT_RUN_FAILED
-    return EXIT_OK
+    return _exit_code(res.summary["status"], res.summary["reason"])
 
 
-def _simulate_model(args: argparse.Namespace) -> int:
+def _exit_code(status: str, reason: str) -> int:
+    """EXIT_OK, EXIT_STOPPED (your --max-wall: a note on stderr) or EXIT_RUN_FAILED (the
+    reason on stderr)."""
+    if status == "ok":
+        return EXIT_OK
+    if status == "stopped":
+        print(f"{PROG}: run stopped: {reason}", file=sys.stderr)
+        return EXIT_STOPPED
+    print(f"{PROG}: run failed: {reason}", file=sys.stderr)
+    return EXIT_RUN_FAILED
+
+
+def _simulate_model(args: argparse.Namespace, kind: str) -> int:
     """``redysim simulate ROBOT.urdf``: a passive fall of a model, printed (and saved)."""
     import numpy as np
 
@@ -382,18 +463,16 @@ def _simulate_model(args: argparse.Namespace) -> int:
                             "the engines take models through redysim.references (Python)")
     if args.method != RunSpec.method:
         raise SettingsError(SOURCE, "--method", args.method, "a robot file runs RGE-A")
-    if args.max_wall is not None:
-        raise SettingsError(SOURCE, "--max-wall", args.max_wall, "not available for a robot "
-                            "file (its runs are short)")
-    model, loops, q0 = _load_system(args)
-    if args.lock:
-        if loops is not None:
-            raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a robot's joint; a "
-                                "linkage file's driver and cuts set its motion")
-        model = model.locked(dict(args.lock))
+    if args.lock and kind == "linkage":
+        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a robot's joint; a "
+                            "linkage file's driver and cuts set its motion")
     t_end = args.t_end or 1.0
     integrator = args.integrator or DEFAULT_METHOD
     fixed = canonical(integrator) in FIXED_STEP
+    for flag, value in (("--rtol", args.rtol), ("--atol", args.atol)):
+        if fixed and value is not None:
+            raise SettingsError(SOURCE, flag, value, f"applies to adaptive integrators; "
+                                f"{integrator!r} is fixed-step (give its step --h)")
     rtol, atol = args.rtol or DEFAULT_RTOL, args.atol or DEFAULT_ATOL
     check_settings(SOURCE, FLAGS, method=integrator, rtol=None if fixed else rtol,
                    atol=None if fixed else atol, h=args.h, t_end=t_end, sample=args.sample)
@@ -401,14 +480,27 @@ def _simulate_model(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--h", None, f"{integrator} needs its step: give --h")
     if args.out is not None:
         _check_out(args.out)
+    model, loops, q0 = _load_system(args)
+    if args.lock:
+        model = model.locked(dict(args.lock))
+    report = _progress_every(PROGRESS_EVERY_S)
+
+    def progress(t, t_end_, steps, wall):
+        report(t, t_end_, steps, wall)
+        if args.max_wall is not None and wall > args.max_wall:  # your patience: "stopped"
+            return (f"stopped by your wall-clock limit, --max-wall = {args.max_wall:g} s, at "
+                    f"t = {t:.6g} (the samples so far are kept)")
+        return None
+
     sim = simulate(model, t_end, q0=q0, integrator=integrator, rtol=rtol, atol=atol, h=args.h,
-                   sample=args.sample, progress=_progress_every(PROGRESS_EVERY_S), loops=loops)
+                   sample=args.sample, progress=progress, loops=loops, max_cpu_s=args.max_cpu)
+    status = {0: "ok", 1: "stopped"}.get(sim.status, "failed")
     base = "floating base" if model.quaternions.size else "fixed base"
     print(f"{model.name}   ({args.case}: {model.n_bodies} bodies, n_q = {model.n_q}, "
           f"n_v = {model.n_v}, {model.total_mass:.6g} kg, {base})")
     settings = f"h {args.h:g} s" if fixed else f"rtol {rtol:g}, atol {atol:g}"
     print(f"  run           passive fall from rest, {t_end:g} s, {integrator} ({settings})")
-    print(f"  status        {'ok' if sim.status == 0 else 'failed: ' + sim.message}")
+    print(f"  status        {status}{'' if sim.status == 0 else ': ' + sim.message}")
     print(f"  E(0)          {sim.E0:.6f} J")
     print(f"  steps         {sim.steps} ({sim.rejected} rejected), {sim.nfev} RHS calls")
     print(f"  CPU           {sim.cpu_s:.3f} s (wall {sim.wall_s:.3f} s; JIT compile or cache "
@@ -420,10 +512,19 @@ def _simulate_model(args: argparse.Namespace) -> int:
         print(f"  quaternion    largest | |q| - 1 | after a step, before its projection: "
               f"{sim.quaternion_error:.1e}")
     if loops is not None:
+        forces = f"{np.abs(sim.forces).max():.4g} N" if sim.forces.size else "none sampled"
         print(f"  loops         {len(loops.cuts)} cut joint{'s' if len(loops.cuts) > 1 else ''}, "
               f"{loops.m} equations; largest residual after a step, before its projection: "
               f"{sim.residual_q:.1e} m, {sim.residual_v:.1e} m/s; largest loop force "
-              f"{np.abs(sim.forces).max():.4g} N")
+              f"{forces}")
+        if sim.near_change_point is not None:
+            print(f"  change point  the motion passed near one at t = "
+                  f"{sim.near_change_point:.6g} s (a configuration where the mechanism can "
+                  "switch branches: check the branch it left on)")
+    if model.notes:
+        print("  dropped       from the file, not simulated (Model.notes):")
+        for note in model.notes:
+            print(f"    {note}")
     print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'COM x [m]':>12} {'COM y [m]':>12} "
           f"{'COM z [m]':>12}")
     for t, dM, c in zip(sim.t, sim.delta_M, sim.com, strict=True):
@@ -437,10 +538,7 @@ def _simulate_model(args: argparse.Namespace) -> int:
                 **{f"v{i}": sim.v[:, i] for i in range(model.n_v)}}
         _save(pd.DataFrame(cols), args.out)
         print(f"saved: {args.out} (samples: t, energy, delta_M, COM, q, v)")
-    if sim.status != 0:
-        print(f"{PROG}: run failed: {sim.message}", file=sys.stderr)
-        return EXIT_RUN_FAILED
-    return EXIT_OK
+    return _exit_code(status, sim.message)
 
 
 def _progress_every(seconds: float):
@@ -482,6 +580,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from redysim.harness.store import parquet_files
     from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
 
+    if args.dask and args.workers is not None:
+        raise SettingsError(SOURCE, "--workers", args.workers, "sets the local process pool; "
+                            "with --dask the cluster's own workers run the runs")
     sweep = load_sweep(args.sweep_file)
     out = args.out or DEFAULT_SWEEP_ROOT / sweep.name
     if out.exists() and not out.is_dir():
@@ -511,6 +612,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     """``redysim info``: the model's tree, one line per body, children indented under parents."""
     from redysim import Model
 
+    _refuse_unused_flags(args, file_kind(args.model))
     loops = None
     if Path(args.model).suffix.lower() in (".urdf", ".xml", ".toml"):
         model, loops, _ = _load_system(args)
@@ -537,7 +639,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     for name, (body, point) in model.frames.items():
         print(f"  frame {name}: on {model.body_names[body]} at {tuple(float(x) for x in point)}")
     for note in model.notes:
-        print(f"  dropped: {note}")
+        print(f"  note: {note}")
     for c in loops.cuts if loops is not None else ():
         where_b = "the world" if c.body_b < 0 else model.body_names[c.body_b]
         print(f"  cut joint {c.name}: {c.kind}, {model.body_names[c.body_a]} at "
@@ -567,28 +669,48 @@ def cmd_advise(args: argparse.Namespace) -> int:
     from redysim.harness import refine
 
     if args.scene == "hanging":
+        for flag, value in (("--tip-tol", args.tip_tol), ("--results", args.results)):
+            if value is not None:
+                raise SettingsError(SOURCE, flag, str(value) if flag == "--results" else value,
+                                    "the hanging chain's advice is computed, from --modes and "
+                                    "--freq-tol: it has no use for it")
         if args.modes is None or args.freq_tol is None:
             raise SettingsError(SOURCE, "--modes/--freq-tol", None,
                                 "the hanging chain's advice needs both (e.g. --modes 3 "
                                 "--freq-tol 0.01)")
+        finest = refine.modes_available()
+        if args.modes > finest:
+            raise SettingsError(SOURCE, "--modes", args.modes,
+                                f"the study's finest model, {finest} links, has {finest} modes "
+                                f"(a chain of n links has n): asking for {args.modes} needs a "
+                                f"model of at least {args.modes} links; ask for at most "
+                                f"{finest}")
         study = refine.modes_study(m=args.modes)
         a = refine.advise_modes(study, args.modes, args.freq_tol)
         if a is None:
-            finest = study["levels"][-1]
-            print(f"no model up to {finest['links']} links has its first {args.modes} "
+            last = study["levels"][-1]
+            print(f"no model up to {last['links']} links has its first {args.modes} "
                   f"frequencies within {args.freq_tol:g} (the finest: "
-                  f"{max(finest['rel_err'][:args.modes]):.3g})")
+                  f"{max(last['rel_err'][:args.modes]):.3g})")
             return EXIT_RUN_FAILED
         print(f"hanging chain: {a['links']} links have the first {args.modes} frequencies within "
               f"{args.freq_tol:g} of the continuum's (worst {a['max_rel_err']:.3g})")
+        fewer = [row["links"] for row in study["levels"] if row["links"] < args.modes]
+        if fewer:
+            print(f"  (the coarser models, {', '.join(map(str, fewer))} links, have fewer than "
+                  f"{args.modes} modes: a chain of n links has n)")
         return EXIT_OK
     if args.tip_tol is None:
         raise SettingsError(SOURCE, "--tip-tol", None, "missing: the tip-path tolerance [m]")
     if args.modes is not None or args.freq_tol is not None:
         raise SettingsError(SOURCE, "--modes/--freq-tol", args.modes,
                             "apply to the hanging chain only (advise hanging ...)")
-    folder = (refine.study_folder(args.results, args.scene) if args.scene in refine.SCENES
-              else Path(args.scene))
+    if args.scene not in refine.SCENES and args.results is not None:
+        raise SettingsError(SOURCE, "--results", str(args.results), f"says where the studies "
+                            f"of {', '.join(refine.SCENES)} are; a folder given as SCENE is "
+                            "read as it is")
+    folder = (refine.study_folder(args.results or Path("results"), args.scene)
+              if args.scene in refine.SCENES else Path(args.scene))
     try:
         study = refine.load_study(folder, args.scene)
     except refine.StudyError as exc:

@@ -10,8 +10,9 @@ error against the study's reference (the finest model at the tightest tolerance,
   log error against log links, error ~ C links^-p, fitted on the levels at most a quarter of the
   finest, where the finest model's own error biases the difference by at most 4^-p), and the
   Richardson-extrapolated tip position at the horizon from the two finest levels;
-- :func:`advise`: for a tip-path tolerance, the run that meets it at the least CPU: the coarsest
-  model and cheapest integrator setting, from measured data;
+- :func:`advise`: for a tip-path tolerance, the run that meets it at the least cost (measured
+  CPU by default; RHS calls or steps, which no machine's noise changes, on request): the
+  coarsest model and cheapest integrator setting, from measured data;
 - :func:`check_advice`: runs the advised model afresh and compares it with the study's reference
   and with a model twice as fine as the finest, by DOP853 at 1e-8 (so that the advice is checked
   against a reference it was not chosen with).
@@ -65,6 +66,7 @@ FINER_RTOL = 1e-8
 ADVICE_TOLERANCES = {"spin": (1e-2, 1e-3), "fall": (1e-2, 1e-3), "whip": (5e-2,),
                      "pulled": (1e-2, 1e-3)}
 RESULTS_FILE = "refine.json"
+COSTS = ("cpu_s", "nfev", "steps")  # advise's measures of a run's cost (columns of the runs)
 
 
 class StudyError(Exception):
@@ -199,20 +201,35 @@ class Advice:
         return self.finest_cpu_s / self.cpu_s if self.cpu_s > 0 else math.nan
 
 
-def advise(study: Study, tol: float, *, precision: str = "float64") -> Advice | None:
+def advise(study: Study, tol: float, *, precision: str = "float64",
+           cost: str = "cpu_s") -> Advice | None:
     """The coarsest model and cheapest integrator setting, from measured data, whose tip path
     stays within ``tol`` [m] of the reference's: of the study's runs that met ``tol``, the one
-    that took the least CPU. None when no run met it."""
-    if not tol > 0:
-        raise ValueError(f"tol = {tol!r}: must be a tip distance > 0 [m]")
+    of least ``cost`` (a column of the runs: ``"cpu_s"``, the measured CPU time, by default;
+    ``"nfev"`` or ``"steps"`` count work without the machine's noise), ties broken by fewer
+    links, then by the run id. None when no run met it. Raises SettingsError for a ``tol`` that
+    is not a distance > 0, a ``precision`` not in the study's runs' or an unknown ``cost``."""
+    from redysim.errors import SettingsError
+
+    from .spec import PRECISIONS
+
+    if isinstance(tol, bool) or not isinstance(tol, int | float) or not tol > 0 or \
+            not math.isfinite(tol):
+        raise SettingsError("advise", "tol", _shown(tol), "must be a tip distance > 0 [m] "
+                            "(finite)")
+    if precision not in PRECISIONS:
+        raise SettingsError("advise", "precision", precision,
+                            f"choose one of {', '.join(PRECISIONS)}")
+    if cost not in COSTS:
+        raise SettingsError("advise", "cost", cost, f"choose one of {', '.join(COSTS)}")
     r = study.runs
     ok = r[(r["status"] == "ok") & (r["precision"] == precision)
            & (r["run_id"] != study.reference["run_id"]) & (r["tip_err"] <= tol)]
     if ok.empty:
         return None
-    best = ok.sort_values(["cpu_s", "n_links"]).iloc[0]
+    best = ok.sort_values([cost, "n_links", "run_id"]).iloc[0]
     finest = int(study.reference["n_links"])
-    fine = ok[ok["n_links"] == finest].sort_values("cpu_s")
+    fine = ok[ok["n_links"] == finest].sort_values([cost, "run_id"])
     return Advice(study.scene, float(tol), int(best["n_links"]), str(best["integrator"]),
                   float(best["rtol"]), float(best["tip_err"]), float(best["cpu_s"]),
                   int(best["steps"]), finest,
@@ -411,12 +428,31 @@ def modes_study(case_file: str | Path = HANGING_CASE, levels=HANGING_LEVELS,
 
 def advise_modes(study: dict, m: int, tol: float) -> dict | None:
     """The coarsest level whose first ``m`` frequencies are all within ``tol`` (relative) of the
-    continuum's; None when none is."""
+    continuum's; None when none is. A level of n links has n modes: one with fewer than ``m``
+    cannot meet the request (its missing frequencies are NaN in the study, and NaN is never
+    within a tolerance). Raises SettingsError for an ``m`` beyond the study's modes (more than
+    :func:`modes_study` computed) or a ``tol`` that is not a number > 0."""
+    from redysim.errors import SettingsError
+
+    if isinstance(m, bool) or not isinstance(m, int | np.integer) or not 1 <= m <= \
+            study["modes"]:
+        raise SettingsError("advise_modes", "m", _shown(m), f"must be a whole number in "
+                            f"1..{study['modes']} (the modes the study computed)")
+    if isinstance(tol, bool) or not isinstance(tol, int | float) or not tol > 0 or \
+            not math.isfinite(tol):
+        raise SettingsError("advise_modes", "tol", _shown(tol), "must be a relative frequency "
+                            "tolerance > 0 (finite)")
     for row in study["levels"]:  # coarsest first
-        if max(row["rel_err"][:m]) <= tol:
-            return {"links": row["links"], "max_rel_err": max(row["rel_err"][:m]), "modes": m,
-                    "tol": tol}
+        errors = row["rel_err"][:m]
+        if row["links"] >= m and all(math.isfinite(e) and e <= tol for e in errors):
+            return {"links": row["links"], "max_rel_err": max(errors), "modes": m, "tol": tol}
     return None
+
+
+def modes_available(levels=HANGING_LEVELS) -> int:
+    """How many modes the hanging chain's finest level has: a planar chain of n links (one
+    revolute joint each) has n."""
+    return max(levels)
 
 
 # --------------------------------------------------------------------------- everything
@@ -505,6 +541,11 @@ def finer_references(studies: dict, workers: int, log=print) -> dict:
     for scene, study in studies.items():
         out[scene]["rtol_error_on_finest"] = _rtol_error_on_finest(study)
     return out
+
+
+def _shown(v):
+    """A value for a message: a numpy scalar as the plain number it is (nan and inf too)."""
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def _plain(v):

@@ -33,6 +33,7 @@ from .integrate import (
     DEFAULT_METHOD,
     DEFAULT_RTOL,
     FIXED_STEP,
+    MAX_FIXED_STEPS,
     check_settings,
 )
 from .shapes import catenary_angles
@@ -47,6 +48,19 @@ DEFAULT_SAMPLES = 20  # samples over the horizon when the case gives no sample_i
 # (spacing(1e6) = 1.2e-10): larger initial angles are a unit slip, and at 1e16 an angle no
 # longer moves under a step (the run then ends "ok" with the chain frozen).
 MAX_ANGLE = 1e6
+# The fastest motion a case asks for (fastest_motion), against its horizon: ode45 takes about ten
+# steps per radian of it (measured: 9.8 on a 4-link chain pulled at its tip by 1e12 N, 13 on
+# RE-U50000-L1000), and a run takes at most MAX_FIXED_STEPS (redysim.integrate's bound on a
+# fixed-step run), so a case whose fastest motion turns through more than MAX_RADIANS over t_end
+# (a tip force of 1e300 N: ~1e151 rad/s) is refused at the door instead of running for ever with
+# its time to go counting centuries. The cases shipped reach 1.3e5 rad (RE-U15000-L300).
+STEPS_PER_RADIAN = 10
+MAX_RADIANS = MAX_FIXED_STEPS / STEPS_PER_RADIAN
+# A tip mass this many times the lightest link's: the GIM's condition number grows in proportion
+# to the ratio (a decade of it costs qdd a digit), so beyond 1e10 qdd keeps at most 6 of
+# float64's 16 digits before the chain's own conditioning takes its share.
+MAX_TIP_MASS_RATIO = 1e10
+PLAUSIBLE_GRAVITY = 1e3  # m/s^2 (100 g): a stronger gravity is named as the cause, not a link
 # Chain fields that describe the links of a uniform chain (links = N); with [[chain.link]]
 # entries each link gives its own, and these would be ignored, so they are refused.
 UNIFORM_ONLY = ("link_length", "total_length", "link_mass", "total_mass", "linear_density",
@@ -252,6 +266,89 @@ def _culprit(factors: dict[str, tuple[float, float, int]], too_large: bool) -> t
     return name, factors[name][0]
 
 
+@dataclass(frozen=True)
+class FastestMotion:
+    """An estimate of the fastest motion of a chain (:func:`fastest_motion`): ``omega`` [rad/s],
+    its ``cause`` ("tip_force", "tip_mass", "weight": the chain's own, "rate": an initial rate,
+    or the pull of the spin it gives), the ``link`` (index) that moves that fast or, for
+    "rate", the DOF; ``tension`` [N], the pull assumed along the chain."""
+
+    omega: float
+    cause: str
+    link: int
+    tension: float
+
+
+def fastest_motion(chain: Chain, tip_force=None, qd=None, tip_mass: float = 0.0
+                   ) -> FastestMotion:
+    """How fast the chain can move, as an order of magnitude: the largest of its initial rates
+    (a prismatic one over its link's length) and of the swing rates of its links under the
+    largest pull along the chain, omega_k = sqrt(T l_k / I_k) (a pendulum of length l_k and
+    inertia I_k about its joint, the smaller of the two across the link, in a field that pulls
+    its end with T), with T = |tip force| + total mass x (|g| + spin^2 x chain length), an upper
+    bound of the tension anywhere in the chain. ``tip_mass`` [kg]: the part of the last link's
+    mass that is a tip mass (for naming the cause). O(n) arithmetic, no dynamics."""
+    g = _norm(chain.gravity)
+    n_dof = chain.n_dof
+    qd = np.zeros(n_dof) if qd is None else np.abs(np.asarray(qd, dtype=float))
+    link_of_dof = np.repeat(np.arange(chain.n_links), np.diff(chain.joint_qoff))
+    rates = qd / np.where(chain.dof_kind == 0, 1.0, chain.length[link_of_dof])
+    fastest_dof = int(np.argmax(rates)) if n_dof else 0
+    spin = float(rates[fastest_dof]) if n_dof else 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        mass = chain.total_mass
+        pulls = {"tip_force": 0.0 if tip_force is None else _norm(tip_force),
+                 "tip_mass": tip_mass * g, "weight": max(mass - tip_mass, 0.0) * g,
+                 "rate": mass * spin * spin * float(chain.length.sum())}
+        tension = sum(pulls.values())
+        across = np.minimum(chain.inertia_O[:, 1, 1], chain.inertia_O[:, 2, 2])
+        swing = np.where(across > 0, tension * chain.length / np.where(across > 0, across, 1.0),
+                         0.0)
+    k = int(np.argmax(swing))
+    omega = math.sqrt(swing[k]) if math.isfinite(swing[k]) else math.inf
+    if not omega > spin:
+        return FastestMotion(spin, "rate", fastest_dof, tension)
+    return FastestMotion(omega, max(pulls, key=pulls.get), k, tension)
+
+
+def _norm(x) -> float:
+    """|x| without overflow of the squares (|(0, 1e300, 0)| = 1e300, not inf)."""
+    x = np.abs(np.asarray(x, dtype=float))
+    big = float(x.max()) if x.size else 0.0
+    return big * float(np.linalg.norm(x / big)) if 0 < big < math.inf else big
+
+
+def _check_pace(source: str, chain: Chain, t_end: float, motion: FastestMotion, *, tip_force,
+                tip_mass: float, qd0, explicit: bool, length_field: tuple[str, float]) -> None:
+    """Refuse a case whose fastest motion turns through more than MAX_RADIANS over t_end,
+    naming the field that makes it so (``length_field``: the link length's, when the chain's
+    own weight does it under a plausible gravity; ``explicit``: [[chain.link]] entries)."""
+    turns = motion.omega * t_end
+    if turns <= MAX_RADIANS:
+        return
+    k = motion.link
+    if motion.cause == "rate":
+        name, value = f"initial.qd[{k}]", float(qd0[k])
+        why = "an initial rate of the chain"
+    else:
+        which = f"chain.link[{k}]" if explicit else "a link"
+        why = (f"{which} ({chain.length[k]:.3g} m, {chain.mass[k]:.3g} kg) swinging under a "
+               f"pull of {motion.tension:.3g} N")
+        if motion.cause == "tip_force":
+            name, value = "load.tip_force", [float(x) for x in tip_force]
+        elif motion.cause == "tip_mass":
+            name, value = "chain.tip_mass", tip_mass
+        elif _norm(chain.gravity) > PLAUSIBLE_GRAVITY:
+            name, value = "chain.gravity", [float(x) for x in chain.gravity]
+        else:
+            name, value = length_field
+    raise CaseError(source, name, value,
+                    f"the chain's fastest motion would be ~{motion.omega:.3g} rad/s ({why}): "
+                    f"~{turns:.3g} rad over t_end = {t_end:g} s, more than the "
+                    f"{MAX_RADIANS:.0e} a run can integrate (about {STEPS_PER_RADIAN} steps a "
+                    f"radian, at most {MAX_FIXED_STEPS:.0e} steps)")
+
+
 def _uniform_links(chain, source) -> tuple[list[Link], list[Joint]]:
     nl = _int(source, "chain.links", chain["links"], 1, MAX_LINKS)
     lkey, lval = _one_of(chain, ("link_length", "total_length"), source, "chain")
@@ -452,9 +549,18 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     else:
         raise CaseError(source, "chain.links", None,
                         "missing field: give links = N (uniform) or [[chain.link]] entries")
+    tip_mass = 0.0
     if "tip_mass" in chain_t:
-        links[-1] = _with_tip_mass(links[-1], check_positive(source, "chain.tip_mass",
-                                                             chain_t["tip_mass"]))
+        tip_mass = check_positive(source, "chain.tip_mass", chain_t["tip_mass"])
+        lightest = min(links[-1].mass, min(link.mass for link in links[:-1])
+                       if "link" in chain_t and len(links) > 1 else links[0].mass)
+        if tip_mass > MAX_TIP_MASS_RATIO * lightest:
+            raise CaseError(source, "chain.tip_mass", chain_t["tip_mass"],
+                            f"{tip_mass / lightest:.3g} times the lightest link's mass "
+                            f"({lightest:.3g} kg), more than {MAX_TIP_MASS_RATIO:.0e}: the "
+                            "GIM's condition number grows in proportion to that ratio (a "
+                            "decade of it costs qdd a digit of float64's 16)")
+        links[-1] = _with_tip_mass(links[-1], tip_mass)
     gravity = chain_t.get("gravity", [0.0, -9.81, 0.0])
     chain = Chain.build(links, joints, gravity=gravity, name=name, source=source)
 
@@ -518,6 +624,16 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     if "tip_force" in load:  # a copy: a dict's own array must stay as the caller left it
         tip_force = np.array(check_vector(source, "load.tip_force", load["tip_force"], 3))
         tip_force.flags.writeable = False
+    motion = fastest_motion(chain, tip_force, qd0, tip_mass)
+    explicit = "link" in chain_t
+    if explicit:
+        length_field = (f"chain.link[{motion.link}].length",
+                        chain_t["link"][motion.link].get("length"))
+    else:
+        lkey = "link_length" if "link_length" in chain_t else "total_length"
+        length_field = (f"chain.{lkey}", chain_t[lkey])
+    _check_pace(source, chain, t_end, motion, tip_force=tip_force, tip_mass=tip_mass, qd0=qd0,
+                explicit=explicit, length_field=length_field)
     q0.flags.writeable = False
     qd0.flags.writeable = False
     if digest is None:

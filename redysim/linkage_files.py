@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .chain import STANDARD_GRAVITY, check_inertia, check_vector, numeric_array
-from .errors import CaseError, StateError
+from .errors import CaseError, SettingsError, StateError
 from .linkages import assemble, bar_body, bars_body, circle_meet
 from .loops import KINDS, ClosedLoops, CutJoint
 from .model import Body, Model, TreeJoint
@@ -41,6 +41,11 @@ from .model import Body, Model, TreeJoint
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}  # length_unit -> metres
 GROUND, ORIGIN, END = "ground", "origin", "end"
 DEFAULT_MAX_CHANGE = 30.0  # deg (or length units for a P joint) an assembled joint may move
+# Linkage.at: at most this many assemblies per call (a driver sent 1e5 rad at 5 deg a step
+# would take 1.1e6, ~45 minutes: a mechanism that comes back after a turn is followed through
+# at most two turns instead, 144 steps at the default 5 deg)
+MAX_AT_STEPS = 10_000
+PERIOD_TOL = 1e-9  # rad (relative to |q|): a turn brings every joint back to within this
 AXES = ("x", "y", "z")
 _FIELDS = {
     "linkage": {"name", "description", "source", "length_unit", "gravity"},
@@ -107,19 +112,90 @@ class Linkage:
         ``step`` (default 5 deg; for a P joint 1 % of the model's size), the loops closed after
         each with the driver held (:func:`redysim.linkages.assemble`), so that the mechanism
         is followed as it moves rather than jumped to a far angle, where Gauss-Newton could
-        close it on another branch."""
+        close it on another branch.
+
+        A revolute driver more than a turn away is not stepped through every turn: the
+        mechanism is followed through one whole turn, and when that brings every joint back to
+        its start (each revolute joint to within a whole number of turns: the motion is
+        periodic) the whole turns are added and only the rest is followed; so the cost is at
+        most two turns' steps, whatever ``value``. Raises SettingsError for a ``value`` or
+        ``step`` that is not a finite number (step > 0), or a move that would take more than
+        :data:`MAX_AT_STEPS` steps (a mechanism that does not come back after a turn, a P
+        driver sent far, a tiny step); StateError for a bad q or a driver value at which the
+        mechanism does not assemble (:func:`~redysim.linkages.assemble`)."""
+        from .dynamics import check_state
+
+        where = f"{self.name}: Linkage.at"
         if self.driver is None:
             raise ValueError(f"{self.name}: the file names no [initial] driver")
+        revolute = self.model.joint_types[self.driver] == "R"
+        for name, x in (("value", value), ("step", step)):
+            if x is None and name == "step":
+                continue
+            if isinstance(x, bool) or not isinstance(x, int | float | np.integer | np.floating) \
+                    or not math.isfinite(x) or (name == "step" and not x > 0):
+                raise SettingsError(where, name, float(x) if isinstance(x, np.generic) else x,
+                                    "must be a finite number" + (" > 0" if name == "step" else "")
+                                    + (" [rad]" if revolute else " [m]"))
         if step is None:
-            step = (math.radians(5.0) if self.model.joint_types[self.driver] == "R"
-                    else 0.01 * self.loops.size)
-        q = np.array(self.q0 if q is None else q, dtype=float)
+            step = math.radians(5.0) if revolute else 0.01 * self.loops.size
+        q = np.array(check_state(self.model, "q", self.q0 if q is None else q), dtype=float)
+        value, step = float(value), float(step)
         start = float(q[self.driver])
+        turns, rest = 0, value - start
+        if revolute and abs(rest) > 2 * math.pi:
+            turns = math.floor(rest / (2 * math.pi))
+            rest -= turns * 2 * math.pi
+            self._check_steps(where, value, step, 2 * math.pi + rest, "value")
+            offset = self._turn(q, start, step, where)
+            q = self._follow(q, start, start + rest, step)
+            q += turns * offset
+        else:
+            self._check_steps(where, value, step, abs(rest), "value")
+            q = self._follow(q, start, value, step)
+        q[self.driver] = value
+        return q
+
+    def _check_steps(self, where, value, step, span, name):
+        count = math.ceil(span / step)
+        if count > MAX_AT_STEPS:
+            raise SettingsError(where, "step" if span <= 4 * math.pi else name,
+                                step if span <= 4 * math.pi else value,
+                                f"the driver would move {span:.6g} in {count:,} steps of "
+                                f"{step:.3g}, more than {MAX_AT_STEPS:,} assemblies; give a "
+                                "value nearer the start or a longer step")
+
+    def _follow(self, q, start: float, value: float, step: float) -> np.ndarray:
+        """q with the driver moved from ``start`` to ``value`` in steps of at most ``step``,
+        the loops closed after each (the driver held)."""
         count = max(1, math.ceil(abs(value - start) / step))
         for k in range(1, count + 1):
             q[self.driver] = start + (value - start) * k / count
             q = assemble(self.loops, q, hold=[self.driver])
         return q
+
+    def _turn(self, q, start: float, step: float, where: str) -> np.ndarray:
+        """What one whole turn of the driver adds to q: a whole number of turns per revolute
+        joint, and nothing to a prismatic one; SettingsError when the turn does not bring the
+        mechanism back (it switched branches: no period to use)."""
+        after = self._follow(q.copy(), start, start + 2 * math.pi, step)
+        change = after - q
+        turns = np.where(self._revolute, np.round(change / (2 * math.pi)), 0.0)
+        offset = turns * 2 * math.pi
+        off = np.abs(change - offset)
+        if not off.max() <= PERIOD_TOL * max(1.0, float(np.abs(q).max())):
+            k = int(np.argmax(off))
+            raise SettingsError(where, "value", q[self.driver], f"a whole turn of the driver "
+                                f"does not bring the mechanism back (joint "
+                                f"{self.model.joint_names[k]!r} is {off[k]:.3g} away from its "
+                                "start, modulo whole turns: it switched branches, at a change "
+                                "point?), so a driver angle turns away cannot be reached by "
+                                "following it; give one within a turn of the start")
+        return offset
+
+    @property
+    def _revolute(self) -> np.ndarray:
+        return np.array([t == "R" for t in self.model.joint_types])
 
 
 # --------------------------------------------------------------------------- small readers
@@ -510,7 +586,14 @@ def load_linkage(path: str | os.PathLike) -> Linkage:
     """The linkage of a TOML file (module docstring, ``cases/loops/README.md``)."""
     from .cases import read_toml
 
+    if isinstance(path, bool) or not isinstance(path, str | os.PathLike):
+        raise CaseError("load_linkage", "path", path, "must be the path of a linkage file "
+                        "(a str or a pathlib.Path)")
     path = Path(path)
+    if path.is_dir():
+        raise CaseError(str(path), "<file>", None, "is a folder, not a linkage file")
+    if not path.is_file():
+        raise FileNotFoundError(f"linkage file {str(path)!r} does not exist")
     doc = read_toml(path)[0]
     return linkage_from_dict(doc, source=str(path), default_name=path.stem, path=path)
 
@@ -519,6 +602,9 @@ def linkage_from_dict(doc: dict, *, source: str = "<dict>", default_name: str = 
                       path: Path | None = None) -> Linkage:
     """The linkage of a parsed linkage file."""
     src = source
+    if not isinstance(doc, dict):
+        _fail(src, "<top>", type(doc).__name__, "a linkage is a table (a parsed TOML document, "
+              "a dict)")
     for key in doc:
         if key not in _FIELDS:
             _fail(src, key, doc[key], "unknown table; a linkage file has [linkage], [ground], "

@@ -39,6 +39,7 @@ References:
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -51,6 +52,12 @@ KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> cons
 ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a cut frame's rotation
 WORLD = -1
 SINGULAR = 1e-10  # smallest / largest singular value of J X below which the loops are redundant
+# A redundancy at q only is a change point: J X regular (ratio above REGULAR_NEAR) at q moved by
+# up to CHANGE_POINT_STEP rad per coordinate, in fixed pseudo-random directions
+CHANGE_POINT_STEP = 1e-3
+CHANGE_POINT_SEED = 20240229
+REGULAR_NEAR = 1e-8
+NEAR_CHANGE_POINT = 1e-6  # a run that met J X this near singular passed near a change point
 PROJECTION_TOL = 1e-12  # |phi| (m) the position projection aims at, relative to the model's size
 PROJECTION_ITERATIONS = 8
 
@@ -71,6 +78,58 @@ class CutJoint:
     rot_a: tuple | None = None
     rot_b: tuple | None = None
 
+    def __post_init__(self):
+        """Each field checked at construction (CaseError naming it and its value); which
+        bodies exist is :class:`ClosedLoops`'s to check."""
+        source = f"CutJoint {self.name!r}" if isinstance(self.name, str) else "CutJoint"
+        if not isinstance(self.name, str) or not self.name:
+            raise CaseError(source, "name", self.name, "must be a non-empty string")
+        for side in ("body_a", "body_b"):
+            body = getattr(self, side)
+            if isinstance(body, bool) or not isinstance(body, int | np.integer):
+                raise CaseError(source, side, _plain(body), "must be a body index (a whole "
+                                "number" + (", -1 for the world)" if side == "body_b" else ")"))
+            object.__setattr__(self, side, int(body))
+        if self.kind not in KINDS:
+            raise CaseError(source, "kind", self.kind, f"unknown; known: {', '.join(KINDS)}")
+        for side in ("point_a", "point_b"):
+            p = getattr(self, side)
+            a = _numbers(p)
+            if a is None or a.shape != (3,) or not np.isfinite(a).all():
+                raise CaseError(source, side, _plain(p), "must be 3 finite numbers [m]")
+            object.__setattr__(self, side, tuple(float(x) for x in a))
+        for side in ("rot_a", "rot_b"):
+            R = getattr(self, side)
+            if R is None:
+                continue
+            a = _numbers(R)
+            if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
+                    np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
+                raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
+            if self.kind not in ("revolute", "weld"):
+                raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
+                                f"or 'weld' cut only; a {self.kind!r} cut would ignore it")
+
+
+def _numbers(value) -> np.ndarray | None:
+    """``value`` as a float array, or None when it is not numbers (strings, booleans, ...)."""
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):
+        return None
+    if a.dtype.kind not in "iuf":
+        return None
+    return a.astype(float)
+
+
+def _plain(value):
+    """A value for a message: numpy scalars and arrays as plain numbers and lists."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
 
 class ClosedLoops:
     """A tree and its cut joints (module docstring). Not thread-safe (it holds workspaces)."""
@@ -78,19 +137,30 @@ class ClosedLoops:
     def __init__(self, model: Model, cuts: Sequence[CutJoint], *, source: str = "loops"):
         from .workspace import Workspace
 
+        if not isinstance(source, str):
+            raise CaseError("ClosedLoops", "source", source, "must be a string (where the "
+                            "model and its cuts come from, for messages)")
         if not isinstance(model, Model):
             raise CaseError(source, "model", type(model).__name__, "must be a redysim.Model")
         if FREE in model.joint_types:
             raise CaseError(source, "model", model.name, "loops on a model with a free joint are "
                             "not supported yet (its quaternion has 4 coordinates for 3 DOF)")
+        if isinstance(cuts, CutJoint) or not isinstance(cuts, Sequence) or \
+                isinstance(cuts, str):
+            raise CaseError(source, "cuts", type(cuts).__name__, "must be a list of CutJoint "
+                            "(one per cut joint)")
         if not cuts:
             raise CaseError(source, "cuts", [], "give at least one cut joint")
         nb = model.n_bodies
+        names = set()
         for i, c in enumerate(cuts):
-            where = f"cuts[{i}] ({c.name})"
-            if c.kind not in KINDS:
-                raise CaseError(source, f"{where}.kind", c.kind,
-                                f"unknown; known: {', '.join(KINDS)}")
+            if not isinstance(c, CutJoint):
+                raise CaseError(source, f"cuts[{i}]", type(c).__name__, "must be a "
+                                "redysim.loops.CutJoint")
+            where = f"cut joint {c.name!r}"
+            if c.name in names:
+                raise CaseError(source, f"{where}.name", c.name, "two cut joints have this name")
+            names.add(c.name)
             for side, body in (("body_a", c.body_a), ("body_b", c.body_b)):
                 if not -1 <= body < nb or (side == "body_a" and body < 0):
                     raise CaseError(source, f"{where}.{side}", body,
@@ -99,18 +169,8 @@ class ClosedLoops:
             if c.body_a == c.body_b:
                 raise CaseError(source, f"{where}.body_b", c.body_b, "a cut joint joins two "
                                 "different bodies (here a body and itself)")
-            for side, p in (("point_a", c.point_a), ("point_b", c.point_b)):
-                a = np.asarray(p, dtype=float)
-                if a.shape != (3,) or not np.isfinite(a).all():
-                    raise CaseError(source, f"{where}.{side}", p, "must be 3 finite numbers")
-            for side, R in (("rot_a", c.rot_a), ("rot_b", c.rot_b)):
-                if R is None:
-                    continue
-                a = np.asarray(R, dtype=float)
-                if a.shape != (3, 3) or not np.isfinite(a).all() or \
-                        np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
-                    raise CaseError(source, f"{where}.{side}", R, "must be a 3 x 3 rotation")
         self.model, self.cuts = model, tuple(cuts)
+        self.nearest_singular = math.inf  # the least s_min / s_max of J X met (a change point)
         self.rows = [(i, r) for i, c in enumerate(cuts) for r in range(KINDS[c.kind])]
         self.m = len(self.rows)
         self.ws = Workspace(model)
@@ -226,19 +286,47 @@ class ClosedLoops:
         return np.column_stack([forward_dynamics(model0, q, self._zeros, Jrow, ws=self.ws0)
                                 for Jrow in J])
 
-    def _solve(self, A, b):
-        """A x = b for the m x m J X, refusing redundant loops by name."""
+    def _solve(self, A, b, q):
+        """A x = b for the m x m J X at configuration q, refusing redundant loops by name (and
+        saying whether q is a change point: redundant here only)."""
         s = np.linalg.svd(A, compute_uv=False)
-        if s[-1] <= SINGULAR * s[0]:
+        ratio = float(s[-1] / s[0]) if s[0] > 0 else 0.0
+        self.nearest_singular = min(self.nearest_singular, ratio)
+        if not ratio > SINGULAR:
             _, _, Vt = np.linalg.svd(A)
             null = np.abs(Vt[-1])
-            culprits = sorted({self.cuts[self.rows[i][0]].name for i in np.flatnonzero(
-                null > 0.1 * null.max())})
-            raise StateError(f"the cut joints {', '.join(culprits)} are redundant here: their "
-                             f"equations are dependent (singular J M^-1 J^T, singular values "
-                             f"{s[-1]:.3g} / {s[0]:.3g}); remove or lower the rank of one, e.g. "
-                             "a 'planar' cut for a mechanism in the xy plane")
+            culprits = ", ".join(map(repr, sorted({self.cuts[self.rows[i][0]].name for i in
+                                                   np.flatnonzero(null > 0.1 * null.max())})))
+            values = f"singular J M^-1 J^T, singular values {s[-1]:.3g} / {s[0]:.3g}"
+            if self._regular_near(q):
+                raise StateError(f"the cut joints {culprits} are redundant at this "
+                                 f"configuration ({values}) but not at those near it: a change "
+                                 "point, a singular configuration where the mechanism can "
+                                 "switch branches (a parallelogram four-bar with its bars in "
+                                 "a line, say), and where the loops do not determine the "
+                                 "motion; start, or drive the mechanism, away from it")
+            raise StateError(f"the cut joints {culprits} are redundant: their equations are "
+                             f"dependent at this configuration and at those near it ({values})"
+                             "; remove or lower the rank of one, e.g. a 'planar' cut for a "
+                             "mechanism in the xy plane")
         return np.linalg.solve(A, b)
+
+    def _regular_near(self, q) -> bool:
+        """Whether J X is regular at configurations near q (each coordinate moved by up to
+        CHANGE_POINT_STEP rad, or that times the model's size for a prismatic one; fixed
+        directions): the redundancy at q is then a change point's, not the cuts' own."""
+        dq = np.random.default_rng(CHANGE_POINT_SEED).uniform(-1.0, 1.0, self.model.n_v)
+        dq *= CHANGE_POINT_STEP * np.where(self.model.dof_kind == 1, self.size, 1.0)
+        near = np.asarray(q, dtype=float) + dq
+        J = self.evaluate(near, self._zeros)[1]
+        s = np.linalg.svd(J @ self._mobility(near, J), compute_uv=False)
+        return bool(s[0] > 0 and s[-1] > REGULAR_NEAR * s[0])
+
+    def nearest_change_point(self) -> float:
+        """The least s_min / s_max of J M^-1 J^T met since the last call (inf: none met), and
+        start afresh: how close the motion came to a change point."""
+        nearest, self.nearest_singular = self.nearest_singular, math.inf
+        return nearest
 
     def forward_dynamics(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
         """(qdd, lambda): accelerations with the loops closed, and the loop forces (m,) (on body
@@ -248,7 +336,7 @@ class ClosedLoops:
         qdd0 = forward_dynamics(self.model, q, v, tau, ws=self.ws)
         _, J, _, Jdv = self.evaluate(q, v)
         X = self._mobility(q, J)
-        lam = self._solve(J @ X, -(J @ qdd0 + Jdv))
+        lam = self._solve(J @ X, -(J @ qdd0 + Jdv), q)
         return qdd0 + X @ lam, lam
 
     def check_start(self, q, tol: float = 1e-6) -> None:
@@ -273,8 +361,8 @@ class ClosedLoops:
             if np.abs(phi).max() <= PROJECTION_TOL * self.size:
                 break
             X = self._mobility(q, J)
-            q -= X @ self._solve(J @ X, phi)
+            q -= X @ self._solve(J @ X, phi, q)
             phi, J, _, _ = self.evaluate(q, v)
         X = self._mobility(q, J)
-        v -= X @ self._solve(J @ X, J @ v)
+        v -= X @ self._solve(J @ X, J @ v, q)
         return q, v, before[0], before[1]

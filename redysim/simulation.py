@@ -33,11 +33,13 @@ from .errors import SettingsError, StateError
 from .implicit import TensionPreconditioner
 from .implicit import compile_kernels as implicit_kernels
 from .integrate import (
+    ALIASES,
     DEFAULT_ATOL,
     DEFAULT_METHOD,
     DEFAULT_RTOL,
     FIXED_STEP,
     IMPLICIT,
+    INTEGRATORS,
     TABLEAU_NAMES,
     CompiledSolver,
     advance,
@@ -47,10 +49,46 @@ from .integrate import (
     make_solver,
     sample_times,
 )
+from .loops import NEAR_CHANGE_POINT
 from .model import FREE, Model
 from .workspace import Workspace
 
 DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
+QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
+NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
+BATCH_SETTINGS = ("integrator", "rtol", "atol", "h", "sample", "damping", "max_cpu_s")
+
+
+def _check_simulate_settings(source: str, t_end, *, integrator, rtol, atol, h, sample,
+                             damping, progress=None, max_cpu_s=None) -> tuple[str, bool]:
+    """Check simulate's settings, naming the bad one (SettingsError); return the canonical
+    integrator name and whether it is fixed-step."""
+    if not isinstance(integrator, str):
+        raise SettingsError(source, "integrator", integrator, "must be an integrator's name; "
+                            f"known: {', '.join((*INTEGRATORS, *ALIASES))}")
+    if t_end is None:
+        raise SettingsError(source, "t_end", None, "missing: the horizon [s]")
+    integrator = canonical(integrator)
+    fixed = integrator in FIXED_STEP
+    if fixed and h is None:
+        raise SettingsError(source, "h", h, f"{integrator} is a fixed-step integrator: give "
+                            "its step h [s]")
+    check_settings(source, method=integrator, rtol=None if fixed else rtol,
+                   atol=None if fixed else atol, h=h, t_end=t_end, sample=sample)
+    if isinstance(damping, bool) or not isinstance(damping, NUMBERS) or \
+            not (math.isfinite(damping) and damping >= 0):
+        shown = float(damping) if isinstance(damping, NUMBERS[2:]) else damping
+        raise SettingsError(source, "damping", shown, "must be a finite number >= 0: the "
+                            "viscous torque -damping * v at every joint [N m s] (0: none)")
+    if max_cpu_s is not None and (isinstance(max_cpu_s, bool) or not isinstance(
+            max_cpu_s, NUMBERS) or not (math.isfinite(max_cpu_s) and max_cpu_s > 0)):
+        shown = float(max_cpu_s) if isinstance(max_cpu_s, NUMBERS[2:]) else max_cpu_s
+        raise SettingsError(source, "max_cpu_s", shown, "must be None or a finite number of "
+                            "seconds > 0")
+    if progress is not None and not callable(progress):
+        raise SettingsError(source, "progress", progress, "must be None or a callable "
+                            "progress(t, t_end, steps, wall_s)")
+    return integrator, fixed
 
 
 @dataclass
@@ -60,7 +98,11 @@ class Simulation:
     failed (``message`` says why); ``quaternion_error``: the largest | |q| - 1 | of a free
     joint's quaternion before its projection after a step (0 without one). With loops:
     ``forces`` (m, rows) the loop forces at the samples [N], ``residual_q`` [m] and
-    ``residual_v`` [m/s] the largest loop residuals met after a step, before its projection."""
+    ``residual_v`` [m/s] the largest loop residuals met after a step, before its projection;
+    ``near_change_point``: the time [s] of the step at which the motion came nearest a change
+    point (J M^-1 J^T's singular values within :data:`redysim.loops.NEAR_CHANGE_POINT` of each
+    other: a configuration where the mechanism can switch branches), None when it came nowhere
+    near one; a run that then failed or stopped says so in its ``message``."""
 
     name: str
     t: np.ndarray
@@ -81,6 +123,7 @@ class Simulation:
     forces: np.ndarray | None = None
     residual_q: float = 0.0
     residual_v: float = 0.0
+    near_change_point: float | None = None
 
     @property
     def E0(self) -> float:
@@ -169,8 +212,9 @@ class _Motion:
 def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
              integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
              atol: float = DEFAULT_ATOL, h: float | None = None, sample: float | None = None,
-             progress: Callable[[float, float, int, float], None] | None = None,
-             loops=None, damping: float = 0.0) -> Simulation:
+             progress: Callable[[float, float, int, float], str | None] | None = None,
+             loops=None, damping: float = 0.0,
+             max_cpu_s: float | None = None) -> Simulation:
     """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques).
 
     loops: a :class:`redysim.loops.ClosedLoops` of ``system``: the motion with its loops closed,
@@ -182,21 +226,24 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     joint at zero, quaternions the identity), zeros for a chain; v0: default zeros.
     integrator, rtol, atol, h: as :func:`redysim.integrate.integrate` (h for the fixed-step
     rk4 and midpoint-fixed only); ``implicit`` is ``midpoint``.
-    sample: the sample interval (default t_end / 10). progress: called as
-    ``progress(t, t_end, steps, wall_s)`` after each step. Raises SettingsError for a setting out
-    of range and StateError for a bad q0 or v0.
+    sample: the sample interval (default t_end / 10). progress: None, or a callable called as
+    ``progress(t, t_end, steps, wall_s)`` after each step (each chunk of steps in compiled
+    code); a message (a str) it returns stops the run there: ``status`` 1 and that message,
+    the samples so far kept (a wall-clock limit of the caller's, say). max_cpu_s: a limit on
+    the run's CPU time [s] (its thread's, JIT compile excluded; None: none): a run past it
+    stops with ``status`` -1, "time limit: max_cpu_s = ...", its samples kept (a limit that,
+    unlike a wall-clock one, does not depend on what else the machine is doing). Raises
+    SettingsError for a setting out of range (naming it: ``damping``, ``progress``,
+    ``max_cpu_s``, ...) and StateError for a bad q0 or v0.
     """
     if not isinstance(system, Chain | Model):
         raise TypeError(f"simulate takes a redysim.Chain or redysim.Model, not "
                         f"{type(system).__name__}")
-    integrator = canonical(integrator) if isinstance(integrator, str) else integrator
-    fixed = integrator in FIXED_STEP
-    if fixed and h is None:
-        raise SettingsError("simulate", "h", h, f"{integrator} is a fixed-step integrator: give "
-                            "its step h [s]")
-    check_settings("simulate", method=integrator, rtol=None if fixed else rtol,
-                   atol=None if fixed else atol, h=h, t_end=t_end,
-                   sample=sample)
+    integrator, fixed = _check_simulate_settings("simulate", t_end, integrator=integrator,
+                                                 rtol=rtol, atol=atol, h=h, sample=sample,
+                                                 damping=damping, progress=progress,
+                                                 max_cpu_s=max_cpu_s)
+    damping = float(damping)
     sample = sample if sample is not None else t_end / DEFAULT_SAMPLES
     if q0 is None:
         q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
@@ -209,10 +256,15 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
             raise SettingsError("simulate", "loops", type(loops).__name__, "must be the "
                                 "ClosedLoops of the model simulated (ClosedLoops(model, cuts))")
         loops.check_start(q0)
-    q_error = motion.project(y0, record=False)
-    if q_error > 1e-6:
-        raise StateError(f"q0's quaternion has norm {1 + q_error:.9g}: give a unit quaternion "
-                         "(w, x, y, z)")
+    for k, t in enumerate(getattr(system, "joint_types", ())):
+        if t == FREE:  # its quaternion, before any projection: the norm as given
+            i = int(system.joint_qoff[k]) + 3
+            norm = math.sqrt(float(y0[i:i + 4] @ y0[i:i + 4]))
+            if not abs(norm - 1.0) <= QUATERNION_TOL:
+                raise StateError(f"q0[{i}:{i + 4}], the quaternion (w, x, y, z) of joint "
+                                 f"{system.joint_names[k]!r}, has norm {norm:.9g}: give a unit "
+                                 "quaternion")
+    motion.project(y0, record=False)
     t_jit = time.perf_counter()
     motion.rhs(0.0, y0)  # the first calls: JIT compile or on-disk cache load, timed apart
     motion.energy_and_com(q0, v0)
@@ -239,10 +291,25 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     # runs are not this run's (simulate_batch)
     cpu0, wall0 = time.thread_time(), time.perf_counter()
 
+    nearest = [math.inf, None]  # the least s_min / s_max of the loops' J X, and its step's t
+    if loops is not None:
+        loops.nearest_change_point()  # from here on
+
+    over_cpu = [False]
+
     def on_step(s):
         worst[0] = max(worst[0], motion.project(s.y))
+        if max_cpu_s is not None and time.thread_time() - cpu0 > max_cpu_s:
+            over_cpu[0] = True
+            return f"time limit: max_cpu_s = {max_cpu_s:g} s of CPU reached at t = {s.t:.6g}"
+        if loops is not None:
+            ratio = loops.nearest_change_point()
+            if ratio < nearest[0]:
+                nearest[:] = ratio, s.t
         if progress is not None:
-            progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
+            stop = progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
+            if stop is not None:
+                return str(stop)
         return None
 
     if loops is None and not damping and not motion.free and integrator in TABLEAU_NAMES:
@@ -266,6 +333,19 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
                                   on_step=on_step)
     except StateError as exc:  # qdd not defined or overflowed at a stage
         status, message = -1, f"at t = {solver.t:.6g}: {exc}"
+    if over_cpu[0]:
+        status = -1  # a limit that decides the result: failed, not stopped
+    near = None
+    if loops is not None:
+        ratio = loops.nearest_change_point()  # the failing step's own, if any
+        if ratio < nearest[0]:
+            nearest[:] = ratio, solver.t
+        if nearest[0] <= NEAR_CHANGE_POINT:
+            near = float(nearest[1])
+            if status != 0 and "change point" not in message:
+                message += (f" (the motion passed near a change point at t = {near:.6g}: "
+                            f"J M^-1 J^T's singular values {nearest[0]:.1e} apart, a "
+                            "configuration where the mechanism can switch branches)")
     c = solver.counters
     Y = np.array(ys) if ys else np.empty((0, y0.size))
     E = np.array(energies)
@@ -275,7 +355,7 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
         steps=c.steps, rejected=c.rejected, nfev=c.nfev, status=status, message=message,
         cpu_s=time.thread_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
         quaternion_error=worst[0], forces=np.array(forces) if loops is not None else None,
-        residual_q=motion.residual_q, residual_v=motion.residual_v)
+        residual_q=motion.residual_q, residual_v=motion.residual_v, near_change_point=near)
 
 
 def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
@@ -285,8 +365,10 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
     ``threads`` threads (default: every core this process may use). The steps run in compiled
     code without the GIL (:class:`redysim.integrate.CompiledSolver`), so the threads run at once;
     each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
-    (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. A row that
-    fails raises its StateError, naming the row; a bad setting raises SettingsError.
+    (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. Everything is
+    checked before any thread starts: a bad or unknown setting raises SettingsError naming it,
+    a q0 or v0 that is not a 2-D array of rows StateError saying what a batch needs. A row that
+    fails raises its StateError, naming the row.
     """
     from .dynamics import check_batch, run_blocks
 
@@ -294,6 +376,25 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
         if key in settings:
             raise SettingsError("simulate_batch", key, settings[key], "is not taken by a batch; "
                                 "simulate the rows one by one")
+    for key, value in settings.items():
+        if key not in BATCH_SETTINGS:
+            raise SettingsError("simulate_batch", key, value, f"unknown setting; a batch takes "
+                                f"{', '.join(BATCH_SETTINGS)} (simulate's keywords)")
+    if not isinstance(system, Chain | Model):
+        raise TypeError(f"simulate_batch takes a redysim.Chain or redysim.Model, not "
+                        f"{type(system).__name__}")
+    defaults = {"integrator": DEFAULT_METHOD, "rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL,
+                "h": None, "sample": None, "damping": 0.0, "max_cpu_s": None}
+    _check_simulate_settings("simulate_batch", t_end, **{**defaults, **settings})
+    for name, value, n in (("q0", q0, system.n_q), ("v0", v0, system.n_v)):
+        try:
+            shape = None if isinstance(value, str) else np.shape(value)
+        except ValueError:  # ragged rows: check_batch names them
+            shape = (None, None)
+        if value is not None and (shape is None or len(shape) != 2):
+            raise StateError(f"simulate_batch: {name} has shape {shape}: a batch needs "
+                             f"(B, {n}), one initial state a row (for one motion, "
+                             f"simulate(system, t_end, {name}=...))")
     Q0 = check_batch(system, "q", q0, None)
     V0 = np.zeros((Q0.shape[0], system.n_v)) if v0 is None else \
         check_batch(system, "qd", v0, Q0.shape[0])

@@ -132,23 +132,58 @@ def test_a_study_measures_every_run_against_its_finest_tightest_run(study):
     assert conv["order_levels"] == [2]  # only levels <= finest / 4 are fitted
 
 
+def _inject_costs(study, cost):
+    """The study with its runs' CPU times replaced by ``cost(n_links, rtol)``: the choosing
+    logic is tested on known costs, not on what this machine measured (an 8-link study's runs
+    take milliseconds, and their measured order is noise)."""
+    r = study.runs
+    study.runs = r.assign(cpu_s=[float(cost(n, t)) for n, t in zip(r["n_links"], r["rtol"],
+                                                                    strict=True)])
+    return study
+
+
 def test_advice_is_the_cheapest_run_that_met_the_tolerance(study):
+    # a cost that grows with the links and the tolerance's tightness
+    _inject_costs(study, lambda links, rtol: links * (1.0 if rtol == 1e-3 else 3.0))
     r = study.runs
     tol = float(r.loc[r["n_links"] == 4, "tip_err"].max()) * 1.01
     a = refine.advise(study, tol)
     met = r[(r["tip_err"] <= tol) & (r["run_id"] != study.reference["run_id"])]
-    assert a.cpu_s == met["cpu_s"].min() and a.tip_err <= tol
+    assert set(met["n_links"]) == {4, 8}  # the 2-link model is further off than tol
+    assert (a.links, a.rtol, a.cpu_s) == (4, 1e-3, 4.0) and a.tip_err <= tol
     assert a.candidates == len(met)
+    finest = met[met["n_links"] == 8]
+    assert a.finest_cpu_s == finest["cpu_s"].min() and a.saved == a.finest_cpu_s / 4.0
     assert refine.advise(study, 1e-30) is None
     with pytest.raises(ValueError, match="tol = -1"):
         refine.advise(study, -1)
+
+
+def test_equal_costs_are_broken_by_fewer_links_then_the_run_id(study):
+    _inject_costs(study, lambda links, rtol: 1.0)
+    r = study.runs
+    a = refine.advise(study, float(r["tip_err"].max()))
+    first = r[(r["n_links"] == 2) & (r["run_id"] != study.reference["run_id"])]
+    assert a.links == 2 and a.rtol == float(first.sort_values("run_id")["rtol"].iloc[0])
+
+
+def test_advice_by_rhs_calls_needs_no_clock(study):
+    """cost = "nfev": the run of fewest RHS calls, the same on every machine."""
+    r = study.runs
+    tol = float(r["tip_err"].max())
+    a = refine.advise(study, tol, cost="nfev")
+    others = r[r["run_id"] != study.reference["run_id"]]
+    fewest = others.sort_values(["nfev", "n_links", "run_id"]).iloc[0]
+    assert (a.links, a.rtol) == (int(fewest["n_links"]), float(fewest["rtol"]))
 
 
 def test_the_check_reproduces_the_sweeps_error_and_a_finer_reference(study):
     """The advised model run again by the Python stepping loop gives the sweep's error (the
     compiled loop takes the same steps), and the rope at twice the links is a reference close to
     the finest (the study's own error bound)."""
-    a = refine.advise(study, float(study.runs["tip_err"].max()))
+    # by RHS calls, not measured CPU: the same advice on any machine (the coarsest, loosest)
+    a = refine.advise(study, float(study.runs["tip_err"].max()), cost="nfev")
+    assert (a.links, a.rtol) == (2, 1e-3)
     check = refine.check_advice(study, a)
     assert check["error_vs_finest"] == pytest.approx(a.tip_err, rel=1e-9, abs=1e-13)
     assert check["finer_links"] == 16

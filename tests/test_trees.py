@@ -435,11 +435,11 @@ def test_redysim_info_prints_the_tree(capsys, tmp_path):
     assert out[1].split() == ["base", "free", "root", "[P", "x,", "P", "y,", "P", "z,", "ball",
                               "x,", "ball", "y,", "ball", "z]", "m", "=", "6.4", "kg"]
     assert out[3].startswith("      hand") and out[4].startswith("    leg")  # under their parents
-    assert out[-1] == "  dropped: body contact geometry dropped (no contacts in the core): " \
+    assert out[-1] == "  note: body contact geometry dropped (no contacts in the core): " \
                       "'arm', 'leg' (2 bodies)"
     assert main(["info", robot_urdf("solo12.urdf"), "--floating"]) == 0
     text = capsys.readouterr().out
-    assert "n_q = 19, n_v = 18" in text and "dropped: joint <limit> lower, upper" in text
+    assert "n_q = 19, n_v = 18" in text and "note: joint <limit> lower, upper" in text
     assert main(["info", "STUDY-R3"]) == 0
     assert "frame tip: on link3 at (1.0, 0.0, 0.0)" in capsys.readouterr().out
     assert main(["info", robot_urdf("panda_description/urdf/panda.urdf")]) == 2
