@@ -35,24 +35,18 @@ from pathlib import Path
 
 import numpy as np
 
-from redysim import Workspace, energy, forward_dynamics, load_case, tip
-from redysim.errors import CaseError, RedysimError, SettingsError, StateError
-from redysim.implicit import MidpointSolver, TensionPreconditioner
-from redysim.implicit import compile_kernels as implicit_kernels
+from redysim import Workspace, load_case, tip
+from redysim.errors import CaseError, RedysimError, SettingsError
 from redysim.integrate import (
     ALIASES,
     FIXED_STEP,
     IMPLICIT,
     TABLEAU_NAMES,
-    CompiledSolver,
     Counters,
-    Solver,
+    OdeSolver,
     SolverState,
-    advance,
     canonical,
     check_settings,
-    compile_kernels,
-    sample_times,
 )
 
 from .cli import positive, time_to_go
@@ -78,7 +72,7 @@ def out_dir_for(case_name: str, integrator: str = "ode45") -> Path:
     return results_dir() / "longrun" / name
 
 
-def save_checkpoint(path: Path, solver: Solver, samples: list, meta: dict) -> None:
+def save_checkpoint(path: Path, solver: OdeSolver, samples: list, meta: dict) -> None:
     """Everything to resume, in one file, atomically; the file it replaces is kept as
     ``checkpoint.prev.npz``."""
     st = solver.state()
@@ -185,53 +179,41 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     how = settings(case, integrator=integrator, rtol=rtol, atol=atol, h=h, names=names)
     interval = min(sample or case.sample_interval, t_end)
     path = (out or out_dir_for(case.name, how["integrator"])) / CHECKPOINT
-    ws = Workspace(chain)
-
-    def rhs(_t, y):
-        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
-
-    y0 = np.concatenate((case.q0, case.qd0))
-    E0 = sum(energy(chain, case.q0, case.qd0, ws=ws))
-    t0 = time.perf_counter()
-    rhs(0.0, y0)
-    # the steppers' own kernels; the implicit step calls none of the Runge-Kutta ones
-    (implicit_kernels if how["integrator"] in IMPLICIT else compile_kernels)()
-    jit_s = time.perf_counter() - t0
     now = {"code": code_digest(), "case": case.name, "case_digest": case.digest, "n_dof": n,
            "t_end": t_end, "sample": interval, **how}
     kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
           dict(rtol=how["rtol"], atol=how["atol"]))
-    if how["integrator"] in IMPLICIT:  # the implicit midpoint, the chain's preconditioner
-        kw.update(preconditioner=TensionPreconditioner(chain))
-
-        def solver_of(state=None):
-            return MidpointSolver(rhs, 0.0, y0, t_end, state=state, **kw)
-    else:
-        # steps in compiled code: the same steps, bit for bit, as the Python loop (Solver), so
-        # a checkpoint of either resumes in the other; the stage sums over 2n states cost no
-        # numpy call per stage
-        kw.update(ws=ws, planar=chain.is_planar)
-
-        def solver_of(state=None):
-            return CompiledSolver(rhs, 0.0, y0, t_end, how["integrator"], state=state, **kw)
     ck = load_checkpoint(path, repair=True, log=log)
+    state, samples, cpu_prev, wall_prev = None, [], 0.0, 0.0
     if ck is not None:
         _refuse_other(path, ck, now)
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
-        solver = solver_of(state)
         samples = [tuple(r) for r in ck["samples"]]
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
+    ws = Workspace(chain)
+
+    def record(s):  # every sample: t, tip position, E, delta_M
+        p = tip(chain, s.q, s.v, ws=ws).position
+        samples.append((s.t, *p, s.E, (s.E - E0) / chain.total_mass))
+        log(f"  sample t = {s.t:.4f} s: delta_M = {samples[-1][-1]:.3e} J/kg, "
+            f"steps {sim.solver.counters.steps:,}")
+
+    # the one simulation driver: the implicit midpoint with the chain's preconditioner, or our
+    # Runge-Kutta steps in compiled code (the same steps, bit for bit, as the Python loop, so a
+    # checkpoint of either resumes in the other)
+    sim = case.simulator(t_end, integrator=how["integrator"], sample=interval,
+                         keep_states=False, observe={"sample": record}, state=state,
+                         skip_until=samples[-1][0] if samples else None, **kw)
+    E0, solver = sim.E0, sim.solver
+    if ck is not None:
         log(f"{case.name}: resuming at t = {state.t:.6g} s, {state.counters.steps:,} steps, "
             f"{len(samples)} samples ({wall_prev:,.0f} s of wall time so far)")
     else:
-        solver = solver_of()
-        samples, cpu_prev, wall_prev = [], 0.0, 0.0
         step = (f"h {how['fixed_h']:g}" if how["fixed_h"] else
                 f"rtol {how['rtol']:g} atol {how['atol']:g}")
         log(f"{case.name}: {n:,} DOF, {how['integrator']} {step} to t = {t_end:g} s, "
-            f"E(0) = {E0:.9g} J; JIT/cache load {jit_s:.2f} s")
-    ts = sample_times(0.0, t_end, interval)
+            f"E(0) = {E0:.9g} J; JIT/cache load {sim.jit_s:.2f} s")
     cpu0, wall0 = time.process_time(), time.perf_counter()
     t_start = solver.t
     last_ck = [wall0]
@@ -243,16 +225,6 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
                 "peak_rss_mib": peak_rss_mib(),
                 # the implicit midpoint's Newton and GMRES iterations (this session's)
                 "newton": getattr(solver, "newton", 0), "krylov": getattr(solver, "krylov", 0)}
-
-    def on_sample(t, y):
-        if samples and t <= samples[-1][0]:
-            return None  # already recorded before the checkpoint we resumed from
-        p = tip(chain, y[:n], y[n:], ws=ws).position
-        E = sum(energy(chain, y[:n], y[n:], ws=ws))
-        samples.append((t, *p, E, (E - E0) / chain.total_mass))
-        log(f"  sample t = {t:.4f} s: delta_M = {samples[-1][-1]:.3e} J/kg, "
-            f"steps {solver.counters.steps:,}")
-        return None
 
     def on_step(s):
         wall = time.perf_counter()
@@ -268,10 +240,8 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
                     "patience, not a result)")
         return None
 
-    try:
-        status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
-    except StateError as exc:  # the state overflowed or went NaN between two steps
-        status, msg = -1, f"at t = {solver.t:.6g}: {exc}"
+    res = sim.run(on_step=on_step, clock="process")
+    status, msg = res.status, res.message
     final_meta = {**meta(), "status": "failed" if status < 0 else
                   ("done" if solver.t >= t_end else "stopped"), "message": msg}
     save_checkpoint(path, solver, samples, final_meta)

@@ -23,16 +23,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import time
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from redysim import Workspace, forward_dynamics, tip
-from redysim.integrate import advance, make_solver, sample_times
-from redysim.loads import tip_force_torques
+from redysim.integrate import Counters
+from redysim.simulation import frame_observer
 
 from .provenance import code_digest
 from .store import write_npz_atomic
@@ -86,36 +84,17 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
         return None  # damaged (the writer is atomic, so only outside damage does this)
 
 
-def state_rhs(case):
-    """dy/dt = (qd, qdd) of ``case``'s chain, its tip force included, and the Workspace its qdd
-    calls use: ``(rhs, ws)``."""
-    chain, n = case.chain, case.chain.n_dof
-    ws = Workspace(chain)
-    load_ws = Workspace(chain)
-
-    def rhs(_t, y):
-        tau = (None if case.tip_force is None else
-               tip_force_torques(chain, y[:n], case.tip_force, ws=load_ws))
-        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], tau, ws=ws)))
-
-    return rhs, ws
-
-
 def _solve(case, t_end, interval, method, rtol):
-    chain, n = case.chain, case.chain.n_dof
-    rhs, ws = state_rhs(case)
-
-    ts = sample_times(0.0, t_end, interval)
-    ys = []
-    cpu0 = time.process_time()
-    solver = make_solver(rhs, 0.0, np.concatenate((case.q0, case.qd0)), t_end, method,
-                         rtol=rtol, atol=rtol)
-    status, msg = advance(solver, ts, on_sample=lambda t, y: ys.append(y))
-    if status != 0:
-        raise RuntimeError(f"reference of {case.name} failed: {msg}")
-    Y = np.array(ys)
-    P = np.array([tip(chain, y[:n], y[n:], ws=ws).position for y in Y])
-    return ts, Y, P, solver.counters, time.process_time() - cpu0
+    """The case integrated by the one simulation driver (its tip force included): samples,
+    states, tip positions, counts, CPU time."""
+    sim = case.simulator(t_end, integrator=method, rtol=rtol, atol=rtol, sample=interval,
+                         observe={"tip": frame_observer(case.chain, "tip")})
+    res = sim.run(clock="process")
+    if res.status != 0:
+        raise RuntimeError(f"reference of {case.name} failed: {res.message}")
+    P = res.observed["tip"][:, :3]
+    Y = np.concatenate((res.q, res.v), axis=1)
+    return res.t, Y, P, Counters(res.steps, res.rejected, res.nfev), res.cpu_s
 
 
 def compute_reference(case, t_end: float, interval: float, *, force: bool = False) -> Reference:

@@ -252,29 +252,20 @@ def finer_case(case_file: str | Path, factor: int):
 def _tips(case, links: int, integrator: str, rtol: float, atol: float, t_end: float,
           sample: float, *, compiled: bool = False):
     """Integrate ``case`` (coarse-grained to ``links``) and return (tips, cpu_s, steps);
-    ``compiled``: step in compiled code where the case allows it (no tip force)."""
-    from redysim import tip
-    from redysim.integrate import CompiledSolver, advance, make_solver, sample_times
+    ``compiled``: step in compiled code where the case allows it (no tip force), else the
+    Python loop (the same steps: an independent path for checking the sweep's runs)."""
+    from redysim.simulation import frame_observer
 
-    from .reference import state_rhs
     from .run import coarse_case
 
     case, _ = coarse_case(case, links)
-    chain, n = case.chain, case.chain.n_dof
-    rhs, ws = state_rhs(case)
-    out = []
-    cpu0 = time.process_time()
-    y0 = np.concatenate((case.q0, case.qd0))
-    if compiled and case.tip_force is None:
-        solver = CompiledSolver(rhs, 0.0, y0, t_end, integrator, ws=ws, planar=chain.is_planar,
-                                rtol=rtol, atol=atol)
-    else:
-        solver = make_solver(rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol)
-    status, msg = advance(solver, sample_times(0.0, t_end, sample),
-                          on_sample=lambda t, y: out.append(tip(chain, y[:n], y[n:]).position))
-    if status != 0:
-        raise RuntimeError(f"{case.name} at {links} links: {msg}")
-    return np.array(out), time.process_time() - cpu0, solver.counters.steps
+    sim = case.simulator(t_end, integrator=integrator, rtol=rtol, atol=atol, sample=sample,
+                         observe={"tip": frame_observer(case.chain, "tip")},
+                         keep_states=False, compiled=None if compiled else False)
+    res = sim.run(clock="process")
+    if res.status != 0:
+        raise RuntimeError(f"{case.name} at {links} links: {res.message}")
+    return res.observed["tip"][:, :3], res.cpu_s, res.steps
 
 
 def finer_reference(study: Study, finer: int = 2) -> dict:

@@ -30,16 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redysim import StateError, energy, forward_dynamics, load_case, tip
-from redysim.integrate import (
-    IMPLICIT,
-    TABLEAU_NAMES,
-    CompiledSolver,
-    advance,
-    compile_kernels,
-    make_solver,
-    sample_times,
-)
+from redysim import load_case
+from redysim.integrate import sample_times
+from redysim.simulation import Simulator, frame_observer
 
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
@@ -94,8 +87,10 @@ def coarse_case(case, links: int):
 
 
 class _Dynamics:
-    """The run's qdd: the core (RGE-A, GE-N or RGE-N, in float64 or float32) or a reference
-    engine's; with the case's tip force, if it has one."""
+    """The run's accelerations, as :class:`redysim.simulation.Simulator` takes them: the core
+    (RGE-A, GE-N or RGE-N) in float64 (``qdd`` None: the simulator calls the core itself, in
+    compiled steps where it can), the core in emulated float32, or a reference engine's; and
+    the case's tip force as generalized forces with its potential."""
 
     def __init__(self, spec: RunSpec, case):
         self.chain = case.chain
@@ -103,17 +98,22 @@ class _Dynamics:
         self.build_s = 0.0
         self.engine = None
         self.force = case.tip_force
-        self.precision = spec.precision
+        self.method = spec.method or "rge-a"
+        self.version = ""
         if self.force is not None and spec.engine != CORE:
             raise RunFailed(f"the case's [load] tip_force is applied by the core only, not by "
                             f"engine {spec.engine!r}")
         if spec.engine == CORE:
-            from redysim import Workspace
+            self.qdd = None
+            if spec.precision == "float32":
+                from redysim.precision import ieee_qdd
 
-            self.ws = Workspace(self.chain)
-            self.load_ws = Workspace(self.chain)
-            self.method = spec.method or "rge-a"
-            self.version = ""
+                def qdd(q, v, tau):
+                    # fused_phi: the core's own formulation, bias terms inside the recursion,
+                    # every operation in float32 (not Table A.1's float64 phi rounded to float32)
+                    return ieee_qdd(self.chain, q, v, self.method, np.float32, tau=tau,
+                                    fused_phi=True)
+                self.qdd = qdd
         else:
             from redysim import references
 
@@ -125,38 +125,16 @@ class _Dynamics:
             self.engine = cls(case)
             self.build_s = time.perf_counter() - t0
             self.version = self.engine.version
-
-    def compiled_steps(self, integrator: str) -> bool:
-        """Whether ``integrator`` steps in compiled code here: one of ours (ode45, dop853,
-        rk4) on the core's RGE-A (the same steps as the Python loop, bit for bit)."""
-        return (self.engine is None and self.method == "rge-a" and integrator in TABLEAU_NAMES
-                and self.force is None and self.precision == "float64")
-
-    def qdd(self, q, qd) -> np.ndarray:
-        if self.engine is not None:
-            return self.engine.qdd(q, qd)
-        tau = None
+            engine = self.engine
+            self.qdd = lambda q, v, tau: engine.qdd(q, v, tau)
+        self.tau = self.potential = None
         if self.force is not None:
-            from redysim.loads import tip_force_torques
-            tau = tip_force_torques(self.chain, q, self.force, ws=self.load_ws)
-        if self.precision == "float32":
-            from redysim.precision import ieee_qdd
-            # fused_phi: the core's own formulation, bias terms inside the recursion, every
-            # operation in float32 (not Table A.1's float64 phi rounded to float32)
-            return ieee_qdd(self.chain, q, qd, self.method, np.float32, tau=tau,
-                            fused_phi=True)
-        return forward_dynamics(self.chain, q, qd, tau, method=self.method, ws=self.ws)
+            from redysim import Workspace
+            from redysim.loads import tip_force_potential, tip_force_torques
 
-    def load_potential(self, q) -> float:
-        """The tip force's potential -F . p_tip (0 without one), part of the run's energy."""
-        if self.force is None:
-            return 0.0
-        from redysim.loads import tip_force_potential
-        return tip_force_potential(self.chain, q, self.force, ws=self.load_ws)
-
-    def rhs(self, _t, y):
-        n = self.n
-        return np.concatenate((y[n:], self.qdd(y[:n], y[n:])))
+            ws, force, chain = Workspace(self.chain), self.force, self.chain
+            self.tau = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
+            self.potential = lambda q: tip_force_potential(chain, q, force, ws=ws)
 
 
 def execute(spec: RunSpec, *, reference=True, progress=None,
@@ -194,8 +172,6 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
         row.update(n_dof=case.chain.n_dof, n_links=case.chain.n_links)
         row.update(spec.to_dict(), label=spec.label)
         dyn = _Dynamics(spec, case)
-        if dyn.engine is None:
-            row["model_mib"] = dyn.ws.nbytes / 2**20
         engine_version = dyn.version
         row["build_s"] = dyn.build_s
         _integrate(spec, case, dyn, row, samples, last, progress, max_wall_s)
@@ -230,141 +206,62 @@ def initial_state(spec: RunSpec, case) -> np.ndarray:
 
 def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, last: dict,
                progress=None, max_wall_s: float | None = None):
-    """Integrate a resolved spec (every setting explicit); stop it past ``spec.max_cpu_s`` of
-    CPU time (RunFailed) or ``max_wall_s`` of wall time (RunStopped)."""
+    """Integrate a resolved spec (every setting explicit) by the one simulation driver
+    (:class:`redysim.simulation.Simulator`); past ``spec.max_cpu_s`` of CPU time the run fails
+    (RunFailed), past ``max_wall_s`` of wall time it is stopped (RunStopped)."""
     chain, n = case.chain, case.chain.n_dof
-    t_end = spec.t_end
-    ts = sample_times(0.0, t_end, spec.sample)
     y0 = initial_state(spec, case)
-    T0, V0 = energy(chain, y0[:n], y0[n:])
-    E0 = T0 + V0 + dyn.load_potential(y0[:n])
-    row["E0"] = E0
-    run_id, mass, bound = spec.run_id, chain.total_mass, spec.energy_bound
+    if spec.integrator == NATIVE:
+        if dyn.engine is None:
+            raise RunFailed("integrator 'native' needs a reference engine (the core has no "
+                            "native stepper: use 'rk4' with a step h)")
+        if not spec.h > 0:
+            raise RunFailed("integrator 'native' needs a step h > 0")
+        per = sample_times(0.0, spec.t_end, spec.sample) / spec.h
+        if np.abs(per - np.round(per)).max() > 1e-6:
+            raise RunFailed(f"native stepping: sample times must be whole multiples of h = "
+                            f"{spec.h:g}")
+    sim = Simulator(chain, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=spec.integrator,
+                    rtol=spec.rtol, atol=spec.atol, h=spec.h or None, sample=spec.sample,
+                    method=dyn.method, qdd=dyn.qdd, tau=dyn.tau, potential=dyn.potential,
+                    engine=dyn.engine, energy_bound=spec.energy_bound, keep_states=False,
+                    observe={"tip": frame_observer(chain, "tip", acceleration=True)},
+                    source=f"run {spec.label}")
+    row["jit_s"], row["E0"] = sim.jit_s, sim.E0
+    row["model_mib"] = sim.motion.ws.nbytes / 2**20 if dyn.engine is None else math.nan
+    next_report = [time.perf_counter() + PROGRESS_EVERY_S]
+    wall0 = time.perf_counter()
 
-    def on_sample(t, y):
-        q, qd = y[:n], y[n:]
-        try:
-            qdd = dyn.qdd(q, qd)
-            tp = tip(chain, q, qd, qdd)
-            T, V = energy(chain, q, qd)
-            V += dyn.load_potential(q)
-        except StateError as exc:  # the state overflowed (or went NaN) between samples
-            return f"at t = {t:.6g}: {type(exc).__name__}: {exc}"
-        dM = (T + V - E0) / mass
-        samples.append((run_id, t, *tp.position, *tp.velocity, *tp.acceleration, T + V, dM))
-        last["y"] = y
-        if not math.isfinite(dM):
-            return f"non-finite energy at t = {t:.6g}"
-        if bound and abs(dM) > bound:
-            return (f"energy blow-up: |delta_M| = {abs(dM):.3g} J/kg > bound {bound:g} "
-                    f"at t = {t:.6g}")
+    def report(t, t_end, steps, _wall):
+        now = time.perf_counter()
+        if progress is not None and now >= next_report[0]:
+            progress(t, t_end, steps, now - wall0)
+            next_report[0] = now + PROGRESS_EVERY_S
         return None
 
-    t0 = time.perf_counter()
-    dyn.rhs(0.0, y0)  # the first qdd call: JIT compile or on-disk cache load, timed apart
-    # and the integrators' stage sums (the implicit step's kernels instead: it calls none of them)
-    if spec.integrator in IMPLICIT:
-        from redysim.implicit import compile_kernels as implicit_kernels
-        implicit_kernels()
-    else:
-        compile_kernels()
-    row["jit_s"] = time.perf_counter() - t0
-    cpu0, wall0 = time.process_time(), time.perf_counter()
-    limits = _Limits(spec.max_cpu_s, max_wall_s, cpu0, wall0)
-
-    if spec.integrator == NATIVE:
-        status, msg = _native(spec, dyn, y0, t_end, ts, on_sample, limits, row)
-    else:
-        def rhs(t, y):
-            # the limits are checked per RHS call: one step of an implicit solver (Newton
-            # iterations, finite-difference Jacobians) can take far longer than a limit
-            limits.check(t)
-            return dyn.rhs(t, y)
-
-        next_report = [time.perf_counter() + PROGRESS_EVERY_S]
-
-        def on_step(s):
-            now = time.perf_counter()
-            if progress is not None and now >= next_report[0]:
-                progress(s.t, t_end, s.counters.steps, now - wall0)
-                next_report[0] = now + PROGRESS_EVERY_S
-            limits.check(s.t)  # (a compiled solver's steps call no Python rhs to check them)
-            return None
-
-        solver = None
-        try:  # the limit can strike inside the constructor too (its first RHS calls)
-            if dyn.compiled_steps(spec.integrator):
-                solver = CompiledSolver(rhs, 0.0, y0, t_end, spec.integrator, ws=dyn.ws,
-                                        planar=dyn.chain.is_planar, rtol=spec.rtol,
-                                        atol=spec.atol, h=spec.h or None)
-            else:
-                pre = None
-                if spec.integrator in IMPLICIT:  # the chain's preconditioner, any engine's qdd
-                    from redysim.implicit import TensionPreconditioner
-                    pre = TensionPreconditioner(chain)
-                solver = make_solver(rhs, 0.0, y0, t_end, spec.integrator, rtol=spec.rtol,
-                                     atol=spec.atol, h=spec.h or None, preconditioner=pre)
-            status, msg = advance(solver, ts, on_sample=on_sample, on_step=on_step)
-        finally:
-            if solver is not None:
-                c = solver.counters
-                row.update(steps=c.steps, rejected=c.rejected, nfev=c.nfev)
-            row.update(cpu_s=time.process_time() - cpu0, wall_s=time.perf_counter() - wall0)
-    row["cpu_s"] = time.process_time() - cpu0
-    row["wall_s"] = time.perf_counter() - wall0
-    if status != 0:
-        raise RunFailed(msg)
+    try:
+        res = sim.run(progress=report, max_cpu_s=spec.max_cpu_s or None, max_wall_s=max_wall_s,
+                      clock="process")
+    except Exception as exc:  # an engine's error mid-run: its row keeps the samples before it
+        if getattr(exc, "partial", None) is not None:
+            _keep(spec, exc.partial, row, samples, last)
+        raise
+    _keep(spec, res, row, samples, last)
+    if res.status == 1 and res.message.startswith("stopped by the wall-clock limit"):
+        raise RunStopped(res.message)
+    if res.status != 0:
+        raise RunFailed(res.message)
 
 
-class _Limits:
-    """A run's time limits: the spec's CPU time (a result: RunFailed) and the caller's wall time
-    (patience: RunStopped), each None or 0 for none."""
-
-    def __init__(self, cpu_s, wall_s, cpu0: float, wall0: float):
-        self.cpu_s, self.wall_s = cpu_s or 0.0, wall_s or 0.0
-        self.cpu_end = cpu0 + self.cpu_s if self.cpu_s else math.inf
-        self.wall_end = wall0 + self.wall_s if self.wall_s else math.inf
-
-    def check(self, t: float) -> None:
-        if time.process_time() > self.cpu_end:
-            raise RunFailed(f"time limit: max_cpu_s = {self.cpu_s:g} s of CPU reached at "
-                            f"t = {t:.6g}")
-        if time.perf_counter() > self.wall_end:
-            raise RunStopped(f"stopped by the wall-clock limit, max_wall_s = {self.wall_s:g} s "
-                             f"(the caller's patience, not a result), at t = {t:.6g}; the "
-                             "samples so far are kept")
-
-
-def _native(spec, dyn, y0, t_end, ts, on_sample, limits: _Limits, row):
-    """The engine's own fixed-step stepper; samples must fall on whole steps."""
-    if dyn.engine is None:
-        raise RunFailed("integrator 'native' needs a reference engine (the core has no native "
-                        "stepper: use 'rk4' with a step h)")
-    h = spec.h
-    if not h > 0:
-        raise RunFailed("integrator 'native' needs a step h > 0")
-    per = ts / h
-    if np.abs(per - np.round(per)).max() > 1e-6:
-        raise RunFailed(f"native stepping: sample times must be whole multiples of h = {h:g}")
-    marks = np.round(per).astype(int)
-    eng = dyn.engine
-    eng.sim_reset(y0[:dyn.n], y0[dyn.n:], h)
-    n_steps = int(marks[-1])
-    i = 0
-    for step in range(n_steps + 1):
-        if step:
-            eng.step_once()
-            row["steps"] = step
-        while i < marks.size and marks[i] == step:
-            q, qd = eng.sim_state()
-            if not (np.isfinite(q).all() and np.isfinite(qd).all()):
-                return -1, f"non-finite state at t = {ts[i]:.6g}"
-            if msg := on_sample(float(ts[i]), np.concatenate((q, qd))):
-                return 1, msg
-            i += 1
-        limits.check(step * h)
-    row["nfev"] = -1  # the engine's stepper does not report its qdd calls
-    return 0, "ok"
+def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
+    """A Simulation's samples as the run's rows (tip, E, delta_M), its counts into ``row``."""
+    tips = res.observed["tip"]
+    for i, t in enumerate(res.t):
+        samples.append((spec.run_id, float(t), *tips[i], float(res.energy[i]),
+                        float(res.delta_M[i])))
+    last["y"] = res.y_final
+    row.update(steps=res.steps, rejected=res.rejected, nfev=res.nfev, cpu_s=res.cpu_s,
+               wall_s=res.wall_s)
 
 
 def _compare_with_reference(spec: RunSpec, row: dict, df, y_final, coarsening=None) -> None:

@@ -1,5 +1,6 @@
-"""What every stepper shares (ours, the implicit midpoint's): the step controller's constants,
-the counters, the resumable state, the error they raise and cubic Hermite interpolation.
+"""What every stepper shares (ours, the implicit midpoint's, SciPy's, an engine's): the solver
+protocol, the step controller's constants, the counters, the resumable state, the error they
+raise and cubic Hermite interpolation.
 
 A module of its own so that :mod:`redysim.integrate` and :mod:`redysim.implicit` both build on
 it without importing each other (``tests/test_layout.py`` refuses import cycles); everything here
@@ -8,6 +9,7 @@ is also importable from :mod:`redysim.integrate`.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,3 +60,42 @@ def hermite(y0, f0, y1, f1, h, s):
     h01 = s * s * (3 - 2 * s)
     h11 = s * s * (s - 1)
     return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
+
+
+class OdeSolver(ABC):
+    """The protocol every stepper follows (as SciPy's ``OdeSolver``), so that one driver
+    (:func:`redysim.integrate.advance`, :class:`redysim.simulation.Simulator`) runs them all.
+
+    Attributes: ``t``, ``y`` (the current time and state), ``t_old`` (the last step's start),
+    ``t_end``, ``counters`` (:class:`Counters`: steps, rejected, RHS calls; -1 where a solver
+    cannot count). :meth:`step` takes the next sample time ``t_stop``: a fixed step lands on
+    it, a compiled solver takes every step up to the first that reaches it, an adaptive one in
+    Python ignores it (one accepted step a call). :meth:`dense` interpolates inside the last
+    step. :meth:`state` copies what a checkpoint needs to resume (``state=`` of the solver's
+    constructor), or raises NotImplementedError where the state cannot be saved (SciPy's, an
+    engine's own).
+    """
+
+    t: float
+    y: np.ndarray
+    t_old: float
+    t_end: float
+    counters: Counters
+
+    @property
+    def done(self) -> bool:
+        """Whether the solver reached t_end."""
+        return self.t >= self.t_end
+
+    @abstractmethod
+    def step(self, t_stop: float | None = None) -> None:
+        """Advance by one accepted step (or, compiled, up to the first reaching ``t_stop``);
+        raises IntegrationError when it cannot."""
+
+    @abstractmethod
+    def dense(self, ts) -> np.ndarray:
+        """(m, n): y at the times ``ts`` (m,) inside the last step."""
+
+    def state(self) -> SolverState:
+        """A copy of the resumable state (to save in a checkpoint)."""
+        raise NotImplementedError(f"{type(self).__name__}'s state cannot be saved and resumed")

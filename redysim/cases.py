@@ -126,6 +126,33 @@ class Case:
                 out[table] = node
         return out
 
+    def simulator(self, t_end: float | None = None, *, q0=None, v0=None, **settings):
+        """A :class:`redysim.simulation.Simulator` of this case: its chain from its initial
+        state (or ``q0``, ``v0``), its ``[load]`` applied (the tip force's joint torques, and its
+        potential counted in the energy), its ``[simulation]`` settings (integrator, rtol, atol,
+        h, sample interval) and horizon unless ``t_end`` and ``settings`` give others.
+        ``settings``: the Simulator's keywords (``observe``, ``qdd``, ``keep_states``, ...)."""
+        from .simulation import Simulator
+
+        integrator = settings.pop("integrator", None) or self.integrator
+        same = integrator == self.integrator
+        defaults = {"rtol": self.rtol if same else DEFAULT_RTOL,
+                    "atol": self.atol if same else DEFAULT_ATOL,
+                    "h": self.h if same else None, "sample": self.sample_interval or None}
+        for key, value in defaults.items():
+            if settings.get(key) is None:
+                settings[key] = value
+        if self.tip_force is not None and "tau" not in settings:
+            from .loads import tip_force_potential, tip_force_torques
+            from .workspace import Workspace
+
+            ws, force, chain = Workspace(self.chain), self.tip_force, self.chain
+            settings["tau"] = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
+            settings["potential"] = lambda q: tip_force_potential(chain, q, force, ws=ws)
+        return Simulator(self.chain, t_end or self.t_end,
+                         q0=self.q0 if q0 is None else q0, v0=self.qd0 if v0 is None else v0,
+                         integrator=integrator, source=str(self.path), **settings)
+
     def __repr__(self) -> str:
         return f"Case({self.name!r}, {self.chain!r}, t_end={self.t_end})"
 

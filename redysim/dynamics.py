@@ -636,6 +636,8 @@ def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
     acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
     ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
     frame, StateError for a bad state."""
+    if type(system) is Chain and frame == TIP:  # the chain's own formula, its bits
+        return tip(system, q, qd, qdd, ws=ws)
     q = check_state(system, "q", q)
     qd = check_state(system, "qd", qd)
     qdd = check_state(system, "qdd", qdd, optional=True)

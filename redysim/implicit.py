@@ -54,7 +54,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import _steps as steps  # ode45's controller constants, counters, state, Hermite
-from ._steps import Counters, IntegrationError, SolverState
+from ._steps import Counters, IntegrationError, OdeSolver, SolverState
 
 ERROR_ORDER = 2           # the local error is O(h^3): the controller's exponent is 1/3
 POWER = 1.0 / (ERROR_ORDER + 1)
@@ -163,7 +163,7 @@ class NewtonFailed(Exception):
     """The Newton iteration of one step did not converge (the message says how)."""
 
 
-class MidpointSolver:
+class MidpointSolver(OdeSolver):
     """The implicit midpoint rule on y = (q, v), dq/dt = v, with the interface of
     :class:`redysim.integrate.Solver` (step, dense, state, counters, done).
 
@@ -217,15 +217,6 @@ class MidpointSolver:
         self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
 
     # ----------------------------------------------------------------------- helpers
-    @property
-    def takes_t_stop(self) -> bool:
-        """A fixed step lands on the sample times (:func:`redysim.integrate.advance`)."""
-        return not self.adaptive
-
-    @property
-    def done(self) -> bool:
-        return self.t >= self.t_end
-
     def state(self) -> SolverState:
         return SolverState(self.t, self.y.copy(), self.f.copy(), self.h_next,
                            Counters(**vars(self.counters)))

@@ -57,6 +57,7 @@ from ._steps import (  # noqa: F401 -- the shared stepping pieces, importable fr
     SAMPLE_EPS,
     Counters,
     IntegrationError,
+    OdeSolver,
     SolverState,
 )
 from ._steps import hermite as _hermite
@@ -263,7 +264,7 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
 
 
 # --------------------------------------------------------------------------- the solver
-class Solver:
+class Solver(OdeSolver):
     """One of our Runge-Kutta schemes, advanced one accepted step at a time.
 
     ``rhs(t, y) -> dy/dt``. After :meth:`step`, ``t_old``/``y_old`` and ``t``/``y`` bracket the
@@ -337,16 +338,6 @@ class Solver:
         """A copy of the resumable state (to save in a checkpoint)."""
         return SolverState(self.t, self.y.copy(), self.f.copy(), self.h_next,
                            Counters(**vars(self.counters)))
-
-    @property
-    def done(self) -> bool:
-        return self.t >= self.t_end
-
-    @property
-    def takes_t_stop(self) -> bool:
-        """Whether :meth:`step` takes the next sample time (:func:`advance`): a fixed step
-        lands on it."""
-        return not self.adaptive
 
     # ----------------------------------------------------------------------- the stepping kernel
     def _stages(self, t, y, f, h) -> np.ndarray:
@@ -524,10 +515,6 @@ class CompiledSolver(Solver):
             self.K, np.zeros(3, dtype=np.int64), np.empty(self.n), np.empty(self.n), self._err,
             self._err3)
 
-    @property
-    def takes_t_stop(self) -> bool:
-        return True  # every step up to the next sample in one call
-
     def step(self, t_stop: float | None = None) -> None:
         """Steps up to the first that reaches ``t_stop`` (t_end when None), or max_steps."""
         c, st = self.counters, self._state
@@ -564,7 +551,7 @@ class CompiledSolver(Solver):
 
 
 # --------------------------------------------------------------------------- SciPy solvers
-class ScipySolver:
+class ScipySolver(OdeSolver):
     """A SciPy ``solve_ivp`` solver with the same interface as :class:`Solver`.
 
     Rejected steps: SciPy does not report them; for the explicit Runge-Kutta pairs they follow
@@ -644,11 +631,11 @@ class Solution:
 
 
 def make_solver(rhs, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=None,
-                hmax=None, preconditioner=None):
+                hmax=None, preconditioner=None, state: SolverState | None = None):
     """A :class:`Solver` (ours), a :class:`redysim.implicit.MidpointSolver` (``"midpoint"``,
     ``"midpoint-fixed"``: y = (q, v) with dq/dt = v, ``preconditioner`` its
     :class:`~redysim.implicit.TensionPreconditioner` or None) or a :class:`ScipySolver`
-    (``"scipy-..."``) by name."""
+    (``"scipy-..."``) by name; ``state``: resume ours from a checkpoint (SciPy's cannot)."""
     method = canonical(method)
     if method in IMPLICIT:
         from .implicit import MidpointSolver
@@ -656,11 +643,14 @@ def make_solver(rhs, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=N
         if method == "midpoint-fixed" and h is None:
             raise ValueError("midpoint-fixed needs a step h > 0")
         return MidpointSolver(rhs, t0, y0, t_end, rtol=rtol, atol=atol, h=h, hmax=hmax,
-                              preconditioner=preconditioner)
+                              preconditioner=preconditioner, state=state)
     if method.startswith("scipy-"):
+        if state is not None:
+            raise ValueError(f"{method}'s state cannot be resumed: SciPy's solvers keep it")
         return ScipySolver(rhs, t0, y0, t_end, method[len("scipy-"):], rtol=rtol, atol=atol,
                            hmax=hmax)
-    return Solver(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
+    return Solver(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
+                  state=state)
 
 
 def sample_times(t0: float, t_end: float, interval: float) -> np.ndarray:
@@ -684,15 +674,13 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     :class:`Solution`."""
     i = 0
     t_eval = np.asarray(t_eval, dtype=float)
-    # a fixed step lands on the sample times; a compiled solver steps to the next one per call
-    stops = getattr(solver, "takes_t_stop", False)
     while i < t_eval.size and t_eval[i] <= solver.t * (1 + SAMPLE_EPS):
         if on_sample and (msg := on_sample(float(t_eval[i]), solver.y.copy())):
             return 1, msg
         i += 1
     try:
         while i < t_eval.size and not solver.done:
-            solver.step(t_eval[i] if stops else None)
+            solver.step(t_eval[i])  # (a fixed step lands on it; OdeSolver.step)
             j = i
             while j < t_eval.size and t_eval[j] <= solver.t * (1 + SAMPLE_EPS):
                 j += 1

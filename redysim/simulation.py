@@ -23,10 +23,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
+from ._steps import Counters, IntegrationError, OdeSolver, SolverState
 from .chain import Chain
 from .dynamics import check_state, energy, forward_dynamics
 from .errors import SettingsError, StateError
@@ -54,6 +56,7 @@ from .model import FREE, Model
 from .workspace import Workspace
 
 DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
+NATIVE = "native"  # the integrator of a reference engine's own stepper (Simulator, engine=)
 QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
 NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
 BATCH_SETTINGS = ("integrator", "rtol", "atol", "h", "sample", "damping", "max_cpu_s")
@@ -102,7 +105,11 @@ class Simulation:
     ``near_change_point``: the time [s] of the step at which the motion came nearest a change
     point (J M^-1 J^T's singular values within :data:`redysim.loops.NEAR_CHANGE_POINT` of each
     other: a configuration where the mechanism can switch branches), None when it came nowhere
-    near one; a run that then failed or stopped says so in its ``message``."""
+    near one; a run that then failed or stopped says so in its ``message``. ``observed``: name
+    -> (m, k) rows of each observer (:class:`Simulator`); ``y_final``: (q, v) at the last
+    sample; ``E0``: the energy at t = 0 (the reference of ``delta_M``; with a resumed run's
+    skipped samples, not the first sample's). ``q`` and ``v`` have no rows when the run kept no
+    states (``keep_states=False``)."""
 
     name: str
     t: np.ndarray
@@ -124,22 +131,25 @@ class Simulation:
     residual_q: float = 0.0
     residual_v: float = 0.0
     near_change_point: float | None = None
-
-    @property
-    def E0(self) -> float:
-        return float(self.energy[0]) if self.energy.size else math.nan
+    observed: dict = field(default_factory=dict)
+    y_final: np.ndarray | None = None
+    E0: float = math.nan
 
 
 class _Motion:
-    """The right-hand side (dq/dt, vdot) of a system, with its workspace; with ``loops`` the
-    loops closed (:class:`redysim.loops.ClosedLoops`), with ``damping`` a viscous torque
-    -damping * v at every joint."""
+    """The right-hand side (dq/dt, vdot) of a system, with its workspace: vdot from the core's
+    forward dynamics (``method``) or the ``qdd(q, v, tau)`` provider, with the generalized
+    forces ``tau(t, q, v)`` and a viscous ``damping`` torque -damping * v at every joint; with
+    ``loops`` the loops closed (:class:`redysim.loops.ClosedLoops`)."""
 
-    def __init__(self, system: Chain | Model, loops=None, damping: float = 0.0):
+    def __init__(self, system: Chain | Model, loops=None, damping: float = 0.0, *, qdd=None,
+                 method: str = "rge-a", tau=None):
         self.system = system
         self.loops, self.damping = loops, float(damping)
+        self.qdd, self.method, self.tau = qdd, method, tau
         self.residual_q = self.residual_v = 0.0  # the largest met after a step
         self.ws = Workspace(system)
+        self.sample_ws = Workspace(system)  # the samples' (energy, centre of mass)
         self.nq, self.nv = system.n_q, system.n_v
         # a free joint's (q index of x, v index of its linear velocity); every other coordinate
         # moves as its velocity
@@ -160,15 +170,36 @@ class _Motion:
         self.plain_v = np.array(plain_v, dtype=np.int64)
         self.mass = system.total_mass
 
-    def rhs(self, _t, y):
+    def forces(self, t, q, v):
+        """The generalized forces at (t, q, v): tau's and the damping's (None: none)."""
+        tau = None if self.tau is None else np.asarray(self.tau(t, q, v), dtype=float)
+        if self.damping:
+            tau = -self.damping * v if tau is None else tau - self.damping * v
+        return tau
+
+    def qdd_of(self, t, q, v, out=None):
+        """vdot at (t, q, v): the loops', the provider's or the core's."""
+        tau = self.forces(t, q, v)
+        if self.loops is not None:
+            a = self.loops.forward_dynamics(q, v, tau)[0]
+        elif self.qdd is not None:
+            a = np.asarray(self.qdd(q, v, tau), dtype=float)
+            if a.shape != (self.nv,):
+                raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
+                                 f"{self.system.name!r} has {self.nv} DOF, so it must return "
+                                 f"shape ({self.nv},)")
+        else:
+            return forward_dynamics(self.system, q, v, tau, self.method, ws=self.ws, out=out)
+        if out is None:
+            return a
+        out[:] = a
+        return out
+
+    def rhs(self, t, y):
         nq = self.nq
         out = np.empty(nq + self.nv)
         q, v = y[:nq], y[nq:]
-        tau = -self.damping * v if self.damping else None
-        if self.loops is not None:
-            out[nq:] = self.loops.forward_dynamics(q, v, tau)[0]
-        else:
-            forward_dynamics(self.system, q, v, tau, ws=self.ws, out=out[nq:])
+        self.qdd_of(t, q, v, out=out[nq:])
         if not self.free:
             out[:nq] = v
             return out
@@ -202,11 +233,397 @@ class _Motion:
 
     def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
         """E = T + V, and the centre of mass from the same kinematics pass."""
-        T, V = energy(self.system, q, v, ws=self.ws)
-        tree, ws = self.ws.tree, self.ws
+        ws = self.sample_ws
+        T, V = energy(self.system, q, v, ws=ws)
+        tree = ws.tree
         md = np.einsum("kij,kj->ki", ws.oR, tree.mass_com)  # m_k R_k c_k
         com = (tree.mass @ ws.oO + md.sum(axis=0)) / self.mass
         return T + V, com
+
+
+class _Stop(Exception):
+    """Raised inside a run (a limit, from an RHS call) to end it with a status and message."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status, self.message = status, message
+
+
+class EngineStepper(OdeSolver):
+    """A reference engine's own fixed-step stepper (its native integrator) behind the solver
+    protocol: ``engine`` has ``sim_reset(q0, v0, h)``, ``step_once()`` and ``sim_state()``
+    (``redysim.references``; duck-typed: the core imports no engine). One step a call of
+    :meth:`step`; the state is known at whole steps only, so the sample times must be whole
+    multiples of ``h`` (checked by :class:`Simulator`)."""
+
+    def __init__(self, engine, t0: float, y0, t_end: float, h: float, nq: int):
+        self.engine, self.h, self.nq = engine, float(h), nq
+        self.t_end = float(t_end)
+        self.counters = Counters(nfev=-1)  # the engine does not report its qdd calls
+        self.t, self.y = float(t0), np.array(y0, dtype=float)
+        self.t_old, self.y_old = self.t, self.y
+        self._start = float(t0)
+        engine.sim_reset(self.y[:nq], self.y[nq:], self.h)
+
+    def step(self, t_stop: float | None = None) -> None:
+        self.engine.step_once()
+        q, v = self.engine.sim_state()
+        y = np.concatenate((q, v))
+        if not np.isfinite(y).all():
+            raise IntegrationError(f"non-finite state at t = {self.t + self.h:.6g}")
+        self.counters.steps += 1
+        self.t_old, self.y_old = self.t, self.y
+        self.t, self.y = self._start + self.counters.steps * self.h, y
+
+    def dense(self, ts) -> np.ndarray:
+        ts = np.atleast_1d(ts)
+        if np.abs(ts - self.t).max() > 1e-9 * max(1.0, self.t):
+            raise IntegrationError("an engine's own stepper knows its state at whole steps "
+                                   "only: sample at whole multiples of h")
+        return np.tile(self.y, (ts.size, 1))
+
+    def state(self) -> SolverState:
+        raise NotImplementedError("an engine's own stepper cannot be checkpointed")
+
+
+class Sample(NamedTuple):
+    """What an observer of :class:`Simulator` is handed at each sample: the time ``t`` [s], the
+    state ``q``, ``v`` (on the constraints: quaternions unit, loops closed), the energy ``E``
+    [J] (forces' potential included) and centre of mass ``com`` [m], and ``accel()``, the run's
+    own qdd there (computed once, on first call)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    E: float
+    com: np.ndarray
+    accel: Callable[[], np.ndarray]
+
+
+def frame_observer(system: Chain | Model, frame: str = "tip", *, acceleration: bool = False):
+    """An observer for :class:`Simulator`: a frame's world position and velocity at each sample
+    (and, with ``acceleration``, its acceleration from the run's own qdd), as one row
+    [px, py, pz, vx, vy, vz(, ax, ay, az)]. ``frame``: as :func:`redysim.frame_motion`."""
+    from .dynamics import frame_motion
+
+    ws = Workspace(system)
+
+    def observe(s: Sample):
+        m = frame_motion(system, s.q, s.v, s.accel() if acceleration else None, frame=frame,
+                         ws=ws)
+        return np.concatenate((m.position, m.velocity, *(() if m.acceleration is None
+                                                         else (m.acceleration,))))
+
+    return observe
+
+
+class Simulator:
+    """One run of a system, assembled in one place: every simulation of redysim (``simulate``,
+    the harness's runs, sweeps, reference solutions, long runs and refinement studies) is one.
+
+    The state is y = (q, v); dq/dt = v but a free joint's quaternion, which moves as
+    q (x) [0; w_body] / 2 and is projected back onto the unit sphere after every step (module
+    docstring). Hooks (each optional):
+
+    - ``qdd(q, v, tau) -> (n_v,)``: the accelerations' provider, instead of the core's forward
+      dynamics by ``method`` ("rge-a", "ge-n", "rge-n"): a reference engine's, or the core in
+      emulated float32. ``engine`` with ``integrator="native"``: the engine steps itself
+      (:class:`EngineStepper`).
+    - ``tau(t, q, v) -> (n_v,)``: generalized forces (a tip force's joint torques, loads), and
+      ``damping``: a viscous torque -damping * v at every joint [N m s]; ``potential(q)``: the
+      potential energy [J] of the forces ``tau`` gives, when they have one (counted in E, so
+      that delta_M stays an energy balance).
+    - ``loops``: a :class:`redysim.loops.ClosedLoops` of the system: its loops closed, (q, v)
+      projected back onto them after every step; the samples carry the loop forces.
+    - ``observe``: name -> ``f(sample)`` called at each sample with a :class:`Sample` (t, q, v,
+      E, com, and ``accel()``: the run's qdd there, computed once on demand); what it returns
+      (an array, or None: nothing kept) is stacked into ``Simulation.observed[name]``.
+      :func:`frame_observer` gives a frame's path. The energy, delta_M and the centre of mass
+      are always sampled;
+      ``keep_states`` keeps q and v at every sample too (off for long runs of huge systems:
+      ``y_final`` is kept anyway).
+    - ``energy_bound``: a run whose |delta_M| passes it fails ("energy blow-up").
+    - ``state`` (a :class:`redysim.integrate.SolverState`): resume from a checkpoint; samples
+      at or before ``skip_until`` are not taken again.
+    - ``compiled``: False steps in the Python loop even where compiled steps could run (the
+      same steps, bit for bit: an independent path for checks); None chooses.
+
+    The solver is chosen here: ours in compiled code (:class:`~redysim.integrate.CompiledSolver`)
+    when qdd is the core's RGE-A and dq/dt = v with no forces, loops or damping; the implicit
+    midpoint with a chain's tension preconditioner; SciPy's; the Python loop otherwise. Every
+    solver follows one protocol (:class:`redysim._steps.OdeSolver`). The first RHS and energy
+    calls and the steppers' kernels (JIT compile or disk-cache load) are made in the
+    constructor and timed apart (``jit_s``). Bad settings raise SettingsError and a bad q0 or
+    v0 StateError, naming them, before anything runs.
+    """
+
+    def __init__(self, system: Chain | Model, t_end: float, *, q0=None, v0=None,
+                 integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
+                 atol: float = DEFAULT_ATOL, h: float | None = None,
+                 sample: float | None = None, method: str = "rge-a", qdd=None, tau=None,
+                 potential=None, damping: float = 0.0, loops=None, engine=None,
+                 observe=None, keep_states: bool = True, energy_bound: float | None = None,
+                 state: SolverState | None = None, skip_until: float | None = None,
+                 compiled: bool | None = None, source: str = "simulate"):
+        if not isinstance(system, Chain | Model):
+            raise TypeError(f"{source} takes a redysim.Chain or redysim.Model, not "
+                            f"{type(system).__name__}")
+        native = integrator == NATIVE
+        integrator, fixed = (NATIVE, True) if native else _check_simulate_settings(
+            source, t_end, integrator=integrator, rtol=rtol, atol=atol, h=h, sample=sample,
+            damping=damping)
+        if native:
+            _check_simulate_settings(source, t_end, integrator="rk4", rtol=None, atol=None,
+                                     h=h, sample=sample, damping=damping)
+            if engine is None:
+                raise SettingsError(source, "integrator", NATIVE, "needs a reference engine "
+                                    "(the core has no native stepper: use rk4 with a step h)")
+        self.system, self.source = system, source
+        self.t_end, self.integrator = float(t_end), integrator
+        self.rtol, self.atol, self.h = rtol, atol, h
+        self.sample = sample if sample is not None else t_end / DEFAULT_SAMPLES
+        self.ts = sample_times(0.0, self.t_end, self.sample)
+        if native and np.abs(self.ts / h - np.round(self.ts / h)).max() > 1e-6:
+            raise SettingsError(source, "sample", self.sample, f"an engine's own stepper knows "
+                                f"its state at whole steps only: the sample times must be whole "
+                                f"multiples of h = {h:g}")
+        self.keep_states, self.energy_bound = bool(keep_states), energy_bound
+        self._compiled = compiled
+        self.observe = dict(observe or {})
+        self.skip_until = skip_until
+        if q0 is None:
+            q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
+        q0 = check_state(system, "q", q0)
+        v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
+        self.damping = float(damping)
+        self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau)
+        self.potential = potential
+        self.loops = loops
+        y0 = np.concatenate((q0, v0))
+        if loops is not None:
+            if getattr(loops, "model", None) is not system:
+                raise SettingsError(source, "loops", type(loops).__name__, "must be the "
+                                    "ClosedLoops of the model simulated (ClosedLoops(model, "
+                                    "cuts))")
+            loops.check_start(q0)
+        for k, t in enumerate(getattr(system, "joint_types", ())):
+            if t == FREE:  # its quaternion, before any projection: the norm as given
+                i = int(system.joint_qoff[k]) + 3
+                norm = math.sqrt(float(y0[i:i + 4] @ y0[i:i + 4]))
+                if not abs(norm - 1.0) <= QUATERNION_TOL:
+                    raise StateError(f"q0[{i}:{i + 4}], the quaternion (w, x, y, z) of joint "
+                                     f"{system.joint_names[k]!r}, has norm {norm:.9g}: give a "
+                                     "unit quaternion")
+        if integrator in IMPLICIT and self.motion.free:
+            raise SettingsError(source, "integrator", integrator, "steps systems whose dq/dt "
+                                "is v; a free joint's quaternion moves otherwise: use ode45 or "
+                                "dop853")
+        self.motion.project(y0, record=False)
+        self.y0 = y0
+        t_jit = time.perf_counter()
+        self.motion.rhs(0.0, y0)  # the first calls: JIT compile or disk-cache load, timed apart
+        self._energy_and_com(y0[:self.motion.nq], y0[self.motion.nq:])
+        if not native:  # the steppers' own kernels; the implicit step calls no Runge-Kutta ones
+            (implicit_kernels if integrator in IMPLICIT else compile_kernels)()
+        self.jit_s = time.perf_counter() - t_jit
+        self.E0 = self._energy_and_com(y0[:self.motion.nq], y0[self.motion.nq:])[0]
+        self._rhs = self.motion.rhs  # the solver's; wrapped by run() to check the limits
+        if native:
+            self.solver = EngineStepper(engine, 0.0, y0, self.t_end, h, self.motion.nq)
+        elif state is None:
+            self.solver = self._make_solver(None)
+        else:
+            self.solver = self._make_solver(state)
+
+    # ----------------------------------------------------------------------- assembly
+    @property
+    def compiled(self) -> bool:
+        """Whether the steps run in compiled code: ours, on the core's RGE-A, dq/dt = v, no
+        forces, loops or damping (the same steps as the Python loop, bit for bit)."""
+        m = self.motion
+        can = (m.qdd is None and m.method == "rge-a" and m.tau is None and not m.damping
+               and m.loops is None and not m.free and self.integrator in TABLEAU_NAMES)
+        return can and self._compiled is not False
+
+    def _make_solver(self, state):
+        kw = dict(rtol=self.rtol, atol=self.atol, h=self.h)
+        rhs = self._call_rhs
+        if self.compiled:
+            planar = isinstance(self.system, Chain) and self.system.is_planar
+            return CompiledSolver(rhs, 0.0, self.y0, self.t_end, self.integrator,
+                                  ws=self.motion.ws, planar=planar, state=state, **kw)
+        if self.integrator in IMPLICIT:
+            # a chain's tension preconditioner (redysim.implicit); a tree steps without one
+            pre = TensionPreconditioner(self.system) if isinstance(self.system, Chain) else None
+            return make_solver(rhs, 0.0, self.y0, self.t_end, self.integrator, state=state,
+                               preconditioner=pre, **kw)
+        return make_solver(rhs, 0.0, self.y0, self.t_end, self.integrator, state=state, **kw)
+
+    def _call_rhs(self, t, y):
+        return self._rhs(t, y)
+
+    def _energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
+        E, com = self.motion.energy_and_com(q, v)
+        if self.potential is not None:
+            E += self.potential(q)
+        return E, com
+
+    # ----------------------------------------------------------------------- the run
+    def run(self, *, progress: Callable[[float, float, int, float], str | None] | None = None,
+            on_step: Callable[[object], str | None] | None = None,
+            max_cpu_s: float | None = None, max_wall_s: float | None = None,
+            clock: str = "thread") -> Simulation:
+        """Integrate to t_end (or until stopped) and return the samples and counts.
+
+        ``progress(t, t_end, steps, wall_s)``: after each step (each chunk of steps in compiled
+        code); ``on_step(solver)``: likewise, after the step's samples (a checkpoint saved here
+        holds every sample up to the solver's t). A message (a str) either returns stops the
+        run there: ``status`` 1 and that message, the samples so far kept.
+        ``max_cpu_s``: a limit on the run's CPU time [s] (``clock``: "thread", this thread's,
+        or "process", the process's; JIT excluded): past it the run fails (``status`` -1,
+        "time limit: max_cpu_s = ..."), whatever else the machine does. ``max_wall_s``: the
+        caller's patience: past it the run is stopped (``status`` 1, "stopped by the wall-clock
+        limit ..."), never failed. Both are checked after every step and every RHS call (one
+        implicit step can take long). An unexpected error of a provider (an engine's qdd, say)
+        is raised as it is, the run's samples up to it attached as its ``partial``
+        :class:`Simulation`."""
+        if progress is not None and not callable(progress):
+            raise SettingsError(self.source, "progress", progress, "must be None or a callable "
+                                "progress(t, t_end, steps, wall_s)")
+        _check_simulate_settings(self.source, self.t_end, integrator="rk4", rtol=None,
+                                 atol=None, h=1.0, sample=None, damping=0.0,
+                                 max_cpu_s=max_cpu_s)
+        if max_wall_s is not None and not (isinstance(max_wall_s, NUMBERS) and max_wall_s > 0):
+            raise SettingsError(self.source, "max_wall_s", max_wall_s, "must be None or a "
+                                "number of seconds > 0")
+        cpu = time.thread_time if clock == "thread" else time.process_time
+        motion, loops, system = self.motion, self.loops, self.system
+        nq, mass = motion.nq, motion.mass
+        ts, ys, energies, coms, forces = [], [], [], [], []
+        observed: dict[str, list] = {name: [] for name in self.observe}
+        last = {"y": None}
+        worst = [0.0]
+        cpu0, wall0 = cpu(), time.perf_counter()
+        cpu_end = cpu0 + max_cpu_s if max_cpu_s else math.inf
+        wall_end = wall0 + max_wall_s if max_wall_s else math.inf
+
+        def check_limits(t):
+            if cpu() > cpu_end:
+                raise _Stop(-1, f"time limit: max_cpu_s = {max_cpu_s:g} s of CPU reached at "
+                                f"t = {t:.6g}")
+            if time.perf_counter() > wall_end:
+                raise _Stop(1, f"stopped by the wall-clock limit, max_wall_s = {max_wall_s:g} "
+                               f"s (the caller's patience, not a result), at t = {t:.6g}; the "
+                               "samples so far are kept")
+
+        if max_cpu_s or max_wall_s:
+            def limited(t, y):
+                check_limits(t)
+                return motion.rhs(t, y)
+            self._rhs = limited
+        else:
+            self._rhs = motion.rhs
+
+        def on_sample(t, y):
+            if self.skip_until is not None and t <= self.skip_until:
+                return None  # taken before the checkpoint this run resumed from
+            y = y.copy()
+            motion.project(y, record=False)  # interpolated between steps: back on constraints
+            q, v = y[:nq], y[nq:]
+            a = []
+
+            def accel():
+                if not a:
+                    a.append(motion.qdd_of(t, q, v))
+                return a[0]
+
+            try:
+                if loops is not None:
+                    tau = motion.forces(t, q, v)
+                    forces.append(loops.forward_dynamics(q, v, tau)[1])
+                E, com = self._energy_and_com(q, v)
+                sample = Sample(t, q, v, E, com, accel)
+                rows = {name: f(sample) for name, f in self.observe.items()}
+            except StateError as exc:  # the state overflowed (or went NaN) between samples
+                raise _Stop(-1, f"at t = {t:.6g}: {type(exc).__name__}: {exc}") from None
+            ts.append(t)
+            if self.keep_states:
+                ys.append(y)
+            last["y"] = y
+            energies.append(E)
+            coms.append(com)
+            for name, row in rows.items():
+                if row is not None:
+                    observed[name].append(np.asarray(row))
+            if not math.isfinite(E):
+                raise _Stop(-1, f"non-finite energy at t = {t:.6g}")
+            dM = (E - self.E0) / mass
+            if self.energy_bound and abs(dM) > self.energy_bound:
+                raise _Stop(-1, f"energy blow-up: |delta_M| = {abs(dM):.3g} J/kg > bound "
+                                f"{self.energy_bound:g} at t = {t:.6g}")
+            return None
+
+        nearest = [math.inf, None]  # the least s_min / s_max of the loops' J X, and its t
+        if loops is not None:
+            loops.nearest_change_point()  # from here on
+
+        def step_done(s):
+            worst[0] = max(worst[0], motion.project(s.y))
+            check_limits(s.t)
+            if loops is not None:
+                ratio = loops.nearest_change_point()
+                if ratio < nearest[0]:
+                    nearest[:] = ratio, s.t
+            for hook in (lambda: progress and progress(s.t, self.t_end, s.counters.steps,
+                                                       time.perf_counter() - wall0),
+                         lambda: on_step and on_step(s)):
+                stop = hook()
+                if stop:
+                    return str(stop)
+            return None
+
+        solver = self.solver
+        unexpected = None
+        try:
+            status, message = advance(solver, self.ts, on_sample=on_sample, on_step=step_done)
+        except _Stop as stop:
+            status, message = stop.status, stop.message
+        except StateError as exc:  # qdd not defined or overflowed at a stage
+            status, message = -1, f"at t = {solver.t:.6g}: {exc}"
+        except Exception as exc:  # a provider's own error (an engine's): raised, with the
+            unexpected = exc      # samples finished before it attached (below)
+            status, message = -1, f"at t = {solver.t:.6g}: {type(exc).__name__}: {exc}"
+        finally:
+            self._rhs = motion.rhs
+        near = None
+        if loops is not None:
+            ratio = loops.nearest_change_point()  # the failing step's own, if any
+            if ratio < nearest[0]:
+                nearest[:] = ratio, solver.t
+            if nearest[0] <= NEAR_CHANGE_POINT:
+                near = float(nearest[1])
+                if status != 0 and "change point" not in message:
+                    message += (f" (the motion passed near a change point at t = {near:.6g}: "
+                                f"J M^-1 J^T's singular values {nearest[0]:.1e} apart, a "
+                                "configuration where the mechanism can switch branches)")
+        c = solver.counters
+        n_y = self.y0.size
+        Y = np.array(ys) if ys else np.empty((0, n_y))
+        E = np.array(energies)
+        result = Simulation(
+            name=system.name, t=np.array(ts), q=Y[:, :nq], v=Y[:, nq:], energy=E,
+            delta_M=(E - self.E0) / mass if E.size else E,
+            com=np.array(coms).reshape(-1, 3), steps=c.steps, rejected=c.rejected,
+            nfev=c.nfev, status=status, message=message, cpu_s=cpu() - cpu0,
+            wall_s=time.perf_counter() - wall0, jit_s=self.jit_s, quaternion_error=worst[0],
+            forces=np.array(forces) if loops is not None else None,
+            residual_q=motion.residual_q, residual_v=motion.residual_v, near_change_point=near,
+            observed={k: np.array(v) for k, v in observed.items()}, y_final=last["y"],
+            E0=self.E0)
+        if unexpected is not None:
+            unexpected.partial = result  # never lose finished work: the caller keeps it
+            raise unexpected
+        return result
 
 
 def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
@@ -215,7 +632,8 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
              progress: Callable[[float, float, int, float], str | None] | None = None,
              loops=None, damping: float = 0.0,
              max_cpu_s: float | None = None) -> Simulation:
-    """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques).
+    """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques): a
+    :class:`Simulator` run.
 
     loops: a :class:`redysim.loops.ClosedLoops` of ``system``: the motion with its loops closed,
     (q, v) projected back onto them after every step; the samples then carry the loop forces
@@ -236,126 +654,12 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
     SettingsError for a setting out of range (naming it: ``damping``, ``progress``,
     ``max_cpu_s``, ...) and StateError for a bad q0 or v0.
     """
-    if not isinstance(system, Chain | Model):
-        raise TypeError(f"simulate takes a redysim.Chain or redysim.Model, not "
-                        f"{type(system).__name__}")
-    integrator, fixed = _check_simulate_settings("simulate", t_end, integrator=integrator,
-                                                 rtol=rtol, atol=atol, h=h, sample=sample,
-                                                 damping=damping, progress=progress,
-                                                 max_cpu_s=max_cpu_s)
-    damping = float(damping)
-    sample = sample if sample is not None else t_end / DEFAULT_SAMPLES
-    if q0 is None:
-        q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
-    q0 = check_state(system, "q", q0)
-    v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
-    motion = _Motion(system, loops, damping)
-    y0 = np.concatenate((q0, v0))
-    if loops is not None:
-        if getattr(loops, "model", None) is not system:
-            raise SettingsError("simulate", "loops", type(loops).__name__, "must be the "
-                                "ClosedLoops of the model simulated (ClosedLoops(model, cuts))")
-        loops.check_start(q0)
-    for k, t in enumerate(getattr(system, "joint_types", ())):
-        if t == FREE:  # its quaternion, before any projection: the norm as given
-            i = int(system.joint_qoff[k]) + 3
-            norm = math.sqrt(float(y0[i:i + 4] @ y0[i:i + 4]))
-            if not abs(norm - 1.0) <= QUATERNION_TOL:
-                raise StateError(f"q0[{i}:{i + 4}], the quaternion (w, x, y, z) of joint "
-                                 f"{system.joint_names[k]!r}, has norm {norm:.9g}: give a unit "
-                                 "quaternion")
-    motion.project(y0, record=False)
-    t_jit = time.perf_counter()
-    motion.rhs(0.0, y0)  # the first calls: JIT compile or on-disk cache load, timed apart
-    motion.energy_and_com(q0, v0)
-    # the steppers' own kernels; the implicit step calls none of the Runge-Kutta ones
-    (implicit_kernels if integrator in IMPLICIT else compile_kernels)()
-    jit_s = time.perf_counter() - t_jit
-    ts, ys, energies, coms, forces = [], [], [], [], []
-    worst = [0.0]
-
-    def on_sample(t, y):
-        y = y.copy()
-        motion.project(y, record=False)  # interpolated between steps: back on the constraints
-        if loops is not None:
-            tau = -damping * y[motion.nq:] if damping else None
-            forces.append(loops.forward_dynamics(y[:motion.nq], y[motion.nq:], tau)[1])
-        E, com = motion.energy_and_com(y[:motion.nq], y[motion.nq:])
-        ts.append(t)
-        ys.append(y)
-        energies.append(E)
-        coms.append(com)
-        return None if math.isfinite(E) else f"non-finite energy at t = {t:.6g}"
-
-    # CPU time of this thread: the compiled steps run on it, and a batch's other threads'
-    # runs are not this run's (simulate_batch)
-    cpu0, wall0 = time.thread_time(), time.perf_counter()
-
-    nearest = [math.inf, None]  # the least s_min / s_max of the loops' J X, and its step's t
-    if loops is not None:
-        loops.nearest_change_point()  # from here on
-
-    over_cpu = [False]
-
-    def on_step(s):
-        worst[0] = max(worst[0], motion.project(s.y))
-        if max_cpu_s is not None and time.thread_time() - cpu0 > max_cpu_s:
-            over_cpu[0] = True
-            return f"time limit: max_cpu_s = {max_cpu_s:g} s of CPU reached at t = {s.t:.6g}"
-        if loops is not None:
-            ratio = loops.nearest_change_point()
-            if ratio < nearest[0]:
-                nearest[:] = ratio, s.t
-        if progress is not None:
-            stop = progress(s.t, t_end, s.counters.steps, time.perf_counter() - wall0)
-            if stop is not None:
-                return str(stop)
-        return None
-
-    if loops is None and not damping and not motion.free and integrator in TABLEAU_NAMES:
-        # dq/dt = v and the tree's own qdd: steps in compiled code
-        planar = isinstance(system, Chain) and system.is_planar
-        solver = CompiledSolver(motion.rhs, 0.0, y0, t_end, integrator, ws=motion.ws,
-                                planar=planar, rtol=rtol, atol=atol, h=h)
-    elif integrator in IMPLICIT:
-        if motion.free:
-            raise SettingsError("simulate", "integrator", integrator, "steps systems whose "
-                                "dq/dt is v; a free joint's quaternion moves otherwise: use "
-                                "ode45 or dop853")
-        # a chain's tension preconditioner (redysim.implicit); a tree steps without one
-        pre = TensionPreconditioner(system) if isinstance(system, Chain) else None
-        solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h,
-                             preconditioner=pre)
-    else:
-        solver = make_solver(motion.rhs, 0.0, y0, t_end, integrator, rtol=rtol, atol=atol, h=h)
-    try:
-        status, message = advance(solver, sample_times(0.0, t_end, sample), on_sample=on_sample,
-                                  on_step=on_step)
-    except StateError as exc:  # qdd not defined or overflowed at a stage
-        status, message = -1, f"at t = {solver.t:.6g}: {exc}"
-    if over_cpu[0]:
-        status = -1  # a limit that decides the result: failed, not stopped
-    near = None
-    if loops is not None:
-        ratio = loops.nearest_change_point()  # the failing step's own, if any
-        if ratio < nearest[0]:
-            nearest[:] = ratio, solver.t
-        if nearest[0] <= NEAR_CHANGE_POINT:
-            near = float(nearest[1])
-            if status != 0 and "change point" not in message:
-                message += (f" (the motion passed near a change point at t = {near:.6g}: "
-                            f"J M^-1 J^T's singular values {nearest[0]:.1e} apart, a "
-                            "configuration where the mechanism can switch branches)")
-    c = solver.counters
-    Y = np.array(ys) if ys else np.empty((0, y0.size))
-    E = np.array(energies)
-    return Simulation(
-        name=system.name, t=np.array(ts), q=Y[:, :motion.nq], v=Y[:, motion.nq:], energy=E,
-        delta_M=(E - E[0]) / motion.mass if E.size else E, com=np.array(coms).reshape(-1, 3),
-        steps=c.steps, rejected=c.rejected, nfev=c.nfev, status=status, message=message,
-        cpu_s=time.thread_time() - cpu0, wall_s=time.perf_counter() - wall0, jit_s=jit_s,
-        quaternion_error=worst[0], forces=np.array(forces) if loops is not None else None,
-        residual_q=motion.residual_q, residual_v=motion.residual_v, near_change_point=near)
+    _check_simulate_settings("simulate", t_end, integrator=integrator, rtol=rtol, atol=atol,
+                             h=h, sample=sample, damping=damping, progress=progress,
+                             max_cpu_s=max_cpu_s)
+    return Simulator(system, t_end, q0=q0, v0=v0, integrator=integrator, rtol=rtol, atol=atol,
+                     h=h, sample=sample, loops=loops, damping=damping
+                     ).run(progress=progress, max_cpu_s=max_cpu_s)
 
 
 def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,

@@ -35,7 +35,6 @@ import redysim
 from redysim import (
     case_from_dict,
     eliminate,
-    energy,
     forward_dynamics,
     load_case,
     load_published,
@@ -428,33 +427,22 @@ def _simulate(case, method: str, decimals: int, *, arithmetic: str = "double",
     """One ode45 run (rtol 1e-4, atol 1e-6, samples every 0.05 s) with the rounded RHS, stopped
     after ``cpu_limit`` seconds of CPU time (its status then says so): CPU time, so that what
     the table records does not depend on the machine's load."""
-    from redysim.integrate import integrate, sample_times
+    ch = case.chain
 
-    ch, n = case.chain, case.chain.n_dof
-
-    def rhs(_t, y):
-        qdd = reduced_qdd(ch, y[:n], y[n:], method, decimals, arithmetic=arithmetic,
-                          fused_phi=fused_phi)
-        return np.concatenate([y[n:], qdd])
-
-    T0, V0 = energy(ch, case.q0, case.qd0)
-    cpu0 = time.process_time()
-
-    def stop(_t, _y):
-        return (f"CPU-time limit ({cpu_limit:g} s)" if time.process_time() - cpu0 > cpu_limit
-                else None)
+    def qdd(q, v, _tau):
+        return reduced_qdd(ch, q, v, method, decimals, arithmetic=arithmetic,
+                           fused_phi=fused_phi)
 
     sim = case.simulation
-    sol = integrate(rhs, (0.0, case.t_end), np.concatenate([case.q0, case.qd0]), "ode45",
-                    rtol=sim.get("rtol", 1e-4), atol=sim.get("atol", 1e-6),
-                    t_eval=sample_times(0.0, case.t_end, sim.get("sample_interval", 0.05)),
-                    callback=stop)
-    dM = [(sum(energy(ch, y[:n], y[n:])) - (T0 + V0)) / ch.total_mass for y in sol.y]
-    return {"steps": sol.steps, "rejected": sol.rejected, "nfev": sol.nfev, "cpu_s": sol.cpu_s,
-            "t_reached": float(sol.t[-1]), "status": sol.message,
+    res = case.simulator(integrator="ode45", rtol=sim.get("rtol", 1e-4),
+                         atol=sim.get("atol", 1e-6), sample=sim.get("sample_interval", 0.05),
+                         qdd=qdd, keep_states=False).run(max_cpu_s=cpu_limit, clock="process")
+    dM = res.delta_M
+    return {"steps": res.steps, "rejected": res.rejected, "nfev": res.nfev, "cpu_s": res.cpu_s,
+            "t_reached": float(res.t[-1]), "status": res.message,
             "min_delta_M": float(min(dM)), "max_delta_M": float(max(dM)),
             "avg_abs_delta_M": float(np.mean(np.abs(dM))),
-            "t": [float(t) for t in sol.t], "delta_M": [float(d) for d in dM]}
+            "t": [float(t) for t in res.t], "delta_M": [float(d) for d in dM]}
 
 
 def table8(pub, sensitivity: bool = True) -> dict:
