@@ -207,7 +207,7 @@ def test_native_step(benchmark, name):
     dof = step_dof(name)
     benchmark.group = "native-step"
     eng = engine_for(name, dof)
-    q, qd = state(eng.chain)
+    q, qd = state(chain_of(dof))
     eng.sim_reset(q, qd, STEP_H)
     t0 = time.perf_counter()
     eng.step_once()
@@ -217,4 +217,4 @@ def test_native_step(benchmark, name):
                                  **machine()})
     benchmark.pedantic(eng.step_once, setup=lambda: eng.sim_reset(q, qd, STEP_H),
                        rounds=rounds, iterations=1, warmup_rounds=1)
-    assert np.all(np.isfinite(eng._sim_state()[0]))
+    assert np.all(np.isfinite(eng.sim_state()[0]))

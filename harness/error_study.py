@@ -351,11 +351,14 @@ def _engine_child(conn, name, kind, n_links, states, mem_gib):
         from redysim import references
         cls = references.get(name)
         out["version"] = cls.package_version()
+        from redysim import Model
+
         chain = make_chain(kind, n_links)
+        model = Model.from_chain(chain)  # the adapters' input; its conversion is not the build's
         cap = int(mem_gib * 2**30)
         resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
         t0 = time.perf_counter()
-        eng = cls(chain)
+        eng = cls(model)
         out["build_s"] = time.perf_counter() - t0
         for config, (q, qd) in states.items():
             t0 = time.perf_counter()

@@ -1,24 +1,26 @@
-"""Reference engines: the same chain in Pinocchio, MuJoCo, DART and Exudyn.
+"""Reference engines: the same model in Pinocchio, MuJoCo, DART and Exudyn.
 
-Every adapter has the shape of :class:`references.base.Engine` (build from a Case or Chain;
-``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``tip``, ``simulate``, ``version``, ``limits``).
-Every adapter builds every joint the core can express (R and P about/along any axis, U, S),
-from the per-joint elementary axes of :func:`joint_axes`. Importing this package imports no
-engine: a missing one raises :class:`EngineUnavailable` (naming the package) only when it is
-used::
+One adapter class per engine, registered under its name in :data:`ENGINES` (Pinocchio three
+times: ``pinocchio-aba``, ``pinocchio-aba-ryrz`` and ``pinocchio-crba``, one construction with
+two U-joint models and two algorithms), every one with the shape of
+:class:`references.base.Engine`: built from a :class:`redysim.Model` (a kinematic tree, fixed or
+floating base; a :class:`redysim.Case` or :class:`redysim.Chain` is converted at the door,
+``Model.from_chain``), it answers ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``position``
+(``tip``), ``simulate``, ``version`` and ``limits`` in the core's names, units and coordinates,
+a free joint's included. Every adapter builds every joint the core can express (R and P
+about/along any axis, U, S, free), from the per-body elementary axes of :func:`joint_axes`.
+Importing this package imports no engine: a missing one raises :class:`EngineUnavailable`
+(naming the package) only when it is used::
 
     from redysim import references
-    eng = references.get("mujoco")(chain)     # or references.get("mujoco").limits(case)
-
-Kinematic trees (:class:`redysim.Model`, fixed or free base) go to the same engines' tree
-adapters (:mod:`references.trees`: ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``limits`` in
-the core's coordinates, a free joint's included)::
-
-    eng = references.get("dart")(model)       # = references.tree_engine("dart", model)
-    references.get("dart").limits(model)      # = references.TREE_ENGINES["dart"].limits(model)
+    cls = references.get("mujoco")
+    if cls.limits(model).ok:                 # decided before building, with the reason
+        eng = cls(model)                     # or cls(chain), cls(case): converted at the door
+        eng.qdd(q, v, tau); eng.simulate(q0, v0, t_end, h)
 
 Closed loops (:class:`redysim.loops.ClosedLoops`: a tree and its cut joints) go to the loop
-adapters (:mod:`references.loops`), which close the cuts with each engine's own constraint::
+adapters (:mod:`references.loops`), which build the tree with the engine's adapter and close
+the cuts with each engine's own constraint::
 
     eng = references.loop_engine("exudyn", loops)   # references.LOOP_ENGINES lists them
     qdd, lam = eng.forward_dynamics(q, v, tau)      # as ClosedLoops.forward_dynamics
@@ -34,22 +36,15 @@ from .base import (
     JointAxes,
     Limits,
     Trajectory,
+    as_model,
     joint_axes,
     load_limits,
 )
-from .dart_engine import DART, DARTTree
-from .exudyn_engine import Exudyn, ExudynTree
+from .dart_engine import DART
+from .exudyn_engine import Exudyn
 from .loops import LOOP_ENGINES, LoopEngine, LoopStateUnsupported, loop_engine
-from .mujoco_engine import MuJoCo, MuJoCoTree
-from .pinocchio_engine import (
-    PinocchioABA,
-    PinocchioABARyRz,
-    PinocchioCRBA,
-    PinocchioTreeABA,
-    PinocchioTreeABARyRz,
-    PinocchioTreeCRBA,
-)
-from .trees import TreeEngine, TreeJointAxes, tree_class, tree_engine, tree_joints
+from .mujoco_engine import MuJoCo
+from .pinocchio_engine import PinocchioABA, PinocchioABARyRz, PinocchioCRBA
 
 ENGINES: dict[str, type[Engine]] = {
     cls.name: cls
@@ -57,27 +52,18 @@ ENGINES: dict[str, type[Engine]] = {
 }
 
 
-# the same engines on kinematic trees (redysim.Model), by the same names
-TREE_ENGINES: dict[str, type[TreeEngine]] = {
-    cls.name: cls
-    for cls in (PinocchioTreeABA, PinocchioTreeABARyRz, PinocchioTreeCRBA, MuJoCoTree, DARTTree,
-                ExudynTree)
-}
-assert set(TREE_ENGINES) == set(ENGINES)
-
-
 def get(name: str) -> type[Engine]:
-    """The adapter class registered under ``name`` (see :data:`ENGINES`)."""
+    """The adapter class registered under ``name`` (see :data:`ENGINES`): build it from a
+    :class:`redysim.Model`, the one input (a Case or Chain is converted with
+    ``Model.from_chain``). Raises KeyError listing the known names."""
     try:
         return ENGINES[name]
     except KeyError:
         raise KeyError(f"no engine {name!r}; known engines: {', '.join(ENGINES)}") from None
 
 
-__all__ = ["ENGINES", "LOOP_ENGINES", "TREE_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
-           "EngineUnavailable", "JointAxes", "Limits", "Trajectory", "TreeEngine",
-           "LoopEngine", "LoopStateUnsupported", "TreeJointAxes", "get", "joint_axes",
-           "load_limits", "loop_engine", "tree_class", "tree_engine",
-           "tree_joints", "DART", "DARTTree", "Exudyn", "ExudynTree", "MuJoCo", "MuJoCoTree",
-           "PinocchioABA", "PinocchioABARyRz", "PinocchioCRBA", "PinocchioTreeABA",
-           "PinocchioTreeABARyRz", "PinocchioTreeCRBA"]
+__all__ = ["ENGINES", "LOOP_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
+           "EngineUnavailable", "JointAxes", "Limits", "Trajectory", "LoopEngine",
+           "LoopStateUnsupported", "as_model", "get", "joint_axes", "load_limits",
+           "loop_engine", "DART", "Exudyn", "MuJoCo", "PinocchioABA", "PinocchioABARyRz",
+           "PinocchioCRBA"]

@@ -1,45 +1,73 @@
-"""The common shape of every reference-engine adapter (docs/design.md, "Reference engines").
+"""The one shape of every reference-engine adapter (docs/design.md, "Reference engines").
 
-An adapter builds the SAME chain as the core (``redysim/chain.py``: link frame at the proximal
-joint, x along the link, joint k at length[k-1] along the parent's x axis, base fixed at the
-origin, inertia about the COM in the link frame, the chain's gravity vector) and answers in the
-core's names and units:
+Each engine has ONE adapter class (a subclass of :class:`Engine`), built from a
+:class:`redysim.Model`, the one input: a kinematic tree, fixed or floating base; a serial chain
+is its Model (``Model.from_chain``: the chain's numbers bit for bit). A :class:`redysim.Case`
+(its chain) or a :class:`redysim.Chain` handed to an adapter, ``cls(x)`` or ``cls.limits(x)``,
+is converted at the door by :func:`as_model`, the one place that does it.
+
+The adapter builds the Model's own tree from its arrays (``parent``, ``placement_R``,
+``placement_p``, the per-DOF tables ``dof_kind``/``dof_u``, ``mass``, ``com``, ``inertia_com``,
+``gravity``), never from the file the Model was read from, so every engine runs the system the
+core runs, and it answers in the core's names, units and coordinates:
 
 =========================  ==================================================================
-``qdd(q, qd, tau=None)``   joint accelerations from I(q) qdd = phi(q, qd, tau)
-``mass_matrix(q)``         the GIM I(q), (n, n), symmetric
-``bias(q, qd)``            phi with tau = 0: -(C(q, qd) qd + gravity terms), as ``redysim.phi``
-``energy(q, qd)``          (T, V) in J; V = -sum m_k g . r_Ck (zero with every COM at the origin)
-``tip(q, qd)``             world position of the distal end of the last link
-``simulate(q0, qd0, ...)`` the engine's own fixed-step integrator -> :class:`Trajectory`
-``version``                the engine package's version string
-``limits(case_or_chain)``  :class:`Limits`: can the engine take this case, and if not, why
+``qdd(q, v, tau=None)``    vdot (n_v,) from I(q) vdot = phi(q, v, tau)
+``mass_matrix(q)``         the GIM I(q), (n_v, n_v), symmetric
+``bias(q, v)``             phi with tau = 0: -(C(q, v) v + gravity terms), as ``redysim.phi``
+``energy(q, v)``           (T, V) in J; V = -sum m_k g . r_Ck (zero with every COM at the origin)
+``position(q, frame)``     world position (3,) [m] of a frame of ``model.frames``
+``tip(q)``                 ``position(q, "tip")``: a chain's distal end (``Model.from_chain``)
+``simulate(q0, v0, ...)``  the engine's own fixed-step integrator -> :class:`Trajectory`;
+                           ``sim_reset``, ``step_once``, ``sim_state``: the same, step by step
+``version``, ``name``      the engine package's version string; the adapter's registered name
+``limits(model)``          :class:`Limits`: can the engine take the model, and if not, why
 =========================  ==================================================================
 
-Joints: :func:`joint_axes` is the one place that turns a chain into what the adapters build. It
-reads the core's own per-DOF tables (``Chain.dof_kind``, ``dof_u``, ``joint_qoff``, the
-arrays the kernels run on) and gives, per joint, its elementary 1-DOF axes in
-order: an :class:`Axis` is "R" (revolute about ``u``) or "P" (prismatic along ``u``), ``u`` a unit
-vector in the frame left by the axes before it (the parent link's frame for the first axis). The
-frame after a revolute axis is R Rot(u, q); a prismatic axis moves the joint's origin by R u q
-(the link frame then starts there: O_{k+1} = O_k + l_k x_k from the moved O_k). So an R joint
-about -z gives the axis (0, 0, -1), never +z; U = R about y, then R about the rotated z; S = the
-U axes, then R about the link's own x. Every engine builds the axes one after the other, each
-axis's frame at the previous one's (see each module's docstring for how); an engine refuses, in
-:meth:`Engine.limits`, only a joint it has no construction for (:meth:`Engine.unsupported`).
+q has length ``model.n_q`` and v ``model.n_v``, in the core's order (bodies in the Model's
+order, each joint's axes in order). A free joint (a floating base) is the core's: q = (x, y, z,
+qw, qx, qy, qz), the body origin's world position and a unit quaternion (w first; normalised
+here, as the core reads only its direction), v = (v_world, w_body): the origin's velocity in
+the WORLD frame and the angular velocity in the BODY frame (MuJoCo's convention). Every engine
+with other coordinates is converted both ways in its adapter by one rule (:class:`FreeBlock`):
+with y the engine's velocity coordinates of the joint in the core's slot order, v = B y with B
+orthogonal (a rotation of the linear or the angular part), so
 
-A :class:`redysim.Model` (a kinematic tree) handed to an adapter class, ``cls(model)`` or
-``cls.limits(model)``, goes to the same engine's tree adapter (``references/trees.py``).
+    y = B^T v,  tau_engine = B^T tau,  I = B I_engine B^T,  vdot = B ydot + c,
+    phi = B phi_engine + I c,          c = (dB/dt) y,
 
-A missing engine package raises :class:`EngineUnavailable` naming the package, never a bare
-ImportError. ``limits`` reads the measured limits in ``references/limits.toml`` (how each was
-measured is written there) and refuses a case BEFORE anything is built.
+which follows from I_engine ydot = tau_engine + phi_engine and v = B y (T, V are invariant).
+Each engine's module docstring says what its B and c are. A model without free joints whose
+coordinates the engine numbers as the core does (every chain, in every engine) is handed over
+as it is, with no conversion at all.
+
+Joints: :func:`joint_axes` is the one place that turns a model into what the adapters build:
+per body, its joint's type, its parent body, its placement (R, p) in the parent's frame and its
+elementary 1-DOF axes in order, read from the Model's own per-DOF tables (``dof_kind``,
+``dof_u``, ``joint_voff``, the arrays the kernels run on). An :class:`Axis` is "R" (revolute
+about ``u``) or "P" (prismatic along ``u``), ``u`` a unit vector in the frame left by the axes
+before it (the joint's placed frame for the first axis). The frame after a revolute axis is
+R Rot(u, q); a prismatic axis moves the joint's origin by R u q (the body frame then starts
+there). So an R joint about -z gives the axis (0, 0, -1), never +z; U = R about y, then R about
+the rotated z; S = the U axes, then R about the body's own x; a free joint has no axes (each
+engine has its own free joint). Every engine builds the axes one after the other, each axis's
+frame at the previous one's (see each module's docstring for how); a chain's link k hangs from
+link k - 1 at l_{k-1} along its x axis, the placement ``Model.from_chain`` gives it.
+
+``limits`` decides before anything is built, from the model's size and the measured limits of
+``references/limits.toml`` (how each was measured is written there; DOF = n_v, links = bodies,
+or the depth of the body tree for an engine whose limit is a depth, ``depth_limited``), then
+from its joints and bodies: a joint or a body the engine has no construction for
+(:meth:`Engine.unsupported`, in the engine's own words). A missing engine package raises
+:class:`EngineUnavailable` naming the package, never a bare ImportError.
 """
 
 from __future__ import annotations
 
 import importlib
+import math
 import tomllib
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, NamedTuple
@@ -48,22 +76,10 @@ import numpy as np
 
 from redysim import Case, Chain, Model
 from redysim.chain import KIND_CODES
+from redysim.model import FREE, quaternion_matrix
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes
-
-
-# engine name -> its tree adapter (a ``references.trees.TreeEngine`` subclass, registered when
-# it is defined, next to the engine's chain adapter in the same module)
-TREE_ADAPTERS: dict[str, type] = {}
-
-
-def tree_adapter(name: str) -> type:
-    """The tree adapter registered under ``name`` (the chain adapters' names)."""
-    try:
-        return TREE_ADAPTERS[name]
-    except KeyError:
-        raise KeyError(f"no tree engine {name!r}; known: {', '.join(TREE_ADAPTERS)}") from None
 
 
 class EngineUnavailable(RuntimeError):
@@ -79,12 +95,12 @@ class EngineUnavailable(RuntimeError):
 
 
 class EngineLimitExceeded(RuntimeError):
-    """The engine was asked to build a chain that its :meth:`Engine.limits` refuses."""
+    """The engine was asked to build a model that its :meth:`Engine.limits` refuses."""
 
 
 @dataclass(frozen=True)
 class Limits:
-    """Whether an engine can take a case: ``ok`` and, when not, ``reason`` (empty when ok)."""
+    """Whether an engine can take a model: ``ok`` and, when not, ``reason`` (empty when ok)."""
 
     ok: bool
     reason: str = ""
@@ -94,7 +110,8 @@ class Limits:
 
 
 class Trajectory(NamedTuple):
-    """Samples of a native simulation: times (m,), q (m, n), qd (m, n); the integrator's name."""
+    """Samples of a native simulation: times t (m,), q (m, n_q), qd (m, n_v) the velocities v;
+    the integrator's name."""
 
     t: np.ndarray
     q: np.ndarray
@@ -110,15 +127,30 @@ def import_engine(engine: str, package: str, module: str | None = None):
         raise EngineUnavailable(engine, package, f"{type(exc).__name__}: {exc}") from None
 
 
-def as_chain(case_or_chain: Case | Chain) -> Chain:
-    """The Chain of a Case, or the Chain itself."""
-    if isinstance(case_or_chain, Case):
-        return case_or_chain.chain
-    if isinstance(case_or_chain, Chain):
-        return case_or_chain
-    raise TypeError(f"expected a redysim Case or Chain, got {type(case_or_chain).__name__}")
+# --------------------------------------------------------------------------- the door
+_FROM_CHAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # Chain -> its Model
 
 
+def as_model(system: Model | Case | Chain) -> Model:
+    """The Model an adapter builds: ``system`` itself when it is a :class:`redysim.Model` (the
+    one input), else the Model of a Case's chain or of a Chain (``Model.from_chain``, the same
+    numbers bit for bit), converted once per Chain object (``limits`` and the constructor then
+    share it: 3 s for the 50,000 links of RE-U50000-L1000). Raises TypeError for anything
+    else."""
+    if isinstance(system, Model):
+        return system
+    if isinstance(system, Case):
+        system = system.chain
+    if isinstance(system, Chain):
+        model = _FROM_CHAIN.get(system)
+        if model is None:
+            model = _FROM_CHAIN[system] = Model.from_chain(system)
+        return model
+    raise TypeError(f"expected a redysim Model (or a Case or Chain, converted by "
+                    f"Model.from_chain), got {type(system).__name__}")
+
+
+# --------------------------------------------------------------------------- joints
 class Axis(NamedTuple):
     """One elementary 1-DOF axis of a joint, as the core's kernels read it.
 
@@ -154,46 +186,122 @@ class Axis(NamedTuple):
         return f"{self.kind} {'about' if self.kind == 'R' else 'along'} {where}"
 
 
+def axis(kind: str, u) -> Axis:
+    """The :class:`Axis` of kind "R" or "P" along the unit vector ``u``."""
+    u = tuple(float(x) for x in u)
+    # exactly +x, +y or +z (the rule of the core's coordinate-axis codes)
+    plus = [j for j in range(3) if u[j] == 1.0 and u[j - 1] == u[j - 2] == 0.0]
+    return Axis(kind, u, plus[0] if plus else None)
+
+
 class JointAxes(NamedTuple):
-    """A joint of the chain: its type name (a key of ``redysim.chain.JOINT_TYPES``) and its
-    elementary axes in order."""
+    """Body k's joint: its type (R, P, U, S or free), its elementary axes in order (none for a
+    free joint), the parent body (-1: the world), the placement (R (3, 3), p (3,)) of the
+    joint's frame in the parent's frame, and the joint's and the body's names."""
 
     type: str
     axes: tuple[Axis, ...]
+    parent: int = -1
+    R: np.ndarray | None = None
+    p: np.ndarray | None = None
+    name: str = ""
+    body: str = ""
 
     def describe(self) -> str:
-        """E.g. "U = R about +y then R about +z"."""
+        """E.g. "U = R about +y then R about +z", "free"."""
+        if self.type == FREE:
+            return "free"
         return f"{self.type} = " + " then ".join(a.describe() for a in self.axes)
 
+    def where(self) -> str:
+        """E.g. "body 'link2', joint 'joint2' (U = R about +y then R about +z)"."""
+        return f"body {self.body!r}, joint {self.name!r} ({self.describe()})"
 
-def joint_axes(chain: Chain) -> list[JointAxes]:
-    """Per joint, its elementary axes (see the module docstring), from the chain's own per-DOF
-    tables; one :class:`JointAxes` per link. Joints shared by several links (a uniform chain
-    repeats one Joint object) are read once. Raises ValueError on a DOF kind it does not know."""
-    kinds, units, qoff = chain.dof_kind, chain.dof_u, chain.joint_qoff
-    seen: dict = {}
+
+def joint_axes(system: Model | Case | Chain) -> list[JointAxes]:
+    """Per body, its joint (:class:`JointAxes`, module docstring) from the model's own per-DOF
+    tables (a Case or Chain is converted by :func:`as_model`). Raises ValueError on a DOF kind
+    the adapters do not model (outside a free joint)."""
+    model = as_model(system)
     out = []
-    for k, joint in enumerate(chain.joints):
-        try:
-            hash(joint)
-            key = joint  # equal Joints have equal rows in the tables
-        except TypeError:  # an axis given as a list or an array
-            key = id(joint)
-        ja = seen.get(key)
-        if ja is None:
-            axes = []
-            for i in range(int(qoff[k]), int(qoff[k + 1])):
-                kind = KIND_NAMES.get(int(kinds[i]))
+    for k, jtype in enumerate(model.joint_types):
+        axes = []
+        if jtype != FREE:
+            for i in range(int(model.joint_voff[k]), int(model.joint_voff[k + 1])):
+                kind = KIND_NAMES.get(int(model.dof_kind[i]))  # R or P; a BALL is not one
                 if kind is None:
-                    raise ValueError(f"joint {k} ({joint.type}): DOF kind {int(kinds[i])} is not "
-                                     f"modelled by the reference adapters (only R and P axes)")
-                u = tuple(float(x) for x in units[i])
-                # exactly +x, +y or +z (the rule of the core's coordinate-axis codes)
-                plus = [j for j in range(3) if u[j] == 1.0 and u[j - 1] == u[j - 2] == 0.0]
-                axes.append(Axis(kind, u, plus[0] if plus else None))
-            ja = seen[key] = JointAxes(joint.type, tuple(axes))
-        out.append(ja)
+                    raise ValueError(f"body {model.body_names[k]!r}: DOF kind "
+                                     f"{int(model.dof_kind[i])} outside a free joint")
+                axes.append(axis(kind, model.dof_u[i]))
+        out.append(JointAxes(jtype, tuple(axes), int(model.parent[k]),
+                             np.array(model.placement_R[k], dtype=float),
+                             np.array(model.placement_p[k], dtype=float),
+                             model.joint_names[k], model.body_names[k]))
     return out
+
+
+def tree_depth(model: Model) -> int:
+    """The number of bodies on the longest path from the world to a leaf."""
+    depth = np.zeros(model.n_bodies, dtype=np.int64)
+    for k, p in enumerate(model.parent):
+        depth[k] = 1 if p < 0 else depth[p] + 1
+    return int(depth.max())
+
+
+def depth_first(model: Model) -> list[int]:
+    """The bodies in depth-first pre-order (each body's subtree follows it contiguously;
+    children in the Model's order). The Model's own order only puts parents first."""
+    children: list[list[int]] = [[] for _ in range(model.n_bodies)]
+    roots = []
+    for k, p in enumerate(model.parent):
+        (roots if p < 0 else children[p]).append(k)
+    order, stack = [], roots[::-1]
+    while stack:
+        k = stack.pop()
+        order.append(k)
+        stack.extend(children[k][::-1])
+    return order
+
+
+def free_rotation(q, qs: int) -> np.ndarray:
+    """The rotation of the free joint whose configuration starts at ``q[qs]`` (its quaternion,
+    w first, normalised)."""
+    quat = np.asarray(q[qs + 3:qs + 7], dtype=float)
+    return quaternion_matrix(*(quat / np.linalg.norm(quat)))
+
+
+def rotation_quaternion(R) -> np.ndarray:
+    """The unit quaternion (w, x, y, z), w >= 0, of the rotation matrix R (Shepperd's method:
+    the largest of 1 + trace, 1 + 2 R_ii - trace under the square root)."""
+    R = np.asarray(R, dtype=float)
+    t = np.trace(R)
+    d = np.diag(R)
+    i = int(np.argmax([t, *d]))
+    if i == 0:
+        s = 2.0 * math.sqrt(1.0 + t)
+        quat = np.array([s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s,
+                         (R[1, 0] - R[0, 1]) / s])
+    else:
+        a = i - 1
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + 2.0 * d[a] - t)
+        quat = np.empty(4)
+        quat[0] = (R[c, b] - R[b, c]) / s
+        quat[1 + a] = s / 4
+        quat[1 + b] = (R[b, a] + R[a, b]) / s
+        quat[1 + c] = (R[c, a] + R[a, c]) / s
+    quat /= np.linalg.norm(quat)
+    return quat if quat[0] >= 0 else -quat
+
+
+class FreeBlock(NamedTuple):
+    """One free joint's conversion at a state (module docstring): the core's velocity slots
+    ``vs:vs + 6`` are ``B y`` and its acceleration ``B ydot + c``, y the engine's velocity
+    coordinates of the joint gathered into the core's slot order."""
+
+    vs: int
+    B: np.ndarray
+    c: np.ndarray
 
 
 def load_limits() -> dict[str, Any]:
@@ -202,25 +310,15 @@ def load_limits() -> dict[str, Any]:
         return tomllib.load(fh)
 
 
-def check_vec(chain: Chain, name: str, x, optional: bool = False) -> np.ndarray | None:
-    """x as a float vector of length n (raises ValueError naming it)."""
-    if x is None:
-        if optional:
-            return None
-        raise ValueError(f"{name} is required")
-    a = np.asarray(x, dtype=float)
-    if a.shape != (chain.n_dof,):
-        raise ValueError(f"{name} has shape {a.shape}; the chain has {chain.n_dof} DOF")
-    return a
-
-
+# --------------------------------------------------------------------------- the adapters
 class EnginePackage:
-    """An adapter's package: whether it imports, and its version (shared by the chain adapters
-    and the tree adapters, :mod:`.trees`). Subclasses set ``name``, ``package``, ``module``."""
+    """An adapter's package: whether it imports, and its version (shared by the adapters,
+    :class:`Engine`, and the loop adapters, ``references.loops``). Subclasses set ``name``,
+    ``package``, ``module``."""
 
     name: ClassVar[str] = ""
     package: ClassVar[str] = ""  # the pip package that provides the engine
-    module: ClassVar[str] = ""
+    module: ClassVar[str] = ""  # the module to import
 
     @classmethod
     def available(cls) -> bool:
@@ -242,137 +340,295 @@ class EnginePackage:
 
 
 class Engine(EnginePackage):
-    """Base class of the adapters. Subclasses set the class attributes and the ``_build`` and
-    ``_qdd`` ... hooks; the public methods here check sizes at the door and call them."""
+    """Base class of the adapters (module docstring): one subclass per engine, built from a
+    :class:`redysim.Model` (a Case or Chain is converted at the door, :func:`as_model`).
 
-    name: ClassVar[str] = ""
-    package: ClassVar[str] = ""  # the pip package that provides the engine
-    module: ClassVar[str] = ""  # the module to import
+    ``cls(model, check_limits=True)`` imports the engine (:class:`EngineUnavailable` naming the
+    package when it does not), refuses a model its :meth:`limits` refuse
+    (:class:`EngineLimitExceeded` with the reason) and builds it (``_build``).
+
+    A subclass sets ``name``, ``package``, ``module``, ``integrator`` and implements ``_build``
+    and the hooks, which take and return the ENGINE's coordinates; the public methods check the
+    sizes at the door (ValueError naming the argument) and convert:
+
+    - ``_engine_state(q, v)`` -> (state, blocks): whatever the hooks need to set the
+      configuration and one :class:`FreeBlock` per free joint (called only when the engine's
+      coordinates are not the core's, ``identity`` False; default: q itself);
+    - on that state, ``_qdd(state, y, tau_e)``, ``_mass_matrix(state)``, ``_bias(state, y)``,
+      ``_energy(state, y)`` and ``_position(state, body, point)``, y and tau_e engine-ordered
+      vectors of length n_v (tau_e None: no applied force);
+    - the native stepper, in the core's coordinates: ``_sim_reset(q0, v0, h)``,
+      ``_sim_step()``, ``_sim_state()`` -> (q, v).
+
+    Attributes: ``model`` (the Model built), ``joints`` (:func:`joint_axes` of it), ``free``
+    ((body, first q slot, first v slot) of each free joint), ``eidx`` (n_v,): the engine's index
+    of each of the core's velocity slots (set by ``_build``, and ``qidx`` (n_q,) of the
+    configuration slots by an engine whose configuration vector has the core's length; the
+    identity unless the engine numbers them otherwise), ``identity``: True when there is no free
+    joint and these maps are the identity, so that nothing is converted.
+    """
+
     integrator: ClassVar[str] = ""  # what simulate() uses
+    depth_limited: ClassVar[bool] = False  # limits.toml's max_links is a body-tree depth
 
-    def __new__(cls, case_or_chain=None, *args, **kwargs):
-        # a kinematic tree goes to the engine's tree adapter (references/trees.py), which is
-        # not a subclass of this one, so its own __init__ runs and this class's does not
-        if isinstance(case_or_chain, Model) and cls.name:
-            return tree_adapter(cls.name)(case_or_chain, *args, **kwargs)
-        return super().__new__(cls)
-
-    def __init__(self, case_or_chain: Case | Chain, *, check_limits: bool = True):
+    def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
-        self.chain = as_chain(case_or_chain)
+        self.model = as_model(system)
         if check_limits:
-            lim = self.limits(self.chain)
+            lim = self.limits(self.model)
             if not lim.ok:
                 raise EngineLimitExceeded(f"{self.name}: {lim.reason}")
-        self.joints = joint_axes(self.chain)
+        m = self.model
+        self.joints = joint_axes(m)
+        self.free = [(k, int(m.joint_qoff[k]), int(m.joint_voff[k]))
+                     for k, j in enumerate(self.joints) if j.type == FREE]
+        # the coordinates of the joints that are not free: the same numbers in q and in v
+        jointed = [k for k, j in enumerate(self.joints) if j.type != FREE]
+        self._qslots = np.array([i for k in jointed
+                                 for i in range(m.joint_qoff[k], m.joint_qoff[k + 1])], dtype=int)
+        self._vslots = np.array([i for k in jointed
+                                 for i in range(m.joint_voff[k], m.joint_voff[k + 1])], dtype=int)
+        self.eidx = np.arange(m.n_v)
+        self.identity = False
         self._build()
+        # the engine's coordinates are the core's: nothing to convert (every chain, every engine)
+        qidx = getattr(self, "qidx", None)
+        self.identity = (not self.free and bool(np.array_equal(self.eidx, np.arange(m.n_v)))
+                         and (qidx is None or bool(np.array_equal(qidx, np.arange(m.n_q)))))
 
     # ----------------------------------------------------------------------- limits
     @classmethod
-    def limits(cls, case_or_chain: Case | Chain) -> Limits:
-        """Can this engine take the case? Decided from the chain's size and joints and the
-        measured limits in ``references/limits.toml``, before anything is built. A
-        :class:`redysim.Model` is judged by the engine's tree adapter (references/trees.py)."""
-        if isinstance(case_or_chain, Model):
-            return tree_adapter(cls.name).limits(case_or_chain)
-        chain = as_chain(case_or_chain)
-        try:
-            joints = joint_axes(chain)
-        except ValueError as exc:
-            return Limits(False, f"{cls.name}: {exc}")
-        for k, ja in enumerate(joints):
-            why = cls.unsupported(ja)
-            if why:
-                return Limits(False, f"{cls.name}: joint {k} ({ja.describe()}) cannot be built: "
-                                     f"{why}")
+    def limits(cls, system: Model | Case | Chain) -> Limits:
+        """Can this engine take the model (a Case or Chain: its Model)? Decided before anything
+        is built: its size against the measured limits in ``references/limits.toml``, then its
+        joints and bodies (:meth:`unsupported`). Raises TypeError for a ``system`` that is not a
+        Model, Case or Chain."""
+        model = as_model(system)
         entry = load_limits()["engine"][cls.name]
-        n, nl = chain.n_dof, chain.n_links
+        n = model.n_v
+        links = tree_depth(model) if cls.depth_limited else model.n_bodies
         max_dof, max_links = int(entry["max_dof"]), int(entry.get("max_links", 10**9))
-        if n > max_dof or nl > max_links:
-            what = f"{n:,} DOF" if n > max_dof else f"{nl:,} links"
+        if n > max_dof or links > max_links:
+            what = (f"{n:,} DOF" if n > max_dof else
+                    f"a body tree {links:,} deep" if cls.depth_limited else f"{links:,} bodies")
             return Limits(False, f"{cls.name}: {what} exceeds its limit on this machine "
                                  f"(max {max_dof:,} DOF, {max_links:,} links): {entry['stops']}")
+        try:
+            joints = joint_axes(model)
+        except ValueError as exc:
+            return Limits(False, f"{cls.name}: {exc}")
+        why = cls.unsupported(model, joints)
+        if why:
+            return Limits(False, f"{cls.name}: {why}")
         return Limits(True, "")
 
     @classmethod
-    def unsupported(cls, joint: JointAxes) -> str:
-        """Why this engine cannot build ``joint`` ("" when it can). Every adapter here builds
-        any sequence of R and P axes unless it overrides this."""
+    def unsupported(cls, model: Model, joints: list[JointAxes]) -> str:
+        """Why this engine cannot build the model ("" when it can), naming the body and joint.
+        Every adapter builds any sequence of R and P axes and a free joint unless it overrides
+        this."""
         return ""
 
+    # ----------------------------------------------------------------------- the door
+    def _vec(self, name: str, x, size: str, optional: bool = False) -> np.ndarray | None:
+        """x as a float vector of the model's length ``size`` ("n_q" or "n_v"); raises
+        ValueError naming it."""
+        if x is None:
+            if optional:
+                return None
+            raise ValueError(f"{name} is required")
+        a = np.asarray(x, dtype=float)
+        n = getattr(self.model, size)
+        if a.shape != (n,):
+            raise ValueError(f"{name} has shape {a.shape}; the model has {size} = {n}")
+        return a
+
+    def _to_engine(self, x, blocks) -> np.ndarray:
+        """A velocity or force in the core's coordinates as the engine's (B^T per free joint,
+        then scattered to the engine's order)."""
+        if self.identity:
+            return x
+        g = np.array(x, dtype=float)
+        for b in blocks:
+            g[b.vs:b.vs + 6] = b.B.T @ g[b.vs:b.vs + 6]
+        y = np.zeros(self.model.n_v)
+        y[self.eidx] = g
+        return y
+
+    def _from_engine(self, y, blocks) -> np.ndarray:
+        """An engine-ordered velocity-like vector in the core's coordinates (B per free
+        joint), a new array (never a view of the engine's memory). Raises ValueError when the
+        engine's vector is not one value per velocity coordinate."""
+        if self.identity:
+            return np.array(y, dtype=float)
+        n = self.model.n_v
+        g = np.asarray(y, dtype=float)
+        if g.shape != (n,):
+            raise ValueError(f"{self.name}: the engine answered a vector of shape {g.shape}; "
+                             f"the model has n_v = {n}")
+        g = g[self.eidx]
+        for b in blocks:
+            g[b.vs:b.vs + 6] = b.B @ g[b.vs:b.vs + 6]
+        return g
+
+    def _gim_from_engine(self, M, blocks) -> np.ndarray:
+        """An engine-ordered mass matrix in the core's coordinates (B I B^T per free joint), a
+        new array."""
+        if self.identity:
+            return np.array(M, dtype=float)
+        n = self.model.n_v
+        M = np.asarray(M, dtype=float)
+        if M.shape != (n, n):
+            raise ValueError(f"{self.name}: the engine answered a mass matrix of shape "
+                             f"{M.shape}; the model has n_v = {n}")
+        M = M[np.ix_(self.eidx, self.eidx)]
+        if blocks:
+            T = np.eye(n)
+            for b in blocks:
+                T[b.vs:b.vs + 6, b.vs:b.vs + 6] = b.B
+            M = T @ M @ T.T
+        return M
+
+    def _c(self, blocks) -> np.ndarray:
+        c = np.zeros(self.model.n_v)
+        for b in blocks:
+            c[b.vs:b.vs + 6] = b.c
+        return c
+
+    def _scatter(self, q) -> np.ndarray:
+        """An engine position vector (n_v,) holding the coordinates of every joint that is not
+        free at its engine slot (a free joint's slots left zero, for the engine to fill)."""
+        qe = np.zeros(self.model.n_v)
+        qe[self.eidx[self._vslots]] = q[self._qslots]
+        return qe
+
+    def _gather(self, qe) -> np.ndarray:
+        """The core's q (n_q,) with the coordinates of every joint that is not free taken from
+        the engine position vector ``qe`` (a free joint's slots left zero)."""
+        q = np.zeros(self.model.n_q)
+        q[self._qslots] = np.asarray(qe, dtype=float)[self.eidx[self._vslots]]
+        return q
+
+    def _state(self, q, v):
+        """(state, blocks) at (q, v): q itself and no blocks when the engine's coordinates are
+        the core's (``identity``), else the engine's ``_engine_state``."""
+        return (q, []) if self.identity else self._engine_state(q, v)
+
     # ----------------------------------------------------------------------- public API
-    def qdd(self, q, qd, tau=None) -> np.ndarray:
-        c = self.chain
-        return self._qdd(check_vec(c, "q", q), check_vec(c, "qd", qd),
-                         check_vec(c, "tau", tau, optional=True))
+    def qdd(self, q, v, tau=None) -> np.ndarray:
+        """vdot (n_v,) from I(q) vdot = phi(q, v, tau); tau None: no joint force."""
+        q, v = self._vec("q", q, "n_q"), self._vec("v", v, "n_v")
+        tau = self._vec("tau", tau, "n_v", optional=True)
+        state, blocks = self._state(q, v)
+        tau_e = None if tau is None else self._to_engine(tau, blocks)
+        out = self._from_engine(self._qdd(state, self._to_engine(v, blocks), tau_e), blocks)
+        return out + self._c(blocks) if blocks else out
 
     def mass_matrix(self, q) -> np.ndarray:
-        return self._mass_matrix(check_vec(self.chain, "q", q))
+        """The GIM I(q), (n_v, n_v), symmetric."""
+        q = self._vec("q", q, "n_q")
+        state, blocks = self._state(q, np.zeros(self.model.n_v))
+        return self._gim_from_engine(self._mass_matrix(state), blocks)
 
-    def bias(self, q, qd) -> np.ndarray:
-        return self._bias(check_vec(self.chain, "q", q), check_vec(self.chain, "qd", qd))
+    def bias(self, q, v) -> np.ndarray:
+        """phi (n_v,) with tau = 0, as ``redysim.phi``."""
+        q, v = self._vec("q", q, "n_q"), self._vec("v", v, "n_v")
+        state, blocks = self._state(q, v)
+        phi = self._from_engine(self._bias(state, self._to_engine(v, blocks)), blocks)
+        if blocks:
+            phi = phi + self._gim_from_engine(self._mass_matrix(state), blocks) @ self._c(blocks)
+        return phi
 
-    def energy(self, q, qd) -> tuple[float, float]:
-        T, V = self._energy(check_vec(self.chain, "q", q), check_vec(self.chain, "qd", qd))
+    def energy(self, q, v) -> tuple[float, float]:
+        """(T, V) [J]."""
+        q, v = self._vec("q", q, "n_q"), self._vec("v", v, "n_v")
+        state, blocks = self._state(q, v)
+        T, V = self._energy(state, self._to_engine(v, blocks))
         return float(T), float(V)
 
-    def tip(self, q, qd) -> np.ndarray:
-        return self._tip(check_vec(self.chain, "q", q), check_vec(self.chain, "qd", qd))
+    def position(self, q, frame: str = "tip") -> np.ndarray:
+        """World position (3,) [m] of the model's frame ``frame`` (``model.frames``: a body and
+        a point in its frame) at q. Raises ValueError for a frame the model does not have."""
+        m = self.model
+        if frame not in m.frames:
+            raise ValueError(f"{self.name}: the model {m.name!r} has no frame {frame!r}; its "
+                             f"frames: {', '.join(map(repr, m.frames)) or 'none'}")
+        body, point = m.frames[frame]
+        q = self._vec("q", q, "n_q")
+        state, _ = self._state(q, np.zeros(m.n_v))
+        return np.array(self._position(state, int(body), np.array(point, dtype=float)),
+                        dtype=float)
 
-    def simulate(self, q0, qd0, t_end: float, h: float, *, every: int = 1) -> Trajectory:
-        """Integrate from (q0, qd0) to t_end with the engine's own fixed-step integrator, step h;
-        keep every ``every``-th step (and the first)."""
-        c = self.chain
-        q0, qd0 = check_vec(c, "q0", q0), check_vec(c, "qd0", qd0)
-        if not (h > 0 and t_end >= 0):
-            raise ValueError(f"need h > 0 and t_end >= 0, got h={h}, t_end={t_end}")
-        steps = int(round(t_end / h))
-        ts, qs, qds = [0.0], [q0.copy()], [qd0.copy()]
-        self._sim_reset(q0, qd0, h)
+    def tip(self, q) -> np.ndarray:
+        """World position (3,) of the frame "tip" (a chain's distal end: ``Model.from_chain``)."""
+        return self.position(q, "tip")
+
+    def simulate(self, q0, v0, t_end: float, h: float, *, every: int = 1) -> Trajectory:
+        """The passive motion (no joint force) from (q0, v0) to t_end with the engine's own
+        fixed-step integrator (``integrator``), step h; every ``every``-th step is kept (and the
+        start and the last). Raises ValueError for h <= 0, t_end < 0 (or either not finite) or
+        every < 1."""
+        q0, v0 = self._vec("q0", q0, "n_q"), self._vec("v0", v0, "n_v")
+        steps = self._steps(t_end, h, every)
+        ts, qs, vs = [0.0], [q0.copy()], [v0.copy()]
+        self._sim_reset(q0, v0, h)
         for i in range(1, steps + 1):
             self._sim_step()
             if i % every == 0 or i == steps:
-                q, qd = self._sim_state()
+                q, v = self._sim_state()
                 ts.append(i * h)
                 qs.append(q)
-                qds.append(qd)
-        return Trajectory(np.array(ts), np.array(qs), np.array(qds), self.integrator)
+                vs.append(v)
+        return Trajectory(np.array(ts), np.array(qs), np.array(vs), self.integrator)
+
+    @staticmethod
+    def _steps(t_end, h, every) -> int:
+        if not (math.isfinite(h) and math.isfinite(t_end) and h > 0 and t_end >= 0):
+            raise ValueError(f"need finite h > 0 and t_end >= 0, got h={h}, t_end={t_end}")
+        if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
+            raise ValueError(f"every must be a whole number >= 1, got {every!r}")
+        return int(round(t_end / h))
+
+    def sim_reset(self, q0, v0, h: float) -> None:
+        """Set the native stepper's state (q0, v0) and step h (before :meth:`step_once`)."""
+        self._steps(0.0, h, 1)
+        self._sim_reset(self._vec("q0", q0, "n_q"), self._vec("v0", v0, "n_v"), h)
 
     def step_once(self) -> None:
-        """One native step from the state set by :meth:`sim_reset` (for benchmarks)."""
+        """One native step from the stepper's state (set by :meth:`sim_reset`)."""
         self._sim_step()
 
-    def sim_reset(self, q0, qd0, h: float) -> None:
-        """Set the native stepper's state and step (before :meth:`step_once`)."""
-        self._sim_reset(check_vec(self.chain, "q0", q0), check_vec(self.chain, "qd0", qd0), h)
-
     def sim_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """(q, qd) of the native stepper now."""
+        """(q, v) of the native stepper now, in the core's coordinates (new arrays)."""
         return self._sim_state()
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.chain.name!r}, {self.chain.n_dof} DOF)"
+        m = self.model
+        return f"{type(self).__name__}({m.name!r}, {m.n_bodies} bodies, n_v = {m.n_v})"
 
     # ----------------------------------------------------------------------- hooks
     def _build(self) -> None:
         raise NotImplementedError
 
-    def _qdd(self, q, qd, tau):
+    def _engine_state(self, q, v):
+        return q, []
+
+    def _qdd(self, state, y, tau_e):
         raise NotImplementedError
 
-    def _mass_matrix(self, q):
+    def _mass_matrix(self, state):
         raise NotImplementedError
 
-    def _bias(self, q, qd):
+    def _bias(self, state, y):
         raise NotImplementedError
 
-    def _energy(self, q, qd):
+    def _energy(self, state, y):
         raise NotImplementedError
 
-    def _tip(self, q, qd):
+    def _position(self, state, body: int, point: np.ndarray):
         raise NotImplementedError
 
-    def _sim_reset(self, q0, qd0, h):
+    def _sim_reset(self, q0, v0, h):
         raise NotImplementedError
 
     def _sim_step(self):

@@ -1,9 +1,10 @@
-"""DART adapter (dartpy): a Skeleton of one Joint + BodyNode pair per link, no massless bodies.
+"""DART adapter (dartpy): a Skeleton of one Joint + BodyNode pair per body, no massless bodies.
 
 What the model contains and why (docs/design.md, "Reference engines"):
 
-- per link one ``create...JointAndBodyNodePair`` whose joint is the link's whole joint, chosen by
-  its elementary axes (``references.base.joint_axes``):
+- per body one ``create...JointAndBodyNodePair`` whose joint is the body's whole joint, chosen
+  by its elementary axes (``references.base.joint_axes``), its parent BodyNode the parent
+  body's (None for a root: a Skeleton holds several trees):
 
   * one R axis: ``RevoluteJoint``, ``mAxis = u``; one P axis: ``PrismaticJoint``, ``mAxis = u``
     (any unit u, -z included: DART rotates about, or slides along, exactly the given vector);
@@ -15,19 +16,21 @@ What the model contains and why (docs/design.md, "Reference engines"):
     the first one is built. With P = [u1 u2 u3] (a rotation), P Rx P^T = Rot(u1, .), ..., so
     ``mT_ParentBodyToJoint`` rotated by P and ``mT_ChildBodyToJoint`` rotated by P give the
     child frame the rotation P Rx(q1) Ry(q2) Rz(q3) P^T = Rot(u1, q1) Rot(u2, q2) Rot(u3, q3),
-    the core's S joint, with the link frame (the BodyNode's) unrotated.
+    the core's S joint, with the body frame (the BodyNode's) unrotated;
+  * a free joint: ``FreeJoint`` at the identity (its coordinates converted, below);
   * anything else is refused by ``limits()`` (no joint type in DART composes it). Building it
     from several joints needs massless intermediate BodyNodes, which DART warns against ("A
     negative or zero mass [0] is set to BodyNode [...], which can cause invalid physical behavior
     or segfault"; its ``Inertia`` also warns that zero moments are invalid), so this adapter does
     not. No joint of ``redysim.chain.JOINT_TYPES`` needs that.
 
-  ``mT_ParentBodyToJoint`` translates l_{k-1} along the parent's x (identity for the first joint,
-  whose parent is the world); ``mT_ChildBodyToJoint`` is the identity (the link frame is at the
-  joint) but for the EulerJoint's rotation P. A PrismaticJoint moves the BodyNode (the link
-  frame) by u q, so the next joint starts l_k further along the moved frame's x, as in the core.
-- ``BodyNode.setInertia(Inertia(m, c, I_C))`` (inertia about the COM in the link frame);
-- ``skel.setGravity(chain.gravity)``.
+  ``mT_ParentBodyToJoint`` is the placement (R, p) (times P for an EulerJoint; for a chain's
+  link k a translation of l_{k-1} along the parent's x, the identity for the first);
+  ``mT_ChildBodyToJoint`` is the identity (the body frame is at the joint) but for the
+  EulerJoint's rotation P. A PrismaticJoint moves the BodyNode (the body frame) by u q, so the
+  next joint starts at its placement in the moved frame, as in the core.
+- ``BodyNode.setInertia(Inertia(m, c, I_C))`` (inertia about the COM in the body frame);
+- ``skel.setGravity(model.gravity)``.
 - No ShapeNodes (so no collision or visual geometry), self-collision check off (DART's default),
   joint damping, spring stiffness, friction and position-limit enforcement left at their
   zero/off defaults and asserted off after the build.
@@ -35,20 +38,25 @@ What the model contains and why (docs/design.md, "Reference engines"):
 ``qdd``: ``setPositions/setVelocities/setForces(tau)`` then ``computeForwardDynamics()``
 (articulated-body algorithm) and ``getAccelerations()``; ``mass_matrix``: ``getMassMatrix()``;
 ``bias``: ``-getCoriolisAndGravityForces()``; ``energy``: ``computeKineticEnergy()`` and
-``computePotentialEnergy()``; ``tip``: the last BodyNode's world transform applied to (l, 0, 0).
+``computePotentialEnergy()``; ``position``: the body's BodyNode world transform applied to the
+point. DART numbers DOF tree by tree; the adapter maps them by ``getIndexInSkeleton``.
+
+Free joint, converted both ways (``references.base``): dartpy 6.20's FreeJoint has positions
+(rotation vector, translation) and velocities (w_world, v_world), the angular velocity in the
+WORLD frame first (its relative Jacobian is diag(R^T, R^T), measured). Positions come from
+``FreeJoint.convertToPositions(Isometry3(R, p))`` (and go back by ``convertToTransform``); the two
+halves of the velocity are swapped by the index map, so that y = (v_world, w_world) in the
+core's slots, and then B = diag(1, R^T) and c = 0, as d/dt (R^T w_world) = R^T dw_world/dt
+(w x w = 0).
 
 ``simulate``: a ``dartpy.simulation.World`` holding only this skeleton, ``World.step()`` at the
 fixed time step h (DART's semi-implicit Euler). With no shapes the collision detector finds
 nothing and the constraint solver has no constraint to solve.
 
 Limit: building the skeleton costs ~n^3 in time (54 s at 2,000 DOF; docs/design.md, "Reference
-engines"), so time, not memory, stops it (references/limits.toml).
-
-Trees (``references.trees``): ``DARTTree`` builds a :class:`redysim.Model` with the same
-joints, each at ``mT_ParentBodyToJoint`` = its placement, roots on the world (a Skeleton holds
-several trees), a free joint as ``FreeJoint``, whose coordinates differ from the core's
-(rotation vector and translation; velocity (w_world, v_world)): converted both ways (class
-docstring). It refuses a massless body (no massless BodyNodes, as above).
+engines"), so time, not memory, stops it (references/limits.toml). ``limits`` refuses a
+massless body (no massless BodyNodes, above) and a joint no DART joint composes (none of the
+core's joint types).
 """
 
 from __future__ import annotations
@@ -57,8 +65,7 @@ import numpy as np
 
 from redysim.model import FREE
 
-from .base import Engine
-from .trees import FreeBlock, TreeEngine, free_rotation
+from .base import Engine, FreeBlock, free_rotation, rotation_quaternion
 
 
 def _construction(axes) -> str | None:
@@ -103,7 +110,12 @@ def _check_euler_order(dart) -> None:
 
 
 class DART(Engine):
-    """DART ``computeForwardDynamics`` (ABA) on a skeleton of one joint per link (module doc)."""
+    """DART ``computeForwardDynamics`` (ABA) on a Skeleton of one Joint + BodyNode pair per body
+    (module docstring). ``skel``: the Skeleton; ``bodynodes[k]``: body k's BodyNode.
+
+    Refused by ``limits``: a massless body (DART warns that a zero mass "can cause invalid
+    physical behavior or segfault"), and joints no DART joint composes (none of the core's).
+    """
 
     name = "dart"
     package = "dartpy"
@@ -111,144 +123,16 @@ class DART(Engine):
     integrator = "World.step, semi-implicit Euler, fixed step"
 
     @classmethod
-    def unsupported(cls, joint):
-        if _construction(joint.axes) is None:
-            return ("DART has one joint type per BodyNode and none that composes these axes; "
-                    "splitting the joint needs massless BodyNodes, which DART warns 'can cause "
-                    "invalid physical behavior or segfault'")
-        return ""
-
-    def _build(self):
-        dart = self.lib
-        dyn = dart.dynamics
-        c = self.chain
-        skel = dyn.Skeleton(c.name)
-        parent = None
-        bodies = []
-        makers = {"revolute": (dyn.RevoluteJointProperties,
-                               skel.createRevoluteJointAndBodyNodePair),
-                  "prismatic": (dyn.PrismaticJointProperties,
-                                skel.createPrismaticJointAndBodyNodePair),
-                  "universal": (dyn.UniversalJointProperties,
-                                skel.createUniversalJointAndBodyNodePair),
-                  "euler": (dyn.EulerJointProperties, skel.createEulerJointAndBodyNodePair)}
-        for k, joint in enumerate(self.joints):
-            how = _construction(joint.axes)
-            props_cls, make = makers[how]
-            props = props_cls()
-            T = dart.math.Isometry3()
-            T.set_identity()
-            if k > 0:
-                T.set_translation(np.array([c.length[k - 1], 0.0, 0.0]))
-            if how == "euler":
-                _check_euler_order(dart)
-                P = np.array([a.u for a in joint.axes]).T  # columns u1, u2, u3: a rotation
-                T.set_rotation(P)
-                C = dart.math.Isometry3()
-                C.set_identity()
-                C.set_rotation(P)
-                props.mT_ChildBodyToJoint = C
-            elif how == "universal":
-                props.mAxis = [joint.axes[0].vector, joint.axes[1].vector]
-            else:
-                props.mAxis = joint.axes[0].vector
-            props.mT_ParentBodyToJoint = T
-            props.mName = f"j{k}"
-            _, body = make(parent, props)
-            body.setInertia(dyn.Inertia(float(c.mass[k]), np.array(c.com[k]),
-                                        np.array(c.inertia_com[k])))
-            bodies.append(body)
-            parent = body
-        skel.setGravity(np.asarray(c.gravity, dtype=float))
-        for j in skel.getJoints():
-            assert not j.areLimitsEnforced()
-            for i in range(j.getNumDofs()):
-                assert j.getDampingCoefficient(i) == 0 and j.getSpringStiffness(i) == 0
-                assert j.getCoulombFriction(i) == 0
-        assert not skel.getSelfCollisionCheck()
-        self.skel, self.tip_body = skel, bodies[-1]
-        self.world = None
-        if skel.getNumDofs() != c.n_dof:
-            raise AssertionError(f"skeleton has {skel.getNumDofs()} DOF, chain {c.n_dof}")
-
-    def _set(self, q, qd, tau=None):
-        s = self.skel
-        s.setPositions(q)
-        s.setVelocities(qd)
-        s.setForces(np.zeros_like(q) if tau is None else tau)
-
-    def _qdd(self, q, qd, tau):
-        self._set(q, qd, tau)
-        self.skel.computeForwardDynamics()
-        return np.array(self.skel.getAccelerations())
-
-    def _mass_matrix(self, q):
-        self._set(q, np.zeros_like(q))
-        return np.array(self.skel.getMassMatrix())
-
-    def _bias(self, q, qd):
-        self._set(q, qd)
-        return -np.array(self.skel.getCoriolisAndGravityForces())
-
-    def _energy(self, q, qd):
-        self._set(q, qd)
-        return self.skel.computeKineticEnergy(), self.skel.computePotentialEnergy()
-
-    def _tip(self, q, qd):
-        self._set(q, qd)
-        M = np.array(self.tip_body.getWorldTransform().matrix())
-        return M[:3, :3] @ np.array([self.chain.length[-1], 0.0, 0.0]) + M[:3, 3]
-
-    def _sim_reset(self, q0, qd0, h):
-        if self.world is None:
-            self.world = self.lib.simulation.World()
-            self.world.setGravity(np.asarray(self.chain.gravity, dtype=float))
-            self.world.addSkeleton(self.skel)
-        self.world.setTimeStep(h)
-        self.world.setTime(0.0)
-        self._set(q0, qd0)
-
-    def _sim_step(self):
-        self.world.step()
-
-    def _sim_state(self):
-        return np.array(self.skel.getPositions()), np.array(self.skel.getVelocities())
-
-
-# --------------------------------------------------------------------------- trees
-class DARTTree(TreeEngine):
-    """DART on a :class:`redysim.Model` (``references.trees``).
-
-    One Joint + BodyNode pair per Model body, built as for chains (``_construction``), the
-    parent BodyNode the parent body's (None for a root: a Skeleton holds several trees),
-    ``mT_ParentBodyToJoint`` the placement (R, p) (times P for an EulerJoint); a free joint is a
-    ``FreeJoint`` at the identity. DART numbers DOF tree by tree; the adapter maps them by
-    ``getIndexInSkeleton``.
-
-    Free joint, converted both ways: dartpy 6.20's FreeJoint has positions (rotation vector,
-    translation) and velocities (w_world, v_world), the angular velocity in the WORLD frame first
-    (its relative Jacobian is diag(R^T, R^T), measured). Positions come from
-    ``FreeJoint.convertToPositions(Isometry3(R, p))``; the two halves of the velocity are
-    swapped by the index map, so that y = (v_world, w_world) in the core's slots, and then
-    B = diag(1, R^T) and c = 0, as d/dt (R^T w_world) = R^T dw_world/dt (w x w = 0).
-
-    Refused by ``limits``: a massless body (DART warns that a zero mass "can cause invalid
-    physical behavior or segfault"), and joints no DART joint composes (none of the Model's).
-    """
-
-    name = "dart"
-    package = "dartpy"
-    module = "dartpy"
-
-    @classmethod
     def unsupported(cls, model, joints):
         for k, joint in enumerate(joints):
             if joint.type != FREE and _construction(joint.axes) is None:
-                return (f"body {k} ({model.body_names[k]}), joint {joint.describe()}: DART has "
-                        f"one joint type per BodyNode and none that composes these axes")
+                return (f"{joint.where()} cannot be built: DART has one joint type per BodyNode "
+                        "and none that composes these axes; splitting the joint needs massless "
+                        "BodyNodes, which DART warns 'can cause invalid physical behavior or "
+                        "segfault'")
             if not model.mass[k] > 0.0:
-                return (f"body {k} ({model.body_names[k]}) is massless: DART warns that a zero "
-                        f"mass 'can cause invalid physical behavior or segfault'")
+                return (f"body {joint.body!r} is massless: DART warns that a zero mass 'can "
+                        "cause invalid physical behavior or segfault'")
         return ""
 
     def _build(self):
@@ -275,7 +159,7 @@ class DARTTree(TreeEngine):
             T.set_rotation(joint.R)
             if how == "euler":
                 _check_euler_order(dart)
-                P = np.array([a.u for a in joint.axes]).T
+                P = np.array([a.u for a in joint.axes]).T  # columns u1, u2, u3: a rotation
                 T.set_rotation(joint.R @ P)
                 C = dart.math.Isometry3()
                 C.set_identity()
@@ -302,26 +186,22 @@ class DARTTree(TreeEngine):
         if skel.getNumDofs() != m.n_v:
             raise AssertionError(f"skeleton has {skel.getNumDofs()} DOF, the tree {m.n_v}")
         # the core's slots -> DART's (a free joint's DART DOF are w_world, v_world: swapped)
-        self.free = []
+        self.free_dofs = []  # per free joint: (qs, vs, its DART DOF indices)
         for k, (joint, dj) in enumerate(zip(self.joints, djoints, strict=True)):
             vs = int(m.joint_voff[k])
             idx = [dj.getIndexInSkeleton(i) for i in range(dj.getNumDofs())]
             if joint.type == FREE:
                 self.eidx[vs:vs + 6] = idx[3:] + idx[:3]
-                self.free.append((int(m.joint_qoff[k]), vs, idx))
+                self.free_dofs.append((int(m.joint_qoff[k]), vs, idx))
             else:
                 self.eidx[vs:vs + len(idx)] = idx
-        self.skel = skel
+        self.skel, self.bodynodes = skel, bodies
+        self.world = None  # simulate's, made on first use
 
     def _engine_state(self, q, v):
-        m = self.model
-        qe = np.zeros(m.n_v)
+        qe = self._scatter(q)
         blocks = []
-        for k, joint in enumerate(self.joints):
-            if joint.type != FREE:
-                qe[self.eidx[m.joint_voff[k]:m.joint_voff[k + 1]]] = \
-                    q[m.joint_qoff[k]:m.joint_qoff[k + 1]]
-        for qs, vs, idx in self.free:
+        for qs, vs, idx in self.free_dofs:
             R = free_rotation(q, qs)
             T = self.lib.math.Isometry3()
             T.set_identity()
@@ -337,21 +217,53 @@ class DARTTree(TreeEngine):
         s = self.skel
         s.setPositions(qe)
         s.setVelocities(y)
-        s.setForces(np.zeros(self.n_e) if tau_e is None else tau_e)
+        s.setForces(np.zeros(self.model.n_v) if tau_e is None else tau_e)
 
-    def _raw_qdd(self, qe, y, tau_e):
+    def _qdd(self, qe, y, tau_e):
         self._set(qe, y, tau_e)
         self.skel.computeForwardDynamics()
         return np.array(self.skel.getAccelerations())
 
-    def _raw_mass_matrix(self, qe):
-        self._set(qe, np.zeros(self.n_e))
+    def _mass_matrix(self, qe):
+        self._set(qe, np.zeros(self.model.n_v))
         return np.array(self.skel.getMassMatrix())
 
-    def _raw_bias(self, qe, y):
+    def _bias(self, qe, y):
         self._set(qe, y)
         return -np.array(self.skel.getCoriolisAndGravityForces())
 
-    def _raw_energy(self, qe, y):
+    def _energy(self, qe, y):
         self._set(qe, y)
         return self.skel.computeKineticEnergy(), self.skel.computePotentialEnergy()
+
+    def _position(self, qe, body, point):
+        self._set(qe, np.zeros(self.model.n_v))
+        M = np.array(self.bodynodes[body].getWorldTransform().matrix())
+        return M[:3, :3] @ point + M[:3, 3]
+
+    # ------------------------------------------------------------------ native stepping
+    def _sim_reset(self, q0, v0, h):
+        if self.world is None:
+            self.world = self.lib.simulation.World()
+            self.world.setGravity(np.asarray(self.model.gravity, dtype=float))
+            self.world.addSkeleton(self.skel)
+        self.world.setTimeStep(h)
+        self.world.setTime(0.0)
+        qe, blocks = self._state(q0, v0)
+        self._set(qe, self._to_engine(v0, blocks))
+
+    def _sim_step(self):
+        self.world.step()
+
+    def _sim_state(self):
+        qe = np.array(self.skel.getPositions())
+        y = np.array(self.skel.getVelocities())
+        if self.identity:
+            return qe, y
+        q = self._gather(qe)
+        for qs, _, idx in self.free_dofs:
+            T = np.array(self.lib.dynamics.FreeJoint.convertToTransform(qe[idx]).matrix())
+            q[qs:qs + 3] = T[:3, 3]
+            q[qs + 3:qs + 7] = rotation_quaternion(T[:3, :3])
+        _, blocks = self._state(q, np.zeros(self.model.n_v))
+        return q, self._from_engine(y, blocks)

@@ -3,12 +3,15 @@
 What the model contains and why (docs/design.md, "Reference engines"):
 
 - ``ObjectKinematicTree`` has only 1-DOF joints, each ``RevoluteX/Y/Z`` or ``PrismaticX/Y/Z``
-  of its own joint frame, so every elementary axis of a joint (``references.base.joint_axes``) is
-  one tree link, in order: the axes before the last are massless links (zero mass and inertia)
-  at zero offset from the previous one, the last carries the link's mass, COM and inertia about
-  the COM. A U joint is thus a massless ``RevoluteY`` link at the joint's offset, then a
-  ``RevoluteZ`` link with the mass; an R joint about z one ``RevoluteZ`` link. ``linkParents``
-  is the chain (-1 = ground); ``gravity = chain.gravity`` (the tree's own gravity parameter).
+  of its own joint frame, so every elementary axis of a body's joint
+  (``references.base.joint_axes``) is one tree link, in order: the axes before the last are
+  massless links (zero mass and inertia) at zero offset from the previous one, the last carries
+  the body's mass, COM and inertia about the COM. A U joint is thus a massless ``RevoluteY``
+  link at the joint's placement, then a ``RevoluteZ`` link with the mass; an R joint about z one
+  ``RevoluteZ`` link. Each body's first link hangs from its parent body's last link
+  (``linkParents``, -1 = ground; the Model's order puts parents first, as Exudyn requires), its
+  ``jointHTs`` entry the placement (R, p) in that link's frame (a chain's link k: l_{k-1} along
+  the parent's x); ``gravity = model.gravity`` (the tree's own gravity parameter).
 - An axis u that is not +x, +y or +z of its frame gets a rotated joint frame. The tree link's
   frame is then the core's frame after the axis times a constant rotation A (its columns the
   tree frame's axes in the core's frame), chosen with A e = u for the joint type's axis e:
@@ -18,10 +21,10 @@ What the model contains and why (docs/design.md, "Reference engines"):
   R_before A Rz(q) = R_after A, and a prismatic link moves its origin by R_before u q, as in the
   core. Everything given in the tree link's frame is the core's quantity turned by A^T: the
   link's COM A^T c and inertia A^T I_C A, the sensors' local points, and the next axis's
-  ``jointHTs`` entry (rotation A_prev^T A_next, translation A_prev^T (l_k, 0, 0) for the next
-  joint's first axis, zero for the next axis of the same joint), which maps the next joint frame
-  to the previous tree link's frame (position in parent = R p + o). For +x, +y, +z axes A is the
-  identity and nothing is turned (the R and U models are built exactly as before).
+  ``jointHTs`` entry (rotation A_prev^T R A_next, translation A_prev^T p for the next joint's
+  first axis at the placement (R, p), the identity rotation and zero for the next axis of the
+  same joint), which maps the next joint frame to the previous tree link's frame (position in
+  parent = R p + o). For +x, +y, +z axes A is the identity and nothing is turned.
 - No markers, loads, connectors, contacts or graphics; visualisation off (``show=False``); no
   joint P/D control, force vectors or user functions (all empty/zero by default).
 - Solver settings: ``linearSolver.solverType = EigenDense`` (the default EXUdense was ~17x slower
@@ -40,20 +43,19 @@ given state. ``tau`` enters through the tree's ``jointForceVector``.
 ``mass_matrix`` and ``bias`` are the solver's ``ComputeMassMatrix`` and ``ComputeODE2RHS`` (the
 ODE2 right-hand side, which is phi with tau = 0). ``energy``: T = qd^T M qd / 2 with Exudyn's M,
 V = -sum m g . r_C with the COM positions from ``SensorKinematicTree`` (Exudyn has no energy call
-for the tree). ``tip``: a ``SensorKinematicTree`` on the last link at (l, 0, 0) (turned by A^T).
-``simulate``: Exudyn's explicit ``RK44`` at the fixed step h.
+for the tree). ``position``: a ``SensorKinematicTree`` on the body's last link at the point
+(turned by A^T). ``simulate``: Exudyn's explicit ``RK44`` at the fixed step h, the state written
+back as the initial state after every step.
 
 Limit: the tree's mass matrix is dense (O(n^2) memory) and factorised every right-hand side
 (O(n^3) time): time stops it first (references/limits.toml).
 
-Trees (``references.trees``): ``ExudynTree`` builds a :class:`redysim.Model` as one tree link
-per axis as above, each body's first axis hanging from its parent body's last link, its
-``jointHTs`` entry the placement turned into that link's frame. A free joint, which the tree's
-1-DOF joints cannot be, is PrismaticX/Y/Z along the world axes then RevoluteX/Y/Z in a frame
-turned by the body's rotation at the state asked (rewritten at every call): a chart of the
-rotation centred at the state, where its rates are exactly the body-frame angular velocity, so
-it is never near an Euler-angle singularity; its one correction, dE/dt w, is added to the
-angular acceleration (class docstring).
+A free joint, which the tree's 1-DOF joints cannot be, is PrismaticX/Y/Z along the world axes
+then RevoluteX/Y/Z in a frame turned by the body's rotation at the state asked (rewritten at
+every call, and after every step of ``simulate``): a chart of the rotation centred at the state,
+where its rates are exactly the body-frame angular velocity, so it is never near an Euler-angle
+singularity; its one correction, dE/dt w, is added to the angular acceleration (class
+docstring).
 """
 
 from __future__ import annotations
@@ -66,9 +68,9 @@ import sys
 import numpy as np
 
 from redysim.model import FREE
+from redysim.rbda import rotation
 
-from .base import Axis, Engine
-from .trees import FreeBlock, TreeEngine, free_rotation
+from .base import Engine, FreeBlock, axis, free_rotation, rotation_quaternion
 
 # the start of Exudyn's advice, printed at every solve of more than 1,000 coordinates
 SPARSE_ADVICE = "The number of total coordinates (unknowns) is larger than 1000. Consider a sparse"
@@ -143,177 +145,16 @@ def _joint_kinds(exu) -> dict:
             "P": (J.PrismaticX, J.PrismaticY, J.PrismaticZ)}
 
 
-class Exudyn(Engine):
-    """Exudyn ObjectKinematicTree with its own explicit solver and EigenDense (module doc)."""
-
-    name = "exudyn"
-    package = "exudyn"
-    module = "exudyn"
-    integrator = "Exudyn explicit RK44, fixed step"
-
-    def _build(self):
-        exu = self.lib
-        from exudyn.itemInterface import NodeGenericODE2, ObjectKinematicTree, VObjectKinematicTree
-        c = self.chain
-        kinds = _joint_kinds(exu)
-        types, hts, inertias, coms, masses, tree_of_link = [], [], [], [], [], []
-        turn = None  # A of the tree link built last (None: the identity)
-        self.turn_of_link = []  # A of each chain link's tree link
-        for k, joint in enumerate(self.joints):
-            off = np.array([c.length[k - 1], 0.0, 0.0]) if k > 0 else np.zeros(3)
-            last = len(joint.axes) - 1
-            for i, axis in enumerate(joint.axes):
-                e, A = joint_frame(axis)
-                types.append(kinds[axis.kind][e])
-                if turn is None:
-                    hts.append(_ht(off, A))
-                else:
-                    hts.append(_ht(turn.T @ off, turn.T if A is None else turn.T @ A))
-                turn = A
-                off = np.zeros(3)
-                if i < last:
-                    inertias.append(np.zeros((3, 3)))
-                    coms.append([0.0, 0.0, 0.0])
-                    masses.append(0.0)
-            com, inertia = np.array(c.com[k]), np.array(c.inertia_com[k])
-            if turn is not None:
-                com, inertia = turn.T @ com, turn.T @ inertia @ turn
-                inertia = 0.5 * (inertia + inertia.T)
-            inertias.append(inertia)
-            coms.append([float(x) for x in com])
-            masses.append(float(c.mass[k]))
-            tree_of_link.append(len(types) - 1)
-            self.turn_of_link.append(turn)
-        n = len(types)
-        self.SC = exu.SystemContainer()
-        mbs = self.SC.AddSystem()
-        self.node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
-                                                initialCoordinates=[0.0] * n,
-                                                initialCoordinates_t=[0.0] * n,
-                                                numberOfODE2Coordinates=n))
-        self.tree = mbs.AddObject(ObjectKinematicTree(
-            nodeNumber=self.node, jointTypes=types, linkParents=list(range(-1, n - 1)),
-            jointHTs=hts, linkInertiasCOM=exu.Matrix3DList(inertias),
-            linkCOMs=exu.Vector3DList(coms), linkMasses=masses,
-            gravity=[float(g) for g in c.gravity], jointForceVector=[0.0] * n,
-            visualization=VObjectKinematicTree(show=False)))
-        self.tree_of_link = tree_of_link
-        self.mbs = mbs
-        self._tip_sensor = None
-        self._com_sensors = None
-        mbs.Assemble()
-        if n != c.n_dof:
-            raise AssertionError(f"tree has {n} coordinates, chain {c.n_dof}")
-        self._tau_set = False
-        # one-step settings for qdd
-        self.ss_qdd = self._settings(exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
-        self.solver = exu.MainSolverExplicit()
-        self._init_rhs = False
-
-    def _settings(self, solver_type, t_end, steps):
-        return _settings(self.lib, solver_type, t_end, steps)
-
-    def _set_state(self, q, qd, tau, which="Initial"):
-        cfg = getattr(self.lib.ConfigurationType, which)
-        sd = self.mbs.systemData
-        sd.SetODE2Coordinates(q, configuration=cfg)
-        sd.SetODE2Coordinates_t(qd, configuration=cfg)
-        if tau is not None or self._tau_set:
-            f = np.zeros(self.chain.n_dof) if tau is None else tau
-            self.mbs.SetObjectParameter(self.tree, "jointForceVector", list(map(float, f)))
-            self._tau_set = tau is not None
-
-    def _qdd(self, q, qd, tau):
-        self._set_state(q, qd, tau)
-        with _without_sparse_advice():
-            self.solver.SolveSystem(self.mbs, self.ss_qdd)
-        return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
-
-    def _current(self, q, qd):
-        if not self._init_rhs:
-            with _without_sparse_advice():
-                self.solver.InitializeSolver(self.mbs, self.ss_qdd)
-            self._init_rhs = True
-        self._set_state(q, qd, None, which="Current")
-
-    def _mass_matrix(self, q):
-        self._current(q, np.zeros_like(q))
-        self.solver.ComputeMassMatrix(self.mbs)
-        return np.array(self.solver.GetSystemMassMatrix())
-
-    def _bias(self, q, qd):
-        self._current(q, qd)
-        self.solver.ComputeODE2RHS(self.mbs)
-        return np.array(self.solver.GetSystemResidual())
-
-    def _sensor(self, link, point):
-        from exudyn.itemInterface import SensorKinematicTree
-        return self.mbs.AddSensor(SensorKinematicTree(
-            objectNumber=self.tree, linkNumber=link, localPosition=list(map(float, point)),
-            outputVariableType=self.lib.OutputVariableType.Position, writeToFile=False))
-
-    def _local(self, k, point) -> np.ndarray:
-        """A point given in chain link k's frame, in its tree link's frame."""
-        A = self.turn_of_link[k]
-        return np.asarray(point, dtype=float) if A is None else A.T @ np.asarray(point, float)
-
-    def _positions(self, sensors):
-        return np.array([self.mbs.GetSensorValues(s) for s in sensors])
-
-    def _energy(self, q, qd):
-        c = self.chain
-        if self._com_sensors is None:
-            self._com_sensors = [self._sensor(self.tree_of_link[k], self._local(k, c.com[k]))
-                                 for k in range(c.n_links)]
-            self.mbs.Assemble()
-            self._init_rhs = False
-        M = self._mass_matrix(q)
-        self._current(q, qd)
-        y = self._positions(self._com_sensors)
-        V = -float(np.sum(c.mass[:, None] * y * c.gravity[None, :]))
-        return 0.5 * qd @ M @ qd, V
-
-    def _tip(self, q, qd):
-        if self._tip_sensor is None:
-            self._tip_sensor = self._sensor(self.tree_of_link[-1],
-                                            self._local(-1, [self.chain.length[-1], 0.0, 0.0]))
-            self.mbs.Assemble()
-            self._init_rhs = False
-        self._current(q, qd)
-        return self._positions([self._tip_sensor])[0]
-
-    def _sim_reset(self, q0, qd0, h):
-        self.ss_step = self._settings(self.lib.DynamicSolverType.RK44, h, 1)
-        self._set_state(q0, qd0, None)
-
-    def _sim_step(self):
-        with _without_sparse_advice():
-            self.solver.SolveSystem(self.mbs, self.ss_step)
-        sd = self.mbs.systemData
-        self._set_state(np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t()),
-                        None)
-
-    def _sim_state(self):
-        sd = self.mbs.systemData
-        return np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
-
-
-# --------------------------------------------------------------------------- trees
 # a free joint as six 1-DOF tree links: P along the world's x, y, z, then R about x, y, z of a
-# frame turned by the body's rotation at the state (module docstring, "Trees")
-FREE_AXES = tuple(Axis(kind, tuple(float(i == j) for j in range(3)), i)
-                  for kind in "PR" for i in range(3))
+# frame turned by the body's rotation at the state (module docstring)
+FREE_AXES = tuple(axis(kind, np.eye(3)[i]) for kind in "PR" for i in range(3))
 
 
-class ExudynTree(TreeEngine):
-    """Exudyn's ObjectKinematicTree on a :class:`redysim.Model` (``references.trees``; module
-    docstring, "Trees").
-
-    One tree link per elementary axis as for chains, massless but the body's last, the turned
-    joint frames of :func:`joint_frame` for axes other than +x, +y, +z; ``linkParents`` the
-    parent body's last link (-1 for a root; the Model's order puts parents first, as Exudyn
-    requires); the first axis's ``jointHTs`` entry maps the joint frame (R A, p) to the parent's
-    last link's frame, turned by that link's A^T.
+class Exudyn(Engine):
+    """Exudyn's ObjectKinematicTree with its own explicit solver and EigenDense (module
+    docstring). ``mbs``, ``tree``, ``node``: Exudyn's system, the ObjectKinematicTree and its
+    node; ``link_of_body[k]``, ``turn_of_body[k]``: body k's last tree link and that link's
+    turn A (None: the identity); ``hts``: the tree's ``jointHTs``.
 
     Free joint: the tree has only 1-DOF joints (RevoluteX/Y/Z, PrismaticX/Y/Z), so a free body is
     six massless-but-the-last links: PrismaticX, Y, Z along the world axes (their coordinates are
@@ -324,12 +165,14 @@ class ExudynTree(TreeEngine):
     angular velocity (w_body = E(a, b, c) (a, b, c)' with E(0) = 1): no Euler-angle singularity is
     ever near. So B = 1 and c = (0, dE/dt (a, b, c)') = (0, 0, 0, w_y w_z, -w_x w_z, w_x w_y)
     (d/dt of E at the centre applied to w), which the adapter adds to the angular acceleration.
-    The applied force is the core's (E(0)^T = 1).
+    The applied force is the core's (E(0)^T = 1). ``simulate`` steps in that chart and centres
+    it again at the state reached after every step.
     """
 
     name = "exudyn"
     package = "exudyn"
     module = "exudyn"
+    integrator = "Exudyn explicit RK44, fixed step"
 
     def _build(self):
         exu = self.lib
@@ -338,14 +181,14 @@ class ExudynTree(TreeEngine):
         kinds = _joint_kinds(exu)
         types, parents, hts, inertias, coms, masses = [], [], [], [], [], []
         self.link_of_body, self.turn_of_body = [], []
-        self.free = []  # (qs, vs, index of the link whose joint frame is turned by R0)
+        self.free_links = []  # (qs, vs, index of the link whose joint frame is turned by R0)
         for k, joint in enumerate(self.joints):
             link = -1 if joint.parent < 0 else self.link_of_body[joint.parent]
             turn = None if joint.parent < 0 else self.turn_of_body[joint.parent]
             axes = FREE_AXES if joint.type == FREE else joint.axes
             last = len(axes) - 1
-            for i, axis in enumerate(axes):
-                e, A = joint_frame(axis)
+            for i, ax in enumerate(axes):
+                e, A = joint_frame(ax)
                 Rj = np.eye(3) if A is None else A
                 if i == 0:  # the joint's frame (R, p) in the parent body's last link's frame
                     Rj, pj = joint.R @ Rj, joint.p
@@ -354,8 +197,9 @@ class ExudynTree(TreeEngine):
                 if turn is not None:
                     Rj, pj = turn.T @ Rj, turn.T @ pj
                 if joint.type == FREE and i == 3:
-                    self.free.append((int(m.joint_qoff[k]), int(m.joint_voff[k]), len(types)))
-                types.append(kinds[axis.kind][e])
+                    self.free_links.append((int(m.joint_qoff[k]), int(m.joint_voff[k]),
+                                            len(types)))
+                types.append(kinds[ax.kind][e])
                 parents.append(link)
                 hts.append(_ht(pj, Rj))
                 link, turn = len(types) - 1, A
@@ -388,7 +232,7 @@ class ExudynTree(TreeEngine):
             linkMasses=masses, gravity=[float(g) for g in m.gravity],
             jointForceVector=[0.0] * n, visualization=VObjectKinematicTree(show=False)))
         self.mbs = mbs
-        self._com_sensors = None
+        self._sensors = {}  # (body, point) -> its position sensor
         mbs.Assemble()
         self._tau_set = False
         self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
@@ -398,21 +242,32 @@ class ExudynTree(TreeEngine):
     # the engine's coordinates: the Model's order, a free joint's (x, y, z, a, b, c) in its six
     # slots (eidx is the identity); the "state" is the coordinate vector, the chart set already
     def _engine_state(self, q, v):
-        m = self.model
-        qe = np.zeros(m.n_v)
+        qe = self._scatter(q)
         blocks = []
-        for k, joint in enumerate(self.joints):
-            if joint.type != FREE:
-                qe[m.joint_voff[k]:m.joint_voff[k + 1]] = q[m.joint_qoff[k]:m.joint_qoff[k + 1]]
-        if self.free:
-            for qs, vs, link in self.free:
-                qe[vs:vs + 3] = q[qs:qs + 3]  # the angles are 0: the chart's centre
-                self.hts[link] = _ht(np.zeros(3), free_rotation(q, qs))
-                w = v[vs + 3:vs + 6]
-                c = np.array([0.0, 0.0, 0.0, w[1] * w[2], -w[0] * w[2], w[0] * w[1]])
-                blocks.append(FreeBlock(vs, np.eye(6), c))
+        for qs, vs, link in self.free_links:
+            qe[vs:vs + 3] = q[qs:qs + 3]  # the angles are 0: the chart's centre
+            self.hts[link] = _ht(np.zeros(3), free_rotation(q, qs))
+            w = v[vs + 3:vs + 6]
+            c = np.array([0.0, 0.0, 0.0, w[1] * w[2], -w[0] * w[2], w[0] * w[1]])
+            blocks.append(FreeBlock(vs, np.eye(6), c))
+        if self.free_links:
             self.mbs.SetObjectParameter(self.tree, "jointHTs", self.hts)
         return qe, blocks
+
+    def _chart_to_core(self, qe, ye) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) in the core's coordinates of the tree's coordinates and rates (qe, ye), each
+        free joint's angles (a, b, c) in the chart its ``jointHTs`` entry holds now."""
+        q, v = self._gather(qe), np.array(ye, dtype=float)
+        ex, ey, ez = np.eye(3)
+        for qs, vs, link in self.free_links:
+            a, b, c = qe[vs + 3:vs + 6]
+            Ry, Rz = rotation(ey, b), rotation(ez, c)
+            q[qs:qs + 3] = qe[vs:vs + 3]
+            q[qs + 3:qs + 7] = rotation_quaternion(self.hts[link][:3, :3] @ rotation(ex, a)
+                                                   @ Ry @ Rz)
+            da, db, dc = ye[vs + 3:vs + 6]  # w_body = E(a, b, c) (a, b, c)'
+            v[vs + 3:vs + 6] = Rz.T @ (Ry.T @ (da * ex) + db * ey) + dc * ez
+        return q, v
 
     def _set_state(self, qe, y, tau_e, which="Initial"):
         cfg = getattr(self.lib.ConfigurationType, which)
@@ -420,7 +275,7 @@ class ExudynTree(TreeEngine):
         sd.SetODE2Coordinates(qe, configuration=cfg)
         sd.SetODE2Coordinates_t(y, configuration=cfg)
         if tau_e is not None or self._tau_set:
-            f = np.zeros(self.n_e) if tau_e is None else tau_e
+            f = np.zeros(self.model.n_v) if tau_e is None else tau_e
             self.mbs.SetObjectParameter(self.tree, "jointForceVector", list(map(float, f)))
             self._tau_set = tau_e is not None
 
@@ -431,39 +286,81 @@ class ExudynTree(TreeEngine):
             self._init_rhs = True
         self._set_state(qe, y, None, which="Current")
 
-    def _raw_qdd(self, qe, y, tau_e):
+    def _qdd(self, qe, y, tau_e):
         self._set_state(qe, y, tau_e)
         with _without_sparse_advice():
             self.solver.SolveSystem(self.mbs, self.ss_qdd)
         return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
 
-    def _raw_mass_matrix(self, qe):
-        self._current(qe, np.zeros(self.n_e))
+    def _mass_matrix(self, qe):
+        self._current(qe, np.zeros(self.model.n_v))
         self.solver.ComputeMassMatrix(self.mbs)
         return np.array(self.solver.GetSystemMassMatrix())
 
-    def _raw_bias(self, qe, y):
+    def _bias(self, qe, y):
         self._current(qe, y)
         self.solver.ComputeODE2RHS(self.mbs)
         return np.array(self.solver.GetSystemResidual())
 
-    def _raw_energy(self, qe, y):
+    def _sensors_at(self, points) -> list[int]:
+        """The SensorKinematicTree (world position) of each (body, point in the body's frame),
+        made on first use on the body's last link at the point turned by A^T (one Assemble for
+        all the new ones)."""
         from exudyn.itemInterface import SensorKinematicTree
-        m = self.model
-        if self._com_sensors is None:
-            self._com_sensors = []
-            for k in range(m.n_bodies):
-                A = self.turn_of_body[k]
-                point = np.array(m.com[k]) if A is None else A.T @ np.array(m.com[k])
-                self._com_sensors.append(self.mbs.AddSensor(SensorKinematicTree(
-                    objectNumber=self.tree, linkNumber=self.link_of_body[k],
-                    localPosition=list(map(float, point)),
-                    outputVariableType=self.lib.OutputVariableType.Position,
-                    writeToFile=False)))
+
+        new = False
+        for body, point in points:
+            key = (body, tuple(float(x) for x in point))
+            if key in self._sensors:
+                continue
+            A = self.turn_of_body[body]
+            local = np.asarray(point, dtype=float) if A is None else A.T @ np.asarray(point,
+                                                                                       float)
+            self._sensors[key] = self.mbs.AddSensor(SensorKinematicTree(
+                objectNumber=self.tree, linkNumber=self.link_of_body[body],
+                localPosition=list(map(float, local)),
+                outputVariableType=self.lib.OutputVariableType.Position, writeToFile=False))
+            new = True
+        if new:
             self.mbs.Assemble()
             self._init_rhs = False
-        M = self._raw_mass_matrix(qe)
+        return [self._sensors[(b, tuple(float(x) for x in p))] for b, p in points]
+
+    def _energy(self, qe, y):
+        m = self.model
+        sensors = self._sensors_at([(k, m.com[k]) for k in range(m.n_bodies)])
+        M = self._mass_matrix(qe)
         self._current(qe, y)
-        r = np.array([self.mbs.GetSensorValues(s) for s in self._com_sensors])
+        r = np.array([self.mbs.GetSensorValues(s) for s in sensors])
         V = -float(np.sum(m.mass[:, None] * r * m.gravity[None, :]))
         return 0.5 * y @ M @ y, V
+
+    def _position(self, qe, body, point):
+        sensor = self._sensors_at([(body, point)])[0]
+        self._current(qe, np.zeros(self.model.n_v))
+        return np.array(self.mbs.GetSensorValues(sensor))
+
+    # ------------------------------------------------------------------ native stepping
+    def _sim_reset(self, q0, v0, h):
+        self.ss_step = _settings(self.lib, self.lib.DynamicSolverType.RK44, h, 1)
+        qe, blocks = self._state(q0, v0)
+        self._set_state(qe, self._to_engine(v0, blocks), None)
+        self._sim_qv = (q0.copy(), v0.copy())
+
+    def _sim_step(self):
+        with _without_sparse_advice():
+            self.solver.SolveSystem(self.mbs, self.ss_step)
+        sd = self.mbs.systemData
+        qe, ye = np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
+        if self.identity:
+            self._set_state(qe, ye, None)
+            return
+        q, v = self._sim_qv = self._chart_to_core(qe, ye)
+        qe, blocks = self._state(q, v)  # the chart centred at the state reached
+        self._set_state(qe, self._to_engine(v, blocks), None)
+
+    def _sim_state(self):
+        if self.identity:
+            sd = self.mbs.systemData
+            return np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
+        return self._sim_qv[0].copy(), self._sim_qv[1].copy()

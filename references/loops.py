@@ -1,8 +1,9 @@
 """The reference engines on closed loops: a :class:`redysim.loops.ClosedLoops` in each engine.
 
-Each adapter builds the loops' tree (its :class:`redysim.Model`) exactly as the engine's tree
-adapter does (:mod:`.trees`), then adds every cut joint (:class:`redysim.loops.CutJoint`) as the
-engine's OWN loop-closure constraint, and answers in the core's names and coordinates:
+Each adapter builds the loops' tree (its :class:`redysim.Model`) with the engine's own adapter
+(:class:`.base.Engine`, the one class per engine: ``self.tree``), then adds every cut joint
+(:class:`redysim.loops.CutJoint`) as the engine's OWN loop-closure constraint, and answers in
+the core's names and coordinates:
 
 ==============================  ===============================================================
 ``forward_dynamics(q, v, tau)`` (qdd, lam), as :meth:`ClosedLoops.forward_dynamics`: the
@@ -58,7 +59,7 @@ What each engine builds (details and measurements in ``references/README.md``, "
   computing its consistent initial accelerations (``computeInitialAccelerations``: the index-1
   system with M, the constraint Jacobian and -d2g/dq2 qd^2) in ``InitializeSolver``, no step
   taken; the Lagrange multipliers (``GetAECoordinates``) are the core's lam. Exudyn's explicit
-  solvers (which the tree adapter uses) cannot close a loop: by default they abort ("contains
+  solvers (which the engine's adapter uses) cannot close a loop: by default they abort ("contains
   constraints that cannot be solved"), with ``explicit.eliminateConstraints = False`` they warn
   "WILL IGNORE CONSTRAINTS" and return the open tree's qdd (measured). Exudyn forms the velocity
   term d2g/dq2 qd^2 by
@@ -78,7 +79,7 @@ parallel (a planar mechanism turning about n, so the body's angular velocity is 
 the moment cannot enter the dynamics: I w = w_n I n and w x I w involve I only through I n,
 and I + delta e e^T has the same I n for e normal to n. There (and only there) the MuJoCo and
 DART adapters add delta = 1e-6 x the body's largest moment about e (:func:`inert_moments`);
-anywhere else the tree adapter's own refusal stands.
+anywhere else the engine adapter's own refusal stands.
 """
 
 from __future__ import annotations
@@ -92,13 +93,17 @@ from redysim.loops import ClosedLoops
 from redysim.model import Model
 
 from .base import (
+    Engine,
     EngineLimitExceeded,
     EnginePackage,
     Limits,
     Trajectory,
     import_engine,
-    tree_adapter,
 )
+from .dart_engine import DART
+from .exudyn_engine import Exudyn
+from .mujoco_engine import MuJoCo
+from .pinocchio_engine import PinocchioCRBA
 
 THIN = 1e-15  # a principal moment below this is "zero" (MuJoCo's mjMINVAL)
 THIN_RAISE = 1e-6  # the inert moment's value, relative to the body's largest moment
@@ -179,12 +184,13 @@ def non_planar(loops: ClosedLoops, cut) -> str:
 
 # --------------------------------------------------------------------------- base class
 class LoopEngine(EnginePackage):
-    """Base class of the loop adapters (module docstring). A subclass sets ``name``, ``tree_name``
-    (the engine's tree adapter), ``package``, ``module`` and implements ``_build`` and
-    ``_solve`` (and ``_simulate`` with ``integrator`` where the engine has one)."""
+    """Base class of the loop adapters (module docstring). A subclass sets ``name``, ``adapter``
+    (the engine's adapter class, which builds the tree: ``self.tree``), ``package``, ``module``
+    and implements ``_build`` and ``_solve`` (and ``_simulate`` with ``integrator`` where the
+    engine has one)."""
 
     name: ClassVar[str] = ""
-    tree_name: ClassVar[str] = ""
+    adapter: ClassVar[type[Engine]] = Engine
     package: ClassVar[str] = ""
     module: ClassVar[str] = ""
     thin_ok: ClassVar[bool] = False  # raise the inert zero moments (module docstring)
@@ -202,19 +208,19 @@ class LoopEngine(EnginePackage):
         self.loops = loops
         self.model, self.thin_bodies, _ = (inert_moments(loops.model) if self.thin_ok
                                            else (loops.model, [], ""))
-        self.tree = tree_adapter(self.tree_name)(self.model, check_limits=False)
+        self.tree = self.adapter(self.model, check_limits=False)
         self._build()
 
     @classmethod
     def limits(cls, loops: ClosedLoops) -> Limits:
-        """Can this engine build the loops? The tree adapter's verdict on the tree (after the
+        """Can this engine build the loops? The engine adapter's verdict on the tree (after the
         inert moments are raised, for the engines that need it), then the cuts'."""
         if not isinstance(loops, ClosedLoops):
             raise TypeError(f"expected a redysim.loops.ClosedLoops, got {type(loops).__name__}")
         model, why = loops.model, ""
         if cls.thin_ok:
             model, _, why = inert_moments(model)
-        lim = tree_adapter(cls.tree_name).limits(model)
+        lim = cls.adapter.limits(model)
         if not lim.ok:
             return Limits(False, lim.reason + (f" ({why})" if why else ""))
         for c in loops.cuts:
@@ -321,7 +327,7 @@ class PinocchioLoops(LoopEngine):
     """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut."""
 
     name = "pinocchio"
-    tree_name = "pinocchio-crba"
+    adapter = PinocchioCRBA
     package = "pin"
     module = "pinocchio"
     no_integrator = ("Pinocchio has no time integrator (its constraintDynamics gives qdd only; "
@@ -332,16 +338,10 @@ class PinocchioLoops(LoopEngine):
 
     def _build(self):
         pin, t = self.lib, self.tree
-        last = {}  # body -> its last axis's joint id (the body's frame); joints named b{k}_{i}
-        for jid, nm in enumerate(t.pm.names):
-            if nm.startswith("b") and "_" in nm:
-                k, i = (int(x) for x in nm[1:].split("_"))
-                if i >= last.get(k, (-1, 0))[0]:
-                    last[k] = (i, jid)
         models = pin.StdVec_RigidConstraintModel()
-        for c in self.loops.cuts:
-            ja = last[c.body_a][1]
-            jb = 0 if c.body_b < 0 else last[c.body_b][1]
+        for c in self.loops.cuts:  # a body's frame is its last axis's joint, t.body_joint
+            ja = t.body_joint[c.body_a]
+            jb = 0 if c.body_b < 0 else t.body_joint[c.body_b]
             models.append(pin.RigidConstraintModel(
                 pin.ContactType.CONTACT_3D, t.pm, ja, pin.SE3(np.eye(3), np.array(c.point_a)),
                 jb, pin.SE3(np.eye(3), np.array(c.point_b)),
@@ -355,9 +355,9 @@ class PinocchioLoops(LoopEngine):
 
     def _solve(self, q, v, tau):
         pin, t = self.lib, self.tree
-        qp, blocks = t._engine_state(q, v)
+        qp, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)
-        tau_e = np.zeros(t.n_e) if tau is None else t._to_engine(tau, blocks)
+        tau_e = np.zeros(self.model.n_v) if tau is None else t._to_engine(tau, blocks)
         a = pin.constraintDynamics(t.pm, t.data, qp, y, tau_e, self.cmodels, self.cdatas,
                                    self.settings)
         if self.settings.iter >= self.MAX_ITER or not np.all(np.isfinite(a)):
@@ -373,7 +373,7 @@ class MuJoCoLoops(LoopEngine):
     """MuJoCo's ``mjEQ_CONNECT`` between two sites per cut, solimp at mjMAXIMP (module doc)."""
 
     name = "mujoco"
-    tree_name = "mujoco"
+    adapter = MuJoCo
     package = "mujoco"
     module = "mujoco"
     thin_ok = True
@@ -406,7 +406,7 @@ class MuJoCoLoops(LoopEngine):
 
     def _forward(self, q, v, tau):
         t = self.tree
-        qe, blocks = t._engine_state(q, v)
+        qe, blocks = t._state(q, v)
         d = t._forward(qe, t._to_engine(v, blocks),
                        None if tau is None else t._to_engine(tau, blocks))
         n = d.nefc
@@ -425,24 +425,15 @@ class MuJoCoLoops(LoopEngine):
     integrator = "mj_step, mjINT_RK4 (soft connect constraints, default solref)"
 
     def _simulate(self, q0, v0, h, steps, every):
-        mj, t = self.lib, self.tree
-        m, d = t.mjmodel, t.mjdata
-        saved = (m.opt.timestep, m.opt.integrator)
-        m.opt.timestep, m.opt.integrator = h, mj.mjtIntegrator.mjINT_RK4
+        """The engine adapter's own stepper (mj_step, RK4) on the model with the cuts; the time
+        step is restored after, as it enters the soft constraints' reference acceleration."""
+        t = self.tree
+        saved = t.mjmodel.opt.timestep
         try:
-            mj.mj_resetData(m, d)
-            qe, blocks = t._engine_state(q0, v0)
-            d.qpos[:], d.qvel[:] = qe, t._to_engine(v0, blocks)
-            ts, qs, vs = [0.0], [q0.copy()], [v0.copy()]
-            for i in range(1, steps + 1):
-                mj.mj_step(m, d)
-                if i % every == 0 or i == steps:
-                    ts.append(i * h)
-                    qs.append(d.qpos[t.qidx].copy())
-                    vs.append(d.qvel[t.eidx].copy())
+            tr = t.simulate(q0, v0, steps * h, h, every=every)
         finally:
-            m.opt.timestep, m.opt.integrator = saved
-        return ts, qs, vs
+            t.mjmodel.opt.timestep = saved
+        return tr.t, tr.q, tr.qd
 
     def regularisation(self, q, v) -> np.ndarray:
         """MuJoCo's constraint regulariser R (``efc_R``) at (q, v), one per core row: MuJoCo's
@@ -457,7 +448,7 @@ class DARTLoops(LoopEngine):
     """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc)."""
 
     name = "dart"
-    tree_name = "dart"
+    adapter = DART
     package = "dartpy"
     module = "dartpy"
     thin_ok = True
@@ -470,8 +461,7 @@ class DARTLoops(LoopEngine):
         self.world.setGravity(np.asarray(self.model.gravity, dtype=float))
         self.world.addSkeleton(t.skel)  # also sets the skeleton's gravity to the world's
         self.world.setTimeStep(self.STEP)
-        self.bodynodes = [t.skel.getJoint(f"j{k}").getChildBodyNode()
-                          for k in range(self.model.n_bodies)]
+        self.bodynodes = t.bodynodes
 
     def refusal(self, q, v) -> str:
         if np.any(np.asarray(v) != 0.0):
@@ -488,7 +478,7 @@ class DARTLoops(LoopEngine):
         from redysim.rbda import kinematics
 
         dart, t = self.lib, self.tree
-        t.skel.setPositions(t._engine_state(q, np.zeros(self.model.n_v))[0])
+        t.skel.setPositions(t._state(q, np.zeros(self.model.n_v))[0])
         kin = kinematics(self.model, q, np.zeros(self.model.n_v))
         solver = self.world.getConstraintSolver()
         solver.removeAllConstraints()
@@ -510,7 +500,7 @@ class DARTLoops(LoopEngine):
     def _simulate(self, q0, v0, h, steps, every):
         t = self.tree
         self._constraints(q0, self.ERP)
-        qe, blocks = t._engine_state(q0, v0)
+        qe, blocks = t._state(q0, v0)
         t._set(qe, t._to_engine(v0, blocks))
         self.world.setTimeStep(h)
         try:
@@ -518,15 +508,16 @@ class DARTLoops(LoopEngine):
             for i in range(1, steps + 1):
                 self.world.step()
                 if i % every == 0 or i == steps:
+                    q, v = t.sim_state()  # the skeleton's state, in the core's coordinates
                     ts.append(i * h)
-                    qs.append(np.array(t.skel.getPositions())[t.eidx])
-                    vs.append(np.array(t.skel.getVelocities())[t.eidx])
+                    qs.append(q)
+                    vs.append(v)
         finally:
             self.world.setTimeStep(self.STEP)
         return ts, qs, vs
 
     def _jacobian(self):
-        """(3 n_cuts, n_e): DART's world-frame Jacobian of point a minus point b, per cut."""
+        """(3 n_cuts, n_v): DART's world-frame Jacobian of point a minus point b, per cut."""
         skel, rows = self.tree.skel, []
         for c in self.loops.cuts:
             Ja = np.array(skel.getLinearJacobian(self.bodynodes[c.body_a],
@@ -539,7 +530,7 @@ class DARTLoops(LoopEngine):
 
     def _solve(self, q, v, tau):
         t = self.tree
-        qe, blocks = t._engine_state(q, v)
+        qe, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)
         tau_e = None if tau is None else t._to_engine(tau, blocks)
         t._set(qe, y, tau_e)
@@ -563,7 +554,7 @@ class ExudynLoops(LoopEngine):
     accelerations (module docstring)."""
 
     name = "exudyn"
-    tree_name = "exudyn"
+    adapter = Exudyn
     package = "exudyn"
     module = "exudyn"
     planar_exact = True  # ObjectJointSpherical's constrainedAxes = [1, 1, 0]
@@ -614,7 +605,7 @@ class ExudynLoops(LoopEngine):
         from .exudyn_engine import _without_sparse_advice
 
         exu, t = self.lib, self.tree
-        qe, blocks = t._engine_state(q, v)
+        qe, blocks = t._state(q, v)
         t._set_state(qe, t._to_engine(v, blocks),
                      None if tau is None else t._to_engine(tau, blocks))
         with _without_sparse_advice():
@@ -645,7 +636,7 @@ class ExudynLoops(LoopEngine):
         ss.timeIntegration.newton.relativeTolerance = 1e-12
         ss.timeIntegration.newton.absoluteTolerance = 1e-12
         ss.solution.sensors.writePeriod = every * h
-        qe, blocks = t._engine_state(q0, v0)
+        qe, blocks = t._state(q0, v0)
         t._set_state(qe, t._to_engine(v0, blocks), None)
         with _without_sparse_advice():
             if not exu.MainSolverImplicitSecondOrder().SolveSystem(mbs, ss):

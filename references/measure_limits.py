@@ -2,8 +2,9 @@
 
     .venv/bin/python -m redysim.references.measure_limits ENGINE N_LINKS [--joint U] [--mem-gib 12]
 
-Prints one JSON line: engine, links, dof, build_s, qdd_s, peak_rss_mib (growth over the
-process's peak after importing the engine), ok and error. ``--mem-gib`` caps the address space
+Prints one JSON line: engine, links, dof, build_s (the engine's build from the chain's Model,
+converted before timing), qdd_s, peak_rss_mib (growth over the process's peak after importing
+the engine), ok and error. ``--mem-gib`` caps the address space
 (RLIMIT_AS) so a size past the memory limit ends in a MemoryError here instead of taking the
 machine's memory from other work. Run one at a time (the machine is shared); the results are
 summarised in references/limits.toml.
@@ -36,6 +37,7 @@ def main(argv=None) -> int:
     cls.package_version()  # import the engine before the baseline
     chain = redysim.Chain.uniform(a.n_links, a.joint, length=0.02, linear_density=61.6538,
                                   radius=0.05, inertia="cylinder")
+    model = redysim.Model.from_chain(chain)  # the adapters' input, converted before timing
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     cap = int(a.mem_gib * 2**30)
     resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
@@ -43,7 +45,7 @@ def main(argv=None) -> int:
            "mem_cap_gib": a.mem_gib, "ok": False, "error": ""}
     try:
         t0 = time.perf_counter()
-        eng = cls(chain, check_limits=False)
+        eng = cls(model, check_limits=False)
         out["build_s"] = time.perf_counter() - t0
         if not a.no_qdd:
             rng = np.random.default_rng(0)

@@ -2,41 +2,46 @@
 
 What the model contains and why (docs/design.md, "Reference engines"):
 
-- one body per link, nested (a chain), at ``pos = (l_{k-1}, 0, 0)`` in its parent, holding one
-  joint per elementary axis of the link's joint (``references.base.joint_axes``), in order: a
-  ``hinge`` for an R axis, a ``slide`` for a P axis, ``axis = u`` as given (-z stays -z; a
-  general direction is passed as the unit vector the core uses) and ``pos = 0``. MuJoCo composes
-  a body's joints in order, each axis in the frame left by the joints before it (``mj_kinematics``
-  rotates the next joint's axis by the body's quaternion so far; a slide moves the body's origin
-  by the rotated axis times q, a hinge turns the frame about the current origin), which is the
-  core's convention: a U joint is two hinges, y then the rotated z (R = Ry(q1) Rz(q2)), an S
-  joint three (y, z, x), an R or P joint one.
+- one MjSpec body per Model body, nested as the tree, at ``pos = placement_p`` and ``quat`` the
+  placement's rotation (``mju_mat2Quat``; a chain's link k at ``pos = (l_{k-1}, 0, 0)`` in its
+  parent, unrotated), holding one joint per elementary axis of the body's joint
+  (``references.base.joint_axes``), in order: a ``hinge`` for an R axis, a ``slide`` for a P
+  axis, ``axis = u`` as given (-z stays -z; a general direction is passed as the unit vector the
+  core uses) and ``pos = 0``; or one ``freejoint``. MuJoCo composes a body's joints in order,
+  each axis in the frame left by the joints before it (``mj_kinematics`` rotates the next
+  joint's axis by the body's quaternion so far; a slide moves the body's origin by the rotated
+  axis times q, a hinge turns the frame about the current origin), which is the core's
+  convention: a U joint is two hinges, y then the rotated z (R = Ry(q1) Rz(q2)), an S joint
+  three (y, z, x), an R or P joint one.
 - ``explicitinertial`` with mass, ``ipos`` = COM and the inertia's principal moments + ``iquat``
-  (the eigen-decomposition of ``chain.inertia_com``, done here). No geoms at all: nothing to
+  (the eigen-decomposition of ``model.inertia_com``, done here). No geoms at all: nothing to
   collide, nothing to draw, and no inertia inferred from geometry.
 - ``option.disableflags = CONTACT | CONSTRAINT``: the scene has no contacts, limits or equality
   constraints, so the constraint solver must not run (``qacc`` then equals ``qacc_smooth``); and
   every other stage it has nothing for (actuation, sensors, springs, ...: ``_DISABLED``). The
   energy is computed on demand (``mj_energyPos``, ``mj_energyVel``), not by every ``mj_forward``
-  (the ENERGY flag). Joint damping, armature, friction
-  loss, stiffness and limits are left at their zero/off defaults and asserted zero after compile.
-- ``compiler.balanceinertia`` only when a link's inertia violates the triangle inequality (the
+  (the ENERGY flag). Joint damping, armature, friction loss, stiffness, anchors and the hinges'
+  and slides' ``qpos0`` are left at their zero/off defaults and asserted zero after compile.
+- ``compiler.balanceinertia`` only when a body's inertia violates the triangle inequality (the
   paper's rod model does; docs/design.md, "Chain conventions"); the exact principal moments are
   then written back into ``model.body_inertia`` after compiling.
-- ``option.gravity = chain.gravity``.
+- ``option.gravity = model.gravity``; ``option.integrator = mjINT_RK4`` (``simulate``'s; it does
+  not enter ``mj_forward``).
+
+MuJoCo numbers bodies and DOF depth-first; the adapter maps them to the Model's order by joint
+name (a chain's order is MuJoCo's). Free joint: MuJoCo's free joint IS the core's convention
+(q = position, quaternion w first; v = world linear velocity of the origin, body-frame angular
+velocity), so B = 1, c = 0 (``references.base``): no conversion but the order.
 
 ``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
-``bias`` is ``-qfrc_bias``; ``energy`` is ``mj_energyPos``/``mj_energyVel``'s (V, T), reordered.
+``bias`` is ``-qfrc_bias``; ``energy`` is ``mj_energyPos``/``mj_energyVel``'s (V, T), reordered;
+``position``: the body's ``xpos + xmat @ point``.
 ``simulate`` uses ``mj_step`` with ``mjINT_RK4`` at the fixed step h.
 
-Limits: MuJoCo refuses a body tree deeper than 1,024 ("depth limit exceeded in signature
-computation"), and compile time grows ~n^3 (references/limits.toml).
-
-Trees (``references.trees``): ``MuJoCoTree`` builds a :class:`redysim.Model` as nested
-bodies at their placements (``pos``, ``quat``), MuJoCo's ``freejoint`` for a free joint (its
-convention is the core's: no conversion), and maps MuJoCo's depth-first DOF order to the Model's
-by joint name. It refuses a body with mass or a principal moment below mjMINVAL (1e-15), which
-MuJoCo's compiler rejects even with massive children (class docstring).
+Limits: MuJoCo refuses a body tree deeper than 1,023 ("depth limit exceeded in signature
+computation"), and compile time grows ~n^3 (references/limits.toml); its compiler refuses a
+body with mass or a principal moment below mjMINVAL (1e-15), even with massive children
+(:meth:`MuJoCo.unsupported`).
 """
 
 from __future__ import annotations
@@ -46,7 +51,6 @@ import numpy as np
 from redysim.model import FREE
 
 from .base import Engine
-from .trees import TreeEngine
 
 # Pipeline stages the models here have nothing for (no contacts, constraints, actuators, sensors,
 # springs, dampers, friction loss, limits or equalities): disabled, so mj_forward skips their
@@ -55,22 +59,7 @@ from .trees import TreeEngine
 _DISABLED = ("mjDSBL_CONTACT", "mjDSBL_CONSTRAINT", "mjDSBL_ACTUATION", "mjDSBL_SENSOR",
              "mjDSBL_SPRING", "mjDSBL_DAMPER", "mjDSBL_FRICTIONLOSS", "mjDSBL_LIMIT",
              "mjDSBL_EQUALITY", "mjDSBL_ISLAND", "mjDSBL_EULERDAMP")
-
-
-def _options(mj, spec) -> None:
-    """The options of every model here: unused stages off (above); no ENERGY flag, which would
-    make every mj_forward compute the energy (13 % of a call at 200 DOF): :func:`_energy` asks for
-    it when it is wanted."""
-    for name in _DISABLED:
-        spec.option.disableflags |= int(getattr(mj.mjtDisableBit, name))
-
-
-def _energy(mj, model, data) -> tuple[float, float]:
-    """(T, V) of the state ``data`` holds after mj_forward: MuJoCo's mj_energyPos and
-    mj_energyVel, called here rather than in every mj_forward (stored as (potential, kinetic))."""
-    mj.mj_energyPos(model, data)
-    mj.mj_energyVel(model, data)
-    return data.energy[1], data.energy[0]
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: a moving body needs mass and inertia above it
 
 
 def _principal(I):
@@ -85,115 +74,11 @@ def _principal(I):
 
 
 class MuJoCo(Engine):
-    """MuJoCo ``mj_forward`` on an MjSpec-built chain (see the module docstring)."""
-
-    name = "mujoco"
-    package = "mujoco"
-    module = "mujoco"
-    integrator = "mj_step, mjINT_RK4, fixed step"
-
-    def _build(self):
-        mj = self.lib
-        c = self.chain
-        spec = mj.MjSpec()
-        spec.option.gravity = np.asarray(c.gravity, dtype=float)
-        _options(mj, spec)
-        spec.option.integrator = int(mj.mjtIntegrator.mjINT_RK4)
-        spec.compiler.inertiafromgeom = int(mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
-        principal = []
-        balance = False
-        parent = spec.worldbody
-        hinge, slide = mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE
-        for k, joint in enumerate(self.joints):
-            body = parent.add_body()
-            body.name = f"link{k}"
-            body.pos = [c.length[k - 1], 0.0, 0.0] if k > 0 else [0.0, 0.0, 0.0]
-            body.explicitinertial = True
-            body.mass = float(c.mass[k])
-            body.ipos = np.array(c.com[k])
-            w, quat = _principal(np.array(c.inertia_com[k]))
-            principal.append(w)
-            balance |= bool(w[0] + w[1] < w[2] or w[0] + w[2] < w[1] or w[1] + w[2] < w[0])
-            body.inertia = w
-            body.iquat = quat
-            for i, axis in enumerate(joint.axes):
-                j = body.add_joint()
-                j.name = f"j{k}_{i}"
-                j.type = hinge if axis.kind == "R" else slide
-                j.axis = axis.u
-            parent = body
-        spec.compiler.balanceinertia = balance
-        model = spec.compile()
-        model.body_inertia[1:] = np.array(principal)  # exact moments (balanceinertia moved them)
-        for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness",
-                     "qpos0", "jnt_pos"):
-            assert not np.any(getattr(model, name)), name
-        axes = [a for joint in self.joints for a in joint.axes]
-        # the compiled axes are the chain's (MuJoCo normalises them: a unit vector stays within
-        # rounding of itself, and a -z axis must not have become +z)
-        assert np.abs(model.jnt_axis - np.array([a.u for a in axes])).max() < 1e-15
-        self.model, self.data = model, mj.MjData(model)
-        self.last_body = model.nbody - 1
-        if model.nv != c.n_dof:
-            raise AssertionError(f"model has nv={model.nv}, chain {c.n_dof}")
-
-    def _forward(self, q, qd, tau=None):
-        d = self.data
-        d.qpos[:] = q
-        d.qvel[:] = qd
-        d.qfrc_applied[:] = 0.0 if tau is None else tau
-        self.lib.mj_forward(self.model, d)
-        return d
-
-    def _qdd(self, q, qd, tau):
-        return self._forward(q, qd, tau).qacc.copy()
-
-    def _mass_matrix(self, q):
-        d = self._forward(q, np.zeros_like(q))
-        n = self.model.nv
-        M = np.zeros((n, n))
-        self.lib.mj_fullM(self.model, d, M)
-        return M
-
-    def _bias(self, q, qd):
-        return -self._forward(q, qd).qfrc_bias.copy()
-
-    def _energy(self, q, qd):
-        return _energy(self.lib, self.model, self._forward(q, qd))
-
-    def _tip(self, q, qd):
-        d = self._forward(q, qd)
-        R = d.xmat[self.last_body].reshape(3, 3)
-        return d.xpos[self.last_body] + R @ np.array([self.chain.length[-1], 0.0, 0.0])
-
-    def _sim_reset(self, q0, qd0, h):
-        self.model.opt.timestep = h
-        self.lib.mj_resetData(self.model, self.data)
-        self.data.qpos[:] = q0
-        self.data.qvel[:] = qd0
-
-    def _sim_step(self):
-        self.lib.mj_step(self.model, self.data)
-
-    def _sim_state(self):
-        return self.data.qpos.copy(), self.data.qvel.copy()
-
-
-# --------------------------------------------------------------------------- trees
-MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: a moving body needs mass and inertia above it
-
-
-class MuJoCoTree(TreeEngine):
-    """MuJoCo on a :class:`redysim.Model` (``references.trees``).
-
-    One MjSpec body per Model body, nested as the tree, at ``pos = placement_p`` and ``quat`` the
-    placement's rotation (``mju_mat2Quat``), holding one hinge/slide per elementary axis as for
-    chains, or one ``freejoint``; inertias, options and asserted zeros as for chains. MuJoCo
-    numbers bodies and DOF depth-first; the adapter maps them to the Model's order by name.
-
-    Free joint: MuJoCo's free joint IS the core's convention (q = position, quaternion w first;
-    v = world linear velocity of the origin, body-frame angular velocity), so B = 1, c = 0: no
-    conversion but the order.
+    """MuJoCo ``mj_forward`` on an MjSpec-built Model (module docstring). ``spec``,
+    ``spec_bodies``: the MjSpec and its bodies (kept so that an adapter can add to the spec and
+    compile it again with :meth:`_compile`, ``references/loops.py``); ``mjmodel``, ``mjdata``:
+    the compiled model and its data; ``qidx``, ``eidx``: MuJoCo's qpos and dof index of each of
+    the core's q and v slots; ``body_ids[k]``: MuJoCo's id of body k.
 
     Refused by ``limits``: a body with mass or a principal moment below mjMINVAL = 1e-15 (a
     massless body between joints): MuJoCo's compiler stops with "mass and inertia of moving bodies
@@ -203,17 +88,18 @@ class MuJoCoTree(TreeEngine):
     name = "mujoco"
     package = "mujoco"
     module = "mujoco"
+    integrator = "mj_step, mjINT_RK4, fixed step"
     depth_limited = True
 
     @classmethod
     def unsupported(cls, model, joints):
-        for k in range(model.n_bodies):
+        for k, joint in enumerate(joints):
             w = np.linalg.eigvalsh(np.asarray(model.inertia_com[k]))
             if model.mass[k] < MJMINVAL or w.min() < MJMINVAL:
-                return (f"body {k} ({model.body_names[k]}) has mass {model.mass[k]:.3g} kg and "
-                        f"smallest principal moment {w.min():.3g} kg m^2: MuJoCo's compiler "
-                        f"refuses it ('mass and inertia of moving bodies must be larger than "
-                        f"mjMINVAL' = 1e-15), even when its children have mass")
+                return (f"body {joint.body!r} has mass {float(model.mass[k]):.3g} kg and "
+                        f"smallest principal moment {float(w.min()):.3g} kg m^2: MuJoCo's "
+                        f"compiler refuses it ('mass and inertia of moving bodies must be larger "
+                        f"than mjMINVAL' = 1e-15), even when its children have mass")
         return ""
 
     def _build(self):
@@ -221,7 +107,9 @@ class MuJoCoTree(TreeEngine):
         m = self.model
         spec = mj.MjSpec()
         spec.option.gravity = np.asarray(m.gravity, dtype=float)
-        _options(mj, spec)
+        for name in _DISABLED:
+            spec.option.disableflags |= int(getattr(mj.mjtDisableBit, name))
+        spec.option.integrator = int(mj.mjtIntegrator.mjINT_RK4)
         spec.compiler.inertiafromgeom = int(mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
         principal, balance, bodies = [], False, []
         hinge, slide = mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE
@@ -251,7 +139,6 @@ class MuJoCoTree(TreeEngine):
                 j.axis = axis.u
             bodies.append(body)
         spec.compiler.balanceinertia = balance
-        # kept so that an adapter can add to the spec and compile it again (references/loops.py)
         self.spec, self.spec_bodies, self.principal = spec, bodies, np.array(principal)
         self._compile()
 
@@ -259,8 +146,8 @@ class MuJoCoTree(TreeEngine):
         """Compile ``self.spec`` (built by ``_build``) and map the core's slots to MuJoCo's."""
         m = self.model
         model = self.spec.compile()
-        ids = [model.body(f"b{k}").id for k in range(m.n_bodies)]
-        model.body_inertia[ids] = self.principal  # exact moments (balanceinertia)
+        self.body_ids = [model.body(f"b{k}").id for k in range(m.n_bodies)]
+        model.body_inertia[self.body_ids] = self.principal  # exact moments (balanceinertia)
         for name in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness",
                      "jnt_pos"):
             assert not np.any(getattr(model, name)), name
@@ -275,20 +162,22 @@ class MuJoCoTree(TreeEngine):
                 continue
             for i, axis in enumerate(joint.axes):
                 mj_joint = model.joint(f"j{k}_{i}")
+                # the compiled axis is the model's (MuJoCo normalises it: a unit vector stays
+                # within rounding of itself, and a -z axis must not have become +z)
                 assert np.abs(mj_joint.axis - axis.vector).max() < 1e-15
+                assert model.qpos0[mj_joint.qposadr[0]] == 0.0
                 self.qidx[qs + i] = mj_joint.qposadr[0]
                 self.eidx[vs + i] = mj_joint.dofadr[0]
-        self.free = [int(m.joint_qoff[k]) for k, j in enumerate(self.joints) if j.type == FREE]
         self.mjmodel, self.mjdata = model, self.lib.MjData(model)
         if model.nv != m.n_v or model.nq != m.n_q:
             raise AssertionError(f"model has nq={model.nq}, nv={model.nv}; the tree "
                                  f"{m.n_q}, {m.n_v}")
 
     def _engine_state(self, q, v):
-        qe = np.empty(self.model.n_q)
         q = q.copy()
-        for qs in self.free:
+        for _, qs, _ in self.free:
             q[qs + 3:qs + 7] /= np.linalg.norm(q[qs + 3:qs + 7])
+        qe = np.empty(self.model.n_q)
         qe[self.qidx] = q
         return qe, []
 
@@ -300,17 +189,46 @@ class MuJoCoTree(TreeEngine):
         self.lib.mj_forward(self.mjmodel, d)
         return d
 
-    def _raw_qdd(self, qe, y, tau_e):
+    def _qdd(self, qe, y, tau_e):
         return self._forward(qe, y, tau_e).qacc.copy()
 
-    def _raw_mass_matrix(self, qe):
-        d = self._forward(qe, np.zeros(self.n_e))
-        M = np.zeros((self.n_e, self.n_e))
+    def _mass_matrix(self, qe):
+        n = self.model.n_v
+        d = self._forward(qe, np.zeros(n))
+        M = np.zeros((n, n))
         self.lib.mj_fullM(self.mjmodel, d, M)
         return M
 
-    def _raw_bias(self, qe, y):
+    def _bias(self, qe, y):
         return -self._forward(qe, y).qfrc_bias.copy()
 
-    def _raw_energy(self, qe, y):
-        return _energy(self.lib, self.mjmodel, self._forward(qe, y))
+    def _energy(self, qe, y):
+        """(T, V): MuJoCo's mj_energyPos and mj_energyVel, called here rather than in every
+        mj_forward (stored as (potential, kinetic))."""
+        mj, d = self.lib, self._forward(qe, y)
+        mj.mj_energyPos(self.mjmodel, d)
+        mj.mj_energyVel(self.mjmodel, d)
+        return d.energy[1], d.energy[0]
+
+    def _position(self, qe, body, point):
+        d = self._forward(qe, np.zeros(self.model.n_v))
+        b = self.body_ids[body]
+        return d.xpos[b] + d.xmat[b].reshape(3, 3) @ point
+
+    # ------------------------------------------------------------------ native stepping
+    def _sim_reset(self, q0, v0, h):
+        m, d = self.mjmodel, self.mjdata
+        m.opt.timestep = h
+        self.lib.mj_resetData(m, d)
+        qe, blocks = self._state(q0, v0)
+        d.qpos[:] = qe
+        d.qvel[:] = self._to_engine(v0, blocks)
+
+    def _sim_step(self):
+        self.lib.mj_step(self.mjmodel, self.mjdata)
+
+    def _sim_state(self):
+        d = self.mjdata
+        if self.identity:
+            return d.qpos.copy(), d.qvel.copy()
+        return d.qpos[self.qidx], d.qvel[self.eidx]

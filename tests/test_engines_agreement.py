@@ -10,11 +10,13 @@ states, q spread over (-pi, pi) and near straight, each stage is compared separa
 - ``gim``: the engine's mass matrix vs ``redysim.mass_matrix``,  max|diff| / max|I|
 - ``phi``: the engine's ``bias`` vs ``redysim.phi`` (tau = 0),    max|diff| / max|phi|
 - ``qdd``: the engine's ``qdd`` vs ``redysim.forward_dynamics``,  max|diff| / max|qdd| (tau != 0)
-- ``tip``: the engine's tip vs ``redysim.tip().position``,        max|diff| / chain length
+- ``tip``: the engine's ``tip(q)`` vs ``redysim.tip().position``,  max|diff| / chain length
 - ``energy``: (T, V) vs ``redysim.energy``,                      |diff| / (|T| + |V|)
 
 Expected values come from the core, an independent implementation (DeNOC + RGE-A in numba);
-neither side is derived from the other. Each engine has ONE tolerance for every stage, below.
+neither side is derived from the other. Each engine has ONE tolerance for every stage
+(``engine_chains.TOLERANCE``, its ``chains`` column). The engines are the adapters every model
+goes to: a chain is built as its Model (``Model.from_chain``, converted at the adapter's door).
 ``test_negated_axes_mirror_the_chain`` checks each engine against itself, without the core: a
 chain with every R and P axis negated moves as the original with those coordinates negated (an
 adapter that built -z as +z, as the core once did, fails it and the R-z agreement tests).
@@ -24,7 +26,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine_chains import FAMILIES, chain_links, engine_test_chain, random_chain, random_state
+from engine_chains import (
+    FAMILIES,
+    chain_links,
+    engine_or_skip,
+    engine_test_chain,
+    random_chain,
+    random_state,
+)
+from engine_chains import TOLERANCE as ENGINE_TOLERANCE
 
 import redysim
 from redysim import references
@@ -35,37 +45,9 @@ pytestmark = pytest.mark.engine
 EPS = np.finfo(float).eps
 
 # --------------------------------------------------------------------------- tolerances
-# O(n) recursive solvers (articulated-body algorithm, like the core's RGE-A): their rounding
-# error grows with the number of links, not with cond(I). Measured <= 1.2e-14 on qdd at 50 links
-# (GIM, phi, tip <= 4e-15; 3.4e-13 while the core still carried gravity inside phi); 1e-11 is
-# ~1000x tighter than a cond(I) * eps bound, so it catches a wrong model or a drifting recursion,
-# and stays above the ~n^2 eps growth of Table A.1 as printed should an engine work that way.
-# With S joints (Euler angles) the conditioning of each joint's own block enters too: measured
-# <= 2.0e-12 on the S and mix chains of up to 50 links (cond(I) up to 9.6e8), DART's EulerJoint
-# aside (KNOWN_DEFECTS).
-TOL_DART = 1e-11
-TOL_PINOCCHIO_ABA_RYRZ = 1e-11
-# pin.aba is the same algorithm, so it gets the same tolerance; with JointModelUniversal it
-# misses it on 50-link U chains (a known defect, see test_pinocchio_universal_aba_defect and the
-# xfail marks below) - the tolerance is NOT loosened for it.
-TOL_PINOCCHIO_ABA = 1e-11
-# Dense factorisations of the assembled mass matrix (Cholesky, MuJoCo's L^T D L, Exudyn's
-# EigenDense LU): a backward-stable dense solve has a relative forward error up to ~cond(I) * eps.
-# The 50-link chains here reach cond(I) = 3.4e7 near straight, i.e. 7.5e-9; measured 4.8e-10.
-# The GIM, phi and tip stages involve no solve and agree to ~1e-15 at this tolerance too.
-TOL_PINOCCHIO_CRBA = 1e-8
-TOL_MUJOCO = 1e-8
-TOL_EXUDYN = 1e-8
-
-TOLERANCE = {
-    "pinocchio-aba": TOL_PINOCCHIO_ABA,
-    "pinocchio-aba-ryrz": TOL_PINOCCHIO_ABA_RYRZ,
-    "pinocchio-crba": TOL_PINOCCHIO_CRBA,
-    "mujoco": TOL_MUJOCO,
-    "dart": TOL_DART,
-    "exudyn": TOL_EXUDYN,
-}
-assert set(TOLERANCE) == set(references.ENGINES)
+# One per engine for every stage, and why: engine_chains.TOLERANCE (the O(n) recursions 1e-11;
+# the dense factorisations 1e-8, above cond(I) * eps on the 50-link chains).
+TOLERANCE = {name: tol.chains for name, tol in ENGINE_TOLERANCE.items()}
 
 SIZES = (1, 2, 10, 50)
 JOINTS = ("R", "U")  # the first families: R about +z, U = Ry Rz
@@ -107,13 +89,6 @@ KNOWN_DEFECTS = {
 # excludes exactly these from its engine.pinocchio-aba gate; tests/test_gates.py checks it).
 PIN_UNIVERSAL_DEFECT = {k for k in KNOWN_DEFECTS if k[0] == "pinocchio-aba" and k[1] in JOINTS}
 
-def _engine_or_skip(name):
-    cls = references.get(name)
-    if not cls.available():
-        pytest.skip(f"engine {name!r} needs the Python package {cls.package!r}, not installed")
-    return cls
-
-
 _MODELS: dict = {}
 
 
@@ -125,7 +100,7 @@ def models():
 
 
 def _get(models, name, joint, nl):
-    cls = _engine_or_skip(name)
+    cls = engine_or_skip(name)
     key = (name, joint, nl)
     if key not in models:
         chain = engine_test_chain(joint, nl)
@@ -146,7 +121,7 @@ def stage_error(chain, eng, stage, kind, seed) -> float:
         return float(np.abs(eng.qdd(q, qd, tau) - ref).max() / np.abs(ref).max())
     if stage == "tip":
         ref = redysim.tip(chain, q, qd).position
-        return float(np.abs(eng.tip(q, qd) - ref).max() / chain.length.sum())
+        return float(np.abs(eng.tip(q) - ref).max() / chain.length.sum())
     T, V = redysim.energy(chain, q, qd)
     Te, Ve = eng.energy(q, qd)
     return max(abs(Te - T), abs(Ve - V)) / (abs(T) + abs(V))
@@ -203,16 +178,20 @@ def test_tolerances_are_meaningful(models):
     chains += [engine_test_chain(f, nl) for f in AXIS_FAMILIES for nl in sizes("mujoco", f)]
     worst = max(np.linalg.cond(redysim.mass_matrix(chain, random_state(chain, k, s)[0]))
                 for chain in chains for k in KINDS for s in SEEDS)
-    assert worst * EPS < TOL_MUJOCO
+    assert worst * EPS < TOLERANCE["mujoco"]
     assert max(TOLERANCE.values()) <= 1e-8
 
 
 def test_the_families_have_what_they_say():
-    """The general-axis chains hold what they are named for, as the adapters read it (through
-    ``joint_axes``, which must give the core's own axes: -z is -z, never +z)."""
+    """The general-axis chains hold what they are named for, as the adapters read them (through
+    ``joint_axes`` of the chain's Model, which must give the core's own axes: -z is -z, never
+    +z; each link hanging from the one before at l_{k-1} along its x)."""
     def axes(family, nl=10):
         chain = engine_test_chain(family, nl)
         ja = joint_axes(chain)
+        assert [j.parent for j in ja] == list(range(-1, nl - 1))
+        assert all(np.array_equal(j.R, np.eye(3)) for j in ja)
+        assert np.array_equal([j.p for j in ja], [[x, 0, 0] for x in (0, *chain.length[:-1])])
         flat = [a for j in ja for a in j.axes]
         assert np.array_equal(np.array([a.u for a in flat]), chain.dof_u)
         assert [a.kind for a in flat] == ["RP"[k] for k in chain.dof_kind]
@@ -245,7 +224,7 @@ def test_negated_axes_mirror_the_chain(name):
     -z, -x to +x, a general u to -u; U and S kept) and the coordinates F q of those axes gives the
     same motion: qdd_neg(F q, F qd, F tau) = F qdd(q, qd, tau), I_neg(F q) = F I(q) F, the same
     tip. And the sign matters: qdd_neg(q, qd, tau) is O(1) away from qdd(q, qd, tau)."""
-    cls = _engine_or_skip(name)
+    cls = engine_or_skip(name)
     chain = engine_test_chain("mix", 10)
     joints = [redysim.Joint(j.type, tuple(-j.axes()[0][1])) if j.type in ("R", "P") else j
               for j in chain.joints]
@@ -263,7 +242,7 @@ def test_negated_axes_mirror_the_chain(name):
             M = eng.mass_matrix(q)
             assert (np.abs(eng_neg.mass_matrix(F * q) - F[:, None] * M * F[None, :]).max()
                     <= tol * np.abs(M).max()), (kind, seed)
-            assert (np.abs(eng_neg.tip(F * q, F * qd) - eng.tip(q, qd)).max()
+            assert (np.abs(eng_neg.tip(F * q) - eng.tip(q)).max()
                     <= tol * chain.length.sum()), (kind, seed)
             if kind == "spread":
                 assert np.abs(eng_neg.qdd(q, qd, tau) - ref).max() > 1e-3 * np.abs(ref).max()
@@ -273,7 +252,7 @@ def test_negated_axes_mirror_the_chain(name):
 def test_wrong_model_is_caught(name):
     """A chain differing in one link's mass by 1e-6 relative must fail the qdd stage: the
     comparison has teeth at every engine's tolerance."""
-    cls = _engine_or_skip(name)
+    cls = engine_or_skip(name)
     chain = random_chain("U", 10, seed=1010)
     links = chain_links(chain)
     links[4] = redysim.Link(links[4].length, links[4].mass * (1 + 1e-6), links[4].com,

@@ -57,8 +57,9 @@ def test_limit_boundary_is_the_table():
     for name, cls in references.ENGINES.items():
         max_dof = table[name]["max_dof"]
         max_links = min(table[name].get("max_links", 10**9), max_dof // 2)
-        inside = redysim.Chain.uniform(max_links, "U", mass=1.0)
-        outside = redysim.Chain.uniform(max_links + 1, "U", mass=1.0)
+        inside = redysim.Chain.uniform(max_links, "U", mass=1.0, radius=0.05, inertia="cylinder")
+        outside = redysim.Chain.uniform(max_links + 1, "U", mass=1.0, radius=0.05,
+                                        inertia="cylinder")
         assert cls.limits(inside).ok, name
         assert not cls.limits(outside).ok, name
 
@@ -75,35 +76,61 @@ def test_every_joint_the_core_has_is_accepted(name):
     assert set(redysim.chain.JOINT_TYPES) == {j.type for j in chain.joints}
     lim = references.get(name).limits(chain)
     assert lim.ok, lim.reason
-    assert references.get(name).limits(redysim.Chain.uniform(3, "S", mass=1.0)).ok
+    assert references.get(name).limits(redysim.Chain.uniform(3, "S", mass=1.0, radius=0.05,
+                                                             inertia="cylinder")).ok
 
 
 def test_a_joint_an_engine_cannot_build_is_refused_with_reason(monkeypatch):
     """DART builds a joint as ONE DART joint (no massless BodyNodes); a sequence of axes it has no
-    joint for (none of the core's types is one) is refused by ``limits()``, naming the joint and
-    why, before anything is built. The other adapters build any sequence of axes."""
-    P = base.Axis("P", (0.0, 0.0, 1.0), 2)
-    R = base.Axis("R", (1.0, 0.0, 0.0), 0)
-    odd = base.JointAxes("PR", (P, R))
+    joint for (none of the core's types is one) is refused by ``limits()``, naming the body and
+    the joint by the model's names and saying why, before anything is built. The other adapters
+    build any sequence of axes."""
+    P = base.axis("P", (0.0, 0.0, 1.0))
+    R = base.axis("R", (1.0, 0.0, 0.0))
+    model = redysim.Model.from_chain(redysim.Chain.uniform(3, "R", mass=1.0, radius=0.05,
+                                                           inertia="cylinder"))
+    real = base.joint_axes(model)
+    odd = real[1]._replace(type="PR", axes=(P, R))
     dart = references.get("dart")
-    assert "massless BodyNodes" in dart.unsupported(odd)
-    for axes in ((R,), (P,), (R, R), (base.Axis("R", (0.0, 1.0, 0.0), 1),
-                                      base.Axis("R", (0.0, 0.0, 1.0), 2), R)):
-        assert dart.unsupported(base.JointAxes("X", axes)) == ""
-    left_handed = (R, base.Axis("R", (0.0, 0.0, 1.0), 2), base.Axis("R", (0.0, 1.0, 0.0), 1))
-    assert dart.unsupported(base.JointAxes("X", left_handed))  # EulerJoint XYZ needs det +1
+    assert "massless BodyNodes" in dart.unsupported(model, [real[0], odd, real[2]])
+    for axes in ((R,), (P,), (R, R), (base.axis("R", (0.0, 1.0, 0.0)),
+                                      base.axis("R", (0.0, 0.0, 1.0)), R)):
+        assert dart.unsupported(model, [real[0]._replace(type="X", axes=axes)] + real[1:]) == ""
+    left_handed = (R, base.axis("R", (0.0, 0.0, 1.0)), base.axis("R", (0.0, 1.0, 0.0)))
+    assert dart.unsupported(model, [real[0]._replace(axes=left_handed)] + real[1:])  # XYZ: det +1
     for name in references.ENGINES:
         if name != "dart":
-            assert references.get(name).unsupported(odd) == ""
-    chain = redysim.Chain.uniform(3, "R", mass=1.0)
-    real = base.joint_axes
-    monkeypatch.setattr(base, "joint_axes", lambda c: [real(c)[0], odd, odd])
-    lim = dart.limits(chain)
+            assert references.get(name).unsupported(model, [real[0], odd, real[2]]) == ""
+    monkeypatch.setattr(base, "joint_axes", lambda m: [real[0], odd, real[2]])
+    lim = dart.limits(model)
     assert not lim.ok
-    assert lim.reason.startswith("dart: joint 1 (PR = P along +z then R about +x) cannot be built")
+    assert lim.reason.startswith("dart: body 'link2', joint 'joint2' (PR = P along +z then R "
+                                 "about +x) cannot be built")
     if dart.available():
         with pytest.raises(EngineLimitExceeded, match="massless BodyNodes"):
-            dart(chain)
+            dart(model)
+
+
+def test_a_chain_an_engine_cannot_build_is_refused_before_building():
+    """What an engine refuses in a tree it refuses in a chain, before anything is built, naming
+    the link's body: a thin rod (no moment about its own axis: ``Chain.uniform`` with a mass and
+    no radius) in MuJoCo, whose compiler stops on a moving body with a principal moment below
+    mjMINVAL. (As a chain adapter, MuJoCo's ``limits`` took the thin rod and its build then
+    failed with the compiler's message.) The other engines build it."""
+    thin = redysim.Chain.uniform(3, "U", mass=1.0)
+    assert np.linalg.eigvalsh(thin.inertia_com[0]).min() == 0.0
+    why = ("mujoco: body 'link1' has mass 1 kg and smallest principal moment 0 kg m^2: MuJoCo's "
+           "compiler refuses it ('mass and inertia of moving bodies must be larger than "
+           "mjMINVAL' = 1e-15)")
+    mujoco = references.get("mujoco")
+    lim = mujoco.limits(thin)
+    assert not lim.ok and lim.reason.startswith(why), lim.reason
+    if mujoco.available():
+        with pytest.raises(EngineLimitExceeded, match="body 'link1' has mass 1 kg"):
+            mujoco(thin)
+    for name in references.ENGINES:
+        if name != "mujoco":
+            assert references.get(name).limits(thin).ok, name
 
 
 def test_missing_package_is_named():

@@ -1,8 +1,8 @@
 """Closed loops in every reference engine (``references/loops.py``): each engine builds the loops'
-tree as its tree adapter does and closes the cut joints with its OWN constraint (Pinocchio's
-``RigidConstraintModel`` + ``constraintDynamics``, MuJoCo's ``connect`` equality, DART's
-``BallJointConstraint``, Exudyn's ``ObjectJointSpherical``); its constrained accelerations and
-loop forces are compared with the core's ``ClosedLoops.forward_dynamics``.
+tree with its one adapter (the cuts open) and closes the cut joints with its OWN constraint
+(Pinocchio's ``RigidConstraintModel`` + ``constraintDynamics``, MuJoCo's ``connect`` equality,
+DART's ``BallJointConstraint``, Exudyn's ``ObjectJointSpherical``); its constrained accelerations
+and loop forces are compared with the core's ``ClosedLoops.forward_dynamics``.
 
 Mechanisms: the crank-rocker four-bar of tests/test_loops.py (a "planar" cut), the spatial loop
 of four links on U and S joints held at a world point (a "point" cut) and a pinned chain of 20
@@ -27,7 +27,7 @@ import pytest
 from test_loops import spatial_loop
 
 import redysim
-from redysim import Body, Model, TreeJoint
+from redysim import Body, Model, TreeJoint, references
 from redysim.linkages import four_bar, pinned_chain
 from redysim.loops import ClosedLoops, CutJoint
 from redysim.references import EngineLimitExceeded
@@ -163,6 +163,21 @@ def test_engine_matches_the_core(name, mech, i):
     assert dq < TOLERANCE[name] and df < TOLERANCE[name], (mech, label, dq, df)
 
 
+@pytest.mark.parametrize("name", list(LOOP_ENGINES))
+def test_answers_are_new_arrays(name):
+    """(qdd, lam) belong to the caller: a later call leaves them as they were (the adapters
+    answer from the engines' own buffers, MuJoCo's ``qacc`` say, which the next call
+    overwrites)."""
+    eng = _engine(name, "four-bar")
+    states = STATES["four-bar"][1]
+    _, q, v, tau = states[0]  # crank 0.3 at rest: every engine answers
+    qdd, lam = eng.forward_dynamics(q, v, tau)
+    before = qdd.copy(), lam.copy()
+    _, q, v, tau = states[2]  # crank 2.0 at rest
+    eng.forward_dynamics(q, v, tau)
+    assert np.array_equal(qdd, before[0]) and np.array_equal(lam, before[1])
+
+
 def test_dart_refusal_is_needed():
     """DART's one-step answer at v != 0 is the hard answer WITHOUT the velocity term: J qdd = 0
     instead of J qdd = -Jdot v. Measured on the moving states: it equals that answer to ~1e-9
@@ -273,7 +288,7 @@ def test_pinocchio_needs_the_proximal_iterations_for_a_planar_cut():
     eng = _engine("pinocchio", "four-bar")
     _, q, v, tau = STATES["four-bar"][1][1]
     t = eng.tree
-    qp, _ = t._engine_state(q, v)
+    qp, _ = t._state(q, v)
     qdd = pin.constraintDynamics(t.pm, t.data, qp, t._to_engine(v, []), np.zeros(3),
                                  eng.cmodels, eng.cdatas, pin.ProximalSettings(1e-13, 0.0, 1))
     assert np.isnan(qdd).all()
@@ -311,7 +326,8 @@ def test_exudyn_velocity_term_is_a_finite_difference():
 
 
 def test_exudyn_explicit_solver_cannot_close_a_loop():
-    """Why the implicit solver: the explicit one (the tree adapter's qdd) aborts on the loop."""
+    """Why the implicit solver: the explicit one (the engine adapter's qdd) aborts on the
+    loop."""
     exu = pytest.importorskip("exudyn")
     from redysim.references.exudyn_engine import _settings
 
@@ -328,13 +344,12 @@ def test_inert_moments_do_not_change_the_dynamics():
     """The bars' zero axial moment, raised for MuJoCo and DART, is about an axis the planar
     mechanism never turns about: the tree's GIM and qdd are unchanged (DART builds both)."""
     pytest.importorskip("dartpy")
-    from redysim.references.trees import tree_engine
-
+    dart = references.get("dart")
     for mech in ("four-bar", "pinned chain 20"):
         loops, states = STATES[mech]
         model, changed, why = inert_moments(loops.model)
         assert changed == list(range(model.n_bodies)) and not why
-        a, b = tree_engine("dart", loops.model), tree_engine("dart", model)
+        a, b = dart(loops.model), dart(model)
         for _, q, v, tau in states:
             assert np.array_equal(a.mass_matrix(q), b.mass_matrix(q))
             assert np.abs(a.qdd(q, v, tau) - b.qdd(q, v, tau)).max() < 1e-15 * \
