@@ -26,9 +26,14 @@ else:
     mujoco.set_mju_user_warning(lambda text: warnings.warn(f"MuJoCo: {text}", stacklevel=1))
 try:
     from hypothesis import settings as _hypothesis
+    from hypothesis.configuration import set_hypothesis_home_dir
 except ImportError:
     pass
 else:
+    import tempfile
+
+    # its other caches (constants, Unicode tables) go where its home is: not the checkout
+    set_hypothesis_home_dir(tempfile.mkdtemp(prefix="redysim-hypothesis-"))
     _hypothesis.register_profile("redysim", database=None)
     _hypothesis.load_profile("redysim")
 
