@@ -60,8 +60,11 @@ def base_kernels(rev: str, into: Path):
     if has_entry:
         names.append("redysim/workspace.py")
         # the workspace's imports from outside the kernels: the working tree's
-        (pkg / "chain.py").write_text("from redysim.chain import *  # noqa\n"
-                                      "from redysim.chain import kernel_alias  # noqa\n")
+        shim = ("from redysim.parts import *  # noqa\n"
+                "from redysim.parts import _readonly, kernel_alias  # noqa\n"
+                "from redysim.model import Chain  # noqa\n")
+        for module in ("chain", "parts"):  # (chain.py until the Chain became a Model)
+            (pkg / f"{module}.py").write_text(shim)
         for module in ("errors", "model"):
             (pkg / f"{module}.py").write_text(f"from redysim.{module} import *  # noqa\n")
     for name in [*names, "redysim/_jit.py"]:

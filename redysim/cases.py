@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from .chain import Chain, Joint, Link, check_inertia, check_positive, check_vector
 from .errors import CaseError
 from .integrate import (
     DEFAULT_ATOL,
@@ -36,6 +35,8 @@ from .integrate import (
     MAX_FIXED_STEPS,
     check_settings,
 )
+from .model import Chain
+from .parts import Joint, Link, check_inertia, check_positive, check_vector
 from .shapes import catenary_angles
 
 # The case files and the paper's numbers ship as package data (the repository's cases/ and paper/

@@ -29,10 +29,10 @@ from functools import cached_property
 
 import numpy as np
 
-from .chain import JOINT_TYPES, Chain, Joint, Link
 from .dynamics import check_state, tip
 from .errors import CaseError
-from .model import Model
+from .model import Chain, Model
+from .parts import Link
 from .workspace import Workspace
 
 MAPPABLE = ("R", "U")  # joint types whose coordinates to_coarse can solve for from a chord
@@ -130,54 +130,22 @@ class Coarsening:
         return qc, qdc
 
 
-def chain_of(system: Chain | Model, where: str = "coarsen") -> Chain:
-    """``system`` as a :class:`~redysim.chain.Chain`: itself, or the chain a :class:`Model` is
-    when it has a chain's layout (:meth:`Model.from_chain`'s: each body hanging from the one
-    before it by an R, P, U or S joint placed, unrotated, at the parent's length along its x
-    axis, the first at the origin, and a frame ``tip`` at the last link's length along its x).
-    Raises CaseError naming what is not a chain's."""
-    if isinstance(system, Chain):
-        return system
+def chain_of(system: Model, where: str = "coarsen") -> Model:
+    """``system`` when it is laid out as a chain of links (:attr:`Model.chain_layout`: every
+    :class:`~redysim.model.Chain`, and a model read from a file that has a chain's layout), else
+    CaseError naming what is not a chain's."""
     if not isinstance(system, Model):
-        raise CaseError(where, "chain", type(system).__name__,
-                        "must be a redysim.Chain or a redysim.Model")
-    m = system
-    source = f"{m.name}.{where}"
-    hint = ("coarse-graining lumps consecutive links of a serial chain whose links lie along "
-            "their x axes (a Chain, or Model.from_chain's layout); hold joints of any tree with "
-            "Model.locked instead")
-    if not m.is_chain:
-        k = int(np.flatnonzero(m.parent != np.arange(-1, m.n_bodies - 1))[0])
-        raise CaseError(source, f"body {m.body_names[k]!r}.parent", int(m.parent[k]),
-                        f"the model is a tree, not a chain: {hint}")
-    for k, jt in enumerate(m.joint_types):
-        if jt not in JOINT_TYPES:
-            raise CaseError(source, f"joint {m.joint_names[k]!r}.type", jt,
-                            f"a chain's joints are {', '.join(JOINT_TYPES)}: {hint}")
-        p = m.placement_p[k]
-        if np.abs(m.placement_R[k] - np.eye(3)).max() > 0 or p[1] != 0 or p[2] != 0 \
-                or (k == 0 and p[0] != 0) or (k > 0 and not p[0] > 0):
-            raise CaseError(source, f"joint {m.joint_names[k]!r}.placement",
-                            [float(x) for x in p], f"not at the parent's length along its x "
-                            f"axis, unrotated: {hint}")
-    b, point = m.frames.get("tip", (-1, None))
-    if b != m.n_bodies - 1 or point[1] != 0 or point[2] != 0 or not point[0] > 0:
-        raise CaseError(source, "frames.tip", None if point is None else
-                        [float(x) for x in point], "a chain's model marks its last link's "
-                        f"distal end as the frame 'tip' at (length, 0, 0): {hint}")
-    lengths = [*m.placement_p[1:, 0], point[0]]
-    links, joints = [], []
-    for k, jt in enumerate(m.joint_types):
-        u = m.dof_u[m.joint_voff[k]]
-        default = Joint(jt).axes()[0][1]
-        joints.append(Joint(jt, None if jt not in ("R", "P") or np.array_equal(u, default)
-                            else tuple(float(x) for x in u)))
-        links.append(Link(float(lengths[k]), float(m.mass[k]), tuple(m.com[k]),
-                          tuple(map(tuple, m.inertia_com[k])), physical=False))
-    return Chain.build(links, joints, gravity=tuple(m.gravity), name=m.name, source=source)
+        raise CaseError(where, "chain", type(system).__name__, "must be a redysim.Model (a "
+                        "Chain is one)")
+    if system.chain_layout is not None:
+        raise CaseError(f"{system.name}.{where}", "chain", system.name,
+                        f"not a chain of links: {system.chain_layout}; coarse-graining lumps "
+                        "consecutive links of a serial chain whose links lie along their x "
+                        "axes (a Chain); hold joints of any tree with Model.locked instead")
+    return system
 
 
-def coarsen(chain: Chain | Model, k: int | None = None, *, links: int | None = None,
+def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,
             name: str | None = None) -> Coarsening:
     """Lump every ``k`` consecutive links of ``chain`` into one (or give the coarse ``links``
     count, which must divide the chain's). A :class:`~redysim.model.Model` is taken when it has

@@ -80,9 +80,9 @@ from typing import Any
 
 import numpy as np
 
-from .chain import _readonly, check_inertia, check_positive, check_vector
 from .errors import CaseError
 from .model import Body, Model, TreeJoint
+from .parts import _readonly, check_inertia, check_positive, check_vector
 
 CONVENTIONS = ("standard", "modified")
 DH_JOINTS = ("R", "P")

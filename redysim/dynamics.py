@@ -1,6 +1,6 @@
 """The public dynamics functions: checked at the door, then handed to the kernels.
 
-Every function takes a :class:`~redysim.chain.Chain` or a :class:`~redysim.model.Model` (a
+Every function takes a :class:`~redysim.model.Chain` or a :class:`~redysim.model.Model` (a
 kinematic tree: a chain is one) and numpy vectors in SI units and returns numpy arrays: q of length
 ``n_q``, velocities, accelerations and forces of length ``n_v`` (both ``n_dof`` for a chain; a
 free joint has 7 and 6). An optional :class:`~redysim.workspace.Workspace` avoids reallocating
@@ -30,13 +30,13 @@ from ._kernels.inverse_dynamics import rnea_backward
 from ._kernels.kinematics import kinematics as _kinematics
 from ._kernels.rge_a import rge_a_backward
 from ._kernels.udu import udu_assemble
-from .chain import NUMERIC_KINDS, Chain
 from .errors import FieldError, StateError
 from .methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
 from .model import Model
+from .parts import NUMERIC_KINDS
 from .workspace import Workspace
 
-System = Chain | Model
+System = Model  # a Chain is a Model
 
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
@@ -226,7 +226,7 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     strided) after numba refuses their types, ~0.1 ms a call here.
     """
     ws = _ws(chain, ws)
-    is_planar = type(chain) is Chain and chain.is_planar
+    is_planar = chain.is_planar
     if planar is None:
         planar = is_planar
     elif planar and not is_planar:
@@ -483,8 +483,7 @@ def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> Stat
         voff = ws.tree.joint_voff
         k = int(np.searchsorted(voff, j, side="right") - 1)
         axis = j - int(voff[k])
-        kind, joint = ((chain.joints[k].type, f"joint {k}") if type(chain) is Chain else
-                       (chain.joint_types[k], f"joint {k}, {chain.joint_names[k]!r}"))
+        kind, joint = chain.joint_types[k], f"joint {chain.joint_names[k]!r}"
         return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
                           f"{j} ({joint}, axis {axis} of its {kind} joint): "
                           f"the inertia about that axis of everything it moves is "
@@ -607,22 +606,14 @@ def _frame_point(system: System, frame: str) -> tuple[int, np.ndarray]:
     """(body index, point in the body's frame) of ``frame``: a frame of the model
     (``Model.frames``; a chain has ``"tip"``) or a body (its origin, the joint's centre).
     Raises FieldError naming the frame and listing the known ones."""
-    if type(system) is Chain:
-        if frame == TIP:
-            k = system.n_links - 1
-            return k, np.array([system.length[k], 0.0, 0.0])
-        names = {f"link{k + 1}": k for k in range(system.n_links)}
-        known = [TIP, "link1", "...", f"link{system.n_links}"]
-    else:
-        if isinstance(frame, str) and frame in system.frames:
-            b, point = system.frames[frame]
-            return int(b), np.asarray(point, dtype=float)
-        names = {name: k for k, name in enumerate(system.body_names)}
-        known = [*system.frames, *system.body_names]
-        if len(known) > 12:
-            known = [*known[:10], "...", known[-1]]
-    if isinstance(frame, str) and frame in names:
-        return names[frame], np.zeros(3)
+    if isinstance(frame, str) and frame in system.frames:
+        b, point = system.frames[frame]
+        return int(b), np.asarray(point, dtype=float)
+    if isinstance(frame, str) and frame in system.body_names:
+        return system.body_names.index(frame), np.zeros(3)
+    known = [*system.frames, *system.body_names[:10]]
+    if system.n_bodies > 10:
+        known += ["...", system.body_names[-1]]
     where = "tip" if frame == TIP else "frame"
     raise FieldError(f"{type(system).__name__.lower()} {system.name!r}", where, frame,
                      "no such frame or body; known: " + ", ".join(known)
@@ -636,15 +627,13 @@ def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
     acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
     ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
     frame, StateError for a bad state."""
-    if type(system) is Chain and frame == TIP:  # the chain's own formula, its bits
-        return tip(system, q, qd, qdd, ws=ws)
     q = check_state(system, "q", q)
     qd = check_state(system, "qd", qd)
     qdd = check_state(system, "qdd", qdd, optional=True)
     k, point = _frame_point(system, frame)
     ws = _ws(system, ws)
     _run_kinematics(system, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
-    r = ws.oR[k] @ point
+    r = _arm(ws.oR[k], point)
     w, v = ws.t[k, :3], ws.t[k, 3:]
     pos = ws.oO[k] + r
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
@@ -654,49 +643,35 @@ def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
             wd, vd = ws.td[k, :3], ws.td[k, 3:]
             acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
     if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
-        raise overflow_error(f"the motion of {frame!r}", q=q, qd=qd, qdd=qdd)
+        raise overflow_error("the tip's motion" if frame == TIP else f"the motion of {frame!r}",
+                             q=q, qd=qd, qdd=qdd)
     return Tip(pos, vel, acc)
+
+
+def _arm(oR: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """A body point's offset from the body's origin in the world frame: a point on the body's x
+    axis (a chain's tip) as its x times the frame's first column (the chain's formula, whose
+    bits the rope's results carry), any other as oR point."""
+    if point[1] == 0 and point[2] == 0:
+        return point[0] * oR[:, 0]
+    return oR @ point
 
 
 def tip(chain: System, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
-    """The tip (distal end of the last link): position, velocity and, given qdd, acceleration.
-    A :class:`~redysim.model.Model` answers for its frame ``"tip"`` (a chain's model has it;
-    for any other point use :func:`frame_motion`)."""
-    if type(chain) is not Chain:
-        return frame_motion(chain, q, qd, qdd, frame=TIP, ws=ws)
-    q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
-    qdd = check_state(chain, "qdd", qdd, optional=True)
-    ws = _ws(chain, ws)
-    c = chain
-    _run_kinematics(c, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
-    k = c.n_links - 1
-    r = c.length[k] * ws.oR[k][:, 0]
-    w, v = ws.t[k, :3], ws.t[k, 3:]
-    pos = ws.oO[k] + r
-    with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
-        vel = v + np.cross(w, r)
-        acc = None
-        if qdd is not None:
-            wd, vd = ws.td[k, :3], ws.td[k, 3:]
-            acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
-    if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
-        raise overflow_error("the tip's motion", q=q, qd=qd, qdd=qdd)
-    return Tip(pos, vel, acc)
+    """The tip: the frame ``"tip"`` (a chain's is the distal end of its last link): position,
+    velocity and, given qdd, acceleration (:func:`frame_motion`; a model without such a frame
+    raises FieldError naming the frames it has)."""
+    return frame_motion(chain, q, qd, qdd, frame=TIP, ws=ws)
 
 
 def joint_positions(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
-    """The joint origins, for plotting a shape: a chain's (nl + 1, 3) O_1..O_nl and the tip; a
-    model's (nb, 3) body origins (each body's frame sits on its joint), then its ``"tip"``
-    frame's position when it has one (so a chain's model gives the chain's rows)."""
+    """The joint origins, for plotting a shape: (nb, 3) the body origins (each body's frame sits
+    on its joint: a chain's O_1..O_nl), then the frame ``"tip"``'s position when the model has
+    one (a chain's distal end), in the world frame [m]."""
     q = check_state(chain, "q", q)
     ws = _ws(chain, ws)
-    c = chain
-    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    if type(c) is not Chain:
-        if TIP not in c.frames:
-            return ws.oO.copy()
-        b, point = c.frames[TIP]
-        return np.vstack([ws.oO, ws.oO[b] + ws.oR[b] @ np.asarray(point, dtype=float)])
-    k = c.n_links - 1
-    return np.vstack([ws.oO, ws.oO[k] + c.length[k] * ws.oR[k][:, 0]])
+    _run_kinematics(chain, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    if TIP not in chain.frames:
+        return ws.oO.copy()
+    b, point = chain.frames[TIP]
+    return np.vstack([ws.oO, ws.oO[b] + _arm(ws.oR[b], np.asarray(point, dtype=float))])

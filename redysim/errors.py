@@ -4,7 +4,7 @@
 
     RedysimError                  every error redysim raises on purpose
     +-- FieldError                a bad field of a file or a call (names source, field, value)
-    |   +-- CaseError             a case file or chain description (redysim.cases, redysim.chain)
+    |   +-- CaseError             a case file or chain description (redysim.cases, redysim.model)
     |   +-- SettingsError         a run's settings: integrator, tolerances, step, horizon, sampling
     |   +-- SweepError            a sweep file (redysim.harness.sweep)
     |   +-- GatesError            the accuracy gates file (redysim.harness.gates)

@@ -60,10 +60,10 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from .chain import KIND_CODES, Chain
 from .errors import FieldError
 from .importers import URDF_GRAVITY
 from .model import BALL, FREE, Model, joint_transform
+from .parts import KIND_CODES
 
 PRISMATIC = KIND_CODES["P"]
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the least mass and principal moment of a moving body
@@ -98,12 +98,14 @@ def _plain(v):
     return float(a) if a.ndim == 0 else tuple(float(x) for x in a.ravel())
 
 
-def _as_model(system: Chain | Model) -> Model:
-    if isinstance(system, Chain):
-        return Model.from_chain(system)
+def _as_model(system: Model, source: str = "export") -> Model:
     if not isinstance(system, Model):
-        raise TypeError(f"export takes a redysim.Chain or redysim.Model, not "
+        raise TypeError(f"export takes a redysim.Model (a Chain is one), not "
                         f"{type(system).__name__}")
+    if system.cuts:
+        raise ExportError(source, "cuts", [c.name for c in system.cuts],
+                          "a closed mechanism: the exporters write trees, and would drop its "
+                          "cut joints; export the open tree (model.with_cuts(()))")
     return system
 
 
@@ -312,14 +314,14 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
     return suffix, joints[::-1]
 
 
-def to_mjcf(system: Chain | Model) -> str:
+def to_mjcf(system: Model) -> str:
     """The MJCF text of a chain or model (module docstring).
 
     Raises ExportError naming the body or joint that MJCF (MuJoCo's compiler or XML reader)
-    cannot hold, TypeError for anything but a Chain or Model.
+    cannot hold, TypeError for anything but a Model.
     """
     source = "to_mjcf"
-    model = _as_model(system)
+    model = _as_model(system, source)
     if URDF_ROOT in model.body_names:
         raise ExportError(source, f"body {URDF_ROOT!r}", None,
                           "MuJoCo's world body is named 'world', and its compiler refuses a "
@@ -424,14 +426,14 @@ def _urdf_turn(source: str, model: Model) -> np.ndarray | None:
     return _turn_to_minus_z(g / norm)
 
 
-def to_urdf(system: Chain | Model) -> str:
+def to_urdf(system: Model) -> str:
     """The URDF text of a chain or model (module docstring).
 
     Raises ExportError naming what URDF (or its readers) cannot hold, TypeError for anything
-    but a Chain or Model.
+    but a Model.
     """
     source = "to_urdf"
-    model = _as_model(system)
+    model = _as_model(system, source)
     free = [k for k, t in enumerate(model.joint_types) if t == FREE]
     roots = [k for k in range(model.n_bodies) if model.parent[k] < 0]
     if free and len(roots) > 1:

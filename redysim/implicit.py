@@ -361,7 +361,7 @@ def compile_kernels() -> None:
     one-link chain (its types are every chain's), so that a timed run does not include it. In
     place of :func:`redysim.integrate.compile_kernels`: the implicit step calls none of the
     Runge-Kutta kernels."""
-    from .chain import Chain
+    from .model import Chain
 
     chain = Chain.uniform(1, "U", mass=1.0)
     pre = TensionPreconditioner(chain)

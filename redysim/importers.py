@@ -67,7 +67,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain import KIND_CODES, check_inertia, check_positive
 from .errors import CaseError, ModelFileError
 from .model import (
     FIXED,
@@ -79,6 +78,7 @@ from .model import (
     joint_transform,
     quaternion_matrix,
 )
+from .parts import KIND_CODES, check_inertia, check_positive
 
 __all__ = ["ModelFileError", "load_model", "load_urdf", "load_mjcf", "MIMIC", "EQUALITY",
            "MJCF_MAX_DEPTH", "URDF_GRAVITY"]
@@ -233,7 +233,7 @@ def _origin(src: str, where: str, element) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _as_file_error(check, src, field, value, **kwargs):
-    """A check of redysim.chain (which raises CaseError) as a ModelFileError."""
+    """A check of redysim.parts (which raises CaseError) as a ModelFileError."""
     try:
         return check(src, field, value, **kwargs)
     except CaseError as exc:

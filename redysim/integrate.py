@@ -711,7 +711,7 @@ def compile_kernels() -> None:
     DOP853's tableau would import SciPy's integrate package, 0.2 s. And the compiled stepping
     (:class:`CompiledSolver`), by two steps of a one-link chain: its types are every chain's."""
     integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], "ode45", t_eval=[0.0, 1e-3, 2e-3])
-    from .chain import Chain
+    from .model import Chain
     from .workspace import Workspace
 
     chain = Chain.uniform(1, "U", mass=1.0)

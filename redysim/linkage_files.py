@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain import STANDARD_GRAVITY, check_inertia, check_vector, numeric_array
 from .errors import CaseError, SettingsError, StateError
 from .linkages import assemble, bar_body, bars_body, circle_meet
-from .loops import KINDS, ClosedLoops, CutJoint
-from .model import Body, Model, TreeJoint
+from .loops import ClosedLoops
+from .model import KINDS, Body, CutJoint, Model, TreeJoint
+from .parts import STANDARD_GRAVITY, check_inertia, check_vector, numeric_array
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}  # length_unit -> metres
 GROUND, ORIGIN, END = "ground", "origin", "end"
@@ -628,7 +628,8 @@ def linkage_from_dict(doc: dict, *, source: str = "<dict>", default_name: str = 
     model = Model.build([b.body for b in bodies], [b.joint for b in bodies],
                         [b.parent for b in bodies], gravity=tuple(gravity), name=name, source=src)
     cuts = _cuts(src, doc.get("cut"), bodies, ground)
-    loops = ClosedLoops(model, cuts, source=src)
+    model = model.with_cuts(cuts, source=src)  # the closed mechanism: the tree and its cuts
+    loops = ClosedLoops(model, source=src)
     q0, driver = _initial(src, doc.get("initial"), bodies, loops, unit, cuts)
     points = {f"{GROUND}.{p}": (-1, x) for p, x in ground.items()}
     for k, b in enumerate(bodies):

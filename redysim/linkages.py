@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .chain import STANDARD_GRAVITY
 from .errors import StateError
-from .loops import PROJECTION_TOL, ClosedLoops, CutJoint
-from .model import Body, Model, TreeJoint
+from .loops import PROJECTION_TOL, ClosedLoops
+from .model import Body, CutJoint, Model, TreeJoint
+from .parts import STANDARD_GRAVITY
 
 
 def bar_body(name: str, length: float, mass: float) -> Body:
@@ -176,8 +176,9 @@ def four_bar(d: float, a: float, b: float, c: float, *, rp: float | None = None,
     model = Model.build(bodies, joints, [-1, 0, -1], gravity=(0.0, -gravity, 0.0),
                         name=f"four-bar {d:g}/{a:g}/{b:g}/{c:g}")
     cut = CutJoint("coupler-rocker pin", 1, (b, 0.0, 0.0), 2, (c, 0.0, 0.0), "planar")
+    model = model.with_cuts([cut])  # the closed mechanism
     return FourBar(d, a, b, c, b if rp is None else rp, gamma, branch, model,
-                   ClosedLoops(model, [cut], source=model.name))
+                   ClosedLoops(model, source=model.name))
 
 
 def four_bar_position(fb: FourBar, crank: float) -> tuple[np.ndarray, float, float]:
@@ -404,7 +405,8 @@ def jansen_leg(unit: float = 0.01, *, density: float = 1.0,
     cuts = [CutJoint("pivot P", 2, tuple(P), -1, (-L["a"], -L["l"], 0.0), "planar"),
             CutJoint("pin B", 4, (L["c"], 0.0, 0.0), 3, (L["k"], 0.0, 0.0), "planar"),
             CutJoint("knee E", 6, (L["f"], 0.0, 0.0), 5, tuple(E), "planar")]
-    return JansenLeg(L, model, ClosedLoops(model, cuts, source=model.name))
+    model = model.with_cuts(cuts)  # the closed mechanism
+    return JansenLeg(L, model, ClosedLoops(model, source=model.name))
 
 
 @dataclass(frozen=True)
@@ -432,7 +434,8 @@ def pinned_chain(n: int, length: float, mass: float, span: float, *,
     model = Model.build(bodies, joints, list(range(-1, n - 1)), gravity=(0.0, -gravity, 0.0),
                         name=f"pinned chain {n} x {length:g} m, span {span:g} m")
     cut = CutJoint("far pin", n - 1, (length, 0.0, 0.0), -1, (span, 0.0, 0.0), "planar")
-    return PinnedChain(n, length, mass, span, model, ClosedLoops(model, [cut], source=model.name))
+    model = model.with_cuts([cut])  # the closed mechanism
+    return PinnedChain(n, length, mass, span, model, ClosedLoops(model, source=model.name))
 
 
 def discrete_catenary(chain: PinnedChain, gravity: float = STANDARD_GRAVITY) -> np.ndarray:

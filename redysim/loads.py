@@ -20,9 +20,10 @@ import reprlib
 
 import numpy as np
 
-from .chain import Chain, numeric_array
 from .dynamics import _run_kinematics, _ws, check_state, overflow_error
 from .errors import FieldError, StateError
+from .model import Model
+from .parts import numeric_array
 from .workspace import Workspace
 
 
@@ -38,15 +39,16 @@ def check_force(force) -> np.ndarray:
     return arr
 
 
-def _inputs(chain: Chain, q, force, caller: str) -> tuple[np.ndarray, np.ndarray]:
+def _inputs(chain: Model, q, force, caller: str) -> tuple[np.ndarray, np.ndarray]:
     """(q, F) checked, for a chain (a tree has no single tip)."""
-    if not isinstance(chain, Chain):
-        raise FieldError(caller, "chain", type(chain).__name__,
-                         "must be a redysim.Chain (the tip is the distal end of its last link)")
+    if not isinstance(chain, Model) or chain.chain_layout is not None:
+        raise FieldError(caller, "chain", getattr(chain, "name", type(chain).__name__),
+                         "must be a chain of links, a redysim.Chain (the tip is the distal end "
+                         "of its last link)")
     return check_state(chain, "q", q), check_force(force)
 
 
-def _tip_position(chain: Chain, q: np.ndarray, ws: Workspace | None
+def _tip_position(chain: Model, q: np.ndarray, ws: Workspace | None
                   ) -> tuple[np.ndarray, Workspace]:
     """The position pass of the kinematics; returns (p_tip, the workspace it filled)."""
     ws = _ws(chain, ws)
@@ -56,7 +58,7 @@ def _tip_position(chain: Chain, q: np.ndarray, ws: Workspace | None
         return ws.oO[k] + chain.length[k] * ws.oR[k][:, 0], ws
 
 
-def tip_force_torques(chain: Chain, q, force, *, ws: Workspace | None = None) -> np.ndarray:
+def tip_force_torques(chain: Model, q, force, *, ws: Workspace | None = None) -> np.ndarray:
     """tau = J_tip(q)^T F (n,): the joint forces of a constant world-frame force ``force`` [N]
     acting at the chain's tip (module docstring). Pass it, plus any other joint forces, as the
     ``tau`` of :func:`redysim.forward_dynamics`."""
@@ -74,7 +76,7 @@ def tip_force_torques(chain: Chain, q, force, *, ws: Workspace | None = None) ->
     return tau
 
 
-def tip_force_potential(chain: Chain, q, force, *, ws: Workspace | None = None) -> float:
+def tip_force_potential(chain: Model, q, force, *, ws: Workspace | None = None) -> float:
     """-F . p_tip(q) [J]: the potential of a constant force at the tip, zero with the tip at the
     origin, so that T + V + this is conserved (V from :func:`redysim.energy`)."""
     q, F = _inputs(chain, q, force, "tip_force_potential")

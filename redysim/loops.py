@@ -41,16 +41,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import CaseError, StateError
-from .model import FREE, Model
+from .model import FREE, KINDS, CutJoint, Model, check_cuts
 
-KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> constraint equations
-ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a cut frame's rotation
-WORLD = -1
 SINGULAR = 1e-10  # smallest / largest singular value of J X below which the loops are redundant
 # A redundancy at q only is a change point: J X regular (ratio above REGULAR_NEAR) at q moved by
 # up to CHANGE_POINT_STEP rad per coordinate, in fixed pseudo-random directions
@@ -62,79 +58,12 @@ PROJECTION_TOL = 1e-12  # |phi| (m) the position projection aims at, relative to
 PROJECTION_ITERATIONS = 8
 
 
-@dataclass(frozen=True)
-class CutJoint:
-    """Point ``point_a`` of body ``body_a`` kept on point ``point_b`` of body ``body_b`` (each
-    in its body's frame; ``body_b = -1``: the world, ``point_b`` in world coordinates); for a
-    revolute or weld cut also the frames ``rot_a``, ``rot_b`` (3 x 3 rotations in the bodies'
-    frames, default the bodies' own; the revolute axis is their z) kept aligned."""
-
-    name: str
-    body_a: int
-    point_a: tuple[float, float, float]
-    body_b: int
-    point_b: tuple[float, float, float]
-    kind: str = "point"
-    rot_a: tuple | None = None
-    rot_b: tuple | None = None
-
-    def __post_init__(self):
-        """Each field checked at construction (CaseError naming it and its value); which
-        bodies exist is :class:`ClosedLoops`'s to check."""
-        source = f"CutJoint {self.name!r}" if isinstance(self.name, str) else "CutJoint"
-        if not isinstance(self.name, str) or not self.name:
-            raise CaseError(source, "name", self.name, "must be a non-empty string")
-        for side in ("body_a", "body_b"):
-            body = getattr(self, side)
-            if isinstance(body, bool) or not isinstance(body, int | np.integer):
-                raise CaseError(source, side, _plain(body), "must be a body index (a whole "
-                                "number" + (", -1 for the world)" if side == "body_b" else ")"))
-            object.__setattr__(self, side, int(body))
-        if self.kind not in KINDS:
-            raise CaseError(source, "kind", self.kind, f"unknown; known: {', '.join(KINDS)}")
-        for side in ("point_a", "point_b"):
-            p = getattr(self, side)
-            a = _numbers(p)
-            if a is None or a.shape != (3,) or not np.isfinite(a).all():
-                raise CaseError(source, side, _plain(p), "must be 3 finite numbers [m]")
-            object.__setattr__(self, side, tuple(float(x) for x in a))
-        for side in ("rot_a", "rot_b"):
-            R = getattr(self, side)
-            if R is None:
-                continue
-            a = _numbers(R)
-            if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
-                    np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
-                raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
-            if self.kind not in ("revolute", "weld"):
-                raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
-                                f"or 'weld' cut only; a {self.kind!r} cut would ignore it")
-
-
-def _numbers(value) -> np.ndarray | None:
-    """``value`` as a float array, or None when it is not numbers (strings, booleans, ...)."""
-    try:
-        a = np.asarray(value)
-    except (ValueError, TypeError):
-        return None
-    if a.dtype.kind not in "iuf":
-        return None
-    return a.astype(float)
-
-
-def _plain(value):
-    """A value for a message: numpy scalars and arrays as plain numbers and lists."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 class ClosedLoops:
-    """A tree and its cut joints (module docstring). Not thread-safe (it holds workspaces)."""
+    """A tree and its cut joints (module docstring): ``cuts``, or the model's own
+    (:meth:`Model.with_cuts`). Not thread-safe (it holds workspaces)."""
 
-    def __init__(self, model: Model, cuts: Sequence[CutJoint], *, source: str = "loops"):
+    def __init__(self, model: Model, cuts: Sequence[CutJoint] | None = None, *,
+                 source: str = "loops"):
         from .workspace import Workspace
 
         if not isinstance(source, str):
@@ -142,33 +71,12 @@ class ClosedLoops:
                             "model and its cuts come from, for messages)")
         if not isinstance(model, Model):
             raise CaseError(source, "model", type(model).__name__, "must be a redysim.Model")
+        if cuts is None:  # the model's own (Model.with_cuts)
+            cuts = model.cuts
         if FREE in model.joint_types:
             raise CaseError(source, "model", model.name, "loops on a model with a free joint are "
                             "not supported yet (its quaternion has 4 coordinates for 3 DOF)")
-        if isinstance(cuts, CutJoint) or not isinstance(cuts, Sequence) or \
-                isinstance(cuts, str):
-            raise CaseError(source, "cuts", type(cuts).__name__, "must be a list of CutJoint "
-                            "(one per cut joint)")
-        if not cuts:
-            raise CaseError(source, "cuts", [], "give at least one cut joint")
-        nb = model.n_bodies
-        names = set()
-        for i, c in enumerate(cuts):
-            if not isinstance(c, CutJoint):
-                raise CaseError(source, f"cuts[{i}]", type(c).__name__, "must be a "
-                                "redysim.loops.CutJoint")
-            where = f"cut joint {c.name!r}"
-            if c.name in names:
-                raise CaseError(source, f"{where}.name", c.name, "two cut joints have this name")
-            names.add(c.name)
-            for side, body in (("body_a", c.body_a), ("body_b", c.body_b)):
-                if not -1 <= body < nb or (side == "body_a" and body < 0):
-                    raise CaseError(source, f"{where}.{side}", body,
-                                    f"must be a body index in 0..{nb - 1}"
-                                    + (" or -1 (the world)" if side == "body_b" else ""))
-            if c.body_a == c.body_b:
-                raise CaseError(source, f"{where}.body_b", c.body_b, "a cut joint joins two "
-                                "different bodies (here a body and itself)")
+        check_cuts(model, cuts, source)
         self.model, self.cuts = model, tuple(cuts)
         self.nearest_singular = math.inf  # the least s_min / s_max of J X met (a change point)
         self.rows = [(i, r) for i, c in enumerate(cuts) for r in range(KINDS[c.kind])]

@@ -4,7 +4,7 @@ A :class:`Model` is an immutable tree of rigid bodies. Body k (k = 0..nb-1, pare
 children: ``parent[k] < k``, -1 for the base) hangs from its parent by joint k, whose frame sits
 at the placement (rotation ``placement_R[k]``, translation ``placement_p[k]``) in the parent
 body's frame; the joint's motion then carries body k's frame away from the joint frame. Joint
-types are those of :data:`redysim.chain.JOINT_TYPES` (R and P about any axis, U, S: sequences of
+types are those of :data:`redysim.parts.JOINT_TYPES` (R and P about any axis, U, S: sequences of
 elementary axes, each in the frame the axes before it leave) and two more:
 
 - ``fixed``: no motion. Fused when the model is built: the body's mass, centre of mass and
@@ -17,7 +17,7 @@ elementary axes, each in the frame the axes before it leave) and two more:
   convention of MuJoCo's free joint. dq/dt = (v_world, q (x) [0; w_body] / 2).
 
 Everything a chain is, a tree is: :meth:`Model.from_chain` gives the tree of a
-:class:`~redysim.chain.Chain` (parent k - 1, each joint placed at the parent's length along its x
+:class:`~redysim.model.Chain` (parent k - 1, each joint placed at the parent's length along its x
 axis), with the same numbers.
 
 Per-DOF tables follow the chain's (``dof_kind``, ``dof_axis``, ``dof_u``) over the n_v velocity
@@ -35,20 +35,20 @@ from functools import cached_property
 
 import numpy as np
 
-from .chain import (
+from .errors import CaseError
+from .parts import (
     GENERAL_AXIS,
     JOINT_TYPES,
     KIND_CODES,
     STANDARD_GRAVITY,
-    Chain,
     Joint,
+    Link,
     _readonly,
     check_inertia,
     check_positive,
     check_vector,
     numeric_array,
 )
-from .errors import CaseError
 
 BALL = 2  # dof_kind of a free joint's rotational DOF (about the body's own x, y, z)
 FREE, FIXED = "free", "fixed"
@@ -185,6 +185,8 @@ class Model:
         frames:           name -> (body, point in its frame): points of interest (a chain's tip).
         notes:            what the model's file holds and the model does not, one line each
                           (:mod:`redysim.importers`: dropped attributes, things not read).
+        cuts:             the cut joints that close the model's loops (:meth:`with_cuts`; none
+                          for a tree).
     """
 
     name: str
@@ -209,6 +211,7 @@ class Model:
     frames: Mapping[str, tuple[int, tuple[float, float, float]]] = field(default_factory=dict)
     notes: tuple[str, ...] = ()  # what the file holds and the model does not, one line each
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
+    cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
 
     # ----------------------------------------------------------------------- building
     @classmethod
@@ -352,18 +355,29 @@ class Model:
             frames=frames)
 
     @classmethod
-    def from_chain(cls, chain: Chain) -> Model:
-        """The tree of a serial chain: body k is link k, hanging from link k - 1 by joint k,
-        placed at l_{k-1} along the parent's x; the frame ``tip`` is the last link's distal end."""
-        nl = chain.n_links
-        bodies = [Body(f"link{k + 1}", float(chain.mass[k]), tuple(chain.com[k]),
-                       tuple(map(tuple, chain.inertia_com[k])), physical=False)
-                  for k in range(nl)]
-        joints = [TreeJoint(f"joint{k + 1}", j.type, j.axis,
-                            translation=(float(chain.length[k - 1]) if k else 0.0, 0.0, 0.0))
-                  for k, j in enumerate(chain.joints)]
-        return cls.build(bodies, joints, list(range(-1, nl - 1)), gravity=chain.gravity,
-                         name=chain.name, frames={"tip": (nl - 1, (chain.length[-1], 0, 0))})
+    def from_chain(cls, chain: Model) -> Model:
+        """The model of a serial chain: a :class:`Chain` already is one (body k is link k,
+        hanging from link k - 1 by joint k, placed at l_{k-1} along the parent's x; the frame
+        ``tip`` is the last link's distal end), so this returns it; kept for callers that
+        spelled the conversion out."""
+        if not isinstance(chain, Model):
+            raise CaseError("Model.from_chain", "chain", type(chain).__name__,
+                            "must be a redysim.Chain (a Model)")
+        return chain
+
+    def with_cuts(self, cuts: Sequence, *, source: str | None = None) -> Model:
+        """The model with these cut joints (:class:`CutJoint`: each keeps a point
+        of one body on a point of another, or frames aligned), checked against it: the closed
+        mechanism. :func:`redysim.simulate` closes its loops; :class:`redysim.loops.ClosedLoops`
+        is the algorithm (constrained forward dynamics, projection); the other dynamics
+        functions answer for the tree. ``with_cuts(())`` is the open tree. Raises CaseError
+        naming a bad cut (``source``: where they come from)."""
+        import dataclasses
+
+        if cuts is not None and not isinstance(cuts, str | CutJoint) and len(cuts) == 0:
+            return dataclasses.replace(self, cuts=())
+        check_cuts(self, cuts, source or f"{self.name}.with_cuts")
+        return dataclasses.replace(self, cuts=tuple(cuts))
 
     def locked(self, values: Mapping[str, float | Sequence[float]]) -> Model:
         """The model with the named joints held at the given coordinates (a reduced model, as
@@ -373,6 +387,10 @@ class Model:
         (U: 2, S: 3, free: the 7 of q). Raises CaseError naming ``values`` when it is not such a
         mapping, an unknown joint, or a value that is not the joint's count of finite numbers."""
         where = f"{self.name}.locked"
+        if self.cuts:
+            _fail(where, "cuts", [c.name for c in self.cuts], "a model with cut joints: lock "
+                  "joints of the open tree (model.with_cuts(())), then cut it again (the cuts "
+                  "name bodies by index, which locking renumbers)")
         if not isinstance(values, Mapping):
             _fail(where, "values", values, "must be a mapping joint name -> coordinate(s), e.g. "
                   f"{{{self.joint_names[0]!r}: 0.0}}")
@@ -446,6 +464,76 @@ class Model:
         return bool(np.array_equal(self.parent, np.arange(-1, self.n_bodies - 1)))
 
     @cached_property
+    def chain_layout(self) -> str | None:
+        """None when the model is laid out as a chain of links (:class:`Chain`'s layout: each
+        body hanging from the one before it by an R, P, U or S joint placed, unrotated, at the
+        parent's length along its x axis, the first at the origin, and a frame ``tip`` at the
+        last link's length along its x), else what breaks it (for messages)."""
+        if not self.is_chain:
+            k = int(np.flatnonzero(self.parent != np.arange(-1, self.n_bodies - 1))[0])
+            return f"body {self.body_names[k]!r} hangs from body {int(self.parent[k])}: a tree"
+        bad = [t for t in self.joint_types if t not in JOINT_TYPES]
+        if bad:
+            return f"it has a {bad[0]} joint (a chain's are {', '.join(JOINT_TYPES)})"
+        p = self.placement_p
+        rotated = (self.placement_R != np.eye(3)).any(axis=(1, 2))
+        off = (p[:, 1] != 0) | (p[:, 2] != 0) | rotated
+        off[0] |= p[0, 0] != 0
+        off[1:] |= ~(p[1:, 0] > 0)
+        if off.any():
+            k = int(np.flatnonzero(off)[0])
+            return (f"joint {self.joint_names[k]!r} is not placed, unrotated, at its parent's "
+                    "length along the parent's x")
+        b, point = self.frames.get("tip", (-1, None))
+        if b != self.n_bodies - 1 or point[1] != 0 or point[2] != 0 or not point[0] > 0:
+            return "it has no frame 'tip' at (length, 0, 0) on its last body"
+        return None
+
+    def _chain_only(self, what: str) -> None:
+        if self.chain_layout is not None:
+            raise CaseError(f"model {self.name!r}", what, None, f"defined for a chain of links "
+                            f"(Chain's layout); here {self.chain_layout}")
+
+    @cached_property
+    def length(self) -> np.ndarray:
+        """(nl,) a chain's link lengths l_k [m] (CaseError for a model that is not laid out as
+        a chain: :attr:`chain_layout`)."""
+        self._chain_only("length")
+        out = np.append(self.placement_p[1:, 0], self.frames["tip"][1][0])
+        out.flags.writeable = False
+        return out
+
+    @property
+    def n_links(self) -> int:
+        """The number of bodies (a chain's links)."""
+        return self.n_bodies
+
+    @cached_property
+    def joints(self) -> tuple[Joint, ...]:
+        """Each body's joint as a :class:`~redysim.parts.Joint` (type, and the axis of an R or
+        P joint); CaseError for a free or fixed joint, which a Joint does not describe."""
+        out, shared = [], {}
+        for k, jt in enumerate(self.joint_types):
+            if jt not in JOINT_TYPES:
+                raise CaseError(f"model {self.name!r}", f"joint {self.joint_names[k]!r}", jt,
+                                f"a {jt} joint is not a Joint ({', '.join(JOINT_TYPES)})")
+            u = self.dof_u[self.joint_voff[k]]
+            axis = None if jt not in ("R", "P") or np.array_equal(u, Joint(jt).axes()[0][1]) \
+                else tuple(float(x) for x in u)
+            out.append(shared.setdefault((jt, axis), Joint(jt, axis)))
+        return tuple(out)
+
+    @cached_property
+    def is_planar(self) -> bool:
+        """True for a chain (:attr:`chain_layout`) whose joints are each a single revolute about
+        their frame's z axis: every axis then stays parallel to the world Z, every link moves in
+        the XY plane, and the planar specialisation of the recursion applies. (Out-of-plane
+        inertia products, COM offsets along z and a gravity component along Z only load the
+        joints with reaction moments and forces normal to the plane; they do not change qdd.)"""
+        return bool(self.n_v == self.n_bodies and np.all(self.dof_kind == 0)
+                    and np.all(self.dof_axis == 2) and self.chain_layout is None)
+
+    @cached_property
     def quaternions(self) -> np.ndarray:
         """Index in q of the first (w) component of each free joint's quaternion."""
         return np.array([self.joint_qoff[k] + 3 for k, t in enumerate(self.joint_types)
@@ -462,6 +550,324 @@ class Model:
         bodies' poses; URDF: a floating base's pose), else :meth:`neutral`."""
         return self.neutral() if self.initial_q is None else self.initial_q.copy()
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickling: numpy restores arrays writeable; make them read-only views again."""
+        for key, value in state.items():
+            object.__setattr__(self, key,
+                               _readonly(value) if isinstance(value, np.ndarray) else value)
+
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, bodies={self.n_bodies}, n_q={self.n_q}, n_v={self.n_v}, "
+                f"mass={self.total_mass:.6g} kg)")
+
+
+KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> constraint equations
+WORLD = -1  # a cut joint's body_b: the world
+
+
+@dataclass(frozen=True)
+class CutJoint:
+    """Point ``point_a`` of body ``body_a`` kept on point ``point_b`` of body ``body_b`` (each
+    in its body's frame; ``body_b = -1``: the world, ``point_b`` in world coordinates); for a
+    revolute or weld cut also the frames ``rot_a``, ``rot_b`` (3 x 3 rotations in the bodies'
+    frames, default the bodies' own; the revolute axis is their z) kept aligned."""
+
+    name: str
+    body_a: int
+    point_a: tuple[float, float, float]
+    body_b: int
+    point_b: tuple[float, float, float]
+    kind: str = "point"
+    rot_a: tuple | None = None
+    rot_b: tuple | None = None
+
+    def __post_init__(self):
+        """Each field checked at construction (CaseError naming it and its value); which
+        bodies exist is :func:`check_cuts`'s (a model's) to check."""
+        source = f"CutJoint {self.name!r}" if isinstance(self.name, str) else "CutJoint"
+        if not isinstance(self.name, str) or not self.name:
+            raise CaseError(source, "name", self.name, "must be a non-empty string")
+        for side in ("body_a", "body_b"):
+            body = getattr(self, side)
+            if isinstance(body, bool) or not isinstance(body, int | np.integer):
+                raise CaseError(source, side, _plain(body), "must be a body index (a whole "
+                                "number" + (", -1 for the world)" if side == "body_b" else ")"))
+            object.__setattr__(self, side, int(body))
+        if self.kind not in KINDS:
+            raise CaseError(source, "kind", self.kind, f"unknown; known: {', '.join(KINDS)}")
+        for side in ("point_a", "point_b"):
+            p = getattr(self, side)
+            a = _numbers(p)
+            if a is None or a.shape != (3,) or not np.isfinite(a).all():
+                raise CaseError(source, side, _plain(p), "must be 3 finite numbers [m]")
+            object.__setattr__(self, side, tuple(float(x) for x in a))
+        for side in ("rot_a", "rot_b"):
+            R = getattr(self, side)
+            if R is None:
+                continue
+            a = _numbers(R)
+            if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
+                    np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
+                raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
+            if self.kind not in ("revolute", "weld"):
+                raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
+                                f"or 'weld' cut only; a {self.kind!r} cut would ignore it")
+
+
+def _numbers(value) -> np.ndarray | None:
+    """``value`` as a float array, or None when it is not numbers (strings, booleans, ...)."""
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):
+        return None
+    if a.dtype.kind not in "iuf":
+        return None
+    return a.astype(float)
+
+
+def _plain(value):
+    """A value for a message: numpy scalars and arrays as plain numbers and lists."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+
+
+def _numbers(value) -> np.ndarray | None:
+    """``value`` as a float array, or None when it is not numbers (strings, booleans, ...)."""
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):
+        return None
+    if a.dtype.kind not in "iuf":
+        return None
+    return a.astype(float)
+
+
+def _plain(value):
+    """A value for a message: numpy scalars and arrays as plain numbers and lists."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def check_cuts(model: Model, cuts, source: str) -> None:
+    """Refuse cut joints that do not fit ``model`` (CaseError naming the cut and the field): not
+    a list of :class:`CutJoint`, none, two of one name, a body index out of range, a cut of a
+    body to itself."""
+    if isinstance(cuts, CutJoint) or not isinstance(cuts, Sequence) or \
+            isinstance(cuts, str):
+        raise CaseError(source, "cuts", type(cuts).__name__, "must be a list of CutJoint "
+                        "(one per cut joint)")
+    if not cuts:
+        raise CaseError(source, "cuts", [], "give at least one cut joint")
+    nb = model.n_bodies
+    names = set()
+    for i, c in enumerate(cuts):
+        if not isinstance(c, CutJoint):
+            raise CaseError(source, f"cuts[{i}]", type(c).__name__, "must be a "
+                            "redysim.CutJoint")
+        where = f"cut joint {c.name!r}"
+        if c.name in names:
+            raise CaseError(source, f"{where}.name", c.name, "two cut joints have this name")
+        names.add(c.name)
+        for side, body in (("body_a", c.body_a), ("body_b", c.body_b)):
+            if not -1 <= body < nb or (side == "body_a" and body < 0):
+                raise CaseError(source, f"{where}.{side}", body,
+                                f"must be a body index in 0..{nb - 1}"
+                                + (" or -1 (the world)" if side == "body_b" else ""))
+        if c.body_a == c.body_b:
+            raise CaseError(source, f"{where}.body_b", c.body_b, "a cut joint joins two "
+                            "different bodies (here a body and itself)")
+
+
+class _Numbered(Sequence):
+    """The names prefix1 .. prefixN, as a sequence that holds none of them (a chain's bodies and
+    joints: 500,000 strings would be ~30 MB)."""
+
+    def __init__(self, prefix: str, n: int):
+        self.prefix, self.n = prefix, int(n)
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return tuple(self[i] for i in range(*k.indices(self.n)))
+        k = int(k)
+        if k < 0:
+            k += self.n
+        if not 0 <= k < self.n:
+            raise IndexError(k)
+        return f"{self.prefix}{k + 1}"
+
+    def _number(self, name) -> int:
+        if isinstance(name, str) and name.startswith(self.prefix):
+            digits = name[len(self.prefix):]
+            if digits.isdigit() and not digits.startswith("0") and 1 <= int(digits) <= self.n:
+                return int(digits) - 1
+        return -1
+
+    def __contains__(self, name) -> bool:
+        return self._number(name) >= 0
+
+    def index(self, name, *args) -> int:
+        k = self._number(name)
+        if k < 0:
+            raise ValueError(f"{name!r} is not in the list")
+        return k
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Sequence) and len(other) == self.n and all(
+            a == b for a, b in zip(self, other, strict=True))
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return f"({self[0]!r}, ..., {self[self.n - 1]!r})" if self.n > 2 else repr(tuple(self))
+
+
+@dataclass(frozen=True, eq=False)
+class Chain(Model):
+    """A serial chain of rigid links: a :class:`Model` laid out as a chain, built from links and
+    joints (:meth:`build`, :meth:`uniform`, or a case file: :func:`redysim.load_case`).
+
+    Link k (body k, named ``link<k+1>``) hangs from link k - 1 by joint k (``joint<k+1>``),
+    placed, unrotated, at the parent's length along its x axis; the frame ``tip`` is the last
+    link's distal end. Everything a Model has, a chain has, with the same numbers a tree built
+    body by body would have; besides, :attr:`length` (the link lengths) and :attr:`joints` (the
+    Joint objects it was built from) are kept. Built in O(n) numpy operations (each distinct
+    Link and Joint checked once), so 500,000 links build in seconds.
+    """
+
+    @classmethod
+    def build(cls, links: Sequence[Link], joints: Sequence[Joint | str], *,
+              gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "chain",
+              source: str = "chain") -> Chain:
+        """Validate and freeze a chain. ``joints`` may be Joint objects or type names."""
+        if len(links) == 0:
+            raise CaseError(source, "links", len(links), "a chain needs at least one link")
+        if len(joints) != len(links):
+            raise CaseError(source, "joints", len(joints),
+                            f"need one joint per link ({len(links)} links)")
+        named: dict[str, Joint] = {}  # one Joint per type name, so that repeats are shared
+        joints = tuple(j if isinstance(j, Joint) else named.setdefault(str(j), Joint(str(j)))
+                       for j in joints)
+        nl = len(links)
+
+        # Links and joints are immutable: each distinct object is validated once (a uniform chain
+        # repeats one Link and one Joint nl times) and its values are spread by index.
+        link_of = np.empty(nl, dtype=np.int64)  # link k -> its distinct Link
+        first: dict[int, int] = {}
+        values = []
+        for k, link in enumerate(links):
+            u = first.get(id(link))
+            if u is None:
+                where = f"links[{k}]"
+                if not isinstance(link, Link):
+                    raise CaseError(source, where, link, "must be a redysim.Link")
+                values.append((check_positive(source, f"{where}.length", link.length),
+                               check_positive(source, f"{where}.mass", link.mass),
+                               check_vector(source, f"{where}.com", link.com, 3),
+                               check_inertia(source, f"{where}.inertia", link.inertia,
+                                             physical=link.physical)))
+                u = first[id(link)] = len(values) - 1
+            link_of[k] = u
+        length = np.array([v[0] for v in values])[link_of]
+        mass = np.array([v[1] for v in values])[link_of]
+        com = np.array([v[2] for v in values])[link_of]
+        inertia = np.array([v[3] for v in values])[link_of]
+        grav = check_vector(source, "gravity", gravity, 3)
+
+        # Per DOF: kind, axis code and unit axis of each distinct joint, then spread joint by joint.
+        joint_of = np.empty(nl, dtype=np.int64)
+        first = {}
+        dofs = []  # per distinct joint: (kinds, codes, units)
+        for k, joint in enumerate(joints):
+            u = first.get(id(joint))
+            if u is None:
+                axes = joint.axes(source, f"joints[{k}]")
+                # a coordinate axis's code only for exactly +x, +y or +z: the kernels' fast path
+                # takes the frame's column as it is, so -z (or z tilted by 1e-9) must take the
+                # general path, which uses the axis as given
+                codes = [next((i for i in range(3) if np.array_equal(v, np.eye(3)[i])),
+                              GENERAL_AXIS) for _, v in axes]
+                dofs.append(([KIND_CODES[kind] for kind, _ in axes], codes, [v for _, v in axes]))
+                u = first[id(joint)] = len(dofs) - 1
+            joint_of[k] = u
+        width = np.array([len(d[0]) for d in dofs], dtype=np.int64)  # DOF of each distinct joint
+        start = np.concatenate(([0], np.cumsum(width)[:-1]))  # its first row in the flat tables
+        per_joint = width[joint_of]
+        qoff = np.concatenate(([0], np.cumsum(per_joint)))
+        row = np.repeat(start[joint_of] - qoff[:-1], per_joint) + np.arange(qoff[-1])
+        kinds = np.array([x for d in dofs for x in d[0]], dtype=np.int64)[row]
+        codes = np.array([x for d in dofs for x in d[1]], dtype=np.int64)[row]
+        units = np.array([x for d in dofs for x in d[2]], dtype=float).reshape(-1, 3)[row]
+
+        # Inertia about O_k (parallel axis theorem) and first moment m c, both in the link frame.
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported below
+            cc = np.einsum("ki,kj->kij", com, com)
+            sq = np.einsum("ki,ki->k", com, com)
+            inertia_O = inertia + mass[:, None, None] * (sq[:, None, None] * np.eye(3) - cc)
+            inertia_O = 0.5 * (inertia_O + inertia_O.transpose(0, 2, 1))
+            mass_com = mass[:, None] * com
+        bad = ~(np.isfinite(inertia_O).all(axis=(1, 2)) & np.isfinite(mass_com).all(axis=1))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise CaseError(source, f"links[{k}].com", [float(x) for x in com[k]],
+                            f"the inertia about the joint, I_C + m (|c|^2 1 - c c^T) with m = "
+                            f"{mass[k]}, overflows: values too large")
+        # the tree: link k hangs from link k - 1, placed at its length along the parent's x
+        placement_p = np.zeros((nl, 3))
+        placement_p[1:, 0] = length[:-1]
+        eye = np.broadcast_to(np.eye(3), (nl, 3, 3))  # read-only, no memory: all unrotated
+        qoff = _readonly(qoff.astype(np.int64))
+        chain = cls(
+            name=name, body_names=_Numbered("link", nl), joint_names=_Numbered("joint", nl),
+            joint_types=tuple(j.type for j in joints),
+            parent=_readonly(np.arange(-1, nl - 1, dtype=np.int64)), placement_R=eye,
+            placement_p=_readonly(placement_p),
+            placement_code=_readonly(np.zeros(nl, dtype=np.int64)),
+            joint_qoff=qoff, joint_voff=qoff, dof_kind=_readonly(kinds),
+            dof_axis=_readonly(codes), dof_u=_readonly(units), mass=_readonly(mass),
+            com=_readonly(com), inertia_com=_readonly(inertia), inertia_O=_readonly(inertia_O),
+            mass_com=_readonly(mass_com), gravity=_readonly(grav),
+            frames={"tip": (nl - 1, (float(length[-1]), 0.0, 0.0))})
+        # what the chain was built from, as Model's derived attributes would give them back
+        object.__setattr__(chain, "length", _readonly(length))
+        object.__setattr__(chain, "joints", joints)
+        object.__setattr__(chain, "chain_layout", None)
+        return chain
+
+    @classmethod
+    def uniform(cls, n_links: int, joint: str | Joint = "U", *, length: float = 1.0,
+                mass: float | None = None, linear_density: float | None = None,
+                radius: float = 0.0, inertia: str = "rod",
+                gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0),
+                name: str | None = None) -> Chain:
+        """A chain of ``n_links`` identical uniform links with identical joints.
+
+        Give the link ``mass`` or the ``linear_density`` (kg/m); ``length`` is per link.
+        """
+        if isinstance(n_links, bool) or not isinstance(n_links, int | np.integer) \
+                or n_links < 1:
+            raise CaseError("chain", "n_links", n_links, "must be a whole number >= 1")
+        if (mass is None) == (linear_density is None):
+            raise CaseError("chain", "mass/linear_density", (mass, linear_density),
+                            "give exactly one of mass and linear_density")
+        if mass is None:
+            mass = check_positive("chain", "linear_density", linear_density) * length
+        link = Link.uniform(length, mass, radius, inertia)
+        joint = joint if isinstance(joint, Joint) else Joint(joint)
+        return cls.build([link] * n_links, [joint] * n_links, gravity=gravity,
+                         name=name or f"{joint.type}{n_links}")
+
+    def __repr__(self) -> str:
+        types = "".join(sorted(set(self.joint_types)))
+        return (f"Chain({self.name!r}, links={self.n_links}, dof={self.n_dof}, joints={types}, "
                 f"mass={self.total_mass:.6g} kg)")

@@ -70,8 +70,8 @@ from ._kernels.kinematics import kinematics
 from ._kernels.planar import planar_forward_dynamics
 from ._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamics
 from ._kernels.udu import udu_assemble
-from .chain import Chain
 from .dynamics import METHODS, check_state, mass_matrix, phi
+from .model import Model
 from .workspace import bundles_in
 
 ARITHMETICS = ("double", "decimal")
@@ -230,7 +230,7 @@ def rebind(kernel, key, math_ns):
     ``py_func`` attribute, as ``joints.sincos`` does) with a copy of its module's globals in which
     ``math`` is ``math_ns`` and every kernel it calls is rebound the same way. Cached per
     ``(kernel, key)``; ``key`` names the arithmetic. Shared by :func:`kernel_source` and
-    ``harness.hiprec.kernel_function``.
+    ``redysim.harness.hiprec.kernel_function``.
     """
     fn = _SOURCES.get((kernel, key))
     if fn is None:
@@ -295,7 +295,7 @@ class Factors(NamedTuple):
     D: np.ndarray | None = None
 
 
-def _check(chain: Chain, q, qd, tau, method: str):
+def _check(chain: Model, q, qd, tau, method: str):
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     q = check_state(chain, "q", q)
@@ -338,7 +338,7 @@ def _rge_a(chain, q, qd, tau, number, fused_phi):
     return qdd
 
 
-def reduced_qdd(chain: Chain, q, qd, method: str = "rge-a", decimals: int = 3, *,
+def reduced_qdd(chain: Model, q, qd, method: str = "rge-a", decimals: int = 3, *,
                 arithmetic: str = "double", tau=None, fused_phi: bool = False) -> np.ndarray:
     """qdd with floating-point accuracy 1e-``decimals`` (section 5.2, Table 10).
 
@@ -353,7 +353,7 @@ def reduced_qdd(chain: Chain, q, qd, method: str = "rge-a", decimals: int = 3, *
     return _to_float(_eliminate(chain, q, qd, tau, method, number)[3])
 
 
-def reduced_factors(chain: Chain, q, qd, method: str = "ge-n", decimals: int = 3, *,
+def reduced_factors(chain: Model, q, qd, method: str = "ge-n", decimals: int = 3, *,
                     arithmetic: str = "double", tau=None) -> Factors:
     """The factors and phi-hat of the rounded elimination (Table A.2), see :class:`Factors`.
 
@@ -382,7 +382,7 @@ def reduced_factors(chain: Chain, q, qd, method: str = "ge-n", decimals: int = 3
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 
 
-def ieee_qdd(chain: Chain, q, qd, method: str = "rge-a", dtype=np.float32, *, tau=None,
+def ieee_qdd(chain: Model, q, qd, method: str = "rge-a", dtype=np.float32, *, tau=None,
              fused_phi: bool = False) -> np.ndarray:
     """qdd computed by the same kernel source in an IEEE format (float16, float32, float64).
 

@@ -27,8 +27,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .chain import KIND_CODES
 from .model import BALL, Model, quaternion_matrix  # noqa: F401  (re-exported)
+from .parts import KIND_CODES
 
 REVOLUTE, PRISMATIC = KIND_CODES["R"], KIND_CODES["P"]
 

@@ -29,7 +29,6 @@ from typing import NamedTuple
 import numpy as np
 
 from ._steps import Counters, IntegrationError, OdeSolver, SolverState
-from .chain import Chain
 from .dynamics import check_state, energy, forward_dynamics
 from .errors import SettingsError, StateError
 from .implicit import TensionPreconditioner
@@ -142,7 +141,7 @@ class _Motion:
     forces ``tau(t, q, v)`` and a viscous ``damping`` torque -damping * v at every joint; with
     ``loops`` the loops closed (:class:`redysim.loops.ClosedLoops`)."""
 
-    def __init__(self, system: Chain | Model, loops=None, damping: float = 0.0, *, qdd=None,
+    def __init__(self, system: Model, loops=None, damping: float = 0.0, *, qdd=None,
                  method: str = "rge-a", tau=None):
         self.system = system
         self.loops, self.damping = loops, float(damping)
@@ -153,14 +152,13 @@ class _Motion:
         self.nq, self.nv = system.n_q, system.n_v
         # a free joint's (q index of x, v index of its linear velocity); every other coordinate
         # moves as its velocity
-        free = [] if isinstance(system, Chain) else \
-            [(int(system.joint_qoff[k]), int(system.joint_voff[k]))
-             for k, t in enumerate(system.joint_types) if t == FREE]
+        free = [(int(system.joint_qoff[k]), int(system.joint_voff[k]))
+                for k, t in enumerate(system.joint_types) if t == FREE]
         self.free = free
         self.quaternions = np.array([qs + 3 for qs, _ in free], dtype=np.int64)
         plain_q, plain_v = [], []
         qoff = system.joint_qoff
-        voff = system.joint_qoff if isinstance(system, Chain) else system.joint_voff
+        voff = system.joint_voff
         for k in range(qoff.shape[0] - 1):
             if (int(qoff[k]), int(voff[k])) in free:
                 continue
@@ -300,7 +298,7 @@ class Sample(NamedTuple):
     accel: Callable[[], np.ndarray]
 
 
-def frame_observer(system: Chain | Model, frame: str = "tip", *, acceleration: bool = False):
+def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = False):
     """An observer for :class:`Simulator`: a frame's world position and velocity at each sample
     (and, with ``acceleration``, its acceleration from the run's own qdd), as one row
     [px, py, pz, vx, vy, vz(, ax, ay, az)]. ``frame``: as :func:`redysim.frame_motion`."""
@@ -333,8 +331,9 @@ class Simulator:
       ``damping``: a viscous torque -damping * v at every joint [N m s]; ``potential(q)``: the
       potential energy [J] of the forces ``tau`` gives, when they have one (counted in E, so
       that delta_M stays an energy balance).
-    - ``loops``: a :class:`redysim.loops.ClosedLoops` of the system: its loops closed, (q, v)
-      projected back onto them after every step; the samples carry the loop forces.
+    - ``loops``: a :class:`redysim.loops.ClosedLoops` of the system (by default, a model with
+      cut joints, :meth:`Model.with_cuts`, gets its own): its loops closed, (q, v) projected
+      back onto them after every step; the samples carry the loop forces.
     - ``observe``: name -> ``f(sample)`` called at each sample with a :class:`Sample` (t, q, v,
       E, com, and ``accel()``: the run's qdd there, computed once on demand); what it returns
       (an array, or None: nothing kept) is stacked into ``Simulation.observed[name]``.
@@ -357,7 +356,7 @@ class Simulator:
     v0 StateError, naming them, before anything runs.
     """
 
-    def __init__(self, system: Chain | Model, t_end: float, *, q0=None, v0=None,
+    def __init__(self, system: Model, t_end: float, *, q0=None, v0=None,
                  integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
                  atol: float = DEFAULT_ATOL, h: float | None = None,
                  sample: float | None = None, method: str = "rge-a", qdd=None, tau=None,
@@ -365,8 +364,8 @@ class Simulator:
                  observe=None, keep_states: bool = True, energy_bound: float | None = None,
                  state: SolverState | None = None, skip_until: float | None = None,
                  compiled: bool | None = None, source: str = "simulate"):
-        if not isinstance(system, Chain | Model):
-            raise TypeError(f"{source} takes a redysim.Chain or redysim.Model, not "
+        if not isinstance(system, Model):
+            raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
                             f"{type(system).__name__}")
         native = integrator == NATIVE
         integrator, fixed = (NATIVE, True) if native else _check_simulate_settings(
@@ -392,10 +391,14 @@ class Simulator:
         self.observe = dict(observe or {})
         self.skip_until = skip_until
         if q0 is None:
-            q0 = system.initial() if isinstance(system, Model) else np.zeros(system.n_q)
+            q0 = system.initial()
         q0 = check_state(system, "q", q0)
         v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
         self.damping = float(damping)
+        if loops is None and system.cuts:  # a closed mechanism: its loops closed
+            from .loops import ClosedLoops
+
+            loops = ClosedLoops(system, source=source)
         self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau)
         self.potential = potential
         self.loops = loops
@@ -449,12 +452,13 @@ class Simulator:
         kw = dict(rtol=self.rtol, atol=self.atol, h=self.h)
         rhs = self._call_rhs
         if self.compiled:
-            planar = isinstance(self.system, Chain) and self.system.is_planar
+            planar = self.system.is_planar
             return CompiledSolver(rhs, 0.0, self.y0, self.t_end, self.integrator,
                                   ws=self.motion.ws, planar=planar, state=state, **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.implicit); a tree steps without one
-            pre = TensionPreconditioner(self.system) if isinstance(self.system, Chain) else None
+            pre = (TensionPreconditioner(self.system) if self.system.chain_layout is None
+                   else None)
             return make_solver(rhs, 0.0, self.y0, self.t_end, self.integrator, state=state,
                                preconditioner=pre, **kw)
         return make_solver(rhs, 0.0, self.y0, self.t_end, self.integrator, state=state, **kw)
@@ -626,7 +630,7 @@ class Simulator:
         return result
 
 
-def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
+def simulate(system: Model, t_end: float, *, q0=None, v0=None,
              integrator: str = DEFAULT_METHOD, rtol: float = DEFAULT_RTOL,
              atol: float = DEFAULT_ATOL, h: float | None = None, sample: float | None = None,
              progress: Callable[[float, float, int, float], str | None] | None = None,
@@ -662,7 +666,7 @@ def simulate(system: Chain | Model, t_end: float, *, q0=None, v0=None,
                      ).run(progress=progress, max_cpu_s=max_cpu_s)
 
 
-def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
+def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
                    threads: int | None = None, **settings) -> list[Simulation]:
     """Independent motions of one system from the rows of q0 (B, n_q) and v0 (B, n_v) (default
     zeros): :func:`simulate` of each row, each with its own step sizes, the rows split over
@@ -684,8 +688,8 @@ def simulate_batch(system: Chain | Model, t_end: float, *, q0, v0=None,
         if key not in BATCH_SETTINGS:
             raise SettingsError("simulate_batch", key, value, f"unknown setting; a batch takes "
                                 f"{', '.join(BATCH_SETTINGS)} (simulate's keywords)")
-    if not isinstance(system, Chain | Model):
-        raise TypeError(f"simulate_batch takes a redysim.Chain or redysim.Model, not "
+    if not isinstance(system, Model):
+        raise TypeError(f"simulate_batch takes a redysim.Model (a Chain is one), not "
                         f"{type(system).__name__}")
     defaults = {"integrator": DEFAULT_METHOD, "rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL,
                 "h": None, "sample": None, "damping": 0.0, "max_cpu_s": None}

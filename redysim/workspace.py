@@ -24,7 +24,6 @@ from ._kernels.bundles import (
 )
 from ._kernels.joints import BALL
 from ._kernels.tiles import tile_sizes
-from .chain import Chain
 from .errors import FieldError
 from .model import FREE, Model
 
@@ -52,26 +51,20 @@ def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int
     return packed
 
 
-def tree_tables(system: Chain | Model) -> dict:
-    """The :class:`~redysim._kernels.bundles.Tree` fields of a chain or model, as numpy arrays
-    (plus ``n_q``). A chain, and a model that is one (parent k - 1, every joint placed along its
-    parent's x, no free joint), is ``serial`` with empty tree tables."""
-    if isinstance(system, Chain):
-        c = system
-        along = np.concatenate(([0.0], c.length[:-1]))
-        return dict(serial=1, parent=np.zeros(0, np.int64), gather=np.zeros(0, np.int64),
-                    placement_code=np.zeros(0, np.int64), qshift=np.zeros(0, np.int64),
-                    along=along, placement_R=np.zeros((0, 3, 3)), placement_p=np.zeros((0, 3)),
-                    joint_voff=c.joint_qoff, dof_kind=c.dof_kind, dof_axis=c.dof_axis,
-                    dof_u=c.dof_u, mass=c.mass, inertia_O=c.inertia_O, mass_com=c.mass_com,
-                    n_q=c.n_dof)
+def tree_tables(system: Model) -> dict:
+    """The :class:`~redysim._kernels.bundles.Tree` fields of a model, as numpy arrays (plus
+    ``n_q``). A serial chain (parent k - 1, every joint placed along its parent's x, no free
+    joint: every :class:`~redysim.model.Chain`) is ``serial``, its tree tables empty."""
     m = system
     nb = m.n_bodies
     serial = m.is_chain and not m.placement_code.any() and FREE not in m.joint_types
-    needs = np.zeros(nb, dtype=bool)  # a child that does not follow it
-    for k in range(1, nb):
-        if 0 <= m.parent[k] != k - 1:
-            needs[m.parent[k]] = True
+    parent = np.asarray(m.parent)
+    # a body gathers when a child does not follow it directly (its parent is not k - 1)
+    needs = np.zeros(nb, dtype=bool)
+    k = np.arange(1, nb)
+    far = parent[1:] >= 0
+    far &= parent[1:] != k - 1
+    needs[parent[1:][far]] = True
     gather = np.where(needs, np.cumsum(needs) - 1, -1).astype(np.int64)
     nt = 0 if serial else nb
     return dict(serial=int(serial), parent=m.parent[:nt], gather=gather[:nt],
@@ -83,10 +76,10 @@ def tree_tables(system: Chain | Model) -> dict:
                 n_q=m.n_q)
 
 
-def bundles_in(system: Chain | Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
+def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
     """The two bundles with the tree's float arrays passed through ``convert`` (or given in
     ``arrays`` by field name) and the scratch made by ``zeros(shape)``: for running the kernels'
-    Python source in another arithmetic (``redysim.precision``, ``harness.hiprec``)."""
+    Python source in another arithmetic (``redysim.precision``, ``redysim.harness.hiprec``)."""
     t = tree_tables(system)
     tree = Tree(t["serial"], *(arrays[f] if f in arrays else convert(t[f])
                                if FIELDS[f].dtype is np.float64 else t[f]
@@ -111,15 +104,15 @@ class Workspace:
     kernel writes.
     """
 
-    def __init__(self, system: Chain | Model):
-        if not isinstance(system, Chain | Model):
+    def __init__(self, system: Model):
+        if not isinstance(system, Model):
             raise FieldError("Workspace", "chain", type(system).__name__,
-                             "must be a redysim.Chain or redysim.Model (Chain.build, "
-                             "Chain.uniform, load_case(...).chain, load_model(...))")
+                             "must be a redysim.Model (Chain.build, Chain.uniform, "
+                             "load_case(...).chain, load_model(...))")
         t = tree_tables(system)
         nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
         ng = int((t["gather"] >= 0).sum())
-        planar = isinstance(system, Chain) and system.is_planar
+        planar = system.is_planar
         self.chain = system  # the chain or model it was made for
         gravity = np.asarray(system.gravity, dtype=float)
         header = np.zeros(HEADER, dtype=np.int64)

@@ -67,7 +67,6 @@ from __future__ import annotations
 import importlib
 import math
 import tomllib
-import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, NamedTuple
@@ -75,8 +74,8 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from redysim import Case, Chain, Model
-from redysim.chain import KIND_CODES
 from redysim.model import FREE, quaternion_matrix
+from redysim.parts import KIND_CODES
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes
@@ -128,24 +127,13 @@ def import_engine(engine: str, package: str, module: str | None = None):
 
 
 # --------------------------------------------------------------------------- the door
-_FROM_CHAIN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # Chain -> its Model
-
-
 def as_model(system: Model | Case | Chain) -> Model:
-    """The Model an adapter builds: ``system`` itself when it is a :class:`redysim.Model` (the
-    one input), else the Model of a Case's chain or of a Chain (``Model.from_chain``, the same
-    numbers bit for bit), converted once per Chain object (``limits`` and the constructor then
-    share it: 3 s for the 50,000 links of RE-U50000-L1000). Raises TypeError for anything
-    else."""
-    if isinstance(system, Model):
-        return system
+    """The Model an adapter builds: ``system`` itself (a :class:`redysim.Model`, a Chain
+    included), or a Case's chain. Raises TypeError for anything else."""
     if isinstance(system, Case):
         system = system.chain
-    if isinstance(system, Chain):
-        model = _FROM_CHAIN.get(system)
-        if model is None:
-            model = _FROM_CHAIN[system] = Model.from_chain(system)
-        return model
+    if isinstance(system, Model):  # a Chain is one
+        return system
     raise TypeError(f"expected a redysim Model (or a Case or Chain, converted by "
                     f"Model.from_chain), got {type(system).__name__}")
 
@@ -313,7 +301,7 @@ def load_limits() -> dict[str, Any]:
 # --------------------------------------------------------------------------- the adapters
 class EnginePackage:
     """An adapter's package: whether it imports, and its version (shared by the adapters,
-    :class:`Engine`, and the loop adapters, ``references.loops``). Subclasses set ``name``,
+    :class:`Engine`, and the loop adapters, ``redysim.references.loops``). Subclasses set ``name``,
     ``package``, ``module``."""
 
     name: ClassVar[str] = ""

@@ -3,7 +3,7 @@
 What the model contains and why (docs/design.md, "Reference engines"):
 
 - per body one ``create...JointAndBodyNodePair`` whose joint is the body's whole joint, chosen
-  by its elementary axes (``references.base.joint_axes``), its parent BodyNode the parent
+  by its elementary axes (``redysim.references.base.joint_axes``), its parent BodyNode the parent
   body's (None for a root: a Skeleton holds several trees):
 
   * one R axis: ``RevoluteJoint``, ``mAxis = u``; one P axis: ``PrismaticJoint``, ``mAxis = u``
@@ -22,7 +22,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
     from several joints needs massless intermediate BodyNodes, which DART warns against ("A
     negative or zero mass [0] is set to BodyNode [...], which can cause invalid physical behavior
     or segfault"; its ``Inertia`` also warns that zero moments are invalid), so this adapter does
-    not. No joint of ``redysim.chain.JOINT_TYPES`` needs that.
+    not. No joint of ``redysim.parts.JOINT_TYPES`` needs that.
 
   ``mT_ParentBodyToJoint`` is the placement (R, p) (times P for an EulerJoint; for a chain's
   link k a translation of l_{k-1} along the parent's x, the identity for the first);
@@ -41,7 +41,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
 ``computePotentialEnergy()``; ``position``: the body's BodyNode world transform applied to the
 point. DART numbers DOF tree by tree; the adapter maps them by ``getIndexInSkeleton``.
 
-Free joint, converted both ways (``references.base``): dartpy 6.20's FreeJoint has positions
+Free joint, converted both ways (``redysim.references.base``): dartpy 6.20's FreeJoint has positions
 (rotation vector, translation) and velocities (w_world, v_world), the angular velocity in the
 WORLD frame first (its relative Jacobian is diag(R^T, R^T), measured). Positions come from
 ``FreeJoint.convertToPositions(Isometry3(R, p))`` (and go back by ``convertToTransform``); the two

@@ -4,7 +4,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
 
 - ``ObjectKinematicTree`` has only 1-DOF joints, each ``RevoluteX/Y/Z`` or ``PrismaticX/Y/Z``
   of its own joint frame, so every elementary axis of a body's joint
-  (``references.base.joint_axes``) is one tree link, in order: the axes before the last are
+  (``redysim.references.base.joint_axes``) is one tree link, in order: the axes before the last are
   massless links (zero mass and inertia) at zero offset from the previous one, the last carries
   the body's mass, COM and inertia about the COM. A U joint is thus a massless ``RevoluteY``
   link at the joint's placement, then a ``RevoluteZ`` link with the mass; an R joint about z one

@@ -5,7 +5,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
 - one MjSpec body per Model body, nested as the tree, at ``pos = placement_p`` and ``quat`` the
   placement's rotation (``mju_mat2Quat``; a chain's link k at ``pos = (l_{k-1}, 0, 0)`` in its
   parent, unrotated), holding one joint per elementary axis of the body's joint
-  (``references.base.joint_axes``), in order: a ``hinge`` for an R axis, a ``slide`` for a P
+  (``redysim.references.base.joint_axes``), in order: a ``hinge`` for an R axis, a ``slide`` for a P
   axis, ``axis = u`` as given (-z stays -z; a general direction is passed as the unit vector the
   core uses) and ``pos = 0``; or one ``freejoint``. MuJoCo composes a body's joints in order,
   each axis in the frame left by the joints before it (``mj_kinematics`` rotates the next
@@ -31,7 +31,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
 MuJoCo numbers bodies and DOF depth-first; the adapter maps them to the Model's order by joint
 name (a chain's order is MuJoCo's). Free joint: MuJoCo's free joint IS the core's convention
 (q = position, quaternion w first; v = world linear velocity of the origin, body-frame angular
-velocity), so B = 1, c = 0 (``references.base``): no conversion but the order.
+velocity), so B = 1, c = 0 (``redysim.references.base``): no conversion but the order.
 
 ``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
 ``bias`` is ``-qfrc_bias``; ``energy`` is ``mj_energyPos``/``mj_energyVel``'s (V, T), reordered;

@@ -1,8 +1,8 @@
 """Pinocchio adapter: ``pin.aba`` or CRBA + Cholesky on the Model, with two ways to model a U joint.
 
-Engines (``references.ENGINES``), three variants of ONE construction (:class:`PinocchioEngine`,
-which builds the model; each variant sets only how a U joint is modelled and which algorithm
-gives qdd):
+Engines (``redysim.references.ENGINES``), three variants of ONE construction
+(:class:`PinocchioEngine`, which builds the model; each variant sets only how a U joint is modelled
+and which algorithm gives qdd):
 
 - ``pinocchio-aba``: ``pin.aba`` on a model with one ``JointModelUniversal(y, z)`` per U joint
   (R = Ry(q1) Rz(q2)) and for the first two axes of an S joint. Known defect: on long U chains
@@ -17,8 +17,8 @@ gives qdd):
   ``pinocchio-aba``'s. The Pinocchio reference to use where memory allows.
 
 What the model contains and why: joints, joint placements, body inertias and gravity, nothing
-else. Each body's joint is its elementary axes (``references.base.joint_axes``) in order, one
-Pinocchio joint per axis, the first at ``pin.SE3(placement_R, placement_p)`` on the parent
+else. Each body's joint is its elementary axes (``redysim.references.base.joint_axes``) in order,
+one Pinocchio joint per axis, the first at ``pin.SE3(placement_R, placement_p)`` on the parent
 body's last joint (0, the universe, for a root; a chain's link k: l_{k-1} along the parent
 link's x), the axes after the first at an identity placement on the previous axis's joint with
 no body of their own (a massless body: Pinocchio's joint frames carry no inertia unless a body
@@ -42,8 +42,8 @@ Bodies are added depth-first: Pinocchio's CRBA assumes each subtree's DOF contig
 tree in the Model's parents-first order it gave a GIM wrong by 5e-2 while ``pin.aba`` was right
 (a chain's order is depth-first already). The coordinates are mapped to the Model's order.
 
-Free joint, converted both ways (``references.base``): Pinocchio's q is (x, y, z, qx, qy, qz, qw)
-(w last) and its v = (R^T v_world, w_body), the origin's velocity in the BODY frame, so
+Free joint, converted both ways (``redysim.references.base``): Pinocchio's q is (x, y, z, qx, qy,
+qz, qw) (w last) and its v = (R^T v_world, w_body), the origin's velocity in the BODY frame, so
 B = diag(R, 1) and c = (R (w_body x R^T v_world), 0): d/dt (R v_local) = R (a_local + w x
 v_local). The applied force's linear part turns by R^T. Energies are invariant.
 
@@ -69,7 +69,7 @@ from .base import Engine, FreeBlock, depth_first
 
 
 def _axis_model(pin, axis):
-    """The 1-DOF Pinocchio joint model of one elementary axis (``references.base.Axis``)."""
+    """The 1-DOF Pinocchio joint model of one elementary axis (``redysim.references.base.Axis``)."""
     if axis.coordinate is not None:  # exactly +x, +y or +z: RX, RY, RZ, PX, PY, PZ
         return getattr(pin, f"JointModel{axis.kind}{'XYZ'[axis.coordinate]}")()
     if axis.kind == "R":

@@ -27,9 +27,9 @@ import pytest
 from test_loops import spatial_loop
 
 import redysim
-from redysim import Body, Model, TreeJoint, references
+from redysim import Body, CutJoint, Model, TreeJoint, references
 from redysim.linkages import four_bar, pinned_chain
-from redysim.loops import ClosedLoops, CutJoint
+from redysim.loops import ClosedLoops
 from redysim.references import EngineLimitExceeded
 from redysim.references.loops import (
     LOOP_ENGINES,

@@ -139,7 +139,7 @@ def _file(path):
 
 
 def _linkage(path):
-    return lambda: redysim.load_linkage(CASES / path).model
+    return lambda: redysim.load_linkage(CASES / path).model.with_cuts(())  # the open tree
 
 
 def _robot(name, floating):
@@ -528,3 +528,12 @@ def test_names_are_escaped():
         root = ET.fromstring(text)
         assert name in {e.get("name") for e in root.iter() if e.tag in ("body", "link")}
         assert not re.search(r'name="[^"]*<', text)
+
+
+@pytest.mark.parametrize("export", [to_mjcf, to_urdf])
+def test_a_closed_mechanism_is_refused_by_name(export):
+    """The exporters write trees: a model with cut joints would lose its loops, silently."""
+    model = redysim.load_linkage(CASES / "loops" / "crank_rocker.toml").model
+    with pytest.raises(ExportError, match=r"cuts = \['coupler-rocker pin'\]: a closed "
+                                          r"mechanism.*model.with_cuts\(\(\)\)"):
+        export(model)

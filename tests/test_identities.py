@@ -258,7 +258,7 @@ def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     pickling (numpy unpickles arrays writeable), with the same qdd."""
     import pickle
 
-    from redysim.chain import kernel_alias
+    from redysim.parts import kernel_alias
 
     chain = random_chain(rng, 12, ("U",))
     for name in ("length", "mass", "inertia_O", "mass_com", "dof_u", "joint_qoff"):

@@ -31,6 +31,7 @@ from redysim import (
     tip,
 )
 from redysim.loads import tip_force_potential, tip_force_torques
+from redysim.model import Body, TreeJoint
 
 # every joint type, and revolute axes default (z), named, negative and tilted
 MIXED_JOINTS = [Joint("R"), Joint("R", "x"), Joint("R", (0.0, 0.0, -1.0)),
@@ -165,9 +166,14 @@ def test_a_bad_q_or_system_is_named(func):
         func(chain, np.zeros(5), [0.0, 1.0, 0.0])
     with pytest.raises(StateError, match=r"q\[2\] = nan"):
         func(chain, [0, 0, math.nan, 0, 0, 0], [0.0, 1.0, 0.0])
-    model = Model.from_chain(chain)  # a tree has no single tip
-    with pytest.raises(FieldError, match="chain = 'Model': must be a redysim.Chain"):
-        func(model, np.zeros(model.n_q), [0.0, 1.0, 0.0])
+    # a tree has no single tip
+    tree = Model.build([Body("a", 1.0, (0.5, 0, 0), (0.1, 0.1, 0.1)),
+                        Body("b", 1.0, (0.5, 0, 0), (0.1, 0.1, 0.1)),
+                        Body("c", 1.0, (0.5, 0, 0), (0.1, 0.1, 0.1))],
+                       [TreeJoint("ja", "R"), TreeJoint("jb", "R", translation=(1, 0, 0)),
+                        TreeJoint("jc", "R", translation=(0, 1, 0))], [-1, 0, 0], name="tree")
+    with pytest.raises(FieldError, match="chain = 'tree': must be a chain of links"):
+        func(tree, np.zeros(tree.n_q), [0.0, 1.0, 0.0])
 
 
 # --------------------------------------------------------------------------- case files

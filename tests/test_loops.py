@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from redysim import Body, Model, TreeJoint, simulate
+from redysim import Body, CutJoint, Model, TreeJoint, simulate
 from redysim.errors import CaseError, StateError
 from redysim.linkages import discrete_catenary, four_bar, four_bar_position, pinned_chain
-from redysim.loops import ClosedLoops, CutJoint
+from redysim.loops import ClosedLoops
 from redysim.shapes import catenary_angles
 
 

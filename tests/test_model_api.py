@@ -120,11 +120,11 @@ def test_a_chains_model_is_read_back_as_the_chain(name):
 
 
 def test_coarsen_refuses_a_model_that_is_not_a_chain():
-    with pytest.raises(CaseError, match=r"body 'b\d'.parent = \d+: the model is a tree"):
+    with pytest.raises(CaseError, match=r"not a chain of links: body 'b\d' hangs from body \d+"):
         coarsen(random_tree(1, n_bodies=6, free=False, fixed=0), 2)
     chain = Chain.uniform(4, "U", mass=1.0)
     bent = Model.build(*_parts(Model.from_chain(chain)), gravity=tuple(chain.gravity))  # no tip
-    with pytest.raises(CaseError, match=r"frames.tip: a chain's model marks"):
+    with pytest.raises(CaseError, match=r"not a chain of links: it has no frame 'tip'"):
         coarsen(bent, 2)
 
 
@@ -177,3 +177,59 @@ def test_the_workspace_packs_what_the_layout_table_declares(system):
                 np.testing.assert_array_equal(value, np.asarray(t[name]).reshape(value.shape))
     np.testing.assert_array_equal(ws.base_accel, -np.asarray(sys_.gravity))
     assert (ws.planar is not None) == (system == "planar")
+
+
+# --------------------------------------------------------------------------- one model type
+def test_a_chain_is_a_model_and_every_model_function_takes_it():
+    """A chain was a type of its own: rbda's recursions raised AttributeError on it, tip and
+    joint_positions on a Model; now a Chain is a Model laid out as a chain."""
+    from redysim import rbda
+
+    rng = np.random.default_rng(7)
+    chain = random_chain(rng, 6)
+    assert isinstance(chain, Model) and Model.from_chain(chain) is chain
+    assert chain.chain_layout is None and chain.n_links == chain.n_bodies == 6
+    q, qd, _ = random_state(rng, chain)
+    qdd = forward_dynamics(chain, q, qd)
+    np.testing.assert_allclose(rbda.forward_dynamics(chain, q, qd), qdd, rtol=0,
+                               atol=1e-12 * np.abs(qdd).max())
+    assert chain.locked({"joint2": np.zeros(chain.joint_qoff[2] - chain.joint_qoff[1])}).n_bodies \
+        == 5
+
+
+@pytest.mark.parametrize("joint", ["R", "U"])
+def test_a_model_built_body_by_body_as_a_chain_is_one(joint):
+    """Model.build with a chain's layout (links along x, a tip frame) has the chain's lengths,
+    joints, planarity and numbers: the Chain class only builds it faster."""
+    chain = Chain.uniform(5, joint, mass=2.0, length=0.3, radius=0.02, inertia="cylinder")
+    model = Model.build(*_parts(chain), gravity=tuple(chain.gravity),
+                        frames={"tip": (4, (0.3, 0.0, 0.0))})
+    assert type(model) is Model and model.chain_layout is None
+    np.testing.assert_array_equal(model.length, chain.length)
+    assert model.joints == chain.joints and model.is_planar == chain.is_planar == (joint == "R")
+    q = np.linspace(0.1, 0.5, chain.n_dof)
+    np.testing.assert_array_equal(forward_dynamics(model, q, q), forward_dynamics(chain, q, q))
+    tree = random_tree(3, n_bodies=5)
+    assert "a tree" in tree.chain_layout and not tree.is_planar
+    with pytest.raises(CaseError, match="length: defined for a chain of links"):
+        tree.length  # noqa: B018
+
+
+def test_cut_joints_belong_to_the_model():
+    """A closed mechanism is its tree with cut joints: simulate closes them without being told,
+    locking its joints is refused (the cuts name bodies by index), with_cuts(()) opens it."""
+    from redysim import load_linkage, simulate
+
+    link = load_linkage("cases/loops/crank_rocker.toml")
+    assert link.model.cuts and link.loops.cuts == link.model.cuts
+    told = simulate(link.model, 0.05, q0=link.q0, loops=link.loops, rtol=1e-8, atol=1e-10)
+    own = simulate(link.model, 0.05, q0=link.q0, rtol=1e-8, atol=1e-10)
+    np.testing.assert_array_equal(told.q, own.q)
+    assert own.forces is not None and own.residual_q < 1e-9
+    with pytest.raises(CaseError, match=r"cuts = \['coupler-rocker pin'\]: a model with cut "
+                                        r"joints"):
+        link.model.locked({"crank": 0.0})
+    tree = link.model.with_cuts(())
+    assert not tree.cuts and tree.n_bodies == link.model.n_bodies
+    free = simulate(tree, 0.05, q0=link.q0, rtol=1e-8, atol=1e-10)
+    assert free.forces is None

@@ -18,7 +18,7 @@ import pytest
 
 import redysim
 import redysim.linkage_files as linkage_files
-from redysim import Model, load_case, load_linkage, simulate
+from redysim import CutJoint, Model, load_case, load_linkage, simulate
 from redysim.cases import MAX_RADIANS, case_from_dict, fastest_motion
 from redysim.errors import CaseError, SettingsError, StateError
 from redysim.harness import refine
@@ -26,7 +26,7 @@ from redysim.harness.cli import main, time_to_go
 from redysim.harness.run import execute
 from redysim.harness.spec import RunSpec
 from redysim.linkages import four_bar
-from redysim.loops import ClosedLoops, CutJoint
+from redysim.loops import ClosedLoops
 from redysim.simulation import simulate_batch
 
 REPO = Path(__file__).resolve().parents[1]
@@ -314,7 +314,7 @@ def test_a_cut_joints_bad_field_is_named_at_construction(args, kw, fragment):
 
 @pytest.mark.parametrize("cuts, fragment", [
     (5, "cuts = 'int': must be a list of CutJoint"),
-    (["pin"], "cuts[0] = 'str': must be a redysim.loops.CutJoint"),
+    (["pin"], "cuts[0] = 'str': must be a redysim.CutJoint"),
     ("pin", "cuts = 'str'"),
 ])
 def test_closed_loops_names_bad_cuts(cuts, fragment):

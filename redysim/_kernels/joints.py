@@ -1,6 +1,6 @@
 """Joint calculations: the one place that knows joint kinds and axes (spatial_v2's ``jcalc``).
 
-A joint is a sequence of elementary axes (see :data:`redysim.chain.JOINT_TYPES`); this module maps
+A joint is a sequence of elementary axes (see :data:`redysim.parts.JOINT_TYPES`); this module maps
 (kind, axis, q_j) and the frame before the axis to the axis's motion-subspace column
 P = [p_ang; p_lin] in the world frame and the frame after it: a rotation of the frame (revolute)
 or a translation of the joint's origin (prismatic), and a third kind, BALL: the three rotational
@@ -33,8 +33,8 @@ def sincos(x):
     """(cos x, sin x).
 
     This Python definition is what the kernels' Python source runs, in any arithmetic
-    (``redysim.precision`` and ``harness.hiprec`` rebind its ``math`` as they do a kernel's: the
-    ``py_func`` attribute marks it). Compiled code runs :func:`_sincos_compiled` instead.
+    (``redysim.precision`` and ``redysim.harness.hiprec`` rebind its ``math`` as they do a kernel's:
+    the ``py_func`` attribute marks it). Compiled code runs :func:`_sincos_compiled` instead.
     """
     return math.cos(x), math.sin(x)
 
