@@ -1,14 +1,20 @@
 """The ``redysim`` command: simulate one case, run a sweep file, list the cases.
 
-A thin layer over :func:`harness.run.execute` and :mod:`harness.sweep`; the harness (pandas,
-pyarrow, Dask) is imported only inside the commands that need it. Exit codes: 0 all runs ok,
-1 a run failed, 2 bad usage or input (the message names what is wrong; no traceback), 3 a run
-stopped by your ``--max-wall`` (its samples so far kept), 130 interrupted.
+A thin layer over :func:`redysim.harness.run.execute` and :mod:`redysim.harness.sweep`. An
+install without extras (numpy, scipy, numba) runs ``--help``, ``cases``, ``info`` and
+``simulate`` on the core; what needs an extra imports it only inside the command that needs it,
+and refuses, naming the extra to install, when it is missing (:data:`EXTRA_OF`): ``sweep`` and
+``advise`` and ``simulate --out`` need ``harness`` (pandas, pyarrow, ...), ``--engine`` needs
+``engines``, an MJCF file needs ``models`` (URDF is read by redysim itself). Exit codes: 0 all
+runs ok, 1 a run failed, 2 bad usage or input, or an extra missing (the message names what is
+wrong; no traceback), 3 a run stopped by your ``--max-wall`` (its samples so far kept), 130
+interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import sys
@@ -31,6 +37,14 @@ PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 DEFAULT_SWEEP_ROOT = Path("results") / "sweeps"  # redysim sweep's --out default: <root>/<name>
 MAX_FAILED_SHOWN = 20  # failed runs listed after a sweep
+# The extra that installs each optional package a command may import, by import name
+# (pyproject.toml's [project.optional-dependencies]; dask comes with distributed; mujoco is in
+# 'engines' too, and a missing engine is refused naming 'engines' by --engine's own check)
+EXTRA_OF = {**dict.fromkeys(("pandas", "pyarrow", "distributed", "dask", "tqdm", "matplotlib",
+                             "jinja2", "reportlab", "psutil", "mpmath", "threadpoolctl"),
+                            "harness"),
+            "mujoco": "models",
+            **dict.fromkeys(("pinocchio", "dartpy", "exudyn"), "engines")}
 
 DESCRIPTION = """\
 redysim: O(n) dynamics of very long serial chains (ReDySim: DeNOC + Reverse Gaussian
@@ -41,7 +55,9 @@ examples:
   redysim simulate RE-U125-L1 --t-end 0.1         # one run, printed
   redysim sweep sweeps/smoke.toml                 # a declared set of runs, saved as Parquet
 
-`redysim COMMAND --help` explains each command."""
+`redysim COMMAND --help` explains each command. Without extras, cases, info and simulate run
+on the core; sweep, advise and simulate --out need pip install 'redysim[harness]', --engine
+needs 'redysim[engines]', an MJCF file 'redysim[models]'."""
 
 SIMULATE_HELP = """\
 Simulate one case and print its summary: E(0), steps, rejected steps, RHS calls, CPU time, JIT
@@ -75,10 +91,11 @@ examples:
 
 SWEEP_HELP = """\
 Run a sweep file: a TOML [sweep] table whose lists (cases, engines, methods, integrators, rtols,
-h) multiply into runs; see sweeps/smoke.toml. Each finished run is saved at once under
-OUT/runs/ and OUT/samples/; at the end everything is gathered into OUT/runs.parquet and
-OUT/samples.parquet. Started again, a sweep skips the runs it has finished, so an interrupted
-sweep (even a killed one) resumes where it stopped.
+h) multiply into runs; see sweeps/smoke.toml (the repository's sweeps/ comes with redysim as
+the package data redysim.sweep_files). Needs the 'harness' extra. Each finished run is saved at
+once under OUT/runs/ and OUT/samples/; at the end everything is gathered into OUT/runs.parquet
+and OUT/samples.parquet. Started again, a sweep skips the runs it has finished, so an
+interrupted sweep (even a killed one) resumes where it stopped.
 
 examples:
   redysim sweep sweeps/smoke.toml
@@ -89,7 +106,7 @@ examples:
 INFO_HELP = """\
 Print a model's kinematic tree: each body under its parent, its joint (type, name, axes) and
 mass, the named frames, and what the importer dropped from the file (geometry, limits, ...).
-URDF and MJCF are read by MuJoCo's parser (the 'models' extra).
+URDF is read by redysim; MJCF by MuJoCo's compiler (the 'models' extra).
 
 examples:
   redysim info RE-U125-L1
@@ -104,7 +121,7 @@ path stayed within --tip-tol of the finest model's, what the finest model cost f
 tolerance, and the command that runs the advised model. For the hanging chain, the coarsest
 model whose first --modes frequencies are within --freq-tol of the continuum's (a chain of n
 links has n modes: a model with fewer than --modes cannot meet it, and more modes than the
-study's finest model has are refused).
+study's finest model has are refused). Needs the 'harness' extra.
 
 examples:
   redysim advise fall --tip-tol 0.01
@@ -113,8 +130,9 @@ examples:
   redysim advise results/refine/pulled --tip-tol 0.05"""
 
 CASES_HELP = """\
-List the case files in cases/ (every chain of the paper) with their descriptions. Any of these
-names, or the path of your own case file, can be given to `redysim simulate`.
+List the case files that come with redysim (every chain of the paper: the repository's cases/,
+installed as the package data redysim.case_files) with their descriptions. Any of these names,
+or the path of your own case file, can be given to `redysim simulate`.
 
 example:
   redysim cases"""
@@ -290,14 +308,15 @@ def _model_flags(parser: argparse.ArgumentParser) -> None:
 FLAGS = {"integrator": "--integrator", "rtol": "--rtol", "atol": "--atol", "h": "--h",
          "t_end": "--t-end", "sample": "--sample", "links": "--links",
          "precision": "--precision"}
-PRECISION_CHOICES = ("float64", "float32")  # harness.spec.PRECISIONS (not imported at start-up)
+PRECISION_CHOICES = ("float64", "float32")  # redysim.harness.spec.PRECISIONS
 OUT_SUFFIXES = (".parquet", ".csv")
 SOURCE = "command line"  # where a bad flag came from, in its message
 
 
 def _check_out(out: Path) -> None:
-    """--out must name a file (.parquet or .csv) in an existing folder: checked before the run,
-    so that a long run is never lost to a bad path."""
+    """--out must name a file (.parquet or .csv) in an existing folder, and what writes it
+    (pandas; pyarrow for Parquet: the 'harness' extra) must be installed: checked before the
+    run, so that a long run is never lost to a bad path or a missing package."""
     if out.is_dir():
         raise SettingsError(SOURCE, "--out", str(out), "is a folder; give a file name in it")
     if out.suffix not in OUT_SUFFIXES:
@@ -306,6 +325,29 @@ def _check_out(out: Path) -> None:
     if not out.parent.is_dir():
         raise SettingsError(SOURCE, "--out", str(out), f"its folder {str(out.parent)!r} does not "
                             "exist")
+    writers = ("pandas", "pyarrow") if out.suffix == ".parquet" else ("pandas",)
+    for package in writers:
+        if importlib.util.find_spec(package) is None:
+            raise SettingsError(SOURCE, "--out", str(out), "saving " +
+                                needs_extra(package, EXTRA_OF[package]))
+
+
+def needs_extra(package: str, extra: str) -> str:
+    """The end of a refusal for want of ``package``: which extra installs it, and how."""
+    return (f"needs {package}, which is not installed: it comes with the {extra!r} extra, "
+            f"pip install 'redysim[{extra}]'")
+
+
+def _check_engine(engine: str) -> None:
+    """A reference engine's package must be installed (the 'engines' extra): checked before the
+    run, which would otherwise fail for want of it (a package installed but broken fails the run,
+    with the reason). Not imported here: its import belongs to the engine's build time."""
+    from redysim import references
+
+    cls = references.get(engine)
+    if importlib.util.find_spec(cls.module or cls.package) is None:
+        raise SettingsError(SOURCE, "--engine", engine, f"the engine {engine} " +
+                            needs_extra(cls.package, "engines"))
 
 
 def _save(df, path: Path) -> None:
@@ -414,8 +456,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.lock:
         raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
                             "(.urdf, .xml, cases/robots/*.toml); a rope case has no named joints")
-    from redysim.harness.run import execute
-    from redysim.harness.spec import RunSpec
+    from redysim.harness.spec import CORE, RunSpec
 
     case = load_case(args.case)  # a missing or malformed case is bad input (exit 2)
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
@@ -424,10 +465,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                    sample=args.sample or 0.0, max_cpu_s=args.max_cpu or 0.0,
                    links=args.links or 0, precision=args.precision or "float64")
     spec.resolved(case, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
+    if args.engine != CORE:
+        _check_engine(args.engine)
     if args.out is not None:
         _check_out(args.out)
+    from redysim.harness.run import execute
+
     res = execute(spec, progress=_report_progress, max_wall_s=args.max_wall)
-    print_run(res.summary, res.samples)
+    print_run(res.summary, res.rows)
     if args.out is not None:
         import pandas as pd
 
@@ -553,8 +598,11 @@ def _progress_every(seconds: float):
     return report
 
 
-def print_run(summary: dict, samples) -> None:
-    """A run's summary and its samples (t, delta_M, tip position) as a readable table."""
+def print_run(summary: dict, samples: list[tuple]) -> None:
+    """A run's summary and its samples (t, delta_M, tip position) as a readable table;
+    ``samples``: one tuple per sample, in :data:`redysim.harness.run.SAMPLE_COLUMNS` order."""
+    from redysim.harness.run import SAMPLE_COLUMNS
+
     s = summary
     print(f"{s['label']}   (run {s['run_id']}, {s['n_dof']} DOF)")
     print(f"  status        {s['status']}{': ' + s['reason'] if s['reason'] else ''}")
@@ -570,9 +618,10 @@ def print_run(summary: dict, samples) -> None:
     if len(samples):
         print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'tip x [m]':>12} {'tip y [m]':>12} "
               f"{'tip z [m]':>12}")
-        for r in samples.itertuples(index=False):
-            print(f"{r.t:10.4f} {r.delta_M:15.3e} {r.tip_x:12.6f} {r.tip_y:12.6f} "
-                  f"{r.tip_z:12.6f}")
+        shown = [SAMPLE_COLUMNS.index(c) for c in ("t", "delta_M", "tip_x", "tip_y", "tip_z")]
+        for row in samples:
+            t, dM, x, y, z = (row[i] for i in shown)
+            print(f"{t:10.4f} {dM:15.3e} {x:12.6f} {y:12.6f} {z:12.6f}")
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -766,6 +815,13 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except (RedysimError, FileNotFoundError) as exc:  # bad input: a case, a sweep file, a path
         print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ModuleNotFoundError as exc:  # an optional package: the extra that installs it
+        package = (exc.name or "").partition(".")[0]
+        if package not in EXTRA_OF:
+            raise
+        print(f"{PROG}: error: {PROG} {args.command} {needs_extra(package, EXTRA_OF[package])}",
+              file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)

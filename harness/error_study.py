@@ -4,9 +4,9 @@
     python -m redysim.harness.error_study --table     # print the table of what is done
 
 For every chain x size x configuration it computes the exact qdd of the double-precision input
-(:func:`harness.hiprec.qdd_reference`, mpmath at ``--dps`` digits, O(n)) and, beside it, every
-method's qdd and its true relative error ||qdd - ref|| / ||ref|| (2-norm and max-norm), with the
-conditioning of the GIM.
+(:func:`redysim.harness.hiprec.qdd_reference`, mpmath at ``--dps`` digits, O(n)) and, beside it,
+every method's qdd and its true relative error ||qdd - ref|| / ||ref|| (2-norm and max-norm), with
+the conditioning of the GIM.
 
 Chains (docs/design.md, "Chain conventions"):
     U: the RE-U steel rod, l = 0.02 m, rho_l = 7850 pi 0.05^2 kg/m, r = 0.05 m, rod inertia.
@@ -24,13 +24,13 @@ Methods (``--methods``), float64 and, where marked, float32 (``--precisions``):
                        compiled spatial kernels run on phi with no motion and no gravity
     ge-n, rge-n        core GIM + (reverse) Gaussian elimination, O(n^3) [f32]
     cholesky           core ``mass_matrix`` + ``phi``, scipy.linalg cho_factor/cho_solve [f32]
-    literal-6x6        the non-symmetric literal Table A.1 (``harness.nonsymmetric``) [f32]
+    literal-6x6        the non-symmetric literal Table A.1 (``redysim.harness.nonsymmetric``) [f32]
     literal-6x6-resym  the same with Mhat_k re-symmetrised at every step (the control) [f32]
     pinocchio-aba, pinocchio-aba-ryrz, pinocchio-crba, mujoco, dart, exudyn: the reference
                        engines up to their ``limits()``, each in a child process (address space
                        capped at the 12 GiB budget of references/limits.toml).
 float32: the rge-a kernels and literal-6x6 run every operation in float32 (the kernels' Python
-source on float32 scalars, ``harness.hiprec.FLOAT32``); ge-n, rge-n and cholesky solve the
+source on float32 scalars, ``redysim.harness.hiprec.FLOAT32``); ge-n, rge-n and cholesky solve the
 float64 GIM and phi rounded to float32 (the solve in float32, not the assembly). Errors are
 always against the reference of the double-precision input.
 
@@ -52,7 +52,7 @@ Output (``--out``, default results/error_study):
                           [hi, lo] (~32 digits) with its ``q`` and ``qd``, and .json beside it
                           (timing, the reference's self-check against ``--check-dps`` digits, the
                           condition numbers): the slow part, computed once.
-All files are written atomically through :mod:`harness.store`.
+All files are written atomically through :mod:`redysim.harness.store`.
 
 Costs here (2 shared cores): the mpmath reference ~2 ms per U-link and ~1.8 ms per R-link (the
 spatial kernel), so 100,000 links take 3-4 min; the engines' builds dominate at 1,000 links.
@@ -440,8 +440,8 @@ class Results:
         self._write()
 
     def _write(self) -> None:
-        """Atomically (harness.store: temp file, fsync, os.replace): a reader or a crash never
-        sees a half-written table."""
+        """Atomically (redysim.harness.store: temp file, fsync, os.replace): a reader or a crash
+        never sees a half-written table."""
         from .store import write_parquet_atomic
         write_parquet_atomic(self.frame(), self.path)
 

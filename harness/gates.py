@@ -2,10 +2,10 @@
 
     python -m redysim.harness.gates [--only NAME ...] [--json FILE] [--strict] [--list]
 
-Every gate in ``gates.toml`` (at the repository root) names a measured quantity, the measuring
-function (a key of :data:`MEASURES`), a comparison (``<=``, ``>=``, ``==`` or ``within``), a
-threshold and the reason for that threshold. This module measures each one, prints a table
-(gate, value, threshold, result, where, time, reason) and exits 1 when any gate fails.
+Every gate in ``gates.toml`` (beside this module; package data) names a measured quantity, the
+measuring function (a key of :data:`MEASURES`), a comparison (``<=``, ``>=``, ``==`` or
+``within``), a threshold and the reason for that threshold. This module measures each one, prints a
+table (gate, value, threshold, result, where, time, reason) and exits 1 when any gate fails.
 
 A gate whose measurement raises (a broken core that returns NaN, say) is a FAIL row carrying the
 error, not a crash: the table always prints. A gate that cannot be measured on this machine (an
@@ -14,11 +14,12 @@ engine's package is not installed) is a SKIP row saying why; it is never counted
 is a FAIL row ("time limit"); one still going after :data:`GATE_WALL_GUARD_S` of wall time (it
 waits, or the machine is too busy) is given up as a SKIP row: a wall clock decides no result.
 
-The measurements reuse the project's own machinery: :func:`harness.run.execute` for the
-integration gates, :mod:`harness.reference` for the reference solution (computed afresh in a
-temporary results directory: its cache is keyed by the case, not the code),
-:mod:`harness.hiprec` for the 50-digit qdd, the engine adapters of :mod:`references` on the
-chains of :mod:`harness.random_chains` (those of ``tests/test_engines_agreement.py``).
+The measurements reuse the project's own machinery: :func:`redysim.harness.run.execute` for the
+integration gates, :mod:`redysim.harness.reference` for the reference solution (computed afresh
+in a temporary results directory: its cache is keyed by the case, not the code),
+:mod:`redysim.harness.hiprec` for the 50-digit qdd, the engine adapters of
+:mod:`redysim.references` on the chains of :mod:`redysim.harness.random_chains` (those of
+``tests/test_engines_agreement.py``).
 
 Exit codes: 0 every gate passed (skips allowed unless ``--strict``), 1 a gate failed, 2 bad usage
 or a malformed ``gates.toml`` (the message names the file, the gate and the field).
@@ -40,6 +41,7 @@ import time
 import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -48,10 +50,10 @@ import numpy as np
 from redysim.dynamics import METHODS
 from redysim.errors import FieldError
 
-from .provenance import REPO, provenance
+from .provenance import provenance
 
-GATES_FILE = REPO / "gates.toml"
-RESULTS_ENV = "REDYSIM_RESULTS"  # harness.reference.results_dir() reads it
+GATES_FILE = Path(str(resources.files("redysim.harness"))) / "gates.toml"  # package data
+RESULTS_ENV = "REDYSIM_RESULTS"  # redysim.harness.reference.results_dir() reads it
 COMPARISONS = ("<=", ">=", "==", "within")
 PASS, FAIL, SKIP = "pass", "FAIL", "SKIP"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
@@ -313,7 +315,8 @@ def measure_engine_agreement(gate: Gate) -> list[Measurement]:
 
 
 def measure_rge_a_true_error(gate: Gate) -> list[Measurement]:
-    """RGE-A's relative 2-norm error against the 50-digit reference of :mod:`harness.hiprec`.
+    """RGE-A's relative 2-norm error against the 50-digit reference of
+    :mod:`redysim.harness.hiprec`.
 
     ``params``: the uniform chain (n_links, joint, link_length, linear_density, radius, inertia)
     and the state, q and qd drawn uniformly from (-amplitude, amplitude) by
@@ -389,8 +392,8 @@ def _fresh_results_dir():
 
 def _tip_errors(case_name: str, t_end: float, sample: float, specs) -> list[float]:
     """Max tip error of each run against the reference of (case, t_end, sample), by
-    :func:`harness.run.execute` and :func:`harness.reference.compute_reference` (the reference
-    computed afresh, see :func:`_fresh_results_dir`)."""
+    :func:`redysim.harness.run.execute` and :func:`redysim.harness.reference.compute_reference` (the
+    reference computed afresh, see :func:`_fresh_results_dir`)."""
     from redysim import load_case
 
     from .reference import compute_reference
@@ -625,7 +628,8 @@ def parse_args(argv=None) -> argparse.Namespace:
                     help="run only the gates named NAME (a glob such as 'engine.*'; repeatable)")
     ap.add_argument("--json", metavar="FILE", help="also write the rows and provenance to FILE")
     ap.add_argument("--gates", metavar="FILE", default=str(GATES_FILE),
-                    help=f"the gates file (default {GATES_FILE.name} at the repository root)")
+                    help="the gates file (default: the gates that come with redysim, "
+                         "harness/gates.toml)")
     ap.add_argument("--strict", action="store_true", help="count a SKIP row as a failure")
     ap.add_argument("--list", action="store_true", help="list the gates and exit")
     return ap.parse_args(argv)

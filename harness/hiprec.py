@@ -230,7 +230,7 @@ def planar_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -
 def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None):
     """(oR, oO, oP, phi, arrays) from the core's kinematics and Newton-Euler kernels in ``arith``
     (qdd = 0, base at -g); ``arrays`` is :func:`chain_arrays`. For study kernels that need the
-    same inputs as RGE-A in another arithmetic (``harness.nonsymmetric``)."""
+    same inputs as RGE-A in another arithmetic (``redysim.harness.nonsymmetric``)."""
     arith = arith or mpf_arithmetic()
     c = chain
     n = c.n_dof

@@ -23,8 +23,8 @@ slightly non-symmetric; nothing removes it. ``resymmetrise=True`` replaces Mhat_
 symmetry as the cause.
 
 Inputs are the core's: kinematics (oR, oO, oP) and phi from the compiled kernels in float64, or
-from the same kernels' Python source in float32 (:func:`harness.hiprec.kinematics_and_phi`), so
-the only difference from the core is the elimination. numpy, one link per Python iteration
+from the same kernels' Python source in float32 (:func:`redysim.harness.hiprec.kinematics_and_phi`),
+so the only difference from the core is the elimination. numpy, one link per Python iteration
 (~40 us/link): slow, and meant to be.
 
 References:

@@ -1,10 +1,11 @@
 """Seeded random chains and states for engine-versus-core comparisons.
 
 Shared by the engine agreement tests (``tests/test_engines_agreement.py``, through
-``tests/engine_chains.py``) and the accuracy gates (:mod:`harness.gates`), so that both compare the
-engines on exactly the same chains and states. Links have random lengths, masses, off-axis centres
-of mass and rotated full inertias that satisfy the triangle inequality (MuJoCo checks it). The
-joints come in families (:data:`FAMILIES`), every one a chain each reference adapter builds:
+``tests/engine_chains.py``) and the accuracy gates (:mod:`redysim.harness.gates`), so that both
+compare the engines on exactly the same chains and states. Links have random lengths, masses,
+off-axis centres of mass and rotated full inertias that satisfy the triangle inequality (MuJoCo
+checks it). The joints come in families (:data:`FAMILIES`), every one a chain each reference
+adapter builds:
 
 ============  ===================================================================================
 ``R``         every joint R about +z (planar chains); gravity (0, -9.81, 0)

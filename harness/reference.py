@@ -9,7 +9,7 @@ Why not tighter: qdd of a long chain carries rounding noise of order eps x cond(
 relative (cond ~ 4 nl^4), and a max-norm error test at a tolerance below that noise takes tiny
 steps without gaining accuracy (docs/design.md, "Integrators": reference solutions). Error
 measures of a run against the reference: the max tip-position error over the samples and the
-final-state error (``harness.run``).
+final-state error (``redysim.harness.run``).
 
 The cache key is a hash of the case file's bytes, the horizon, the interval, the settings and the
 core's source (every ``.py`` of ``redysim/``), so editing a case or the core invalidates its

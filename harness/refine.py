@@ -31,6 +31,7 @@ import json
 import math
 import time
 from dataclasses import asdict, dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +40,10 @@ import pandas as pd
 from redysim import coarsen, load_case, mass_matrix
 from redysim.cases import CASES_DIR, case_from_dict, read_toml
 
-from .provenance import REPO, provenance
+from .provenance import provenance
 from .store import write_json_atomic
 
-SWEEPS = REPO / "sweeps"
+SWEEPS = Path(str(resources.files("redysim.sweep_files")))  # package data
 # scene -> its sweep file's stem. The falling chain is two scenes: its smooth fall (to 0.4 s),
 # and through the whip (to 0.8 s), whose continuum limit is singular: the tip speed grows with
 # the link count, and the path after it does not converge pointwise.

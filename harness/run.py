@@ -17,12 +17,13 @@ the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall
 integration, the JIT compile (or cache load) of the first qdd call and an engine's model build,
 both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance;
 and, when a cached reference solution exists for the case, horizon and sampling
-(:mod:`harness.reference`), the max tip-position error over the samples and the final-state error
-against it.
+(:mod:`redysim.harness.reference`), the max tip-position error over the samples and the final-state
+error against it.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import traceback
@@ -45,11 +46,19 @@ PROGRESS_EVERY_S = 5.0  # wall seconds between two progress reports of a run
 
 @dataclass
 class RunResult:
-    """``summary``: one row (dict); ``samples``: a pandas DataFrame with :data:`SAMPLE_COLUMNS`."""
+    """``summary``: one row (dict); ``rows``: the samples, one tuple per sample in
+    :data:`SAMPLE_COLUMNS` order; ``samples``: the same as a pandas DataFrame, made on first
+    use (pandas: the ``harness`` extra; a run itself needs only the core)."""
 
     spec: RunSpec
     summary: dict
-    samples: object  # pandas.DataFrame
+    rows: list
+
+    @functools.cached_property
+    def samples(self):
+        import pandas as pd
+
+        return pd.DataFrame(self.rows, columns=SAMPLE_COLUMNS)
 
     @property
     def ok(self) -> bool:
@@ -151,8 +160,6 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
     reaches in a given wall time depends on the machine's load). The spec's own limit is
     ``spec.max_cpu_s``, in CPU time: a run past it is ``"failed"``.
     """
-    import pandas as pd
-
     reset_peak_rss()  # this run's peak, not the worker's before it
     row = {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "ok",
            "reason": "", "steps": 0, "rejected": 0, "nfev": 0, "cpu_s": math.nan,
@@ -183,17 +190,19 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
         last = traceback.extract_tb(exc.__traceback__)[-1]
         row.update(status="failed", reason=f"{type(exc).__name__}: {exc} "
                                            f"(at {last.filename.rsplit('/', 1)[-1]}:{last.lineno})")
-    df = pd.DataFrame(samples, columns=SAMPLE_COLUMNS)
-    if len(df):
-        row["avg_abs_delta_M"] = float(df["delta_M"].abs().mean())
-        row["max_abs_delta_M"] = float(df["delta_M"].abs().max())
-        row["t_reached"] = float(df["t"].iloc[-1])
-    row["n_samples"] = len(df)
+    if samples:
+        abs_dM = np.abs([s[SAMPLE_COLUMNS.index("delta_M")] for s in samples])
+        row["avg_abs_delta_M"] = float(abs_dM.mean())
+        row["max_abs_delta_M"] = float(abs_dM.max())
+        row["t_reached"] = float(samples[-1][SAMPLE_COLUMNS.index("t")])
+    row["n_samples"] = len(samples)
     row["peak_rss_mib"] = peak_rss_mib()
-    if reference and row["status"] == "ok" and len(df):
-        _compare_with_reference(spec, row, df, last.get("y"), coarsening)
+    if reference and row["status"] == "ok" and samples:
+        tip = SAMPLE_COLUMNS.index("tip_x")
+        pos = np.array([s[tip:tip + 3] for s in samples])
+        _compare_with_reference(spec, row, pos, last.get("y"), coarsening)
     row.update(provenance(engine_version))
-    return RunResult(spec, row, df)
+    return RunResult(spec, row, samples)
 
 
 def initial_state(spec: RunSpec, case) -> np.ndarray:
@@ -264,15 +273,15 @@ def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
                wall_s=res.wall_s)
 
 
-def _compare_with_reference(spec: RunSpec, row: dict, df, y_final, coarsening=None) -> None:
-    """Errors against the case's reference solution. A coarse-grained run is compared with the
-    case's own (fine) reference: its tip is the same point of the rope, and its final state is
-    compared with the reference's mapped to the coarse model (the chord projection)."""
+def _compare_with_reference(spec: RunSpec, row: dict, pos, y_final, coarsening=None) -> None:
+    """Errors against the case's reference solution; ``pos``: the tip positions at the
+    samples, (n_samples, 3). A coarse-grained run is compared with the case's own (fine)
+    reference: its tip is the same point of the rope, and its final state is compared with the
+    reference's mapped to the coarse model (the chord projection)."""
     case = load_case(spec.case)
     ref = load_reference(case, row["t_end"], row["sample"])
-    if ref is None or len(ref.t) != len(df):
+    if ref is None or len(ref.t) != len(pos):
         return
-    pos = df[["tip_x", "tip_y", "tip_z"]].to_numpy()
     row["max_tip_err"] = float(np.linalg.norm(pos - ref.tip, axis=1).max())
     row["ref_tol_estimate"] = ref.tol_estimate
     if y_final is not None:

@@ -36,7 +36,8 @@ class RunSpec:
     """One run.
 
     case:        a case name from ``cases/`` or the path of a case file.
-    engine:      ``"redysim"`` (the core) or a reference engine's name (``references.ENGINES``).
+    engine:      ``"redysim"`` (the core) or a reference engine's name
+                 (``redysim.references.ENGINES``).
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
                  for an engine.
     integrator:  a name from ``redysim.integrate.INTEGRATORS`` (``"ode45"``, ``"dop853"``,

@@ -19,9 +19,10 @@ import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
-import pandas as pd
+if TYPE_CHECKING:  # pandas is imported by the functions that read or write tables
+    import pandas as pd
 
 TEMP_PREFIX = "."  # temporary files are hidden, so "*.parquet" globs never see them
 TEMP_SUFFIX = ".tmp"
@@ -104,6 +105,8 @@ def write_npz_atomic(path: str | os.PathLike, **arrays) -> Path:
 
 def read_parquet(path: str | os.PathLike) -> pd.DataFrame:
     """One Parquet file as a DataFrame."""
+    import pandas as pd
+
     return pd.read_parquet(path, engine="pyarrow")
 
 

@@ -7,7 +7,7 @@ method x integrator x tolerance or step)::
     name = "smoke"
     description = "two chains, two integrators, two tolerances"
     cases = ["STUDY-R3", "RE-U125-L1"]   # names from cases/, or paths of case files
-    engines = ["redysim"]                # default ["redysim"]; others: references.ENGINES
+    engines = ["redysim"]                # default ["redysim"]; others: redysim.references.ENGINES
     methods = ["rge-a"]                  # the core's methods (default ["rge-a"]); engines take none
     integrators = ["ode45", "rk4"]       # redysim.integrate.INTEGRATORS or "native"
     rtols = [1e-4, 1e-6]                 # adaptive integrators: one run per rtol
@@ -46,9 +46,9 @@ runs everything again instead of mixing results of two versions.
     samples/<run_id>.parquet     its samples (written first: the summary row marks a run done)
     runs.parquet, samples.parquet  everything, in plan order (:func:`collect`)
 
-Every file is written atomically (:mod:`harness.store`), so a sweep killed at any moment (even
-``kill -9``) and started again skips the runs it finished and redoes only those in flight. At most
-``workers`` runs are in flight on the local pool. A run that fails is a row with ``status =
+Every file is written atomically (:mod:`redysim.harness.store`), so a sweep killed at any moment
+(even ``kill -9``) and started again skips the runs it finished and redoes only those in flight. At
+most ``workers`` runs are in flight on the local pool. A run that fails is a row with ``status =
 "failed"`` and its ``reason``; so is a run whose worker raised or died.
 """
 
@@ -531,8 +531,8 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     LocalCluster of 2 single-threaded worker processes) instead of the local pool. ``progress``:
     a progress bar on stderr (runs done, failed, time left). ``name`` goes into sweep.json.
     ``reference``: first compute (or load from the cache) the reference solution of every
-    pending run's case, horizon and sampling (:mod:`harness.reference`), so that each run reports
-    its error against it.
+    pending run's case, horizon and sampling (:mod:`redysim.harness.reference`), so that each run
+    reports its error against it.
 
     Done runs are skipped: those that finished, and those that failed for a reason of their own
     (NaN, energy blow-up, an engine's refusal, the spec's CPU-time limit: the same inputs fail

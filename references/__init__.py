@@ -3,8 +3,8 @@
 One adapter class per engine, registered under its name in :data:`ENGINES` (Pinocchio three
 times: ``pinocchio-aba``, ``pinocchio-aba-ryrz`` and ``pinocchio-crba``, one construction with
 two U-joint models and two algorithms), every one with the shape of
-:class:`references.base.Engine`: built from a :class:`redysim.Model` (a kinematic tree, fixed or
-floating base; a :class:`redysim.Case` or :class:`redysim.Chain` is converted at the door,
+:class:`redysim.references.base.Engine`: built from a :class:`redysim.Model` (a kinematic tree,
+fixed or floating base; a :class:`redysim.Case` or :class:`redysim.Chain` is converted at the door,
 ``Model.from_chain``), it answers ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``position``
 (``tip``), ``simulate``, ``version`` and ``limits`` in the core's names, units and coordinates,
 a free joint's included. Every adapter builds every joint the core can express (R and P
@@ -19,7 +19,7 @@ Importing this package imports no engine: a missing one raises :class:`EngineUna
         eng.qdd(q, v, tau); eng.simulate(q0, v0, t_end, h)
 
 Closed loops (:class:`redysim.loops.ClosedLoops`: a tree and its cut joints) go to the loop
-adapters (:mod:`references.loops`), which build the tree with the engine's adapter and close
+adapters (:mod:`redysim.references.loops`), which build the tree with the engine's adapter and close
 the cuts with each engine's own constraint::
 
     eng = references.loop_engine("exudyn", loops)   # references.LOOP_ENGINES lists them
@@ -27,6 +27,11 @@ the cuts with each engine's own constraint::
 """
 
 from __future__ import annotations
+
+if __name__ != "redysim.references":
+    raise ImportError("the folder references/ is the package redysim.references: import "
+                      f"redysim.references, not {__name__}, which would be a second copy of "
+                      "every module in it (a second engine registry)", name=__name__)
 
 from .base import (
     Axis,

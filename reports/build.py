@@ -3,13 +3,14 @@
     python -m redysim.reports.build [--results results] [--out reports/out]
 
 Writes ``report.html`` (figures embedded as PNG data URIs: it opens from disk, offline) and
-``report.pdf`` (reportlab) into ``--out``. Reads only what is on disk (:mod:`reports.results`):
-a table or figure without data says which make target produces it. Sections:
+``report.pdf`` (reportlab) into ``--out``. Reads only what is on disk
+(:mod:`redysim.reports.results`): a table or figure without data says which make target produces
+it. Sections:
 
 1. headline: the numbers a reader wants first;
 2. setup and provenance: this machine, versions, settings, where every result came from;
-3. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`reports.paper_tables`);
-4. the paper's figures, from our runs (:mod:`reports.figures`);
+3. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`redysim.reports.paper_tables`);
+4. the paper's figures, from our runs (:mod:`redysim.reports.figures`);
 5. beyond the paper: conditioning, CPU scaling, operation counts, work-precision, engine limits,
    the precision study in IEEE formats, the true error against a 50-digit reference, benchmarks.
 """

@@ -2,9 +2,9 @@
 it (conditioning, CPU scaling, work-precision, true error), as PNG bytes.
 
 Every figure carries a footer with the versions, machine, commit and dates of the data it shows
-(:func:`reports.text.provenance_line`), drawn into the image so it survives copying. A figure
-without data is a :class:`~reports.content.Figure` with ``png = None`` and a ``not_run`` that says
-which make target produces it.
+(:func:`redysim.reports.text.provenance_line`), drawn into the image so it survives copying. A
+figure without data is a :class:`~redysim.reports.content.Figure` with ``png = None`` and a
+``not_run`` that says which make target produces it.
 """
 
 from __future__ import annotations

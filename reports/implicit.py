@@ -1,9 +1,9 @@
 """The implicit integrator on the 100,000-DOF chain: its long run beside the explicit one.
 
 Reads the checkpointed long runs of :data:`CASE` (``results/longrun/<folder>/checkpoint.npz``,
-:mod:`harness.longrun`): the implicit midpoint's (folder ``<case>-midpoint``) and every ode45 run
-of the same case (the explicit reference, to a shorter horizon: ~35 ms a step at ~1e-5 s). The
-table gives each run's steps, calls, Newton and GMRES iterations, CPU, wall, peak memory, energy
+:mod:`redysim.harness.longrun`): the implicit midpoint's (folder ``<case>-midpoint``) and every
+ode45 run of the same case (the explicit reference, to a shorter horizon: ~35 ms a step at ~1e-5 s).
+The table gives each run's steps, calls, Newton and GMRES iterations, CPU, wall, peak memory, energy
 drift and, for the implicit runs, the largest tip distance from the explicit run over the times
 both sampled; the figure redraws the paper's Figs. 15 and 17(b) for this case (tip X, Y, Z and
 delta_M against time) with both runs, and the tip distance between them.

@@ -97,9 +97,10 @@ def _null_velocity(loops, q, speed: float) -> np.ndarray:
 
 
 def engines_check() -> list[dict]:
-    """Each engine's constrained qdd and loop forces against the core's (references.loops), on
-    the four-bar and a 20-rod pinned chain, at rest and moving: the worst relative differences
-    (qdd by the larger of the constrained and the open tree's |qdd|), or the refusal."""
+    """Each engine's constrained qdd and loop forces against the core's
+    (redysim.references.loops), on the four-bar and a 20-rod pinned chain, at rest and moving: the
+    worst relative differences (qdd by the larger of the constrained and the open tree's |qdd|),
+    or the refusal."""
     import redysim
     from redysim.linkages import four_bar, pinned_chain
     from redysim.references.loops import LOOP_ENGINES, loop_engine

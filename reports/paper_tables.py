@@ -1,10 +1,12 @@
-"""Paper vs ours: one :class:`~reports.content.Table` per table of the paper, a verdict per row.
+"""Paper vs ours: one :class:`~redysim.reports.content.Table` per table of the paper, a verdict
+per row.
 
 Comparison rules (the paper's printed values are in ``paper/published.toml``):
 
 - Printed values: the paper TRUNCATES (docs/design.md, 'The paper's numbers'). Ours matches
   when, rounded or truncated to the digits the paper prints, it equals the paper's value
-  (:func:`reports.precision_tables.verdict`); trailing zeros the paper pads with do not count.
+  (:func:`redysim.reports.precision_tables.verdict`); trailing zeros the paper pads with do not
+  count.
 - Energy drift avg |delta_M| (a property of the integrator's step sequence, not of the model):
   "matches within x2", "same order (x r)" up to a factor :data:`SAME_ORDER`, else "differs".
 - CPU times: the paper's are MATLAB on a 2011 Core2Duo laptop; we show ours and the speed-up,
@@ -12,7 +14,7 @@ Comparison rules (the paper's printed values are in ``paper/published.toml``):
 - Where a table has no data yet, the row says which make target produces it; nothing is
   invented.
 
-Runs are taken from every sweep on disk (:class:`reports.results.Results`) at the paper's
+Runs are taken from every sweep on disk (:class:`redysim.reports.results.Results`) at the paper's
 settings: ode45, rtol and atol and sample interval of ``[conventions]``, the core's RGE-A unless
 a table is about another method or engine.
 """

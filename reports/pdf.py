@@ -1,5 +1,6 @@
-"""The report as PDF (reportlab, pure Python): the same :class:`~reports.content.Report` as the
-HTML page, on landscape A4 so the wide tables fit."""
+"""The report as PDF (reportlab, pure Python): the same
+:class:`~redysim.reports.content.Report` as the HTML page, on landscape A4 so the wide tables
+fit."""
 
 from __future__ import annotations
 

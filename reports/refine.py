@@ -1,4 +1,5 @@
-"""The report's "Model size" section: refinement studies (harness.refine), as tables and figures.
+"""The report's "Model size" section: refinement studies (redysim.harness.refine), as tables and
+figures.
 
 Reads ``results/refine/refine.json`` (written by ``python -m redysim.harness.refine``, which
 ``make reproduce`` runs): per scene the error of every run against the finest model, the observed

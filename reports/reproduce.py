@@ -13,27 +13,27 @@ Quick mode (the default): the sweeps ``sweeps/quick-tables.toml`` (Tables 1-4 up
 at the paper's horizons, RE-U3750-L30 shortened, Table 6's GE-N on RE-U125-L1) and
 ``sweeps/quick-work-precision.toml`` (every integrator and engine on RE-U125-L1 over 0.05 s)
 and ``sweeps/quick-drift-ensemble.toml`` (RE-U125-L1's drift from 8 perturbed initial states);
-the precision tables 8, 10, 11, A.2 and IEEE (:mod:`reports.precision_tables`, Table 8 without
-its sensitivity runs); Table 9 and the conditioning study (:mod:`reports.gim_study`); the
-operation counts (:mod:`reports.opcount`); the true-error study at 10 and 100 links
-(:mod:`harness.error_study`); the CPU scaling under the quick budget (:mod:`reports.scaling`);
-robots and trees in the core and every engine (:mod:`reports.robots`); closed loops
-(:mod:`reports.loops`); model size against accuracy, the refinement studies of
-``sweeps/refine-*.toml`` with their advice checked (:mod:`harness.refine`); the implicit
-integrator on RE-U50000-L1000 to 5 s beside ode45 to 0.05 s (:mod:`reports.implicit`); then
-the report (:mod:`reports.build`).
+the precision tables 8, 10, 11, A.2 and IEEE (:mod:`redysim.reports.precision_tables`, Table 8
+without its sensitivity runs); Table 9 and the conditioning study
+(:mod:`redysim.reports.gim_study`); the operation counts (:mod:`redysim.reports.opcount`); the
+true-error study at 10 and 100 links (:mod:`redysim.harness.error_study`); the CPU scaling under
+the quick budget (:mod:`redysim.reports.scaling`); robots and trees in the core and every engine
+(:mod:`redysim.reports.robots`); closed loops (:mod:`redysim.reports.loops`); model size against
+accuracy, the refinement studies of ``sweeps/refine-*.toml`` with their advice checked
+(:mod:`redysim.harness.refine`); the implicit integrator on RE-U50000-L1000 to 5 s beside ode45
+to 0.05 s (:mod:`redysim.reports.implicit`); then the report (:mod:`redysim.reports.build`).
 
 Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
 ``drift-ensemble.toml``, ``work-precision-RE-U125-L1.toml`` and
 ``work-precision-RE-U750-L6.toml`` (Table 6's GE-N on the larger chains takes hours), the
 implicit integrator's ode45 reference to 0.48 s, Table 5's huge chains as checkpointed long
-runs (:mod:`harness.longrun`: hours each, resumed from the last checkpoint when stopped),
+runs (:mod:`redysim.harness.longrun`: hours each, resumed from the last checkpoint when stopped),
 everything above at full size.
 
-Everything resumes: a sweep skips the runs it has finished (harness.sweep), the error study the
-cells it has, and the other steps take seconds to minutes. Progress and each step's wall time are
-printed, and ``results/reproduce-<kind>.json`` (kind: quick, full or tables) records them for the
-report. A failed step is reported and the others still run; the exit code is then 1.
+Everything resumes: a sweep skips the runs it has finished (redysim.harness.sweep), the error
+study the cells it has, and the other steps take seconds to minutes. Progress and each step's wall
+time are printed, and ``results/reproduce-<kind>.json`` (kind: quick, full or tables) records them
+for the report. A failed step is reported and the others still run; the exit code is then 1.
 """
 
 from __future__ import annotations
@@ -48,14 +48,15 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
-from redysim.harness.provenance import REPO, provenance
+from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
 
 QUICK = "quick"
 FULL = "full"
-SWEEPS = REPO / "sweeps"
+SWEEPS = Path(str(resources.files("redysim.sweep_files")))  # package data
 QUICK_SWEEPS = ("quick-tables", "quick-work-precision", "quick-drift-ensemble")
 TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6": "table6"}
 # Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
@@ -63,7 +64,7 @@ TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6":
 FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
                "work-precision-RE-U125-L1", "work-precision-RE-U750-L6", "table6")
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
-QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs harness.error_study's defaults
+QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs redysim.harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
 # the implicit integrator's long run is measured against ode45 to this horizon [s]
 IMPLICIT_REF_T = {QUICK: 0.05, FULL: 0.48}
@@ -129,9 +130,9 @@ class Reproduction:
             if len(bad) else "")
 
     def _longrun(self, case: str, out: Path | None = None, **flags) -> dict:
-        """One checkpointed long run (:mod:`harness.longrun`) in a process of its own, so that the
-        peak RSS it records is its own, not this process's after every earlier step; its output
-        goes to the log line by line. Returns its final checkpoint."""
+        """One checkpointed long run (:mod:`redysim.harness.longrun`) in a process of its own, so
+        that the peak RSS it records is its own, not this process's after every earlier step; its
+        output goes to the log line by line. Returns its final checkpoint."""
         from redysim import load_case
         from redysim.harness import longrun
 
@@ -157,7 +158,7 @@ class Reproduction:
 
     def long_runs(self) -> str:
         """Table 5: each huge chain to the paper's horizon as a checkpointed long run
-        (:mod:`harness.longrun`, under the results folder): stopped at any point, it resumes
+        (:mod:`redysim.harness.longrun`, under the results folder): stopped at any point, it resumes
         from its last checkpoint."""
         from redysim import load_published
         from redysim.harness import longrun
@@ -383,7 +384,7 @@ def main(argv=None) -> int:
                     help="sweep worker processes (default: one per core)")
     args = ap.parse_args(argv)
     rep = Reproduction(args.results, args.out, args.workers, FULL if args.full else QUICK)
-    # reference solutions are cached under the results folder (harness.reference), also in
+    # reference solutions are cached under the results folder (redysim.harness.reference), also in
     # the sweep's worker processes, which inherit the environment
     os.environ["REDYSIM_RESULTS"] = str(rep.results)
     rep.say(f"{rep.mode} reproduction -> {rep.results}, report -> {args.out}")

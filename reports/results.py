@@ -2,20 +2,24 @@
 
 Layout under the results folder (``results/`` by default; each producer's docstring has its own):
 
-    sweeps/<name>/runs/<run_id>.parquet      one summary row per finished run (harness.sweep)
+    sweeps/<name>/runs/<run_id>.parquet      one summary row per finished run
+                                             (redysim.harness.sweep)
     sweeps/<name>/samples/<run_id>.parquet   its samples (tip, energy, delta_M)
-    longrun/<case>/checkpoint.npz            a checkpointed long run (harness.longrun: Table 5)
-    precision/<table>.json                   Tables 8, 10, 11, A.2, IEEE (reports.precision_tables)
-    error_study/error_study.parquet          true error vs an mpmath reference (harness.error_study)
-    gim_study/table9.json, cond.parquet      Table 9, cond2 vs links (reports.gim_study)
-    opcount/opcount.json                     Table 7 (reports.opcount)
-    scaling/scaling.parquet                  qdd per call vs DOF (reports.scaling)
+    longrun/<case>/checkpoint.npz            a checkpointed long run (redysim.harness.longrun:
+                                             Table 5)
+    precision/<table>.json                   Tables 8, 10, 11, A.2, IEEE
+                                             (redysim.reports.precision_tables)
+    error_study/error_study.parquet          true error vs an mpmath reference
+                                             (redysim.harness.error_study)
+    gim_study/table9.json, cond.parquet      Table 9, cond2 vs links (redysim.reports.gim_study)
+    opcount/opcount.json                     Table 7 (redysim.reports.opcount)
+    scaling/scaling.parquet                  qdd per call vs DOF (redysim.reports.scaling)
     bench/core.json, bench/engines.json      pytest-benchmark (make bench, make bench-engines)
     reproduce-<kind>.json                    what the last reproduction of each kind (quick, full,
                                              tables) ran, and its wall time
 
 Runs are read from the per-run files, not from runs.parquet, so an interrupted sweep's finished
-runs count; as in :func:`harness.sweep.collect`, only the runs of a folder's current plan
+runs count; as in :func:`redysim.harness.sweep.collect`, only the runs of a folder's current plan
 (sweep.json). Runs of every sweep folder are pooled: the same run (same run_id) made by two
 sweeps is one run.
 """
@@ -124,7 +128,7 @@ class Results:
         return runs.reset_index(drop=True)
 
     def longruns(self) -> pd.DataFrame:
-        """The checkpointed long runs (:mod:`harness.longrun`) as summary rows shaped like a
+        """The checkpointed long runs (:mod:`redysim.harness.longrun`) as summary rows shaped like a
         sweep's: status ``ok`` once the checkpoint reached t_end, else ``partial``."""
         rows = []
         for path in sorted((self.root / LONGRUN_DIR).glob(f"*/{LONGRUN_CHECKPOINT}")):
@@ -196,7 +200,7 @@ class Results:
 
     @functools.cached_property
     def robots(self) -> dict | None:
-        """``robots/robots.json`` (:mod:`reports.robots`), or None."""
+        """``robots/robots.json`` (:mod:`redysim.reports.robots`), or None."""
         return _json(self.root / ROBOTS_FILE)
 
     @functools.cached_property
@@ -206,7 +210,7 @@ class Results:
 
     @functools.cached_property
     def loops(self) -> dict | None:
-        """``loops/loops.json`` (:mod:`reports.loops`), or None."""
+        """``loops/loops.json`` (:mod:`redysim.reports.loops`), or None."""
         return _json(self.root / LOOPS_FILE)
 
     @functools.cached_property

@@ -4,8 +4,9 @@ qdd call beside ``pin.aba``, and passive falls (the report's "Robots and trees" 
     python -m redysim.reports.robots [--out results/robots]
 
 Robots: URDFs of the ``example-robot-data`` package (an arm, a hand, a quadruped with a fixed
-and with a floating base, a humanoid), read by :func:`redysim.load_model`, and the robots of
-``cases/robots/`` (DH tables) when present. For each:
+and with a floating base, a humanoid), read by :func:`redysim.load_model`, and the DH robots
+that come with redysim (the repository's ``cases/robots/``: the package data
+``redysim.case_files.robots``, found in an installed redysim too). For each:
 
 - agreement: at three seeded random states, qdd, the GIM, the bias phi (tau = 0) and the energy
   (T, V) of every engine (:mod:`redysim.references`, each building the core's own tree) against
@@ -31,7 +32,7 @@ import argparse
 import math
 import sys
 import time
-from importlib import metadata
+from importlib import metadata, resources
 from pathlib import Path
 
 import numpy as np
@@ -77,8 +78,9 @@ def models():
         path = robot_file(file)
         if path is not None:
             out.append((label, load_model(path, floating=floating, mimic="independent"), path))
-    robots_dir = Path(__file__).resolve().parents[1] / "cases" / "robots"
-    for toml in sorted(robots_dir.glob("*.toml")) if robots_dir.is_dir() else ():
+    robots_dir = resources.files("redysim.case_files.robots")  # package data, not a path
+    for toml in sorted((f for f in robots_dir.iterdir() if f.name.endswith(".toml")),
+                       key=lambda f: f.name):
         try:
             model = load_model(toml)
         except Exception:  # a rope case or a file the loader refuses: not a robot of ours

@@ -5,11 +5,21 @@ The core (``redysim/*.py``, ``redysim/_kernels``) imports none of the others; th
 the core and the adapters, never the reports; and no two modules import each other, directly or
 round a longer cycle, not even from inside a function. Read from the source with :mod:`ast`, so a
 lazy import inside a function counts as much as one at the top.
+
+The folders ``harness/``, ``references/`` and ``reports/`` are importable under one name only,
+``redysim.harness``, ``redysim.references`` and ``redysim.reports`` (the names they install
+under), and every dotted module path a docstring or comment gives is an importable one.
 """
 
 from __future__ import annotations
 
 import ast
+import io
+import os
+import re
+import subprocess
+import sys
+import tokenize
 from pathlib import Path
 
 import pytest
@@ -109,3 +119,85 @@ def test_the_walk_sees_the_project():
     """The checks above read something: every layer has modules, and a known edge is found."""
     assert all(any(layer(m) == p for m in MODULES) for p in ORDER)
     assert "redysim.harness.spec" in GRAPH["redysim.harness.run"]
+
+
+# --------------------------------------------------------------------------- one name per folder
+def python_in_checkout(code: str) -> subprocess.CompletedProcess:
+    """``python -c CODE`` started in the checkout's root, where Python puts the root (and so
+    the folders harness/, references/, reports/) first on sys.path."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONSAFEPATH"}
+    return subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True,
+                          text=True)
+
+
+@pytest.mark.parametrize("folder", ["harness", "references", "reports"])
+def test_a_folder_imports_only_under_its_installed_name(folder):
+    """``import harness`` from the checkout's root would load every module of harness/ a second
+    time, as ``harness.*`` beside ``redysim.harness.*``: two RunSpec classes, two engine
+    registries, isinstance failing between them. It is refused, naming the one name."""
+    out = python_in_checkout(f"import {folder}")
+    assert out.returncode == 1 and "ImportError" in out.stderr, out.stderr
+    assert f"redysim.{folder}" in out.stderr, out.stderr
+    ok = python_in_checkout(f"import redysim.{folder}")
+    assert ok.returncode == 0, ok.stderr
+
+
+# --------------------------------------------------------------------------- importable paths
+# a dotted path on a folder's bare name: harness.run, not redysim.harness.run or harness/run.py
+BARE_PATH = re.compile(r"(?<![\w./-])(harness|references|reports)\.[A-Za-z_]\w*")
+# a Sphinx role on a folder's bare name: :mod:`references`
+BARE_ROLE = re.compile(r":\w+:`~?(harness|references|reports)`")
+# a name an example in the docstring binds itself (``from redysim import references``)
+BOUND = re.compile(r"from redysim import ([\w, ]+)")
+SCANNED = ("redysim", "harness", "references", "reports", "cases", "paper", "sweeps")
+
+
+def docstrings_and_comments(path: Path) -> list[tuple[int, str]]:
+    """(line, text) of every docstring (module, class, function) and comment of a file."""
+    src = path.read_text()
+    out = []
+    for node in ast.walk(ast.parse(src, str(path))):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            doc = ast.get_docstring(node, clean=False)
+            if doc is not None:
+                out.append((node.body[0].lineno, doc))
+    tokens = tokenize.generate_tokens(io.StringIO(src).readline)
+    out += [(tok.start[0], tok.string) for tok in tokens if tok.type == tokenize.COMMENT]
+    return out
+
+
+def bare_paths(text: str) -> list[str]:
+    """The dotted paths in ``text`` that start with a folder's bare name (not importable once
+    installed), except an attribute of a name the text's own example binds
+    (``references.get(...)`` after ``from redysim import references``; ``references.base``
+    names a module, and counts)."""
+    bound = {n.strip() for m in BOUND.finditer(text) for n in m.group(1).split(",")}
+
+    def module(folder: str, name: str) -> bool:
+        return (REPO / folder / f"{name}.py").is_file() or (REPO / folder / name).is_dir()
+
+    return [m.group(0) for m in BARE_PATH.finditer(text)
+            if m.group(1) not in bound or module(m.group(1), m.group(0).split(".")[1])] + [
+        m.group(0) for m in BARE_ROLE.finditer(text)]
+
+
+def test_bare_paths_are_told_from_importable_ones():
+    """The scan below finds what it looks for, and only that."""
+    assert bare_paths("see :mod:`harness.run` and reports.results; python -m references.x") == [
+        "harness.run", "reports.results", "references.x"]
+    assert bare_paths("the adapters of :mod:`references`") == [":mod:`references`"]
+    assert bare_paths("redysim.harness.run, harness/run.py, the references. Then, "
+                      "results/reports.html, :mod:`redysim.references`, the ``harness`` "
+                      "extra") == []
+    assert bare_paths("from redysim import references\nreferences.get('mujoco'), "
+                      "references.base.Engine") == ["references.base"]
+
+
+def test_docstrings_and_comments_give_importable_module_paths():
+    """Installed, there is no module ``harness.run``: only ``redysim.harness.run`` (and
+    ``redysim.references.*``, ``redysim.reports.*``). A path to a file of the repository
+    (``harness/run.py``) is a path, not a module, and is fine."""
+    bad = [f"{path.relative_to(REPO)}:{line}: {name}"
+           for folder in SCANNED for path in sorted((REPO / folder).rglob("*.py"))
+           for line, text in docstrings_and_comments(path) for name in bare_paths(text)]
+    assert not bad, f"{len(bad)} bare module paths:\n" + "\n".join(bad)
