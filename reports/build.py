@@ -452,7 +452,8 @@ def robots_section(res: Results) -> Section:
     sec = Section("robots", "Robots and trees")
     sec.intro.append("The core runs kinematic trees (fixed or floating base) with the same "
                      "compiled kernels as the rope. Here: robots of the example-robot-data "
-                     "package (URDF read by MuJoCo's parser) and the DH robots of cases/robots, "
+                     "package (URDF read by redysim's own reader) and the DH robots of "
+                     "cases/robots, "
                      "in the core and in every engine, each engine building the core's own tree "
                      "(redysim.references); per-call cost beside pin.aba; passive falls.")
     doc = res.robots
