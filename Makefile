@@ -12,7 +12,7 @@ help:
 	@echo "make reproduce     venv + install + quick reproduction (<15 min): runs, then reports/out/report.{html,pdf}"
 	@echo "make reproduce-full every table to the paper's horizons (hours; resumable), then the report"
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
-	@echo "make test          venv + install + the test suite (test-fast: ruff and the fast tests; test-rest)"
+	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
 	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF"
@@ -35,6 +35,7 @@ test: test-fast test-rest
 
 test-fast: $(STAMP)
 	$(BIN)/ruff check --no-cache .
+	$(BIN)/mypy
 	$(BIN)/python -m pytest -m "not slow and not engine"
 
 test-rest: $(STAMP)

@@ -15,17 +15,21 @@ does not depend on it: only one triangle of each symmetric block is ever compute
 from __future__ import annotations
 
 from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numba
 from numba.core import cpu, options
 
-OPTIONS = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
-jit = numba.njit(**OPTIONS)
+if TYPE_CHECKING:  # numba's stub type of njit(**options): a kernel is a Dispatcher of its function
+    from numba.core.decorators import _JITWrapper
+
+OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
+jit: _JITWrapper = numba.njit(**OPTIONS)
 # IEEE arithmetic as written: no FMA fusion either, so that every result is the same on every
 # x86-64 CPU (with or without FMA units, whatever its SIMD width). For what must be reproducible
 # bit for bit: the integrators' stage sums, whose last bits steer the step-size control.
-STRICT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
-jit_strict = numba.njit(**STRICT_OPTIONS)
+STRICT_OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy")
+jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 
 
 # Kernels that allocate nothing and take the named bundles (redysim._kernels.bundles) compile
@@ -33,8 +37,8 @@ jit_strict = numba.njit(**STRICT_OPTIONS)
 # which keeps it alive for the call. With it, reading a bundle's fields cost an atomic increment
 # and a decrement per array per call, ~300 ns a kernel for the 28 arrays of two bundles (more
 # than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
-BORROWED_OPTIONS = dict(OPTIONS, _nrt=False)
-jit_borrowed = numba.njit(**BORROWED_OPTIONS)
+BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
+jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 
 # The SIMD tile kernels (redysim._kernels.tiles) also declare their array arguments free of
 # overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
@@ -44,13 +48,13 @@ jit_borrowed = numba.njit(**BORROWED_OPTIONS)
 # array a tile kernel is given is a distinct view of its thread's tile buffer (tiles.tile_views)
 # or a chain table it only reads.
 cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
-TILE_OPTIONS = dict(BORROWED_OPTIONS, noalias=True)
-jit_tiles = numba.njit(**TILE_OPTIONS)
+TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True)
+jit_tiles: _JITWrapper = numba.njit(**TILE_OPTIONS)
 # A batch's blocks of tiles run on numba's own threads (prange): its threading layer hands a
 # block to a thread in ~2 us here, a Python thread pool in ~80 us (a 64-state batch at 250 DOF
 # takes ~300 us on one core). redysim.dynamics serialises these launches (numba's workqueue
 # layer, its fallback without OpenMP or TBB, must not be entered from two threads at once).
-jit_parallel = numba.njit(**dict(OPTIONS, parallel=True))
+jit_parallel: _JITWrapper = numba.njit(**dict(OPTIONS, parallel=True))
 
 
 def inline(func):

@@ -290,7 +290,7 @@ def _culprit(factors: dict[str, tuple[float, float, int]], too_large: bool) -> t
     """Of the fields (name -> (value as given, value as used, power)) whose product overflowed
     (``too_large``) or underflowed, the one that did most: its name and value as given."""
     score = {k: p * math.log10(used) for k, (_, used, p) in factors.items() if used > 0}
-    name = (max if too_large else min)(score, key=score.get)
+    name = (max if too_large else min)(score, key=score.__getitem__)
     return name, factors[name][0]
 
 
@@ -336,7 +336,7 @@ def fastest_motion(chain: Chain, tip_force=None, qd=None, tip_mass: float = 0.0
     omega = math.sqrt(swing[k]) if math.isfinite(swing[k]) else math.inf
     if not omega > spin:
         return FastestMotion(spin, "rate", fastest_dof, tension)
-    return FastestMotion(omega, max(pulls, key=pulls.get), k, tension)
+    return FastestMotion(omega, max(pulls, key=pulls.__getitem__), k, tension)
 
 
 def _norm(x) -> float:
@@ -355,6 +355,7 @@ def _check_pace(source: str, chain: Chain, t_end: float, motion: FastestMotion, 
     if turns <= MAX_RADIANS:
         return
     k = motion.link
+    value: float | list[float]
     if motion.cause == "rate":
         name, value = f"initial.qd[{k}]", float(qd0[k])
         why = "an initial rate of the chain"

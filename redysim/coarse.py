@@ -52,7 +52,7 @@ class Coarsening:
     ``starts``: (n_coarse + 1,) the first fine link of each group, then the fine link count.
     """
 
-    fine: Chain
+    fine: Model  # a Chain, or a Model laid out as one (chain_of)
     coarse: Chain
     starts: np.ndarray
 
@@ -149,9 +149,10 @@ def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,
             name: str | None = None) -> Coarsening:
     """Lump every ``k`` consecutive links of ``chain`` into one (or give the coarse ``links``
     count, which must divide the chain's). A :class:`~redysim.model.Model` is taken when it has
-    a chain's layout (:func:`chain_of`); the Coarsening's ``fine`` and ``coarse`` are then
-    Chains. Returns the :class:`Coarsening` (its ``coarse`` chain and the state maps). Raises
-    CaseError naming a count that does not divide, or a model that is not a chain."""
+    a chain's layout (:func:`chain_of`): it is then the Coarsening's ``fine``, and ``coarse`` a
+    :class:`~redysim.model.Chain`. Returns the :class:`Coarsening` (its ``coarse`` chain and the
+    state maps). Raises CaseError naming a count that does not divide, or a model that is not a
+    chain."""
     chain = chain_of(chain)
     where = f"{chain.name}.coarsen"
     nl = chain.n_links
@@ -191,7 +192,7 @@ def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,
     return Coarsening(chain, coarse, starts)
 
 
-def _lump(chain: Chain, s: int, e: int) -> Link:
+def _lump(chain: Model, s: int, e: int) -> Link:
     """Links s..e-1 welded straight: one link with their summed mass, first moment and inertia
     about link s's joint."""
     offset = np.concatenate(([0.0], np.cumsum(chain.length[s:e])[:-1]))  # along x
@@ -213,7 +214,7 @@ def _lump(chain: Chain, s: int, e: int) -> Link:
                 physical=physical)
 
 
-def _physical(chain: Chain, j: int) -> bool:
+def _physical(chain: Model, j: int) -> bool:
     """Whether link j's inertia satisfies the triangle inequality (a rigid body's)."""
     eig = np.linalg.eigvalsh(chain.inertia_com[j])
     return bool(eig[2] <= (eig[0] + eig[1]) * (1 + 1e-12))

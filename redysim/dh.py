@@ -76,7 +76,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -93,7 +93,7 @@ _LINK_REQUIRED = ("joint", "a", "alpha_deg", "d", "theta_deg", "mass", "com", "i
 _LINK_FIELDS = {*_LINK_REQUIRED, "name", "physical"}
 
 
-def _fail(source, field_name, value, problem):
+def _fail(source, field_name, value, problem) -> NoReturn:
     raise CaseError(source, field_name, value, problem)
 
 
@@ -196,8 +196,8 @@ def _link_inertia(source, field_name, value, physical) -> np.ndarray:
 
 
 def dh_robot(links: Sequence[DHLink], *, convention: str,
-             gravity: Sequence[float] = ROBOT_GRAVITY, name: str = "robot",
-             flange: Sequence[float] = (0.0, 0.0, 0.0), source: str = "dh table",
+             gravity: Sequence[float] | np.ndarray = ROBOT_GRAVITY, name: str = "robot",
+             flange: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0), source: str = "dh table",
              prefix: str = "dh", names: Mapping[str, str] | None = None) -> DHRobot:
     """The robot of a DH table (``convention``: "standard" or "modified"), fixed base at the
     world origin, ``gravity`` in the world frame (default 9.81 m/s^2 along -z), ``flange`` the

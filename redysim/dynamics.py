@@ -13,7 +13,7 @@ import math
 import os
 import reprlib
 import threading
-from typing import NamedTuple
+from typing import Literal, NamedTuple, overload
 
 import numpy as np
 from numpy import ndarray
@@ -45,6 +45,16 @@ def _plain_vector(x, n: int) -> bool:
     """True for a contiguous float64 ndarray of shape (n,): what the kernels take as is."""
     return (type(x) is np.ndarray and x.shape == (n,) and x.dtype is FLOAT64
             and x.strides == FLOAT64_STRIDES)
+
+
+@overload
+def check_state(chain: System, name: str, x, *, optional: Literal[False] = False,
+                finite: bool = True) -> np.ndarray: ...
+
+
+@overload
+def check_state(chain: System, name: str, x, *, optional: bool,
+                finite: bool = True) -> np.ndarray | None: ...
 
 
 def check_state(chain: System, name: str, x, *, optional: bool = False,
@@ -350,6 +360,7 @@ def run_blocks(rows: int, threads: int | None, call, count: int | None = None) -
 
         _POOL_SIZE = max(count - 1, default_threads() - 1)
         _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE, thread_name_prefix="redysim-batch")
+    assert _POOL is not None  # made above, or by an earlier call (_POOL_SIZE >= count - 1 > 0)
     futures = [_POOL.submit(call, i, edges[i], edges[i + 1]) for i in range(1, count)]
     try:
         first = call(0, edges[0], edges[1])

@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
@@ -289,7 +290,8 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
     """(pose (R, p), joints [(type, name, axis, anchor, ref)]) of the MJCF body of ``group``:
     the placements and joint motions P1 J1 P2 J2 ... in the last body's frame (module
     docstring), each joint's initial value folded in front of it."""
-    factors = []  # X_0, axis 1, X_1, axis 2, ...: placements and elementary axes in order
+    # X_0, axis 1, X_1, axis 2, ...: placements and elementary axes in order
+    factors: list[list[Any]] = []
     for k in group:
         factors.append(["X", (model.placement_R[k], model.placement_p[k])])
         for (kind, u, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True):
@@ -343,7 +345,7 @@ def to_mjcf(system: Model) -> str:
                               "6 dofs in body'); give a massless body a mass")
     inertials = [_mjcf_inertial(source, model, g[-1]) for g in groups]
     group_of = {g[-1]: i for i, g in enumerate(groups)}  # a group's parent is a carrier body
-    depth = []
+    depth: list[int] = []
     for g in groups:
         p = model.parent[g[0]]
         depth.append(1 if p < 0 else depth[group_of[int(p)]] + 1)

@@ -195,6 +195,7 @@ class MidpointSolver(OdeSolver):
             self.hmax = float(hmax) if hmax else steps.HMAX_FRACTION * span
             self.newton_tol = newton_tol or min(NEWTON_TOL, 1e-2 * self.rtol)
         else:
+            assert h is not None  # (not adaptive)
             if not h > 0:
                 raise ValueError(f"a fixed step needs h > 0, got h={h!r}")
             self.rtol = self.atol = math.nan
@@ -213,7 +214,7 @@ class MidpointSolver(OdeSolver):
                 raise ValueError("the implicit midpoint steps second-order systems, y = (q, v) "
                                  "with dq/dt = v; this rhs's dq/dt differs from v (a free "
                                  "joint's quaternion moves otherwise: use ode45)")
-            self.h_next = self._initial_step() if self.adaptive else float(h)
+            self.h_next = self._initial_step() if self.adaptive else self.hmax  # (= h)
         self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
 
     # ----------------------------------------------------------------------- helpers

@@ -212,6 +212,21 @@ def _numbers(src: str, field: str, text: str | None, n: int, default: Sequence[f
     return np.array(values)
 
 
+def _xyz(a) -> tuple[float, float, float]:
+    """A 3-vector as a tuple of floats."""
+    x, y, z = map(float, a)
+    return x, y, z
+
+
+def _end_link(joint: ET.Element, end: str) -> str:
+    """The link a joint's <parent> or <child> (``end``) names, once :func:`_urdf_graph` has
+    refused a joint without one."""
+    el = joint.find(end)
+    link = None if el is None else el.get("link")
+    assert link is not None, "_urdf_graph checks every joint's links"
+    return link
+
+
 def _rpy_matrix(rpy) -> np.ndarray:
     """URDF's roll-pitch-yaw: Rz(yaw) Ry(pitch) Rx(roll) (fixed axes x, y, z)."""
     r, p, y = rpy
@@ -265,7 +280,7 @@ def _link_body(src: str, link) -> Body:
     I_in = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
     _as_file_error(check_inertia, src, f"{where}/inertia", I_in, physical=False)
     I_c = R @ I_in @ R.T
-    return Body(name, float(m), tuple(map(float, c)), tuple(map(tuple, 0.5 * (I_c + I_c.T))),
+    return Body(name, float(m), _xyz(c), tuple(map(tuple, 0.5 * (I_c + I_c.T))),
                 physical=False)
 
 
@@ -304,15 +319,16 @@ def _urdf_graph(src: str, root):
                                  "supported: revolute, continuous, prismatic, fixed, floating"
                                  + (" (a planar joint has no counterpart in the core)"
                                     if jtype == "planar" else ""))
-        ends = {}
+        ends: dict[str, str] = {}
         for end in ("parent", "child"):
             el = joint.find(end)
-            ends[end] = None if el is None else el.get("link")
-            if ends[end] is None:
+            end_link = None if el is None else el.get("link")
+            if end_link is None:
                 raise ModelFileError(src, f"{where}/{end}.link", None, f"missing: a joint "
                                      f"names its {end} link")
-            if ends[end] not in links:
-                raise ModelFileError(src, f"{where}/{end}.link", ends[end], "no such link")
+            if end_link not in links:
+                raise ModelFileError(src, f"{where}/{end}.link", end_link, "no such link")
+            ends[end] = end_link
         child = ends["child"]
         if child in parent_joint:
             raise ModelFileError(src, f"{where}/child.link", child, f"is already the child of "
@@ -335,7 +351,7 @@ def _urdf_graph(src: str, root):
             seen.add(link)
             joint = parent_joint[link]
             cycle.append(joint.get("name"))
-            link = joint.find("parent").get("link")
+            link = _end_link(joint, "parent")
         loop = cycle[cycle.index(parent_joint[link].get("name")):][::-1]  # downwards
         order = {j.get("name"): i for i, j in enumerate(root.findall("joint"))}
         first = min(loop, key=order.__getitem__)
@@ -361,7 +377,9 @@ def _reach(roots, children) -> set:
 def _urdf_unread(report: _Report, root, mimic: str) -> None:
     """What the URDF holds that the tree does not: announced (dynamics, limits, collision
     geometry) or counted as not read."""
-    damping, friction, limits, collision, mimics = [], [], [], [], []
+    damping: list[tuple[str, float]] = []
+    friction: list[tuple[str, float]] = []
+    limits, collision, mimics = [], [], []
     bounds = 0
     for joint in root.findall("joint"):
         name, jtype = joint.get("name"), joint.get("type")
@@ -424,10 +442,11 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
     if root.tag != "robot":
         raise ModelFileError(src, f"<{root.tag}>", None, "a URDF's root element is <robot>")
     links, children, base = _urdf_graph(src, root)
-    for joint in root.findall("joint"):
-        if joint.find("mimic") is not None and mimic == "refuse":
-            raise ModelFileError(src, f"joint {joint.get('name')!r}/mimic.joint",
-                                 joint.find("mimic").get("joint"), "a mimic joint couples two "
+    for joint_el in root.findall("joint"):
+        mimic_el = joint_el.find("mimic")
+        if mimic_el is not None and mimic == "refuse":
+            raise ModelFileError(src, f"joint {joint_el.get('name')!r}/mimic.joint",
+                                 mimic_el.get("joint"), "a mimic joint couples two "
                                  "joints, which a tree of independent joints cannot hold; load "
                                  "with mimic='independent' to let it move on its own "
                                  "(Pinocchio's default), or remove the <mimic>")
@@ -449,10 +468,13 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
         floating = False  # the world link itself stays the world
 
     # the tree, depth first (children in file order), without recursion
-    bodies, joints, parents = [], [], []
-    welded, world = [], []  # welded to the world? its pose in the world if so
-    free_poses: dict[int, tuple] = {}
-    stack = [(base, None, -1)]
+    bodies: list[Body] = []
+    joints: list[TreeJoint] = []
+    parents: list[int] = []
+    welded: list[bool] = []  # welded to the world?
+    world: list[tuple[np.ndarray, np.ndarray] | None] = []  # its pose in the world if so
+    free_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    stack: list[tuple[str, ET.Element | None, int]] = [(base, None, -1)]
     while stack:
         name, joint, parent = stack.pop()
         k = len(bodies)
@@ -463,40 +485,42 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
             joints.append(TreeJoint(f"{name}_{jtype}", jtype))
             parents.append(-1)
             welded.append(not floats)
-            world.append((np.eye(3), np.zeros(3)))
+            root_pose = (np.eye(3), np.zeros(3))
+            world.append(root_pose)
             if floats:
-                free_poses[k] = world[-1]
+                free_poses[k] = root_pose
         else:
-            jname = joint.get("name")
+            jname = joint.get("name", "")  # (never absent: _urdf_graph checks names, types)
             where = f"joint {jname!r}"
             R, p = _origin(src, where, joint)
-            jtype = URDF_TYPES[joint.get("type")]
-            pose = (world[parent][0] @ R, world[parent][0] @ p + world[parent][1]) \
-                if welded[parent] else None
+            jtype = URDF_TYPES[joint.get("type", "")]
+            parent_pose = world[parent] if welded[parent] else None  # known when welded
+            pose = None if parent_pose is None else \
+                (parent_pose[0] @ R, parent_pose[0] @ p + parent_pose[1])
             if joint is float_joint:
                 jtype, jname = FREE, f"{name}_free"
             if jtype == FREE:
                 if not welded[parent]:
                     raise ModelFileError(src, f"{where}.type", "floating", "a floating joint "
                                          "must join a link fixed to the world (the base) to the "
-                                         f"world; link {joint.find('parent').get('link')!r} "
+                                         f"world; link {_end_link(joint, 'parent')!r} "
                                          "moves" + (" (floating=True gave the root a free "
                                                     "joint)" if floating else ""))
                 joints.append(TreeJoint(jname, FREE))
                 parents.append(-1)  # its parent is welded to the world
+                assert pose is not None  # as its parent is welded
                 free_poses[k] = pose
             else:
                 axis = None
                 if jtype in ("R", "P"):
                     axis_el = joint.find("axis")
-                    axis = _numbers(src, f"{where}/axis.xyz", None if axis_el is None else
-                                    axis_el.get("xyz"), 3, (1, 0, 0))
-                    if not np.linalg.norm(axis) > 0:
-                        raise ModelFileError(src, f"{where}/axis.xyz", axis_el.get("xyz"),
+                    xyz = None if axis_el is None else axis_el.get("xyz")
+                    u = _numbers(src, f"{where}/axis.xyz", xyz, 3, (1, 0, 0))
+                    if not np.linalg.norm(u) > 0:
+                        raise ModelFileError(src, f"{where}/axis.xyz", xyz,
                                              "must not be the zero vector")
-                    axis = tuple(map(float, axis))
-                joints.append(TreeJoint(jname, jtype, axis, tuple(map(tuple, R)),
-                                        tuple(map(float, p))))
+                    axis = _xyz(u)
+                joints.append(TreeJoint(jname, jtype, axis, tuple(map(tuple, R)), _xyz(p)))
                 parents.append(parent)
             welded.append(jtype == FIXED and welded[parent])
             world.append(pose if welded[-1] else None)
@@ -732,7 +756,7 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
                 "as given", motion=False)
 
     gravity = not off["GRAVITY"] and np.any(m.opt.gravity)
-    report.drop("body", [(_name(mj, m, "body", b), float(m.body_gravcomp[b]))
+    report.drop("body", [(_name(mj, m, "body", int(b)), float(m.body_gravcomp[b]))
                          for b in np.flatnonzero(m.body_gravcomp) if gravity and passive],
                 "gravcomp", "no gravity compensation in the core: the body falls")
     report.drop("body", [(_name(mj, m, "body", int(b)), None)
@@ -744,7 +768,8 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
                         "no fluid forces in the core")
 
     # tendons
-    tendon = {"stiffness": [], "damping": [], "frictionloss": [], "range": [], "armature": []}
+    tendon: dict[str, list[tuple[str, object]]] = {
+        "stiffness": [], "damping": [], "frictionloss": [], "range": [], "armature": []}
     for t in range(m.ntendon):
         name = _name(mj, m, "tendon", t)
         if not off["SPRING"] and (m.tendon_stiffness[t] or np.any(m.tendon_stiffnesspoly[t])):
@@ -762,7 +787,8 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
         report.drop("tendon", items, key, "no tendons in the core")
 
     # actuators: a force at ctrl 0 acts (a position servo is a spring); a motor is an input
-    acting, inputs = [], []
+    acting: list[tuple[str, list[float] | str]] = []
+    inputs: list[tuple[str, None]] = []
     if not off["ACTUATION"]:
         for a in range(m.nu):
             if m.opt.disableactuator & (1 << int(m.actuator_group[a])):
@@ -847,7 +873,8 @@ def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> None:
     announce an inactive one."""
     off = m.opt.disableflags & (mj.mjtDisableBit.mjDSBL_EQUALITY |
                                 mj.mjtDisableBit.mjDSBL_CONSTRAINT)
-    active, inactive = [], []
+    active: list[tuple[str, str, str]] = []
+    inactive: list[tuple[str, str, str]] = []
     for e in range(m.neq):
         kind = mj.mjtEq(int(m.eq_type[e])).name.removeprefix("mjEQ_").lower()
         name = _name(mj, m, "equality", e)

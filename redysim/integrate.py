@@ -310,7 +310,7 @@ class Solver(OdeSolver):
             self.counters = Counters()
             self.t, self.y = float(t0), y0
             self.f = self._call(self.t, self.y)
-            self.h_next = self._initial_step() if self.adaptive else float(h)
+            self.h_next = self._initial_step() if self.adaptive else self.hmax  # (= h)
         self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
 
     # ----------------------------------------------------------------------- helpers
@@ -359,6 +359,7 @@ class Solver(OdeSolver):
         """The max-norm error of ode45, relative to rtol's scale (accept when <= rtol); DOP853's
         estimate is err5 |err5| / hypot(err5, 0.1 err3), componentwise."""
         tab = self.tab
+        assert tab.E is not None  # adaptive: an embedded scheme (the only ones that call this)
         E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
         return float(self._error_norm(h, tab.E, E3, self.K, tab.E.size, y, y_new,
                                       self._threshold(), self._err, self._err3))

@@ -29,6 +29,7 @@ import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -58,7 +59,7 @@ _FIELDS = {
 _ARRAYS = ("body", "cut")  # arrays of tables; the others are single tables
 
 
-def _fail(source, field_name, value, problem):
+def _fail(source, field_name, value, problem) -> NoReturn:
     raise CaseError(source, field_name, value, problem)
 
 
@@ -374,7 +375,8 @@ def _bodies(src, rows, unit, ground: dict[str, np.ndarray]) -> list[_Body]:
         axis = _axis(src, f"{where}.axis", row.get("axis"), joint)
         angle = math.radians(_number(src, f"{where}.angle", row.get("angle", 0.0)))
         c, s = math.cos(angle), math.sin(angle)
-        rotation = ((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0))
+        rotation: tuple[tuple[float, float, float], ...] | None = \
+            ((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0))
         body, points = _inertial(src, where, row, unit,
                                  _points(src, where, row.get("points", {}), unit,
                                          {ORIGIN: np.zeros(3)}), names[0])
@@ -545,6 +547,7 @@ def _catenary(src, bodies, cuts) -> np.ndarray:
         _fail(src, "initial.shape", "catenary", "needs a chain of equal bars (length), each "
               "about z and hanging from the one before")
     length = lengths.pop()
+    assert length is not None  # refused above
     ends = [c for c in cuts if c.body_a == n - 1 and c.body_b < 0
             and np.allclose(c.point_a, (length, 0.0, 0.0))]
     if len(cuts) != 1 or not ends:

@@ -256,7 +256,7 @@ def straight_band(points) -> tuple[float, np.ndarray, np.ndarray]:
         u = P[-1] - P[0]
         u = u / np.linalg.norm(u) if np.linalg.norm(u) else np.array([1.0, 0.0])
         return 0.0, P[0].copy(), u
-    best = (math.inf, None, None)
+    best: tuple[float, np.ndarray | None, np.ndarray | None] = (math.inf, None, None)
     for i in range(len(H)):
         p, q = H[i], H[(i + 1) % len(H)]
         u = (q - p) / np.linalg.norm(q - p)
@@ -265,7 +265,10 @@ def straight_band(points) -> tuple[float, np.ndarray, np.ndarray]:
         width = float(d.max() - d.min())
         if width < best[0]:
             best = (width, p + n * (d.max() + d.min()) / 2, u)
-    return best
+    width, middle, direction = best
+    # finite points give every edge a finite width: the first one replaced (inf, None, None)
+    assert middle is not None and direction is not None
+    return width, middle, direction
 
 
 # Theo Jansen's "holy numbers": the eleven bar lengths b..k and m of his leg, and the frame's a

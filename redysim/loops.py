@@ -91,7 +91,9 @@ class ClosedLoops:
 
     def _path(self, body: int) -> tuple[np.ndarray, np.ndarray]:
         """(axes, owner body of each axis) on the path from ``body`` to the base."""
-        m, axes, owners = self.model, [], []
+        m = self.model
+        axes: list[int] = []
+        owners: list[int] = []
         while body >= 0:
             js = range(m.joint_voff[body], m.joint_voff[body + 1])
             axes.extend(js)

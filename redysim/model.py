@@ -32,6 +32,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NoReturn
 
 import numpy as np
 
@@ -56,7 +57,7 @@ TREE_JOINT_TYPES = (*JOINT_TYPES, FREE, FIXED)
 ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a placement rotation given by the user
 
 
-def _fail(source, field_name, value, problem):
+def _fail(source, field_name, value, problem) -> NoReturn:
     raise CaseError(source, field_name, value, problem)
 
 
@@ -134,8 +135,8 @@ def quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
         [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)]])
 
 
-def joint_transform(axes: Sequence[tuple[int, np.ndarray]], values: Sequence[float]
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def joint_transform(axes: Sequence[tuple[int, np.ndarray]],
+                    values: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(R, p): the motion of a joint's elementary axes (kind, unit vector, each in the frame the
     axes before it leave) at the given coordinates: a revolute axis turns, a prismatic one
     slides."""
@@ -190,8 +191,8 @@ class Model:
     """
 
     name: str
-    body_names: tuple[str, ...]
-    joint_names: tuple[str, ...]
+    body_names: Sequence[str]  # a tuple; a Chain's numbered names hold no strings (_Numbered)
+    joint_names: Sequence[str]
     joint_types: tuple[str, ...]
     parent: np.ndarray
     placement_R: np.ndarray
@@ -216,7 +217,8 @@ class Model:
     # ----------------------------------------------------------------------- building
     @classmethod
     def build(cls, bodies: Sequence[Body], joints: Sequence[TreeJoint], parents: Sequence[int], *,
-              gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "model",
+              gravity: Sequence[float] | np.ndarray = (0.0, -STANDARD_GRAVITY, 0.0),
+              name: str = "model",
               frames: Mapping[str, tuple[int, Sequence[float]]] | None = None,
               source: str = "model") -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
@@ -240,7 +242,7 @@ class Model:
             if isinstance(p, bool) or not isinstance(p, int | np.integer) or not -1 <= p < k:
                 _fail(source, f"parents[{k}]", p, f"must be -1 (the base) or a body before it "
                       f"(0..{k - 1}): bodies are listed parents first")
-            m = check_positive(source, f"{where}.mass", b.mass, allow_zero=True)
+            m_k = check_positive(source, f"{where}.mass", b.mass, allow_zero=True)
             c = check_vector(source, f"{where}.com", b.com, 3)
             I_c = check_inertia(source, f"{where}.inertia", b.inertia, physical=b.physical)
             if j.type not in TREE_JOINT_TYPES:
@@ -254,7 +256,7 @@ class Model:
                 _fail(source, f"{jwhere}.translation", j.translation, "a free joint's body "
                       "pose is its configuration q, not a placement: give the pose in q")
             body_name.append(str(b.name))
-            mass.append(m)
+            mass.append(m_k)
             com.append(c)
             inertia.append(I_c)
             jname.append(str(j.name))
@@ -264,9 +266,9 @@ class Model:
             par.append(int(p))
             plR.append(_rotation(source, f"{jwhere}.rotation", j.rotation))
             plp.append(check_vector(source, f"{jwhere}.translation", j.translation, 3))
-        frames = {fname: (int(fb), np.asarray(fp, dtype=float))
+        points = {fname: (int(fb), np.asarray(fp, dtype=float))
                   for fname, (fb, fp) in (frames or {}).items()}
-        for fname, (fb, fp) in frames.items():
+        for fname, (fb, fp) in points.items():
             if not 0 <= fb < nb:
                 _fail(source, f"frames.{fname}", fb, f"body index must be in 0..{nb - 1}")
             check_vector(source, f"frames.{fname}", fp, 3)
@@ -301,8 +303,8 @@ class Model:
                 new_parent.append(index[a])
                 new_R.append(to_kept_R[pk] @ plR[k])
                 new_p.append(to_kept_R[pk] @ plp[k] + to_kept_p[pk])
-        frames = {fname: (index[into[fb]], tuple(to_kept_R[fb] @ fp + to_kept_p[fb]))
-                  for fname, (fb, fp) in frames.items()}
+        kept_frames = {fname: (index[into[fb]], tuple(to_kept_R[fb] @ fp + to_kept_p[fb]))
+                       for fname, (fb, fp) in points.items()}
 
         # per-DOF tables
         qoff, voff, kinds, codes, units = [0], [0], [], [], []
@@ -319,13 +321,15 @@ class Model:
                 qoff.append(qoff[-1] + 7)
                 voff.append(voff[-1] + 6)
                 continue
-            for kind, u in axes[k]:
+            axes_k = axes[k]
+            assert axes_k is not None  # None only for free and fixed joints, neither here
+            for kind, u in axes_k:
                 kinds.append(KIND_CODES[kind])
                 codes.append(next((i for i in range(3) if np.array_equal(u, np.eye(3)[i])),
                                   GENERAL_AXIS))
                 units.append(u)
-            qoff.append(qoff[-1] + len(axes[k]))
-            voff.append(voff[-1] + len(axes[k]))
+            qoff.append(qoff[-1] + len(axes_k))
+            voff.append(voff[-1] + len(axes_k))
         m = np.array([mass[k] for k in kept], dtype=float)
         c = np.array([com[k] for k in kept], dtype=float).reshape(-1, 3)
         I_c = np.array([inertia[k] for k in kept], dtype=float).reshape(-1, 3, 3)
@@ -352,7 +356,7 @@ class Model:
             mass=_readonly(m), com=_readonly(c), inertia_com=_readonly(I_c),
             inertia_O=_readonly(I_O), mass_com=_readonly(m[:, None] * c),
             gravity=_readonly(check_vector(source, "gravity", gravity, 3)),
-            frames=frames)
+            frames=kept_frames)
 
     @classmethod
     def from_chain(cls, chain: Model) -> Model:
@@ -485,7 +489,8 @@ class Model:
             return (f"joint {self.joint_names[k]!r} is not placed, unrotated, at its parent's "
                     "length along the parent's x")
         b, point = self.frames.get("tip", (-1, None))
-        if b != self.n_bodies - 1 or point[1] != 0 or point[2] != 0 or not point[0] > 0:
+        if b != self.n_bodies - 1 or point is None or point[1] != 0 or point[2] != 0 \
+                or not point[0] > 0:
             return "it has no frame 'tip' at (length, 0, 0) on its last body"
         return None
 
@@ -512,14 +517,15 @@ class Model:
     def joints(self) -> tuple[Joint, ...]:
         """Each body's joint as a :class:`~redysim.parts.Joint` (type, and the axis of an R or
         P joint); CaseError for a free or fixed joint, which a Joint does not describe."""
-        out, shared = [], {}
+        out: list[Joint] = []
+        shared: dict[tuple[str, tuple[float, float, float] | None], Joint] = {}
         for k, jt in enumerate(self.joint_types):
             if jt not in JOINT_TYPES:
                 raise CaseError(f"model {self.name!r}", f"joint {self.joint_names[k]!r}", jt,
                                 f"a {jt} joint is not a Joint ({', '.join(JOINT_TYPES)})")
             u = self.dof_u[self.joint_voff[k]]
             axis = None if jt not in ("R", "P") or np.array_equal(u, Joint(jt).axes()[0][1]) \
-                else tuple(float(x) for x in u)
+                else (float(u[0]), float(u[1]), float(u[2]))
             out.append(shared.setdefault((jt, axis), Joint(jt, axis)))
         return tuple(out)
 
@@ -634,28 +640,6 @@ def _plain(value):
     return value
 
 
-
-
-def _numbers(value) -> np.ndarray | None:
-    """``value`` as a float array, or None when it is not numbers (strings, booleans, ...)."""
-    try:
-        a = np.asarray(value)
-    except (ValueError, TypeError):
-        return None
-    if a.dtype.kind not in "iuf":
-        return None
-    return a.astype(float)
-
-
-def _plain(value):
-    """A value for a message: numpy scalars and arrays as plain numbers and lists."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def check_cuts(model: Model, cuts, source: str) -> None:
     """Refuse cut joints that do not fit ``model`` (CaseError naming the cut and the field): not
     a list of :class:`CutJoint`, none, two of one name, a body index out of range, a cut of a
@@ -726,7 +710,7 @@ class _Numbered(Sequence):
         return isinstance(other, Sequence) and len(other) == self.n and all(
             a == b for a, b in zip(self, other, strict=True))
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]  # unhashable, as a list is
 
     def __repr__(self) -> str:
         return f"({self[0]!r}, ..., {self[self.n - 1]!r})" if self.n > 2 else repr(tuple(self))
@@ -745,10 +729,12 @@ class Chain(Model):
     Link and Joint checked once), so 500,000 links build in seconds.
     """
 
+    # a chain's own constructor, from links (not Model.build's bodies, joints and parents)
     @classmethod
-    def build(cls, links: Sequence[Link], joints: Sequence[Joint | str], *,
-              gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "chain",
-              source: str = "chain") -> Chain:
+    def build(  # type: ignore[override]
+            cls, links: Sequence[Link], joints: Sequence[Joint | str], *,
+            gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "chain",
+            source: str = "chain") -> Chain:
         """Validate and freeze a chain. ``joints`` may be Joint objects or type names."""
         if len(links) == 0:
             raise CaseError(source, "links", len(links), "a chain needs at least one link")
@@ -756,8 +742,8 @@ class Chain(Model):
             raise CaseError(source, "joints", len(joints),
                             f"need one joint per link ({len(links)} links)")
         named: dict[str, Joint] = {}  # one Joint per type name, so that repeats are shared
-        joints = tuple(j if isinstance(j, Joint) else named.setdefault(str(j), Joint(str(j)))
-                       for j in joints)
+        chain_joints = tuple(j if isinstance(j, Joint) else
+                             named.setdefault(str(j), Joint(str(j))) for j in joints)
         nl = len(links)
 
         # Links and joints are immutable: each distinct object is validated once (a uniform chain
@@ -788,7 +774,7 @@ class Chain(Model):
         joint_of = np.empty(nl, dtype=np.int64)
         first = {}
         dofs = []  # per distinct joint: (kinds, codes, units)
-        for k, joint in enumerate(joints):
+        for k, joint in enumerate(chain_joints):
             u = first.get(id(joint))
             if u is None:
                 axes = joint.axes(source, f"joints[{k}]")
@@ -829,7 +815,7 @@ class Chain(Model):
         qoff = _readonly(qoff.astype(np.int64))
         chain = cls(
             name=name, body_names=_Numbered("link", nl), joint_names=_Numbered("joint", nl),
-            joint_types=tuple(j.type for j in joints),
+            joint_types=tuple(j.type for j in chain_joints),
             parent=_readonly(np.arange(-1, nl - 1, dtype=np.int64)), placement_R=eye,
             placement_p=_readonly(placement_p),
             placement_code=_readonly(np.zeros(nl, dtype=np.int64)),
@@ -840,7 +826,7 @@ class Chain(Model):
             frames={"tip": (nl - 1, (float(length[-1]), 0.0, 0.0))})
         # what the chain was built from, as Model's derived attributes would give them back
         object.__setattr__(chain, "length", _readonly(length))
-        object.__setattr__(chain, "joints", joints)
+        object.__setattr__(chain, "joints", chain_joints)
         object.__setattr__(chain, "chain_layout", None)
         return chain
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
@@ -38,7 +39,7 @@ INERTIA_MODELS = ("rod", "cylinder", "explicit")
 STANDARD_GRAVITY = 9.81
 
 
-def _fail(source, field_name, value, problem):
+def _fail(source, field_name, value, problem) -> NoReturn:
     raise CaseError(source, field_name, value, problem)
 
 
@@ -97,7 +98,7 @@ class Joint:
         if self.type not in JOINT_TYPES:
             _fail(source, f"{field_name}.type", self.type,
                   f"unknown joint type; known types: {', '.join(JOINT_TYPES)}")
-        spec = JOINT_TYPES[self.type]
+        spec: tuple[tuple[str, tuple[float, float, float] | str], ...] = JOINT_TYPES[self.type]
         if self.axis is not None:
             if self.type not in AXIS_CHOOSABLE:
                 _fail(source, f"{field_name}.axis", self.axis,

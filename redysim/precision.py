@@ -61,7 +61,7 @@ import functools
 import math
 import types
 from decimal import ROUND_HALF_UP, Decimal
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -87,8 +87,12 @@ class Rounded:
     side (they are rounded on entry). x / 0 gives +-inf and 0 / 0 NaN, as in IEEE."""
 
     __slots__ = ("v",)
+    v: Any  # the value: a float (double arithmetic) or a Decimal
     decimals: int = 0
     arithmetic: str = ""
+
+    if TYPE_CHECKING:  # what every concrete type's __init__ takes (_make_type)
+        def __init__(self, x: Any) -> None: ...
 
     def __float__(self) -> float:
         return float(self.v)
@@ -132,7 +136,7 @@ def _double_type(k: int) -> type:
             return x
         y = x / quantum
         a = abs(y)
-        n = floor(a)
+        n: float = floor(a)
         if a - n >= 0.5:  # exact: a - floor(a) has no rounding error
             n += 1.0
         return copysign(n, y) * quantum

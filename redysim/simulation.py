@@ -24,7 +24,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -156,7 +156,8 @@ class _Motion:
                 for k, t in enumerate(system.joint_types) if t == FREE]
         self.free = free
         self.quaternions = np.array([qs + 3 for qs, _ in free], dtype=np.int64)
-        plain_q, plain_v = [], []
+        plain_q: list[int] = []
+        plain_v: list[int] = []
         qoff = system.joint_qoff
         voff = system.joint_voff
         for k in range(qoff.shape[0] - 1):
@@ -432,6 +433,7 @@ class Simulator:
         self.E0 = self._energy_and_com(y0[:self.motion.nq], y0[self.motion.nq:])[0]
         self._rhs = self.motion.rhs  # the solver's; wrapped by run() to check the limits
         if native:
+            assert h is not None  # a native stepper's h was required above (as rk4's)
             self.solver = EngineStepper(engine, 0.0, y0, self.t_end, h, self.motion.nq)
         elif state is None:
             self.solver = self._make_solver(None)
@@ -477,7 +479,8 @@ class Simulator:
             on_step: Callable[[object], str | None] | None = None,
             max_cpu_s: float | None = None, max_wall_s: float | None = None,
             clock: str = "thread") -> Simulation:
-        """Integrate to t_end (or until stopped) and return the samples and counts.
+        """Integrate to t_end (or until stopped) and return the samples and counts (once: a
+        second call raises RuntimeError).
 
         ``progress(t, t_end, steps, wall_s)``: after each step (each chunk of steps in compiled
         code); ``on_step(solver)``: likewise, after the step's samples (a checkpoint saved here
@@ -491,6 +494,10 @@ class Simulator:
         implicit step can take long). An unexpected error of a provider (an engine's qdd, say)
         is raised as it is, the run's samples up to it attached as its ``partial``
         :class:`Simulation`."""
+        if getattr(self, "_ran", False):
+            raise RuntimeError("a Simulator runs once (its solver is at the end of the run); "
+                               "make another to run again")
+        self._ran = True
         if progress is not None and not callable(progress):
             raise SettingsError(self.source, "progress", progress, "must be None or a callable "
                                 "progress(t, t_end, steps, wall_s)")
@@ -567,7 +574,8 @@ class Simulator:
                                 f"{self.energy_bound:g} at t = {t:.6g}")
             return None
 
-        nearest = [math.inf, None]  # the least s_min / s_max of the loops' J X, and its t
+        # the least s_min / s_max of the loops' J X, and its t (NaN until one is met)
+        nearest = [math.inf, math.nan]
         if loops is not None:
             loops.nearest_change_point()  # from here on
 
@@ -625,7 +633,8 @@ class Simulator:
             observed={k: np.array(v) for k, v in observed.items()}, y_final=last["y"],
             E0=self.E0)
         if unexpected is not None:
-            unexpected.partial = result  # never lose finished work: the caller keeps it
+            # never lose finished work: the caller keeps it (an attribute on any exception)
+            unexpected.partial = result  # type: ignore[attr-defined]
             raise unexpected
         return result
 
@@ -716,4 +725,4 @@ def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
                 raise StateError(f"row {i} of q0 and v0: {exc}") from None
 
     run_blocks(Q0.shape[0], threads, rows)
-    return out
+    return cast(list[Simulation], out)  # every row filled: run_blocks ran them all, or raised

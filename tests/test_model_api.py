@@ -233,3 +233,24 @@ def test_cut_joints_belong_to_the_model():
     assert not tree.cuts and tree.n_bodies == link.model.n_bodies
     free = simulate(tree, 0.05, q0=link.q0, rtol=1e-8, atol=1e-10)
     assert free.forces is None
+
+
+def test_a_simulator_runs_once_and_keeps_what_it_observes():
+    """The one driver: observers see every sample, a second run() is refused (its solver is at
+    the end), and a chain's tip observed equals redysim.tip at the sampled states."""
+    from redysim.simulation import Simulator, frame_observer
+
+    chain = Chain.uniform(4, "U", mass=1.0, length=0.5)
+    q0 = np.full(chain.n_dof, 0.2)
+    sim = Simulator(chain, 0.05, q0=q0, sample=0.01,
+                    observe={"tip": frame_observer(chain, "tip", acceleration=True),
+                             "t": lambda s: np.array([s.t])})
+    res = sim.run()
+    assert res.status == 0 and res.observed["tip"].shape == (6, 9)
+    np.testing.assert_array_equal(res.observed["t"][:, 0], res.t)
+    for i in (0, 3, 5):
+        q, v = res.q[i], res.v[i]
+        ref = tip(chain, q, v, forward_dynamics(chain, q, v))
+        np.testing.assert_array_equal(res.observed["tip"][i], np.concatenate(ref))
+    with pytest.raises(RuntimeError, match="runs once"):
+        sim.run()

@@ -32,7 +32,7 @@ trees existed.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeAlias
 
 import numpy as np
 
@@ -119,7 +119,7 @@ HEADER = len(HEADER_FIELDS) + len(LAYOUT)
 def _bundle(name: str, doc: str, first: tuple = ()) -> type:
     """The NamedTuple class of a bundle: ``first`` (name, type) fields, then its arrays."""
     fields = [*first, *((f.name, np.ndarray) for f in LAYOUT if f.bundle == name)]
-    cls = NamedTuple(name, fields)
+    cls = NamedTuple(name, fields)  # type: ignore[misc]  # fields from LAYOUT, not literals
     cls.__doc__ = doc + "\n\n" + "\n".join(
         f"    {f.name} {_shape_text(f.shape)}: {f.doc}." for f in LAYOUT if f.bundle == name)
     cls.__module__ = __name__
@@ -130,11 +130,17 @@ def _shape_text(shape: tuple) -> str:
     return "(" + ", ".join(str(x) for x in shape) + ("," if len(shape) == 1 else "") + ")"
 
 
-Tree = _bundle("Tree", "A tree's arrays (nb bodies, nv velocity coordinates; nt = nb, or 0 for "
-               "a serial chain), body k's parent before it.\n\n    serial: 1 for a serial chain "
-               "(the nt tables then empty), else 0.", first=(("serial", int),))
-Scratch = _bundle("Scratch", "What the kernels write (all world frame; nb bodies, nv DOF, ng "
-                  "gathering bodies).")
+if TYPE_CHECKING:
+    # Made at run time from LAYOUT: a type checker cannot see their fields, so to mypy the
+    # bundles (and annotations naming them) are Any.
+    Tree: TypeAlias = Any
+    Scratch: TypeAlias = Any
+else:
+    Tree = _bundle("Tree", "A tree's arrays (nb bodies, nv velocity coordinates; nt = nb, or 0 "
+                   "for a serial chain), body k's parent before it.\n\n    serial: 1 for a "
+                   "serial chain (the nt tables then empty), else 0.", first=(("serial", int),))
+    Scratch = _bundle("Scratch", "What the kernels write (all world frame; nb bodies, nv DOF, "
+                      "ng gathering bodies).")
 
 
 def sizes_of(nb: int, nv: int, ng: int, serial: bool) -> dict[str, int]:

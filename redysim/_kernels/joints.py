@@ -39,7 +39,7 @@ def sincos(x):
     return math.cos(x), math.sin(x)
 
 
-sincos.py_func = sincos
+sincos.py_func = sincos  # type: ignore[attr-defined]  # a mark on a plain function
 
 
 # fdlibm's minimax polynomials on [-pi/4, pi/4] (FreeBSD msun k_sin.c, k_cos.c)
