@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from redysim import Workspace, load_case, tip
+from redysim import load_case, tip
 from redysim.errors import CaseError, RedysimError, SettingsError
 from redysim.integrate import (
     ALIASES,
@@ -191,10 +191,8 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
         samples = [tuple(r) for r in ck["samples"]]
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
-    ws = Workspace(chain)
-
     def record(s):  # every sample: t, tip position, E, delta_M
-        p = tip(chain, s.q, s.v, ws=ws).position
+        p = tip(chain, s.q, s.v, ws=s.ws).position
         samples.append((s.t, *p, s.E, (s.E - E0) / chain.total_mass))
         log(f"  sample t = {s.t:.4f} s: delta_M = {samples[-1][-1]:.3e} J/kg, "
             f"steps {sim.solver.counters.steps:,}")

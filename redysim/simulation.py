@@ -64,24 +64,31 @@ BATCH_SETTINGS = ("integrator", "rtol", "atol", "h", "sample", "damping", "max_c
 def _check_simulate_settings(source: str, t_end, *, integrator, rtol, atol, h, sample,
                              damping, progress=None, max_cpu_s=None) -> tuple[str, bool]:
     """Check simulate's settings, naming the bad one (SettingsError); return the canonical
-    integrator name and whether it is fixed-step."""
+    integrator name and whether it is fixed-step (an engine's own stepper, NATIVE, is)."""
     if not isinstance(integrator, str):
         raise SettingsError(source, "integrator", integrator, "must be an integrator's name; "
-                            f"known: {', '.join((*INTEGRATORS, *ALIASES))}")
+                            f"known: {', '.join((*INTEGRATORS, *ALIASES, NATIVE))}")
     if t_end is None:
         raise SettingsError(source, "t_end", None, "missing: the horizon [s]")
-    integrator = canonical(integrator)
-    fixed = integrator in FIXED_STEP
+    integrator = integrator if integrator == NATIVE else canonical(integrator)
+    fixed = integrator in FIXED_STEP or integrator == NATIVE
     if fixed and h is None:
         raise SettingsError(source, "h", h, f"{integrator} is a fixed-step integrator: give "
                             "its step h [s]")
-    check_settings(source, method=integrator, rtol=None if fixed else rtol,
-                   atol=None if fixed else atol, h=h, t_end=t_end, sample=sample)
+    check_settings(source, method=None if integrator == NATIVE else integrator,
+                   rtol=None if fixed else rtol, atol=None if fixed else atol, h=h,
+                   t_end=t_end, sample=sample)
     if isinstance(damping, bool) or not isinstance(damping, NUMBERS) or \
             not (math.isfinite(damping) and damping >= 0):
         shown = float(damping) if isinstance(damping, NUMBERS[2:]) else damping
         raise SettingsError(source, "damping", shown, "must be a finite number >= 0: the "
                             "viscous torque -damping * v at every joint [N m s] (0: none)")
+    _check_run_settings(source, progress=progress, max_cpu_s=max_cpu_s)
+    return integrator, fixed
+
+
+def _check_run_settings(source: str, *, progress=None, max_cpu_s=None) -> None:
+    """Check a run's hooks and limit (Simulator.run's), naming the bad one (SettingsError)."""
     if max_cpu_s is not None and (isinstance(max_cpu_s, bool) or not isinstance(
             max_cpu_s, NUMBERS) or not (math.isfinite(max_cpu_s) and max_cpu_s > 0)):
         shown = float(max_cpu_s) if isinstance(max_cpu_s, NUMBERS[2:]) else max_cpu_s
@@ -90,7 +97,6 @@ def _check_simulate_settings(source: str, t_end, *, integrator, rtol, atol, h, s
     if progress is not None and not callable(progress):
         raise SettingsError(source, "progress", progress, "must be None or a callable "
                             "progress(t, t_end, steps, wall_s)")
-    return integrator, fixed
 
 
 @dataclass
@@ -147,8 +153,7 @@ class _Motion:
         self.loops, self.damping = loops, float(damping)
         self.qdd, self.method, self.tau = qdd, method, tau
         self.residual_q = self.residual_v = 0.0  # the largest met after a step
-        self.ws = Workspace(system)
-        self.sample_ws = Workspace(system)  # the samples' (energy, centre of mass)
+        self.ws = Workspace(system)  # the RHS's, and between steps the samples' and observers'
         self.nq, self.nv = system.n_q, system.n_v
         # a free joint's (q index of x, v index of its linear velocity); every other coordinate
         # moves as its velocity
@@ -232,7 +237,7 @@ class _Motion:
 
     def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
         """E = T + V, and the centre of mass from the same kinematics pass."""
-        ws = self.sample_ws
+        ws = self.ws
         T, V = energy(self.system, q, v, ws=ws)
         tree = ws.tree
         md = np.einsum("kij,kj->ki", ws.oR, tree.mass_com)  # m_k R_k c_k
@@ -288,8 +293,9 @@ class EngineStepper(OdeSolver):
 class Sample(NamedTuple):
     """What an observer of :class:`Simulator` is handed at each sample: the time ``t`` [s], the
     state ``q``, ``v`` (on the constraints: quaternions unit, loops closed), the energy ``E``
-    [J] (forces' potential included) and centre of mass ``com`` [m], and ``accel()``, the run's
-    own qdd there (computed once, on first call)."""
+    [J] (forces' potential included) and centre of mass ``com`` [m], ``accel()``, the run's
+    own qdd there (computed once, on first call), and ``ws``, the system's workspace, free for an
+    observer's own kinematics (nothing else uses it between two steps)."""
 
     t: float
     q: np.ndarray
@@ -297,6 +303,7 @@ class Sample(NamedTuple):
     E: float
     com: np.ndarray
     accel: Callable[[], np.ndarray]
+    ws: Workspace
 
 
 def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = False):
@@ -305,11 +312,9 @@ def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = Fa
     [px, py, pz, vx, vy, vz(, ax, ay, az)]. ``frame``: as :func:`redysim.frame_motion`."""
     from .dynamics import frame_motion
 
-    ws = Workspace(system)
-
     def observe(s: Sample):
         m = frame_motion(system, s.q, s.v, s.accel() if acceleration else None, frame=frame,
-                         ws=ws)
+                         ws=s.ws)
         return np.concatenate((m.position, m.velocity, *(() if m.acceleration is None
                                                          else (m.acceleration,))))
 
@@ -368,13 +373,11 @@ class Simulator:
         if not isinstance(system, Model):
             raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
                             f"{type(system).__name__}")
-        native = integrator == NATIVE
-        integrator, fixed = (NATIVE, True) if native else _check_simulate_settings(
+        integrator, fixed = _check_simulate_settings(
             source, t_end, integrator=integrator, rtol=rtol, atol=atol, h=h, sample=sample,
             damping=damping)
+        native = integrator == NATIVE
         if native:
-            _check_simulate_settings(source, t_end, integrator="rk4", rtol=None, atol=None,
-                                     h=h, sample=sample, damping=damping)
             if engine is None:
                 raise SettingsError(source, "integrator", NATIVE, "needs a reference engine "
                                     "(the core has no native stepper: use rk4 with a step h)")
@@ -498,12 +501,7 @@ class Simulator:
             raise RuntimeError("a Simulator runs once (its solver is at the end of the run); "
                                "make another to run again")
         self._ran = True
-        if progress is not None and not callable(progress):
-            raise SettingsError(self.source, "progress", progress, "must be None or a callable "
-                                "progress(t, t_end, steps, wall_s)")
-        _check_simulate_settings(self.source, self.t_end, integrator="rk4", rtol=None,
-                                 atol=None, h=1.0, sample=None, damping=0.0,
-                                 max_cpu_s=max_cpu_s)
+        _check_run_settings(self.source, progress=progress, max_cpu_s=max_cpu_s)
         if max_wall_s is not None and not (isinstance(max_wall_s, NUMBERS) and max_wall_s > 0):
             raise SettingsError(self.source, "max_wall_s", max_wall_s, "must be None or a "
                                 "number of seconds > 0")
@@ -553,7 +551,7 @@ class Simulator:
                     tau = motion.forces(t, q, v)
                     forces.append(loops.forward_dynamics(q, v, tau)[1])
                 E, com = self._energy_and_com(q, v)
-                sample = Sample(t, q, v, E, com, accel)
+                sample = Sample(t, q, v, E, com, accel, motion.ws)
                 rows = {name: f(sample) for name, f in self.observe.items()}
             except StateError as exc:  # the state overflowed (or went NaN) between samples
                 raise _Stop(-1, f"at t = {t:.6g}: {type(exc).__name__}: {exc}") from None
@@ -667,9 +665,7 @@ def simulate(system: Model, t_end: float, *, q0=None, v0=None,
     SettingsError for a setting out of range (naming it: ``damping``, ``progress``,
     ``max_cpu_s``, ...) and StateError for a bad q0 or v0.
     """
-    _check_simulate_settings("simulate", t_end, integrator=integrator, rtol=rtol, atol=atol,
-                             h=h, sample=sample, damping=damping, progress=progress,
-                             max_cpu_s=max_cpu_s)
+    _check_run_settings("simulate", progress=progress, max_cpu_s=max_cpu_s)  # before warm-up
     return Simulator(system, t_end, q0=q0, v0=v0, integrator=integrator, rtol=rtol, atol=atol,
                      h=h, sample=sample, loops=loops, damping=damping
                      ).run(progress=progress, max_cpu_s=max_cpu_s)

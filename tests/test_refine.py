@@ -108,15 +108,21 @@ def test_bad_links_and_precision_are_named(small_fall):
         sweep_from_dict(doc, source="s.toml")
 
 
-@pytest.fixture
-def study(tmp_path, small_fall):
-    doc = {"sweep": {"name": "small", "cases": [str(small_fall)], "links": [8, 4, 2],
+def small_study(case, out):
+    """The refinement study of an 8-link rope case file: at 8, 4 and 2 links, ode45 at two
+    tolerances, and the reference run (DOP853 at 1e-10 on 8 links), swept into ``out``."""
+    doc = {"sweep": {"name": "small", "cases": [str(case)], "links": [8, 4, 2],
                      "integrators": ["ode45"], "rtols": [1e-3, 1e-6],
-                     "extra": [{"case": str(small_fall), "links": 8, "integrator": "dop853",
+                     "extra": [{"case": str(case), "links": 8, "integrator": "dop853",
                                 "rtol": 1e-10, "atol": 1e-12}]}}
     sweep = sweep_from_dict(doc, source="small.toml")
-    run_sweep(sweep.specs, tmp_path / "out", name="small", workers=1, progress=False)
-    return refine.load_study(tmp_path / "out", "small")
+    run_sweep(sweep.specs, out, name="small", workers=1, progress=False)
+    return refine.load_study(out, "small")
+
+
+@pytest.fixture
+def study(tmp_path, small_fall):
+    return small_study(small_fall, tmp_path / "out")
 
 
 def test_a_study_measures_every_run_against_its_finest_tightest_run(study):

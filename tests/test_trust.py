@@ -361,19 +361,13 @@ def test_linkage_at_names_a_bad_argument(kw, exc, fragment):
 def tiny_study(tmp_path_factory):
     """A refinement study's folder: an 8-link rope at 8, 4 and 2 links, two tolerances, and
     the reference run."""
-    from redysim.harness.sweep import run_sweep, sweep_from_dict
+    from test_refine import small_study
 
     folder = tmp_path_factory.mktemp("study")
     case = folder / "small.toml"
     case.write_text(ROPE.replace("links = 4", "links = 8").replace("t_end = 1.0",
                                                                    "t_end = 0.05"))
-    doc = {"sweep": {"name": "small", "cases": [str(case)], "links": [8, 4, 2],
-                     "integrators": ["ode45"], "rtols": [1e-3, 1e-6],
-                     "extra": [{"case": str(case), "links": 8, "integrator": "dop853",
-                                "rtol": 1e-10, "atol": 1e-12}]}}
-    sweep = sweep_from_dict(doc, source="small.toml")
-    run_sweep(sweep.specs, folder / "out", name="small", workers=1, progress=False)
-    return refine.load_study(folder / "out", "small")
+    return small_study(case, folder / "out")
 
 
 @pytest.mark.parametrize("kw, fragment", [
