@@ -2,19 +2,18 @@
 
     .venv/bin/python benchmarks/ab_kernels.py --base 4e53e17 [--dof 2000 100000] [--reps 40]
 
-The base revision's ``redysim/_jit.py`` and ``redysim/_kernels/`` (and ``workspace.py``, for its
-entry point) are copied out of git into a temporary package and imported beside the working
-tree's kernels, both compiled afresh (a temporary numba cache); both are called on the same
-chain (the RE-U steel rod, as ``make bench``) and state, alternating base and head call by call so
-that the machine's drift falls on both alike, and each is read as its fastest call. JIT compile
-happens before the timing. "entry" is forward dynamics' compiled entry point (as
-``forward_dynamics`` calls it), "whole" ``rge_a_forward_dynamics`` (the three passes by their
-arrays: 23 positional ones before the kernels took named bundles, the two bundles since). The
-passes are timed through their own numba dispatch from Python (~1 us each; ~3 us with the
-bundles, whose 28 arrays the dispatcher unboxes one by one), so at small sizes they add up to
-more than the whole call: compare passes at 100,000 DOF, and the entry at every size. Each
-column is timed in a loop of its own, so that one column's slow calls do not evict another's
-data from the caches.
+The base revision's ``redysim/_jit.py`` and ``redysim/algorithms/_kernels/`` (and ``workspace.py``,
+for its entry point) are copied out of git into a temporary package and imported beside the working
+tree's kernels, both compiled afresh (a temporary numba cache); both are called on the same chain
+(the RE-U steel rod, as ``make bench``) and state, alternating base and head call by call so that
+the machine's drift falls on both alike, and each is read as its fastest call. JIT compile happens
+before the timing. "entry" is forward dynamics' compiled entry point (as ``forward_dynamics`` calls
+it), "whole" ``rge_a_forward_dynamics`` (the three passes by their arrays: 23 positional ones before
+the kernels took named bundles, the two bundles since). The passes are timed through their own numba
+dispatch from Python (~1 us each; ~3 us with the bundles, whose 28 arrays the dispatcher unboxes one
+by one), so at small sizes they add up to more than the whole call: compare passes at 100,000 DOF,
+and the entry at every size. Each column is timed in a loop of its own, so that one column's slow
+calls do not evict another's data from the caches.
 
 Speed changes to the kernels are claimed from this script's output, never from two separate runs.
 """
@@ -53,37 +52,55 @@ def base_kernels(rev: str, into: Path):
     pkg = into / "ab_base"
     (pkg / "_kernels").mkdir(parents=True)
     (pkg / "__init__.py").write_text("")
-    names = subprocess.run(["git", "-C", str(ROOT), "ls-tree", "--name-only", rev,
-                            "redysim/_kernels/"], capture_output=True, text=True,
-                           check=True).stdout.split()
-    has_entry = "redysim/_kernels/entry.py" in names
+    where = ws_path = None  # the kernels' folder in rev (redysim/_kernels until the layers)
+    for kernels, ws_file in (("redysim/algorithms/_kernels/", "redysim/algorithms/workspace.py"),
+                               ("redysim/_kernels/", "redysim/workspace.py")):
+        names = subprocess.run(["git", "-C", str(ROOT), "ls-tree", "--name-only", rev, kernels],
+                               capture_output=True, text=True, check=True).stdout.split()
+        if names:
+            where, ws_path = kernels, ws_file
+            break
+    if where is None:
+        raise SystemExit(f"{rev}: no kernels found in redysim/algorithms/_kernels or "
+                         "redysim/_kernels")
+    has_entry = f"{where}entry.py" in names
     if has_entry:
-        names.append("redysim/workspace.py")
+        names.append(ws_path)
         # the workspace's imports from outside the kernels: the working tree's
-        shim = ("from redysim.parts import *  # noqa\n"
-                "from redysim.parts import _readonly, kernel_alias  # noqa\n"
-                "from redysim.model import Chain  # noqa\n")
+        shim = ("from redysim.model.parts import *  # noqa\n"
+                "from redysim.model.parts import _readonly, kernel_alias  # noqa\n"
+                "from redysim.model.tree import Chain  # noqa\n")
         for module in ("chain", "parts"):  # (chain.py until the Chain became a Model)
             (pkg / f"{module}.py").write_text(shim)
-        for module in ("errors", "model"):
-            (pkg / f"{module}.py").write_text(f"from redysim.{module} import *  # noqa\n")
+        (pkg / "errors.py").write_text("from redysim.errors import *  # noqa\n")
+        (pkg / "model.py").write_text("from redysim.model.tree import *  # noqa\n")
+    here_bundles = ROOT / "redysim/algorithms/_kernels/bundles.py"
     for name in [*names, "redysim/_jit.py"]:
-        if name.endswith(".py"):
-            text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{name}"],
-                                  capture_output=True, text=True, check=True).stdout
-            if name == "redysim/_kernels/bundles.py" \
-                    and text != (ROOT / "redysim/_kernels/bundles.py").read_text():
-                print("note: the two revisions' bundles differ, so numba dispatches the second "
-                      "side's pass calls by its slow path (~0.2 ms a call): compare the entry "
-                      "column; the passes' columns only where the bundles are the same",
-                      file=sys.stderr)
-            elif name == "redysim/_kernels/bundles.py":
-                # the same bundles: the working tree's classes on both sides. Two NamedTuple
-                # classes of one name and fields sent the second side's calls by them through
-                # numba's slow dispatch, ~0.2 ms a call (the passes' columns; not the entry's)
-                text = ("from redysim._kernels.bundles import *  # noqa\n"
-                        "from redysim._kernels.bundles import GATHER_MASS, Scratch, Tree  # noqa\n")
-            (pkg / Path(name).relative_to("redysim")).write_text(text)
+        if not name.endswith(".py"):
+            continue
+        text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{name}"],
+                              capture_output=True, text=True, check=True).stdout
+        # a layered revision imports by absolute names: point them at the copy
+        text = text.replace("redysim.algorithms._kernels", "ab_base._kernels")
+        text = text.replace("redysim._jit", "ab_base._jit")
+        if name == f"{where}bundles.py" and text != here_bundles.read_text().replace(
+                "redysim._jit", "ab_base._jit"):
+            print("note: the two revisions' bundles differ, so numba dispatches the second "
+                  "side's pass calls by its slow path (~0.2 ms a call): compare the entry "
+                  "column; the passes' columns only where the bundles are the same",
+                  file=sys.stderr)
+        elif name == f"{where}bundles.py":
+            # the same bundles: the working tree's classes on both sides. Two NamedTuple
+            # classes of one name and fields sent the second side's calls by them through
+            # numba's slow dispatch, ~0.2 ms a call (the passes' columns; not the entry's)
+            bundles = "redysim.algorithms._kernels.bundles"
+            text = (f"from {bundles} import *  # noqa\n"
+                    f"from {bundles} import GATHER_MASS, Scratch, Tree  # noqa\n")
+        if name.startswith(where):
+            target = pkg / "_kernels" / name[len(where):]
+        else:
+            target = pkg / Path(name).name  # workspace.py, _jit.py
+        target.write_text(text)
     sys.path.insert(0, str(into))
     return (importlib.import_module("ab_base._kernels.rge_a"),
             importlib.import_module("ab_base._kernels.kinematics"),
@@ -138,9 +155,9 @@ def main(argv=None) -> int:
     ap.add_argument("--dof", type=int, nargs="+", default=[200, 2000, 100_000])
     ap.add_argument("--reps", type=int, default=0, help="calls per pass (default: by size)")
     a = ap.parse_args(argv)
-    import redysim._kernels.entry as head_entry
-    import redysim._kernels.kinematics as head_kin
-    import redysim._kernels.rge_a as head_rge_a
+    import redysim.algorithms._kernels.entry as head_entry
+    import redysim.algorithms._kernels.kinematics as head_kin
+    import redysim.algorithms._kernels.rge_a as head_rge_a
 
     with tempfile.TemporaryDirectory() as tmp:
         base = base_kernels(a.base, Path(tmp))

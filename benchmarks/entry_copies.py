@@ -9,8 +9,8 @@ compiled afresh, which compiles its kernels first). ``redysim._jit.EntryPoint`` 
 the kernels first; this script measures what that buys, both entries in one process, called in
 turn on the same workspace, each read as its fastest call:
 
-    copies   the entry alone from the disk cache (its own copies of the kernels)
-    own      ``redysim._kernels.entry.RGE_A``: the kernels first, then the entry from the cache
+    copies   the entry alone from the disk cache (its own copies of the kernels) own
+    ``redysim.algorithms._kernels.entry.RGE_A``: the kernels first, then the entry from the cache
 
 The disk cache is warmed in a subprocess first, so that both are loads, not compiles.
 """
@@ -45,7 +45,7 @@ def main(argv=None) -> int:
 
     from redysim import Workspace
     from redysim._jit import OPTIONS
-    from redysim._kernels import entry
+    from redysim.algorithms._kernels import entry
 
     copies = numba.njit(entry.SIGNATURE, **OPTIONS)(entry.rge_a_entry)  # before the kernels
     own = entry.RGE_A.compiled

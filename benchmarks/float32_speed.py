@@ -8,14 +8,14 @@ linear_density=61.65, radius=0.05)``, U joints (2 DOF a link, the spatial RGE-A 
 joints (planar: ``chain.is_planar``, the separate planar kernel). State: seeded random,
 ``rng = np.random.default_rng(1)``, q ~ 0.1 N(0, 1), qd ~ N(0, 1), tau = 0.
 
-What is timed: one qdd call as ``redysim.forward_dynamics`` makes it for RGE-A, i.e. the entry
-point of ``redysim/_kernels/entry.py`` (``rge_a_entry``: kinematics with local rates, RGE-A's
+What is timed: one qdd call as ``redysim.forward_dynamics`` makes it for RGE-A, i.e. the entry point
+of ``redysim/algorithms/_kernels/entry.py`` (``rge_a_entry``: kinematics with local rates, RGE-A's
 backward and forward passes; ``planar_entry`` for the R chains) on a workspace's packed arrays,
-called directly (no forward_dynamics argument handling, the same Python overhead for every
-variant). The library's entries are compiled for exactly one float64 signature, so every
-variant here is a fresh numba compilation of the kernels' Python source (``py_func``), the whole
-call tree rebuilt in a private copy of the module globals (``fresh``), with the library's options
-(``_nrt=False``, ``fastmath={"contract"}``, ...) but no disk cache:
+called directly (no forward_dynamics argument handling, the same Python overhead for every variant).
+The library's entries are compiled for exactly one float64 signature, so every variant here is a
+fresh numba compilation of the kernels' Python source (``py_func``), the whole call tree rebuilt in
+a private copy of the module globals (``fresh``), with the library's options (``_nrt=False``,
+``fastmath={"contract"}``, ...) but no disk cache:
 
     f64         the source as is, float64 arrays (the control: built the same way as f32)
     f32         the source as is, float32 copies of the float arrays (tree, scratch, q, qd, tau,
@@ -33,16 +33,16 @@ Timing: best of ``--rounds`` rounds of N calls (N ~ 4e6 / DOF), the variants' ro
 interleaved; reported as ns per DOF. JIT compile time (first call minus a steady call) apart.
 
 Is the float32 build float32? (1) qdd of each variant against the float64 build, beside
-``redysim.precision.ieee_qdd(chain, q, qd, dtype=np.float32, fused_phi=True)`` (the same source
-run in numpy float32 scalars: every operation rounded to float32; ``fused_phi=True`` is the
+``redysim.algorithms.precision.ieee_qdd(chain, q, qd, dtype=np.float32, fused_phi=True)`` (the same
+source run in numpy float32 scalars: every operation rounded to float32; ``fused_phi=True`` is the
 core's formulation, the one timed here; ieee_qdd's default, ``fused_phi=False``, is Table A.1 as
 printed on a float64 phi, another algorithm, reported apart as ``..._table_a1``) against float64,
 for chains of at most ``--ieee-max`` links (numpy scalars: ~2 s at 50,000 U links). A build much
 closer to float64 than the emulation is, is not float32 arithmetic; but every array the kernels
 store (frames, Psihat, Ihat, phitil, ...) is rounded to float32 in the mixed build too, so the
 errors may not tell the two apart. (2) The LLVM IR of each build's compiled functions:
-floating-point operations on double vs float, and fpext/fptrunc conversions (the one or two
-fpext of the strict build widen and box the returned flag, once a call).
+floating-point operations on double vs float, and fpext/fptrunc conversions (the one or two fpext of
+the strict build widen and box the returned flag, once a call).
 
 Writes ``results/bench/float32.json``: machine, versions, per size and kind ns/DOF for each
 variant and the ratios f64/f32, compile times, qdd differences, IR counts. Nothing in the
@@ -84,9 +84,9 @@ sys.path.insert(0, str(ROOT))
 
 import redysim  # noqa: E402
 from redysim import Chain, Workspace  # noqa: E402
-from redysim._kernels import entry as E  # noqa: E402
-from redysim._kernels import joints as J  # noqa: E402
-from redysim.precision import ieee_qdd  # noqa: E402
+from redysim.algorithms._kernels import entry as E  # noqa: E402
+from redysim.algorithms._kernels import joints as J  # noqa: E402
+from redysim.algorithms.precision import ieee_qdd  # noqa: E402
 
 VARIANTS = ("f64", "f32", "f32-strict")
 DTYPE = {"f64": np.float64, "f32": np.float32, "f32-strict": np.float32}

@@ -4,12 +4,12 @@
         [--integrator ode45] [--rounds 3]
 
 From the case's initial state, each solver takes ``--steps`` steps (after one warm-up step),
-alternating round by round in one process: :class:`redysim.integrate.Solver` (numpy stage sums,
-the core's qdd through ``forward_dynamics``) and :class:`redysim.integrate.CompiledSolver`
-(stage sums and qdd calls in compiled code, ``redysim._kernels.rk_run``; what ``harness.run``
-and ``harness.longrun`` use). Reports the fastest round's wall time per step and per qdd call,
-and checks that both took the same steps to the same bits (t, h and y). Writes
-``results/bench/step_cost.json``.
+alternating round by round in one process: :class:`redysim.integrators.explicit.Solver` (numpy stage
+sums, the core's qdd through ``forward_dynamics``) and
+:class:`redysim.integrators.explicit.CompiledSolver` (stage sums and qdd calls in compiled code,
+``redysim.algorithms._kernels.rk_run``; what ``harness.run`` and ``harness.longrun`` use). Reports
+the fastest round's wall time per step and per qdd call, and checks that both took the same steps to
+the same bits (t, h and y). Writes ``results/bench/step_cost.json``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Workspace, forward_dynamics, load_case
-from redysim.integrate import CompiledSolver, Solver, compile_kernels
+from redysim.integrators.explicit import CompiledSolver, Solver, compile_kernels
 
 
 def main(argv=None) -> int:

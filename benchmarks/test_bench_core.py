@@ -45,7 +45,7 @@ def test_rge_a_kernel_alone_u_chain(benchmark, record, dof):
     """The compiled entry point that forward_dynamics calls, called directly: the difference is
     forward_dynamics' Python (its argument handling, ~0.5 us here). Not a user's path: shown to
     say where the time goes."""
-    from redysim._kernels.entry import RGE_A
+    from redysim.algorithms._kernels.entry import RGE_A
 
     chain = u_chain(dof)
     ws, out = Workspace(chain), np.empty(chain.n_dof)

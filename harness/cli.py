@@ -20,9 +20,8 @@ import os
 import sys
 from pathlib import Path
 
-from redysim.cases import CASES_DIR, list_cases, load_case
 from redysim.errors import RedysimError, SettingsError
-from redysim.integrate import (
+from redysim.integrators.explicit import (
     ALIASES,
     DEFAULT_ATOL,
     DEFAULT_METHOD,
@@ -32,6 +31,7 @@ from redysim.integrate import (
     canonical,
     check_settings,
 )
+from redysim.io.cases import CASES_DIR, list_cases, load_case
 
 PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -404,8 +404,8 @@ def file_kind(name: str) -> str:
     if suffix == ".xml":
         return "mjcf"
     if suffix == ".toml" and Path(name).is_file():
-        from redysim.dh import is_robot_file
-        from redysim.linkage_files import is_linkage_file
+        from redysim.io.dh import is_robot_file
+        from redysim.io.linkage_files import is_linkage_file
 
         if is_robot_file(name):
             return "dh"
@@ -437,8 +437,8 @@ def _refuse_unused_flags(args: argparse.Namespace, kind: str) -> None:
 
 def _load_system(args: argparse.Namespace):
     """(model, loops, q0) of a robot or linkage file (loops and q0 None for a robot)."""
-    from redysim.importers import load_model
-    from redysim.linkage_files import load_linkage
+    from redysim.io.importers import load_model
+    from redysim.io.linkage_files import load_linkage
 
     path = args.model if hasattr(args, "model") else args.case
     if file_kind(path) == "linkage":

@@ -74,7 +74,7 @@ from pathlib import Path
 import numpy as np
 
 from redysim import references
-from redysim.dynamics import METHODS as CORE
+from redysim.algorithms.dynamics import METHODS as CORE
 
 EPS = {"float64": float(np.finfo(np.float64).eps), "float32": float(np.finfo(np.float32).eps)}
 
@@ -85,7 +85,7 @@ CHAINS = {
               inertia="cylinder", what="study chain, l = 1 m, r = 0.02 m, cylinder inertia"),
 }
 CONFIGS = ("stretched", "random")
-# the core's methods (redysim.dynamics.METHODS) and this study's variants of them
+# the core's methods (redysim.algorithms.dynamics.METHODS) and this study's variants of them
 CORE_METHODS = (*CORE, "rge-a-planar", "rge-a-phi", "cholesky", "literal-6x6",
                 "literal-6x6-resym")
 ENGINE_METHODS = tuple(references.ENGINES)
@@ -266,7 +266,7 @@ def _elimination32(name):
     if name not in _NJIT32:
         import numba
 
-        from redysim._kernels.elimination import ge_n, rge_n
+        from redysim.algorithms._kernels.elimination import ge_n, rge_n
         _NJIT32[name] = numba.njit((ge_n if name == "ge-n" else rge_n).py_func)
     return _NJIT32[name]
 
@@ -312,8 +312,8 @@ def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
 def rge_a_on_phi(chain, q, qd) -> np.ndarray:
     """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n)."""
     from redysim import Workspace, phi
-    from redysim._kernels.kinematics import kinematics
-    from redysim._kernels.rge_a import rge_a_backward, rge_a_forward
+    from redysim.algorithms._kernels.kinematics import kinematics
+    from redysim.algorithms._kernels.rge_a import rge_a_backward, rge_a_forward
     c, ws = chain, Workspace(chain)
     ph = phi(c, q, qd).copy()
     kinematics(ws.tree, q, ws.zeros, ws.zeros, ws.no_accel, ws.s)
@@ -429,7 +429,8 @@ class Results:
 
     def done(self, key) -> bool:
         """Finished, and for a core method computed by the core's current kernels (their source
-        digest, ``redysim._kernels.sources_digest``): a change to the kernels redoes the cell."""
+        digest, ``redysim.algorithms._kernels.sources_digest``): a change to the kernels redoes
+        the cell."""
         r = self.rows.get(key)
         if r is None or r["status"] not in FINAL:
             return False
@@ -507,7 +508,7 @@ def study(a) -> None:
     from redysim import __version__ as core_version
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    from redysim._kernels import sources_digest
+    from redysim.algorithms._kernels import sources_digest
     res = Results(out / "error_study.parquet", sources_digest()[:16])
     refs = RefStore(out, a.dps, a.check_dps, a.check_max_links, a.max_svd_dof)
     log(f"error study -> {res.path} ({len(res.rows)} cells on file); sizes {a.sizes}, chains "

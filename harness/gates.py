@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from redysim.dynamics import METHODS
+from redysim.algorithms.dynamics import METHODS
 from redysim.errors import FieldError
 
 from .provenance import provenance

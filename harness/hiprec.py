@@ -5,7 +5,7 @@ qdd_exact solves I(q) qdd = phi(q, qd, tau) exactly for the double-precision inp
 doubles: lengths, masses, COMs, inertias about the COM, gravity; the doubles q, qd, tau). This
 module computes qdd_exact to ~40+ significant digits in O(n), so it reaches 100,000-link chains.
 
-How (one source of truth): the numba kernels of :mod:`redysim._kernels` are plain Python
+How (one source of truth): the numba kernels of :mod:`redysim.algorithms._kernels` are plain Python
 underneath. :func:`kernel_function` takes a kernel's Python source (``dispatcher.py_func``: the
 same code object) and gives it a copy of its module's globals in which
 
@@ -55,12 +55,12 @@ import mpmath
 import numpy as np
 
 from redysim import Chain
-from redysim._kernels import inverse_dynamics as _inverse_dynamics
-from redysim._kernels import kinematics as _kinematics
-from redysim._kernels import planar as _planar
-from redysim._kernels import rge_a as _rge_a
-from redysim.precision import rebind
-from redysim.workspace import bundles_in
+from redysim.algorithms._kernels import inverse_dynamics as _inverse_dynamics
+from redysim.algorithms._kernels import kinematics as _kinematics
+from redysim.algorithms._kernels import planar as _planar
+from redysim.algorithms._kernels import rge_a as _rge_a
+from redysim.algorithms.precision import rebind
+from redysim.algorithms.workspace import bundles_in
 
 DEFAULT_DPS = 50
 
@@ -133,8 +133,8 @@ def kernel_function(dispatcher, arith: Arithmetic) -> types.FunctionType:
 
     Same code object as ``dispatcher.py_func``; globals: a copy of the kernel module's, with every
     kernel it calls rebound (recursively) and ``math`` replaced by ``arith.trig``
-    (:func:`redysim.precision.rebind`, the mechanism the reduced-precision study uses too). The
-    module itself is not touched.
+    (:func:`redysim.algorithms.precision.rebind`, the mechanism the reduced-precision study uses
+    too). The module itself is not touched.
     """
     return rebind(dispatcher, ("hiprec", arith.name), arith.trig)
 

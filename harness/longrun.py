@@ -37,7 +37,7 @@ import numpy as np
 
 from redysim import load_case, tip
 from redysim.errors import CaseError, RedysimError, SettingsError
-from redysim.integrate import (
+from redysim.integrators.explicit import (
     ALIASES,
     FIXED_STEP,
     IMPLICIT,

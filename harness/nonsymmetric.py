@@ -1,8 +1,9 @@
 """STUDY KERNEL, not for use: a literal full-6x6 transcription of Table A.1 (non-symmetric RGE-A).
 
-Tests the paper's implicit stability claim for RGE-A. The core's kernel (``redysim._kernels.
-rge_a``) carries each articulated mass as symmetric blocks and eliminates a U joint axis by axis.
-This one does what the table says, in whole matrices, with nothing kept symmetric by construction:
+Tests the paper's implicit stability claim for RGE-A. The core's kernel
+(``redysim.algorithms._kernels. rge_a``) carries each articulated mass as symmetric blocks and
+eliminates a U joint axis by axis. This one does what the table says, in whole matrices, with
+nothing kept symmetric by construction:
 
     backward, k = nl..1 (Mbar_{nl+1} = 0, eta_{nl+1} = 0):
         Mhat_k   = M_k + A_{k+1,k}^T Mbar_{k+1} A_{k+1,k}      (full 6x6 products)
@@ -37,7 +38,7 @@ import numpy as np
 
 from redysim import Chain, Workspace
 from redysim import phi as _phi
-from redysim._kernels.kinematics import kinematics as _kinematics
+from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 
 from .hiprec import FLOAT32, kinematics_and_phi
 

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from redysim.integrate import Counters
+from redysim.integrators.explicit import Counters
 from redysim.simulation import frame_observer
 
 from .provenance import code_digest

@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from redysim import coarsen, load_case, mass_matrix
-from redysim.cases import CASES_DIR, case_from_dict, read_toml
+from redysim.io.cases import CASES_DIR, case_from_dict, read_toml
 
 from .provenance import provenance
 from .store import write_json_atomic

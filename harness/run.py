@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from redysim import load_case
-from redysim.integrate import sample_times
+from redysim.integrators.explicit import sample_times
 from redysim.simulation import Simulator, frame_observer
 
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
@@ -76,7 +76,7 @@ class RunStopped(RunFailed):
 def run_case(spec: RunSpec, case):
     """The case as the run models it, and its coarsening (None for the case's own chain):
     with ``spec.links``, the chain coarse-grained to that many links and the initial state mapped
-    by the coarsening's chord projection (:mod:`redysim.coarse`)."""
+    by the coarsening's chord projection (:mod:`redysim.algorithms.coarse`)."""
     return coarse_case(case, spec.links)
 
 
@@ -87,7 +87,7 @@ def coarse_case(case, links: int):
         return case, None
     from dataclasses import replace
 
-    from redysim.coarse import coarsen
+    from redysim.algorithms.coarse import coarsen
 
     cz = coarsen(case.chain, links=links, name=f"{case.name}@{links}")
     q0, qd0 = cz.to_coarse(case.q0, case.qd0)
@@ -115,7 +115,7 @@ class _Dynamics:
         if spec.engine == CORE:
             self.qdd = None
             if spec.precision == "float32":
-                from redysim.precision import ieee_qdd
+                from redysim.algorithms.precision import ieee_qdd
 
                 def qdd(q, v, tau):
                     # fused_phi: the core's own formulation, bias terms inside the recursion,
@@ -139,7 +139,7 @@ class _Dynamics:
         self.tau = self.potential = None
         if self.force is not None:
             from redysim import Workspace
-            from redysim.loads import tip_force_potential, tip_force_torques
+            from redysim.algorithms.loads import tip_force_potential, tip_force_torques
 
             ws, force, chain = Workspace(self.chain), self.force, self.chain
             self.tau = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)

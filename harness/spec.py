@@ -18,10 +18,10 @@ import os
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
-from redysim.cases import case_path, file_digest
+from redysim.algorithms.methods import METHODS as CORE_METHODS
 from redysim.errors import SettingsError
-from redysim.integrate import FIXED_STEP, canonical, check_settings
-from redysim.methods import METHODS as CORE_METHODS
+from redysim.integrators.explicit import FIXED_STEP, canonical, check_settings
+from redysim.io.cases import case_path, file_digest
 
 CORE = "redysim"  # the engine name of our own core
 NATIVE = "native"  # integrator name: the engine's own time stepping
@@ -40,7 +40,8 @@ class RunSpec:
                  (``redysim.references.ENGINES``).
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
                  for an engine.
-    integrator:  a name from ``redysim.integrate.INTEGRATORS`` (``"ode45"``, ``"dop853"``,
+    integrator:  a name from ``redysim.integrators.explicit.INTEGRATORS`` (``"ode45"``,
+    ``"dop853"``,
                  ``"rk4"``, ``"midpoint"`` alias ``"implicit"``, ``"midpoint-fixed"``,
                  ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper;
                  needs ``h``); ``""``: the case's (ode45 unless its file says otherwise).
@@ -70,11 +71,10 @@ class RunSpec:
                  coarsening's chord projection. 0 (the default): the case's own chain.
                  Refinement studies run one rope at several counts (``sweeps/refine-*.toml``).
     precision:   the arithmetic of the dynamics (qdd): ``"float64"`` (default) or
-                 ``"float32"`` (the core only: every operation of the same kernel source
-                 rounded to IEEE single, bias terms included,
-                 :func:`redysim.precision.ieee_qdd` with ``fused_phi``; numpy-emulated, so
-                 slow, and its CPU time says nothing of float32's speed:
-                 ``benchmarks/float32_speed.py`` measures that). The integrator's
+                 ``"float32"`` (the core only: every operation of the same kernel source rounded to
+                 IEEE single, bias terms included, :func:`redysim.algorithms.precision.ieee_qdd`
+                 with ``fused_phi``; numpy-emulated, so slow, and its CPU time says nothing of
+                 float32's speed: ``benchmarks/float32_speed.py`` measures that). The integrator's
                  state and stage sums stay float64.
     """
 
@@ -191,8 +191,8 @@ class RunSpec:
 
 def _check_horizon(case, t_end: float, source: str, name: str) -> None:
     """Refuse a horizon over which the case's fastest motion turns through more radians than a
-    run can integrate (:data:`redysim.cases.MAX_RADIANS`), as its file's own t_end would be."""
-    from redysim.cases import MAX_RADIANS, fastest_motion
+    run can integrate (:data:`redysim.io.cases.MAX_RADIANS`), as its file's own t_end would be."""
+    from redysim.io.cases import MAX_RADIANS, fastest_motion
 
     motion = fastest_motion(case.chain, case.tip_force, case.qd0)
     if motion.omega * t_end > MAX_RADIANS:

@@ -9,7 +9,7 @@ method x integrator x tolerance or step)::
     cases = ["STUDY-R3", "RE-U125-L1"]   # names from cases/, or paths of case files
     engines = ["redysim"]                # default ["redysim"]; others: redysim.references.ENGINES
     methods = ["rge-a"]                  # the core's methods (default ["rge-a"]); engines take none
-    integrators = ["ode45", "rk4"]       # redysim.integrate.INTEGRATORS or "native"
+    integrators = ["ode45", "rk4"]       # redysim.integrators.explicit.INTEGRATORS or "native"
     rtols = [1e-4, 1e-6]                 # adaptive integrators: one run per rtol
     atol_ratio = 1e-2                    # atol = rtol * atol_ratio (default); or atols = [...],
                                          # paired with rtols one to one
@@ -79,9 +79,9 @@ import pandas as pd
 from tqdm import tqdm
 
 from redysim import list_cases, load_case, references
-from redysim.cases import is_case_name
 from redysim.errors import CaseError, FieldError, SettingsError
-from redysim.integrate import ALIASES, INTEGRATORS
+from redysim.integrators.explicit import ALIASES, INTEGRATORS
+from redysim.io.cases import is_case_name
 
 from .run import execute
 from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec
@@ -294,7 +294,7 @@ class _Checker:
     def case(self, field: str, value: Any) -> str:
         """A case name from ``cases/``, or the path of a valid case file (made absolute;
         relative to the sweep file's folder). A name without a folder or ``.toml`` is a
-        built-in case only (:func:`redysim.cases.case_path`)."""
+        built-in case only (:func:`redysim.io.cases.case_path`)."""
         name = self.text(field, value)
         if is_case_name(name):
             if name not in self.case_names:

@@ -25,24 +25,24 @@ import importlib
 
 __version__ = "0.1.0"
 
-# public name -> the module that defines it (a module itself when the two are equal)
+# public name -> the module that defines it (a module itself when its last part is the name)
 _WHERE = {
     **dict.fromkeys(("Case", "case_from_dict", "list_cases", "load_case", "load_published"),
-                    "cases"),
-    **dict.fromkeys(("JOINT_TYPES", "Joint", "Link"), "parts"),
+                    "io.cases"),
+    **dict.fromkeys(("JOINT_TYPES", "Joint", "Link"), "model.parts"),
     **dict.fromkeys(("METHODS", "UDU", "Elimination", "Tip", "delta_M", "eliminate", "energy",
                      "forward_dynamics", "frame_motion", "inverse_dynamics", "joint_positions",
-                     "mass_matrix", "phi", "tip", "udu_factors"), "dynamics"),
+                     "mass_matrix", "phi", "tip", "udu_factors"), "algorithms.dynamics"),
     **dict.fromkeys(("CaseError", "FieldError", "RedysimError", "SettingsError", "StateError"),
                     "errors"),
-    **dict.fromkeys(("ModelFileError", "load_model"), "importers"),
-    **dict.fromkeys(("Body", "Chain", "CutJoint", "Model", "TreeJoint"), "model"),
+    **dict.fromkeys(("ModelFileError", "load_model"), "io.importers"),
+    **dict.fromkeys(("Body", "Chain", "CutJoint", "Model", "TreeJoint"), "model.tree"),
     **dict.fromkeys(("Simulation", "simulate", "simulate_batch"), "simulation"),
-    "ClosedLoops": "loops",
-    **dict.fromkeys(("Coarsening", "coarsen"), "coarse"),
-    **dict.fromkeys(("Linkage", "load_linkage"), "linkage_files"),
-    "Workspace": "workspace",
-    "rbda": "rbda",
+    "ClosedLoops": "algorithms.loops",
+    **dict.fromkeys(("Coarsening", "coarsen"), "algorithms.coarse"),
+    **dict.fromkeys(("Linkage", "load_linkage"), "io.linkage_files"),
+    "Workspace": "algorithms.workspace",
+    "rbda": "algorithms.rbda",
 }
 
 __all__ = sorted(_WHERE)
@@ -53,7 +53,7 @@ def __getattr__(name: str):
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     mod = importlib.import_module(f".{module}", __name__)
-    value = mod if module == name else getattr(mod, name)
+    value = mod if module.rsplit(".", 1)[-1] == name else getattr(mod, name)
     globals()[name] = value  # once imported, an ordinary attribute
     return value
 

@@ -1,8 +1,8 @@
 """The one place numba is configured.
 
-Every kernel in ``redysim._kernels`` is decorated with :func:`jit` (a compiled function cached on
-disk, so a second process loads machine code instead of recompiling) or :func:`inline` (a small
-helper that numba inlines into its callers at the IR level); the entry points that the public
+Every kernel in ``redysim.algorithms._kernels`` is decorated with :func:`jit` (a compiled function
+cached on disk, so a second process loads machine code instead of recompiling) or :func:`inline` (a
+small helper that numba inlines into its callers at the IR level); the entry points that the public
 functions call on their hot path are :class:`EntryPoint` s.
 
 ``fastmath`` is limited to ``contract``: LLVM may fuse a multiply and an add into one FMA (one
@@ -32,28 +32,28 @@ STRICT_OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy
 jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 
 
-# Kernels that allocate nothing and take the named bundles (redysim._kernels.bundles) compile
-# without numba's reference counting (NRT): every array they see is borrowed from their caller,
-# which keeps it alive for the call. With it, reading a bundle's fields cost an atomic increment
-# and a decrement per array per call, ~300 ns a kernel for the 28 arrays of two bundles (more
-# than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
+# Kernels that allocate nothing and take the named bundles (redysim.algorithms._kernels.bundles)
+# compile without numba's reference counting (NRT): every array they see is borrowed from their
+# caller, which keeps it alive for the call. With it, reading a bundle's fields cost an atomic
+# increment and a decrement per array per call, ~300 ns a kernel for the 28 arrays of two bundles
+# (more than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
 BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
 jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 
-# The SIMD tile kernels (redysim._kernels.tiles) also declare their array arguments free of
-# overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
-# checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only
-# for the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name
-# (numba 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every
-# array a tile kernel is given is a distinct view of its thread's tile buffer (tiles.tile_views)
-# or a chain table it only reads.
+# The SIMD tile kernels (redysim.algorithms._kernels.tiles) also declare their array arguments free
+# of overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
+# checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only for
+# the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name (numba
+# 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every array a tile
+# kernel is given is a distinct view of its thread's tile buffer (tiles.tile_views) or a chain table
+# it only reads.
 cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
 TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True)
 jit_tiles: _JITWrapper = numba.njit(**TILE_OPTIONS)
-# A batch's blocks of tiles run on numba's own threads (prange): its threading layer hands a
-# block to a thread in ~2 us here, a Python thread pool in ~80 us (a 64-state batch at 250 DOF
-# takes ~300 us on one core). redysim.dynamics serialises these launches (numba's workqueue
-# layer, its fallback without OpenMP or TBB, must not be entered from two threads at once).
+# A batch's blocks of tiles run on numba's own threads (prange): its threading layer hands a block
+# to a thread in ~2 us here, a Python thread pool in ~80 us (a 64-state batch at 250 DOF takes ~300
+# us on one core). redysim.algorithms.dynamics serialises these launches (numba's workqueue layer,
+# its fallback without OpenMP or TBB, must not be entered from two threads at once).
 jit_parallel: _JITWrapper = numba.njit(**dict(OPTIONS, parallel=True))
 
 
@@ -64,8 +64,8 @@ def inline(func):
 
 def inline_generated(source: str, name: str, namespace: dict):
     """:func:`inline` for a helper whose source is generated (``source`` defines ``name``, with
-    ``namespace`` as its globals): the layout's slicer (``redysim._kernels.bundles``). numba
-    caches nothing of its own for it (it has no file to key a cache on); it is inlined, at the
+    ``namespace`` as its globals): the layout's slicer (``redysim.algorithms._kernels.bundles``).
+    numba caches nothing of its own for it (it has no file to key a cache on); it is inlined, at the
     IR level, into callers that are cached."""
     scope = {"__name__": f"{__name__}.generated", **namespace}
     exec(compile(source, f"<generated {name}>", "exec"), scope)  # noqa: S102

@@ -2,13 +2,12 @@
 
 ::
 
-    RedysimError                  every error redysim raises on purpose
-    +-- FieldError                a bad field of a file or a call (names source, field, value)
-    |   +-- CaseError             a case file or chain description (redysim.cases, redysim.model)
-    |   +-- SettingsError         a run's settings: integrator, tolerances, step, horizon, sampling
-    |   +-- SweepError            a sweep file (redysim.harness.sweep)
-    |   +-- GatesError            the accuracy gates file (redysim.harness.gates)
-    |   +-- ModelFileError        a URDF or MJCF file (redysim.importers)
+    RedysimError                  every error redysim raises on purpose +-- FieldError
+    a bad field of a file or a call (names source, field, value) |   +-- CaseError             a
+    case file or chain description (redysim.io.cases, redysim.model.tree) |   +-- SettingsError
+    a run's settings: integrator, tolerances, step, horizon, sampling |   +-- SweepError
+    a sweep file (redysim.harness.sweep) |   +-- GatesError            the accuracy gates file
+    (redysim.harness.gates) |   +-- ModelFileError        a URDF or MJCF file (redysim.io.importers)
     +-- StateError                a state (q, qd, qdd, tau) handed to a dynamics function
 """
 

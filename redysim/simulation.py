@@ -3,14 +3,13 @@
 :func:`simulate` integrates dy/dt = (dq/dt, vdot) with y = (q, v), vdot from
 :func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
-trees"). Any of :data:`redysim.integrate.INTEGRATORS` steps it; ours (ode45, dop853, rk4) in
-compiled code (:class:`redysim.integrate.CompiledSolver`) when there is no free joint, and the
-implicit midpoint (:mod:`redysim.implicit`) with a chain's tension preconditioner. A
-quaternion integrated so drifts
-off the unit sphere by the integrator's error; after every accepted step it is projected back
-(divided by its norm; so are the samples interpolated between steps), the largest norm error
-seen before a projection is reported, and the kernels read any quaternion's direction only (so
-a stage's slightly-off quaternion is harmless).
+trees"). Any of :data:`redysim.integrators.explicit.INTEGRATORS` steps it; ours (ode45, dop853, rk4)
+in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`) when there is no free joint,
+and the implicit midpoint (:mod:`redysim.integrators.implicit`) with a chain's tension
+preconditioner. A quaternion integrated so drifts off the unit sphere by the integrator's error;
+after every accepted step it is projected back (divided by its norm; so are the samples interpolated
+between steps), the largest norm error seen before a projection is reported, and the kernels read
+any quaternion's direction only (so a stage's slightly-off quaternion is harmless).
 
 The energy E = T + V is sampled with the motion; with no joint torques it is conserved, and its
 change per unit mass delta_M = (E - E0) / M (the paper's Eq. 11) measures the integration error.
@@ -28,12 +27,11 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from ._steps import Counters, IntegrationError, OdeSolver, SolverState
-from .dynamics import check_state, energy, forward_dynamics
-from .errors import SettingsError, StateError
-from .implicit import TensionPreconditioner
-from .implicit import compile_kernels as implicit_kernels
-from .integrate import (
+from redysim.algorithms.dynamics import check_state, energy, forward_dynamics
+from redysim.algorithms.loops import NEAR_CHANGE_POINT
+from redysim.algorithms.workspace import Workspace
+from redysim.errors import SettingsError, StateError
+from redysim.integrators.explicit import (
     ALIASES,
     DEFAULT_ATOL,
     DEFAULT_METHOD,
@@ -50,9 +48,10 @@ from .integrate import (
     make_solver,
     sample_times,
 )
-from .loops import NEAR_CHANGE_POINT
-from .model import FREE, Model
-from .workspace import Workspace
+from redysim.integrators.implicit import TensionPreconditioner
+from redysim.integrators.implicit import compile_kernels as implicit_kernels
+from redysim.integrators.protocol import Counters, IntegrationError, OdeSolver, SolverState
+from redysim.model.tree import FREE, Model
 
 DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
 NATIVE = "native"  # the integrator of a reference engine's own stepper (Simulator, engine=)
@@ -103,17 +102,17 @@ def _check_run_settings(source: str, *, progress=None, max_cpu_s=None) -> None:
 class Simulation:
     """Samples at ``t`` (m,): ``q`` (m, n_q), ``v`` (m, n_v), ``energy`` (m,) [J], ``delta_M``
     (m,) [J/kg], ``com`` (m, 3) [m]; the run's counts and times; ``status`` 0 done, 1 stopped, -1
-    failed (``message`` says why); ``quaternion_error``: the largest | |q| - 1 | of a free
-    joint's quaternion before its projection after a step (0 without one). With loops:
-    ``forces`` (m, rows) the loop forces at the samples [N], ``residual_q`` [m] and
-    ``residual_v`` [m/s] the largest loop residuals met after a step, before its projection;
-    ``near_change_point``: the time [s] of the step at which the motion came nearest a change
-    point (J M^-1 J^T's singular values within :data:`redysim.loops.NEAR_CHANGE_POINT` of each
-    other: a configuration where the mechanism can switch branches), None when it came nowhere
-    near one; a run that then failed or stopped says so in its ``message``. ``observed``: name
-    -> (m, k) rows of each observer (:class:`Simulator`); ``y_final``: (q, v) at the last
-    sample; ``E0``: the energy at t = 0 (the reference of ``delta_M``; with a resumed run's
-    skipped samples, not the first sample's). ``q`` and ``v`` have no rows when the run kept no
+    failed (``message`` says why); ``quaternion_error``: the largest | |q| - 1 | of a free joint's
+    quaternion before its projection after a step (0 without one). With loops: ``forces`` (m, rows)
+    the loop forces at the samples [N], ``residual_q`` [m] and ``residual_v`` [m/s] the largest loop
+    residuals met after a step, before its projection; ``near_change_point``: the time [s] of the
+    step at which the motion came nearest a change point (J M^-1 J^T's singular values within
+    :data:`redysim.algorithms.loops.NEAR_CHANGE_POINT` of each other: a configuration where the
+    mechanism can switch branches), None when it came nowhere near one; a run that then failed or
+    stopped says so in its ``message``. ``observed``: name -> (m, k) rows of each observer
+    (:class:`Simulator`); ``y_final``: (q, v) at the last sample; ``E0``: the energy at t = 0 (the
+    reference of ``delta_M``; with a resumed run's skipped samples, not the first sample's). ``q``
+    and ``v`` have no rows when the run kept no
     states (``keep_states=False``)."""
 
     name: str
@@ -145,7 +144,7 @@ class _Motion:
     """The right-hand side (dq/dt, vdot) of a system, with its workspace: vdot from the core's
     forward dynamics (``method``) or the ``qdd(q, v, tau)`` provider, with the generalized
     forces ``tau(t, q, v)`` and a viscous ``damping`` torque -damping * v at every joint; with
-    ``loops`` the loops closed (:class:`redysim.loops.ClosedLoops`)."""
+    ``loops`` the loops closed (:class:`redysim.algorithms.loops.ClosedLoops`)."""
 
     def __init__(self, system: Model, loops=None, damping: float = 0.0, *, qdd=None,
                  method: str = "rge-a", tau=None):
@@ -310,7 +309,7 @@ def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = Fa
     """An observer for :class:`Simulator`: a frame's world position and velocity at each sample
     (and, with ``acceleration``, its acceleration from the run's own qdd), as one row
     [px, py, pz, vx, vy, vz(, ax, ay, az)]. ``frame``: as :func:`redysim.frame_motion`."""
-    from .dynamics import frame_motion
+    from redysim.algorithms.dynamics import frame_motion
 
     def observe(s: Sample):
         m = frame_motion(system, s.q, s.v, s.accel() if acceleration else None, frame=frame,
@@ -337,7 +336,8 @@ class Simulator:
       ``damping``: a viscous torque -damping * v at every joint [N m s]; ``potential(q)``: the
       potential energy [J] of the forces ``tau`` gives, when they have one (counted in E, so
       that delta_M stays an energy balance).
-    - ``loops``: a :class:`redysim.loops.ClosedLoops` of the system (by default, a model with
+    - ``loops``: a :class:`redysim.algorithms.loops.ClosedLoops` of the system (by default, a model
+          with
       cut joints, :meth:`Model.with_cuts`, gets its own): its loops closed, (q, v) projected
       back onto them after every step; the samples carry the loop forces.
     - ``observe``: name -> ``f(sample)`` called at each sample with a :class:`Sample` (t, q, v,
@@ -348,18 +348,20 @@ class Simulator:
       ``keep_states`` keeps q and v at every sample too (off for long runs of huge systems:
       ``y_final`` is kept anyway).
     - ``energy_bound``: a run whose |delta_M| passes it fails ("energy blow-up").
-    - ``state`` (a :class:`redysim.integrate.SolverState`): resume from a checkpoint; samples
+    - ``state`` (a :class:`redysim.integrators.explicit.SolverState`): resume from a checkpoint;
+          samples
       at or before ``skip_until`` are not taken again.
     - ``compiled``: False steps in the Python loop even where compiled steps could run (the
       same steps, bit for bit: an independent path for checks); None chooses.
 
-    The solver is chosen here: ours in compiled code (:class:`~redysim.integrate.CompiledSolver`)
-    when qdd is the core's RGE-A and dq/dt = v with no forces, loops or damping; the implicit
-    midpoint with a chain's tension preconditioner; SciPy's; the Python loop otherwise. Every
-    solver follows one protocol (:class:`redysim._steps.OdeSolver`). The first RHS and energy
-    calls and the steppers' kernels (JIT compile or disk-cache load) are made in the
-    constructor and timed apart (``jit_s``). Bad settings raise SettingsError and a bad q0 or
-    v0 StateError, naming them, before anything runs.
+    The solver is chosen here: ours in compiled code
+    (:class:`~redysim.integrators.explicit.CompiledSolver`) when qdd is the core's RGE-A and dq/dt =
+    v with no forces, loops or damping; the implicit midpoint with a chain's tension preconditioner;
+    SciPy's; the Python loop otherwise. Every solver follows one protocol
+    (:class:`redysim.integrators.protocol.OdeSolver`). The first RHS and energy calls and the
+    steppers' kernels (JIT compile or disk-cache load) are made in the constructor and timed apart
+    (``jit_s``). Bad settings raise SettingsError and a bad q0 or v0 StateError, naming them, before
+    anything runs.
     """
 
     def __init__(self, system: Model, t_end: float, *, q0=None, v0=None,
@@ -400,7 +402,7 @@ class Simulator:
         v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
         self.damping = float(damping)
         if loops is None and system.cuts:  # a closed mechanism: its loops closed
-            from .loops import ClosedLoops
+            from redysim.algorithms.loops import ClosedLoops
 
             loops = ClosedLoops(system, source=source)
         self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau)
@@ -461,7 +463,8 @@ class Simulator:
             return CompiledSolver(rhs, 0.0, self.y0, self.t_end, self.integrator,
                                   ws=self.motion.ws, planar=planar, state=state, **kw)
         if self.integrator in IMPLICIT:
-            # a chain's tension preconditioner (redysim.implicit); a tree steps without one
+            # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
+            # one
             pre = (TensionPreconditioner(self.system) if self.system.chain_layout is None
                    else None)
             return make_solver(rhs, 0.0, self.y0, self.t_end, self.integrator, state=state,
@@ -646,23 +649,22 @@ def simulate(system: Model, t_end: float, *, q0=None, v0=None,
     """The passive motion of ``system`` from (q0, v0) over [0, t_end] (no joint torques): a
     :class:`Simulator` run.
 
-    loops: a :class:`redysim.loops.ClosedLoops` of ``system``: the motion with its loops closed,
-    (q, v) projected back onto them after every step; the samples then carry the loop forces
-    and the run the largest residuals it met. damping: a viscous torque -damping * v at every
-    joint [N m s] (0: none; the energy then falls).
+    loops: a :class:`redysim.algorithms.loops.ClosedLoops` of ``system``: the motion with its loops
+    closed, (q, v) projected back onto them after every step; the samples then carry the loop forces
+    and the run the largest residuals it met. damping: a viscous torque -damping * v at every joint
+    [N m s] (0: none; the energy then falls).
 
-    q0: default the model's own configuration (:meth:`Model.initial`: the file's, else every
-    joint at zero, quaternions the identity), zeros for a chain; v0: default zeros.
-    integrator, rtol, atol, h: as :func:`redysim.integrate.integrate` (h for the fixed-step
-    rk4 and midpoint-fixed only); ``implicit`` is ``midpoint``.
-    sample: the sample interval (default t_end / 10). progress: None, or a callable called as
-    ``progress(t, t_end, steps, wall_s)`` after each step (each chunk of steps in compiled
-    code); a message (a str) it returns stops the run there: ``status`` 1 and that message,
-    the samples so far kept (a wall-clock limit of the caller's, say). max_cpu_s: a limit on
-    the run's CPU time [s] (its thread's, JIT compile excluded; None: none): a run past it
-    stops with ``status`` -1, "time limit: max_cpu_s = ...", its samples kept (a limit that,
-    unlike a wall-clock one, does not depend on what else the machine is doing). Raises
-    SettingsError for a setting out of range (naming it: ``damping``, ``progress``,
+    q0: default the model's own configuration (:meth:`Model.initial`: the file's, else every joint
+    at zero, quaternions the identity), zeros for a chain; v0: default zeros. integrator, rtol,
+    atol, h: as :func:`redysim.integrators.explicit.integrate` (h for the fixed-step rk4 and
+    midpoint-fixed only); ``implicit`` is ``midpoint``. sample: the sample interval (default t_end /
+    10). progress: None, or a callable called as ``progress(t, t_end, steps, wall_s)`` after each
+    step (each chunk of steps in compiled code); a message (a str) it returns stops the run there:
+    ``status`` 1 and that message, the samples so far kept (a wall-clock limit of the caller's,
+    say). max_cpu_s: a limit on the run's CPU time [s] (its thread's, JIT compile excluded; None:
+    none): a run past it stops with ``status`` -1, "time limit: max_cpu_s = ...", its samples kept
+    (a limit that, unlike a wall-clock one, does not depend on what else the machine is doing).
+    Raises SettingsError for a setting out of range (naming it: ``damping``, ``progress``,
     ``max_cpu_s``, ...) and StateError for a bad q0 or v0.
     """
     _check_run_settings("simulate", progress=progress, max_cpu_s=max_cpu_s)  # before warm-up
@@ -675,15 +677,15 @@ def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
                    threads: int | None = None, **settings) -> list[Simulation]:
     """Independent motions of one system from the rows of q0 (B, n_q) and v0 (B, n_v) (default
     zeros): :func:`simulate` of each row, each with its own step sizes, the rows split over
-    ``threads`` threads (default: every core this process may use). The steps run in compiled
-    code without the GIL (:class:`redysim.integrate.CompiledSolver`), so the threads run at once;
-    each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
+    ``threads`` threads (default: every core this process may use). The steps run in compiled code
+    without the GIL (:class:`redysim.integrators.explicit.CompiledSolver`), so the threads run at
+    once; each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
     (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. Everything is
-    checked before any thread starts: a bad or unknown setting raises SettingsError naming it,
-    a q0 or v0 that is not a 2-D array of rows StateError saying what a batch needs. A row that
-    fails raises its StateError, naming the row.
+    checked before any thread starts: a bad or unknown setting raises SettingsError naming it, a q0
+    or v0 that is not a 2-D array of rows StateError saying what a batch needs. A row that fails
+    raises its StateError, naming the row.
     """
-    from .dynamics import check_batch, run_blocks
+    from redysim.algorithms.dynamics import check_batch, run_blocks
 
     for key in ("progress", "loops"):
         if key in settings:

@@ -18,9 +18,9 @@ Importing this package imports no engine: a missing one raises :class:`EngineUna
         eng = cls(model)                     # or cls(chain), cls(case): converted at the door
         eng.qdd(q, v, tau); eng.simulate(q0, v0, t_end, h)
 
-Closed loops (:class:`redysim.loops.ClosedLoops`: a tree and its cut joints) go to the loop
-adapters (:mod:`redysim.references.loops`), which build the tree with the engine's adapter and close
-the cuts with each engine's own constraint::
+Closed loops (:class:`redysim.algorithms.loops.ClosedLoops`: a tree and its cut joints) go to the
+loop adapters (:mod:`redysim.references.loops`), which build the tree with the engine's adapter and
+close the cuts with each engine's own constraint::
 
     eng = references.loop_engine("exudyn", loops)   # references.LOOP_ENGINES lists them
     qdd, lam = eng.forward_dynamics(q, v, tau)      # as ClosedLoops.forward_dynamics

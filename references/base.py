@@ -74,8 +74,8 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from redysim import Case, Chain, Model
-from redysim.model import FREE, quaternion_matrix
-from redysim.parts import KIND_CODES
+from redysim.model.parts import KIND_CODES
+from redysim.model.tree import FREE, quaternion_matrix
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes

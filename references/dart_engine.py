@@ -22,7 +22,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
     from several joints needs massless intermediate BodyNodes, which DART warns against ("A
     negative or zero mass [0] is set to BodyNode [...], which can cause invalid physical behavior
     or segfault"; its ``Inertia`` also warns that zero moments are invalid), so this adapter does
-    not. No joint of ``redysim.parts.JOINT_TYPES`` needs that.
+    not. No joint of ``redysim.model.parts.JOINT_TYPES`` needs that.
 
   ``mT_ParentBodyToJoint`` is the placement (R, p) (times P for an EulerJoint; for a chain's
   link k a translation of l_{k-1} along the parent's x, the identity for the first);
@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from redysim.model import FREE
+from redysim.model.tree import FREE
 
 from .base import Engine, FreeBlock, free_rotation, rotation_quaternion
 

@@ -67,8 +67,8 @@ import sys
 
 import numpy as np
 
-from redysim.model import FREE
-from redysim.rbda import rotation
+from redysim.algorithms.rbda import rotation
+from redysim.model.tree import FREE
 
 from .base import Engine, FreeBlock, axis, free_rotation, rotation_quaternion
 

@@ -1,9 +1,10 @@
-"""The reference engines on closed loops: a :class:`redysim.loops.ClosedLoops` in each engine.
+"""The reference engines on closed loops: a :class:`redysim.algorithms.loops.ClosedLoops` in each
+engine.
 
 Each adapter builds the loops' tree (its :class:`redysim.Model`) with the engine's own adapter
 (:class:`.base.Engine`, the one class per engine: ``self.tree``), then adds every cut joint
-(:class:`redysim.loops.CutJoint`) as the engine's OWN loop-closure constraint, and answers in
-the core's names and coordinates:
+(:class:`redysim.algorithms.loops.CutJoint`) as the engine's OWN loop-closure constraint, and
+answers in the core's names and coordinates:
 
 ==============================  ===============================================================
 ``forward_dynamics(q, v, tau)`` (qdd, lam), as :meth:`ClosedLoops.forward_dynamics`: the
@@ -89,8 +90,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from redysim.loops import ClosedLoops
-from redysim.model import Model
+from redysim.algorithms.loops import ClosedLoops
+from redysim.model.tree import Model
 
 from .base import (
     Engine,
@@ -119,7 +120,7 @@ def inert_moments(model: Model) -> tuple[Model, list[int], str]:
     """(model', bodies changed, why not): the model with each zero principal moment that cannot
     enter the dynamics raised to THIN_RAISE x the body's largest moment (module docstring), or
     the model unchanged and the reason when a zero moment could enter them."""
-    from redysim.rbda import kinematics
+    from redysim.algorithms.rbda import kinematics
 
     kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
     inertia = np.array(model.inertia_com, dtype=float)
@@ -163,7 +164,7 @@ def non_planar(loops: ClosedLoops, cut) -> str:
     an engine that can only hold a point in all three directions builds a planar cut as a ball
     joint, which is the cut only when nothing on the paths of its two bodies moves the points
     along z (revolute axes along z, prismatic axes normal to it: their z stays constant)."""
-    from redysim.rbda import kinematics
+    from redysim.algorithms.rbda import kinematics
 
     model = loops.model
     kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
@@ -200,7 +201,8 @@ class LoopEngine(EnginePackage):
     def __init__(self, loops: ClosedLoops, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
         if not isinstance(loops, ClosedLoops):
-            raise TypeError(f"expected a redysim.loops.ClosedLoops, got {type(loops).__name__}")
+            raise TypeError("expected a redysim.algorithms.loops.ClosedLoops, got "
+                            f"{type(loops).__name__}")
         if check_limits:
             lim = self.limits(loops)
             if not lim.ok:
@@ -216,7 +218,8 @@ class LoopEngine(EnginePackage):
         """Can this engine build the loops? The engine adapter's verdict on the tree (after the
         inert moments are raised, for the engines that need it), then the cuts'."""
         if not isinstance(loops, ClosedLoops):
-            raise TypeError(f"expected a redysim.loops.ClosedLoops, got {type(loops).__name__}")
+            raise TypeError("expected a redysim.algorithms.loops.ClosedLoops, got "
+                            f"{type(loops).__name__}")
         model, why = loops.model, ""
         if cls.thin_ok:
             model, _, why = inert_moments(model)
@@ -265,7 +268,7 @@ class LoopEngine(EnginePackage):
         mechanism, see :func:`non_planar`)."""
         if self.planar_exact:
             return ""
-        from redysim.rbda import kinematics
+        from redysim.algorithms.rbda import kinematics
 
         kin = None
         for c in self.loops.cuts:
@@ -475,7 +478,7 @@ class DARTLoops(LoopEngine):
         """Rebuild the ball constraints at the assembled q, with error reduction ``erp``: DART
         derives each body's offset from the skeleton's pose at construction, so it is set to q
         first."""
-        from redysim.rbda import kinematics
+        from redysim.algorithms.rbda import kinematics
 
         dart, t = self.lib, self.tree
         t.skel.setPositions(t._state(q, np.zeros(self.model.n_v))[0])

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from redysim.model import FREE
+from redysim.model.tree import FREE
 
 from .base import Engine
 

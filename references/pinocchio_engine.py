@@ -62,8 +62,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from redysim.model import FREE
-from redysim.rbda import quaternion_matrix
+from redysim.algorithms.rbda import quaternion_matrix
+from redysim.model.tree import FREE
 
 from .base import Engine, FreeBlock, depth_first
 

@@ -30,9 +30,9 @@ import numpy as np
 import pandas as pd
 
 from redysim import references
-from redysim.cases import CASES_DIR
 from redysim.harness.provenance import provenance
 from redysim.harness.spec import CORE
+from redysim.io.cases import CASES_DIR
 
 from . import figures as F
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
@@ -270,7 +270,7 @@ def setup_section(ctx: Ctx) -> Section:
                 "rod_mass_per_length", "rod_inertia_note", "spatial_initial_state"):
         s.rows.append(Row([key, str(conv[key])]))
     s.notes.append("Our ode45 is Dormand-Prince 4(5) with MATLAB's step-size rules (max-norm "
-                   "error, first step, 5x growth cap, refine; redysim/integrate.py).")
+                   "error, first step, 5x growth cap, refine; redysim/integrators/explicit.py).")
     s.notes.append("RE-U chains use the rod inertia (Ixx = m r^2/2, Iyy = Izz = m l^2/12): the "
                    "paper's E(0) needs it. It violates the triangle inequality of inertia for "
                    "l < sqrt(3) r, i.e. in every RE-U case; MuJoCo's compiler rejects it, so its "
@@ -372,8 +372,8 @@ def ieee_table(res: Results) -> Table:
                           + [sci(rr[m]["rel_error"], 1) if rr[m]["status"] == "ok"
                              else rr[m]["status"] for m in methods]))
     t.notes.append("Every operation of each method in float32 (the kernels' own source on "
-                   "float32 scalars; redysim/precision.py); the reference is the same inputs in "
-                   "40-place decimal arithmetic. u = 2^-24, the unit roundoff.")
+                   "float32 scalars; redysim/algorithms/precision.py); the reference is the "
+                   "same inputs in 40-place decimal arithmetic. u = 2^-24, the unit roundoff.")
     t.provenance = provenance_line(doc.get("meta"), what="results/precision/ieee.json")
     return t
 
@@ -552,11 +552,11 @@ def loops_section(res: Results) -> Section:
     """Closed loops: checks against closed forms, cost against n, a long pinned chain."""
     sec = Section("loops", "Closed loops")
     sec.intro.append("A closed-loop mechanism is a tree plus the joints cut to open it "
-                     "(redysim.loops): forward dynamics by Featherstone's method on the tree's "
-                     "O(n) recursions ((1 + m) RGE-A calls and an m x m solve for m constraint "
-                     "equations), the loop forces an output, positions and velocities projected "
-                     "back onto the loops after every step (no Baumgarte gains), and the "
-                     "residuals of every run reported.")
+                     "(redysim.algorithms.loops): forward dynamics by Featherstone's method on "
+                     "the tree's O(n) recursions ((1 + m) RGE-A calls and an m x m solve for m "
+                     "constraint equations), the loop forces an output, positions and "
+                     "velocities projected back onto the loops after every step (no Baumgarte "
+                     "gains), and the residuals of every run reported.")
     doc = res.loops
     checks = Table("loops-checks", "Checks against closed forms",
                    ["check", "measured", "bound", "verdict"])

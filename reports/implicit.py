@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from redysim.integrate import FIXED_STEP, IMPLICIT
+from redysim.integrators.explicit import FIXED_STEP, IMPLICIT
 
 from .content import INFO, NOT_RUN, Figure, Row, Section, Table
 from .figures import _figure, missing, new_figure
@@ -60,11 +60,11 @@ def implicit_section(res: Results) -> Section:
         "The explicit integrators' steps on this chain are bound by the transverse waves the "
         "centrifugal tension carries (a 2 cm link crossed in ~3e-5 s: ode45 steps ~1e-5 s, ~35 "
         "ms each, ~10 h for 5 s). The implicit midpoint rule (integrator midpoint, alias "
-        "implicit; redysim.implicit) solves each step by Newton-Krylov in O(n), preconditioned "
-        "by the chain's tension stiffness, with an error estimate filtered so that a wave the "
-        "step does not resolve counts by its amplitude. Below, its run to 5 s beside the "
-        "explicit ode45 run where both exist, at the case's tolerances (rtol 1e-4, atol 1e-6); "
-        "docs/design.md, 'The implicit integrator', discusses what the error means.")
+        "implicit; redysim.integrators.implicit) solves each step by Newton-Krylov in O(n), "
+        "preconditioned by the chain's tension stiffness, with an error estimate filtered so "
+        "that a wave the step does not resolve counts by its amplitude. Below, its run to 5 s "
+        "beside the explicit ode45 run where both exist, at the case's tolerances (rtol 1e-4, "
+        "atol 1e-6); docs/design.md, 'The implicit integrator', discusses what the error means.")
     runs = _runs(res)
     table = Table("implicit-runs", f"Long runs of {CASE}",
                   ["run", "integrator", "t reached [s]", "steps (rejected)", "qdd calls",

@@ -38,7 +38,7 @@ LONG_N = 10000
 
 def four_bar_check() -> dict:
     from redysim import simulate
-    from redysim.linkages import four_bar, four_bar_position
+    from redysim.algorithms.linkages import four_bar, four_bar_position
 
     fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
     sim = simulate(fb.model, 2.0, q0=fb.configuration(0.3), loops=fb.loops, rtol=1e-10,
@@ -63,7 +63,7 @@ def hoekens_check() -> dict:
     """Hoeken's linkage (crank 0.1 m) set turning at 10 rad/s, passive, loop closed: its
     tracing point against the closed-form path, and its straight part's strip and crossings."""
     from redysim import simulate
-    from redysim.linkages import (
+    from redysim.algorithms.linkages import (
         crossings,
         hoekens_linkage,
         hoekens_path,
@@ -102,9 +102,9 @@ def engines_check() -> list[dict]:
     worst relative differences (qdd by the larger of the constrained and the open tree's |qdd|),
     or the refusal."""
     import redysim
-    from redysim.linkages import four_bar, pinned_chain
+    from redysim.algorithms.linkages import four_bar, pinned_chain
+    from redysim.model.shapes import catenary_angles
     from redysim.references.loops import LOOP_ENGINES, loop_engine
-    from redysim.shapes import catenary_angles
 
     fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
     chain = pinned_chain(20, 0.1, 0.1, 1.6)
@@ -151,7 +151,7 @@ def engines_trajectories() -> list[dict]:
     1e-3 and 1e-4 s) against the core's (ode45, rtol 1e-11, projected): max |q - q_core| at the
     samples every 0.1 s, and the largest loop residual of the engine's run."""
     from redysim import simulate
-    from redysim.linkages import four_bar
+    from redysim.algorithms.linkages import four_bar
     from redysim.references.loops import LOOP_ENGINES, loop_engine
 
     fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
@@ -180,9 +180,9 @@ def engines_scale(sizes=ENGINE_SIZES) -> list[dict]:
     """Constrained qdd per call (at rest: DART takes no moving state) on pinned chains of
     ``sizes`` rods, each engine up to its limits or ENGINE_CALL_CAP_S a call; the core
     beside."""
-    from redysim.linkages import pinned_chain
+    from redysim.algorithms.linkages import pinned_chain
+    from redysim.model.shapes import catenary_angles
     from redysim.references.loops import LOOP_ENGINES, loop_engine
-    from redysim.shapes import catenary_angles
 
     rows, stopped = [], set()
     for n in sizes:
@@ -228,8 +228,8 @@ def _joints(q, length):
 
 def catenary_checks() -> dict:
     from redysim import simulate
-    from redysim.linkages import discrete_catenary, pinned_chain
-    from redysim.shapes import catenary_angles
+    from redysim.algorithms.linkages import discrete_catenary, pinned_chain
+    from redysim.model.shapes import catenary_angles
 
     chain = pinned_chain(10, 0.1, 0.1, 0.8)
     start, rest = catenary_angles(10, 1.0, 0.8), discrete_catenary(chain)
@@ -250,8 +250,8 @@ def catenary_checks() -> dict:
 
 
 def cost() -> list[dict]:
-    from redysim.linkages import pinned_chain
-    from redysim.shapes import catenary_angles
+    from redysim.algorithms.linkages import pinned_chain
+    from redysim.model.shapes import catenary_angles
 
     rows = []
     for n in SIZES:
@@ -271,8 +271,8 @@ def cost() -> list[dict]:
 
 def long_chain(t_end: float) -> dict:
     from redysim import simulate
-    from redysim.linkages import pinned_chain
-    from redysim.shapes import catenary_angles
+    from redysim.algorithms.linkages import pinned_chain
+    from redysim.model.shapes import catenary_angles
 
     chain = pinned_chain(LONG_N, 100.0 / LONG_N, 100.0 / LONG_N, 80.0)
     sim = simulate(chain.model, t_end, q0=catenary_angles(LONG_N, 100.0, 80.0),

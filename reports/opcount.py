@@ -3,12 +3,13 @@
     python -m redysim.reports.opcount [--out results/opcount]
 
 Counted, not estimated: each kernel's own Python source (``kernel.py_func``, the function numba
-compiles; :func:`redysim.precision.kernel_source`) runs on object arrays of :class:`Count`, a float
-that tallies every ``*``, ``/``, ``+`` and ``-`` done on it. Negation, comparisons and the cos/sin
-of the joint angles are not counted (the paper's Table 7 has columns for the four operations
-only); products with the literal constants a kernel holds (``2.0 * x``) are. The kernels have no
-data-dependent branches, so the counts are exact polynomials in n: a*n + b for the O(n) passes
-from two sizes, checked on a third; a cubic for the elimination from four sizes, checked on a fifth.
+compiles; :func:`redysim.algorithms.precision.kernel_source`) runs on object arrays of
+:class:`Count`, a float that tallies every ``*``, ``/``, ``+`` and ``-`` done on it. Negation,
+comparisons and the cos/sin of the joint angles are not counted (the paper's Table 7 has columns for
+the four operations only); products with the literal constants a kernel holds (``2.0 * x``) are. The
+kernels have no data-dependent branches, so the counts are exact polynomials in n: a*n + b for the
+O(n) passes from two sizes, checked on a third; a cubic for the elimination from four sizes, checked
+on a fifth.
 
 What is counted, per row:
     RGE-A spatial  ``rge_a_forward_dynamics``: kinematics, Newton-Euler phi, Table A.1's passes
@@ -37,15 +38,15 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Chain, mass_matrix, phi
-from redysim._kernels.elimination import ge_n
-from redysim._kernels.inverse_dynamics import rnea_backward
-from redysim._kernels.kinematics import kinematics
-from redysim._kernels.planar import planar_forward_dynamics
-from redysim._kernels.rge_a import rge_a_forward_dynamics
+from redysim.algorithms._kernels.elimination import ge_n
+from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
+from redysim.algorithms._kernels.kinematics import kinematics
+from redysim.algorithms._kernels.planar import planar_forward_dynamics
+from redysim.algorithms._kernels.rge_a import rge_a_forward_dynamics
+from redysim.algorithms.precision import kernel_source
+from redysim.algorithms.workspace import bundles_in
 from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
-from redysim.precision import kernel_source
-from redysim.workspace import bundles_in
 
 DEFAULT_OUT = Path("results") / "opcount"
 OUT_FILE = "opcount.json"

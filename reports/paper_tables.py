@@ -652,8 +652,8 @@ def table10(ctx: Ctx) -> Table:
         t.notes.append(f"RGE-A with {label}: {n}/18 values (qdd and dq both) match.")
     t.notes.append("Accuracy 1e-k: every result rounded to k decimal places, half away from zero, "
                    "in IEEE double as MATLAB's round(x/1e-k)*1e-k (docs/design.md, 'Reduced "
-                   "precision'; redysim/precision.py). Our RGE-A rounds at other points than the "
-                   "paper's ReDySim: its rows reproduce only where noted.")
+                   "precision'; redysim/algorithms/precision.py). Our RGE-A rounds at other "
+                   "points than the paper's ReDySim: its rows reproduce only where noted.")
     t.provenance = _prec_prov(doc, "table10")
     return t
 

@@ -4,15 +4,15 @@
 
 Prints each table beside the paper's values (paper/published.toml) with a verdict per value and a
 count of matches, and writes them as CSV and JSON to ``results/precision/`` (atomically). Table 8
-runs ode45 (``redysim.integrate``) with the rounded right-hand side (about 2 minutes, most of it
-GE-N on 10 links; the 3-link and 10-link runs with other rounding details add about 30 s);
-``table8.json`` also keeps delta_M(t) of its main runs (``series``: Fig. 19).
+runs ode45 (``redysim.integrators.explicit``) with the rounded right-hand side (about 2 minutes,
+most of it GE-N on 10 links; the 3-link and 10-link runs with other rounding details add about 30
+s); ``table8.json`` also keeps delta_M(t) of its main runs (``series``: Fig. 19).
 
 Verdicts: ``exact`` (ours, rounded half away from zero to the digits the paper prints, equals the
 paper), ``truncation`` (ours truncated to those digits equals it; the paper sometimes truncates),
 ``sign`` (equal in magnitude; published.toml marks Table 10's signs as lost in the text
 extraction and re-derived), ``differs`` (with the difference). Rules and findings: see
-``redysim/precision.py`` and the notes printed with each table.
+``redysim/algorithms/precision.py`` and the notes printed with each table.
 """
 
 from __future__ import annotations
@@ -41,10 +41,10 @@ from redysim import (
     mass_matrix,
     phi,
 )
-from redysim.cases import CASES_DIR
-from redysim.dynamics import PAPER_NAMES
+from redysim.algorithms.dynamics import PAPER_NAMES
+from redysim.algorithms.precision import ieee_qdd, reduced_factors, reduced_qdd
 from redysim.harness.store import write_text_atomic
-from redysim.precision import ieee_qdd, reduced_factors, reduced_qdd
+from redysim.io.cases import CASES_DIR
 
 DEFAULT_OUT = Path("results") / "precision"
 METHOD_KEYS = {paper: name for name, paper in PAPER_NAMES.items()}  # "GE-N" -> "ge-n"
@@ -447,10 +447,11 @@ def _simulate(case, method: str, decimals: int, *, arithmetic: str = "double",
 
 def table8(pub, sensitivity: bool = True) -> dict:
     try:
-        import redysim.integrate  # noqa: F401
+        import redysim.integrators.explicit  # noqa: F401
     except ImportError:
-        return {"done": False, "rows": [], "reason": "redysim.integrate (the ode45 integrator) "
-                "is not in the tree; Table 8 needs whole ode45 runs with the rounded RHS"}
+        return {"done": False, "rows": [], "reason": "redysim.integrators.explicit (the ode45 "
+                "integrator) is not in the tree; Table 8 needs whole ode45 runs with the "
+                "rounded RHS"}
     rows, series = [], []
     for key, name in TABLE8_RUNS:
         entry = pub["table8"][key]

@@ -145,8 +145,9 @@ def refine_section(res) -> Section:
         ratios = [p["steps32"] / p["steps64"] for p in pairs if p["rtol"] == tight]
         f32.notes.append(
             "float32: every operation of the core's qdd rounded to IEEE single "
-            "(redysim.precision.ieee_qdd, the core's fused formulation, numpy-emulated: its "
-            "CPU is not float32's speed); the state and the integrator's stage sums in float64. "
+            "(redysim.algorithms.precision.ieee_qdd, the core's fused formulation, "
+            "numpy-emulated: its CPU is not float32's speed); the state and the integrator's "
+            "stage sums in float64. "
             f"Tip paths within {max(p['apart'] for p in pairs):.1e} m of float64's, far below "
             "these models' own errors. But the rounding noise of qdd (eps32 x cond(GIM), cond ~ "
             "links^4) is what the adaptive error test sees: at rtol "

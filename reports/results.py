@@ -34,13 +34,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from redysim.cases import load_case
 from redysim.harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
 from redysim.harness.longrun import SAMPLE_FIELDS as LONGRUN_SAMPLE_FIELDS
 from redysim.harness.longrun import load_checkpoint
 from redysim.harness.spec import CORE
 from redysim.harness.store import parquet_files, read_parquet
 from redysim.harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
+from redysim.io.cases import load_case
 
 SWEEPS_DIR = "sweeps"
 PRECISION_DIR = "precision"

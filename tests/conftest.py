@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from redysim import Chain, Joint, Link
-from redysim.parts import JOINT_TYPES
+from redysim.model.parts import JOINT_TYPES
 
 EPS = np.finfo(float).eps
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from redysim import CaseError, joint_positions, list_cases, load_case, load_published
-from redysim.cases import CASES_DIR
+from redysim.io.cases import CASES_DIR
 
 ALL = list_cases()
 

@@ -1,13 +1,13 @@
-"""Coarse-graining (redysim.coarse): lumped links are the fine chain with its inner joints locked,
-checked through quantities the lumping does not compute (the fine chain's GIM, qdd of the locked
-tree model, energy, tip), and the two state maps."""
+"""Coarse-graining (redysim.algorithms.coarse): lumped links are the fine chain with its inner
+joints locked, checked through quantities the lumping does not compute (the fine chain's GIM, qdd of
+the locked tree model, energy, tip), and the two state maps."""
 
 import numpy as np
 import pytest
 
 import redysim
-from redysim.coarse import coarsen
-from redysim.dynamics import mass_matrix
+from redysim.algorithms.coarse import coarsen
+from redysim.algorithms.dynamics import mass_matrix
 from redysim.errors import CaseError
 
 RNG_SEED = 20261123

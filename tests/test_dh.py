@@ -1,6 +1,6 @@
-"""Robots from DH tables (redysim.dh) and the robot files in cases/robots/.
+"""Robots from DH tables (redysim.io.dh) and the robot files in cases/robots/.
 
-Checked against what is independent of redysim.dh: the DH homogeneous transforms written out
+Checked against what is independent of redysim.io.dh: the DH homogeneous transforms written out
 here in closed form (both conventions), a modified table against its standard equivalent (the
 same robot, so the same flange pose, GIM and torques), hand-computed PUMA 560 positions, and the
 numbers Peter Corke's Robotics Toolbox publishes for its PUMA 560 model in its own unit tests.
@@ -17,8 +17,8 @@ from conftest import random_inertia, stable_seed
 
 import redysim
 from redysim import CaseError, list_cases, load_model, rbda
-from redysim.cases import CASES_DIR
-from redysim.dh import DHLink, dh_robot, load_robot
+from redysim.io.cases import CASES_DIR
+from redysim.io.dh import DHLink, dh_robot, load_robot
 
 ROBOTS = Path(__file__).resolve().parents[1] / "cases" / "robots"
 PUMA = ROBOTS / "puma560.toml"

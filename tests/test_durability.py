@@ -246,8 +246,9 @@ def test_the_gates_json_is_written_atomically_and_is_valid_json(tmp_path, monkey
 
 def test_an_edited_kernel_source_drops_numbas_cache(tmp_path):
     """numba would load a kernel's stale machine code after an edit to a callee in another file;
-    the cache is dropped whenever any kernel source changes (redysim/_kernels/__init__.py)."""
-    from redysim import _kernels
+    the cache is dropped whenever any kernel source changes
+    (redysim/algorithms/_kernels/__init__.py)."""
+    from redysim.algorithms import _kernels
     cache = tmp_path / "__pycache__"
     cache.mkdir()
     (cache / "kinematics.kinematics-29.py311.nbi").write_bytes(b"old")

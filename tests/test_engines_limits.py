@@ -73,7 +73,7 @@ def test_every_joint_the_core_has_is_accepted(name):
         [redysim.Joint("R"), redysim.Joint("R", (0, 0, -1)), redysim.Joint("R", (0.3, -0.5, 0.8)),
          redysim.Joint("R", "x"), redysim.Joint("P"), redysim.Joint("P", (0, -1, 0)),
          redysim.Joint("P", (-0.2, 0.1, 0.9)), redysim.Joint("U"), redysim.Joint("S")])
-    assert set(redysim.parts.JOINT_TYPES) == {j.type for j in chain.joints}
+    assert set(redysim.model.parts.JOINT_TYPES) == {j.type for j in chain.joints}
     lim = references.get(name).limits(chain)
     assert lim.ok, lim.reason
     assert references.get(name).limits(redysim.Chain.uniform(3, "S", mass=1.0, radius=0.05,

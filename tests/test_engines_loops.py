@@ -28,8 +28,9 @@ from test_loops import spatial_loop
 
 import redysim
 from redysim import Body, CutJoint, Model, TreeJoint, references
-from redysim.linkages import four_bar, pinned_chain
-from redysim.loops import ClosedLoops
+from redysim.algorithms.linkages import four_bar, pinned_chain
+from redysim.algorithms.loops import ClosedLoops
+from redysim.model.shapes import catenary_angles
 from redysim.references import EngineLimitExceeded
 from redysim.references.loops import (
     LOOP_ENGINES,
@@ -37,7 +38,6 @@ from redysim.references.loops import (
     inert_moments,
     loop_engine,
 )
-from redysim.shapes import catenary_angles
 
 pytestmark = pytest.mark.engine
 

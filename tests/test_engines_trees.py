@@ -38,8 +38,8 @@ from test_trees import random_configuration, random_tree, robot_urdf
 
 import redysim
 from redysim import references
-from redysim.model import Body, Model, TreeJoint
-from redysim.rbda import configuration_rate, frame_position, quaternion_matrix
+from redysim.algorithms.rbda import configuration_rate, frame_position, quaternion_matrix
+from redysim.model.tree import Body, Model, TreeJoint
 from redysim.references import EngineLimitExceeded, Limits
 
 pytestmark = pytest.mark.engine

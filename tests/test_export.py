@@ -23,9 +23,9 @@ from test_trees import MJCF, random_configuration, random_tree, robot_urdf
 
 import redysim
 from redysim import Chain, Link, Model, forward_dynamics, load_model, mass_matrix
-from redysim.export import MJCF_MAX_DEPTH, ExportError, to_mjcf, to_urdf
-from redysim.importers import load_urdf
-from redysim.model import Body, TreeJoint
+from redysim.io.export import MJCF_MAX_DEPTH, ExportError, to_mjcf, to_urdf
+from redysim.io.importers import load_urdf
+from redysim.model.tree import Body, TreeJoint
 
 mujoco = pytest.importorskip("mujoco")
 

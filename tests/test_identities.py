@@ -236,7 +236,7 @@ def test_compiled_sincos_is_within_one_ulp_of_libm():
 
     import numba
 
-    from redysim._kernels.joints import sincos
+    from redysim.algorithms._kernels.joints import sincos
 
     both = numba.njit(lambda x: sincos(x))
     rng = np.random.default_rng(3)
@@ -258,7 +258,7 @@ def test_chain_arrays_stay_read_only_and_kernels_get_their_owners(rng):
     pickling (numpy unpickles arrays writeable), with the same qdd."""
     import pickle
 
-    from redysim.parts import kernel_alias
+    from redysim.model.parts import kernel_alias
 
     chain = random_chain(rng, 12, ("U",))
     for name in ("length", "mass", "inertia_O", "mass_com", "dof_u", "joint_qoff"):
@@ -287,7 +287,7 @@ def test_entry_points_declare_the_types_they_call_their_kernels_with(name):
     import numba
 
     from redysim._jit import OPTIONS
-    from redysim._kernels import entry
+    from redysim.algorithms._kernels import entry
 
     point = getattr(entry, name)
     declared = {kernel: tuple(types) for kernel, types in point.callees}

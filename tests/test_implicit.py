@@ -1,6 +1,6 @@
-"""The implicit midpoint (redysim.implicit): its map against closed forms, its order, its error
-control, the chain's preconditioner against dense matrices built from their definitions, resuming
-a long run, and the names and refusals of the settings."""
+"""The implicit midpoint (redysim.integrators.implicit): its map against closed forms, its order,
+its error control, the chain's preconditioner against dense matrices built from their definitions,
+resuming a long run, and the names and refusals of the settings."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from redysim import Body, Chain, Model, TreeJoint, mass_matrix, simulate, tip
 from redysim.errors import SettingsError
 from redysim.harness.longrun import run as longrun
 from redysim.harness.spec import RunSpec
-from redysim.implicit import MidpointSolver, TensionPreconditioner
-from redysim.integrate import ALIASES, IntegrationError, canonical, integrate
+from redysim.integrators.explicit import ALIASES, IntegrationError, canonical, integrate
+from redysim.integrators.implicit import MidpointSolver, TensionPreconditioner
 
 
 def oscillator(_t, y):

@@ -20,8 +20,8 @@ from test_trees import random_configuration
 
 from redysim import forward_dynamics, inverse_dynamics, mass_matrix, rbda
 from redysim.errors import CaseError, FieldError
-from redysim.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_model, load_urdf
-from redysim.model import Body, Model, TreeJoint
+from redysim.io.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_model, load_urdf
+from redysim.model.tree import Body, Model, TreeJoint
 
 
 # --------------------------------------------------------------------------- helpers
@@ -721,7 +721,7 @@ def test_floating_mjcf_is_refused_where_it_cannot_float(tmp_path):
 def test_floating_is_refused_for_a_dh_robot_or_a_rope_case():
     """A DH table's base is its frame 0, fixed in the world; a rope hangs from the world.
     Before: floating=True was ignored."""
-    from redysim.cases import CASES_DIR
+    from redysim.io.cases import CASES_DIR
 
     puma = Path(CASES_DIR) / "robots" / "puma560.toml"
     refused(lambda: load_model(puma, floating=True), "floating", "DH robot's base")

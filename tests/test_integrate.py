@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from redysim.harness.provenance import openblas_coretypes
-from redysim.integrate import (
+from redysim.integrators.explicit import (
     DOP853,
     DP45,
     IMPLICIT,
@@ -243,7 +243,7 @@ def test_tableaus_are_the_named_ones():
 BITWISE_RUN = """
 import hashlib, numpy as np
 from redysim import Chain, Workspace, forward_dynamics
-from redysim.integrate import integrate
+from redysim.integrators.explicit import integrate
 chain = Chain.uniform(6, "U", length=0.3, mass=0.5, radius=0.02)
 ws, n = Workspace(chain), chain.n_dof
 def rhs(t, y):
@@ -261,10 +261,10 @@ print(h.hexdigest())
 
 @pytest.mark.skipif(len(openblas_coretypes()) < 2, reason="one OpenBLAS kernel on this CPU")
 def test_the_same_bits_whatever_openblas_kernel_runs():
-    """The stage sums, error estimates and dense outputs leave BLAS out (redysim._kernels.rk):
-    every OpenBLAS kernel this CPU can run gives the same samples and counts, bit for bit.
-    (Before, a matrix product formed each stage and Table 8's chaotic 3-link GE-N count read
-    630, 636 or 650 steps from one start, by kernel.)"""
+    """The stage sums, error estimates and dense outputs leave BLAS out
+    (redysim.algorithms._kernels.rk): every OpenBLAS kernel this CPU can run gives the same samples
+    and counts, bit for bit. (Before, a matrix product formed each stage and Table 8's chaotic
+    3-link GE-N count read 630, 636 or 650 steps from one start, by kernel.)"""
     digests = {}
     for coretype in openblas_coretypes():
         env = {**os.environ, "OPENBLAS_CORETYPE": coretype}
@@ -277,8 +277,8 @@ def test_the_same_bits_whatever_openblas_kernel_runs():
 def test_compile_kernels_compiles_what_every_scheme_calls():
     """After compile_kernels (ode45 alone), DOP853 and RK4 with dense output add no signature
     to the stage-sum kernels: a timed run of any scheme compiles nothing."""
-    from redysim._kernels import rk
-    from redysim.integrate import compile_kernels
+    from redysim.algorithms._kernels import rk
+    from redysim.integrators.explicit import compile_kernels
 
     compile_kernels()
     before = {k: len(k.signatures) for k in (rk.combine, rk.error_norm)}
@@ -300,7 +300,7 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
     qdd on the paper's cases: the same steps, rejections and qdd calls, and every sample equal
     bit for bit."""
     from redysim import Workspace, forward_dynamics, load_case
-    from redysim.integrate import CompiledSolver, Solver, advance, sample_times
+    from redysim.integrators.explicit import CompiledSolver, Solver, advance, sample_times
 
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof

@@ -13,7 +13,7 @@ import numpy as np
 
 PROBE = """
 import json, numpy as np, redysim
-from redysim._kernels import entry
+from redysim.algorithms._kernels import entry
 c = redysim.Chain.uniform(3, "U", length=1.0, linear_density=1.0, radius=0.1)
 redysim.forward_dynamics(c, np.zeros(6), np.zeros(6))
 point = entry.RGE_A

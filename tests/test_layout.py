@@ -1,6 +1,10 @@
 """The package's layers depend one way: core <- references <- harness <- reports.
 
-The core (``redysim/*.py``, ``redysim/_kernels``) imports none of the others; the engine adapters
+Inside the core, one way too: the shared ``redysim/errors.py`` and ``redysim/_jit.py`` <- model
+(``redysim/model/``) <- algorithms (``redysim/algorithms/``, with its kernels) <- integrators
+(``redysim/integrators/``) <- the driver (``redysim/simulation.py``) <- files
+(``redysim/io/``); no core module imports the package ``redysim`` itself, whose lazy public names
+would hide an upward import. The core imports none of the others; the engine adapters
 (``references/``) import only the core; the harness (``harness/``: runs, sweeps, the CLI) imports
 the core and the adapters, never the reports; and no two modules import each other, directly or
 round a longer cycle, not even from inside a function. Read from the source with :mod:`ast`, so a
@@ -28,7 +32,10 @@ REPO = Path(__file__).resolve().parents[1]
 # installed name -> folder in the repository (pyproject.toml's package-dir)
 LAYERS = {"redysim": REPO / "redysim", "redysim.references": REPO / "references",
           "redysim.harness": REPO / "harness", "redysim.reports": REPO / "reports"}
-ORDER = ["redysim", "redysim.references", "redysim.harness", "redysim.reports"]
+ORDER = ["redysim", "redysim.model", "redysim.algorithms", "redysim.integrators",
+         "redysim.simulation", "redysim.io", "redysim.references", "redysim.harness",
+         "redysim.reports"]
+CORE = ORDER[:6]
 
 
 def modules() -> dict[str, Path]:
@@ -88,6 +95,13 @@ def test_imports_go_down_the_layers_only(name):
     assert not upward, f"{name} ({MODULES[name].relative_to(REPO)}) imports {upward}"
 
 
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if layer(m) in CORE and m != "redysim"))
+def test_the_core_imports_its_modules_not_its_public_names(name):
+    """``from redysim import simulate`` inside the model layer would import the driver through
+    the package's lazy names, an upward import the layer check could not see."""
+    assert "redysim" not in GRAPH[name], f"{name} imports the package redysim itself"
+
+
 def test_no_import_cycles():
     """A cycle through ``__init__`` (a package importing its own submodule) is not a cycle of
     modules; any other is."""
@@ -119,6 +133,8 @@ def test_the_walk_sees_the_project():
     """The checks above read something: every layer has modules, and a known edge is found."""
     assert all(any(layer(m) == p for m in MODULES) for p in ORDER)
     assert "redysim.harness.spec" in GRAPH["redysim.harness.run"]
+    assert "redysim.model.tree" in GRAPH["redysim.algorithms.dynamics"]
+    assert layer("redysim.algorithms._kernels.rge_a") == "redysim.algorithms"
 
 
 # --------------------------------------------------------------------------- one name per folder
@@ -201,3 +217,87 @@ def test_docstrings_and_comments_give_importable_module_paths():
            for folder in SCANNED for path in sorted((REPO / folder).rglob("*.py"))
            for line, text in docstrings_and_comments(path) for name in bare_paths(text)]
     assert not bad, f"{len(bad)} bare module paths:\n" + "\n".join(bad)
+
+
+# --------------------------------------------------------------------------- paths that exist
+DOTTED = re.compile(r"(?<![\w./-])redysim(?:\.[A-Za-z_]\w*)+")
+FILE_PATH = re.compile(r"(?<![\w./-])redysim/[\w/]+\.(?:py|md|toml)\b")
+
+
+# the data folders' installed names (pyproject.toml's package-dir): packages without modules
+DATA = {"case_files", "paper", "sweep_files"}
+# files that name the old layout on purpose: the A/B benchmark reads revisions before the layers;
+# this file's own examples
+OLD_LAYOUT_ON_PURPOSE = {"benchmarks/ab_kernels.py", "tests/test_layout.py"}
+
+
+def top_level_names(path: Path) -> set[str]:
+    """The names a module defines or imports at its top level (and, for the package
+    ``redysim``, its lazy public names)."""
+    tree = ast.parse(path.read_text(), str(path))
+    names = set()
+    body = list(tree.body)
+    while body:
+        node = body.pop()
+        if isinstance(node, ast.If | ast.Try):  # if TYPE_CHECKING: ... else: ...
+            body += node.body + node.orelse + getattr(node, "finalbody", [])
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names |= {(a.asname or a.name).split(".")[0] for a in node.names}
+    if path == REPO / "redysim" / "__init__.py":
+        import redysim
+        names |= set(redysim.__all__)
+    return names
+
+
+def stale_path(dotted: str) -> str | None:
+    """Why ``dotted`` (redysim.a.b...) names nothing, or None: its longest module prefix must
+    exist and the next part be a submodule or a top-level name of that module."""
+    parts = dotted.split(".")
+    if parts[1] in DATA or parts[-1].startswith("__"):
+        return None
+    k = max(i for i in range(1, len(parts) + 1) if ".".join(parts[:i]) in MODULES)
+    if k == len(parts):
+        return None
+    module = ".".join(parts[:k])
+    if parts[k] not in top_level_names(MODULES[module]):
+        return f"{module} has no {parts[k]!r}"
+    return None
+
+
+def test_a_stale_dotted_path_is_found():
+    assert stale_path("redysim.algorithms.dynamics.forward_dynamics") is None
+    assert stale_path("redysim.forward_dynamics") is None
+    assert stale_path("redysim.model.tree.Chain.uniform") is None
+    assert stale_path("redysim.dynamics.forward_dynamics") == "redysim has no 'dynamics'"
+    assert stale_path("redysim.model.Chain") == "redysim.model has no 'Chain'"
+
+
+def text_files() -> list[Path]:
+    py = [p for folder in SCANNED for p in sorted((REPO / folder).rglob("*.py"))]
+    py += sorted((REPO / "tests").rglob("*.py")) + sorted((REPO / "benchmarks").rglob("*.py"))
+    md = sorted(REPO.glob("*.md")) + sorted((REPO / "docs").rglob("*.md")) + [
+        p for folder in SCANNED for p in sorted((REPO / folder).rglob("*.md"))]
+    return py + md + [p for folder in SCANNED for p in sorted((REPO / folder).rglob("*.toml"))]
+
+
+def test_every_redysim_path_in_code_and_docs_names_something_that_exists():
+    """After the core moved into layers, a docstring, comment, README line or case file that
+    still says ``redysim.dynamics`` or ``redysim/model.py`` points at nothing."""
+    bad = []
+    for path in text_files():
+        if str(path.relative_to(REPO)) in OLD_LAYOUT_ON_PURPOSE:
+            continue
+        text = path.read_text()
+        for m in DOTTED.finditer(text):
+            why = stale_path(m.group(0).rstrip("."))
+            if why:
+                bad.append(f"{path.relative_to(REPO)}: {m.group(0)}: {why}")
+        for m in FILE_PATH.finditer(text):
+            if not (REPO / m.group(0)).exists():
+                bad.append(f"{path.relative_to(REPO)}: {m.group(0)}: no such file")
+    assert not bad, f"{len(bad)} paths to nothing:\n" + "\n".join(sorted(set(bad)))

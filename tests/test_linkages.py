@@ -1,4 +1,4 @@
-"""Closed-loop mechanisms as data (cases/loops/, redysim.linkage_files), and two linkages with
+"""Closed-loop mechanisms as data (cases/loops/, redysim.io.linkage_files), and two linkages with
 published dimensions checked against what is published about them.
 
 Published numbers used here, and where they are from:
@@ -38,9 +38,7 @@ import numpy as np
 import pytest
 
 from redysim import simulate
-from redysim.errors import CaseError
-from redysim.linkage_files import load_linkage
-from redysim.linkages import (
+from redysim.algorithms.linkages import (
     JANSEN_HOLY_NUMBERS,
     assemble,
     crossings,
@@ -53,7 +51,9 @@ from redysim.linkages import (
     pinned_chain,
     straight_band,
 )
-from redysim.shapes import catenary_angles
+from redysim.errors import CaseError
+from redysim.io.linkage_files import load_linkage
+from redysim.model.shapes import catenary_angles
 
 LOOPS = Path(__file__).resolve().parents[1] / "cases" / "loops"
 FILES = sorted(LOOPS.glob("*.toml"))
@@ -88,8 +88,8 @@ def test_every_linkage_file_loads_assembled():
 
 
 def test_the_crank_rocker_file_is_the_four_bar_of_test_loops():
-    """The file builds the very model of redysim.linkages.four_bar (the same masses, inertias,
-    placements, hence the same dynamics) and assembles it where the closed form does."""
+    """The file builds the very model of redysim.algorithms.linkages.four_bar (the same masses,
+    inertias, placements, hence the same dynamics) and assembles it where the closed form does."""
     fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
     linkage = load_linkage(LOOPS / "crank_rocker.toml")
     model, loops, q0 = linkage
@@ -127,13 +127,13 @@ def test_the_chain_file_is_the_pinned_chain_and_starts_on_the_catenary():
 
 # --------------------------------------------------------------------------- Hoeken
 def test_hoekens_closed_form_is_straight_as_published():
-    """Closed form (redysim.linkages.hoekens_path): at crank 90, 180 and 270 deg the tracing point
-    is exactly on y = -4a (the ends and middle of the straight part, as Chebyshev's design puts
-    them); between them it sags by 0.975 % of a, the narrowest strip holding it; it stays in
-    that strip from 75.52 to 284.48 deg of the crank, 58 % of the cycle ("over half"), touching
-    its edges alternately seven times (the strip is also the narrowest over that range) and
-    crossing its middle line 6 times ("intersecting the ideal straight line 6 times"): "within
-    1% positional tolerance" to its one printed digit."""
+    """Closed form (redysim.algorithms.linkages.hoekens_path): at crank 90, 180 and 270 deg the
+    tracing point is exactly on y = -4a (the ends and middle of the straight part, as Chebyshev's
+    design puts them); between them it sags by 0.975 % of a, the narrowest strip holding it; it
+    stays in that strip from 75.52 to 284.48 deg of the crank, 58 % of the cycle ("over half"),
+    touching its edges alternately seven times (the strip is also the narrowest over that range) and
+    crossing its middle line 6 times ("intersecting the ideal straight line 6 times"): "within 1%
+    positional tolerance" to its one printed digit."""
     a = 1.0
     np.testing.assert_allclose(hoekens_path(np.radians([90.0, 180.0, 270.0]), a),
                                [[0.0, -4.0], [2.0, -4.0], [4.0, -4.0]], rtol=0, atol=1e-15)
@@ -215,7 +215,8 @@ def _both(p, r1, q, r2):
 
 def _jansen_foot_by_compasses(crank: float, L: dict) -> np.ndarray:
     """The foot for a crank angle, constructed as with compasses on Jansen's figure, written
-    apart from redysim.linkages: each joint the intersection that the figure shows (the upper,
+    apart from redysim.algorithms.linkages: each joint the intersection that the figure shows (the
+    upper,
     the lower, the outer), chosen by comparing the two, not by orientation."""
     P = np.array([-L["a"], -L["l"]])
     C = L["m"] * np.array([math.cos(crank), math.sin(crank)])
@@ -250,7 +251,7 @@ def test_jansen_leg_is_built_from_the_holy_numbers_and_assembles():
 
 def test_jansen_foot_path_over_a_full_turn():
     """The crank driven through a full turn in 2 deg steps, each configuration reassembled from
-    the previous one with the crank held (redysim.linkages.assemble): every cut closed to
+    the previous one with the crank held (redysim.algorithms.linkages.assemble): every cut closed to
     1e-12 m, the foot (the model's kinematics) where the independent construction puts it to
     1e-12 m, and the foot path's extent, stride (horizontal) 67.91 and step height (vertical)
     22.46 in Jansen's units (0.679 m and 0.225 m at 1 cm per unit), that of the independent
@@ -333,7 +334,7 @@ def test_the_command_line_takes_a_linkage_file(capsys):
     """`redysim info` lists the cut joints; `redysim simulate` runs with the loops closed and
     reports residuals and forces; load_model refuses a linkage (a tree would drop its cuts)."""
     from redysim.harness.cli import main
-    from redysim.importers import ModelFileError, load_model
+    from redysim.io.importers import ModelFileError, load_model
 
     path = str(LOOPS / "crank_rocker.toml")
     assert main(["info", path]) == 0

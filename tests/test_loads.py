@@ -1,4 +1,5 @@
-"""A constant world-frame force at the tip (redysim.loads) and the case files' [load] table.
+"""A constant world-frame force at the tip (redysim.algorithms.loads) and the case files' [load]
+table.
 
 tau = J_tip^T F is checked three ways: against the tip velocity that redysim.tip computes by its
 own route (virtual power, tau . qd = F . v_tip, to round-off, and column by column), against a
@@ -30,8 +31,8 @@ from redysim import (
     mass_matrix,
     tip,
 )
-from redysim.loads import tip_force_potential, tip_force_torques
-from redysim.model import Body, TreeJoint
+from redysim.algorithms.loads import tip_force_potential, tip_force_torques
+from redysim.model.tree import Body, TreeJoint
 
 # every joint type, and revolute axes default (z), named, negative and tilted
 MIXED_JOINTS = [Joint("R"), Joint("R", "x"), Joint("R", (0.0, 0.0, -1.0)),

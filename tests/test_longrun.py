@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from redysim.cases import CASES_DIR
 from redysim.errors import SettingsError
 from redysim.harness.longrun import (
     CHECKPOINT,
@@ -23,6 +22,7 @@ from redysim.harness.longrun import (
     main,
     run,
 )
+from redysim.io.cases import CASES_DIR
 
 # Long enough (about 2,200 steps) that a kill landing within a few milliseconds of the first
 # checkpoint (written after 0.02 s of wall time) leaves most of the run undone even on a fast,

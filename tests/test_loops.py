@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from redysim import Body, CutJoint, Model, TreeJoint, simulate
+from redysim.algorithms.linkages import discrete_catenary, four_bar, four_bar_position, pinned_chain
+from redysim.algorithms.loops import ClosedLoops
 from redysim.errors import CaseError, StateError
-from redysim.linkages import discrete_catenary, four_bar, four_bar_position, pinned_chain
-from redysim.loops import ClosedLoops
-from redysim.shapes import catenary_angles
+from redysim.model.shapes import catenary_angles
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_a_pinned_chain_settles_on_the_discrete_catenary():
 def spatial_loop() -> tuple[ClosedLoops, np.ndarray]:
     """Four links on U and S joints from the origin, the tip held at the world point where a
     configuration q0 puts it by a ball ('point' cut, 3 equations): (loops, q0)."""
-    from redysim.rbda import kinematics
+    from redysim.algorithms.rbda import kinematics
 
     bodies = [Body(f"b{k}", 1.0 + 0.2 * k, (0.25, 0.0, 0.0),
                    ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03))) for k in range(4)]
@@ -135,7 +135,7 @@ def test_revolute_and_weld_cuts_hold_and_keep_the_energy(kind, dof):
     loop allows keeps the energy and the loop, the residual before each projection at the
     integrator's error."""
     from redysim import mass_matrix, phi
-    from redysim.rbda import kinematics
+    from redysim.algorithms.rbda import kinematics
 
     model, q0 = _spherical_chain()
     kin = kinematics(model, q0, np.zeros(9))

@@ -23,8 +23,8 @@ from redysim import (
     mass_matrix,
     tip,
 )
-from redysim.coarse import chain_of
-from redysim.rbda import configuration_rate, frame_position
+from redysim.algorithms.coarse import chain_of
+from redysim.algorithms.rbda import configuration_rate, frame_position
 
 CHAIN_FIELDS = ("length", "mass", "com", "inertia_com", "gravity", "joint_qoff", "dof_kind",
                 "dof_axis", "dof_u", "inertia_O", "mass_com")
@@ -95,7 +95,7 @@ def test_frame_motion_is_the_derivative_of_the_frames_position(seed):
 
 def _parts(model: Model):
     """Bodies, joints, parents that rebuild ``model`` (no fixed joints left to fuse)."""
-    from redysim.model import Body, TreeJoint
+    from redysim.model.tree import Body, TreeJoint
 
     bodies, joints = [], []
     for k in range(model.n_bodies):
@@ -111,7 +111,7 @@ def _parts(model: Model):
 
 
 def _rotation(model, q, body):
-    from redysim.rbda import kinematics
+    from redysim.algorithms.rbda import kinematics
 
     return kinematics(model, q, np.zeros(model.n_v)).R[body]
 
@@ -165,8 +165,8 @@ def test_the_workspace_packs_what_the_layout_table_declares(system):
     """Every array of the bundles, sliced by the compiled slicer's Python form out of the packed
     arrays, has the shape the table gives it and holds the system's values."""
     from redysim import Workspace
-    from redysim._kernels.bundles import FIELDS, shape_of, sizes_of
-    from redysim.workspace import tree_tables
+    from redysim.algorithms._kernels.bundles import FIELDS, shape_of, sizes_of
+    from redysim.algorithms.workspace import tree_tables
 
     sys_ = {"chain": lambda: random_chain(np.random.default_rng(3), 9),
             "planar": lambda: Chain.uniform(6, "R", mass=1.0),

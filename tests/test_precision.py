@@ -4,7 +4,8 @@ Tier 1 against paper/published.toml, plus the checks that make the numbers trust
 rounding number type itself, the same source run at 50 decimal places equals the float64 kernel,
 and a float32 run never leaves float32.
 
-Findings pinned here (see redysim/precision.py and the report ``reports/precision_tables.py``):
+Findings pinned here (see redysim/algorithms/precision.py and the report
+``reports/precision_tables.py``):
 - "accuracy 1e-k" is k decimal places, rounded the MATLAB way, round(x / 1e-k) * 1e-k on IEEE
   doubles: all 36 GE-N/RGE-N values of Table 10 and all of Table A.2. Exact decimal arithmetic
   differs at one exact tie (2.50 * 11.77 = 29.425, RGE-N at 1e-2).
@@ -29,10 +30,10 @@ from redysim import (
     phi,
     udu_factors,
 )
-from redysim._kernels.elimination import ge_n, rge_n
-from redysim._kernels.planar import planar_forward_dynamics
-from redysim._kernels.rge_a import rge_a_forward_dynamics
-from redysim.precision import (
+from redysim.algorithms._kernels.elimination import ge_n, rge_n
+from redysim.algorithms._kernels.planar import planar_forward_dynamics
+from redysim.algorithms._kernels.rge_a import rge_a_forward_dynamics
+from redysim.algorithms.precision import (
     Rounded,
     ieee_qdd,
     kernel_source,
@@ -40,13 +41,13 @@ from redysim.precision import (
     reduced_qdd,
     rounded_type,
 )
+from redysim.algorithms.workspace import bundles_in
 from redysim.reports.precision_tables import (
     printed_decimals,
     sig_decimals,
     table9_horizontal,
     verdict,
 )
-from redysim.workspace import bundles_in
 
 PUB = load_published()
 T10 = PUB["table10"]["rows"]
@@ -318,7 +319,7 @@ def _ode45_steps(name: str, method: str, decimals: int, ulps: int = 0) -> int:
     """ode45 steps (rtol 1e-4, atol 1e-6) on the case with the method's reduced-precision qdd;
     ``ulps``: q0 moved by that many units in the last place of max(|q0|, 1), a last-bit change
     of the start such as another CPU's arithmetic would make."""
-    integrate = pytest.importorskip("redysim.integrate")
+    integrate = pytest.importorskip("redysim.integrators.explicit")
     case = load_case(name)
     ch, n = case.chain, case.chain.n_dof
 

@@ -36,8 +36,8 @@ from redysim import (
     mass_matrix,
     phi,
 )
-from redysim.integrate import DEFAULT_ATOL, DEFAULT_RTOL, FIXED_STEP, INTEGRATORS
-from redysim.parts import JOINT_TYPES
+from redysim.integrators.explicit import DEFAULT_ATOL, DEFAULT_RTOL, FIXED_STEP, INTEGRATORS
+from redysim.model.parts import JOINT_TYPES
 
 EPS = float(np.finfo(float).eps)
 PARSER_EXAMPLES = 150

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from redysim import energy, forward_dynamics, load_case
-from redysim.cases import CASES_DIR
 from redysim.harness import reference as ref_mod
 from redysim.harness.run import SAMPLE_COLUMNS, execute
 from redysim.harness.spec import RunSpec
-from redysim.integrate import integrate
+from redysim.integrators.explicit import integrate
+from redysim.io.cases import CASES_DIR
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""Batches in SIMD tiles (redysim._kernels.tiles): a serial chain's states 16 at a time.
+"""Batches in SIMD tiles (redysim.algorithms._kernels.tiles): a serial chain's states 16 at a time.
 
 The expected values are the single calls' (the single-state kernel, one state at a time through
 the checked public function), which the other files test against published numbers, identities,
@@ -22,7 +22,7 @@ from test_trees import random_tree
 
 import redysim
 from redysim import StateError, Workspace, forward_dynamics
-from redysim._kernels import tiles
+from redysim.algorithms._kernels import tiles
 from redysim.errors import FieldError
 from redysim.harness import hiprec
 from redysim.harness.random_chains import MIX_KINDS, _mix_joint, random_chain, random_link

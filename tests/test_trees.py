@@ -1,4 +1,4 @@
-"""Kinematic trees: the Model, the reference recursions (redysim.rbda) and the importers.
+"""Kinematic trees: the Model, the reference recursions (redysim.algorithms.rbda) and the importers.
 
 Three ways, as everywhere here: the tree recursions on a chain against the chain's own compiled
 kernels (an independent implementation); identities (fused fixed joints, inverse of forward,
@@ -27,8 +27,8 @@ from redysim import (
 )
 from redysim import energy as system_energy
 from redysim.errors import CaseError
-from redysim.importers import ModelFileError, load_model, load_urdf
-from redysim.model import Body, Model, TreeJoint
+from redysim.io.importers import ModelFileError, load_model, load_urdf
+from redysim.model.tree import Body, Model, TreeJoint
 
 MIXES = [("R",), ("U",), ("S",), ("P",), ("R", "U", "S", "P")]
 
@@ -119,8 +119,9 @@ def test_identities_on_random_trees(seed, free):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("free", [True, False])
 def test_compiled_kernels_on_trees_equal_the_reference_recursions(seed, free):
-    """The compiled kernels (one source for chains and trees) against redysim.rbda on branched
-    trees, free base or not: qdd, GIM, inverse dynamics, energy, and the U D U^T factors."""
+    """The compiled kernels (one source for chains and trees) against redysim.algorithms.rbda on
+    branched trees, free base or not: qdd, GIM, inverse dynamics, energy, and the U D U^T
+    factors."""
     model = random_tree(stable_seed("tree-kernels", seed), n_bodies=10, free=free)
     assert not model.is_chain
     rng = np.random.default_rng(seed)

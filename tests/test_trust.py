@@ -17,16 +17,16 @@ import numpy as np
 import pytest
 
 import redysim
-import redysim.linkage_files as linkage_files
+import redysim.io.linkage_files as linkage_files
 from redysim import CutJoint, Model, load_case, load_linkage, simulate
-from redysim.cases import MAX_RADIANS, case_from_dict, fastest_motion
+from redysim.algorithms.linkages import four_bar
+from redysim.algorithms.loops import ClosedLoops
 from redysim.errors import CaseError, SettingsError, StateError
 from redysim.harness import refine
 from redysim.harness.cli import main, time_to_go
 from redysim.harness.run import execute
 from redysim.harness.spec import RunSpec
-from redysim.linkages import four_bar
-from redysim.loops import ClosedLoops
+from redysim.io.cases import MAX_RADIANS, case_from_dict, fastest_motion
 from redysim.simulation import simulate_batch
 
 REPO = Path(__file__).resolve().parents[1]

@@ -1,0 +1,205 @@
+"""The kernels' data layout, declared once: the named bundles they pass and the packed arrays of
+a workspace, all from one table.
+
+numba types a NamedTuple of arrays field by field and unpacks it at no cost inside compiled code, so
+a kernel's signature names what it reads (``tree.mass``, ``s.oR``) instead of two dozen positional
+arrays, and adding a quantity changes one definition (docs/design.md, "Kinematic trees"). The
+bundles are built once per chain or model (:mod:`redysim.algorithms.workspace`) and, on the hot
+path, sliced out of a workspace's packed arrays inside compiled code (:mod:`.entry`).
+
+:data:`LAYOUT` is the one table: each array's name, dtype, shape (in the sizes nb bodies, n_v
+velocity coordinates, ng gathering bodies, and nt = nb for a tree, 0 for a serial chain) and the
+packed array that holds it (``tree_f``, ``tree_i``: the system's floats and ints; ``scratch``:
+what the kernels write), and whether it belongs to the :class:`Tree` or :class:`Scratch` bundle
+or is one of the workspace's other segments. From it follow the bundles' fields
+(:data:`Tree`, :data:`Scratch`), their numba types (:func:`numba_types`), the slot of each
+segment's offset in the int array's header (:data:`SLOT`), the packing
+(:func:`segment_sizes`) and the compiled slicer (:func:`bundles_source`, compiled in
+:mod:`.entry`).
+
+Kernels read the fields into locals at their top, once per call, and pass helpers scalars, never
+arrays: an array handed to an inlined helper in a loop costs reference counting per call, ten
+times a rope body's work. The kernels that take the bundles compile without numba's reference
+counting altogether (``redysim._jit.jit_borrowed``).
+
+A serial chain is a tree (parent k - 1, each joint at the parent's ``along`` on its x axis, no
+free joint): ``serial = 1`` tells the kernels so, and they then read none of the tree's tables
+(``parent``, ``gather``, ``placement_code``, ``qshift``, ``placement_R``, ``placement_p``, which
+a serial chain leaves empty: their shapes count nt): the rope streams no byte more than before
+trees existed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeAlias
+
+import numpy as np
+
+ALONG_X, PLACED = 0, 1  # placement_code: a translation along the parent's x; any rotation and shift
+GATHER_MASS = 21  # an articulated mass's numbers: X and Z upper triangles (6 + 6), Y (9)
+
+# the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)
+HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial")
+H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(len(HEADER_FIELDS))
+
+
+class Field(NamedTuple):
+    """One array of the layout: ``shape`` in the size names nb, nb1 (= nb + 1), nv, nt, ng and
+    integers; ``array`` the packed array holding it; ``bundle`` "Tree", "Scratch" or None (a
+    segment only the workspace and the entries read); ``planar``: present only for a planar
+    chain (the planar kernel's); ``doc``: what it is."""
+
+    name: str
+    dtype: type
+    shape: tuple
+    array: str
+    bundle: str | None
+    doc: str
+    planar: bool = False
+
+
+F, I = np.float64, np.int64
+LAYOUT: tuple[Field, ...] = (
+    # the tree's ints (after the header)
+    Field("parent", I, ("nt",), "tree_i", "Tree", "parent body, -1 for the base"),
+    Field("gather", I, ("nt",), "tree_i", "Tree",
+          "-1, or the row of the scratch's gather arrays where the children of body k that do "
+          "not directly follow it (k + 1) leave their articulated masses and biases (backward "
+          "passes) and where body k leaves its forward carry-over"),
+    Field("placement_code", I, ("nt",), "tree_i", "Tree", "ALONG_X or PLACED"),
+    Field("qshift", I, ("nt",), "tree_i", "Tree",
+          "joint k's first configuration index minus its first velocity index (a free joint's "
+          "quaternion has 4 numbers for 3 velocities)"),
+    # the tree's floats
+    Field("along", F, ("nb",), "tree_f", "Tree",
+          "joint k's offset along the parent's x (the parent's length in a chain)"),
+    Field("placement_R", F, ("nt", 3, 3), "tree_f", "Tree",
+          "joint k's frame in the parent's (PLACED): rotation"),
+    Field("placement_p", F, ("nt", 3), "tree_f", "Tree", "and translation"),
+    Field("joint_voff", I, ("nb1",), "tree_i", "Tree", "first velocity coordinate of joint k"),
+    Field("dof_kind", I, ("nv",), "tree_i", "Tree", "per axis: revolute, prismatic, ball"),
+    Field("dof_axis", I, ("nv",), "tree_i", "Tree", "per axis: x, y, z or general (.joints)"),
+    Field("dof_u", F, ("nv", 3), "tree_f", "Tree", "per axis: its unit vector"),
+    Field("mass", F, ("nb",), "tree_f", "Tree", "per body: its mass"),
+    Field("inertia_O", F, ("nb", 3, 3), "tree_f", "Tree",
+          "per body: inertia about its origin O_k, in its own frame"),
+    Field("mass_com", F, ("nb", 3), "tree_f", "Tree", "per body: m c, in its own frame"),
+    # the workspace's other float segments (the entries read them)
+    Field("base_accel", F, (3,), "tree_f", None, "-g: the base's acceleration"),
+    Field("gravity", F, (3,), "tree_f", None, "g"),
+    Field("zeros", F, ("nv",), "tree_f", None, "zeros that no kernel writes"),
+    Field("length", F, ("nb",), "tree_f", None, "a planar chain's link lengths", True),
+    Field("izz_O", F, ("nb",), "tree_f", None, "its inertias about z at O_k", True),
+    Field("mc_x", F, ("nb",), "tree_f", None, "its m c_x", True),
+    Field("mc_y", F, ("nb",), "tree_f", None, "its m c_y", True),
+    # the scratch (all world frame)
+    Field("oR", F, ("nb", 3, 3), "scratch", "Scratch", "body rotations"),
+    Field("oO", F, ("nb", 3), "scratch", "Scratch", "body origins (joint positions)"),
+    Field("oP", F, ("nv", 6), "scratch", "Scratch", "motion subspace columns"),
+    Field("t", F, ("nb", 6), "scratch", "Scratch", "twists"),
+    Field("td", F, ("nb", 6), "scratch", "Scratch", "twist-rates"),
+    Field("Ihat", F, ("nv",), "scratch", "Scratch", "RGE-A's pivots"),
+    Field("Psihat", F, ("nv", 6), "scratch", "Scratch", "RGE-A's Psihat"),
+    Field("phitil", F, ("nv",), "scratch", "Scratch", "RGE-A's phitil"),
+    Field("phihat", F, ("nv",), "scratch", "Scratch", "RGE-A's phihat"),
+    Field("W", F, ("nb", 6), "scratch", "Scratch", "resultant wrenches"),
+    Field("gather_mass", F, ("ng", GATHER_MASS), "scratch", "Scratch",
+          "the gathering bodies' articulated masses (Tree.gather)"),
+    Field("gather_wrench", F, ("ng", 6), "scratch", "Scratch", "their biases"),
+    Field("gather_twist", F, ("ng", 6), "scratch", "Scratch", "their forward carry-over"),
+    Field("planar", F, ("nb", 12), "scratch", None, "the planar kernel's scratch", True),
+)
+FIELDS = {f.name: f for f in LAYOUT}
+# the slot in the int array's header of each segment's offset (in its packed array)
+SLOT = {f.name: len(HEADER_FIELDS) + i for i, f in enumerate(LAYOUT)}
+HEADER = len(HEADER_FIELDS) + len(LAYOUT)
+
+
+def _bundle(name: str, doc: str, first: tuple = ()) -> type:
+    """The NamedTuple class of a bundle: ``first`` (name, type) fields, then its arrays."""
+    fields = [*first, *((f.name, np.ndarray) for f in LAYOUT if f.bundle == name)]
+    cls = NamedTuple(name, fields)  # type: ignore[misc]  # fields from LAYOUT, not literals
+    cls.__doc__ = doc + "\n\n" + "\n".join(
+        f"    {f.name} {_shape_text(f.shape)}: {f.doc}." for f in LAYOUT if f.bundle == name)
+    cls.__module__ = __name__
+    return cls
+
+
+def _shape_text(shape: tuple) -> str:
+    return "(" + ", ".join(str(x) for x in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+if TYPE_CHECKING:
+    # Made at run time from LAYOUT: a type checker cannot see their fields, so to mypy the
+    # bundles (and annotations naming them) are Any.
+    Tree: TypeAlias = Any
+    Scratch: TypeAlias = Any
+else:
+    Tree = _bundle("Tree", "A tree's arrays (nb bodies, nv velocity coordinates; nt = nb, or 0 "
+                   "for a serial chain), body k's parent before it.\n\n    serial: 1 for a "
+                   "serial chain (the nt tables then empty), else 0.", first=(("serial", int),))
+    Scratch = _bundle("Scratch", "What the kernels write (all world frame; nb bodies, nv DOF, "
+                      "ng gathering bodies).")
+
+
+def sizes_of(nb: int, nv: int, ng: int, serial: bool) -> dict[str, int]:
+    """The size names of :data:`LAYOUT`'s shapes, for a system of these sizes."""
+    return dict(nb=nb, nb1=nb + 1, nv=nv, ng=ng, nt=0 if serial else nb)
+
+
+def shape_of(field: Field, sizes: dict[str, int]) -> tuple[int, ...]:
+    """A field's shape for the given sizes (:func:`sizes_of`)."""
+    return tuple(sizes[d] if isinstance(d, str) else d for d in field.shape)
+
+
+def segment_sizes(array: str, sizes: dict[str, int], planar: bool) -> dict[str, int]:
+    """Field name -> number of items of each segment of one packed array, in layout order."""
+    return {f.name: math.prod(shape_of(f, sizes)) for f in LAYOUT
+            if f.array == array and (planar or not f.planar)}
+
+
+def bundles_source() -> str:
+    """The Python source of ``bundles(fdata, idata, scratch)``: the Tree and Scratch bundles as
+    views of a workspace's packed arrays, every segment sliced out inline (a helper taking the
+    slot, a literal int, was compiled once per slot: 3 s of the cold compile). Compiled in
+    :mod:`.entry`; its Python form runs in the workspace itself: one layout, read in one place.
+    """
+    packed = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch"}
+    size = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "ng": "ng", "nt": "nt"}
+
+    def view(f: Field) -> str:
+        a, slot = packed[f.array], SLOT[f.name]
+        factor = math.prod(d for d in f.shape if not isinstance(d, str))
+        names = [size[d] for d in f.shape if isinstance(d, str)]
+        count = " * ".join(([str(factor)] if factor > 1 or not names else []) + names)
+        text = f"{a}[h[{slot}]:h[{slot}] + {count}]"
+        if len(f.shape) > 1:
+            dims = ", ".join(size[d] if isinstance(d, str) else str(d) for d in f.shape)
+            text += f".reshape(({dims}))"
+        return text
+
+    lines = ["def bundles(fdata, idata, scratch):",
+             "    h = idata",
+             f"    nb, nv, ng = h[{H_NB}], h[{H_NV}], h[{H_NG}]",
+             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty",
+             f"    tree = Tree(h[{H_SERIAL}],"]
+    lines += [f"        {view(f)}," for f in LAYOUT if f.bundle == "Tree"]
+    lines += ["    )", "    s = Scratch("]
+    lines += [f"        {view(f)}," for f in LAYOUT if f.bundle == "Scratch"]
+    lines += ["    )", "    return tree, s", ""]
+    return "\n".join(lines)
+
+
+def numba_types():
+    """(TREE, SCRATCH): the bundles' numba types, C-contiguous arrays of each field's dtype and
+    dimension (imported lazily: the Python form of the layout needs no numba)."""
+    from numba import types
+
+    def array(f: Field):
+        return types.Array(types.float64 if f.dtype is F else types.int64, len(f.shape), "C")
+
+    tree = types.NamedTuple((types.int64, *(array(f) for f in LAYOUT if f.bundle == "Tree")),
+                            Tree)
+    scratch = types.NamedTuple(tuple(array(f) for f in LAYOUT if f.bundle == "Scratch"), Scratch)
+    return tree, scratch

@@ -1,0 +1,634 @@
+"""RGE-A for many states of a serial chain at once: SIMD lanes across states.
+
+A tile is LANES states side by side: every array of the three passes is (rows, LANES), the
+states the last, contiguous axis, and every step of the passes a branch-free loop over the
+states with a constant trip count, which LLVM turns into vector instructions (4 doubles a ymm
+register here). The single-state kernels (:mod:`.rge_a`, :mod:`.kinematics`) keep a body's
+running values in registers and run one state at a time; here the same values live in a small
+tile array (``run``, ``car``, ``mu``) between steps. Measured (docs/design.md, "Performance
+notes"): ~2.5x the single-state kernel per state at 250 DOF, on one core.
+
+What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set_option("",
+"--pass-remarks-missed=loop-vectorize")``):
+- indices numba cannot take for negative (``at`` is unsigned): numba wraps a negative index by a
+  select that makes the address non-affine, and LLVM then gives up ("unsafe dependent memory
+  operations") or gathers;
+- no branch inside a loop over states: one copy of each loop per joint kind and axis code (the
+  branches on them are outside the loops), and cos and sin by Cody-Waite reduction and fdlibm's
+  polynomials with the quadrant applied by arithmetic;
+- the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
+  time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
+
+Scope: a serial chain (``Tree.serial``) whose joints are revolute and prismatic axes (R, P, U,
+...; no ball joint), the spatial recursion. The results agree with the single calls to rounding
+(the operations are the single kernels', grouped alike, but a U joint's two axes are eliminated
+one after the other, and LLVM fuses multiply-adds where it vectorises): not bit for bit.
+:func:`redysim.forward_dynamics` runs batches here unless asked for the rows' bits
+(``simd=False``).
+
+References: as :mod:`.rge_a` (Table A.1; Featherstone's ABA for the bias terms).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import prange
+
+from redysim._jit import inline, jit, jit_parallel, jit_tiles
+
+from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
+from .rge_a import articulated_bias, shift_to_parent
+
+TWO_OVER_PI = 6.36619772367581382433e-01
+# fdlibm's pi/2 in three parts (e_rem_pio2.c): pio2_1 (33 bits), pio2_2, pio2_2t
+PIO2_1, PIO2_1T = 1.57079632673412561417e+00, 6.07710050650619224932e-11
+PIO2_2, PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
+
+# rows of the kinematics carry: frame r (9), origin O (3), angular velocity w (3), s (3),
+# om (3), dv (3), da (3), db (3)
+KR, KO, KW, KS, KOM, KDV, KDA, KDB = 0, 9, 12, 15, 18, 21, 24, 27
+KIN_ROWS = 30
+# rows of the backward carry: X (6), Y (9), Z (6), n (3), f (3)
+BX, BY, BZ, BN, BF = 0, 6, 15, 21, 24
+BACK_ROWS = 27
+# states per tile: every tile array is (rows, LANES) flattened, LANES a compile-time constant,
+# so that the loops over states have a constant trip count and the rows constant strides (16:
+# as fast per state as 32 here, and half the work lost in a batch's last, partial tile)
+LANES = 16
+
+
+@inline
+def at(row, b):
+    """The flat index of (row, lane b) in a tile's array, unsigned: numba then skips the
+    wraparound of negative indices, whose select made the addresses non-affine (LLVM: "unsafe
+    dependent memory operations", or gathers)."""
+    return np.uint64(row * LANES + b)
+
+
+@inline
+def sincos_reduced(x):
+    """(cos x, sin x), branch-free: x reduced to r in [-pi/4, pi/4] by Cody-Waite, fdlibm's
+    polynomials on r, then the quadrant's signs and swap. For |x| <= pi/4 the reduction is exact
+    (k = 0) and the result is :func:`.joints.sincos`'s bit for bit."""
+    k = np.floor(x * TWO_OVER_PI + 0.5)
+    r = (x - k * PIO2_1) - k * PIO2_1T
+    # the tail of pio2_1t, as fdlibm's second round: negligible below |x| ~ 1e5
+    z = r * r
+    rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
+    s = r + r * z * (S1 + z * rs)
+    rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
+    hz = 0.5 * z
+    w = 1.0 - hz
+    c = w + (((1.0 - w) - hz) + z * rc)
+    quadrant = k - 4.0 * np.floor(k * 0.25)  # 0, 1, 2, 3
+    # the quadrant's swap and signs by arithmetic, not branches (a branch in the loop kept LLVM
+    # from vectorising it): 1 x s + 0 x c is s exactly
+    swap = quadrant - 2.0 * np.floor(quadrant * 0.5)  # 1 in quadrants 1 and 3
+    hc = np.floor((quadrant + 1.0) * 0.5)
+    hc = hc - 2.0 * np.floor(hc * 0.5)  # 1 in quadrants 1 and 2: cos negative
+    hs = np.floor(quadrant * 0.5)  # 1 in quadrants 2 and 3: sin negative
+    cos_ = (1.0 - 2.0 * hc) * (swap * s + (1.0 - swap) * c)
+    sin_ = (1.0 - 2.0 * hs) * (swap * c + (1.0 - swap) * s)
+    return cos_, sin_
+
+
+@jit_tiles
+def tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Q, QD, oR, oO, oP, W, C,
+                     run):
+    """The kinematics pass with ``local_rates`` (:func:`.kinematics.kinematics`) for a tile of
+    a serial chain's states (L = LANES; every array flat, :func:`at`): Q, QD (n, L); writes oR
+    (nb, 9, L), oO (nb, 3, L), oP (n, 6, L), W (nb, 3, L) (angular velocities) and C (nb, 6, L)
+    (local twist-rates c_k). ``run``: (KIN_ROWS, L)."""
+    nb = along.shape[0]
+    for b in range(LANES):
+        for i in range(KIN_ROWS):
+            run[at(i, b)] = 0.0
+        run[at(KR + 0, b)] = 1.0
+        run[at(KR + 4, b)] = 1.0
+        run[at(KR + 8, b)] = 1.0
+    for k in range(nb):
+        lp = along[k]
+        for b in range(LANES):
+            run[at(KS + 0, b)] = lp * run[at(KR + 0, b)]
+            run[at(KS + 1, b)] = lp * run[at(KR + 3, b)]
+            run[at(KS + 2, b)] = lp * run[at(KR + 6, b)]
+            run[at(KOM + 0, b)] = run[at(KW + 0, b)]
+            run[at(KOM + 1, b)] = run[at(KW + 1, b)]
+            run[at(KOM + 2, b)] = run[at(KW + 2, b)]
+            for i in range(KDV, KIN_ROWS):
+                run[at(i, b)] = 0.0
+        for j in range(joint_voff[k], joint_voff[k + 1]):
+            kind, code = dof_kind[j], dof_axis[j]
+            u0, u1, u2 = dof_u[j, 0], dof_u[j, 1], dof_u[j, 2]
+            # one copy of the loop per (kind, axis code), each with its branches folded away:
+            # a branch inside a vectorised loop runs both of its sides
+            if kind == PRISMATIC:
+                if code == 0:
+                    _prismatic_axis(j, 0, u0, u1, u2, Q, QD, oP, run)
+                elif code == 1:
+                    _prismatic_axis(j, 1, u0, u1, u2, Q, QD, oP, run)
+                elif code == 2:
+                    _prismatic_axis(j, 2, u0, u1, u2, Q, QD, oP, run)
+                else:
+                    _prismatic_axis(j, 3, u0, u1, u2, Q, QD, oP, run)
+            elif code == 0:
+                _revolute_axis(j, 0, u0, u1, u2, Q, QD, oP, run)
+            elif code == 1:
+                _revolute_axis(j, 1, u0, u1, u2, Q, QD, oP, run)
+            elif code == 2:
+                _revolute_axis(j, 2, u0, u1, u2, Q, QD, oP, run)
+            else:
+                _revolute_axis(j, 3, u0, u1, u2, Q, QD, oP, run)
+        for b in range(LANES):
+            s0, s1, s2 = run[at(KS + 0, b)], run[at(KS + 1, b)], run[at(KS + 2, b)]
+            w0, w1, w2 = run[at(KW + 0, b)], run[at(KW + 1, b)], run[at(KW + 2, b)]
+            O0 = run[at(KO + 0, b)] + s0
+            O1 = run[at(KO + 1, b)] + s1
+            O2 = run[at(KO + 2, b)] + s2
+            e0 = (w1 * s2 - w2 * s1) + run[at(KDV + 0, b)]
+            e1 = (w2 * s0 - w0 * s2) + run[at(KDV + 1, b)]
+            e2 = (w0 * s1 - w1 * s0) + run[at(KDV + 2, b)]
+            C[at(k * 6 + 3, b)] = (w1 * e2 - w2 * e1) + run[at(KDB + 0, b)]
+            C[at(k * 6 + 4, b)] = (w2 * e0 - w0 * e2) + run[at(KDB + 1, b)]
+            C[at(k * 6 + 5, b)] = (w0 * e1 - w1 * e0) + run[at(KDB + 2, b)]
+            C[at(k * 6 + 0, b)] = run[at(KDA + 0, b)]
+            C[at(k * 6 + 1, b)] = run[at(KDA + 1, b)]
+            C[at(k * 6 + 2, b)] = run[at(KDA + 2, b)]
+            for i in range(9):
+                oR[at(k * 9 + i, b)] = run[at(KR + i, b)]
+            run[at(KO + 0, b)] = O0
+            run[at(KO + 1, b)] = O1
+            run[at(KO + 2, b)] = O2
+            oO[at(k * 3 + 0, b)] = O0
+            oO[at(k * 3 + 1, b)] = O1
+            oO[at(k * 3 + 2, b)] = O2
+            for i in range(3):
+                w = run[at(KOM + i, b)]
+                run[at(KW + i, b)] = w
+                W[at(k * 3 + i, b)] = w
+
+
+@inline
+def _revolute_axis(j, code, u0, u1, u2, Q, QD, oP, run):
+    """One revolute axis for every state: :func:`.joints.jcalc` and :func:`.joints.axis_rates`
+    (qdd = 0) on the carry. ``code`` is the same for every state: one branch, outside the loop."""
+    for b in range(LANES):
+        r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
+        r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
+        r20, r21, r22 = run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]
+        if code == 0:
+            e0, e1, e2 = r00, r10, r20
+        elif code == 1:
+            e0, e1, e2 = r01, r11, r21
+        elif code == 2:
+            e0, e1, e2 = r02, r12, r22
+        else:
+            e0 = r00 * u0 + r01 * u1 + r02 * u2
+            e1 = r10 * u0 + r11 * u1 + r12 * u2
+            e2 = r20 * u0 + r21 * u1 + r22 * u2
+        c, s = sincos_reduced(Q[at(j, b)])
+        if code == 0:  # columns y, z mix
+            n01, n11, n21 = c * r01 + s * r02, c * r11 + s * r12, c * r21 + s * r22
+            n02, n12, n22 = c * r02 - s * r01, c * r12 - s * r11, c * r22 - s * r21
+            r01, r11, r21, r02, r12, r22 = n01, n11, n21, n02, n12, n22
+        elif code == 1:  # columns z, x mix
+            n02, n12, n22 = c * r02 + s * r00, c * r12 + s * r10, c * r22 + s * r20
+            n00, n10, n20 = c * r00 - s * r02, c * r10 - s * r12, c * r20 - s * r22
+            r02, r12, r22, r00, r10, r20 = n02, n12, n22, n00, n10, n20
+        elif code == 2:  # columns x, y mix
+            n00, n10, n20 = c * r00 + s * r01, c * r10 + s * r11, c * r20 + s * r21
+            n01, n11, n21 = c * r01 - s * r00, c * r11 - s * r10, c * r21 - s * r20
+            r00, r10, r20, r01, r11, r21 = n00, n10, n20, n01, n11, n21
+        else:  # R Rot(u, q)
+            t = 1.0 - c
+            g00, g01, g02 = c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1
+            g10, g11, g12 = t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0
+            g20, g21, g22 = t * u2 * u0 - s * u1, t * u2 * u1 + s * u0, c + t * u2 * u2
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = (
+                r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
+                r00 * g02 + r01 * g12 + r02 * g22,
+                r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
+                r10 * g02 + r11 * g12 + r12 * g22,
+                r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
+                r20 * g02 + r21 * g12 + r22 * g22)
+        oP[at(j * 6 + 0, b)] = e0
+        oP[at(j * 6 + 1, b)] = e1
+        oP[at(j * 6 + 2, b)] = e2
+        oP[at(j * 6 + 3, b)] = 0.0
+        oP[at(j * 6 + 4, b)] = 0.0
+        oP[at(j * 6 + 5, b)] = 0.0
+        run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)] = r00, r01, r02
+        run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)] = r10, r11, r12
+        run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)] = r20, r21, r22
+        # axis_rates, revolute, qdd = 0: da += Pd x = (om x e) x;  om += e x
+        x = QD[at(j, b)]
+        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
+        run[at(KDA + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
+        run[at(KDA + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
+        run[at(KDA + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
+        run[at(KOM + 0, b)] = om0 + e0 * x
+        run[at(KOM + 1, b)] = om1 + e1 * x
+        run[at(KOM + 2, b)] = om2 + e2 * x
+
+
+@inline
+def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
+    """One prismatic axis for every state (:func:`_revolute_axis`'s counterpart)."""
+    for b in range(LANES):
+        if code == 0:
+            e0, e1, e2 = run[at(KR + 0, b)], run[at(KR + 3, b)], run[at(KR + 6, b)]
+        elif code == 1:
+            e0, e1, e2 = run[at(KR + 1, b)], run[at(KR + 4, b)], run[at(KR + 7, b)]
+        elif code == 2:
+            e0, e1, e2 = run[at(KR + 2, b)], run[at(KR + 5, b)], run[at(KR + 8, b)]
+        else:
+            e0 = run[at(KR + 0, b)] * u0 + run[at(KR + 1, b)] * u1 + run[at(KR + 2, b)] * u2
+            e1 = run[at(KR + 3, b)] * u0 + run[at(KR + 4, b)] * u1 + run[at(KR + 5, b)] * u2
+            e2 = run[at(KR + 6, b)] * u0 + run[at(KR + 7, b)] * u1 + run[at(KR + 8, b)] * u2
+        qj = Q[at(j, b)]
+        run[at(KS + 0, b)] += e0 * qj
+        run[at(KS + 1, b)] += e1 * qj
+        run[at(KS + 2, b)] += e2 * qj
+        oP[at(j * 6 + 0, b)] = 0.0
+        oP[at(j * 6 + 1, b)] = 0.0
+        oP[at(j * 6 + 2, b)] = 0.0
+        oP[at(j * 6 + 3, b)] = e0
+        oP[at(j * 6 + 4, b)] = e1
+        oP[at(j * 6 + 5, b)] = e2
+        x = QD[at(j, b)]
+        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
+        run[at(KDV + 0, b)] += e0 * x
+        run[at(KDV + 1, b)] += e1 * x
+        run[at(KDV + 2, b)] += e2 * x
+        run[at(KDB + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
+        run[at(KDB + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
+        run[at(KDB + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
+
+
+@jit_tiles
+def tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, TAU,
+                   Psihat, phitil, car):
+    """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial, axis by axis) for a tile:
+    reads the tile's kinematics and TAU (n, L); writes Psihat (n, 6, L) and phitil (n, L).
+    ``car``: (BACK_ROWS, L), the articulated mass and bias carried from body to body."""
+    nb = mass.shape[0]
+    for b in range(LANES):
+        for i in range(BACK_ROWS):
+            car[at(i, b)] = 0.0
+    for k in range(nb - 1, -1, -1):
+        m = mass[k]
+        j00, j01, j02 = inertia_O[k, 0, 0], inertia_O[k, 0, 1], inertia_O[k, 0, 2]
+        j11, j12, j22 = inertia_O[k, 1, 1], inertia_O[k, 1, 2], inertia_O[k, 2, 2]
+        mc0, mc1, mc2 = mass_com[k, 0], mass_com[k, 1], mass_com[k, 2]
+        if j01 == 0.0 and j02 == 0.0 and j12 == 0.0:
+            _body_mass(k, True, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
+        else:
+            _body_mass(k, False, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
+        for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
+            if dof_kind[j] == PRISMATIC:
+                _eliminate(j, PRISMATIC, oP, TAU, Psihat, phitil, car)
+            else:
+                _eliminate(j, 0, oP, TAU, Psihat, phitil, car)
+        if k > 0:
+            _bias_and_shift(k, True, oO, C, car)
+        else:
+            _bias_and_shift(k, False, oO, C, car)
+
+
+@inline
+def _body_mass(k, principal, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car):
+    """Body k's own mass and velocity-product wrench added to the carried articulated body,
+    for every state (``principal``: its inertia is diagonal in its frame)."""
+    for b in range(LANES):
+        r00, r01, r02 = oR[at(k * 9 + 0, b)], oR[at(k * 9 + 1, b)], oR[at(k * 9 + 2, b)]
+        r10, r11, r12 = oR[at(k * 9 + 3, b)], oR[at(k * 9 + 4, b)], oR[at(k * 9 + 5, b)]
+        r20, r21, r22 = oR[at(k * 9 + 6, b)], oR[at(k * 9 + 7, b)], oR[at(k * 9 + 8, b)]
+        if principal:
+            X00 = j00 * (r00 * r00) + j11 * (r01 * r01) + j22 * (r02 * r02)
+            X01 = j00 * (r00 * r10) + j11 * (r01 * r11) + j22 * (r02 * r12)
+            X02 = j00 * (r00 * r20) + j11 * (r01 * r21) + j22 * (r02 * r22)
+            X11 = j00 * (r10 * r10) + j11 * (r11 * r11) + j22 * (r12 * r12)
+            X12 = j00 * (r10 * r20) + j11 * (r11 * r21) + j22 * (r12 * r22)
+            X22 = j00 * (r20 * r20) + j11 * (r21 * r21) + j22 * (r22 * r22)
+        else:
+            c00 = r00 * j00 + r01 * j01 + r02 * j02
+            c01 = r00 * j01 + r01 * j11 + r02 * j12
+            c02 = r00 * j02 + r01 * j12 + r02 * j22
+            c10 = r10 * j00 + r11 * j01 + r12 * j02
+            c11 = r10 * j01 + r11 * j11 + r12 * j12
+            c12 = r10 * j02 + r11 * j12 + r12 * j22
+            c20 = r20 * j00 + r21 * j01 + r22 * j02
+            c21 = r20 * j01 + r21 * j11 + r22 * j12
+            c22 = r20 * j02 + r21 * j12 + r22 * j22
+            X00 = c00 * r00 + c01 * r01 + c02 * r02
+            X01 = c00 * r10 + c01 * r11 + c02 * r12
+            X02 = c00 * r20 + c01 * r21 + c02 * r22
+            X11 = c10 * r10 + c11 * r11 + c12 * r12
+            X12 = c10 * r20 + c11 * r21 + c12 * r22
+            X22 = c20 * r20 + c21 * r21 + c22 * r22
+        d0 = r00 * mc0 + r01 * mc1 + r02 * mc2
+        d1 = r10 * mc0 + r11 * mc1 + r12 * mc2
+        d2 = r20 * mc0 + r21 * mc1 + r22 * mc2
+        w0, w1, w2 = W[at(k * 3 + 0, b)], W[at(k * 3 + 1, b)], W[at(k * 3 + 2, b)]
+        h0 = X00 * w0 + X01 * w1 + X02 * w2
+        h1 = X01 * w0 + X11 * w1 + X12 * w2
+        h2 = X02 * w0 + X12 * w1 + X22 * w2
+        g0 = w1 * d2 - w2 * d1
+        g1 = w2 * d0 - w0 * d2
+        g2 = w0 * d1 - w1 * d0
+        car[at(BX + 0, b)] += X00
+        car[at(BX + 1, b)] += X01
+        car[at(BX + 2, b)] += X02
+        car[at(BX + 3, b)] += X11
+        car[at(BX + 4, b)] += X12
+        car[at(BX + 5, b)] += X22
+        car[at(BY + 1, b)] -= d2
+        car[at(BY + 2, b)] += d1
+        car[at(BY + 3, b)] += d2
+        car[at(BY + 5, b)] -= d0
+        car[at(BY + 6, b)] -= d1
+        car[at(BY + 7, b)] += d0
+        car[at(BZ + 0, b)] += m
+        car[at(BZ + 3, b)] += m
+        car[at(BZ + 5, b)] += m
+        car[at(BN + 0, b)] += w1 * h2 - w2 * h1
+        car[at(BN + 1, b)] += w2 * h0 - w0 * h2
+        car[at(BN + 2, b)] += w0 * h1 - w1 * h0
+        car[at(BF + 0, b)] += w1 * g2 - w2 * g1
+        car[at(BF + 1, b)] += w2 * g0 - w0 * g2
+        car[at(BF + 2, b)] += w0 * g1 - w1 * g0
+
+
+@inline
+def _eliminate(j, kind, oP, TAU, Psihat, phitil, car):
+    """One axis of Table A.1 for every state: phihat, Psi, Ihat, phitil, Psihat, and the
+    articulated mass and bias updated (the loop of :func:`.rge_a._rge_a_backward`)."""
+    for b in range(LANES):
+        p0, p1, p2 = oP[at(j * 6 + 0, b)], oP[at(j * 6 + 1, b)], oP[at(j * 6 + 2, b)]
+        p3, p4, p5 = oP[at(j * 6 + 3, b)], oP[at(j * 6 + 4, b)], oP[at(j * 6 + 5, b)]
+        x00, x01, x02 = car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)]
+        x11, x12, x22 = car[at(BX + 3, b)], car[at(BX + 4, b)], car[at(BX + 5, b)]
+        y00, y01, y02 = car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)]
+        y10, y11, y12 = car[at(BY + 3, b)], car[at(BY + 4, b)], car[at(BY + 5, b)]
+        y20, y21, y22 = car[at(BY + 6, b)], car[at(BY + 7, b)], car[at(BY + 8, b)]
+        z00, z01, z02 = car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)]
+        z11, z12, z22 = car[at(BZ + 3, b)], car[at(BZ + 4, b)], car[at(BZ + 5, b)]
+        n0, n1, n2 = car[at(BN + 0, b)], car[at(BN + 1, b)], car[at(BN + 2, b)]
+        f0, f1, f2 = car[at(BF + 0, b)], car[at(BF + 1, b)], car[at(BF + 2, b)]
+        ph = TAU[at(j, b)] - (p0 * n0 + p1 * n1 + p2 * n2 + p3 * f0 + p4 * f1 + p5 * f2)
+        e0, e1, e2 = p0 + p3, p1 + p4, p2 + p5
+        if kind == PRISMATIC:
+            u0 = y00 * e0 + y01 * e1 + y02 * e2
+            u1 = y10 * e0 + y11 * e1 + y12 * e2
+            u2 = y20 * e0 + y21 * e1 + y22 * e2
+            u3 = z00 * e0 + z01 * e1 + z02 * e2
+            u4 = z01 * e0 + z11 * e1 + z12 * e2
+            u5 = z02 * e0 + z12 * e1 + z22 * e2
+            ih = e0 * u3 + e1 * u4 + e2 * u5
+        else:
+            u0 = x00 * e0 + x01 * e1 + x02 * e2
+            u1 = x01 * e0 + x11 * e1 + x12 * e2
+            u2 = x02 * e0 + x12 * e1 + x22 * e2
+            u3 = y00 * e0 + y10 * e1 + y20 * e2
+            u4 = y01 * e0 + y11 * e1 + y21 * e2
+            u5 = y02 * e0 + y12 * e1 + y22 * e2
+            ih = e0 * u0 + e1 * u1 + e2 * u2
+        inv = 1.0 / ih
+        v0, v1, v2, v3, v4, v5 = u0 * inv, u1 * inv, u2 * inv, u3 * inv, u4 * inv, u5 * inv
+        ptil = ph * inv
+        phitil[at(j, b)] = ptil
+        Psihat[at(j * 6 + 0, b)] = v0
+        Psihat[at(j * 6 + 1, b)] = v1
+        Psihat[at(j * 6 + 2, b)] = v2
+        Psihat[at(j * 6 + 3, b)] = v3
+        Psihat[at(j * 6 + 4, b)] = v4
+        Psihat[at(j * 6 + 5, b)] = v5
+        car[at(BN + 0, b)] = n0 + u0 * ptil
+        car[at(BN + 1, b)] = n1 + u1 * ptil
+        car[at(BN + 2, b)] = n2 + u2 * ptil
+        car[at(BF + 0, b)] = f0 + u3 * ptil
+        car[at(BF + 1, b)] = f1 + u4 * ptil
+        car[at(BF + 2, b)] = f2 + u5 * ptil
+        car[at(BX + 0, b)] = x00 - v0 * u0
+        car[at(BX + 1, b)] = x01 - v0 * u1
+        car[at(BX + 2, b)] = x02 - v0 * u2
+        car[at(BX + 3, b)] = x11 - v1 * u1
+        car[at(BX + 4, b)] = x12 - v1 * u2
+        car[at(BX + 5, b)] = x22 - v2 * u2
+        car[at(BY + 0, b)] = y00 - v0 * u3
+        car[at(BY + 1, b)] = y01 - v0 * u4
+        car[at(BY + 2, b)] = y02 - v0 * u5
+        car[at(BY + 3, b)] = y10 - v1 * u3
+        car[at(BY + 4, b)] = y11 - v1 * u4
+        car[at(BY + 5, b)] = y12 - v1 * u5
+        car[at(BY + 6, b)] = y20 - v2 * u3
+        car[at(BY + 7, b)] = y21 - v2 * u4
+        car[at(BY + 8, b)] = y22 - v2 * u5
+        car[at(BZ + 0, b)] = z00 - v3 * u3
+        car[at(BZ + 1, b)] = z01 - v3 * u4
+        car[at(BZ + 2, b)] = z02 - v3 * u5
+        car[at(BZ + 3, b)] = z11 - v4 * u4
+        car[at(BZ + 4, b)] = z12 - v4 * u5
+        car[at(BZ + 5, b)] = z22 - v5 * u5
+
+
+@inline
+def _bias_and_shift(k, shift, oO, C, car):
+    """Body k's articulated bias p += Mbar_k c_k, then Mbar and p shifted to the parent's origin
+    (A_{k,k-1}^T Mbar A and A^T p), for every state."""
+    for b in range(LANES):
+        x00, x01, x02 = car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)]
+        x11, x12, x22 = car[at(BX + 3, b)], car[at(BX + 4, b)], car[at(BX + 5, b)]
+        y00, y01, y02 = car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)]
+        y10, y11, y12 = car[at(BY + 3, b)], car[at(BY + 4, b)], car[at(BY + 5, b)]
+        y20, y21, y22 = car[at(BY + 6, b)], car[at(BY + 7, b)], car[at(BY + 8, b)]
+        z00, z01, z02 = car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)]
+        z11, z12, z22 = car[at(BZ + 3, b)], car[at(BZ + 4, b)], car[at(BZ + 5, b)]
+        d0, d1, d2, d3, d4, d5 = articulated_bias(
+            C[at(k * 6 + 0, b)], C[at(k * 6 + 1, b)], C[at(k * 6 + 2, b)], C[at(k * 6 + 3, b)],
+            C[at(k * 6 + 4, b)], C[at(k * 6 + 5, b)], x00, x01, x02, x11, x12, x22,
+            y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
+        n0, n1, n2 = car[at(BN + 0, b)] + d0, car[at(BN + 1, b)] + d1, car[at(BN + 2, b)] + d2
+        f0, f1, f2 = car[at(BF + 0, b)] + d3, car[at(BF + 1, b)] + d4, car[at(BF + 2, b)] + d5
+        if shift:
+            s0 = oO[at((k - 1) * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
+            s1 = oO[at((k - 1) * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
+            s2 = oO[at((k - 1) * 3 + 2, b)] - oO[at(k * 3 + 2, b)]
+            n0 -= s1 * f2 - s2 * f1
+            n1 -= s2 * f0 - s0 * f2
+            n2 -= s0 * f1 - s1 * f0
+            (x00, x01, x02, x11, x12, x22,
+             y00, y01, y02, y10, y11, y12, y20, y21, y22) = shift_to_parent(
+                s0, s1, s2, x00, x01, x02, x11, x12, x22,
+                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
+            car[at(BX + 0, b)] = x00
+            car[at(BX + 1, b)] = x01
+            car[at(BX + 2, b)] = x02
+            car[at(BX + 3, b)] = x11
+            car[at(BX + 4, b)] = x12
+            car[at(BX + 5, b)] = x22
+            car[at(BY + 0, b)] = y00
+            car[at(BY + 1, b)] = y01
+            car[at(BY + 2, b)] = y02
+            car[at(BY + 3, b)] = y10
+            car[at(BY + 4, b)] = y11
+            car[at(BY + 5, b)] = y12
+            car[at(BY + 6, b)] = y20
+            car[at(BY + 7, b)] = y21
+            car[at(BY + 8, b)] = y22
+        car[at(BN + 0, b)] = n0
+        car[at(BN + 1, b)] = n1
+        car[at(BN + 2, b)] = n2
+        car[at(BF + 0, b)] = f0
+        car[at(BF + 1, b)] = f1
+        car[at(BF + 2, b)] = f2
+
+
+@jit_tiles
+def tile_forward(joint_voff, oO, oP, Psihat, phitil, C, base_accel, QDD, mu, bad):
+    """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for a tile: QDD (n, L).
+    ``mu``: (6, L), carried from body to body; ``bad`` (L,): 0 where every qdd of that state is
+    finite, NaN where one is not."""
+    nb = joint_voff.shape[0] - 1
+    for b in range(LANES):
+        mu[at(0, b)] = C[at(0 * 6 + 0, b)]
+        mu[at(1, b)] = C[at(0 * 6 + 1, b)]
+        mu[at(2, b)] = C[at(0 * 6 + 2, b)]
+        mu[at(3, b)] = base_accel[0] + C[at(0 * 6 + 3, b)]
+        mu[at(4, b)] = base_accel[1] + C[at(0 * 6 + 4, b)]
+        mu[at(5, b)] = base_accel[2] + C[at(0 * 6 + 5, b)]
+        bad[b] = 0.0
+    for k in range(nb):
+        jl = joint_voff[k + 1] - 1
+        for j in range(joint_voff[k], jl + 1):
+            if j < jl or k + 1 == nb:
+                _forward_axis(j, oP, Psihat, phitil, QDD, mu, bad)
+            else:
+                _forward_axis_on(j, k, oO, oP, Psihat, phitil, C, QDD, mu, bad)
+
+
+@inline
+def _forward_axis(j, oP, Psihat, phitil, QDD, mu, bad):
+    """qdd_j = phitil_j - Psihat_j^T mu, then mu += P_j qdd_j, for every state."""
+    for b in range(LANES):
+        m0, m1, m2 = mu[at(0, b)], mu[at(1, b)], mu[at(2, b)]
+        m3, m4, m5 = mu[at(3, b)], mu[at(4, b)], mu[at(5, b)]
+        x = ((phitil[at(j, b)] - (Psihat[at(j * 6 + 0, b)] * m0 + Psihat[at(j * 6 + 1, b)] * m1))
+             - ((Psihat[at(j * 6 + 2, b)] * m2 + Psihat[at(j * 6 + 3, b)] * m3)
+                + (Psihat[at(j * 6 + 4, b)] * m4 + Psihat[at(j * 6 + 5, b)] * m5)))
+        QDD[at(j, b)] = x
+        bad[b] += x * 0.0
+        mu[at(0, b)] = m0 + oP[at(j * 6 + 0, b)] * x
+        mu[at(1, b)] = m1 + oP[at(j * 6 + 1, b)] * x
+        mu[at(2, b)] = m2 + oP[at(j * 6 + 2, b)] * x
+        mu[at(3, b)] = m3 + oP[at(j * 6 + 3, b)] * x
+        mu[at(4, b)] = m4 + oP[at(j * 6 + 4, b)] * x
+        mu[at(5, b)] = m5 + oP[at(j * 6 + 5, b)] * x
+
+
+@inline
+def _forward_axis_on(j, k, oO, oP, Psihat, phitil, C, QDD, mu, bad):
+    """A joint's last axis, and on to body k + 1 (:func:`.rge_a._rge_a_forward`'s grouping)."""
+    for b in range(LANES):
+        m0, m1, m2 = mu[at(0, b)], mu[at(1, b)], mu[at(2, b)]
+        m3, m4, m5 = mu[at(3, b)], mu[at(4, b)], mu[at(5, b)]
+        x = ((phitil[at(j, b)] - (Psihat[at(j * 6 + 0, b)] * m0 + Psihat[at(j * 6 + 1, b)] * m1))
+             - ((Psihat[at(j * 6 + 2, b)] * m2 + Psihat[at(j * 6 + 3, b)] * m3)
+                + (Psihat[at(j * 6 + 4, b)] * m4 + Psihat[at(j * 6 + 5, b)] * m5)))
+        QDD[at(j, b)] = x
+        bad[b] += x * 0.0
+        p0, p1, p2 = oP[at(j * 6 + 0, b)], oP[at(j * 6 + 1, b)], oP[at(j * 6 + 2, b)]
+        p3, p4, p5 = oP[at(j * 6 + 3, b)], oP[at(j * 6 + 4, b)], oP[at(j * 6 + 5, b)]
+        a0 = oO[at(k * 3 + 0, b)] - oO[at((k + 1) * 3 + 0, b)]
+        a1 = oO[at(k * 3 + 1, b)] - oO[at((k + 1) * 3 + 1, b)]
+        a2 = oO[at(k * 3 + 2, b)] - oO[at((k + 1) * 3 + 2, b)]
+        mu[at(3, b)] = (((m3 + C[at((k + 1) * 6 + 3, b)]) + (a1 * m2 - a2 * m1))
+                    + ((a1 * p2 - a2 * p1) + p3) * x)
+        mu[at(4, b)] = (((m4 + C[at((k + 1) * 6 + 4, b)]) + (a2 * m0 - a0 * m2))
+                    + ((a2 * p0 - a0 * p2) + p4) * x)
+        mu[at(5, b)] = (((m5 + C[at((k + 1) * 6 + 5, b)]) + (a0 * m1 - a1 * m0))
+                    + ((a0 * p1 - a1 * p0) + p5) * x)
+        mu[at(0, b)] = (m0 + C[at((k + 1) * 6 + 0, b)]) + p0 * x
+        mu[at(1, b)] = (m1 + C[at((k + 1) * 6 + 1, b)]) + p1 * x
+        mu[at(2, b)] = (m2 + C[at((k + 1) * 6 + 2, b)]) + p2 * x
+
+
+@inline
+def tile_in(src, t0, count, dst):
+    """dst[(j, b)] = src[t0 + b, j] for b < count; the tile's spare lanes repeat state t0. A
+    one-row src is every state's."""
+    n = src.shape[1]
+    one = src.shape[0] == 1
+    for b in range(LANES):
+        i = 0 if one else t0 + (b if b < count else 0)
+        for j in range(n):
+            dst[at(j, b)] = src[i, j]
+
+
+@inline
+def tile_out(src, t0, count, dst):
+    """dst[t0 + b, j] = src[(j, b)] for b < count."""
+    n = dst.shape[1]
+    for b in range(count):
+        for j in range(n):
+            dst[t0 + b, j] = src[at(j, b)]
+
+
+@inline
+def tile_sizes(nb, n):
+    """The lengths of one thread's tile arrays (:func:`tile_views`), for a chain of nb bodies and
+    n DOF: oR, oO, oP, W, C, run, car, Psihat, phitil, mu, bad, Q, QD, TAU, QDD. (Python calls
+    its ``py_func``: one layout for both.)"""
+    return (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
+            KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
+            n * LANES, n * LANES, n * LANES, n * LANES)
+
+
+@inline
+def tile_views(buf, nb, n):
+    """One thread's tile arrays, as views of its row ``buf`` of the tile buffer."""
+    sizes = tile_sizes(nb, n)
+    o = np.zeros(16, dtype=np.int64)
+    for i in range(15):
+        o[i + 1] = o[i] + sizes[i]
+    return (buf[o[0]:o[1]], buf[o[1]:o[2]], buf[o[2]:o[3]], buf[o[3]:o[4]], buf[o[4]:o[5]],
+            buf[o[5]:o[6]], buf[o[6]:o[7]], buf[o[7]:o[8]], buf[o[8]:o[9]], buf[o[9]:o[10]],
+            buf[o[10]:o[11]], buf[o[11]:o[12]], buf[o[12]:o[13]], buf[o[13]:o[14]],
+            buf[o[14]:o[15]])
+
+
+@jit
+def forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O, mass_com,
+                  base_accel, Q, QD, TAU, QDD, first, last, buf):
+    """QDD rows first..last - 1 by tiles of LANES states (the last one possibly partial), in
+    the tile arrays of ``buf`` (a row of the workspace's tile buffer, :func:`tile_sizes`). TAU
+    has B rows or one (the same for every state). Returns -1, or the first row whose qdd is not
+    finite."""
+    nb, n = mass.shape[0], dof_kind.shape[0]
+    (oR, oO, oP, W, C, run, car, Ps, pt, mu, bad, Qt, QDt, Tt, QDDt) = tile_views(buf, nb, n)
+    for t0 in range(first, last, LANES):
+        count = min(LANES, last - t0)
+        tile_in(Q, t0, count, Qt)
+        tile_in(QD, t0, count, QDt)
+        tile_in(TAU, t0, count, Tt)
+        tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Qt, QDt, oR, oO, oP, W, C,
+                        run)
+        tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, Tt, Ps,
+                      pt, car)
+        tile_forward(joint_voff, oO, oP, Ps, pt, C, base_accel, QDDt, mu, bad)
+        for b in range(count):
+            if bad[b] != 0.0:
+                return t0 + b
+        tile_out(QDDt, t0, count, QDD)
+    return -1
+
+
+@jit_parallel
+def forward_tiles_parallel(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
+                           mass_com, base_accel, Q, QD, TAU, QDD, edges, bufs, failed):
+    """:func:`forward_tiles` for rows edges[i]..edges[i + 1] - 1 in row i of ``bufs``, the
+    blocks run by numba's threads; failed[i] is block i's result."""
+    for i in prange(edges.shape[0] - 1):
+        failed[i] = forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
+                                  mass_com, base_accel, Q, QD, TAU, QDD, edges[i], edges[i + 1],
+                                  bufs[i])

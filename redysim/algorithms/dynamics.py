@@ -1,0 +1,687 @@
+"""The public dynamics functions: checked at the door, then handed to the kernels.
+
+Every function takes a :class:`~redysim.model.tree.Chain` or a :class:`~redysim.model.tree.Model` (a
+kinematic tree: a chain is one) and numpy vectors in SI units and returns numpy arrays: q of length
+``n_q``, velocities, accelerations and forces of length ``n_v`` (both ``n_dof`` for a chain; a free
+joint has 7 and 6). An optional :class:`~redysim.algorithms.workspace.Workspace` avoids reallocating
+scratch space in a loop (an integrator's right-hand side).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import reprlib
+import threading
+from typing import Literal, NamedTuple, overload
+
+import numpy as np
+from numpy import ndarray
+
+from redysim.algorithms._kernels import batch as _batch
+from redysim.algorithms._kernels import tiles as _tiles
+from redysim.algorithms._kernels.elimination import ge_n, rge_n
+from redysim.algorithms._kernels.energy import energy as _energy
+from redysim.algorithms._kernels.entry import PLANAR as _PLANAR
+from redysim.algorithms._kernels.entry import RGE_A as _RGE_A
+from redysim.algorithms._kernels.entry import SIZE_MISMATCH
+from redysim.algorithms._kernels.gim import gim_composite
+from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
+from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
+from redysim.algorithms._kernels.rge_a import rge_a_backward
+from redysim.algorithms._kernels.udu import udu_assemble
+from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
+from redysim.algorithms.workspace import Workspace
+from redysim.errors import FieldError, StateError
+from redysim.model.parts import NUMERIC_KINDS
+from redysim.model.tree import Model
+
+System = Model  # a Chain is a Model
+
+FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
+
+
+def _plain_vector(x, n: int) -> bool:
+    """True for a contiguous float64 ndarray of shape (n,): what the kernels take as is."""
+    return (type(x) is np.ndarray and x.shape == (n,) and x.dtype is FLOAT64
+            and x.strides == FLOAT64_STRIDES)
+
+
+@overload
+def check_state(chain: System, name: str, x, *, optional: Literal[False] = False,
+                finite: bool = True) -> np.ndarray: ...
+
+
+@overload
+def check_state(chain: System, name: str, x, *, optional: bool,
+                finite: bool = True) -> np.ndarray | None: ...
+
+
+def check_state(chain: System, name: str, x, *, optional: bool = False,
+                finite: bool = True) -> np.ndarray | None:
+    """Return ``x`` as a float vector of length n (``n_q`` for the configuration ``q``, else
+    ``n_v``), or raise StateError naming it.
+
+    ``finite=False`` skips the NaN/Inf scan (the hot path of :func:`forward_dynamics` checks its
+    result instead and only then looks for the offending input).
+    """
+    n = chain.n_q if name == "q" else chain.n_v
+    if x is None:
+        if optional:
+            return None
+        raise StateError(f"{name} is required (a vector of {n} values)")
+    if _plain_vector(x, n):  # the hot path: as given
+        if finite:
+            require_finite(name, x)
+        return x
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError) as exc:  # ragged nesting
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector ({exc})") from None
+    if arr.dtype.kind not in NUMERIC_KINDS:  # strings, bools, complex, None/objects
+        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
+                         f"{arr.dtype}; need int or float)")
+    arr = np.asarray(arr, dtype=float)
+    if arr.shape != (n,):
+        what = "configuration coordinates" if name == "q" else "DOF"
+        batch = (f" (q is one state; for a batch of states give q as (B, {chain.n_q}) too)"
+                 if arr.ndim == 2 and name != "q" else "")
+        raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
+                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},)"
+                         + batch)
+    arr = np.ascontiguousarray(arr)
+    if finite:
+        require_finite(name, arr)
+    return arr
+
+
+def check_out(chain: System, out) -> np.ndarray:
+    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
+
+    The kernels index without bounds checks: a short or strided ``out`` would be written past
+    its end, so it is refused here, never converted (a copy would not reach the caller).
+    """
+    n = chain.n_v
+    if out is None:
+        return np.empty(n)
+    if _plain_vector(out, n) and out.flags.writeable:
+        return out
+    what = (f"shape {out.shape}, dtype {out.dtype}, strides {out.strides}, "
+            f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
+            else f"a {type(out).__name__}")
+    raise StateError(f"out ({what}) must be a writeable, contiguous float64 array of shape "
+                     f"({n},): {chain.name!r} has {n} DOF")
+
+
+def require_finite(name: str, arr: np.ndarray) -> None:
+    """Raise StateError naming the first NaN or Inf entry of ``arr``."""
+    if not np.isfinite(arr).all():
+        bad = np.flatnonzero(~np.isfinite(arr))
+        raise StateError(f"{name}[{bad[0]}] = {float(arr[bad[0]])!r}: not finite "
+                         f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
+
+
+def overflow_error(what: str, **inputs) -> StateError:
+    """The error for a non-finite result of finite inputs: the recursion overflowed."""
+    sizes = ", ".join(f"max |{k}| = {np.abs(v).max():.3g}" for k, v in inputs.items()
+                      if v is not None)
+    names = ", ".join(k for k, v in inputs.items() if v is not None)
+    return StateError(f"{what} is not finite for finite {names} ({sizes}): overflow?")
+
+
+def _ws(chain: System, ws: Workspace | None) -> Workspace:
+    if ws is None:
+        return Workspace(chain)
+    if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
+        if not isinstance(ws, Workspace):
+            raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
+        raise FieldError("dynamics", "ws", repr(ws.chain), f"was made for another chain than "
+                         f"{chain!r}; make one with Workspace(chain)")
+    return ws
+
+
+def first_bad_pivot(pivots: np.ndarray, *, from_base: bool, positive: bool) -> int | None:
+    """The first pivot, in elimination order (from index 0 with ``from_base``, else from the
+    last), that cannot be divided by: 0, not finite, so small that 1/p overflows, or (with
+    ``positive``, for a symmetric positive definite GIM) not > 0. None when there is none."""
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        bad = ~np.isfinite(pivots) | ~np.isfinite(1.0 / pivots)
+        if positive:
+            bad |= ~(pivots > 0)
+    idx = np.flatnonzero(bad)
+    return None if not idx.size else int(idx.min() if from_base else idx.max())
+
+
+def _run_kinematics(chain, ws, q, qd, qdd, base_accel):
+    _kinematics(ws.tree, q, qd, qdd, base_accel, ws.s)
+
+
+def _phi(chain, ws, q, qd, tau):
+    """phi = tau - (C qd + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
+    c = chain
+    _run_kinematics(c, ws, q, qd, ws.zeros, ws.base_accel)
+    rnea_backward(ws.tree, ws.s, ws.phi)
+    ws.phi *= -1.0
+    if tau is not None:
+        ws.phi += tau
+    return ws.phi
+
+
+# --------------------------------------------------------------------------- inverse dynamics
+def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
+                     threads: int | None = None) -> np.ndarray:
+    """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
+
+    A batch: q (B, n_q), qd and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
+    rows split over threads (``threads``, as for :func:`forward_dynamics`).
+    """
+    if _is_batch(q):
+        return _inverse_batch(chain, _ws(chain, ws), q, qd, qdd, threads)
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    qdd = check_state(chain, "qdd", qdd)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, qd, qdd, ws.base_accel)
+    tau = np.empty(c.n_v)
+    rnea_backward(ws.tree, ws.s, tau)
+    if not np.isfinite(tau).all():
+        raise overflow_error("tau", q=q, qd=qd, qdd=qdd)
+    return tau
+
+
+def phi(chain: System, q, qd, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
+    """phi = tau - C(q, qd) qd - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    tau = check_state(chain, "tau", tau, optional=True)
+    out = _phi(chain, _ws(chain, ws), q, qd, tau).copy()
+    if not np.isfinite(out).all():
+        raise overflow_error("phi", q=q, qd=qd, tau=tau)
+    return out
+
+
+# --------------------------------------------------------------------------- forward dynamics
+def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
+                     planar: bool | None = None, ws: Workspace | None = None,
+                     out: np.ndarray | None = None, threads: int | None = None,
+                     simd: bool = True) -> np.ndarray:
+    """qdd from I(q) qdd = phi(q, qd, tau).
+
+    method:
+        ``"rge-a"``: O(n) Reverse Gaussian Elimination done analytically (Table A.1), the default;
+        ``"ge-n"``:  the GIM by composite masses, then Gaussian elimination, O(n^3);
+        ``"rge-n"``: the GIM, then reverse Gaussian elimination, O(n^3) (section 5.2).
+    planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``,
+        a Chain's property: a Model always takes the spatial recursion);
+        ``False`` forces the spatial recursion.
+    tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
+
+    A batch: q (B, n_q) and qd (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau
+    (B, n_v), or (n_v,) for every state; ``out`` (B, n_v). RGE-A only. The rows run in compiled code
+    split over ``threads`` threads (default: every core this process may use, one for batches under
+    ~5,000 DOF-states, where handing rows to a thread costs more than it saves), each with its own
+    scratch of ``ws`` (:meth:`Workspace.scratches`). With ``simd`` (the default), a serial chain of
+    revolute and prismatic axes in the spatial recursion runs its states 16 at a time in SIMD lanes
+    (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the throughput a core at 250 DOF): row i then
+    equals the single call to rounding (measured within 4e-15 of max |qdd| on ropes, 1.4e-13 on
+    random chains with GIM condition numbers up to 5e5), not bit for bit; ``simd=False`` gives the
+    single calls' bits. A batch's last rows, when they fill less than half a tile, chains over
+    10,000 DOF and any batch with |q| > 1e5 run row by row.
+
+    Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
+    these go to the compiled entry point as they are, which checks their types and sizes
+    itself. Anything else is checked and converted first: lists at once, other arrays (float32,
+    strided) after numba refuses their types, ~0.1 ms a call here.
+    """
+    ws = _ws(chain, ws)
+    is_planar = chain.is_planar
+    if planar is None:
+        planar = is_planar
+    elif planar and not is_planar:
+        raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
+                         "a single revolute about its frame's z axis)")
+    if method == "rge-a":
+        entry = _PLANAR.compiled if planar else _RGE_A.compiled
+        qdd = np.empty(chain.n_v) if out is None else out
+        t = ws.zeros if tau is None else tau
+        if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
+                and type(qdd) is ndarray:
+            if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
+                return _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd)
+            try:  # the hot path: no conversion, the entry checks the sizes
+                flag = entry(ws.kernel_f, ws.kernel_i, q, qd, t, ws.scratch, qdd)
+            except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
+                flag = SIZE_MISMATCH
+            if flag == 0.0:
+                return qdd
+            if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
+                raise _nonfinite_qdd(chain, ws, planar, q, qd, tau)
+    elif method not in METHODS:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
+    if _is_batch(q):
+        if method != "rge-a":
+            raise ValueError(f"method = {method!r} with a batch of states: batches run "
+                             "'rge-a' only")
+        return _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd)
+    q = check_state(chain, "q", q, finite=False)
+    qd = check_state(chain, "qd", qd, finite=False)
+    tau = check_state(chain, "tau", tau, optional=True, finite=False)
+    out = check_out(chain, out)
+    c = chain
+    if method == "rge-a":
+        nonfinite = entry(ws.kernel_f, ws.kernel_i, q, qd, ws.zeros if tau is None else tau,
+                          ws.scratch, out)
+    else:
+        rhs = _phi(c, ws, q, qd, tau).copy()
+        A = np.empty((c.n_v, c.n_v))
+        gim_composite(ws.tree, ws.s, A)
+        mult = np.zeros_like(A)
+        (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
+        nonfinite = float(np.sum(out * 0.0))
+    if nonfinite != 0.0:
+        raise _nonfinite_qdd(chain, ws, method == "rge-a" and planar, q, qd, tau,
+                             gim=None if method == "rge-a" else A, first=method == "ge-n")
+    return out
+
+
+# --------------------------------------------------------------------------- batches
+THREAD_MIN_WORK = 5000  # DOF x states below which a batch runs on the calling thread alone
+_POOL = None  # the batches' thread pool, made on first use
+_POOL_SIZE = 0  # its workers
+
+
+def default_threads() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _is_batch(x) -> bool:
+    """True for a 2-D array (or nested list) of states; False for anything else, ragged lists
+    included (the single call's checks then say what is wrong)."""
+    try:
+        return np.ndim(x) == 2
+    except ValueError:
+        return False
+
+
+def check_batch(chain: System, name: str, x, rows: int | None, *,
+                label: str | None = None) -> np.ndarray:
+    """``x`` as a C-contiguous float64 (B, n) array (n = ``n_q`` for ``q``, else ``n_v``) with
+    ``rows`` rows when given (the rows of the batch's ``q``), or StateError naming it (as
+    ``label``, default ``name``) and saying what a batch needs."""
+    n = chain.n_q if name == "q" else chain.n_v
+    label = label or name
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"{label} = {reprlib.repr(x)}: not a numeric array ({exc})") from None
+    if arr.dtype.kind not in NUMERIC_KINDS:
+        raise StateError(f"{label} = {reprlib.repr(x)}: not a numeric array (its entries are "
+                         f"{arr.dtype}; need int or float)")
+    if arr.ndim == 2 and arr.shape[1] == n and (rows is None or arr.shape[0] == rows):
+        return np.ascontiguousarray(arr, dtype=np.float64)
+    what = "configuration coordinates" if name == "q" else "DOF"
+    has = f"{type(chain).__name__.lower()} {chain.name!r} has {n} {what}"
+    if rows is None:  # the batch's own rows: q
+        raise StateError(f"{label} has shape {arr.shape}; {has}, so {label} must have shape "
+                         f"({n},) for one state, or (B, {n}) for a batch, one state a row")
+    raise StateError(f"{label} has shape {arr.shape}; q is a batch of {rows} states, so {label} "
+                     f"must have shape ({rows}, {n}), one row per row of q ({has})"
+                     + (f"; for the same {label} in every row, np.tile({label}, ({rows}, 1))"
+                        if arr.shape == (n,) else ""))
+
+
+def thread_count(threads: int | None, rows: int, work: float | None = None) -> int:
+    """Threads for ``rows`` rows: ``threads`` (checked), or every core this process may use;
+    one when ``threads`` is None and ``work`` (DOF x states) is under THREAD_MIN_WORK."""
+    count = default_threads() if threads is None else threads
+    if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1:
+        raise FieldError("dynamics", "threads", threads, "must be a whole number >= 1")
+    if threads is None and work is not None and work < THREAD_MIN_WORK:
+        count = 1
+    return max(1, min(int(count), rows))
+
+
+def run_blocks(rows: int, threads: int | None, call, count: int | None = None) -> list:
+    """call(block, first, last) for one contiguous block of rows per thread (the first block on
+    the calling thread), the results in block order; the first exception raised is re-raised."""
+    global _POOL, _POOL_SIZE
+    count = thread_count(threads, rows) if count is None else count
+    edges = [rows * i // count for i in range(count + 1)]
+    if count == 1:
+        return [call(0, 0, rows)]
+    if _POOL_SIZE < count - 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL_SIZE = max(count - 1, default_threads() - 1)
+        _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE, thread_name_prefix="redysim-batch")
+    assert _POOL is not None  # made above, or by an earlier call (_POOL_SIZE >= count - 1 > 0)
+    futures = [_POOL.submit(call, i, edges[i], edges[i + 1]) for i in range(1, count)]
+    try:
+        first = call(0, edges[0], edges[1])
+    finally:  # every block finishes before this returns or raises
+        for f in futures:
+            f.exception()
+    return [first, *(f.result() for f in futures)]
+
+
+def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> int:
+    """call(scratch, first, last) over the rows, one block a thread, each with its own scratch
+    of ``ws``; the first failing row (the lowest of the blocks') or -1."""
+    count = thread_count(threads, rows, rows * n)
+    scratches = ws.scratches(count)
+    results = run_blocks(rows, threads, lambda i, first, last: call(scratches[i], first,
+                                                                         last), count)
+    failed = [r for r in results if r >= 0]
+    return min(failed) if failed else -1
+
+
+_TILE_LOCK = threading.Lock()  # one parallel launch at a time (redysim._jit.jit_parallel)
+TILE_MIN_ROWS = _tiles.LANES // 2  # a batch's last tile runs as a tile from this many rows
+TILE_MAX_Q = 1e5  # |q| up to which the tiles' cos and sin reduce angles to within 1 ulp
+TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF, 35 MB here;
+# and at 2,000 DOF the tiles were already bound by memory, 1.3x the rows)
+
+
+def _forward_tiled(ws, Q, QD, TAU, out, threads) -> int:
+    """RGE-A over the batch's rows in SIMD tiles (the tiles split over threads, each with its
+    own tile arrays), the rows after the last tile one by one; the first row whose qdd is not
+    finite, or -1."""
+    B, lanes = Q.shape[0], _tiles.LANES
+    full, tail = divmod(B, lanes)
+    tiles = full + (tail >= TILE_MIN_ROWS)
+    split = min(B, tiles * lanes)
+    bad = -1
+    if tiles:
+        count = thread_count(threads, tiles, split * Q.shape[1])
+        bufs = ws.tile_buffer(count)
+        t = ws.tree
+        args = (t.along, t.joint_voff, t.dof_kind, t.dof_axis, t.dof_u, t.mass, t.inertia_O,
+                t.mass_com, ws.base_accel, Q, QD, TAU, out)
+        if count == 1:
+            bad = _tiles.forward_tiles(*args, 0, split, bufs[0])
+        else:  # whole tiles to each block, the blocks on numba's threads
+            edges = np.minimum(np.array([tiles * i // count for i in range(count + 1)]) * lanes,
+                               split)
+            failed = np.full(count, -1)
+            with _TILE_LOCK:
+                _tiles.forward_tiles_parallel(*args, edges, bufs, failed)
+            failed = failed[failed >= 0]
+            bad = int(failed.min()) if failed.size else -1
+    if bad < 0 and split < B:
+        bad = _batch.forward_rows(ws.kernel_f, ws.kernel_i, Q, QD, TAU, ws.scratch, out, split, B)
+    return bad
+
+
+def _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd=True) -> np.ndarray:
+    Q = check_batch(chain, "q", q, None)
+    B = Q.shape[0]
+    QD = check_batch(chain, "qd", qd, B)
+    if tau is None:
+        TAU = ws.zeros.reshape(1, -1)
+    elif np.ndim(tau) == 1:
+        TAU = check_state(chain, "tau", tau, finite=False).reshape(1, -1)
+    else:
+        TAU = check_batch(chain, "tau", tau, B)
+    if out is None:
+        out = np.empty((B, chain.n_v))
+    elif not (type(out) is ndarray and out.shape == (B, chain.n_v) and out.dtype is FLOAT64
+              and out.flags.c_contiguous and out.flags.writeable):
+        what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
+                else f"a {type(out).__name__}")
+        raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
+                         f"shape ({B}, {chain.n_v})")
+    if not isinstance(simd, bool | np.bool_):
+        raise FieldError("forward_dynamics", "simd", simd, "must be True or False")
+    if simd and not planar and ws.tiles_ok and B >= TILE_MIN_ROWS \
+            and chain.n_v <= TILE_MAX_DOF \
+            and np.abs(Q).max() <= TILE_MAX_Q:  # (NaN compares False: the rows say why)
+        bad = _forward_tiled(ws, Q, QD, TAU, out, threads)
+    else:
+        rows = _batch.planar_rows if planar else _batch.forward_rows
+        f, i = ws.kernel_f, ws.kernel_i
+        bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: rows(
+            f, i, Q, QD, TAU, scratch, out, first, last))
+    if bad >= 0:  # the single call of that row says why
+        t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
+        try:
+            forward_dynamics(chain, Q[bad], QD[bad], t, planar=planar, ws=ws)
+        except StateError as exc:
+            raise StateError(f"state {bad} of the batch (row {bad} of q and qd): {exc}") from None
+        raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)
+    return out
+
+
+def _inverse_batch(chain, ws, q, qd, qdd, threads) -> np.ndarray:
+    Q = check_batch(chain, "q", q, None)
+    B = Q.shape[0]
+    QD, QDD = check_batch(chain, "qd", qd, B), check_batch(chain, "qdd", qdd, B)
+    for name, arr in (("q", Q), ("qd", QD), ("qdd", QDD)):
+        if not np.isfinite(arr).all():
+            row, col = np.argwhere(~np.isfinite(arr))[0]
+            raise StateError(f"{name}[{row}, {col}] = {float(arr[row, col])!r}: not finite (state "
+                             f"{row} of the batch)")
+    out = np.empty((B, chain.n_v))
+    f, i = ws.kernel_f, ws.kernel_i
+    bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: _batch.inverse_rows(
+        f, i, Q, QD, QDD, scratch, out, first, last))
+    if bad >= 0:
+        raise StateError(f"state {bad} of the batch: " + str(overflow_error(
+            "tau", q=Q[bad], qd=QD[bad], qdd=QDD[bad])))
+    return out
+
+
+def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> StateError:
+    """The error for a qdd that is NaN or +-inf: the input that is not finite, named; else a
+    singular GIM (an elimination pivot that is 0: RGE-A's articulated inertia Ihat, or the
+    numerical GIM's factor after GE-N or RGE-N), naming the DOF where the elimination met it
+    (RGE-A and RGE-N eliminate from the tip, GE-N, ``first``, from the base); else the recursion
+    overflowed. A NaN or Inf in the input always reaches qdd, so only now is it looked for."""
+    for name, x in (("q", q), ("qd", qd), ("tau", tau)):
+        if x is not None:
+            require_finite(name, np.asarray(x, dtype=float))
+    if gim is None:
+        pivots = ws.planar[:, 8] if planar else ws.Ihat  # Ihat: the planar kernel's column 8
+    else:
+        pivots = np.diag(gim)
+    j = first_bad_pivot(pivots, from_base=first, positive=True)
+    if j is not None:
+        voff = ws.tree.joint_voff
+        k = int(np.searchsorted(voff, j, side="right") - 1)
+        axis = j - int(voff[k])
+        kind, joint = chain.joint_types[k], f"joint {chain.joint_names[k]!r}"
+        return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
+                          f"{j} ({joint}, axis {axis} of its {kind} joint): "
+                          f"the inertia about that axis of everything it moves is "
+                          f"{float(pivots[j])!r} (a link with no mass or inertia that the axis "
+                          "can move, e.g. a point mass on the joint axis, or a length that "
+                          "underflows)")
+    return overflow_error("qdd", q=q, qd=qd, tau=tau)
+
+
+# --------------------------------------------------------------------------- GIM and factors
+def mass_matrix(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
+    """The GIM I(q) (n, n) from composite masses (Eq. 10a); exactly symmetric."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    out = np.empty((c.n_v, c.n_v))
+    gim_composite(ws.tree, ws.s, out)
+    return out
+
+
+class UDU(NamedTuple):
+    """I = U D U^T: U unit upper triangular, D diagonal (Ihat of each axis, eliminated last
+    first)."""
+
+    U: np.ndarray
+    D: np.ndarray
+
+
+def udu_factors(chain: System, q, *, ws: Workspace | None = None) -> UDU:
+    """The explicit analytic factors I = U D U^T of RGE-A (Appendix A.1), dense (n, n) arrays."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    rge_a_backward(ws.tree, ws.table_a1, ws.zeros)
+    U = np.zeros((c.n_v, c.n_v))
+    D = np.zeros((c.n_v, c.n_v))
+    udu_assemble(ws.tree, ws.s, U, D)
+    return UDU(U, D)
+
+
+class Elimination(NamedTuple):
+    """The result of GE-N or RGE-N: qdd, the triangular factor, the multipliers and phi-hat."""
+
+    qdd: np.ndarray
+    factor: np.ndarray  # U (GE-N) or L' (RGE-N)
+    multipliers: np.ndarray  # L (GE-N) or U' (RGE-N), unit diagonal
+    phihat: np.ndarray
+
+
+def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
+    """Solve gim qdd = rhs by GE-N or RGE-N (section 5.2) and return the factors as well.
+
+    Raises StateError for a gim or rhs of the wrong shape or not finite, and for a singular gim
+    (a pivot that is 0 or not finite, named with its column: no pivoting, as in the paper)."""
+    try:
+        A = np.array(gim, dtype=float, copy=True)
+        b = np.array(rhs, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"gim and rhs must be numeric arrays ({exc})") from None
+    if b.ndim != 1:
+        raise StateError(f"rhs has shape {b.shape}; it must be a vector")
+    n = b.shape[0]
+    if A.shape != (n, n):
+        raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
+    kernels = dict(zip(ELIMINATIONS, (ge_n, rge_n), strict=True))
+    if method not in kernels:
+        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(kernels)}")
+    if not np.isfinite(A).all():
+        i, j = np.argwhere(~np.isfinite(A))[0]
+        raise StateError(f"gim[{i}, {j}] = {float(A[i, j])!r}: not finite")
+    require_finite("rhs", b)
+    mult = np.zeros_like(A)
+    x = np.empty(n)
+    kernels[method](A, b, mult, x)
+    if not np.isfinite(x).all():
+        pivots = np.diag(A)  # the factor's diagonal: GE-N eliminates from the first column on,
+        c = first_bad_pivot(pivots, from_base=method == "ge-n", positive=False)  # RGE-N the last
+        if c is not None:
+            raise StateError(f"gim is singular for {method.upper()} (no pivoting): the pivot of "
+                             f"column {c} is {float(pivots[c])!r}")
+        raise overflow_error("qdd", gim=A, rhs=b)
+    return Elimination(x, A, mult, b)
+
+
+# --------------------------------------------------------------------------- energy and tip
+def energy(chain: System, q, qd, *, ws: Workspace | None = None) -> tuple[float, float]:
+    """(T, V): kinetic and potential energy [J] (V = 0 with every COM at height y = 0)."""
+    q = check_state(chain, "q", q)
+    qd = check_state(chain, "qd", qd)
+    ws = _ws(chain, ws)
+    c = chain
+    _run_kinematics(c, ws, q, qd, ws.zeros, ws.no_accel)
+    T, V = _energy(ws.tree, ws.gravity, ws.s)
+    if not (math.isfinite(T) and math.isfinite(V)):
+        raise overflow_error("the energy", q=q, qd=qd)
+    return float(T), float(V)
+
+
+def delta_M(chain: System, q, qd, E0: float, *, ws: Workspace | None = None) -> float:
+    """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
+    T, V = energy(chain, q, qd, ws=ws)
+    return (T + V - E0) / chain.total_mass
+
+
+class Tip(NamedTuple):
+    """Position, velocity and acceleration of a point fixed in a body (world frame): the tip of
+    a chain (the distal end of its last link), or a model's named frame."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray | None
+
+
+TIP = "tip"  # the frame a chain's tip is (Model.from_chain names it so)
+
+
+def _frame_point(system: System, frame: str) -> tuple[int, np.ndarray]:
+    """(body index, point in the body's frame) of ``frame``: a frame of the model
+    (``Model.frames``; a chain has ``"tip"``) or a body (its origin, the joint's centre).
+    Raises FieldError naming the frame and listing the known ones."""
+    if isinstance(frame, str) and frame in system.frames:
+        b, point = system.frames[frame]
+        return int(b), np.asarray(point, dtype=float)
+    if isinstance(frame, str) and frame in system.body_names:
+        return system.body_names.index(frame), np.zeros(3)
+    known = [*system.frames, *system.body_names[:10]]
+    if system.n_bodies > 10:
+        known += ["...", system.body_names[-1]]
+    where = "tip" if frame == TIP else "frame"
+    raise FieldError(f"{type(system).__name__.lower()} {system.name!r}", where, frame,
+                     "no such frame or body; known: " + ", ".join(known)
+                     + ("; give another with frame_motion(system, q, qd, frame=NAME)"
+                        if frame == TIP else ""))
+
+
+def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
+                 ws: Workspace | None = None) -> Tip:
+    """A point's motion in the world frame: position [m], velocity [m/s] and, given qdd,
+    acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
+    ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
+    frame, StateError for a bad state."""
+    q = check_state(system, "q", q)
+    qd = check_state(system, "qd", qd)
+    qdd = check_state(system, "qdd", qdd, optional=True)
+    k, point = _frame_point(system, frame)
+    ws = _ws(system, ws)
+    _run_kinematics(system, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
+    r = _arm(ws.oR[k], point)
+    w, v = ws.t[k, :3], ws.t[k, 3:]
+    pos = ws.oO[k] + r
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
+        vel = v + np.cross(w, r)
+        acc = None
+        if qdd is not None:
+            wd, vd = ws.td[k, :3], ws.td[k, 3:]
+            acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+    if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
+        raise overflow_error("the tip's motion" if frame == TIP else f"the motion of {frame!r}",
+                             q=q, qd=qd, qdd=qdd)
+    return Tip(pos, vel, acc)
+
+
+def _arm(oR: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """A body point's offset from the body's origin in the world frame: a point on the body's x
+    axis (a chain's tip) as its x times the frame's first column (the chain's formula, whose
+    bits the rope's results carry), any other as oR point."""
+    if point[1] == 0 and point[2] == 0:
+        return point[0] * oR[:, 0]
+    return oR @ point
+
+
+def tip(chain: System, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
+    """The tip: the frame ``"tip"`` (a chain's is the distal end of its last link): position,
+    velocity and, given qdd, acceleration (:func:`frame_motion`; a model without such a frame
+    raises FieldError naming the frames it has)."""
+    return frame_motion(chain, q, qd, qdd, frame=TIP, ws=ws)
+
+
+def joint_positions(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
+    """The joint origins, for plotting a shape: (nb, 3) the body origins (each body's frame sits
+    on its joint: a chain's O_1..O_nl), then the frame ``"tip"``'s position when the model has
+    one (a chain's distal end), in the world frame [m]."""
+    q = check_state(chain, "q", q)
+    ws = _ws(chain, ws)
+    _run_kinematics(chain, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    if TIP not in chain.frames:
+        return ws.oO.copy()
+    b, point = chain.frames[TIP]
+    return np.vstack([ws.oO, ws.oO[b] + _arm(ws.oR[b], np.asarray(point, dtype=float))])

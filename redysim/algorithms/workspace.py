@@ -1,0 +1,188 @@
+"""Preallocated per-system scratch arrays (Pinocchio's ``Data``): the kernels write into these."""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from redysim.algorithms._kernels import entry as E
+from redysim.algorithms._kernels.bundles import (
+    FIELDS,
+    H_NB,
+    H_NG,
+    H_NQ,
+    H_NV,
+    H_SERIAL,
+    HEADER,
+    SLOT,
+    Scratch,
+    Tree,
+    segment_sizes,
+    shape_of,
+    sizes_of,
+)
+from redysim.algorithms._kernels.joints import BALL
+from redysim.algorithms._kernels.tiles import tile_sizes
+from redysim.errors import FieldError
+from redysim.model.tree import FREE, Model
+
+ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
+
+
+def _layout(sizes: dict[str, int], header: np.ndarray, start: int = 0) -> int:
+    """Lay segments (field name -> number of items) back to back, each padded to ALIGN items:
+    write each one's offset, counted from ``start``, into ``header`` at its slot; return the
+    total."""
+    end = start
+    for name, size in sizes.items():
+        header[SLOT[name]] = end
+        end += -(-size // ALIGN) * ALIGN
+    return end - start
+
+
+def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int = 0
+          ) -> np.ndarray:
+    """One array holding ``segments`` (field name -> array) as laid out by :func:`_layout`."""
+    packed = np.zeros(_layout({k: a.size for k, a in segments.items()}, header, start), dtype)
+    for name, a in segments.items():
+        slot = SLOT[name]
+        packed[header[slot] - start:header[slot] - start + a.size] = np.ravel(a)
+    return packed
+
+
+def tree_tables(system: Model) -> dict:
+    """The :class:`~redysim.algorithms._kernels.bundles.Tree` fields of a model, as numpy arrays
+    (plus ``n_q``). A serial chain (parent k - 1, every joint placed along its parent's x, no free
+    joint: every :class:`~redysim.model.tree.Chain`) is ``serial``, its tree tables empty."""
+    m = system
+    nb = m.n_bodies
+    serial = m.is_chain and not m.placement_code.any() and FREE not in m.joint_types
+    parent = np.asarray(m.parent)
+    # a body gathers when a child does not follow it directly (its parent is not k - 1)
+    needs = np.zeros(nb, dtype=bool)
+    k = np.arange(1, nb)
+    far = parent[1:] >= 0
+    far &= parent[1:] != k - 1
+    needs[parent[1:][far]] = True
+    gather = np.where(needs, np.cumsum(needs) - 1, -1).astype(np.int64)
+    nt = 0 if serial else nb
+    return dict(serial=int(serial), parent=m.parent[:nt], gather=gather[:nt],
+                placement_code=m.placement_code[:nt],
+                qshift=(m.joint_qoff[:-1] - m.joint_voff[:-1])[:nt], along=m.placement_p[:, 0],
+                placement_R=m.placement_R[:nt], placement_p=m.placement_p[:nt],
+                joint_voff=m.joint_voff, dof_kind=m.dof_kind, dof_axis=m.dof_axis,
+                dof_u=m.dof_u, mass=m.mass, inertia_O=m.inertia_O, mass_com=m.mass_com,
+                n_q=m.n_q)
+
+
+def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
+    """The two bundles with the tree's float arrays passed through ``convert`` (or given in
+    ``arrays`` by field name) and the scratch made by ``zeros(shape)``: for running the kernels'
+    Python source in another arithmetic (``redysim.algorithms.precision``,
+    ``redysim.harness.hiprec``)."""
+    t = tree_tables(system)
+    tree = Tree(t["serial"], *(arrays[f] if f in arrays else convert(t[f])
+                               if FIELDS[f].dtype is np.float64 else t[f]
+                               for f in Tree._fields[1:]))
+    sizes = sizes_of(t["mass"].shape[0], t["dof_kind"].shape[0],
+                     int((t["gather"] >= 0).sum()), bool(t["serial"]))
+    return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
+
+
+class Workspace:
+    """O(n) scratch for one chain or model. Not thread-safe: use one workspace per thread.
+
+    ``tree`` and ``s``: the named bundles the kernels take
+    (:mod:`redysim.algorithms._kernels.bundles`), the system's arrays (copies: the system is
+    immutable) and the scratch, views of three packed arrays, ``kernel_f`` and ``kernel_i`` (the
+    tree's floats and ints, with a header) and ``scratch``, which forward dynamics' entry points
+    take (:mod:`redysim.algorithms._kernels.entry`: 7 arguments instead of 28). The scratch arrays
+    are also attributes, all world frame (nb bodies, n DOF): ``oR`` (nb,3,3) body rotations, ``oO``
+    (nb,3) joint positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nb,6) twists and
+    twist-rates, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phihat`` (n,), ``W``
+    (nb,6) resultant wrenches, ``planar`` (nb,12) for the planar kernel. Besides: ``phi`` (n,), and
+    ``zeros`` (n,), ``zeros6`` (nb,6) that no kernel writes.
+    """
+
+    def __init__(self, system: Model):
+        if not isinstance(system, Model):
+            raise FieldError("Workspace", "chain", type(system).__name__,
+                             "must be a redysim.Model (Chain.build, Chain.uniform, "
+                             "load_case(...).chain, load_model(...))")
+        t = tree_tables(system)
+        nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
+        ng = int((t["gather"] >= 0).sum())
+        planar = system.is_planar
+        self.chain = system  # the chain or model it was made for
+        gravity = np.asarray(system.gravity, dtype=float)
+        header = np.zeros(HEADER, dtype=np.int64)
+        header[[H_NB, H_NV, H_NQ, H_NG, H_SERIAL]] = nb, n, t["n_q"], ng, t["serial"]
+        arrays = {**t, "base_accel": -gravity, "gravity": gravity, "zeros": np.zeros(n)}
+        if planar:
+            c = system
+            arrays.update(length=c.length, izz_O=c.inertia_O[:, 2, 2], mc_x=c.mass_com[:, 0],
+                          mc_y=c.mass_com[:, 1])
+        # the packed arrays, as the layout table lays them out (redysim.algorithms._kernels.bundles)
+        sizes = sizes_of(nb, n, ng, bool(t["serial"]))
+        self.kernel_f = _pack({f: arrays[f] for f in segment_sizes("tree_f", sizes, planar)},
+                              np.float64, header)
+        ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar)},
+                            np.int64, header, start=HEADER)  # after the header
+        self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar), header))
+        self.kernel_i = np.concatenate((header, ints_packed))
+        bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
+        self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
+        s = self.s
+        self.oR, self.oO, self.oP, self.t, self.td = s.oR, s.oO, s.oP, s.t, s.td
+        self.Ihat, self.Psihat, self.phitil, self.phihat, self.W = \
+            s.Ihat, s.Psihat, s.phitil, s.phihat, s.W
+        slot = SLOT["planar"]
+        self.planar = (self.scratch[header[slot]:header[slot] + 12 * nb].reshape((nb, 12))
+                       if planar else None)
+        self.phi = np.empty(n)
+        # views of the packed data that the other functions take too: no kernel writes them
+        f = self.kernel_f
+        self.zeros = f[header[SLOT["zeros"]]:header[SLOT["zeros"]] + n]  # (n,) of zeros
+        self.zeros6 = np.zeros((nb, 6))
+        self.base_accel = f[header[SLOT["base_accel"]]:header[SLOT["base_accel"]] + 3]  # -g
+        self.gravity = f[header[SLOT["gravity"]]:header[SLOT["gravity"]] + 3]
+        self.no_accel = np.zeros(3)
+        self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
+        self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
+        # batches of this system can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
+        # chain of revolute and prismatic axes
+        self.tiles_ok = bool(t["serial"]) and not (t["dof_kind"] == BALL).any()
+
+    @cached_property
+    def table_a1(self) -> Scratch:
+        """The scratch with td a zero array that no kernel writes: RGE-A's backward pass run on it
+        with zero twists reads c = 0 (Table A.1 as printed; the factors alone)."""
+        return self.s._replace(t=self.zeros6, td=self.zeros6)
+
+    def scratches(self, count: int) -> list[np.ndarray]:
+        """``count`` scratch arrays of this workspace's layout, the first its own: one for each
+        thread of a batch (:func:`redysim.forward_dynamics` with (B, n) arrays). Made on first
+        use and kept."""
+        extra = self._extra_scratch
+        while len(extra) < count - 1:
+            extra.append(np.empty_like(self.scratch))
+        return [self.scratch, *extra[:count - 1]]
+
+    def tile_buffer(self, count: int) -> np.ndarray:
+        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles
+        (:func:`redysim.algorithms._kernels.tiles.tile_sizes`). Made on first use and kept (grown
+        when more
+        threads are asked for)."""
+        if self._tiles is None or self._tiles.shape[0] < count:
+            nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
+            self._tiles = np.zeros((count, sum(tile_sizes.py_func(nb, n))))
+        return self._tiles[:count]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the workspace's own arrays (O(n); views not counted twice, the
+        system's arrays not counted)."""
+        own = sum(v.nbytes for v in vars(self).values()
+                  if isinstance(v, np.ndarray) and v.base is None)
+        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer is in own)

@@ -1,0 +1,103 @@
+"""What every stepper shares (ours, the implicit midpoint's, SciPy's, an engine's): the solver
+protocol, the step controller's constants, the counters, the resumable state, the error they
+raise and cubic Hermite interpolation.
+
+A module of its own so that :mod:`redysim.integrators.explicit` and
+:mod:`redysim.integrators.implicit` both build on it without importing each other
+(``tests/test_layout.py`` refuses import cycles); everything here is also importable from
+:mod:`redysim.integrators.explicit`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# --------------------------------------------------------------------------- controller constants
+SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
+MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
+FIRST_REJECT_MIN = 0.1  # ode45: a first rejection shrinks h by no more than 10x
+LATER_REJECT = 0.5      # ode45: later rejections of the same step halve h
+HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
+HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
+FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
+SAMPLE_EPS = 1e-12      # relative slack when matching sample times
+
+
+class IntegrationError(RuntimeError):
+    """The integration cannot go on (step below hmin, a non-finite state)."""
+
+
+@dataclass
+class Counters:
+    steps: int = 0
+    rejected: int = 0
+    nfev: int = 0
+
+
+@dataclass
+class SolverState:
+    """Everything needed to resume: time, state, its derivative, the next step, counters."""
+
+    t: float
+    y: np.ndarray
+    f: np.ndarray
+    h: float
+    counters: Counters = field(default_factory=Counters)
+
+    def resume(self, solver) -> None:
+        """Set ``solver``'s time, state, derivative, next step and counters from this state."""
+        solver.t, solver.y, solver.f = self.t, self.y.copy(), self.f.copy()
+        solver.h_next, solver.counters = self.h, self.counters
+
+
+def hermite(y0, f0, y1, f1, h, s):
+    """y at the fractions ``s`` (m,) of the step [y0, y1] of size h with slopes f0, f1 -> (m, n)."""
+    s = s[:, None]
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s * s * (3 - 2 * s)
+    h11 = s * s * (s - 1)
+    return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1
+
+
+class OdeSolver(ABC):
+    """The protocol every stepper follows (as SciPy's ``OdeSolver``), so that one driver
+    (:func:`redysim.integrators.explicit.advance`, :class:`redysim.simulation.Simulator`) runs them
+    all.
+
+    Attributes: ``t``, ``y`` (the current time and state), ``t_old`` (the last step's start),
+    ``t_end``, ``counters`` (:class:`Counters`: steps, rejected, RHS calls; -1 where a solver
+    cannot count). :meth:`step` takes the next sample time ``t_stop``: a fixed step lands on
+    it, a compiled solver takes every step up to the first that reaches it, an adaptive one in
+    Python ignores it (one accepted step a call). :meth:`dense` interpolates inside the last
+    step. :meth:`state` copies what a checkpoint needs to resume (``state=`` of the solver's
+    constructor), or raises NotImplementedError where the state cannot be saved (SciPy's, an
+    engine's own).
+    """
+
+    t: float
+    y: np.ndarray
+    t_old: float
+    t_end: float
+    counters: Counters
+
+    @property
+    def done(self) -> bool:
+        """Whether the solver reached t_end."""
+        return self.t >= self.t_end
+
+    @abstractmethod
+    def step(self, t_stop: float | None = None) -> None:
+        """Advance by one accepted step (or, compiled, up to the first reaching ``t_stop``);
+        raises IntegrationError when it cannot."""
+
+    @abstractmethod
+    def dense(self, ts) -> np.ndarray:
+        """(m, n): y at the times ``ts`` (m,) inside the last step."""
+
+    def state(self) -> SolverState:
+        """A copy of the resumable state (to save in a checkpoint)."""
+        raise NotImplementedError(f"{type(self).__name__}'s state cannot be saved and resumed")
