@@ -184,7 +184,7 @@ class _Motion:
         """vdot at (t, q, v): the loops', the provider's or the core's."""
         tau = self.forces(t, q, v)
         if self.loops is not None:
-            a = self.loops.forward_dynamics(q, v, tau)[0]
+            a = self.loops.forward_dynamics(q, v, tau)
         elif self.qdd is not None:
             a = np.asarray(self.qdd(q, v, tau), dtype=float)
             if a.shape != (self.nv,):
@@ -552,7 +552,7 @@ class Simulator:
             try:
                 if loops is not None:
                     tau = motion.forces(t, q, v)
-                    forces.append(loops.forward_dynamics(q, v, tau)[1])
+                    forces.append(loops.forward_dynamics_and_forces(q, v, tau)[1])
                 E, com = self._energy_and_com(q, v)
                 sample = Sample(t, q, v, E, com, accel, motion.ws)
                 rows = {name: f(sample) for name, f in self.observe.items()}

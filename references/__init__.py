@@ -23,7 +23,7 @@ loop adapters (:mod:`redysim.references.loops`), which build the tree with the e
 close the cuts with each engine's own constraint::
 
     eng = references.loop_engine("exudyn", loops)   # references.LOOP_ENGINES lists them
-    qdd, lam = eng.forward_dynamics(q, v, tau)      # as ClosedLoops.forward_dynamics
+    qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)  # as ClosedLoops does
 """
 
 from __future__ import annotations

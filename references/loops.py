@@ -254,8 +254,13 @@ class LoopEngine(EnginePackage):
                 raise ValueError(f"tau has shape {tau.shape}; the model has n_v = {m.n_v}")
         return q, v, tau
 
-    def forward_dynamics(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
-        """(qdd, lam) with the loops closed, in the core's coordinates and convention."""
+    def forward_dynamics(self, q, v, tau=None) -> np.ndarray:
+        """qdd with the loops closed (as :meth:`ClosedLoops.forward_dynamics`)."""
+        return self.forward_dynamics_and_forces(q, v, tau)[0]
+
+    def forward_dynamics_and_forces(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
+        """(qdd, lam) with the loops closed, in the core's coordinates and convention (as
+        :meth:`ClosedLoops.forward_dynamics_and_forces`)."""
         q, v, tau = self._check(q, v, tau)
         why = self.refusal(q, v) or self._planar_gap(q)
         if why:
@@ -285,7 +290,7 @@ class LoopEngine(EnginePackage):
         return ""
 
     def qdd(self, q, v, tau=None) -> np.ndarray:
-        return self.forward_dynamics(q, v, tau)[0]
+        return self.forward_dynamics(q, v, tau)
 
     integrator: ClassVar[str] = ""  # the native integrator simulate() uses ("": none)
 

@@ -127,9 +127,9 @@ def engines_check() -> list[dict]:
                         if why := eng.refusal(q, v):
                             row["refused"] += f"{label}: {why} "
                             continue
-                        qdd, lam = eng.forward_dynamics(q, v)
-                        qdd_c, lam_c = loops.forward_dynamics(q, v)
-                        tree = redysim.forward_dynamics(loops.model, q, v)
+                        qdd, lam = eng.forward_dynamics_and_forces(q, v)
+                        qdd_c, lam_c = loops.forward_dynamics_and_forces(q, v)
+                        tree = redysim.forward_dynamics(loops.tree, q, v)
                         scale = max(np.abs(qdd_c).max(), np.abs(tree).max())
                         row["qdd"] = np.nanmax([row["qdd"], np.abs(qdd - qdd_c).max() / scale])
                         row["force"] = np.nanmax([row["force"], np.abs(lam - lam_c).max()

@@ -128,8 +128,8 @@ def _engine(name, mech):
 
 def differences(loops, qdd, lam, q, v, tau) -> tuple[float, float]:
     """(qdd difference, force difference) from the core's (module docstring)."""
-    qdd_c, lam_c = loops.forward_dynamics(q, v, tau)
-    qdd_tree = redysim.forward_dynamics(loops.model, q, v, tau)
+    qdd_c, lam_c = loops.forward_dynamics_and_forces(q, v, tau)
+    qdd_tree = redysim.forward_dynamics(loops.tree, q, v, tau)
     scale = max(np.abs(qdd_c).max(), np.abs(qdd_tree).max())
     return (float(np.abs(qdd - qdd_c).max() / scale),
             float(np.abs(lam - lam_c).max() / np.abs(lam_c).max()))
@@ -157,7 +157,7 @@ def test_engine_matches_the_core(name, mech, i):
         with pytest.raises(LoopStateUnsupported, match="velocity impulse"):
             eng.forward_dynamics(q, v, tau)
         return
-    qdd, lam = eng.forward_dynamics(q, v, tau)
+    qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
     assert qdd.shape == (loops.model.n_v,) and lam.shape == (loops.m,)
     dq, df = differences(loops, qdd, lam, q, v, tau)
     assert dq < TOLERANCE[name] and df < TOLERANCE[name], (mech, label, dq, df)
@@ -171,7 +171,7 @@ def test_answers_are_new_arrays(name):
     eng = _engine(name, "four-bar")
     states = STATES["four-bar"][1]
     _, q, v, tau = states[0]  # crank 0.3 at rest: every engine answers
-    qdd, lam = eng.forward_dynamics(q, v, tau)
+    qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
     before = qdd.copy(), lam.copy()
     _, q, v, tau = states[2]  # crank 2.0 at rest
     eng.forward_dynamics(q, v, tau)
@@ -191,12 +191,12 @@ def test_dart_refusal_is_needed():
                 continue
             qdd, _ = eng._solve(q, v, tau)  # bypassing the refusal, to measure
             _, J, _, Jdv = loops.evaluate(q, v)
-            qdd_tree = redysim.forward_dynamics(loops.model, q, v, tau)
+            qdd_tree = redysim.forward_dynamics(loops.tree, q, v, tau)
             X = np.linalg.solve(redysim.mass_matrix(loops.model, q), J.T)
             without = qdd_tree + X @ np.linalg.solve(J @ X, -J @ qdd_tree)  # Jdot v left out
             scale = np.abs(qdd_tree).max()
             assert np.abs(qdd - without).max() / scale < TOL_DART, (mech, label)
-            qdd_c, _ = loops.forward_dynamics(q, v, tau)
+            qdd_c, _ = loops.forward_dynamics_and_forces(q, v, tau)
             worst = max(worst, float(np.abs(qdd - qdd_c).max() / scale))
     assert worst > 1e3 * TOL_DART
 
@@ -265,11 +265,11 @@ def test_mujoco_is_the_hard_answer_plus_its_regulariser():
     for mech, (loops, states) in STATES.items():
         eng = _engine("mujoco", mech)
         for label, q, v, tau in states:
-            qdd, lam = eng.forward_dynamics(q, v, tau)
+            qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
             R = eng.regularisation(q, v)
             assert np.all(R > 0)
             _, J, _, Jdv = loops.evaluate(q, v)
-            qdd_tree = redysim.forward_dynamics(loops.model, q, v, tau)
+            qdd_tree = redysim.forward_dynamics(loops.tree, q, v, tau)
             X = np.linalg.solve(redysim.mass_matrix(loops.model, q), J.T)
             f = np.linalg.solve(J @ X + np.diag(R), -(J @ qdd_tree + Jdv))
             soft = qdd_tree + X @ f
@@ -314,7 +314,7 @@ def test_exudyn_velocity_term_is_a_finite_difference():
     def error(eps, v):
         nd.relativeEpsilon = eps
         try:
-            return differences(loops, *eng.forward_dynamics(q, v), q, v, None)[0]
+            return differences(loops, *eng.forward_dynamics_and_forces(q, v), q, v, None)[0]
         finally:
             nd.relativeEpsilon = 1e-7
 
@@ -388,7 +388,7 @@ def test_a_planar_cut_on_a_spatial_mechanism():
     pytest.importorskip("exudyn")
     eng = loop_engine("exudyn", planar)
     for _, q, v, tau in states:
-        dq, df = differences(planar, *eng.forward_dynamics(q, v, tau), q, v, tau)
+        dq, df = differences(planar, *eng.forward_dynamics_and_forces(q, v, tau), q, v, tau)
         assert dq < TOL_EXUDYN and df < TOL_EXUDYN
 
 
@@ -420,5 +420,5 @@ def test_a_wrong_model_is_caught(name):
     wrong = ClosedLoops(dataclasses.replace(loops.model, mass=heavier), loops.cuts)
     eng = loop_engine(name, wrong)
     _, q, v, tau = states[0]
-    assert max(differences(loops, *eng.forward_dynamics(q, v, tau), q, v, tau)) > \
+    assert max(differences(loops, *eng.forward_dynamics_and_forces(q, v, tau), q, v, tau)) > \
         TOLERANCE[name]

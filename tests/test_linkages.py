@@ -101,8 +101,8 @@ def test_the_crank_rocker_file_is_the_four_bar_of_test_loops():
     P = four_bar_position(fb, math.radians(20.0))[0]
     np.testing.assert_allclose(linkage.point(q0, "coupler.P")[:2], P, rtol=0, atol=1e-12)
     v = np.array([1.0, -0.3, 0.4])
-    qdd, lam = loops.forward_dynamics(q0, v)
-    qdd_ref, lam_ref = fb.loops.forward_dynamics(q0, v)
+    qdd, lam = loops.forward_dynamics_and_forces(q0, v)
+    qdd_ref, lam_ref = fb.loops.forward_dynamics_and_forces(q0, v)
     np.testing.assert_allclose(qdd, qdd_ref, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(lam, lam_ref, rtol=1e-12, atol=1e-12)
     # driven kinematically: reassembled at other crank angles, on the same branch

@@ -153,7 +153,7 @@ def test_revolute_and_weld_cuts_hold_and_keep_the_energy(kind, dof):
     rate = (loops.evaluate(q0 + eps * w, np.zeros(9))[0]
             - loops.evaluate(q0 - eps * w, np.zeros(9))[0]) / (2 * eps)
     assert np.abs(rate - J @ w).max() < 1e-8 * np.abs(J @ w).max()
-    qdd, lam = loops.forward_dynamics(q0, v0)
+    qdd, lam = loops.forward_dynamics_and_forces(q0, v0)
     _, _, Jv, Jdv = loops.evaluate(q0, v0)
     M = mass_matrix(model, q0)
     m = J.shape[0]

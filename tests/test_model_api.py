@@ -249,6 +249,28 @@ def test_cut_joints_belong_to_the_model():
     assert free.forces is None
 
 
+def test_a_closed_model_is_never_answered_for_as_its_tree():
+    """forward_dynamics on a model with cut joints returned the open tree's qdd (the four-bar's
+    crank at rest: -95.4 rad/s^2 against -39.1 with the loop closed), silently. Now it and
+    inverse_dynamics refuse, naming the cuts; ClosedLoops answers with the loops closed, in
+    forward_dynamics' signature (model state in, qdd out), and with the forces beside."""
+    from redysim import ClosedLoops, inverse_dynamics, load_linkage
+
+    link = load_linkage("cases/loops/crank_rocker.toml")
+    q, v = link.q0, np.zeros(link.model.n_v)
+    for call in (lambda: forward_dynamics(link.model, q, v),
+                 lambda: inverse_dynamics(link.model, q, v, v)):
+        with pytest.raises(CaseError, match=r"cuts = \['coupler-rocker pin'\]: .*cut joints"):
+            call()
+    loops = ClosedLoops(link.model)
+    qdd = loops.forward_dynamics(q, v)
+    both = loops.forward_dynamics_and_forces(q, v)
+    np.testing.assert_array_equal(qdd, both[0])
+    assert both[1].shape == (2,)
+    open_qdd = forward_dynamics(link.model.with_cuts(()), q, v)
+    assert np.abs(qdd - open_qdd).max() > 10.0  # the loop's force matters here
+
+
 def test_a_simulator_runs_once_and_keeps_what_it_observes():
     """The one driver: observers see every sample, a second run() is refused (its solver is at
     the end), and a chain's tip observed equals redysim.tip at the sampled states."""

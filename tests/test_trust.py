@@ -539,7 +539,7 @@ def test_a_parallelogram_at_its_flat_configuration_is_named_a_change_point():
     assert "'coupler-rocker pin' are redundant at this configuration" in msg
     assert "change point" in msg and "switch branches" in msg
     assert "remove or lower the rank" not in msg
-    qdd, _ = fb.loops.forward_dynamics(np.array([0.3, -0.3, 0.3]), np.zeros(3))
+    qdd, _ = fb.loops.forward_dynamics_and_forces(np.array([0.3, -0.3, 0.3]), np.zeros(3))
     assert np.isfinite(qdd).all()  # regular away from it
 
 

@@ -32,7 +32,7 @@ from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
 from redysim.algorithms.workspace import Workspace
-from redysim.errors import FieldError, StateError
+from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
 from redysim.model.tree import Model
 
@@ -167,6 +167,15 @@ def _phi(chain, ws, q, qd, tau):
     return ws.phi
 
 
+def closed_error(model: Model, what: str) -> CaseError:
+    """The refusal of ``what`` on a model with cut joints, whose tree's answer would ignore
+    them silently."""
+    return CaseError(model.name, "cuts", [c.name for c in model.cuts],
+                     f"{what} of a model with cut joints: the tree's recursions ignore the loops; "
+                     "close them with redysim.ClosedLoops(model), or open the model with "
+                     "model.with_cuts(())")
+
+
 # --------------------------------------------------------------------------- inverse dynamics
 def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
                      threads: int | None = None) -> np.ndarray:
@@ -175,6 +184,8 @@ def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
     A batch: q (B, n_q), qd and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
     rows split over threads (``threads``, as for :func:`forward_dynamics`).
     """
+    if chain.cuts:
+        raise closed_error(chain, "inverse_dynamics")
     if _is_batch(q):
         return _inverse_batch(chain, _ws(chain, ws), q, qd, qdd, threads)
     q = check_state(chain, "q", q)
@@ -233,8 +244,12 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     these go to the compiled entry point as they are, which checks their types and sizes
     itself. Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.
+
+    A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them).
     """
     ws = _ws(chain, ws)
+    if chain.cuts:
+        raise closed_error(chain, "forward_dynamics")
     is_planar = chain.is_planar
     if planar is None:
         planar = is_planar

@@ -11,7 +11,8 @@ w_a - w_b = 0 along the world axes, for a revolute joint its components along th
 of frame B; at position level the residuals 1/2 sum_k b_k x a_k (the frames' columns) and
 (z_A . x_B, -z_A . y_B), whose rates are those equations on the constraint.
 
-Forward dynamics with the loops closed (:meth:`ClosedLoops.forward_dynamics`) is Featherstone's
+Forward dynamics with the loops closed (:meth:`ClosedLoops.forward_dynamics`, and with the loop
+forces :meth:`ClosedLoops.forward_dynamics_and_forces`) is Featherstone's
 method on the tree's O(n) recursions (Rigid Body Dynamics Algorithms, 2008, section 8.3):
 
     qdd0 = the tree's forward dynamics (RGE-A, O(n))
@@ -78,11 +79,14 @@ class ClosedLoops:
                             "not supported yet (its quaternion has 4 coordinates for 3 DOF)")
         check_cuts(model, cuts, source)
         self.model, self.cuts = model, tuple(cuts)
+        # the open tree: redysim.forward_dynamics refuses a model with cuts (it would answer for
+        # the tree, silently), so the tree's own recursions run on the model without them
+        self.tree = model.with_cuts(())
         self.nearest_singular = math.inf  # the least s_min / s_max of J X met (a change point)
         self.rows = [(i, r) for i, c in enumerate(cuts) for r in range(KINDS[c.kind])]
         self.m = len(self.rows)
-        self.ws = Workspace(model)
-        self.ws0 = Workspace(dataclasses.replace(model, gravity=np.zeros(3)))
+        self.ws = Workspace(self.tree)
+        self.ws0 = Workspace(dataclasses.replace(self.tree, gravity=np.zeros(3)))
         self._paths = [(self._path(c.body_a), self._path(c.body_b)) for c in cuts]
         self._rots = [tuple(np.eye(3) if R is None else np.asarray(R, dtype=float)
                             for R in (c.rot_a, c.rot_b)) for c in cuts]
@@ -238,12 +242,16 @@ class ClosedLoops:
         nearest, self.nearest_singular = self.nearest_singular, math.inf
         return nearest
 
-    def forward_dynamics(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
+    def forward_dynamics(self, q, v, tau=None) -> np.ndarray:
+        """qdd with the loops closed (as :func:`redysim.forward_dynamics` for a tree)."""
+        return self.forward_dynamics_and_forces(q, v, tau)[0]
+
+    def forward_dynamics_and_forces(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
         """(qdd, lambda): accelerations with the loops closed, and the loop forces (m,) (on body
         a at its point, world frame; -lambda on body b)."""
         from redysim.algorithms.dynamics import forward_dynamics
 
-        qdd0 = forward_dynamics(self.model, q, v, tau, ws=self.ws)
+        qdd0 = forward_dynamics(self.tree, q, v, tau, ws=self.ws)
         _, J, _, Jdv = self.evaluate(q, v)
         X = self._mobility(q, J)
         lam = self._solve(J @ X, -(J @ qdd0 + Jdv), q)

@@ -185,11 +185,16 @@ class Articulated(NamedTuple):
     phitil: np.ndarray
 
 
-def forward_dynamics(model: Model, q, v, tau=None, *, factors: bool = False):
+def forward_dynamics(model: Model, q, v, tau=None) -> np.ndarray:
     """vdot from I(q) vdot = tau - C(q, v) v - gravity terms, by RGE-A on the tree (Table A.1):
     articulated masses gathered from the children, each joint eliminated axis by axis (last axis
     first), every Mhat kept exactly symmetric; gravity as the base's acceleration and the
-    velocity terms as articulated-body biases. ``factors``: also return the Articulated."""
+    velocity terms as articulated-body biases."""
+    return articulated(model, q, v, tau)[0]
+
+
+def articulated(model: Model, q, v, tau=None) -> tuple[np.ndarray, Articulated]:
+    """:func:`forward_dynamics`'s vdot and the articulated factors it eliminated with."""
     nb, n = model.n_bodies, model.n_v
     tau = np.zeros(n) if tau is None else tau
     kin = kinematics(model, q, v)
@@ -229,7 +234,7 @@ def forward_dynamics(model: Model, q, v, tau=None, *, factors: bool = False):
             vdot[j] = phitil[j] - Psihat[j] @ m
             m = m + kin.S[:, j] * vdot[j]
         mu[k] = m
-    return (vdot, Articulated(Ihat, Psihat, phitil)) if factors else vdot
+    return vdot, Articulated(Ihat, Psihat, phitil)
 
 
 MASSLESS_TOL = 1e-12  # an articulated inertia below this (relative to the largest) is none
@@ -241,7 +246,7 @@ def massless_axis(model: Model) -> int | None:
     massless body at its end), so the GIM is singular. None when there is none."""
     q = model.neutral()
     with np.errstate(divide="ignore", invalid="ignore"):  # a zero pivot is what is looked for
-        _, art = forward_dynamics(model, q, np.zeros(model.n_v), factors=True)
+        _, art = articulated(model, q, np.zeros(model.n_v))
     scale = max(float(np.max(np.abs(art.Ihat))), math.ulp(1.0))
     bad = np.flatnonzero(~(art.Ihat > MASSLESS_TOL * scale))
     return int(bad.max()) if bad.size else None

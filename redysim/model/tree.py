@@ -374,8 +374,9 @@ class Model:
         of one body on a point of another, or frames aligned), checked against it: the closed
         mechanism. :func:`redysim.simulate` closes its loops;
         :class:`redysim.algorithms.loops.ClosedLoops` is the algorithm (constrained forward
-        dynamics, projection); the other dynamics functions answer for the tree. ``with_cuts(())``
-        is the open tree. Raises CaseError
+        dynamics, projection); :func:`redysim.forward_dynamics` and
+        :func:`redysim.inverse_dynamics` refuse it (the tree's answer would ignore the loops),
+        the GIM and energy are the tree's. ``with_cuts(())`` is the open tree. Raises CaseError
         naming a bad cut (``source``: where they come from)."""
         import dataclasses
 
