@@ -3,8 +3,11 @@
 Every function takes a :class:`~redysim.model.Chain` or a :class:`~redysim.model.Model` (a
 kinematic tree: a chain is one) and numpy vectors in SI units and returns numpy arrays: q of length
 ``n_q``, velocities, accelerations and forces of length ``n_v`` (both ``n_dof`` for a chain; a
-free joint has 7 and 6). An optional :class:`~redysim.workspace.Workspace` avoids reallocating
-scratch space in a loop (an integrator's right-hand side).
+free joint has 7 and 6). The scratch space comes from the model itself: called without ``ws=``,
+a function uses the calling thread's workspace of the model (made on its first call, then reused:
+:func:`redysim.workspace.model_workspace`), so the default call is the fast one, safe from any
+number of threads. ``ws=`` hands a :class:`~redysim.workspace.Workspace` of your own instead (the
+same results, bit for bit).
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from .errors import FieldError, StateError
 from .methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
 from .model import Model
 from .parts import NUMERIC_KINDS
-from .workspace import Workspace
+from .workspace import Workspace, model_workspace
 
 System = Model  # a Chain is a Model
 
@@ -130,8 +133,11 @@ def overflow_error(what: str, **inputs) -> StateError:
 
 
 def _ws(chain: System, ws: Workspace | None) -> Workspace:
-    if ws is None:
-        return Workspace(chain)
+    if ws is None:  # the model's own workspace for this thread (model_workspace)
+        try:
+            return chain._thread_workspaces.ws
+        except AttributeError:
+            return model_workspace(chain)
     if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
@@ -230,7 +236,8 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     rows, when they fill less than half a tile, chains over 10,000 DOF and any batch with
     |q| > 1e5 run row by row.
 
-    Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
+    Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
+    ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
     these go to the compiled entry point as they are, which checks their types and sizes
     itself. Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.
