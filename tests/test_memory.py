@@ -1,5 +1,6 @@
 """Forward dynamics needs O(n) memory: the workspace grows linearly with the DOF, and a call
-with a workspace and ``out`` allocates nothing that grows with them.
+with a workspace and ``out`` allocates nothing that grows with them; nor, after its first, does a
+call without one (it reuses the model's own).
 
 Measured by tracemalloc, which sees numpy's array data. ``benchmarks/jit_times.py`` reports the
 process's peak RSS at 100,000 DOF (231 MiB here, of which the workspace is 36 MiB).
@@ -59,11 +60,18 @@ def test_a_call_with_a_workspace_allocates_nothing_that_grows_with_n(chains, n):
     assert peak < 4096, peak  # a few Python objects; one qdd alone would be 8 n bytes
 
 
-def test_a_call_without_a_workspace_needs_memory_linear_in_n(chains):
-    peaks = {}
-    for n, c in chains.items():
+def test_a_call_without_a_workspace_makes_the_models_once(chains):
+    """The first call without ws= (on a thread) makes the model's own workspace, linear in n and
+    kept by the model (redysim.algorithms.workspace.model_workspace); later calls allocate their
+    qdd only."""
+    first, later = {}, {}
+    for n in chains:  # (the fixture's chains have loaded the kernels)
+        c = u_chain(n)  # a model of its own: no workspace yet
         q, qd = np.full(c.n_dof, 0.1), np.full(c.n_dof, 0.2)
-        peaks[n] = traced_peak(lambda c=c, q=q, qd=qd: forward_dynamics(c, q, qd)) / n
-    small, big = (peaks[n] for n in SIZES)
-    assert abs(big / small - 1) < 0.05, peaks  # bytes per DOF constant at 4x the DOF
-    assert big < 450, peaks  # 409 B/DOF: the workspace it builds (380) and qdd
+        first[n] = traced_peak(lambda c=c, q=q, qd=qd: forward_dynamics(c, q, qd)) / n
+        later[n] = traced_peak(lambda c=c, q=q, qd=qd: forward_dynamics(c, q, qd))
+    small, big = (first[n] for n in SIZES)
+    assert abs(big / small - 1) < 0.05, first  # bytes per DOF constant at 4x the DOF
+    assert big < 450, first  # 409 B/DOF: the workspace it makes (380) and qdd
+    for n in SIZES:
+        assert later[n] < 4096 + 8 * n, later  # qdd (8 n bytes) and a few Python objects

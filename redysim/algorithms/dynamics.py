@@ -3,8 +3,11 @@
 Every function takes a :class:`~redysim.model.tree.Chain` or a :class:`~redysim.model.tree.Model` (a
 kinematic tree: a chain is one) and numpy vectors in SI units and returns numpy arrays: q of length
 ``n_q``, velocities, accelerations and forces of length ``n_v`` (both ``n_dof`` for a chain; a free
-joint has 7 and 6). An optional :class:`~redysim.algorithms.workspace.Workspace` avoids reallocating
-scratch space in a loop (an integrator's right-hand side).
+joint has 7 and 6). The scratch space comes from the model itself: called without ``ws=``, a
+function uses the calling thread's workspace of the model (made on its first call, then reused:
+:func:`redysim.algorithms.workspace.model_workspace`), so the default call is the fast one, safe
+from any number of threads. ``ws=`` hands a :class:`~redysim.algorithms.workspace.Workspace` of your
+own instead (the same results, bit for bit).
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
-from redysim.algorithms.workspace import Workspace
+from redysim.algorithms.workspace import Workspace, model_workspace
 from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
 from redysim.model.tree import Model
@@ -130,8 +133,11 @@ def overflow_error(what: str, **inputs) -> StateError:
 
 
 def _ws(chain: System, ws: Workspace | None) -> Workspace:
-    if ws is None:
-        return Workspace(chain)
+    if ws is None:  # the model's own workspace for this thread (model_workspace)
+        try:
+            return chain._thread_workspaces.ws
+        except AttributeError:
+            return model_workspace(chain)
     if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
@@ -240,7 +246,8 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
     single calls' bits. A batch's last rows, when they fill less than half a tile, chains over
     10,000 DOF and any batch with |q| > 1e5 run row by row.
 
-    Fastest with contiguous float64 vectors, a workspace and ``out`` (an integrator's loop):
+    Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
+    ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
     these go to the compiled entry point as they are, which checks their types and sizes
     itself. Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.

@@ -1,7 +1,13 @@
-"""Preallocated per-system scratch arrays (Pinocchio's ``Data``): the kernels write into these."""
+"""Preallocated per-system scratch arrays (Pinocchio's ``Data``): the kernels write into these.
+
+A dynamics function called without ``ws=`` uses the model's own workspace for the calling thread
+(:func:`model_workspace`): made on that thread's first call, then reused, so the default call is
+as fast as one given a workspace (``benchmarks/default_path.py``).
+"""
 
 from __future__ import annotations
 
+import threading
 from functools import cached_property
 
 import numpy as np
@@ -25,7 +31,7 @@ from redysim.algorithms._kernels.bundles import (
 from redysim.algorithms._kernels.joints import BALL
 from redysim.algorithms._kernels.tiles import tile_sizes
 from redysim.errors import FieldError
-from redysim.model.tree import FREE, Model
+from redysim.model.tree import FREE, THREAD_WORKSPACES, Model
 
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
@@ -90,8 +96,31 @@ def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
     return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
 
 
+def model_workspace(system: Model) -> Workspace:
+    """The calling thread's workspace of ``system``: the scratch that the dynamics functions use
+    when called without ``ws=``.
+
+    Made on the thread's first call and kept by the model (a ``threading.local`` in the model's
+    ``__dict__``: one workspace per thread that calls, never shared between threads, each freed
+    with its thread or the model). Calls on one thread reuse it one after another, so a result
+    never aliases it (every function returns arrays of its own). Not part of the model's data:
+    pickles, copies, equality and hashing leave it out (:meth:`Model.__getstate__`). Memory: one
+    workspace (~380 bytes a DOF; batches add their threads' scratch and SIMD tiles) per model and
+    thread that called without ``ws=``; give ``ws=`` to hold the scratch yourself.
+    """
+    try:
+        return system._thread_workspaces.ws
+    except AttributeError:  # not made yet on this thread (or for this model)
+        pass
+    ws = Workspace(system)  # (FieldError for something that is not a Model)
+    local = system.__dict__.setdefault(THREAD_WORKSPACES, threading.local())  # (atomic)
+    local.ws = ws
+    return ws
+
+
 class Workspace:
-    """O(n) scratch for one chain or model. Not thread-safe: use one workspace per thread.
+    """O(n) scratch for one chain or model. Not thread-safe: use one workspace per thread (the
+    functions called without ``ws=`` do so by themselves: :func:`model_workspace`).
 
     ``tree`` and ``s``: the named bundles the kernels take
     (:mod:`redysim.algorithms._kernels.bundles`), the system's arrays (copies: the system is

@@ -29,10 +29,11 @@ velocity coordinate.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NoReturn
+from typing import ClassVar, NoReturn
 
 import numpy as np
 
@@ -55,6 +56,7 @@ BALL = 2  # dof_kind of a free joint's rotational DOF (about the body's own x, y
 FREE, FIXED = "free", "fixed"
 TREE_JOINT_TYPES = (*JOINT_TYPES, FREE, FIXED)
 ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a placement rotation given by the user
+THREAD_WORKSPACES = "_thread_workspaces"  # a model's per-thread workspaces (Model.__getstate__)
 
 
 def _fail(source, field_name, value, problem) -> NoReturn:
@@ -188,6 +190,13 @@ class Model:
                           (:mod:`redysim.io.importers`: dropped attributes, things not read).
         cuts:             the cut joints that close the model's loops (:meth:`with_cuts`; none
                           for a tree).
+
+    A model also carries its own scratch: a dynamics function called without ``ws=`` uses the
+    calling thread's :class:`~redysim.algorithms.workspace.Workspace` of the model, made on the
+    thread's first such call and kept (:func:`redysim.algorithms.workspace.model_workspace`; one per
+    thread, never shared between threads). It is not a field: not in ``repr``, equality (by
+    identity) or hashing, and neither pickles nor copies carry it (:meth:`__getstate__`): an
+    unpickled or copied model makes its own.
     """
 
     name: str
@@ -213,6 +222,10 @@ class Model:
     notes: tuple[str, ...] = ()  # what the file holds and the model does not, one line each
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
     cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
+    # The per-thread workspaces (a threading.local), in the instance's __dict__ once made
+    # (redysim.algorithms.workspace.model_workspace); declared here for the type checker only (a
+    # ClassVar is no dataclass field, and the class itself has no such attribute).
+    _thread_workspaces: ClassVar[threading.local]
 
     # ----------------------------------------------------------------------- building
     @classmethod
@@ -557,6 +570,13 @@ class Model:
         """The configuration the model's file gives (MJCF: MuJoCo's qpos0, joint refs and free
         bodies' poses; URDF: a floating base's pose), else :meth:`neutral`."""
         return self.neutral() if self.initial_q is None else self.initial_q.copy()
+
+    def __getstate__(self) -> dict:
+        """Pickling and copying: the model's data, without its per-thread workspaces (scratch,
+        never data; a threading.local does not pickle)."""
+        state = dict(self.__dict__)
+        state.pop(THREAD_WORKSPACES, None)
+        return state
 
     def __setstate__(self, state: dict) -> None:
         """Unpickling: numpy restores arrays writeable; make them read-only views again."""
