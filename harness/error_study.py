@@ -262,12 +262,13 @@ _NJIT32 = {}
 
 
 def _elimination32(name):
-    """ge_n / rge_n compiled for float32 arrays (a separate, uncached dispatcher)."""
+    """The pass ``name`` ("ge-n" or "rge-n") compiled for float32 arrays (its Python source, a
+    separate, uncached dispatcher with numba's default options)."""
     if name not in _NJIT32:
         import numba
 
-        from redysim.algorithms._kernels.elimination import ge_n, rge_n
-        _NJIT32[name] = numba.njit((ge_n if name == "ge-n" else rge_n).py_func)
+        from redysim.algorithms.precision import kernel_pass
+        _NJIT32[name] = numba.njit(kernel_pass(name).py_func)
     return _NJIT32[name]
 
 
@@ -310,10 +311,12 @@ def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
 
 
 def rge_a_on_phi(chain, q, qd) -> np.ndarray:
-    """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n)."""
+    """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n): the core's compiled
+    passes, taken from its door to the kernels (:mod:`redysim.algorithms.precision`)."""
     from redysim import Workspace, phi
-    from redysim.algorithms._kernels.kinematics import kinematics
-    from redysim.algorithms._kernels.rge_a import rge_a_backward, rge_a_forward
+    from redysim.algorithms.precision import kernel_pass
+    kinematics = kernel_pass("kinematics")
+    rge_a_backward, rge_a_forward = kernel_pass("rge-a-backward"), kernel_pass("rge-a-forward")
     c, ws = chain, Workspace(chain)
     ph = phi(c, q, qd).copy()
     kinematics(ws.tree, q, ws.zeros, ws.zeros, ws.no_accel, ws.s)
@@ -429,7 +432,7 @@ class Results:
 
     def done(self, key) -> bool:
         """Finished, and for a core method computed by the core's current kernels (their source
-        digest, ``redysim.algorithms._kernels.sources_digest``): a change to the kernels redoes
+        digest, ``redysim.algorithms.precision.sources_digest``): a change to the kernels redoes
         the cell."""
         r = self.rows.get(key)
         if r is None or r["status"] not in FINAL:
@@ -508,7 +511,7 @@ def study(a) -> None:
     from redysim import __version__ as core_version
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    from redysim.algorithms._kernels import sources_digest
+    from redysim.algorithms.precision import sources_digest
     res = Results(out / "error_study.parquet", sources_digest()[:16])
     refs = RefStore(out, a.dps, a.check_dps, a.check_max_links, a.max_svd_dof)
     log(f"error study -> {res.path} ({len(res.rows)} cells on file); sizes {a.sizes}, chains "

@@ -5,9 +5,10 @@ qdd_exact solves I(q) qdd = phi(q, qd, tau) exactly for the double-precision inp
 doubles: lengths, masses, COMs, inertias about the COM, gravity; the doubles q, qd, tau). This
 module computes qdd_exact to ~40+ significant digits in O(n), so it reaches 100,000-link chains.
 
-How (one source of truth): the numba kernels of :mod:`redysim.algorithms._kernels` are plain Python
-underneath. :func:`kernel_function` takes a kernel's Python source (``dispatcher.py_func``: the
-same code object) and gives it a copy of its module's globals in which
+How (one source of truth): the core's numba kernels are plain Python underneath, and the core
+hands out their passes by name (:mod:`redysim.algorithms.precision`, its door to the kernels).
+:func:`kernel_function` takes a pass's Python source (``dispatcher.py_func``: the same code object)
+and gives it a copy of its module's globals in which
 
 - every jitted callee (``kinematics``, ``jcalc``, ``column_mass``, ``rge_a_backward`` ...) is
   replaced by its own rebound Python function, and
@@ -55,10 +56,6 @@ import mpmath
 import numpy as np
 
 from redysim import Chain
-from redysim.algorithms._kernels import inverse_dynamics as _inverse_dynamics
-from redysim.algorithms._kernels import kinematics as _kinematics
-from redysim.algorithms._kernels import planar as _planar
-from redysim.algorithms._kernels import rge_a as _rge_a
 from redysim.algorithms.precision import rebind
 from redysim.algorithms.workspace import bundles_in
 
@@ -128,15 +125,16 @@ FLOAT64 = Arithmetic("float64", float, np.float64, math.cos, math.sin)
 
 
 # --------------------------------------------------------------------------- rebinding
-def kernel_function(dispatcher, arith: Arithmetic) -> types.FunctionType:
-    """The Python source of a numba kernel, rebound to run in ``arith``.
+def kernel_function(name: str, arith: Arithmetic) -> types.FunctionType:
+    """The Python source of the kernels' pass ``name`` (``"rge-a"``, ``"planar"``, ...: the
+    names of :data:`redysim.algorithms.precision.PASSES`), rebound to run in ``arith``.
 
-    Same code object as ``dispatcher.py_func``; globals: a copy of the kernel module's, with every
-    kernel it calls rebound (recursively) and ``math`` replaced by ``arith.trig``
+    Same code object as the compiled kernel's ``py_func``; globals: a copy of the kernel module's,
+    with every kernel it calls rebound (recursively) and ``math`` replaced by ``arith.trig``
     (:func:`redysim.algorithms.precision.rebind`, the mechanism the reduced-precision study uses
     too). The module itself is not touched.
     """
-    return rebind(dispatcher, ("hiprec", arith.name), arith.trig)
+    return rebind(name, ("hiprec", arith.name), arith.trig)
 
 
 # --------------------------------------------------------------------------- chain and state
@@ -192,7 +190,7 @@ def rge_a_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) ->
     arith = arith or mpf_arithmetic()
     c = chain
     n = c.n_dof
-    fd = kernel_function(_rge_a.rge_a_forward_dynamics, arith)
+    fd = kernel_function("rge-a", arith)
     with arith.context():
         tree, s = _bundles(c, arith)
         q, qd, tau = _state(c, arith, q, qd, tau)
@@ -216,7 +214,7 @@ def planar_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -
         raise ValueError(f"chain {chain.name!r} is not planar")
     arith = arith or mpf_arithmetic()
     c = chain
-    fd = kernel_function(_planar.planar_forward_dynamics, arith)
+    fd = kernel_function("planar", arith)
     with arith.context():
         a = chain_arrays(c, arith)
         q, qd, tau = _state(c, arith, q, qd, tau)
@@ -234,8 +232,8 @@ def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None =
     arith = arith or mpf_arithmetic()
     c = chain
     n = c.n_dof
-    kin = kernel_function(_kinematics.kinematics, arith)
-    rnea = kernel_function(_inverse_dynamics.rnea_backward, arith)
+    kin = kernel_function("kinematics", arith)
+    rnea = kernel_function("rnea-backward", arith)
     with arith.context():
         a = chain_arrays(c, arith)
         tree, s = _bundles(c, arith)

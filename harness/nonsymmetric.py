@@ -1,7 +1,7 @@
 """STUDY KERNEL, not for use: a literal full-6x6 transcription of Table A.1 (non-symmetric RGE-A).
 
 Tests the paper's implicit stability claim for RGE-A. The core's kernel
-(``redysim.algorithms._kernels. rge_a``) carries each articulated mass as symmetric blocks and
+(``redysim/algorithms/_kernels/rge_a.py``) carries each articulated mass as symmetric blocks and
 eliminates a U joint axis by axis. This one does what the table says, in whole matrices, with
 nothing kept symmetric by construction:
 
@@ -23,9 +23,10 @@ slightly non-symmetric; nothing removes it. ``resymmetrise=True`` replaces Mhat_
 (Mhat_k + Mhat_k^T) / 2 at every step, everything else unchanged: the control that isolates
 symmetry as the cause.
 
-Inputs are the core's: kinematics (oR, oO, oP) and phi from the compiled kernels in float64, or
-from the same kernels' Python source in float32 (:func:`redysim.harness.hiprec.kinematics_and_phi`),
-so the only difference from the core is the elimination. numpy, one link per Python iteration
+Inputs are the core's: kinematics (oR, oO, oP) and phi from the compiled kernels in float64 (what
+:func:`redysim.phi` leaves in its workspace), or from the same kernels' Python source in float32
+(:func:`redysim.harness.hiprec.kinematics_and_phi`), so the only difference from the core is the
+elimination. numpy, one link per Python iteration
 (~40 us/link): slow, and meant to be.
 
 References:
@@ -38,7 +39,6 @@ import numpy as np
 
 from redysim import Chain, Workspace
 from redysim import phi as _phi
-from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 
 from .hiprec import FLOAT32, kinematics_and_phi
 
@@ -59,10 +59,8 @@ def _inputs(chain: Chain, q, qd, tau, dtype):
     if dtype == np.float64:
         ws = Workspace(chain)
         c = chain
-        q = np.ascontiguousarray(q, dtype=float)
-        qd = np.ascontiguousarray(qd, dtype=float)
-        phi = _phi(c, q, qd, tau)
-        _kinematics(ws.tree, q, qd, ws.zeros, ws.base_accel, ws.s)
+        # phi runs the kinematics pass in ws (qdd = 0, base at -g) and leaves oR, oO, oP there
+        phi = _phi(c, q, qd, tau, ws=ws)
         return ws.oR, ws.oO, ws.oP, phi, c.inertia_O, c.mass_com, c.mass
     if dtype == np.float32:
         oR, oO, oP, phi, a = kinematics_and_phi(chain, q, qd, tau, FLOAT32)

@@ -3,7 +3,8 @@
     python -m redysim.reports.opcount [--out results/opcount]
 
 Counted, not estimated: each kernel's own Python source (``kernel.py_func``, the function numba
-compiles; :func:`redysim.algorithms.precision.kernel_source`) runs on object arrays of
+compiles, taken by its pass's name from the core's door to the kernels,
+:func:`redysim.algorithms.precision.kernel_source`) runs on object arrays of
 :class:`Count`, a float that tallies every ``*``, ``/``, ``+`` and ``-`` done on it. Negation,
 comparisons and the cos/sin of the joint angles are not counted (the paper's Table 7 has columns for
 the four operations only); products with the literal constants a kernel holds (``2.0 * x``) are. The
@@ -38,11 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Chain, mass_matrix, phi
-from redysim.algorithms._kernels.elimination import ge_n
-from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
-from redysim.algorithms._kernels.kinematics import kinematics
-from redysim.algorithms._kernels.planar import planar_forward_dynamics
-from redysim.algorithms._kernels.rge_a import rge_a_forward_dynamics
 from redysim.algorithms.precision import kernel_source
 from redysim.algorithms.workspace import bundles_in
 from redysim.harness.provenance import provenance
@@ -172,7 +168,7 @@ def count_rge_a_spatial(chain: Chain) -> tuple[int, int]:
     """One ``rge_a_forward_dynamics`` call (tau = 0), the spatial kernels."""
     c, n = chain, chain.n_dof
     q, qd = state(c)
-    fn = kernel_source(rge_a_forward_dynamics, Count)
+    fn = kernel_source("rge-a", Count)
     tree, s = bundles_in(c, counts, lambda shape: empty(*shape))
     args = (tree, counts(q), counts(qd), empty(n), counts(-np.asarray(c.gravity)), empty(n), s,
             empty(n))
@@ -183,7 +179,7 @@ def count_rge_a_planar(chain: Chain) -> tuple[int, int]:
     """One ``planar_forward_dynamics`` call (tau = 0)."""
     c, n = chain, chain.n_dof
     q, qd = state(c)
-    fn = kernel_source(planar_forward_dynamics, Count)
+    fn = kernel_source("planar", Count)
     args = (counts(c.length), counts(c.mass), counts(c.inertia_O[:, 2, 2]),
             counts(c.mass_com[:, 0]), counts(c.mass_com[:, 1]), counts(c.gravity), counts(q),
             counts(qd), empty(n), empty(n), empty(c.n_links, 12))
@@ -195,7 +191,7 @@ def count_ge_n(chain: Chain) -> tuple[int, int]:
     q, qd = state(chain)
     A, b = counts(mass_matrix(chain, q)), counts(phi(chain, q, qd))
     n = chain.n_dof
-    fn = kernel_source(ge_n, Count)
+    fn = kernel_source("ge-n", Count)
     return tally(lambda: fn(A, b, empty(n, n), empty(n)))
 
 
@@ -278,7 +274,7 @@ def count_inverse_dynamics(system) -> tuple[int, int]:
     """One inverse dynamics: the kinematics pass with qdd and Newton-Euler's backward pass."""
     n = system.n_dof
     q, qd = state(system)
-    kin, rnea = kernel_source(kinematics, Count), kernel_source(rnea_backward, Count)
+    kin, rnea = kernel_source("kinematics", Count), kernel_source("rnea-backward", Count)
     tree, s = bundles_in(system, counts, lambda shape: empty(*shape))
     g = counts(-np.asarray(system.gravity))
 

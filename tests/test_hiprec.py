@@ -167,9 +167,8 @@ def test_rebound_kernels_take_cos_and_sin_in_the_arithmetic():
     """jcalc's sincos is a plain helper, not a numba dispatcher: the high-precision source must
     still get mpmath's cos and sin (a float cos would cap the reference at double accuracy while
     its 50- vs 70-digit self-check still agreed)."""
-    import redysim.algorithms._kernels.kinematics as kin
     a = hiprec.mpf_arithmetic(50)
-    body = hiprec.kernel_function(kin.kinematics, a).__globals__["_kinematics"]  # (one source,
+    body = hiprec.kernel_function("kinematics", a).__globals__["_kinematics"]  # (one source,
     sincos = body.__globals__["jcalc"].__globals__["sincos"]  # compiled for chains and trees)
     with mpmath.workdps(50):
         c, s = sincos(mpmath.mpf(1) / 3)

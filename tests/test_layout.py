@@ -7,8 +7,10 @@ Inside the core, one way too: the shared ``redysim/errors.py`` and ``redysim/_ji
 would hide an upward import. The core imports none of the others; the engine adapters
 (``references/``) import only the core; the harness (``harness/``: runs, sweeps, the CLI) imports
 the core and the adapters, never the reports; and no two modules import each other, directly or
-round a longer cycle, not even from inside a function. Read from the source with :mod:`ast`, so a
-lazy import inside a function counts as much as one at the top.
+round a longer cycle, not even from inside a function. The kernels
+(``redysim.algorithms._kernels``) are the core's private code: no module outside the core imports
+them; it takes their passes from the core's door, :mod:`redysim.algorithms.precision`. Read from the
+source with :mod:`ast`, so a lazy import inside a function counts as much as one at the top.
 
 The folders ``harness/``, ``references/`` and ``reports/`` are importable under one name only,
 ``redysim.harness``, ``redysim.references`` and ``redysim.reports`` (the names they install
@@ -129,12 +131,35 @@ def test_no_import_cycles():
             visit(name)
 
 
+KERNELS = "redysim.algorithms._kernels"
+
+
+def kernel_imports(name: str) -> list[str]:
+    """The modules of the private kernels (``redysim.algorithms._kernels`` and anything under
+    it) that ``name`` imports."""
+    return sorted(t for t in GRAPH[name] if t == KERNELS or t.startswith(KERNELS + "."))
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if layer(m) not in CORE))
+def test_no_module_outside_the_core_imports_the_kernels(name):
+    """The kernels are the core's private code: the engine adapters, the harness and the reports
+    reach them through the core's one door, ``redysim.algorithms.precision`` (its passes by name:
+    compiled, as Python source, rebound to another arithmetic; the sources' digest), so that the
+    kernels' files and names can change without them. Lazy imports inside functions count.
+
+    ``benchmarks/`` is exempt (not walked): ``benchmarks/ab_kernels.py`` times the kernels' passes
+    of two revisions on purpose; so are the tests."""
+    assert not kernel_imports(name), (
+        f"{name} ({MODULES[name].relative_to(REPO)}) imports {kernel_imports(name)}")
+
+
 def test_the_walk_sees_the_project():
     """The checks above read something: every layer has modules, and a known edge is found."""
     assert all(any(layer(m) == p for m in MODULES) for p in ORDER)
     assert "redysim.harness.spec" in GRAPH["redysim.harness.run"]
     assert "redysim.model.tree" in GRAPH["redysim.algorithms.dynamics"]
     assert layer("redysim.algorithms._kernels.rge_a") == "redysim.algorithms"
+    assert kernel_imports("redysim.algorithms.precision"), "the door's own imports are seen"
 
 
 # --------------------------------------------------------------------------- one name per folder

@@ -16,6 +16,7 @@ Findings pinned here (see redysim/algorithms/precision.py and the report
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -30,13 +31,13 @@ from redysim import (
     phi,
     udu_factors,
 )
-from redysim.algorithms._kernels.elimination import ge_n, rge_n
-from redysim.algorithms._kernels.planar import planar_forward_dynamics
-from redysim.algorithms._kernels.rge_a import rge_a_forward_dynamics
 from redysim.algorithms.precision import (
+    PASSES,
     Rounded,
     ieee_qdd,
+    kernel_pass,
     kernel_source,
+    rebind,
     reduced_factors,
     reduced_qdd,
     rounded_type,
@@ -162,13 +163,13 @@ def test_float32_runs_stay_in_float32():
     case = load_case("STUDY-R5")
     ch, n = case.chain, case.chain.n_dof
     q, qd = np.array([0.3, -0.2, 0.5, 0.1, -0.4]), np.array([0.5, -1.0, 0.2, 0.3, 0.1])
-    for kernel in (ge_n, rge_n):
+    for name in ("ge-n", "rge-n"):
         A, b = _objects(mass_matrix(ch, q), t), _objects(phi(ch, q, qd), t)
         mult, x = _objects(np.zeros((n, n)), t), _objects(np.zeros(n), t)
-        kernel_source(kernel, t)(A, b, mult, x)
+        kernel_source(name, t)(A, b, mult, x)
         assert _kinds(A, b, mult, x) <= ok
     qdd, scratch = _objects(np.zeros(n), t), _objects(np.zeros((n, 12)), t)
-    kernel_source(planar_forward_dynamics, t)(
+    kernel_source("planar", t)(
         *(_objects(a, t) for a in (ch.length, ch.mass, ch.inertia_O[:, 2, 2], ch.mass_com[:, 0],
                                    ch.mass_com[:, 1], ch.gravity, q, qd, np.zeros(n))),
         qdd, scratch)
@@ -179,12 +180,32 @@ def test_float32_runs_stay_in_float32():
     q, qd = rng.normal(size=n), rng.normal(size=n)
     tree, s = bundles_in(ch, lambda a: _objects(a, t), lambda shape: _objects(np.zeros(shape), t))
     qdd = _objects(np.zeros(n), t)
-    kernel_source(rge_a_forward_dynamics, t)(
+    kernel_source("rge-a", t)(
         tree, _objects(q, t), _objects(qd, t), _objects(np.zeros(n), t),
         _objects(-ch.gravity, t), _objects(np.zeros(n), t), s, qdd)
     assert _kinds(qdd, *s) <= ok
     ref = forward_dynamics(ch, q, qd)
     assert np.abs(qdd.astype(float) - ref).max() < 1e-4 * np.abs(ref).max()
+
+
+def test_the_door_gives_each_pass_compiled_and_as_its_python_source():
+    """Every name of PASSES (the door for code outside the core) is a compiled kernel; its rebound
+    Python source is the same code with its own ``math``, cached per arithmetic. The methods'
+    names are passes (the runners above call them so); an unknown name is refused, naming them."""
+    assert {"ge-n", "rge-n", "rge-a"} <= set(PASSES)
+    codes = set()
+    for name in PASSES:
+        compiled = kernel_pass(name)
+        source = kernel_source(name, np.float32)
+        assert source.__code__ is compiled.py_func.__code__, name
+        assert source is kernel_source(name, np.float32), name
+        assert source.__globals__["math"].cos(0.5) == np.float32(math.cos(0.5)), name
+        trig = types.SimpleNamespace(cos=math.cos, sin=math.sin)
+        assert rebind(name, ("door test", name), trig).__globals__["math"] is trig, name
+        codes.add(source.__code__)
+    assert len(codes) == len(PASSES), "two names for one kernel"
+    with pytest.raises(ValueError, match="choose one of kinematics, rnea-backward"):
+        kernel_pass("rnea")
 
 
 def test_ieee_errors_follow_conditioning():

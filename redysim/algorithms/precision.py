@@ -49,6 +49,13 @@ paper's ReDySim rounds RGE-A at other points than these kernels do); Table 11's 
 at 6 decimal places, not at the 7 of its caption; Table 8's step counts within 3 % except the
 3-link RGE-N and RGE-A runs, whose step counts move by tens with any rounding detail.
 
+The door to the kernels. ``redysim.algorithms._kernels`` is the core's private code; code outside
+the core (the harness's 50-digit reference and error study, the reports' operation counts) takes
+the kernels' passes from here, by name (:data:`PASSES`): compiled (:func:`kernel_pass`), as
+Python source in a number type (:func:`kernel_source`) or with ``math`` replaced by a namespace of
+its own (:func:`rebind`), and the digest of their sources for cache keys (:func:`sources_digest`).
+The names and the passes' arguments are the contract; the kernels' files are not.
+
 References:
     Agarwal et al., section 5.2-5.3, Tables 8, 10, 11 and A.2; Appendix A.2 (Eq. (A.9)-(A.10)).
     docs/design.md, "Reduced precision".
@@ -60,12 +67,15 @@ import decimal
 import functools
 import math
 import types
+from collections.abc import Callable
 from decimal import ROUND_HALF_UP, Decimal
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from redysim.algorithms._kernels import sources_digest
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
+from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
 from redysim.algorithms._kernels.kinematics import kinematics
 from redysim.algorithms._kernels.planar import planar_forward_dynamics
 from redysim.algorithms._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamics
@@ -212,7 +222,41 @@ def _make_type(name, k, arithmetic, r, add, sub, mul, div, to):
     return cls
 
 
-# --------------------------------------------------------------------------- kernel sources
+# --------------------------------------------------------------------------- the kernels' passes
+# name -> (the compiled kernel, its arguments); tree and s are the bundles of
+# redysim.algorithms.workspace (Workspace(system).tree and .s, or bundles_in in another number type)
+_PASSES: dict[str, tuple[Callable, str]] = {
+    "kinematics": (kinematics, "(tree, q, qd, qdd, base_accel, s): rotations, positions, "
+                               "motion subspaces, twists and twist-rates into s"),
+    "rnea-backward": (rnea_backward, "(tree, s, tau): Newton-Euler's backward pass after "
+                                     "kinematics, tau out"),
+    "rge-a": (rge_a_forward_dynamics, "(tree, q, qd, tau, base_accel, zeros, s, qdd): RGE-A "
+                                      "forward dynamics, the three passes"),
+    "rge-a-backward": (rge_a_backward, "(tree, s, tau): Table A.1's backward pass"),
+    "rge-a-forward": (rge_a_forward, "(tree, s, base_accel, qdd): Table A.1's forward pass"),
+    "udu": (udu_assemble, "(tree, s, U, D): I = U D U^T, dense, after the backward pass"),
+    "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau, "
+                                        "qdd, scratch): RGE-A on a planar chain, scratch (nl, 12)"),
+    "ge-n": (ge_n, "(A, b, mult, x): GE-N, A swept to U, mult = L, b to phihat, x = qdd"),
+    "rge-n": (rge_n, "(A, b, mult, x): RGE-N, A swept to L', mult = U', b to phihat, x = qdd"),
+}
+PASSES: dict[str, str] = {name: args for name, (_, args) in _PASSES.items()}
+"""The kernels' passes by name, each with its arguments (arrays written in place)."""
+
+
+def kernel_pass(name: str) -> Callable:
+    """The compiled kernel of the pass ``name`` (:data:`PASSES`), as the core calls it.
+
+    Its Python source, the very function numba compiles, is its ``py_func`` (to compile it with
+    other options, or for another dtype).
+    """
+    try:
+        return _PASSES[name][0]
+    except (KeyError, TypeError):
+        raise ValueError(f"kernel pass {name!r}: unknown; choose one of "
+                         f"{', '.join(PASSES)}") from None
+
+
 _MATH_FUNCS = ("cos", "sin", "tan", "sqrt", "exp", "log", "atan", "atan2", "acos", "asin", "hypot")
 _SOURCES: dict = {}
 
@@ -227,15 +271,20 @@ def _math_for(number) -> types.SimpleNamespace:
     return ns
 
 
-def rebind(kernel, key, math_ns):
-    """The Python source of a kernel, run with ``math`` replaced by ``math_ns``.
+def rebind(name: str, key, math_ns) -> types.FunctionType:
+    """The Python source of the pass ``name`` (:data:`PASSES`), run with ``math`` replaced by
+    ``math_ns``.
 
-    ``kernel.py_func`` (the very function numba compiles; a plain helper marks itself with a
+    The kernel's ``py_func`` (the very function numba compiles; a plain helper marks itself with a
     ``py_func`` attribute, as ``joints.sincos`` does) with a copy of its module's globals in which
     ``math`` is ``math_ns`` and every kernel it calls is rebound the same way. Cached per
-    ``(kernel, key)``; ``key`` names the arithmetic. Shared by :func:`kernel_source` and
-    ``redysim.harness.hiprec.kernel_function``.
+    ``(pass, key)``; ``key`` (hashable) names the arithmetic. Shared by :func:`kernel_source` and
+    :func:`redysim.harness.hiprec.kernel_function` (mpmath's cos and sin).
     """
+    return _rebind(kernel_pass(name), key, math_ns)
+
+
+def _rebind(kernel, key, math_ns):
     fn = _SOURCES.get((kernel, key))
     if fn is None:
         f = getattr(kernel, "py_func", kernel)
@@ -246,17 +295,18 @@ def rebind(kernel, key, math_ns):
         _SOURCES[(kernel, key)] = fn  # before recursing: a callee may be reached twice
         for name in f.__code__.co_names:
             if hasattr(env.get(name), "py_func"):
-                env[name] = rebind(env[name], key, math_ns)
+                env[name] = _rebind(env[name], key, math_ns)
     return fn
 
 
-def kernel_source(kernel, number):
-    """The Python source of a jitted kernel, run in ``number``'s arithmetic.
+def kernel_source(name: str, number) -> types.FunctionType:
+    """The Python source of the pass ``name`` (:data:`PASSES`), run in ``number``'s arithmetic.
 
     :func:`rebind` with ``math`` whose functions return ``number`` (evaluated in double, then
-    rounded). ``number``: a :class:`Rounded` type or a numpy scalar type (np.float32, ...).
+    converted). ``number``: a :class:`Rounded` type, a numpy scalar type (np.float32, ...) or any
+    float-like type the arrays are made of (``redysim.reports.opcount``'s counting float).
     """
-    return rebind(kernel, number, _math_for(number))
+    return rebind(name, number, _math_for(number))
 
 
 def _numbers(a, number) -> np.ndarray:
@@ -315,7 +365,7 @@ def _eliminate(chain, q, qd, tau, method, number):
     mult = _empty((n, n), number)
     x = _empty(n, number)
     with np.errstate(all="ignore"):
-        kernel_source(ge_n if method == "ge-n" else rge_n, number)(A, b, mult, x)
+        kernel_source(method, number)(A, b, mult, x)  # "ge-n" or "rge-n"
     return A, b, mult, x
 
 
@@ -330,13 +380,13 @@ def _rge_a(chain, q, qd, tau, number, fused_phi):
     qdd = _empty(n, number)
     with np.errstate(all="ignore"):
         if c.is_planar:
-            kernel_source(planar_forward_dynamics, number)(
+            kernel_source("planar", number)(
                 N(c.length), N(c.mass), N(c.inertia_O[:, 2, 2]), N(c.mass_com[:, 0]),
                 N(c.mass_com[:, 1]), N(gravity), N(q), N(qd_in), N(tau_in), qdd,
                 _empty((nl, 12), number))
         else:
             tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
-            kernel_source(rge_a_forward_dynamics, number)(
+            kernel_source("rge-a", number)(
                 tree, N(q), N(qd_in), N(tau_in), N(-np.asarray(gravity)), _empty(n, number), s,
                 qdd)
     return qdd
@@ -378,10 +428,10 @@ def reduced_factors(chain: Model, q, qd, method: str = "ge-n", decimals: int = 3
     tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
     qdd, U, D, zeros = E(n), E(n, n), E(n, n), E(n)
     with np.errstate(all="ignore"):  # qd = 0 and no gravity: t = td = 0 (Table A.1 as printed)
-        kernel_source(kinematics, number)(tree, N(q), zeros, zeros, E(3), s)
-        kernel_source(rge_a_backward, number)(tree, s, N(phi(c, q, qd, tau)))
-        kernel_source(udu_assemble, number)(tree, s, U, D)
-        kernel_source(rge_a_forward, number)(tree, s, E(3), qdd)
+        kernel_source("kinematics", number)(tree, N(q), zeros, zeros, E(3), s)
+        kernel_source("rge-a-backward", number)(tree, s, N(phi(c, q, qd, tau)))
+        kernel_source("udu", number)(tree, s, U, D)
+        kernel_source("rge-a-forward", number)(tree, s, E(3), qdd)
         L = s.Ihat[:, None] * U.T  # L' = D U^T, each product rounded
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 
@@ -403,5 +453,6 @@ def ieee_qdd(chain: Model, q, qd, method: str = "rge-a", dtype=np.float32, *, ta
     return _eliminate(chain, q, qd, tau, method, number)[3]
 
 
-__all__ = ["ARITHMETICS", "Factors", "IEEE_DTYPES", "METHODS", "Rounded", "ieee_qdd",
-           "kernel_source", "rebind", "reduced_factors", "reduced_qdd", "rounded_type"]
+__all__ = ["ARITHMETICS", "Factors", "IEEE_DTYPES", "METHODS", "PASSES", "Rounded", "ieee_qdd",
+           "kernel_pass", "kernel_source", "rebind", "reduced_factors", "reduced_qdd",
+           "rounded_type", "sources_digest"]
