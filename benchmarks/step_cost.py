@@ -42,7 +42,7 @@ def main(argv=None) -> int:
     def rhs(_t, y):
         return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
 
-    y0 = np.concatenate((case.q0, case.qd0))
+    y0 = np.concatenate((case.q0, case.v0))
     kw = dict(rtol=case.rtol, atol=case.atol)
     rhs(0.0, y0)
     compile_kernels()

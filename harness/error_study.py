@@ -12,9 +12,9 @@ Chains (docs/design.md, "Chain conventions"):
     U: the RE-U steel rod, l = 0.02 m, rho_l = 7850 pi 0.05^2 kg/m, r = 0.05 m, rod inertia.
     R: the section-5 study chain, l = 1 m, rho = 7025 kg/m^3, r = 0.02 m, cylinder inertia.
 Configurations:
-    stretched: q = 0 and the case's qd (U: joint 1's y rate 1 rad/s, as in every RE-U case;
-               R: qd = 0, as in STUDY-R*): the straight chain, where cond2(GIM) is largest.
-    random:    seeded, q ~ U(-0.3, 0.3), qd ~ U(-0.3, 0.3) rad/s.
+    stretched: q = 0 and the case's v (U: joint 1's y rate 1 rad/s, as in every RE-U case;
+               R: v = 0, as in STUDY-R*): the straight chain, where cond2(GIM) is largest.
+    random:    seeded, q ~ U(-0.3, 0.3), v ~ U(-0.3, 0.3) rad/s.
 Methods (``--methods``), float64 and, where marked, float32 (``--precisions``):
     rge-a              core RGE-A, spatial kernel (``forward_dynamics(planar=False)``) [f32]
     rge-a-planar       core RGE-A, planar kernel (R chains only) [f32]
@@ -37,7 +37,7 @@ always against the reference of the double-precision input.
 Conditioning, per chain x size x configuration:
     cond2          numpy.linalg.cond of the float64 GIM (SVD), up to ``--max-svd-dof``;
     cond2_lanczos  lambda_max(I) / lambda_min(I) by Lanczos (:func:`lanczos_max`) on O(n)
-                   operators: I v by inverse dynamics and I^-1 v by RGE-A, both with qd = 0 and
+                   operators: I v by inverse dynamics and I^-1 v by RGE-A, both with v = 0 and
                    gravity off (an estimate, a slight underestimate: it matches the SVD to
                    ~1e-4..1e-3 where both exist);
     cond_featherstone = 4 nl^4 (Featherstone's estimate for a uniform chain).
@@ -49,7 +49,7 @@ Output (``--out``, default results/error_study):
                           the others; a core method's cell is redone when the kernels' sources
                           changed since (its ``core_digest``);
     refs/<chain><n>-<config>-dps<d>.npz   the reference as a double-double ``qdd_dd`` (n, 2)
-                          [hi, lo] (~32 digits) with its ``q`` and ``qd``, and .json beside it
+                          [hi, lo] (~32 digits) with its ``q`` and ``v``, and .json beside it
                           (timing, the reference's self-check against ``--check-dps`` digits, the
                           condition numbers): the slow part, computed once.
 All files are written atomically through :mod:`redysim.harness.store`.
@@ -113,14 +113,14 @@ def make_chain(kind: str, n_links: int):
 
 
 def make_state(chain, kind: str, n_links: int, config: str):
-    """(q, qd) of a configuration (module docstring); seeded by chain kind and size."""
+    """(q, v) of a configuration (module docstring); seeded by chain kind and size."""
     n = chain.n_dof
     if config == "stretched":
         q = np.zeros(n)
-        qd = np.zeros(n)
+        v = np.zeros(n)
         if kind == "U":
-            qd[0] = 1.0  # w_Y0 = 1 rad/s, as in every RE-U case
-        return q, qd
+            v[0] = 1.0  # w_Y0 = 1 rad/s, as in every RE-U case
+        return q, v
     if config == "random":
         rng = np.random.default_rng([SEED, n_links, ord(kind)])
         return rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n)
@@ -179,7 +179,7 @@ def lanczos_max(matvec, n: int, *, steps: int = 120, seed: int = 1,
 
 def cond_lanczos(chain, q) -> dict:
     """lambda_max(I) and lambda_min(I) = 1 / lambda_max(I^-1) by Lanczos on O(n) operators (I v:
-    inverse dynamics; I^-1 v: RGE-A; both with qd = 0 and gravity off). Both Ritz values are
+    inverse dynamics; I^-1 v: RGE-A; both with v = 0 and gravity off). Both Ritz values are
     lower bounds, so cond2_lanczos slightly underestimates cond2 (by < 1e-3 where the SVD is
     reliable); the relative changes over the last 5 steps are returned as lanczos_change_*."""
     from redysim import Workspace, forward_dynamics, inverse_dynamics, mass_matrix
@@ -217,7 +217,7 @@ class RefStore:
         stem = self.dir / f"{kind}{n_links}-{config}-dps{self.dps}"
         return stem.with_suffix(".npz"), stem.with_suffix(".json")
 
-    def get(self, kind, n_links, config, chain, q, qd) -> tuple[np.ndarray, dict]:
+    def get(self, kind, n_links, config, chain, q, v) -> tuple[np.ndarray, dict]:
         from . import hiprec
         from .store import read_json, write_json_atomic, write_npz_atomic
         npz, meta_path = self._paths(kind, n_links, config)
@@ -229,20 +229,20 @@ class RefStore:
             log(f"reference {kind}{n_links} {config}: mpmath dps={self.dps} "
                 f"({chain.n_dof:,} DOF) ...")
             t0 = time.perf_counter()
-            mp_ref = hiprec.qdd_reference(chain, q, qd, dps=self.dps, output="mpf")
+            mp_ref = hiprec.qdd_reference(chain, q, v, dps=self.dps, output="mpf")
             meta["ref_s"] = time.perf_counter() - t0
             meta["ref_s_per_link"] = meta["ref_s"] / n_links
             meta["dps"] = self.dps
             ref = hiprec.to_double_double(mp_ref)
             if n_links <= self.check_max_links and self.check_dps:
                 import mpmath
-                hi = hiprec.qdd_reference(chain, q, qd, dps=self.check_dps, output="mpf")
+                hi = hiprec.qdd_reference(chain, q, v, dps=self.check_dps, output="mpf")
                 with mpmath.workdps(self.check_dps):
                     diff = max(abs(a - b) for a, b in zip(mp_ref, hi, strict=True))
                     scale = max(abs(b) for b in hi)
                     meta["ref_check"] = float(diff / scale)
                 meta["check_dps"] = self.check_dps
-            write_npz_atomic(npz, qdd_dd=ref, q=q, qd=qd)
+            write_npz_atomic(npz, qdd_dd=ref, q=q, v=v)
             write_json_atomic(meta, meta_path)
             log(f"reference {kind}{n_links} {config}: {meta['ref_s']:.1f} s "
                 f"({1e3 * meta['ref_s_per_link']:.2f} ms/link); self-check vs dps="
@@ -272,7 +272,7 @@ def _elimination32(name):
     return _NJIT32[name]
 
 
-def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
+def run_core(method: str, precision: str, chain, q, v) -> np.ndarray:
     """qdd of a core method (module docstring) at a precision."""
     from redysim import forward_dynamics, mass_matrix, phi
 
@@ -281,17 +281,17 @@ def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
     f32 = precision == "float32"
     if method == "rge-a":
         if f32:
-            return hiprec.rge_a_qdd(chain, q, qd, arith=hiprec.FLOAT32)
-        return forward_dynamics(chain, q, qd, planar=False)
+            return hiprec.rge_a_qdd(chain, q, v, arith=hiprec.FLOAT32)
+        return forward_dynamics(chain, q, v, planar=False)
     if method == "rge-a-planar":
         if f32:
-            return hiprec.planar_qdd(chain, q, qd, arith=hiprec.FLOAT32)
-        return forward_dynamics(chain, q, qd, planar=True)
+            return hiprec.planar_qdd(chain, q, v, arith=hiprec.FLOAT32)
+        return forward_dynamics(chain, q, v, planar=True)
     if method in ("ge-n", "rge-n"):
         if not f32:
-            return forward_dynamics(chain, q, qd, method=method)
+            return forward_dynamics(chain, q, v, method=method)
         A = mass_matrix(chain, q).astype(np.float32)
-        b = phi(chain, q, qd).astype(np.float32)
+        b = phi(chain, q, v).astype(np.float32)
         x = np.empty(chain.n_dof, dtype=np.float32)
         _elimination32(method)(A, b, np.zeros_like(A), x)
         return x
@@ -299,18 +299,18 @@ def run_core(method: str, precision: str, chain, q, qd) -> np.ndarray:
         import scipy.linalg
         dt = np.float32 if f32 else np.float64
         A = mass_matrix(chain, q).astype(dt)
-        b = phi(chain, q, qd).astype(dt)
+        b = phi(chain, q, v).astype(dt)
         return scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), b,
                                       check_finite=False)
     if method == "rge-a-phi":
-        return rge_a_on_phi(chain, q, qd)
+        return rge_a_on_phi(chain, q, v)
     if method in ("literal-6x6", "literal-6x6-resym"):
-        return literal_rge_a(chain, q, qd, dtype=np.float32 if f32 else np.float64,
+        return literal_rge_a(chain, q, v, dtype=np.float32 if f32 else np.float64,
                              resymmetrise=method.endswith("resym"))
     raise ValueError(method)
 
 
-def rge_a_on_phi(chain, q, qd) -> np.ndarray:
+def rge_a_on_phi(chain, q, v) -> np.ndarray:
     """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n): the core's compiled
     passes, taken from its door to the kernels (:mod:`redysim.algorithms.precision`)."""
     from redysim import Workspace, phi
@@ -318,7 +318,7 @@ def rge_a_on_phi(chain, q, qd) -> np.ndarray:
     kinematics = kernel_pass("kinematics")
     rge_a_backward, rge_a_forward = kernel_pass("rge-a-backward"), kernel_pass("rge-a-forward")
     c, ws = chain, Workspace(chain)
-    ph = phi(c, q, qd).copy()
+    ph = phi(c, q, v).copy()
     kinematics(ws.tree, q, ws.zeros, ws.zeros, ws.no_accel, ws.s)
     rge_a_backward(ws.tree, ws.table_a1, ph)
     qdd = np.empty(c.n_dof)
@@ -363,9 +363,9 @@ def _engine_child(conn, name, kind, n_links, states, mem_gib):
         t0 = time.perf_counter()
         eng = cls(model)
         out["build_s"] = time.perf_counter() - t0
-        for config, (q, qd) in states.items():
+        for config, (q, v) in states.items():
             t0 = time.perf_counter()
-            out["qdd"][config] = np.asarray(eng.qdd(q, qd), dtype=float).copy()
+            out["qdd"][config] = np.asarray(eng.qdd(q, v), dtype=float).copy()
             out["qdd_s"][config] = time.perf_counter() - t0
         out["ok"] = True
     except BaseException as exc:  # MemoryError, engine errors: report them, never crash
@@ -538,7 +538,7 @@ def study(a) -> None:
             # core methods, in this process
             for cfg in a.configs:
                 ref, meta = refdata[cfg]
-                q, qd = states[cfg]
+                q, v = states[cfg]
                 for m in core_methods:
                     for p in a.precisions:
                         key = (kind, n_links, cfg, m, p)
@@ -556,7 +556,7 @@ def study(a) -> None:
                         try:
                             t0 = time.perf_counter()
                             with np.errstate(all="ignore"):
-                                x = run_core(m, p, chain, q, qd)
+                                x = run_core(m, p, chain, q, v)
                             row["time_s"] = time.perf_counter() - t0
                             fill_errors(row, x, ref)
                         except np.linalg.LinAlgError as exc:  # the method fails: a result

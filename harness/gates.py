@@ -209,20 +209,20 @@ def measure_table9(gate: Gate) -> list[Measurement]:
 
     item = gate.params["item"]
     case = load_case("STUDY-R3-TABLE9")
-    chain, q, qd = case.chain, case.q0, case.qd0
+    chain, q, v = case.chain, case.q0, case.v0
     if item == "cond2":
         return [Measurement(float(np.linalg.cond(mass_matrix(chain, q))))]
     printed = np.array(_published()["table9"][item])
     if item == "gim":
         got = {"": mass_matrix(chain, q)}
     elif item == "phi":
-        got = {"": phi(chain, q, qd)}
+        got = {"": phi(chain, q, v)}
     elif item == "qdd":
-        got = {m: forward_dynamics(chain, q, qd, method=m) for m in METHODS}
-        got["rge-a spatial"] = forward_dynamics(chain, q, qd, planar=False)
+        got = {m: forward_dynamics(chain, q, v, method=m) for m in METHODS}
+        got["rge-a spatial"] = forward_dynamics(chain, q, v, planar=False)
     else:
         raise ValueError(f"params.item = {item!r}: one of gim, phi, qdd, cond2")
-    diffs = {k: float(np.abs(np.round(v, 4) - printed).max()) for k, v in got.items()}
+    diffs = {k: float(np.abs(np.round(x, 4) - printed).max()) for k, x in got.items()}
     worst = max(diffs, key=diffs.get)
     return [Measurement(diffs[worst], where=worst if diffs[worst] > 0 else "")]
 
@@ -247,7 +247,7 @@ def measure_initial_energy(gate: Gate) -> list[Measurement]:
     out = []
     for name, expected in gate.params["cases"].items():
         case = load_case(name)
-        T, V = energy(case.chain, case.q0, case.qd0)
+        T, V = energy(case.chain, case.q0, case.v0)
         out.append(Measurement(abs(T + V - expected) / expected, name, f"E(0) = {T + V:.9g} J"))
     return out
 
@@ -270,13 +270,13 @@ def _engine_errors(chain, eng, stages, states) -> dict[str, tuple[float, str]]:
     for stage in stages:
         worst = (-1.0, "")
         for i, (kind, _seed) in enumerate(states):
-            q, qd, tau = drawn[i]
+            q, v, tau = drawn[i]
             if stage == "gim":
                 ref, got = redysim.mass_matrix(chain, q), eng.mass_matrix(q)
             elif stage == "phi":
-                ref, got = redysim.phi(chain, q, qd), eng.bias(q, qd)
+                ref, got = redysim.phi(chain, q, v), eng.bias(q, v)
             elif stage == "qdd":
-                ref, got = qdd[i], eng.qdd(q, qd, tau)
+                ref, got = qdd[i], eng.qdd(q, v, tau)
             else:
                 raise ValueError(f"stage {stage!r}: one of {', '.join(ENGINE_STAGES)}")
             err = float(np.abs(np.asarray(got) - ref).max() / np.abs(ref).max())
@@ -319,7 +319,7 @@ def measure_rge_a_true_error(gate: Gate) -> list[Measurement]:
     :mod:`redysim.harness.hiprec`.
 
     ``params``: the uniform chain (n_links, joint, link_length, linear_density, radius, inertia)
-    and the state, q and qd drawn uniformly from (-amplitude, amplitude) by
+    and the state, q and v drawn uniformly from (-amplitude, amplitude) by
     ``numpy.random.default_rng(seed)`` (seed a list, as the error study seeds its states).
     """
     from redysim import Chain, forward_dynamics
@@ -332,10 +332,10 @@ def measure_rge_a_true_error(gate: Gate) -> list[Measurement]:
                           inertia=p["inertia"], name=f"{p['joint']}{p['n_links']}")
     rng = np.random.default_rng(p["seed"])
     a, n = float(p["amplitude"]), chain.n_dof
-    q, qd = rng.uniform(-a, a, n), rng.uniform(-a, a, n)
-    ref = hiprec.qdd_reference(chain, q, qd, dps=int(p.get("dps", hiprec.DEFAULT_DPS)),
+    q, v = rng.uniform(-a, a, n), rng.uniform(-a, a, n)
+    ref = hiprec.qdd_reference(chain, q, v, dps=int(p.get("dps", hiprec.DEFAULT_DPS)),
                                output="dd")
-    rel2, relmax = hiprec.relative_errors(forward_dynamics(chain, q, qd), ref)
+    rel2, relmax = hiprec.relative_errors(forward_dynamics(chain, q, v), ref)
     return [Measurement(rel2, where=f"{n:,} DOF; max-norm relative error {relmax:.2g}")]
 
 

@@ -1,8 +1,8 @@
 """A high-precision reference for qdd: the core's own RGE-A kernel, run in mpmath arithmetic.
 
 The true error of a forward-dynamics method is ||qdd_method - qdd_exact|| / ||qdd_exact||, where
-qdd_exact solves I(q) qdd = phi(q, qd, tau) exactly for the double-precision input (the chain's
-doubles: lengths, masses, COMs, inertias about the COM, gravity; the doubles q, qd, tau). This
+qdd_exact solves I(q) qdd = phi(q, v, tau) exactly for the double-precision input (the chain's
+doubles: lengths, masses, COMs, inertias about the COM, gravity; the doubles q, v, tau). This
 module computes qdd_exact to ~40+ significant digits in O(n), so it reaches 100,000-link chains.
 
 How (one source of truth): the core's numba kernels are plain Python underneath, and the core
@@ -173,16 +173,16 @@ def chain_arrays(chain: Chain, arith: Arithmetic) -> dict[str, np.ndarray]:
                 "mass_com": mass_com, "dof_u": dof_u}
 
 
-def _state(chain, arith, q, qd, tau):
+def _state(chain, arith, q, v, tau):
     n = chain.n_dof
     q = arith.array(np.asarray(q, dtype=float).reshape(n))
-    qd = arith.array(np.asarray(qd, dtype=float).reshape(n))
+    v = arith.array(np.asarray(v, dtype=float).reshape(n))
     tau = arith.zeros(n) if tau is None else arith.array(np.asarray(tau, float).reshape(n))
-    return q, qd, tau
+    return q, v, tau
 
 
 # --------------------------------------------------------------------------- kernels in arith
-def rge_a_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
+def rge_a_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
     """qdd by the core's spatial RGE-A kernel (``rge_a_forward_dynamics``) run in ``arith``.
 
     Returns an array of ``arith``'s scalars (object array of mpf, or float32).
@@ -193,9 +193,9 @@ def rge_a_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) ->
     fd = kernel_function("rge-a", arith)
     with arith.context():
         tree, s = _bundles(c, arith)
-        q, qd, tau = _state(c, arith, q, qd, tau)
+        q, v, tau = _state(c, arith, q, v, tau)
         qdd = arith.zeros(n)
-        fd(tree, q, qd, tau, arith.array(-c.gravity), arith.zeros(n), s, qdd)
+        fd(tree, q, v, tau, arith.array(-c.gravity), arith.zeros(n), s, qdd)
     return qdd
 
 
@@ -208,7 +208,7 @@ def _bundles(chain: Chain, arith: Arithmetic):
                       inertia_O=a["inertia_O"], mass_com=a["mass_com"], dof_u=a["dof_u"])
 
 
-def planar_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
+def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
     """qdd by the core's planar kernel (``planar_forward_dynamics``) run in ``arith``."""
     if not chain.is_planar:
         raise ValueError(f"chain {chain.name!r} is not planar")
@@ -217,15 +217,15 @@ def planar_qdd(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None) -
     fd = kernel_function("planar", arith)
     with arith.context():
         a = chain_arrays(c, arith)
-        q, qd, tau = _state(c, arith, q, qd, tau)
+        q, v, tau = _state(c, arith, q, v, tau)
         qdd = arith.zeros(c.n_dof)
         fd(a["length"], a["mass"], a["inertia_O"][:, 2, 2].copy(),
            a["mass_com"][:, 0].copy(), a["mass_com"][:, 1].copy(), arith.array(c.gravity),
-           q, qd, tau, qdd, arith.zeros((c.n_links, 12)))
+           q, v, tau, qdd, arith.zeros((c.n_links, 12)))
     return qdd
 
 
-def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None = None):
+def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None):
     """(oR, oO, oP, phi, arrays) from the core's kinematics and Newton-Euler kernels in ``arith``
     (qdd = 0, base at -g); ``arrays`` is :func:`chain_arrays`. For study kernels that need the
     same inputs as RGE-A in another arithmetic (``redysim.harness.nonsymmetric``)."""
@@ -237,8 +237,8 @@ def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None =
     with arith.context():
         a = chain_arrays(c, arith)
         tree, s = _bundles(c, arith)
-        q, qd, tau = _state(c, arith, q, qd, tau)
-        kin(tree, q, qd, arith.zeros(n), arith.array(-c.gravity), s)
+        q, v, tau = _state(c, arith, q, v, tau)
+        kin(tree, q, v, arith.zeros(n), arith.array(-c.gravity), s)
         bias = arith.zeros(n)
         rnea(tree, s, bias)
         phi = tau - bias
@@ -246,11 +246,11 @@ def kinematics_and_phi(chain: Chain, q, qd, tau=None, arith: Arithmetic | None =
 
 
 # --------------------------------------------------------------------------- the reference
-def qdd_reference(chain: Chain, q, qd, tau=None, dps: int = DEFAULT_DPS, *,
+def qdd_reference(chain: Chain, q, v, tau=None, dps: int = DEFAULT_DPS, *,
                   output: str = "float"):
     """The exact qdd of the double-precision input, to ~dps - 10 digits, in O(n).
 
-    chain, q, qd, tau: as for :func:`redysim.forward_dynamics` (tau default zero); every double
+    chain, q, v, tau: as for :func:`redysim.forward_dynamics` (tau default zero); every double
     is taken as exact. dps: mpmath's decimal digits (50: qdd good to ~40 digits even where
     cond2(GIM) ~ 1e20).
     output: ``"float"`` -> numpy float64 array (each value correctly rounded);
@@ -259,7 +259,7 @@ def qdd_reference(chain: Chain, q, qd, tau=None, dps: int = DEFAULT_DPS, *,
             double-double: what the error study caches on disk, see :func:`to_double_double`).
     """
     arith = mpf_arithmetic(dps)
-    qdd = rge_a_qdd(chain, q, qd, tau, arith)
+    qdd = rge_a_qdd(chain, q, v, tau, arith)
     if output == "mpf":
         return list(qdd)
     if output == "float":
@@ -330,8 +330,8 @@ def _rodrigues(u, angle):
             [t * u[2] * u[0] - s * u[1], t * u[2] * u[1] + s * u[0], c + t * u[2] * u[2]]]
 
 
-def newton_euler_mp(chain: Chain, q, qd, qdd, *, gravity: bool = True) -> list:
-    """tau = I qdd + C qd + (gravity terms if ``gravity``): textbook Newton-Euler about the
+def newton_euler_mp(chain: Chain, q, v, qdd, *, gravity: bool = True) -> list:
+    """tau = I qdd + C v + (gravity terms if ``gravity``): textbook Newton-Euler about the
     centres of mass, in mpmath at the current precision. Independent of the core's kernels
     (no DeNOC matrices, no articulated masses); revolute axes only (R, U, S, general R).
 
@@ -340,7 +340,7 @@ def newton_euler_mp(chain: Chain, q, qd, qdd, *, gravity: bool = True) -> list:
     """
     mpf = mpmath.mpf
     nl = chain.n_links
-    q, qd, qdd = ([mpf(float(x)) for x in v] for v in (q, qd, qdd))
+    q, v, qdd = ([mpf(float(x)) for x in vec] for vec in (q, v, qdd))
     zero3 = [mpf(0)] * 3
     R = [[mpf(1) if i == j else mpf(0) for j in range(3)] for i in range(3)]
     O, w, wd = zero3, zero3, zero3
@@ -361,8 +361,8 @@ def newton_euler_mp(chain: Chain, q, qd, qdd, *, gravity: bool = True) -> list:
             norm = mpmath.sqrt(_dot(um, um))  # exactly unit at the working precision
             um = _scale(1 / norm, um)
             e = _matvec(R, um)
-            wd = _add(wd, _add(_scale(qdd[j], e), _cross(w, _scale(qd[j], e))))
-            w = _add(w, _scale(qd[j], e))
+            wd = _add(wd, _add(_scale(qdd[j], e), _cross(w, _scale(v[j], e))))
+            w = _add(w, _scale(v[j], e))
             R = _matmul(R, _rodrigues(um, q[j]))
             axes.append((j, e))
             j += 1
@@ -390,15 +390,15 @@ def newton_euler_mp(chain: Chain, q, qd, qdd, *, gravity: bool = True) -> list:
     return tau
 
 
-def dense_reference(chain: Chain, q, qd, tau=None, dps: int = DEFAULT_DPS) -> list:
+def dense_reference(chain: Chain, q, v, tau=None, dps: int = DEFAULT_DPS) -> list:
     """qdd by an independent dense solve in mpmath (O(n^3), for small chains: tests only).
 
-    GIM column i = newton_euler_mp(q, 0, e_i, no gravity); phi = tau - newton_euler_mp(q, qd, 0);
+    GIM column i = newton_euler_mp(q, 0, e_i, no gravity); phi = tau - newton_euler_mp(q, v, 0);
     qdd = mpmath.lu_solve(GIM, phi). Returns a list of mpf.
     """
     n = chain.n_dof
     with mpmath.workdps(dps):
-        bias = newton_euler_mp(chain, q, qd, np.zeros(n))
+        bias = newton_euler_mp(chain, q, v, np.zeros(n))
         gim = dense_gim_mp(chain, q, dps)
         t = [mpmath.mpf(0)] * n if tau is None else [mpmath.mpf(float(x)) for x in tau]
         rhs = mpmath.matrix([t[i] - bias[i] for i in range(n)])

@@ -54,21 +54,21 @@ def _shift(a, dtype):
     return A
 
 
-def _inputs(chain: Chain, q, qd, tau, dtype):
+def _inputs(chain: Chain, q, v, tau, dtype):
     """oR, oO, oP, phi, inertia_O, mass_com, mass in ``dtype``."""
     if dtype == np.float64:
         ws = Workspace(chain)
         c = chain
         # phi runs the kinematics pass in ws (qdd = 0, base at -g) and leaves oR, oO, oP there
-        phi = _phi(c, q, qd, tau, ws=ws)
+        phi = _phi(c, q, v, tau, ws=ws)
         return ws.oR, ws.oO, ws.oP, phi, c.inertia_O, c.mass_com, c.mass
     if dtype == np.float32:
-        oR, oO, oP, phi, a = kinematics_and_phi(chain, q, qd, tau, FLOAT32)
+        oR, oO, oP, phi, a = kinematics_and_phi(chain, q, v, tau, FLOAT32)
         return oR, oO, oP, phi, a["inertia_O"], a["mass_com"], a["mass"]
     raise ValueError(f"dtype {dtype!r}: float64 or float32")
 
 
-def literal_rge_a(chain: Chain, q, qd, tau=None, *, dtype=np.float64,
+def literal_rge_a(chain: Chain, q, v, tau=None, *, dtype=np.float64,
                   resymmetrise: bool = False, return_asymmetry: bool = False):
     """qdd by the literal, non-symmetric 6 x 6 transcription of Table A.1 (module docstring).
 
@@ -77,7 +77,7 @@ def literal_rge_a(chain: Chain, q, qd, tau=None, *, dtype=np.float64,
     return_asymmetry: also return max_k ||Mhat_k - Mhat_k^T||_max / ||Mhat_k||_max.
     """
     dtype = np.dtype(dtype).type
-    oR, oO, oP, phi, inertia_O, mass_com, mass = _inputs(chain, q, qd, tau, dtype)
+    oR, oO, oP, phi, inertia_O, mass_com, mass = _inputs(chain, q, v, tau, dtype)
     qoff = chain.joint_qoff
     nl, n = chain.n_links, chain.n_dof
     Psihat: list[np.ndarray] = [None] * nl  # type: ignore[list-item]

@@ -129,7 +129,7 @@ def engine_test_chain(joint: str, n_links: int) -> redysim.Chain:
 
 
 def random_state(chain: redysim.Chain, kind: str, seed: int):
-    """(q, qd, tau): ``spread`` draws q uniformly in (-pi, pi); ``straight`` within 1e-3 rad of
+    """(q, v, tau): ``spread`` draws q uniformly in (-pi, pi); ``straight`` within 1e-3 rad of
     the straight chain (q = 0), where U joints are far from their singular configuration
     but the chain is at its stiffest conditioning. (For a prismatic axis q is a displacement in
     m, drawn the same way.)"""
@@ -141,6 +141,6 @@ def random_state(chain: redysim.Chain, kind: str, seed: int):
         q = rng.uniform(-np.pi, np.pi, n)
     else:
         q = rng.normal(scale=1e-3, size=n)
-    qd = rng.normal(size=n)
+    v = rng.normal(size=n)
     tau = rng.normal(size=n)
-    return q, qd, tau
+    return q, v, tau

@@ -90,9 +90,9 @@ def coarse_case(case, links: int):
     from redysim.algorithms.coarse import coarsen
 
     cz = coarsen(case.chain, links=links, name=f"{case.name}@{links}")
-    q0, qd0 = cz.to_coarse(case.q0, case.qd0)
-    q0.flags.writeable = qd0.flags.writeable = False
-    return replace(case, chain=cz.coarse, q0=q0, qd0=qd0), cz
+    q0, v0 = cz.to_coarse(case.q0, case.v0)
+    q0.flags.writeable = v0.flags.writeable = False
+    return replace(case, chain=cz.coarse, q0=q0, v0=v0), cz
 
 
 class _Dynamics:
@@ -206,8 +206,8 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
 
 
 def initial_state(spec: RunSpec, case) -> np.ndarray:
-    """y0 = (q0, qd0) of the run: the case's, shifted by ``spec.perturb`` (RunSpec's meaning)."""
-    y0 = np.concatenate((case.q0, case.qd0))
+    """y0 = (q0, v0) of the run: the case's, shifted by ``spec.perturb`` (RunSpec's meaning)."""
+    y0 = np.concatenate((case.q0, case.v0))
     if spec.perturb:
         y0 = y0 + spec.perturb * np.maximum(np.abs(y0), 1.0)
     return y0

@@ -61,7 +61,7 @@ class RunSpec:
                  busy machine). It still depends on the machine's speed. A wall-clock limit
                  is the user's patience only: ``execute(max_wall_s=...)`` and ``redysim
                  simulate --max-wall``, whose runs are "stopped", never a result.
-    perturb:     a rounding-level change of the initial state: every component y0_i of (q0, qd0)
+    perturb:     a rounding-level change of the initial state: every component y0_i of (q0, v0)
                  becomes y0_i + perturb * max(|y0_i|, 1), and E(0) is that state's energy. 0 (the
                  default) runs the case's own state. Ensembles of runs with perturb ~ 1e-13 show
                  how much a result depends on round-off (``sweeps/drift-ensemble.toml``).
@@ -194,7 +194,7 @@ def _check_horizon(case, t_end: float, source: str, name: str) -> None:
     run can integrate (:data:`redysim.io.cases.MAX_RADIANS`), as its file's own t_end would be."""
     from redysim.io.cases import MAX_RADIANS, fastest_motion
 
-    motion = fastest_motion(case.chain, case.tip_force, case.qd0)
+    motion = fastest_motion(case.chain, case.tip_force, case.v0)
     if motion.omega * t_end > MAX_RADIANS:
         raise SettingsError(source, name, t_end,
                             f"the case's fastest motion, ~{motion.omega:.3g} rad/s, turns "

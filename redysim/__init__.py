@@ -5,7 +5,7 @@ The public surface; everything else is internal::
 
     from redysim import load_case, forward_dynamics
     case = load_case("RE-U125-L1")
-    qdd = forward_dynamics(case.chain, case.q0, case.qd0)
+    qdd = forward_dynamics(case.chain, case.q0, case.v0)
 
     from redysim import load_model, simulate
     robot = load_model("ur5_robot.urdf")          # or an MJCF .xml

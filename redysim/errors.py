@@ -8,7 +8,7 @@
     a run's settings: integrator, tolerances, step, horizon, sampling |   +-- SweepError
     a sweep file (redysim.harness.sweep) |   +-- GatesError            the accuracy gates file
     (redysim.harness.gates) |   +-- ModelFileError        a URDF or MJCF file (redysim.io.importers)
-    +-- StateError                a state (q, qd, qdd, tau) handed to a dynamics function
+    +-- StateError                a state (q, v, qdd, tau) handed to a dynamics function
 """
 
 from __future__ import annotations
@@ -82,5 +82,5 @@ class ModelFileError(FieldError):
 
 
 class StateError(RedysimError, ValueError):
-    """A state (q, qd, qdd, tau) handed to a public function has the wrong size or is not finite,
+    """A state (q, v, qdd, tau) handed to a public function has the wrong size or is not finite,
     or the dynamics of a finite state are singular or overflow (the message says which)."""

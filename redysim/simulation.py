@@ -399,7 +399,7 @@ class Simulator:
         if q0 is None:
             q0 = system.initial()
         q0 = check_state(system, "q", q0)
-        v0 = check_state(system, "qd", np.zeros(system.n_v) if v0 is None else v0)
+        v0 = check_state(system, "v", np.zeros(system.n_v) if v0 is None else v0)
         self.damping = float(damping)
         if loops is None and system.cuts:  # a closed mechanism: its loops closed
             from redysim.algorithms.loops import ClosedLoops
@@ -712,7 +712,7 @@ def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
                              f"simulate(system, t_end, {name}=...))")
     Q0 = check_batch(system, "q", q0, None)
     V0 = np.zeros((Q0.shape[0], system.n_v)) if v0 is None else \
-        check_batch(system, "qd", v0, Q0.shape[0])
+        check_batch(system, "v", v0, Q0.shape[0])
     out: list[Simulation | None] = [None] * Q0.shape[0]
 
     def rows(_block, first, last):

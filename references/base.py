@@ -109,12 +109,12 @@ class Limits:
 
 
 class Trajectory(NamedTuple):
-    """Samples of a native simulation: times t (m,), q (m, n_q), qd (m, n_v) the velocities v;
+    """Samples of a native simulation: times t (m,), q (m, n_q), v (m, n_v) the velocities v;
     the integrator's name."""
 
     t: np.ndarray
     q: np.ndarray
-    qd: np.ndarray
+    v: np.ndarray
     integrator: str
 
 

@@ -41,7 +41,7 @@ initial state, one ``ExplicitEuler`` step of 1e-12 s is taken with
 ``GetODE2Coordinates_tt()`` then holds the acceleration at the start of the step, i.e. at the
 given state. ``tau`` enters through the tree's ``jointForceVector``.
 ``mass_matrix`` and ``bias`` are the solver's ``ComputeMassMatrix`` and ``ComputeODE2RHS`` (the
-ODE2 right-hand side, which is phi with tau = 0). ``energy``: T = qd^T M qd / 2 with Exudyn's M,
+ODE2 right-hand side, which is phi with tau = 0). ``energy``: T = v^T M v / 2 with Exudyn's M,
 V = -sum m g . r_C with the COM positions from ``SensorKinematicTree`` (Exudyn has no energy call
 for the tree). ``position``: a ``SensorKinematicTree`` on the body's last link at the point
 (turned by A^T). ``simulate``: Exudyn's explicit ``RK44`` at the fixed step h, the state written

@@ -58,12 +58,12 @@ What each engine builds (details and measurements in ``references/README.md``, "
   world point), ``constrainedAxes = [1, 1, 0]`` for a planar cut (Exudyn's own 2-equation
   form); qdd from Exudyn's implicit solver (``MainSolverImplicitSecondOrder``, GeneralizedAlpha)
   computing its consistent initial accelerations (``computeInitialAccelerations``: the index-1
-  system with M, the constraint Jacobian and -d2g/dq2 qd^2) in ``InitializeSolver``, no step
+  system with M, the constraint Jacobian and -d2g/dq2 v^2) in ``InitializeSolver``, no step
   taken; the Lagrange multipliers (``GetAECoordinates``) are the core's lam. Exudyn's explicit
   solvers (which the engine's adapter uses) cannot close a loop: by default they abort ("contains
   constraints that cannot be solved"), with ``explicit.eliminateConstraints = False`` they warn
   "WILL IGNORE CONSTRAINTS" and return the open tree's qdd (measured). Exudyn forms the velocity
-  term d2g/dq2 qd^2 by
+  term d2g/dq2 v^2 by
   numerical differentiation (``newton.numericalDifferentiation.relativeEpsilon``, 1e-7): its
   error at v != 0 follows that epsilon (README).
 
@@ -441,7 +441,7 @@ class MuJoCoLoops(LoopEngine):
             tr = t.simulate(q0, v0, steps * h, h, every=every)
         finally:
             t.mjmodel.opt.timestep = saved
-        return tr.t, tr.q, tr.qd
+        return tr.t, tr.q, tr.v
 
     def regularisation(self, q, v) -> np.ndarray:
         """MuJoCo's constraint regulariser R (``efc_R``) at (q, v), one per core row: MuJoCo's
@@ -649,14 +649,14 @@ class ExudynLoops(LoopEngine):
         with _without_sparse_advice():
             if not exu.MainSolverImplicitSecondOrder().SolveSystem(mbs, ss):
                 raise LoopStateUnsupported(f"{self.name}: the GeneralizedAlpha solve failed")
-        qd, vd = (np.array(mbs.GetSensorStoredData(s)) for s in self._sensors)
+        v, vd = (np.array(mbs.GetSensorStoredData(s)) for s in self._sensors)
         want = [i * h for i in range(0, steps + 1, every)]
         if steps % every:
             want.append(steps * h)
-        rows = [int(np.argmin(np.abs(qd[:, 0] - w))) for w in want]
-        if any(abs(qd[r, 0] - w) > 0.5 * h for r, w in zip(rows, want, strict=True)):
-            raise AssertionError(f"Exudyn's sensor samples {qd[:, 0]} miss the times {want}")
-        return (want, [qd[r, 1:][t.eidx] for r in rows], [vd[r, 1:][t.eidx] for r in rows])
+        rows = [int(np.argmin(np.abs(v[:, 0] - w))) for w in want]
+        if any(abs(v[r, 0] - w) > 0.5 * h for r, w in zip(rows, want, strict=True)):
+            raise AssertionError(f"Exudyn's sensor samples {v[:, 0]} miss the times {want}")
+        return (want, [v[r, 1:][t.eidx] for r in rows], [vd[r, 1:][t.eidx] for r in rows])
 
 
 LOOP_ENGINES: dict[str, type[LoopEngine]] = {

@@ -50,9 +50,9 @@ def main(argv=None) -> int:
         if not a.no_qdd:
             rng = np.random.default_rng(0)
             q = rng.uniform(-0.1, 0.1, chain.n_dof)
-            qd = rng.uniform(-0.1, 0.1, chain.n_dof)
+            v = rng.uniform(-0.1, 0.1, chain.n_dof)
             t0 = time.perf_counter()
-            x = eng.qdd(q, qd)
+            x = eng.qdd(q, v)
             out["qdd_s"] = time.perf_counter() - t0
             out["qdd_finite"] = bool(np.all(np.isfinite(x)))
         out["ok"] = True

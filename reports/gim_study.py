@@ -60,7 +60,7 @@ CHAINS = {
 def table9() -> dict:
     """Our double-precision GIM, cond2, phi and qdd at Table 9's state, beside the paper's."""
     case = load_case(TABLE9_CASE)
-    ch, q, qd = case.chain, case.q0, case.qd0
+    ch, q, qd = case.chain, case.q0, case.v0
     gim = mass_matrix(ch, q)
     pub = load_published()["table9"]
     ours = {"gim": gim.tolist(), "cond2": float(np.linalg.cond(gim)),

@@ -170,7 +170,7 @@ def engines_trajectories() -> list[dict]:
             traj = eng.simulate(q0, v0, 0.5, h, every=int(round(0.1 / h)))
             row[f"q_error_h{h:g}"] = float(np.abs(traj.q - core.q).max())
             row[f"residual_h{h:g}"] = max(fb.loops.residuals(q, v)[0]
-                                          for q, v in zip(traj.q, traj.qd, strict=True))
+                                          for q, v in zip(traj.q, traj.v, strict=True))
         row["integrator"] = traj.integrator
         rows.append(row)
     return rows

@@ -125,14 +125,14 @@ def _fmt(x, width=11):
 # --------------------------------------------------------------------------- Table 10
 def table10(pub) -> dict:
     case = table9_horizontal()
-    ch, q0, qd0 = case.chain, case.q0, case.qd0
-    q64 = forward_dynamics(ch, q0, qd0)
+    ch, q0, v0 = case.chain, case.q0, case.v0
+    q64 = forward_dynamics(ch, q0, v0)
     rows = []
     for arithmetic in ("double", "decimal"):
         for prow in pub["table10"]["rows"]:
             k = round(-math.log10(prow["accuracy"]))
             m = prow["method"]
-            x = reduced_qdd(ch, q0, qd0, METHOD_KEYS[m], k, arithmetic=arithmetic)
+            x = reduced_qdd(ch, q0, v0, METHOD_KEYS[m], k, arithmetic=arithmetic)
             with np.errstate(all="ignore"):
                 dq = (x - q64) / q64 * 100.0
             for i in range(3):
@@ -155,7 +155,7 @@ def table10(pub) -> dict:
         n_ok = 0
         for prow in (r for r in pub["table10"]["rows"] if r["method"] == "RGE-A"):
             k = round(-math.log10(prow["accuracy"]))
-            x = reduced_qdd(c.chain, c.q0, c.qd0, "rge-a", k, fused_phi=fused)
+            x = reduced_qdd(c.chain, c.q0, c.v0, "rge-a", k, fused_phi=fused)
             n_ok += sum(verdict(x[i], prow["qdd"][i], 4)[0] == "exact"
                         and verdict(float((x[i] - q64[i]) / q64[i] * 100), prow["dq"][i],
                                     printed_decimals(prow["dq"][i], 4))[0] in ("exact", "sign")
@@ -206,7 +206,7 @@ def tableA2(pub) -> dict:
     case = table9_horizontal()
     rows, extra = [], {}
     for name, method in (("ge", "ge-n"), ("rge", "rge-n")):
-        f = reduced_factors(case.chain, case.q0, case.qd0, method, 3)
+        f = reduced_factors(case.chain, case.q0, case.v0, method, 3)
         entries = {"L": f.L, "U": f.U, "cond2_L": np.linalg.cond(f.L),
                    "cond2_U": np.linalg.cond(f.U), "phi_hat": f.phihat}
         for key, ours in entries.items():
@@ -218,11 +218,11 @@ def tableA2(pub) -> dict:
                 rows.append({"factorisation": name.upper(), "entry": key,
                              "index": j if np.ndim(ours) else None, "paper": pv, "ours": o,
                              "decimals": printed_decimals(pv), "verdict": v, "diff": d})
-    f = reduced_factors(case.chain, case.q0, case.qd0, "rge-a", 3)
+    f = reduced_factors(case.chain, case.q0, case.v0, "rge-a", 3)
     extra["RGE-A (spatial kernels, 1e-3; not in the paper)"] = {
         "U": f.U.tolist(), "L'=D U^T": f.L.tolist(), "cond2_U": float(np.linalg.cond(f.U)),
         "cond2_L": float(np.linalg.cond(f.L)), "qdd": f.qdd.tolist()}
-    G, ph = mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.qd0)
+    G, ph = mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.v0)
     for name, method in (("GE", "ge-n"), ("RGE", "rge-n")):
         e = eliminate(G, ph, method)  # the float64 kernel: the exact factors to ~1e-15
         lower, upper = (e.multipliers, e.factor) if method == "ge-n" else (e.factor, e.multipliers)
@@ -263,18 +263,18 @@ def table11(pub, max_links: int = 100, refs: dict | None = None) -> dict:
         if n > max_links:
             continue
         case = load_case(f"STUDY-R{n}")
-        ch, q0, qd0 = case.chain, case.q0, case.qd0
+        ch, q0, v0 = case.chain, case.q0, case.v0
         G = mass_matrix(ch, q0)
         cond = float(np.linalg.cond(G))
         v, d = verdict(cond, prow["cond2"], sig_decimals(prow["cond2"]))
-        q64 = np.linalg.solve(G, phi(ch, q0, qd0))
-        exact = refs.setdefault(("gim", n), reduced_qdd(ch, q0, qd0, "rge-n", 40,
+        q64 = np.linalg.solve(G, phi(ch, q0, v0))
+        exact = refs.setdefault(("gim", n), reduced_qdd(ch, q0, v0, "rge-n", 40,
                                                         arithmetic="decimal"))
         row = {"links": n, "paper_cond2": prow["cond2"], "ours_cond2": cond, "verdict_cond2": v,
                "qdd1_double": float(q64[0]), "qddn_double": float(q64[-1]),
                "qddn_exact_of_double_system": float(exact[-1])}
         for k in (6, 7):
-            runs = {m: reduced_qdd(ch, q0, qd0, m, k) for m in ("ge-n", "rge-a")}
+            runs = {m: reduced_qdd(ch, q0, v0, m, k) for m in ("ge-n", "rge-a")}
             for col, m, i in TABLE11_COLUMNS:
                 # the paper's sign convention here: (qdd - qdd_F) / qdd * 100
                 e = float((q64[i] - runs[m][i]) / q64[i] * 100.0)
@@ -344,25 +344,25 @@ def ieee_table(max_links: int = 100, refs: dict | None = None) -> dict:
         if n > max_links:
             continue
         case = load_case(f"STUDY-R{n}")
-        ch, q0, qd0 = case.chain, case.q0, case.qd0
-        G, ph = mass_matrix(ch, q0), phi(ch, q0, qd0)
+        ch, q0, v0 = case.chain, case.q0, case.v0
+        G, ph = mass_matrix(ch, q0), phi(ch, q0, v0)
         cond = float(np.linalg.cond(G))
-        ref_gim = refs.setdefault(("gim", n), reduced_qdd(ch, q0, qd0, "rge-n", 40,
+        ref_gim = refs.setdefault(("gim", n), reduced_qdd(ch, q0, v0, "rge-n", 40,
                                                           arithmetic="decimal"))
-        ref_rec = refs.setdefault(("rec", n), reduced_qdd(ch, q0, qd0, "rge-a", 40,
+        ref_rec = refs.setdefault(("rec", n), reduced_qdd(ch, q0, v0, "rge-a", 40,
                                                           arithmetic="decimal"))
-        ref_fused = refs.setdefault(("fused", n), reduced_qdd(ch, q0, qd0, "rge-a", 40,
+        ref_fused = refs.setdefault(("fused", n), reduced_qdd(ch, q0, v0, "rge-a", 40,
                                                               arithmetic="decimal",
                                                               fused_phi=True))
         noise = float(np.linalg.norm(ref_gim - ref_rec) / np.linalg.norm(ref_gim))
         for dtype in (np.float32, np.float16):
             u = float(np.finfo(dtype).eps) / 2
             runs = {
-                "GE-N": (ieee_qdd(ch, q0, qd0, "ge-n", dtype), ref_gim),
-                "RGE-N": (ieee_qdd(ch, q0, qd0, "rge-n", dtype), ref_gim),
-                "RGE-A": (ieee_qdd(ch, q0, qd0, "rge-a", dtype), ref_rec),
+                "GE-N": (ieee_qdd(ch, q0, v0, "ge-n", dtype), ref_gim),
+                "RGE-N": (ieee_qdd(ch, q0, v0, "rge-n", dtype), ref_gim),
+                "RGE-A": (ieee_qdd(ch, q0, v0, "rge-a", dtype), ref_rec),
                 "RGE-A (as the core: gravity in the passes)": (
-                    ieee_qdd(ch, q0, qd0, "rge-a", dtype, fused_phi=True), ref_fused),
+                    ieee_qdd(ch, q0, v0, "rge-a", dtype, fused_phi=True), ref_fused),
             }
             status = {}
             if dtype == np.float32:

@@ -38,11 +38,11 @@ DOOR_SECONDS = 5.0  # refusing a file takes milliseconds; seconds would mean wor
 
 # The public functions and the arguments each takes (the others are zeros).
 FUNCTIONS = {
-    forward_dynamics: ("q", "qd", "tau"),
-    inverse_dynamics: ("q", "qd", "qdd"),
-    phi: ("q", "qd", "tau"),
-    energy: ("q", "qd"),
-    tip: ("q", "qd", "qdd"),
+    forward_dynamics: ("q", "v", "tau"),
+    inverse_dynamics: ("q", "v", "qdd"),
+    phi: ("q", "v", "tau"),
+    energy: ("q", "v"),
+    tip: ("q", "v", "qdd"),
     mass_matrix: ("q",),
 }
 
@@ -101,8 +101,8 @@ def _call(func, chain, arg, value):
 
 def _state_params():
     extra = [{"name": "q None", "arg": "q", "value": None, "expect": ["q is required"]},
-             {"name": "qd None entries", "arg": "qd", "value": [None] * 6,
-              "expect": ["qd = [None, None", "not a numeric vector", "object"]},
+             {"name": "v None entries", "arg": "v", "value": [None] * 6,
+              "expect": ["v = [None, None", "not a numeric vector", "object"]},
              {"name": "q complex", "arg": "q", "value": np.full(6, 1j),
               "expect": ["q = array(", "not a numeric vector", "complex"]},
              {"name": "q object array", "arg": "q", "value": np.zeros(6, dtype=object),
@@ -140,15 +140,15 @@ def test_overflowing_state_is_named_not_returned(chain):
     returning NaN or inf."""
     n = chain.n_dof
     q, qd = np.zeros(n), np.full(n, 1e200)
-    with pytest.raises(StateError, match=r"qdd is not finite for finite q, qd \(max \|q\| = 0, "
-                                         r"max \|qd\| = 1e\+200\): overflow\?"):
+    with pytest.raises(StateError, match=r"qdd is not finite for finite q, v \(max \|q\| = 0, "
+                                         r"max \|v\| = 1e\+200\): overflow\?"):
         forward_dynamics(chain, q, qd)
-    with pytest.raises(StateError, match=r"tau is not finite for finite q, qd, qdd \("):
+    with pytest.raises(StateError, match=r"tau is not finite for finite q, v, qdd \("):
         inverse_dynamics(chain, q, qd, np.zeros(n))
-    with pytest.raises(StateError, match=r"phi is not finite for finite q, qd \("):
+    with pytest.raises(StateError, match=r"phi is not finite for finite q, v \("):
         phi(chain, q, qd)
-    with pytest.raises(StateError, match=r"the energy is not finite for finite q, qd \("):
+    with pytest.raises(StateError, match=r"the energy is not finite for finite q, v \("):
         energy(chain, q, qd)
-    with pytest.raises(StateError, match=r"tip's motion is not finite for finite q, qd, qdd \("):
+    with pytest.raises(StateError, match=r"tip's motion is not finite for finite q, v, qdd \("):
         tip(chain, q, qd, np.zeros(n))  # the centripetal acceleration w x (w x r) overflows
     assert math.isfinite(energy(chain, q, np.ones(n))[0])

@@ -39,7 +39,7 @@ inertia = "cylinder"
 
 [initial]
 q = 0.0
-qd = 0.0
+v = 0.0
 
 [simulation]
 t_end = 1.0
@@ -82,10 +82,10 @@ def test_good_case_loads(tmp_path):
     ('inertia = "cylinder"', 'inertia = "sphere"', "chain.inertia", "'sphere'"),
     ('inertia = "cylinder"', "inertia = [1.0, -2.0, 1.0]", "chain.inertia", "-2.0"),
     ("q = 0.0", "q = [0.0, 0.0]", "initial.q", "[0.0, 0.0]"),
-    ("qd = 0.0", "qd = [0.0, 0.0, 0.0, 0.0]", "initial.qd", "[0.0, 0.0, 0.0, 0.0]"),
+    ("v = 0.0", "v = [0.0, 0.0, 0.0, 0.0]", "initial.v", "[0.0, 0.0, 0.0, 0.0]"),
     ("q = 0.0", "q = [0.0, nan, 0.0]", "initial.q", "nan"),
-    ("qd = 0.0", "qd = inf", "initial.qd", "inf"),
-    ("qd = 0.0", "qd = { fill = 0.0, set = [[7, 1.0]] }", "initial.qd.set[0][0]", "7"),
+    ("v = 0.0", "v = inf", "initial.v", "inf"),
+    ("v = 0.0", "v = { fill = 0.0, set = [[7, 1.0]] }", "initial.v.set[0][0]", "7"),
     ("t_end = 1.0", "t_end = -1.0", "simulation.t_end", "-1.0"),
     ("links = 3", "links = 1000000000", "chain.links", "1000000000"),
     ("links = 3", "links = 2.5", "chain.links", "2.5"),
@@ -152,7 +152,7 @@ def test_state_errors_name_the_argument(func):
     bad = list(good)
     bad[1] = np.zeros(n)
     bad[1][4] = math.nan
-    with pytest.raises(StateError, match=r"qd\[4\] = nan"):
+    with pytest.raises(StateError, match=r"v\[4\] = nan"):
         func(chain, *bad)
     bad = list(good)
     bad[0] = np.zeros(n)
@@ -204,7 +204,7 @@ def test_forward_dynamics_checks_sizes_before_the_entry_point_writes(kind):
     lengths before anything is written (the kernels index without bounds checks)."""
     chain = ENTRY_CHAINS[kind]()
     z, out = np.zeros(6), np.full(6, 7.0)
-    for args, name in (((np.zeros(5), z), "q"), ((z, np.zeros(7)), "qd"),
+    for args, name in (((np.zeros(5), z), "q"), ((z, np.zeros(7)), "v"),
                        ((z, z, np.zeros(5)), "tau")):
         with pytest.raises(StateError, match=rf"{name} has shape"):
             forward_dynamics(chain, *args, out=out)
@@ -277,7 +277,7 @@ def test_a_link_length_that_underflows_is_named(tmp_path):
                     .replace("link_mass = 2.0", "density = 7025.0"))
     case = load_case(path)  # a length is a length; what it does to the dynamics is named there
     with pytest.raises(StateError, match="singular at DOF"):
-        forward_dynamics(case.chain, [0.1, 0.1, 0.1], case.qd0)
+        forward_dynamics(case.chain, [0.1, 0.1, 0.1], case.v0)
 
 
 def test_every_field_naming_error_has_one_base():

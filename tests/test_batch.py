@@ -81,8 +81,8 @@ def test_the_workspace_keeps_one_scratch_a_thread():
 
 @pytest.mark.parametrize("args, fragment", [
     (lambda Q, QD: (Q[:, :-1], QD), "q has shape (5, 15)"),
-    (lambda Q, QD: (Q, QD[:4]), "qd has shape (4, 16)"),
-    (lambda Q, QD: (Q, QD[:, :, None]), "qd has shape (5, 16, 1)"),
+    (lambda Q, QD: (Q, QD[:4]), "v has shape (4, 16)"),
+    (lambda Q, QD: (Q, QD[:, :, None]), "v has shape (5, 16, 1)"),
     (lambda Q, QD: (Q.astype(complex), QD), "need int or float"),
 ])
 def test_a_batch_of_the_wrong_shape_is_refused_naming_it(args, fragment):

@@ -25,7 +25,7 @@ def test_every_paper_case_is_there():
 @pytest.mark.parametrize("name", ALL)
 def test_case_loads_and_refers_to_published_entries(name):
     case = load_case(name)
-    assert case.q0.shape == case.qd0.shape == (case.chain.n_dof,)
+    assert case.q0.shape == case.v0.shape == (case.chain.n_dof,)
     assert case.t_end > 0
     assert case.paper_tables, "every case names the published.toml entry it is compared with"
     assert case.published()
@@ -45,7 +45,7 @@ def test_reu_cases_match_their_names_and_the_paper(name):
     assert np.array_equal(case.q0, np.zeros(chain.n_dof))
     expected_qd = np.zeros(chain.n_dof)
     expected_qd[0] = 1.0  # joint 1's first (y) rate
-    assert np.array_equal(case.qd0, expected_qd)
+    assert np.array_equal(case.v0, expected_qd)
     assert case.simulation["rtol"] == load_published()["conventions"]["rtol"]
     assert case.simulation["atol"] == load_published()["conventions"]["atol"]
 
@@ -146,7 +146,7 @@ def _solve_u(ratio):
 def test_table9_state():
     case = load_case("STUDY-R3-TABLE9")
     np.testing.assert_allclose(case.q0, [math.pi / 3, 0, 0], rtol=1e-15)
-    assert np.array_equal(case.qd0, np.zeros(3))
+    assert np.array_equal(case.v0, np.zeros(3))
 
 
 def test_a_file_named_like_a_case_never_replaces_it(tmp_path, monkeypatch):

@@ -309,7 +309,7 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
     def rhs(_t, y):
         return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
 
-    y0 = np.concatenate((case.q0, case.qd0))
+    y0 = np.concatenate((case.q0, case.v0))
     ts = sample_times(0.0, t_end, t_end / 7)
     runs = []
     for make in (lambda: Solver(rhs, 0.0, y0, t_end, method, **kw),

@@ -145,10 +145,10 @@ def test_batch_shape_errors_say_what_a_batch_needs():
     with pytest.raises(StateError) as err:
         forward_dynamics(chain, Q, np.zeros(n))
     text = str(err.value)
-    assert "q is a batch of 4 states, so qd must have shape (4, 10)" in text
-    assert "np.tile(qd, (4, 1))" in text
+    assert "q is a batch of 4 states, so v must have shape (4, 10)" in text
+    assert "np.tile(v, (4, 1))" in text
     assert "must have shape (10,)" not in text  # the single state's shape is not the answer
-    with pytest.raises(StateError, match=r"qd has shape \(4, 10\).*q is one state; for a batch "
+    with pytest.raises(StateError, match=r"v has shape \(4, 10\).*q is one state; for a batch "
                                          r"of states give q as \(B, 10\) too"):
         forward_dynamics(chain, np.zeros(n), Q)
     with pytest.raises(StateError, match=r"q has shape \(4, 3\); .* has 10 configuration "

@@ -62,12 +62,12 @@ def decimals_of(accuracy: float) -> int:
 @pytest.fixture(scope="module")
 def table9():
     case = load_case("STUDY-R3-TABLE9")
-    return case, forward_dynamics(case.chain, case.q0, case.qd0)
+    return case, forward_dynamics(case.chain, case.q0, case.v0)
 
 
 def row_verdicts(case, q64, row, arithmetic="double"):
     """Per component: (qdd verdict, dq verdict) at the paper's printed digits."""
-    x = reduced_qdd(case.chain, case.q0, case.qd0, KEY[row["method"]],
+    x = reduced_qdd(case.chain, case.q0, case.v0, KEY[row["method"]],
                     decimals_of(row["accuracy"]), arithmetic=arithmetic)
     with np.errstate(all="ignore"):
         dq = (x - q64) / q64 * 100
@@ -108,10 +108,10 @@ def test_the_tie_that_separates_the_arithmetics():
 def test_same_source_at_50_places_equals_the_float64_kernel(table9):
     case, q64 = table9
     for method in ("ge-n", "rge-n", "rge-a"):
-        x = reduced_qdd(case.chain, case.q0, case.qd0, method, 50, arithmetic="decimal")
+        x = reduced_qdd(case.chain, case.q0, case.v0, method, 50, arithmetic="decimal")
         assert np.allclose(x, q64, rtol=1e-12, atol=0), method
-    f = reduced_factors(case.chain, case.q0, case.qd0, "ge-n", 50, arithmetic="decimal")
-    e = eliminate(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.qd0), "ge-n")
+    f = reduced_factors(case.chain, case.q0, case.v0, "ge-n", 50, arithmetic="decimal")
+    e = eliminate(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.v0), "ge-n")
     np.testing.assert_allclose(f.U, e.factor, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(f.L, e.multipliers, rtol=1e-12, atol=1e-12)
 
@@ -212,14 +212,14 @@ def test_ieee_errors_follow_conditioning():
     """float32 on the 20-link study chain (cond2 6.7e5, u cond2 0.04): the O(n^3) eliminations
     lose ~1e-3, RGE-A ~1e-4; float16 overflows once phi exceeds 65504 (40 links)."""
     case = load_case("STUDY-R20")
-    ref = np.linalg.solve(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.qd0))
-    err = {m: np.linalg.norm(ieee_qdd(case.chain, case.q0, case.qd0, m, np.float32) - ref)
+    ref = np.linalg.solve(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.v0))
+    err = {m: np.linalg.norm(ieee_qdd(case.chain, case.q0, case.v0, m, np.float32) - ref)
            / np.linalg.norm(ref) for m in ("ge-n", "rge-n", "rge-a")}
     assert all(1e-6 < e < 0.04 for e in err.values()), err
     assert err["rge-a"] < err["ge-n"] / 10 and err["rge-a"] < err["rge-n"] / 10, err
-    assert ieee_qdd(case.chain, case.q0, case.qd0, "rge-a", np.float32).dtype == np.float32
+    assert ieee_qdd(case.chain, case.q0, case.v0, "rge-a", np.float32).dtype == np.float32
     big = load_case("STUDY-R40")
-    x = ieee_qdd(big.chain, big.q0, big.qd0, "rge-n", np.float16)
+    x = ieee_qdd(big.chain, big.q0, big.v0, "rge-n", np.float16)
     assert not np.all(np.isfinite(x))
 
 
@@ -279,7 +279,7 @@ def test_tableA2_rounded_factors(table9, name, method):
     """The published factors, cond2 and phi-hat are those of the 1e-3 ROUNDED elimination: every
     entry to its printed digits (RGE's cond2(U') = 21.467 printed truncated as 21.46)."""
     case, _ = table9
-    f = reduced_factors(case.chain, case.q0, case.qd0, method, 3)
+    f = reduced_factors(case.chain, case.q0, case.v0, method, 3)
     pub = PUB["tableA2"][name]
     ours = {"L": f.L, "U": f.U, "phi_hat": f.phihat,
             "cond2_L": np.linalg.cond(f.L), "cond2_U": np.linalg.cond(f.U)}
@@ -289,7 +289,7 @@ def test_tableA2_rounded_factors(table9, name, method):
             v, _ = verdict(o, p, printed_decimals(p))
             assert v == "exact" or (v == "truncation" and key.startswith("cond2")), (key, o, p)
     # ... and not those of the exact factors
-    e = eliminate(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.qd0), method)
+    e = eliminate(mass_matrix(case.chain, case.q0), phi(case.chain, case.q0, case.v0), method)
     exact = {"cond2_L": e.multipliers if method == "ge-n" else e.factor,
              "cond2_U": e.factor if method == "ge-n" else e.multipliers}
     for key, factor in exact.items():
@@ -304,8 +304,8 @@ def table11_error(n, method, decimals, i):
     """The paper's Table 11 convention: (qdd - qdd_F) / qdd * 100 against the double solution."""
     case = load_case(f"STUDY-R{n}")
     q64 = np.linalg.solve(mass_matrix(case.chain, case.q0),
-                          phi(case.chain, case.q0, case.qd0))
-    x = reduced_qdd(case.chain, case.q0, case.qd0, method, decimals)
+                          phi(case.chain, case.q0, case.v0))
+    x = reduced_qdd(case.chain, case.q0, case.v0, method, decimals)
     return (q64[i] - x[i]) / q64[i] * 100, abs(q64[i])
 
 
@@ -347,7 +347,7 @@ def _ode45_steps(name: str, method: str, decimals: int, ulps: int = 0) -> int:
     def rhs(_t, y):
         return np.concatenate([y[n:], reduced_qdd(ch, y[:n], y[n:], KEY[method], decimals)])
 
-    y0 = np.concatenate([case.q0, case.qd0])
+    y0 = np.concatenate([case.q0, case.v0])
     y0[:n] += ulps * np.spacing(np.maximum(np.abs(y0[:n]), 1.0))
     sol = integrate.integrate(rhs, (0.0, case.t_end), y0, "ode45", rtol=1e-4, atol=1e-6,
                               t_eval=integrate.sample_times(0.0, case.t_end, 0.05))

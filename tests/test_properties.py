@@ -120,8 +120,8 @@ def valid_cases(draw):
         sim["atol"] = draw(_pos(1e-14, 1.0))
     doc = {"case": {"name": draw(st.text(min_size=1, max_size=12)),
                     "paper": {"tables": ["study_chains"]}},
-           "chain": chain, "initial": {"q": q_spec, "qd": qd_spec}, "simulation": sim}
-    return doc, {"n_links": nl, "n_dof": n, "length": length, "mass": mass, "q": q, "qd": qd,
+           "chain": chain, "initial": {"q": q_spec, "v": qd_spec}, "simulation": sim}
+    return doc, {"n_links": nl, "n_dof": n, "length": length, "mass": mass, "q": q, "v": qd,
                  "t_end": t_end, "gravity": gravity}
 
 
@@ -138,7 +138,7 @@ def test_valid_case_dicts_load_and_keep_their_values(case_and_expected):
     np.testing.assert_allclose(chain.mass, exp["mass"], rtol=1e-14)
     np.testing.assert_allclose(chain.gravity, exp["gravity"], rtol=0)
     np.testing.assert_allclose(case.q0, exp["q"], rtol=1e-15)
-    np.testing.assert_allclose(case.qd0, exp["qd"], rtol=1e-15)
+    np.testing.assert_allclose(case.v0, exp["v"], rtol=1e-15)
     assert case.t_end == exp["t_end"]
     assert case.simulation == doc["simulation"]
     sim = doc["simulation"]
@@ -147,7 +147,7 @@ def test_valid_case_dicts_load_and_keep_their_values(case_and_expected):
                                               sim.get("atol", DEFAULT_ATOL), sim.get("h"))
     assert case.sample_interval == sim["sample_interval"]
     assert np.all(np.isfinite(chain.inertia_O))
-    assert not case.q0.flags.writeable and not case.qd0.flags.writeable
+    assert not case.q0.flags.writeable and not case.v0.flags.writeable
 
 
 # --------------------------------------------------------------------------- invalid mutations
@@ -174,7 +174,7 @@ def base_case() -> dict:
             "chain": {"links": 3, "joint": "U", "link_length": 0.5, "link_mass": 2.0,
                       "radius": 0.02, "inertia": "cylinder", "gravity": [0.0, -9.81, 0.0]},
             "initial": {"q": [0.1, -0.2, 0.3, 0.0, 0.5, -0.6],
-                        "qd": {"fill": 0.0, "set": [[0, 1.0]], "unit": "deg"}},
+                        "v": {"fill": 0.0, "set": [[0, 1.0]], "unit": "deg"}},
             "simulation": {"t_end": 1.0, "rtol": 1e-4, "atol": 1e-6, "integrator": "ode45",
                            "sample_interval": 0.05}}
 
@@ -239,7 +239,7 @@ def test_an_unknown_field_is_named(table, key, value):
              "chain": {"links", "joint", "axis", "link_length", "total_length", "link_mass",
                        "total_mass", "linear_density", "density", "radius", "inertia", "com",
                        "gravity", "link", "tip_mass"},
-             "initial": {"q", "qd", "shape", "dX"},
+             "initial": {"q", "v", "shape", "dX"},
              "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval",
                             "note"}}[table]
     assume(key not in node and key not in known)
@@ -261,7 +261,7 @@ def test_any_value_anywhere_loads_or_raises_case_error(data, value):
         case = case_from_dict(doc, source="fuzz.toml")
     except CaseError:
         return
-    assert np.all(np.isfinite(case.q0)) and np.all(np.isfinite(case.qd0))
+    assert np.all(np.isfinite(case.q0)) and np.all(np.isfinite(case.v0))
     assert np.all(np.isfinite(case.chain.inertia_O)) and case.t_end > 0
 
 

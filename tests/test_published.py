@@ -41,14 +41,14 @@ def test_table9_cond2():
 
 def test_table9_phi_and_qdd_to_four_decimals():
     case = load_case("STUDY-R3-TABLE9")
-    ph = phi(case.chain, case.q0, case.qd0)
+    ph = phi(case.chain, case.q0, case.v0)
     np.testing.assert_array_equal(np.round(ph, 4), np.array(PUB["table9"]["phi"]))
     for method in ("rge-a", "ge-n", "rge-n"):
-        qdd = forward_dynamics(case.chain, case.q0, case.qd0, method=method)
+        qdd = forward_dynamics(case.chain, case.q0, case.v0, method=method)
         np.testing.assert_array_equal(np.round(qdd, 4), np.array(PUB["table9"]["qdd"]),
                                       err_msg=method)
     # the spatial recursion gives the same as the planar specialisation
-    qdd = forward_dynamics(case.chain, case.q0, case.qd0, planar=False)
+    qdd = forward_dynamics(case.chain, case.q0, case.v0, planar=False)
     np.testing.assert_array_equal(np.round(qdd, 4), np.array(PUB["table9"]["qdd"]))
 
 
@@ -69,7 +69,7 @@ E0_DESIGN = {"RE-U125-L1": 10.275626, "RE-U750-L6": 2219.535210, "RE-U3750-L30":
 @pytest.mark.parametrize("name", sorted(E0_DESIGN))
 def test_reu_initial_energy(name):
     case = load_case(name)
-    T, V = energy(case.chain, case.q0, case.qd0)
+    T, V = energy(case.chain, case.q0, case.v0)
     assert V == 0.0  # straight and horizontal: every COM at y = 0
     L = float(case.chain.length.sum())
     closed_form = 7850 * math.pi * 0.05**2 * L**3 * 1.0**2 / 6

@@ -26,7 +26,7 @@ radius = 0.005
 inertia = "cylinder"
 [initial]
 q = 0.0
-qd = 0.0
+v = 0.0
 [simulation]
 t_end = 0.1
 sample_interval = 0.02

@@ -29,7 +29,7 @@ def test_a_run_records_samples_counts_and_provenance(results_tmp):
     assert list(res.samples.columns) == list(SAMPLE_COLUMNS)
     assert np.allclose(res.samples["t"], [0, 0.05, 0.1, 0.15, 0.2])
     case = load_case("STUDY-R3")
-    assert s["E0"] == pytest.approx(sum(energy(case.chain, case.q0, case.qd0)), rel=1e-15)
+    assert s["E0"] == pytest.approx(sum(energy(case.chain, case.q0, case.v0)), rel=1e-15)
     assert res.samples["delta_M"].iloc[0] == 0.0
     # ode45's RHS count: 1 + 6 (steps + rejected), the first (JIT) call timed apart
     assert s["nfev"] == 1 + 6 * (s["steps"] + s["rejected"])
@@ -126,8 +126,8 @@ def test_a_perturbed_run_starts_from_the_shifted_state_and_keeps_its_own_E0(resu
     a, b = execute(base), execute(pert)
     assert a.ok and b.ok
     case = load_case("RE-U125-L1")
-    # every component moves by perturb * max(|y0_i|, 1): q0 = 0 and qd0 = (1, 0, ...) -> +1e-9
-    q, qd = case.q0 + 1e-9, case.qd0 + 1e-9
+    # every component moves by perturb * max(|y0_i|, 1): q0 = 0 and v0 = (1, 0, ...) -> +1e-9
+    q, qd = case.q0 + 1e-9, case.v0 + 1e-9
     assert b.summary["E0"] == pytest.approx(sum(energy(case.chain, q, qd)), rel=1e-15)
     assert b.summary["E0"] != a.summary["E0"]
     assert b.samples["delta_M"].iloc[0] == 0.0  # measured from the run's own E(0)

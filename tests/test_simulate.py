@@ -52,9 +52,9 @@ def test_a_floating_tree_falls_freely_with_every_integrator(integrator):
 def test_a_chain_and_its_model_simulate_alike_bit_for_bit():
     rng = np.random.default_rng(stable_seed("sim-chain"))
     chain = random_chain(rng, 6, ("R", "U", "S"))
-    q0, qd0, _ = random_state(rng, chain, "gentle")
-    a = simulate(chain, 0.2, q0=q0, v0=qd0)
-    b = simulate(Model.from_chain(chain), 0.2, q0=q0, v0=qd0)
+    q0, v0, _ = random_state(rng, chain, "gentle")
+    a = simulate(chain, 0.2, q0=q0, v0=v0)
+    b = simulate(Model.from_chain(chain), 0.2, q0=q0, v0=v0)
     assert a.steps == b.steps and np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v)
     assert np.array_equal(a.energy, b.energy)
 

@@ -401,7 +401,7 @@ def _case(chain_extra: dict | None = None, load: dict | None = None, initial=Non
     ({"tip_mass": 1e9}, None, {"q": 0.0}, "chain.tip_mass", "1000000000.0"),
     ({"gravity": [0, -1e300, 0]}, None, None, "chain.gravity", "-1e+300"),
     ({"link_length": 1e-30}, None, None, "chain.link_length", "1e-30"),
-    ({}, None, {"q": 0.0, "qd": 1e150}, "initial.qd[0]", "1e+150"),
+    ({}, None, {"q": 0.0, "v": 1e150}, "initial.v[0]", "1e+150"),
 ])
 def test_a_case_whose_motion_no_run_can_integrate_is_refused_at_the_door(chain_extra, load,
                                                                          initial, field,
@@ -444,13 +444,13 @@ def test_the_fastest_motion_is_the_pendulum_rate_of_the_pull():
 def test_the_shipped_cases_are_far_from_the_bound():
     for name in ("RE-U50000-L1000", "RE-U15000-L300"):
         case = load_case(name)
-        assert fastest_motion(case.chain, case.tip_force, case.qd0).omega * case.t_end < \
+        assert fastest_motion(case.chain, case.tip_force, case.v0).omega * case.t_end < \
             MAX_RADIANS / 50
 
 
 def test_a_horizon_given_to_a_run_is_checked_as_the_cases_own():
     case = load_case("RE-U125-L1")
-    omega = fastest_motion(case.chain, case.tip_force, case.qd0).omega
+    omega = fastest_motion(case.chain, case.tip_force, case.v0).omega
     too_long = 2 * MAX_RADIANS / omega
     with pytest.raises(SettingsError, match=r"--t-end = .*: the case's fastest motion, ~"):
         RunSpec("RE-U125-L1", t_end=too_long).resolved(case, names={"t_end": "--t-end"})

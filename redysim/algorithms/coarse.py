@@ -69,25 +69,25 @@ class Coarsening:
         return np.concatenate([np.arange(off[s], off[s + 1]) for s in self.starts[:-1]])
 
     # ------------------------------------------------------------------- coarse -> fine (exact)
-    def to_fine(self, q, qd):
-        """The fine state that moves as the coarse state ``(q, qd)`` does (exact)."""
+    def to_fine(self, q, v):
+        """The fine state that moves as the coarse state ``(q, v)`` does (exact)."""
         q = check_state(self.coarse, "q", q)
-        qd = check_state(self.coarse, "qd", qd)
+        v = check_state(self.coarse, "v", v)
         qf = np.zeros(self.fine.n_dof)
         qdf = np.zeros(self.fine.n_dof)
         qf[self._fine_first_dofs] = q
-        qdf[self._fine_first_dofs] = qd
+        qdf[self._fine_first_dofs] = v
         return qf, qdf
 
     # ------------------------------------------------------------------- fine -> coarse (chords)
-    def to_coarse(self, q, qd):
+    def to_coarse(self, q, v):
         """The coarse state whose links follow the fine state's group chords (a projection;
         the inverse of :meth:`to_fine`)."""
         fine, coarse = self.fine, self.coarse
         q = check_state(fine, "q", q)
-        qd = check_state(fine, "qd", qd)
+        v = check_state(fine, "v", v)
         ws = Workspace(fine)
-        end = tip(fine, q, qd, ws=ws)  # runs the kinematics: ws.oO, ws.t are the fine frames'
+        end = tip(fine, q, v, ws=ws)  # runs the kinematics: ws.oO, ws.t are the fine frames'
         points = np.vstack([ws.oO, end.position])  # O_1..O_nl and the tip
         vel = np.vstack([ws.t[:, 3:], end.velocity])
         qc = np.zeros(coarse.n_dof)

@@ -39,8 +39,6 @@ from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
 from redysim.model.tree import Model
 
-System = Model  # a Chain is a Model
-
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 
@@ -51,16 +49,16 @@ def _plain_vector(x, n: int) -> bool:
 
 
 @overload
-def check_state(chain: System, name: str, x, *, optional: Literal[False] = False,
+def check_state(model: Model, name: str, x, *, optional: Literal[False] = False,
                 finite: bool = True) -> np.ndarray: ...
 
 
 @overload
-def check_state(chain: System, name: str, x, *, optional: bool,
+def check_state(model: Model, name: str, x, *, optional: bool,
                 finite: bool = True) -> np.ndarray | None: ...
 
 
-def check_state(chain: System, name: str, x, *, optional: bool = False,
+def check_state(model: Model, name: str, x, *, optional: bool = False,
                 finite: bool = True) -> np.ndarray | None:
     """Return ``x`` as a float vector of length n (``n_q`` for the configuration ``q``, else
     ``n_v``), or raise StateError naming it.
@@ -68,7 +66,7 @@ def check_state(chain: System, name: str, x, *, optional: bool = False,
     ``finite=False`` skips the NaN/Inf scan (the hot path of :func:`forward_dynamics` checks its
     result instead and only then looks for the offending input).
     """
-    n = chain.n_q if name == "q" else chain.n_v
+    n = model.n_q if name == "q" else model.n_v
     if x is None:
         if optional:
             return None
@@ -87,10 +85,10 @@ def check_state(chain: System, name: str, x, *, optional: bool = False,
     arr = np.asarray(arr, dtype=float)
     if arr.shape != (n,):
         what = "configuration coordinates" if name == "q" else "DOF"
-        batch = (f" (q is one state; for a batch of states give q as (B, {chain.n_q}) too)"
+        batch = (f" (q is one state; for a batch of states give q as (B, {model.n_q}) too)"
                  if arr.ndim == 2 and name != "q" else "")
-        raise StateError(f"{name} has shape {arr.shape}; {type(chain).__name__.lower()} "
-                         f"{chain.name!r} has {n} {what}, so {name} must have shape ({n},)"
+        raise StateError(f"{name} has shape {arr.shape}; {type(model).__name__.lower()} "
+                         f"{model.name!r} has {n} {what}, so {name} must have shape ({n},)"
                          + batch)
     arr = np.ascontiguousarray(arr)
     if finite:
@@ -98,13 +96,13 @@ def check_state(chain: System, name: str, x, *, optional: bool = False,
     return arr
 
 
-def check_out(chain: System, out) -> np.ndarray:
+def check_out(model: Model, out) -> np.ndarray:
     """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
 
     The kernels index without bounds checks: a short or strided ``out`` would be written past
     its end, so it is refused here, never converted (a copy would not reach the caller).
     """
-    n = chain.n_v
+    n = model.n_v
     if out is None:
         return np.empty(n)
     if _plain_vector(out, n) and out.flags.writeable:
@@ -113,7 +111,7 @@ def check_out(chain: System, out) -> np.ndarray:
             f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
             else f"a {type(out).__name__}")
     raise StateError(f"out ({what}) must be a writeable, contiguous float64 array of shape "
-                     f"({n},): {chain.name!r} has {n} DOF")
+                     f"({n},): {model.name!r} has {n} DOF")
 
 
 def require_finite(name: str, arr: np.ndarray) -> None:
@@ -132,17 +130,17 @@ def overflow_error(what: str, **inputs) -> StateError:
     return StateError(f"{what} is not finite for finite {names} ({sizes}): overflow?")
 
 
-def _ws(chain: System, ws: Workspace | None) -> Workspace:
+def _ws(model: Model, ws: Workspace | None) -> Workspace:
     if ws is None:  # the model's own workspace for this thread (model_workspace)
         try:
-            return chain._thread_workspaces.ws
+            return model._thread_workspaces.ws
         except AttributeError:
-            return model_workspace(chain)
-    if getattr(ws, "chain", None) is not chain:  # one attribute read on the hot path
+            return model_workspace(model)
+    if getattr(ws, "chain", None) is not model:  # one attribute read on the hot path
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
         raise FieldError("dynamics", "ws", repr(ws.chain), f"was made for another chain than "
-                         f"{chain!r}; make one with Workspace(chain)")
+                         f"{model!r}; make one with Workspace(model)")
     return ws
 
 
@@ -158,14 +156,14 @@ def first_bad_pivot(pivots: np.ndarray, *, from_base: bool, positive: bool) -> i
     return None if not idx.size else int(idx.min() if from_base else idx.max())
 
 
-def _run_kinematics(chain, ws, q, qd, qdd, base_accel):
-    _kinematics(ws.tree, q, qd, qdd, base_accel, ws.s)
+def _run_kinematics(model, ws, q, v, qdd, base_accel):
+    _kinematics(ws.tree, q, v, qdd, base_accel, ws.s)
 
 
-def _phi(chain, ws, q, qd, tau):
-    """phi = tau - (C qd + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
-    c = chain
-    _run_kinematics(c, ws, q, qd, ws.zeros, ws.base_accel)
+def _phi(model, ws, q, v, tau):
+    """phi = tau - (C v + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
+    c = model
+    _run_kinematics(c, ws, q, v, ws.zeros, ws.base_accel)
     rnea_backward(ws.tree, ws.s, ws.phi)
     ws.phi *= -1.0
     if tau is not None:
@@ -183,47 +181,47 @@ def closed_error(model: Model, what: str) -> CaseError:
 
 
 # --------------------------------------------------------------------------- inverse dynamics
-def inverse_dynamics(chain: System, q, qd, qdd, *, ws: Workspace | None = None,
+def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
                      threads: int | None = None) -> np.ndarray:
-    """tau = I(q) qdd + C(q, qd) qd + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
+    """tau = I(q) qdd + C(q, v) v + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
 
-    A batch: q (B, n_q), qd and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
+    A batch: q (B, n_q), v and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
     rows split over threads (``threads``, as for :func:`forward_dynamics`).
     """
-    if chain.cuts:
-        raise closed_error(chain, "inverse_dynamics")
+    if model.cuts:
+        raise closed_error(model, "inverse_dynamics")
     if _is_batch(q):
-        return _inverse_batch(chain, _ws(chain, ws), q, qd, qdd, threads)
-    q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
-    qdd = check_state(chain, "qdd", qdd)
-    ws = _ws(chain, ws)
-    c = chain
-    _run_kinematics(c, ws, q, qd, qdd, ws.base_accel)
+        return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads)
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    qdd = check_state(model, "qdd", qdd)
+    ws = _ws(model, ws)
+    c = model
+    _run_kinematics(c, ws, q, v, qdd, ws.base_accel)
     tau = np.empty(c.n_v)
     rnea_backward(ws.tree, ws.s, tau)
     if not np.isfinite(tau).all():
-        raise overflow_error("tau", q=q, qd=qd, qdd=qdd)
+        raise overflow_error("tau", q=q, v=v, qdd=qdd)
     return tau
 
 
-def phi(chain: System, q, qd, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
-    """phi = tau - C(q, qd) qd - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
-    q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
-    tau = check_state(chain, "tau", tau, optional=True)
-    out = _phi(chain, _ws(chain, ws), q, qd, tau).copy()
+def phi(model: Model, q, v, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
+    """phi = tau - C(q, v) v - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    tau = check_state(model, "tau", tau, optional=True)
+    out = _phi(model, _ws(model, ws), q, v, tau).copy()
     if not np.isfinite(out).all():
-        raise overflow_error("phi", q=q, qd=qd, tau=tau)
+        raise overflow_error("phi", q=q, v=v, tau=tau)
     return out
 
 
 # --------------------------------------------------------------------------- forward dynamics
-def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
+def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                      planar: bool | None = None, ws: Workspace | None = None,
                      out: np.ndarray | None = None, threads: int | None = None,
                      simd: bool = True) -> np.ndarray:
-    """qdd from I(q) qdd = phi(q, qd, tau).
+    """qdd from I(q) qdd = phi(q, v, tau).
 
     method:
         ``"rge-a"``: O(n) Reverse Gaussian Elimination done analytically (Table A.1), the default;
@@ -234,7 +232,7 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
 
-    A batch: q (B, n_q) and qd (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau
+    A batch: q (B, n_q) and v (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau
     (B, n_v), or (n_v,) for every state; ``out`` (B, n_v). RGE-A only. The rows run in compiled code
     split over ``threads`` threads (default: every core this process may use, one for batches under
     ~5,000 DOF-states, where handing rows to a thread costs more than it saves), each with its own
@@ -254,55 +252,55 @@ def forward_dynamics(chain: System, q, qd, tau=None, method: str = "rge-a", *,
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them).
     """
-    ws = _ws(chain, ws)
-    if chain.cuts:
-        raise closed_error(chain, "forward_dynamics")
-    is_planar = chain.is_planar
+    ws = _ws(model, ws)
+    if model.cuts:
+        raise closed_error(model, "forward_dynamics")
+    is_planar = model.is_planar
     if planar is None:
         planar = is_planar
     elif planar and not is_planar:
-        raise ValueError(f"planar=True but chain {chain.name!r} is not planar (every joint must be "
+        raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
     if method == "rge-a":
         entry = _PLANAR.compiled if planar else _RGE_A.compiled
-        qdd = np.empty(chain.n_v) if out is None else out
+        qdd = np.empty(model.n_v) if out is None else out
         t = ws.zeros if tau is None else tau
-        if type(q) is ndarray and type(qd) is ndarray and type(t) is ndarray \
+        if type(q) is ndarray and type(v) is ndarray and type(t) is ndarray \
                 and type(qdd) is ndarray:
             if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
-                return _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd)
+                return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
             try:  # the hot path: no conversion, the entry checks the sizes
-                flag = entry(ws.kernel_f, ws.kernel_i, q, qd, t, ws.scratch, qdd)
+                flag = entry(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
                 flag = SIZE_MISMATCH
             if flag == 0.0:
                 return qdd
             if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
-                raise _nonfinite_qdd(chain, ws, planar, q, qd, tau)
+                raise _nonfinite_qdd(model, ws, planar, q, v, tau)
     elif method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if _is_batch(q):
         if method != "rge-a":
             raise ValueError(f"method = {method!r} with a batch of states: batches run "
                              "'rge-a' only")
-        return _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd)
-    q = check_state(chain, "q", q, finite=False)
-    qd = check_state(chain, "qd", qd, finite=False)
-    tau = check_state(chain, "tau", tau, optional=True, finite=False)
-    out = check_out(chain, out)
-    c = chain
+        return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
+    q = check_state(model, "q", q, finite=False)
+    v = check_state(model, "v", v, finite=False)
+    tau = check_state(model, "tau", tau, optional=True, finite=False)
+    out = check_out(model, out)
+    c = model
     if method == "rge-a":
-        nonfinite = entry(ws.kernel_f, ws.kernel_i, q, qd, ws.zeros if tau is None else tau,
+        nonfinite = entry(ws.kernel_f, ws.kernel_i, q, v, ws.zeros if tau is None else tau,
                           ws.scratch, out)
     else:
-        rhs = _phi(c, ws, q, qd, tau).copy()
+        rhs = _phi(c, ws, q, v, tau).copy()
         A = np.empty((c.n_v, c.n_v))
         gim_composite(ws.tree, ws.s, A)
         mult = np.zeros_like(A)
         (ge_n if method == "ge-n" else rge_n)(A, rhs, mult, out)
         nonfinite = float(np.sum(out * 0.0))
     if nonfinite != 0.0:
-        raise _nonfinite_qdd(chain, ws, method == "rge-a" and planar, q, qd, tau,
+        raise _nonfinite_qdd(model, ws, method == "rge-a" and planar, q, v, tau,
                              gim=None if method == "rge-a" else A, first=method == "ge-n")
     return out
 
@@ -330,12 +328,12 @@ def _is_batch(x) -> bool:
         return False
 
 
-def check_batch(chain: System, name: str, x, rows: int | None, *,
+def check_batch(model: Model, name: str, x, rows: int | None, *,
                 label: str | None = None) -> np.ndarray:
     """``x`` as a C-contiguous float64 (B, n) array (n = ``n_q`` for ``q``, else ``n_v``) with
     ``rows`` rows when given (the rows of the batch's ``q``), or StateError naming it (as
     ``label``, default ``name``) and saying what a batch needs."""
-    n = chain.n_q if name == "q" else chain.n_v
+    n = model.n_q if name == "q" else model.n_v
     label = label or name
     try:
         arr = np.asarray(x)
@@ -347,7 +345,7 @@ def check_batch(chain: System, name: str, x, rows: int | None, *,
     if arr.ndim == 2 and arr.shape[1] == n and (rows is None or arr.shape[0] == rows):
         return np.ascontiguousarray(arr, dtype=np.float64)
     what = "configuration coordinates" if name == "q" else "DOF"
-    has = f"{type(chain).__name__.lower()} {chain.name!r} has {n} {what}"
+    has = f"{type(model).__name__.lower()} {model.name!r} has {n} {what}"
     if rows is None:  # the batch's own rows: q
         raise StateError(f"{label} has shape {arr.shape}; {has}, so {label} must have shape "
                          f"({n},) for one state, or (B, {n}) for a batch, one state a row")
@@ -409,7 +407,7 @@ TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF,
 # and at 2,000 DOF the tiles were already bound by memory, 1.3x the rows)
 
 
-def _forward_tiled(ws, Q, QD, TAU, out, threads) -> int:
+def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     """RGE-A over the batch's rows in SIMD tiles (the tiles split over threads, each with its
     own tile arrays), the rows after the last tile one by one; the first row whose qdd is not
     finite, or -1."""
@@ -423,7 +421,7 @@ def _forward_tiled(ws, Q, QD, TAU, out, threads) -> int:
         bufs = ws.tile_buffer(count)
         t = ws.tree
         args = (t.along, t.joint_voff, t.dof_kind, t.dof_axis, t.dof_u, t.mass, t.inertia_O,
-                t.mass_com, ws.base_accel, Q, QD, TAU, out)
+                t.mass_com, ws.base_accel, Q, V, TAU, out)
         if count == 1:
             bad = _tiles.forward_tiles(*args, 0, split, bufs[0])
         else:  # whole tiles to each block, the blocks on numba's threads
@@ -435,75 +433,75 @@ def _forward_tiled(ws, Q, QD, TAU, out, threads) -> int:
             failed = failed[failed >= 0]
             bad = int(failed.min()) if failed.size else -1
     if bad < 0 and split < B:
-        bad = _batch.forward_rows(ws.kernel_f, ws.kernel_i, Q, QD, TAU, ws.scratch, out, split, B)
+        bad = _batch.forward_rows(ws.kernel_f, ws.kernel_i, Q, V, TAU, ws.scratch, out, split, B)
     return bad
 
 
-def _forward_batch(chain, ws, planar, q, qd, tau, out, threads, simd=True) -> np.ndarray:
-    Q = check_batch(chain, "q", q, None)
+def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True) -> np.ndarray:
+    Q = check_batch(model, "q", q, None)
     B = Q.shape[0]
-    QD = check_batch(chain, "qd", qd, B)
+    V = check_batch(model, "v", v, B)
     if tau is None:
         TAU = ws.zeros.reshape(1, -1)
     elif np.ndim(tau) == 1:
-        TAU = check_state(chain, "tau", tau, finite=False).reshape(1, -1)
+        TAU = check_state(model, "tau", tau, finite=False).reshape(1, -1)
     else:
-        TAU = check_batch(chain, "tau", tau, B)
+        TAU = check_batch(model, "tau", tau, B)
     if out is None:
-        out = np.empty((B, chain.n_v))
-    elif not (type(out) is ndarray and out.shape == (B, chain.n_v) and out.dtype is FLOAT64
+        out = np.empty((B, model.n_v))
+    elif not (type(out) is ndarray and out.shape == (B, model.n_v) and out.dtype is FLOAT64
               and out.flags.c_contiguous and out.flags.writeable):
         what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
                 else f"a {type(out).__name__}")
         raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
-                         f"shape ({B}, {chain.n_v})")
+                         f"shape ({B}, {model.n_v})")
     if not isinstance(simd, bool | np.bool_):
         raise FieldError("forward_dynamics", "simd", simd, "must be True or False")
     if simd and not planar and ws.tiles_ok and B >= TILE_MIN_ROWS \
-            and chain.n_v <= TILE_MAX_DOF \
+            and model.n_v <= TILE_MAX_DOF \
             and np.abs(Q).max() <= TILE_MAX_Q:  # (NaN compares False: the rows say why)
-        bad = _forward_tiled(ws, Q, QD, TAU, out, threads)
+        bad = _forward_tiled(ws, Q, V, TAU, out, threads)
     else:
         rows = _batch.planar_rows if planar else _batch.forward_rows
         f, i = ws.kernel_f, ws.kernel_i
-        bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: rows(
-            f, i, Q, QD, TAU, scratch, out, first, last))
+        bad = _run_rows(B, model.n_v, threads, ws, lambda scratch, first, last: rows(
+            f, i, Q, V, TAU, scratch, out, first, last))
     if bad >= 0:  # the single call of that row says why
         t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
         try:
-            forward_dynamics(chain, Q[bad], QD[bad], t, planar=planar, ws=ws)
+            forward_dynamics(model, Q[bad], V[bad], t, planar=planar, ws=ws)
         except StateError as exc:
-            raise StateError(f"state {bad} of the batch (row {bad} of q and qd): {exc}") from None
+            raise StateError(f"state {bad} of the batch (row {bad} of q and v): {exc}") from None
         raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)
     return out
 
 
-def _inverse_batch(chain, ws, q, qd, qdd, threads) -> np.ndarray:
-    Q = check_batch(chain, "q", q, None)
+def _inverse_batch(model, ws, q, v, qdd, threads) -> np.ndarray:
+    Q = check_batch(model, "q", q, None)
     B = Q.shape[0]
-    QD, QDD = check_batch(chain, "qd", qd, B), check_batch(chain, "qdd", qdd, B)
-    for name, arr in (("q", Q), ("qd", QD), ("qdd", QDD)):
+    V, QDD = check_batch(model, "v", v, B), check_batch(model, "qdd", qdd, B)
+    for name, arr in (("q", Q), ("v", V), ("qdd", QDD)):
         if not np.isfinite(arr).all():
             row, col = np.argwhere(~np.isfinite(arr))[0]
             raise StateError(f"{name}[{row}, {col}] = {float(arr[row, col])!r}: not finite (state "
                              f"{row} of the batch)")
-    out = np.empty((B, chain.n_v))
+    out = np.empty((B, model.n_v))
     f, i = ws.kernel_f, ws.kernel_i
-    bad = _run_rows(B, chain.n_v, threads, ws, lambda scratch, first, last: _batch.inverse_rows(
-        f, i, Q, QD, QDD, scratch, out, first, last))
+    bad = _run_rows(B, model.n_v, threads, ws, lambda scratch, first, last: _batch.inverse_rows(
+        f, i, Q, V, QDD, scratch, out, first, last))
     if bad >= 0:
         raise StateError(f"state {bad} of the batch: " + str(overflow_error(
-            "tau", q=Q[bad], qd=QD[bad], qdd=QDD[bad])))
+            "tau", q=Q[bad], v=V[bad], qdd=QDD[bad])))
     return out
 
 
-def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> StateError:
+def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False) -> StateError:
     """The error for a qdd that is NaN or +-inf: the input that is not finite, named; else a
     singular GIM (an elimination pivot that is 0: RGE-A's articulated inertia Ihat, or the
     numerical GIM's factor after GE-N or RGE-N), naming the DOF where the elimination met it
     (RGE-A and RGE-N eliminate from the tip, GE-N, ``first``, from the base); else the recursion
     overflowed. A NaN or Inf in the input always reaches qdd, so only now is it looked for."""
-    for name, x in (("q", q), ("qd", qd), ("tau", tau)):
+    for name, x in (("q", q), ("v", v), ("tau", tau)):
         if x is not None:
             require_finite(name, np.asarray(x, dtype=float))
     if gim is None:
@@ -515,22 +513,22 @@ def _nonfinite_qdd(chain, ws, planar, q, qd, tau, gim=None, first=False) -> Stat
         voff = ws.tree.joint_voff
         k = int(np.searchsorted(voff, j, side="right") - 1)
         axis = j - int(voff[k])
-        kind, joint = chain.joint_types[k], f"joint {chain.joint_names[k]!r}"
+        kind, joint = model.joint_types[k], f"joint {model.joint_names[k]!r}"
         return StateError(f"qdd is undefined: the generalized inertia matrix is singular at DOF "
                           f"{j} ({joint}, axis {axis} of its {kind} joint): "
                           f"the inertia about that axis of everything it moves is "
                           f"{float(pivots[j])!r} (a link with no mass or inertia that the axis "
                           "can move, e.g. a point mass on the joint axis, or a length that "
                           "underflows)")
-    return overflow_error("qdd", q=q, qd=qd, tau=tau)
+    return overflow_error("qdd", q=q, v=v, tau=tau)
 
 
 # --------------------------------------------------------------------------- GIM and factors
-def mass_matrix(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
+def mass_matrix(model: Model, q, *, ws: Workspace | None = None) -> np.ndarray:
     """The GIM I(q) (n, n) from composite masses (Eq. 10a); exactly symmetric."""
-    q = check_state(chain, "q", q)
-    ws = _ws(chain, ws)
-    c = chain
+    q = check_state(model, "q", q)
+    ws = _ws(model, ws)
+    c = model
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
     out = np.empty((c.n_v, c.n_v))
     gim_composite(ws.tree, ws.s, out)
@@ -545,11 +543,11 @@ class UDU(NamedTuple):
     D: np.ndarray
 
 
-def udu_factors(chain: System, q, *, ws: Workspace | None = None) -> UDU:
+def udu_factors(model: Model, q, *, ws: Workspace | None = None) -> UDU:
     """The explicit analytic factors I = U D U^T of RGE-A (Appendix A.1), dense (n, n) arrays."""
-    q = check_state(chain, "q", q)
-    ws = _ws(chain, ws)
-    c = chain
+    q = check_state(model, "q", q)
+    ws = _ws(model, ws)
+    c = model
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
     rge_a_backward(ws.tree, ws.table_a1, ws.zeros)
     U = np.zeros((c.n_v, c.n_v))
@@ -603,23 +601,23 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
 
 
 # --------------------------------------------------------------------------- energy and tip
-def energy(chain: System, q, qd, *, ws: Workspace | None = None) -> tuple[float, float]:
+def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, float]:
     """(T, V): kinetic and potential energy [J] (V = 0 with every COM at height y = 0)."""
-    q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
-    ws = _ws(chain, ws)
-    c = chain
-    _run_kinematics(c, ws, q, qd, ws.zeros, ws.no_accel)
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    ws = _ws(model, ws)
+    c = model
+    _run_kinematics(c, ws, q, v, ws.zeros, ws.no_accel)
     T, V = _energy(ws.tree, ws.gravity, ws.s)
     if not (math.isfinite(T) and math.isfinite(V)):
-        raise overflow_error("the energy", q=q, qd=qd)
+        raise overflow_error("the energy", q=q, v=v)
     return float(T), float(V)
 
 
-def delta_M(chain: System, q, qd, E0: float, *, ws: Workspace | None = None) -> float:
+def delta_M(model: Model, q, v, E0: float, *, ws: Workspace | None = None) -> float:
     """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
-    T, V = energy(chain, q, qd, ws=ws)
-    return (T + V - E0) / chain.total_mass
+    T, V = energy(model, q, v, ws=ws)
+    return (T + V - E0) / model.total_mass
 
 
 class Tip(NamedTuple):
@@ -634,49 +632,49 @@ class Tip(NamedTuple):
 TIP = "tip"  # the frame a chain's tip is (Model.from_chain names it so)
 
 
-def _frame_point(system: System, frame: str) -> tuple[int, np.ndarray]:
+def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray]:
     """(body index, point in the body's frame) of ``frame``: a frame of the model
     (``Model.frames``; a chain has ``"tip"``) or a body (its origin, the joint's centre).
     Raises FieldError naming the frame and listing the known ones."""
-    if isinstance(frame, str) and frame in system.frames:
-        b, point = system.frames[frame]
+    if isinstance(frame, str) and frame in model.frames:
+        b, point = model.frames[frame]
         return int(b), np.asarray(point, dtype=float)
-    if isinstance(frame, str) and frame in system.body_names:
-        return system.body_names.index(frame), np.zeros(3)
-    known = [*system.frames, *system.body_names[:10]]
-    if system.n_bodies > 10:
-        known += ["...", system.body_names[-1]]
+    if isinstance(frame, str) and frame in model.body_names:
+        return model.body_names.index(frame), np.zeros(3)
+    known = [*model.frames, *model.body_names[:10]]
+    if model.n_bodies > 10:
+        known += ["...", model.body_names[-1]]
     where = "tip" if frame == TIP else "frame"
-    raise FieldError(f"{type(system).__name__.lower()} {system.name!r}", where, frame,
+    raise FieldError(f"{type(model).__name__.lower()} {model.name!r}", where, frame,
                      "no such frame or body; known: " + ", ".join(known)
-                     + ("; give another with frame_motion(system, q, qd, frame=NAME)"
+                     + ("; give another with frame_motion(system, q, v, frame=NAME)"
                         if frame == TIP else ""))
 
 
-def frame_motion(system: System, q, qd, qdd=None, *, frame: str,
+def frame_motion(model: Model, q, v, qdd=None, *, frame: str,
                  ws: Workspace | None = None) -> Tip:
     """A point's motion in the world frame: position [m], velocity [m/s] and, given qdd,
     acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
     ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
     frame, StateError for a bad state."""
-    q = check_state(system, "q", q)
-    qd = check_state(system, "qd", qd)
-    qdd = check_state(system, "qdd", qdd, optional=True)
-    k, point = _frame_point(system, frame)
-    ws = _ws(system, ws)
-    _run_kinematics(system, ws, q, qd, ws.zeros if qdd is None else qdd, ws.no_accel)
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    qdd = check_state(model, "qdd", qdd, optional=True)
+    k, point = _frame_point(model, frame)
+    ws = _ws(model, ws)
+    _run_kinematics(model, ws, q, v, ws.zeros if qdd is None else qdd, ws.no_accel)
     r = _arm(ws.oR[k], point)
-    w, v = ws.t[k, :3], ws.t[k, 3:]
+    w, v_origin = ws.t[k, :3], ws.t[k, 3:]
     pos = ws.oO[k] + r
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
-        vel = v + np.cross(w, r)
+        vel = v_origin + np.cross(w, r)
         acc = None
         if qdd is not None:
             wd, vd = ws.td[k, :3], ws.td[k, 3:]
             acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
     if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
         raise overflow_error("the tip's motion" if frame == TIP else f"the motion of {frame!r}",
-                             q=q, qd=qd, qdd=qdd)
+                             q=q, v=v, qdd=qdd)
     return Tip(pos, vel, acc)
 
 
@@ -689,21 +687,21 @@ def _arm(oR: np.ndarray, point: np.ndarray) -> np.ndarray:
     return oR @ point
 
 
-def tip(chain: System, q, qd, qdd=None, *, ws: Workspace | None = None) -> Tip:
+def tip(model: Model, q, v, qdd=None, *, ws: Workspace | None = None) -> Tip:
     """The tip: the frame ``"tip"`` (a chain's is the distal end of its last link): position,
     velocity and, given qdd, acceleration (:func:`frame_motion`; a model without such a frame
     raises FieldError naming the frames it has)."""
-    return frame_motion(chain, q, qd, qdd, frame=TIP, ws=ws)
+    return frame_motion(model, q, v, qdd, frame=TIP, ws=ws)
 
 
-def joint_positions(chain: System, q, *, ws: Workspace | None = None) -> np.ndarray:
+def joint_positions(model: Model, q, *, ws: Workspace | None = None) -> np.ndarray:
     """The joint origins, for plotting a shape: (nb, 3) the body origins (each body's frame sits
     on its joint: a chain's O_1..O_nl), then the frame ``"tip"``'s position when the model has
     one (a chain's distal end), in the world frame [m]."""
-    q = check_state(chain, "q", q)
-    ws = _ws(chain, ws)
-    _run_kinematics(chain, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    if TIP not in chain.frames:
+    q = check_state(model, "q", q)
+    ws = _ws(model, ws)
+    _run_kinematics(model, ws, q, ws.zeros, ws.zeros, ws.no_accel)
+    if TIP not in model.frames:
         return ws.oO.copy()
-    b, point = chain.frames[TIP]
+    b, point = model.frames[TIP]
     return np.vstack([ws.oO, ws.oO[b] + _arm(ws.oR[b], np.asarray(point, dtype=float))])

@@ -35,7 +35,7 @@ What is rounded, per method:
 - RGE-A: the chain's link quantities (lengths, masses, inertias about O_k, m c) and q are rounded
   on entry and the recursion runs in the number type: the planar kernel (``planar.py``) for planar
   chains, the spatial kernels otherwise. By default phi is the same rounded double-precision phi
-  the other two methods get (passed as tau with gravity and qd set to zero: Table A.1 as printed,
+  the other two methods get (passed as tau with gravity and v set to zero: Table A.1 as printed,
   the kernel's bias terms are exact zeros); ``fused_phi=True`` runs the kernel as
   :func:`redysim.forward_dynamics` does, gravity as the base's twist-rate and the velocity terms
   as articulated-body biases, all in the number type. cos and sin are evaluated in double and
@@ -226,16 +226,16 @@ def _make_type(name, k, arithmetic, r, add, sub, mul, div, to):
 # name -> (the compiled kernel, its arguments); tree and s are the bundles of
 # redysim.algorithms.workspace (Workspace(system).tree and .s, or bundles_in in another number type)
 _PASSES: dict[str, tuple[Callable, str]] = {
-    "kinematics": (kinematics, "(tree, q, qd, qdd, base_accel, s): rotations, positions, "
+    "kinematics": (kinematics, "(tree, q, v, qdd, base_accel, s): rotations, positions, "
                                "motion subspaces, twists and twist-rates into s"),
     "rnea-backward": (rnea_backward, "(tree, s, tau): Newton-Euler's backward pass after "
                                      "kinematics, tau out"),
-    "rge-a": (rge_a_forward_dynamics, "(tree, q, qd, tau, base_accel, zeros, s, qdd): RGE-A "
+    "rge-a": (rge_a_forward_dynamics, "(tree, q, v, tau, base_accel, zeros, s, qdd): RGE-A "
                                       "forward dynamics, the three passes"),
     "rge-a-backward": (rge_a_backward, "(tree, s, tau): Table A.1's backward pass"),
     "rge-a-forward": (rge_a_forward, "(tree, s, base_accel, qdd): Table A.1's forward pass"),
     "udu": (udu_assemble, "(tree, s, U, D): I = U D U^T, dense, after the backward pass"),
-    "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau, "
+    "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, gravity, q, v, tau, "
                                         "qdd, scratch): RGE-A on a planar chain, scratch (nl, 12)"),
     "ge-n": (ge_n, "(A, b, mult, x): GE-N, A swept to U, mult = L, b to phihat, x = qdd"),
     "rge-n": (rge_n, "(A, b, mult, x): RGE-N, A swept to L', mult = U', b to phihat, x = qdd"),
@@ -349,18 +349,18 @@ class Factors(NamedTuple):
     D: np.ndarray | None = None
 
 
-def _check(chain: Model, q, qd, tau, method: str):
+def _check(chain: Model, q, v, tau, method: str):
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     q = check_state(chain, "q", q)
-    qd = check_state(chain, "qd", qd)
+    v = check_state(chain, "v", v)
     tau = check_state(chain, "tau", tau, optional=True)
-    return q, qd, tau
+    return q, v, tau
 
 
-def _eliminate(chain, q, qd, tau, method, number):
+def _eliminate(chain, q, v, tau, method, number):
     A = _numbers(mass_matrix(chain, q), number)
-    b = _numbers(phi(chain, q, qd, tau), number)
+    b = _numbers(phi(chain, q, v, tau), number)
     n = chain.n_dof
     mult = _empty((n, n), number)
     x = _empty(n, number)
@@ -369,14 +369,14 @@ def _eliminate(chain, q, qd, tau, method, number):
     return A, b, mult, x
 
 
-def _rge_a(chain, q, qd, tau, number, fused_phi):
+def _rge_a(chain, q, v, tau, number, fused_phi):
     c, n, nl = chain, chain.n_dof, chain.n_links
     N = lambda a: _numbers(a, number)  # noqa: E731
     if fused_phi:
-        gravity, qd_in = c.gravity, qd
+        gravity, qd_in = c.gravity, v
         tau_in = np.zeros(n) if tau is None else tau
     else:
-        gravity, qd_in, tau_in = np.zeros(3), np.zeros(n), phi(c, q, qd, tau)
+        gravity, qd_in, tau_in = np.zeros(3), np.zeros(n), phi(c, q, v, tau)
     qdd = _empty(n, number)
     with np.errstate(all="ignore"):
         if c.is_planar:
@@ -392,7 +392,7 @@ def _rge_a(chain, q, qd, tau, number, fused_phi):
     return qdd
 
 
-def reduced_qdd(chain: Model, q, qd, method: str = "rge-a", decimals: int = 3, *,
+def reduced_qdd(chain: Model, q, v, method: str = "rge-a", decimals: int = 3, *,
                 arithmetic: str = "double", tau=None, fused_phi: bool = False) -> np.ndarray:
     """qdd with floating-point accuracy 1e-``decimals`` (section 5.2, Table 10).
 
@@ -400,25 +400,25 @@ def reduced_qdd(chain: Model, q, qd, method: str = "rge-a", decimals: int = 3, *
     recursion on rounded link quantities, phi rounded as for the others or, with ``fused_phi``,
     computed inside). Returns floats; NaN and +-inf appear where a pivot rounds to zero.
     """
-    q, qd, tau = _check(chain, q, qd, tau, method)
+    q, v, tau = _check(chain, q, v, tau, method)
     number = rounded_type(decimals, arithmetic)
     if method == "rge-a":
-        return _to_float(_rge_a(chain, q, qd, tau, number, fused_phi))
-    return _to_float(_eliminate(chain, q, qd, tau, method, number)[3])
+        return _to_float(_rge_a(chain, q, v, tau, number, fused_phi))
+    return _to_float(_eliminate(chain, q, v, tau, method, number)[3])
 
 
-def reduced_factors(chain: Model, q, qd, method: str = "ge-n", decimals: int = 3, *,
+def reduced_factors(chain: Model, q, v, method: str = "ge-n", decimals: int = 3, *,
                     arithmetic: str = "double", tau=None) -> Factors:
     """The factors and phi-hat of the rounded elimination (Table A.2), see :class:`Factors`.
 
     For ``"rge-a"`` the spatial kernels run (kinematics, Table A.1's backward pass with phi given,
     the U D U^T assembly of ``udu.py``, the forward pass) for any chain, planar or not.
     """
-    q, qd, tau = _check(chain, q, qd, tau, method)
+    q, v, tau = _check(chain, q, v, tau, method)
     number = rounded_type(decimals, arithmetic)
     if method != "rge-a":
-        A, b, mult, x = _eliminate(chain, q, qd, tau, method, number)
-        A, b, mult, x = (_to_float(v) for v in (A, b, mult, x))
+        A, b, mult, x = _eliminate(chain, q, v, tau, method, number)
+        A, b, mult, x = (_to_float(a) for a in (A, b, mult, x))
         if method == "ge-n":
             return Factors(method, mult, A, b, x)
         return Factors(method, A, mult, b, x)
@@ -427,16 +427,16 @@ def reduced_factors(chain: Model, q, qd, method: str = "ge-n", decimals: int = 3
     E = lambda *s: _empty(s, number)  # noqa: E731
     tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
     qdd, U, D, zeros = E(n), E(n, n), E(n, n), E(n)
-    with np.errstate(all="ignore"):  # qd = 0 and no gravity: t = td = 0 (Table A.1 as printed)
+    with np.errstate(all="ignore"):  # v = 0 and no gravity: t = td = 0 (Table A.1 as printed)
         kernel_source("kinematics", number)(tree, N(q), zeros, zeros, E(3), s)
-        kernel_source("rge-a-backward", number)(tree, s, N(phi(c, q, qd, tau)))
+        kernel_source("rge-a-backward", number)(tree, s, N(phi(c, q, v, tau)))
         kernel_source("udu", number)(tree, s, U, D)
         kernel_source("rge-a-forward", number)(tree, s, E(3), qdd)
         L = s.Ihat[:, None] * U.T  # L' = D U^T, each product rounded
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 
 
-def ieee_qdd(chain: Model, q, qd, method: str = "rge-a", dtype=np.float32, *, tau=None,
+def ieee_qdd(chain: Model, q, v, method: str = "rge-a", dtype=np.float32, *, tau=None,
              fused_phi: bool = False) -> np.ndarray:
     """qdd computed by the same kernel source in an IEEE format (float16, float32, float64).
 
@@ -444,13 +444,13 @@ def ieee_qdd(chain: Model, q, qd, method: str = "rge-a", dtype=np.float32, *, ta
     double-precision ones rounded to ``dtype``; every operation then rounds to ``dtype``
     (numpy scalar arithmetic). Overflow gives inf (float16 holds at most 65504).
     """
-    q, qd, tau = _check(chain, q, qd, tau, method)
+    q, v, tau = _check(chain, q, v, tau, method)
     number = np.dtype(dtype).type
     if number not in IEEE_DTYPES:
         raise ValueError(f"dtype = {dtype!r}: choose float16, float32 or float64")
     if method == "rge-a":
-        return _rge_a(chain, q, qd, tau, number, fused_phi)
-    return _eliminate(chain, q, qd, tau, method, number)[3]
+        return _rge_a(chain, q, v, tau, number, fused_phi)
+    return _eliminate(chain, q, v, tau, method, number)[3]
 
 
 __all__ = ["ARITHMETICS", "Factors", "IEEE_DTYPES", "METHODS", "PASSES", "Rounded", "ieee_qdd",

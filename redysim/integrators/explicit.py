@@ -478,7 +478,7 @@ MAX_CHUNK_STEPS = 100_000
 class CompiledSolver(Solver):
     """A :class:`Solver` whose steps run in compiled code
     (:mod:`redysim.algorithms._kernels.rk_run`), for the motion of a chain or a tree without a free
-    joint: y = (q, qd), dy/dt = (qd, qdd).
+    joint: y = (q, v), dy/dt = (v, qdd).
 
     ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
     kernel. The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same

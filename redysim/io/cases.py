@@ -4,7 +4,7 @@ A case file has these tables (see ``cases/README.md`` for every field):
 
     [case]        name, description, paper = {tables = [...], row = "..."}
     [chain]       links = N with uniform link fields, or [[chain.link]] entries; joint; gravity
-    [initial]     q and qd (a number, a list, or {fill, set, unit}), or shape = "catenary"
+    [initial]     q and v (a number, a list, or {fill, set, unit}), or shape = "catenary"
     [simulation]  t_end, integrator, rtol, atol, sample_interval
     [load]        tip_force = [Fx, Fy, Fz]: a constant world-frame force [N] at the chain's tip
                   (optional; :mod:`redysim.algorithms.loads` gives its joint forces and potential)
@@ -73,7 +73,7 @@ _FIELDS = {
               "linear_density", "density", "radius", "inertia", "com", "gravity", "link",
               "tip_mass"},
     "link": {"length", "mass", "radius", "inertia", "com", "joint", "axis"},
-    "initial": {"q", "qd", "shape", "dX"},
+    "initial": {"q", "v", "shape", "dX"},
     "simulation": {"t_end", "integrator", "rtol", "atol", "h", "sample_interval", "note"},
     "load": {"tip_force"},
 }
@@ -98,7 +98,7 @@ class Case:
     path: Path
     chain: Chain
     q0: np.ndarray
-    qd0: np.ndarray
+    v0: np.ndarray
     t_end: float
     description: str = ""
     simulation: dict[str, Any] = field(default_factory=dict)
@@ -152,7 +152,7 @@ class Case:
             settings["tau"] = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
             settings["potential"] = lambda q: tip_force_potential(chain, q, force, ws=ws)
         return Simulator(self.chain, t_end or self.t_end,
-                         q0=self.q0 if q0 is None else q0, v0=self.qd0 if v0 is None else v0,
+                         q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
                          integrator=integrator, source=str(self.path), **settings)
 
     def __repr__(self) -> str:
@@ -308,7 +308,7 @@ class FastestMotion:
     tension: float
 
 
-def fastest_motion(chain: Chain, tip_force=None, qd=None, tip_mass: float = 0.0
+def fastest_motion(chain: Chain, tip_force=None, v=None, tip_mass: float = 0.0
                    ) -> FastestMotion:
     """How fast the chain can move, as an order of magnitude: the largest of its initial rates
     (a prismatic one over its link's length) and of the swing rates of its links under the
@@ -319,9 +319,9 @@ def fastest_motion(chain: Chain, tip_force=None, qd=None, tip_mass: float = 0.0
     mass that is a tip mass (for naming the cause). O(n) arithmetic, no dynamics."""
     g = _norm(chain.gravity)
     n_dof = chain.n_dof
-    qd = np.zeros(n_dof) if qd is None else np.abs(np.asarray(qd, dtype=float))
+    v = np.zeros(n_dof) if v is None else np.abs(np.asarray(v, dtype=float))
     link_of_dof = np.repeat(np.arange(chain.n_links), np.diff(chain.joint_qoff))
-    rates = qd / np.where(chain.dof_kind == 0, 1.0, chain.length[link_of_dof])
+    rates = v / np.where(chain.dof_kind == 0, 1.0, chain.length[link_of_dof])
     fastest_dof = int(np.argmax(rates)) if n_dof else 0
     spin = float(rates[fastest_dof]) if n_dof else 0.0
     with np.errstate(over="ignore", invalid="ignore"):
@@ -348,7 +348,7 @@ def _norm(x) -> float:
 
 
 def _check_pace(source: str, chain: Chain, t_end: float, motion: FastestMotion, *, tip_force,
-                tip_mass: float, qd0, explicit: bool, length_field: tuple[str, float]) -> None:
+                tip_mass: float, v0, explicit: bool, length_field: tuple[str, float]) -> None:
     """Refuse a case whose fastest motion turns through more than MAX_RADIANS over t_end,
     naming the field that makes it so (``length_field``: the link length's, when the chain's
     own weight does it under a plausible gravity; ``explicit``: [[chain.link]] entries)."""
@@ -358,7 +358,7 @@ def _check_pace(source: str, chain: Chain, t_end: float, motion: FastestMotion, 
     k = motion.link
     value: float | list[float]
     if motion.cause == "rate":
-        name, value = f"initial.qd[{k}]", float(qd0[k])
+        name, value = f"initial.v[{k}]", float(v0[k])
         why = "an initial rate of the chain"
     else:
         which = f"chain.link[{k}]" if explicit else "a link"
@@ -595,6 +595,9 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     chain = Chain.build(links, joints, gravity=gravity, name=name, source=source)
 
     init = _table(doc, "initial", source, required=False)
+    if "qd" in init:  # the name before one name per quantity
+        raise CaseError(source, "initial.qd", init["qd"], "renamed initial.v (the generalized "
+                        "velocity, as everywhere in redysim: for a free joint it is not dq/dt)")
     _no_unknown(init, _FIELDS["initial"], source, "initial")
     n = chain.n_dof
     if "shape" in init:
@@ -627,7 +630,7 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
             raise CaseError(source, f"initial.q[{j}]", float(q0[j]),
                             f"a joint angle beyond {MAX_ANGLE:g} rad is a unit slip: float64 "
                             f"resolves it only to {math.ulp(float(q0[j])):.3g} rad")
-    qd0 = _vector_spec(init.get("qd", 0.0), n, source, "initial.qd")
+    v0 = _vector_spec(init.get("v", 0.0), n, source, "initial.v")
 
     sim = _table(doc, "simulation", source, required=False)
     _no_unknown(sim, _FIELDS["simulation"], source, "simulation")
@@ -654,7 +657,7 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     if "tip_force" in load:  # a copy: a dict's own array must stay as the caller left it
         tip_force = np.array(check_vector(source, "load.tip_force", load["tip_force"], 3))
         tip_force.flags.writeable = False
-    motion = fastest_motion(chain, tip_force, qd0, tip_mass)
+    motion = fastest_motion(chain, tip_force, v0, tip_mass)
     explicit = "link" in chain_t
     if explicit:
         length_field = (f"chain.link[{motion.link}].length",
@@ -662,13 +665,13 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
     else:
         lkey = "link_length" if "link_length" in chain_t else "total_length"
         length_field = (f"chain.{lkey}", chain_t[lkey])
-    _check_pace(source, chain, t_end, motion, tip_force=tip_force, tip_mass=tip_mass, qd0=qd0,
+    _check_pace(source, chain, t_end, motion, tip_force=tip_force, tip_mass=tip_mass, v0=v0,
                 explicit=explicit, length_field=length_field)
     q0.flags.writeable = False
-    qd0.flags.writeable = False
+    v0.flags.writeable = False
     if digest is None:
         digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()
-    return Case(name=name, path=path or Path(source), chain=chain, q0=q0, qd0=qd0, t_end=t_end,
+    return Case(name=name, path=path or Path(source), chain=chain, q0=q0, v0=v0, t_end=t_end,
                 description=str(meta.get("description", "")), simulation=dict(sim),
                 paper_tables=tables, paper_row=row, integrator=integrator,
                 rtol=float(sim.get("rtol", DEFAULT_RTOL)),
