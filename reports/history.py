@@ -361,10 +361,8 @@ def history_figure(path: str | os.PathLike = HISTORY_FILE) -> Figure:
         p = p.assign(x=[x_of[(c, d)] for c, d in zip(p["commit"], p["dirty"], strict=True)]
                      + spread)
         for machine, g in p[~p["dirty"]].groupby("machine"):  # each commit's best, joined
-            best = g.groupby("commit")["value"].min()
-            xs = [x_of[(c, False)] for c in best.index]
-            ax.plot(sorted(xs), best.to_numpy()[np.argsort(xs)], "-", lw=0.8, alpha=0.5,
-                    color=colour[machine])
+            best = g.loc[g.groupby("commit")["value"].idxmin()].sort_values("x")
+            ax.plot(best["x"], best["value"], "-", lw=0.8, alpha=0.5, color=colour[machine])
         for (machine, dirty), g in p.groupby(["machine", "dirty"]):
             ax.plot(g["x"], g["value"], "o", ms=5, color=colour[machine],
                     markerfacecolor="none" if dirty else colour[machine],
@@ -389,7 +387,7 @@ def history_figure(path: str | os.PathLike = HISTORY_FILE) -> Figure:
 # --------------------------------------------------------------------------- command line
 def followed(df: pd.DataFrame) -> pd.DataFrame:
     """One row per run of the followed suites: its date, commit, machine and the followed
-    figures (min)."""
+    figures (min); commits in the figure's order."""
     import pandas as pd
 
     sel = df[(df["stat"] == FOLLOWED_STAT) & df["suite"].isin({p.suite for p in PANELS})]
@@ -404,7 +402,14 @@ def followed(df: pd.DataFrame) -> pd.DataFrame:
             hit = g[(g["suite"] == p.suite) & (g["benchmark"] == p.benchmark)]
             row[p.title] = float(hit["value"].iloc[0]) if len(hit) else float("nan")
         rows.append(row)
-    return pd.DataFrame(rows).sort_values("date") if rows else pd.DataFrame(rows)
+    if not rows:
+        return pd.DataFrame(rows)
+    order = commit_order(sel)
+    x_of = {(c[:12] or "no git") + ("+dirty" if d else ""): x
+            for c, d, x in zip(order["commit"], order["dirty"], order["x"], strict=True)}
+    table = pd.DataFrame(rows)
+    return table.sort_values(["commit", "date"], key=lambda col: col.map(x_of)
+                             if col.name == "commit" else col, kind="stable")
 
 
 def main(argv=None) -> int:
