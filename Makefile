@@ -14,8 +14,9 @@ help:
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
-	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=)"
-	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF"
+	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=),"
+	@echo "                   appended to the performance history benchmarks/history/bench.jsonl (commit it)"
+	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too)"
 	@echo "make lint          ruff"
 
 $(BIN)/python:
@@ -59,6 +60,12 @@ reproduce-full: $(STAMP)
 $(TABLE_TARGETS): table%: $(STAMP)
 	$(BIN)/python -m redysim.reports.reproduce --table $*
 
+# Every benchmark run appends its figures, commit, machine and date to the performance history
+# (benchmarks/history/bench.jsonl, tracked: commit it; redysim.reports.history), which the report
+# plots across commits. BENCH_ARGS goes to pytest: a shorter run, e.g.
+# make bench-core BENCH_ARGS="--benchmark-max-time=0.2 -k 'rge_a_u_chain or batch'"
+BENCH_ARGS ?=
+
 bench: bench-core
 
 bench-core: $(STAMP)
@@ -69,13 +76,15 @@ bench-core: $(STAMP)
 	$(BIN)/python benchmarks/default_path.py
 	$(BIN)/python -m pytest benchmarks/test_bench_core.py --benchmark-only --benchmark-enable \
 		--benchmark-columns=min,median,mean,rounds --benchmark-sort=name \
-		--benchmark-json=results/bench/core.json
+		--benchmark-json=results/bench/core.json $(BENCH_ARGS)
+	$(BIN)/python -m redysim.reports.history append results/bench/core.json
 
 bench-engines: $(STAMP)
 	@mkdir -p results/bench
 	$(BIN)/python -m pytest benchmarks/test_bench_engines.py --benchmark-only --benchmark-enable \
-		--benchmark-json=results/bench/engines.json
+		--benchmark-json=results/bench/engines.json $(BENCH_ARGS)
 	$(BIN)/python -m redysim.references.report_bench results/bench/engines.json
+	$(BIN)/python -m redysim.reports.history append results/bench/engines.json
 
 lint: $(STAMP)
 	$(BIN)/ruff check --no-cache .

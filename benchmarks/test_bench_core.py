@@ -1,5 +1,7 @@
 """qdd per call: the core's RGE-A on U chains of 200..100,000 DOF, pin.aba beside it where it can
-be built; and the planar specialisation's gain over the spatial recursion on R chains.
+be built; a batch of 64 states at 250 DOF (the SIMD tiles on one thread and on every core; the
+performance history follows the first per DOF and state); and the planar specialisation's gain
+over the spatial recursion on R chains.
 
 Run with ``make bench`` (pytest-benchmark). Kernels are warmed up (compiled or loaded from the
 on-disk cache) before timing; ``benchmarks/jit_times.py`` reports the compile and load times apart.
@@ -17,6 +19,7 @@ U_DOF = [200, 2_000, 20_000, 100_000]
 # pin.Data allocates nv^3 tensors (docs/design.md, "Reference engines"): 0.5 GB at 200 DOF,
 # 13.4 GB at 600 DOF.
 PIN_MAX_DOF = 400
+BATCH_DOF, BATCH_STATES = 250, 64  # as make bench-engines' test_qdd_batch
 
 
 def u_chain(dof):
@@ -38,6 +41,31 @@ def test_rge_a_u_chain(benchmark, record, dof):
     benchmark.group = "qdd, U chains"
     benchmark(forward_dynamics, chain, q, qd, ws=ws, out=out)
     record.update(dof=dof, engine="redysim rge-a", ns_per_dof=benchmark.stats.stats.min / dof * 1e9)
+
+
+@pytest.mark.parametrize("threads", [1, None], ids=["1-thread", "every-core"])
+def test_rge_a_batch_u_chain(benchmark, record, threads):
+    """qdd of 64 states at 250 DOF in one call (SIMD tiles), on one thread and on every core
+    (the default), as ``make bench-engines``' ``test_qdd_batch[core-250]``: here so that ``make
+    bench`` alone gives the performance history its batch figure, ns per DOF and state. The
+    history follows the one-thread figure: on this shared 2-core VM (load ~3 from outside) the
+    two-thread call waited for a neighbour's time slice in most rounds, fastest 0.19 ms, median
+    6.2 ms, against 0.26 and 0.27 ms on one thread (2026-11-26), a spread that would hide any
+    step the code makes."""
+    from redysim.algorithms.dynamics import default_threads
+
+    dof = BATCH_DOF
+    chain = u_chain(dof)
+    rng = np.random.default_rng(2)
+    Q = rng.uniform(-0.3, 0.3, (BATCH_STATES, dof))
+    QD = rng.normal(size=(BATCH_STATES, dof))
+    ws, out = Workspace(chain), np.empty((BATCH_STATES, dof))
+    forward_dynamics(chain, Q, QD, ws=ws, out=out, threads=threads)  # warm-up: JIT or cache
+    benchmark.group = "qdd, batch of 64 states, 250 DOF"
+    benchmark(forward_dynamics, chain, Q, QD, ws=ws, out=out, threads=threads)
+    record.update(dof=dof, states=BATCH_STATES, kind="batch", engine="redysim rge-a batch",
+                  threads=threads or default_threads(),
+                  ns_per_dof=benchmark.stats.stats.min / (dof * BATCH_STATES) * 1e9)
 
 
 @pytest.mark.parametrize("dof", U_DOF[:2])

@@ -1,6 +1,6 @@
 """The comparison report: the results on disk -> one self-contained HTML page and the same as PDF.
 
-    python -m redysim.reports.build [--results results] [--out reports/out]
+    python -m redysim.reports.build [--results results] [--out reports/out] [--history FILE]
 
 Writes ``report.html`` (figures embedded as PNG data URIs: it opens from disk, offline) and
 ``report.pdf`` (reportlab) into ``--out``. Reads only what is on disk
@@ -12,7 +12,9 @@ it. Sections:
 3. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`redysim.reports.paper_tables`);
 4. the paper's figures, from our runs (:mod:`redysim.reports.figures`);
 5. beyond the paper: conditioning, CPU scaling, operation counts, work-precision, engine limits,
-   the precision study in IEEE formats, the true error against a 50-digit reference, benchmarks.
+   the precision study in IEEE formats, the true error against a 50-digit reference, benchmarks
+   and their history across commits (:mod:`redysim.reports.history`: the checkout's
+   ``benchmarks/history/bench.jsonl``, ``--history``).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from redysim.harness.spec import CORE
 from redysim.io.cases import CASES_DIR
 
 from . import figures as F
+from . import history as H
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
 from .implicit import implicit_section
 from .paper_tables import Ctx, paper_tables, printed_match
@@ -671,7 +674,9 @@ def loops_section(res: Results) -> Section:
 
 
 # --------------------------------------------------------------------------- assembling
-def build_report(res: Results) -> Report:
+def build_report(res: Results, history: Path = H.HISTORY_FILE) -> Report:
+    """The report of the results ``res``; the performance history from ``history`` (the
+    checkout's benchmarks/history/bench.jsonl: not under the results folder, which is scratch)."""
     ctx = Ctx(res)
     tables = paper_tables(res)
     by_id = {t.id: t for t in tables}
@@ -693,7 +698,7 @@ def build_report(res: Results) -> Report:
                             F.op_counts(ctx), *F.work_precision(ctx), limits_table(res),
                             ieee_table(res), F.true_error(ctx), true_error_table(res),
                             F.true_error(ctx, "random"), true_error_table(res, "random"),
-                            bench_table(res)])
+                            bench_table(res), H.history_figure(history)])
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
                   [setup_section(ctx), paper, figs, beyond, robots_section(res),
@@ -711,14 +716,15 @@ def render_html(report: Report) -> str:
     return env.get_template(TEMPLATE).render(report=report)
 
 
-def write_report(results: Path, out: Path, *, log=print) -> tuple[Path, Path]:
-    """Build the report from ``results`` and write HTML and PDF into ``out``."""
+def write_report(results: Path, out: Path, *, log=print,
+                 history: Path = H.HISTORY_FILE) -> tuple[Path, Path]:
+    """Build the report from ``results`` (and ``history``) and write HTML and PDF into ``out``."""
     from redysim.harness.store import write_text_atomic
 
     from .pdf import write_pdf
 
     t0 = time.perf_counter()
-    report = build_report(Results(results))
+    report = build_report(Results(results), history)
     html = write_text_atomic(render_html(report), out / HTML_FILE)
     pdf = write_pdf(report, out / PDF_FILE)
     log(f"report: {html} and {pdf} ({len(report.tables())} tables, {len(report.figures())} "
@@ -732,8 +738,10 @@ def main(argv=None) -> int:
                     help=f"results folder (default {DEFAULT_RESULTS})")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
                     help=f"output folder (default {DEFAULT_OUT})")
+    ap.add_argument("--history", type=Path, default=H.HISTORY_FILE,
+                    help=f"the performance history (default {H.HISTORY_FILE})")
     args = ap.parse_args(argv)
-    write_report(args.results, args.out)
+    write_report(args.results, args.out, history=args.history)
     return 0
 
 

@@ -49,7 +49,8 @@ class Figure:
     """A figure: PNG bytes (None when there is no data: ``not_run`` says how to get it)."""
 
     id: str
-    family: str  # tip-path, tip-speed, drift, conditioning, scaling, opcount, work-precision
+    family: str  # tip-path, tip-speed, drift, conditioning, scaling, opcount, work-precision,
+    #              true-error, perf-history
     title: str
     caption: str
     png: bytes | None = None
