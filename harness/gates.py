@@ -643,8 +643,12 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     if a.list:
-        for g in gates:
-            print(f"{g.name:36s} {g.threshold_text:24s} {g.quantity}")
+        try:
+            for g in gates:
+                print(f"{g.name:36s} {g.threshold_text:24s} {g.quantity}", flush=True)
+        except BrokenPipeError:  # the reader went away (--list | head): stop quietly
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # Python's own flush at exit would fail again
         return EXIT_OK
     t0 = time.perf_counter()
     rows = []

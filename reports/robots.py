@@ -81,10 +81,7 @@ def models():
     robots_dir = resources.files("redysim.case_files.robots")  # package data, not a path
     for toml in sorted((f for f in robots_dir.iterdir() if f.name.endswith(".toml")),
                        key=lambda f: f.name):
-        try:
-            model = load_model(toml)
-        except Exception:  # a rope case or a file the loader refuses: not a robot of ours
-            continue
+        model = load_model(toml)  # a robot file of ours that does not load is an error, not a gap
         out.append((f"{model.name} (DH, cases/robots/{toml.name})", model, None))
     return out
 

@@ -192,3 +192,19 @@ def test_one_gates_run_computes_each_reference_once(monkeypatch):
             seen.append(os.environ[gates.RESULTS_ENV])
         assert inner == outer and seen == [str(outer)]
     assert not outer.exists()
+
+
+def test_the_list_stops_quietly_when_its_reader_goes_away():
+    """``python -m redysim.harness.gates --list | head -1`` raised BrokenPipeError at the first
+    line head did not read."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "redysim.harness.gates", "--list"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    first = proc.stdout.readline()
+    proc.stdout.close()  # the reader goes away after one line, as head -1 does
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0, err
+    assert first.strip() and "Traceback" not in err and "BrokenPipe" not in err, err
