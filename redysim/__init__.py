@@ -42,6 +42,7 @@ _WHERE = {
     **dict.fromkeys(("Coarsening", "coarsen"), "algorithms.coarse"),
     **dict.fromkeys(("Linkage", "load_linkage"), "io.linkage_files"),
     "Workspace": "algorithms.workspace",
+    "evaluator": "algorithms.evaluators",
     "rbda": "algorithms.rbda",
 }
 

@@ -107,3 +107,24 @@ class EntryPoint:
             for kernel, signature in self.callees:
                 kernel.compile(signature)
         return numba.njit(self.signature, **self.options)(self.func)
+
+
+# The lean entries (redysim.algorithms._kernels.lean, behind redysim.evaluator) keep the GIL: a
+# small system's call is ~0.5 us, and releasing and taking back the GIL cost ~40 ns of it here;
+# held, it also serialises the calls of several threads on one evaluator's scratch
+# (docs/design.md, "Performance notes").
+LEAN_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, nogil=False)
+
+
+def unchecked_call(dispatcher):
+    """The compiled wrapper of ``dispatcher``'s one signature, called without numba's dispatch:
+    no typing of the arguments (~20 ns an array, ~150 ns a call with four arrays here), and no
+    check that they match the signature beyond each array being an ndarray of the signature's
+    item size. The caller must pass arrays of the declared dtype and dimension (a 2-D array
+    where a 1-D one is declared is unboxed past the end of its slot). None with
+    ``NUMBA_DISABLE_JIT`` (the kernel is then a plain function) or for a dispatcher without
+    exactly one compiled signature."""
+    overloads = getattr(dispatcher, "overloads", None)
+    if not overloads or len(overloads) != 1:
+        return None
+    return next(iter(overloads.values())).entry_point

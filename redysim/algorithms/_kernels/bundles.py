@@ -159,11 +159,13 @@ def segment_sizes(array: str, sizes: dict[str, int], planar: bool) -> dict[str, 
             if f.array == array and (planar or not f.planar)}
 
 
-def bundles_source() -> str:
+def bundles_source(shaper: str | None = None) -> str:
     """The Python source of ``bundles(fdata, idata, scratch)``: the Tree and Scratch bundles as
     views of a workspace's packed arrays, every segment sliced out inline (a helper taking the
     slot, a literal int, was compiled once per slot: 3 s of the cold compile). Compiled in
     :mod:`.entry`; its Python form runs in the workspace itself: one layout, read in one place.
+    ``shaper``: the name of a function ``shaper(segment, shape)`` that gives a segment its shape
+    instead of ``segment.reshape(shape)`` (:mod:`.lean`'s unchecked C-contiguous view).
     """
     packed = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch"}
     size = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "ng": "ng", "nt": "nt"}
@@ -176,7 +178,7 @@ def bundles_source() -> str:
         text = f"{a}[h[{slot}]:h[{slot}] + {count}]"
         if len(f.shape) > 1:
             dims = ", ".join(size[d] if isinstance(d, str) else str(d) for d in f.shape)
-            text += f".reshape(({dims}))"
+            text = f"{shaper}({text}, ({dims}))" if shaper else text + f".reshape(({dims}))"
         return text
 
     lines = ["def bundles(fdata, idata, scratch):",

@@ -1,0 +1,202 @@
+"""One call from Python, small systems: ``redysim.evaluator`` beside ``pin.aba`` and
+``redysim.forward_dynamics``, and the floor under them.
+
+    .venv/bin/python benchmarks/lean_call.py [--rounds 41] [--round-ms 20]
+
+Models: a U chain of 20 DOF (``Chain.uniform(10, "U", ...)``: 10 links, two axes a joint; the RE-U
+steel rod of ``benchmarks/test_bench_engines.py``), the UR5 of example-robot-data (its URDF read
+by ``redysim.load_model``, Pinocchio's model built from the same file) and the U chain of 200 DOF.
+Pinocchio's chain is ``redysim.references``' (``JointModelUniversal`` joints). Per model, timed
+side by side in one process, the calls alternating within each round (the order reversed every
+other round) so that a neighbour's load falls on all of them; each round a ``timeit`` loop of
+~``--round-ms``; printed: the median per call over the rounds, the fastest round, and
+``pin.aba``'s median over the call's (> 1: faster than ``pin.aba``):
+
+    pin.aba                  pin.aba(model, data, q, v, tau), tau zeros
+    fd(ws=, out=)            forward_dynamics(model, q, v, ws=ws, out=out)
+    fd default               forward_dynamics(model, q, v)
+    evaluator                fd(q, v), fd = redysim.evaluator(model)
+    evaluator out=           fd(q, v, out=out)
+    floor: compiled call     the evaluator's compiled function called from Python without its
+                             wrapper (its arguments ready, no checks in Python)
+    floor: kernel            the same function called 1,000 times from compiled code, per call
+    pin.rnea                 pin.rnea(model, data, q, v, qdd): inverse dynamics
+    id default               inverse_dynamics(model, q, v, qdd)
+    id evaluator             id(q, v, qdd), id = redysim.evaluator(model, "inverse_dynamics")
+                             (these three rows: pin.rnea's median over the call's)
+
+and once: a compiled function of 7 arrays that does nothing, called as the evaluator calls its
+own, and a Python function of 4 arguments that does nothing. Writes
+``results/bench/lean_call.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import time
+import timeit
+from pathlib import Path
+
+import numba
+import numpy as np
+from conftest import machine
+
+import redysim
+from redysim import Chain, Workspace, forward_dynamics, inverse_dynamics
+from redysim._jit import LEAN_OPTIONS, unchecked_call
+from redysim.algorithms._kernels import lean
+
+UR5 = "ur_description/urdf/ur5_robot.urdf"
+LOOP = 1000  # calls per loop of the compiled kernel
+
+
+def robot_path(file: str) -> str:
+    from importlib import metadata
+
+    dist = metadata.distribution("example-robot-data")
+    return str(dist.locate_file(next(f for f in dist.files or () if str(f).endswith("/" + file))))
+
+
+def u_chain(dof: int) -> Chain:
+    return Chain.uniform(dof // 2, "U", length=0.02, linear_density=61.6538, radius=0.05,
+                         inertia="rod", name=f"U{dof // 2}")
+
+
+def pinocchio_of(label: str, model):
+    import pinocchio as pin
+
+    if label == "UR5":
+        return pin.buildModelFromUrdf(robot_path(UR5))
+    from redysim.references.pinocchio_engine import PinocchioABA
+
+    return PinocchioABA(model).pm
+
+
+def _loop_of(kernel):
+    @numba.njit(**dict(LEAN_OPTIONS, cache=False))
+    def loop(q, v, tau, out, f, i, s, count):
+        for _ in range(count):
+            kernel(q, v, tau, out, f, i, s)
+        return out
+
+    return loop
+
+
+def _noop(q, v, tau, out, f, i, s):
+    return out
+
+
+def calls(label: str, model) -> dict:
+    import pinocchio as pin
+
+    rng = np.random.default_rng(1)
+    q = model.neutral() + rng.uniform(-0.3, 0.3, model.n_q)
+    v = rng.uniform(-0.3, 0.3, model.n_v)
+    out = np.empty(model.n_v)
+    ws = Workspace(model)
+    fd = redysim.evaluator(model)
+    assert fd(q, v).tobytes() == forward_dynamics(model, q, v).tobytes()
+    pm = pinocchio_of(label, model)
+    data = pm.createData()
+    assert (pm.nq, pm.nv) == (model.n_q, model.n_v)  # (the same coordinates, in our order)
+    pq, pv, ptau = q.copy(), v.copy(), np.zeros(pm.nv)
+    aba = pin.aba
+    entry = (lean.FORWARD_CHAIN if ws.tree.serial else lean.FORWARD_TREE).compiled
+    raw = unchecked_call(entry)
+    loop = _loop_of(entry)
+    f, i, s, z = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros
+    loop(q, v, z, out, f, i, s, 1)
+    inv = redysim.evaluator(model, "inverse_dynamics")
+    a = fd(q, v)
+    assert inv(q, v, a).tobytes() == inverse_dynamics(model, q, v, a).tobytes()
+    rnea, pa = pin.rnea, a.copy()
+    return {
+        "pin.aba": lambda: aba(pm, data, pq, pv, ptau),
+        "fd(ws=, out=)": lambda: forward_dynamics(model, q, v, ws=ws, out=out),
+        "fd default": lambda: forward_dynamics(model, q, v),
+        "evaluator": lambda: fd(q, v),
+        "evaluator out=": lambda: fd(q, v, out=out),
+        "floor: compiled call": lambda: raw(q, v, z, out, f, i, s),
+        "floor: kernel": lambda: loop(q, v, z, out, f, i, s, LOOP),
+        "pin.rnea": lambda: rnea(pm, data, pq, pv, pa),
+        "id default": lambda: inverse_dynamics(model, q, v, a),
+        "id evaluator": lambda: inv(q, v, a),
+    }
+
+
+def side_by_side(fns: dict, rounds: int, round_s: float) -> dict:
+    """Per-call seconds of each callable, the callables alternating within every round."""
+    numbers = {}
+    for k, fn in fns.items():
+        fn()
+        number, _ = timeit.Timer(fn).autorange()
+        t0 = time.perf_counter()
+        timeit.Timer(fn).timeit(number)
+        numbers[k] = max(1, int(number * round_s / max(time.perf_counter() - t0, 1e-9)))
+    per_call: dict[str, list[float]] = {k: [] for k in fns}
+    items = list(fns.items())
+    for r in range(rounds):
+        for k, fn in items if r % 2 == 0 else items[::-1]:
+            per_call[k].append(timeit.Timer(fn).timeit(numbers[k]) / numbers[k])
+    for k in per_call:
+        if k == "floor: kernel":
+            per_call[k] = [t / LOOP for t in per_call[k]]
+    return {k: {"median_s": statistics.median(v), "min_s": min(v), "number": numbers[k]}
+            for k, v in per_call.items()}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=41)
+    ap.add_argument("--round-ms", type=float, default=20.0)
+    ap.add_argument("--out", type=Path, default=Path("results/bench/lean_call.json"))
+    args = ap.parse_args(argv)
+    import pinocchio as pin
+
+    info = {**machine(), "pinocchio": pin.__version__}
+    models = {"U chain, 20 DOF": u_chain(20), "UR5": redysim.load_model(robot_path(UR5)),
+              "U chain, 200 DOF": u_chain(200)}
+    load0 = os.getloadavg()
+    print("one call from Python: median of rounds [fastest round]; pin.aba's (pin.rnea's) median "
+          "over the call's")
+    print(", ".join(f"{k} {v}" for k, v in info.items()) + f", {time.strftime('%Y-%m-%d %H:%M')}")
+    print(f"load average at start {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}; "
+          f"{args.rounds} rounds of ~{args.round_ms:g} ms a call")
+    rows = []
+    print(f"{'model':18s} {'call':22s} {'us':>16s} {'pin / call':>11s}")
+    for label, model in models.items():
+        res = side_by_side(calls(label, model), args.rounds, args.round_ms / 1e3)
+        for name, r in res.items():
+            base = res["pin.rnea" if name.startswith(("pin.rnea", "id ")) else "pin.aba"]
+            ratio = base["median_s"] / r["median_s"]
+            rows.append({"model": label, "dof": model.n_v, "call": name, **r, "ratio": ratio})
+            us = f"{r['median_s'] * 1e6:.3f} [{r['min_s'] * 1e6:.3f}]"
+            print(f"{label:18s} {name:22s} {us:>16s} {ratio:11.2f}", flush=True)
+    noop = numba.njit(lean.SIGNATURE, **dict(LEAN_OPTIONS, cache=False))(_noop)
+    raw_noop = unchecked_call(noop)
+    a = [np.zeros(8) for _ in range(7)]
+    a[5] = np.zeros(8, dtype=np.int64)
+
+    def py_noop(q, v, tau=None, out=None):
+        return out
+
+    floor = side_by_side({"compiled no-op, 7 arrays": lambda: raw_noop(*a),
+                          "Python no-op, 2 arrays": lambda: py_noop(a[0], a[1]),
+                          "empty lambda": lambda: None}, args.rounds, args.round_ms / 1e3)
+    for name, r in floor.items():
+        rows.append({"model": "-", "call": name, **r})
+        us = f"{r['median_s'] * 1e6:.3f} [{r['min_s'] * 1e6:.3f}]"
+        print(f"{'-':18s} {name:22s} {us:>16s}")
+    load1 = os.getloadavg()
+    print(f"load average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"machine": info, "date": time.strftime("%Y-%m-%d %H:%M"),
+                                    "load": [load0, load1], "rows": rows}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

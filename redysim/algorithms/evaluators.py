@@ -1,0 +1,144 @@
+"""Evaluators: a model's dynamics bound once, for the fastest call from Python on small systems.
+
+``fd = redysim.evaluator(model)`` returns a function ``fd(q, v, tau=None, out=None) -> qdd``
+equal bit for bit to :func:`redysim.forward_dynamics` ``(model, q, v, tau, out=out)``;
+``kind="inverse_dynamics"`` returns ``id(q, v, qdd, out=None) -> tau``, equal to
+:func:`redysim.inverse_dynamics`. What :func:`~redysim.forward_dynamics` does at every call
+(look up the thread's workspace, choose the kernel, numba's dispatch of seven arrays) is done
+once here: a call checks that its arrays are 1-D float64 ndarrays and hands them, with the
+evaluator's own scratch, to one compiled function of its own
+(:mod:`redysim.algorithms._kernels.lean`), which checks their lengths and strides. Anything else
+(lists, float32, strided or read-only ``out``, a wrong length, a batch of states, a result that
+is not finite) takes the checked path, the public function itself: the same conversions, the
+same errors (StateError naming the argument and its length), the same results.
+
+Thread safety: an evaluator holds one scratch, and its compiled call holds the GIL (releasing
+it costs more than it saves at this size: docs/design.md, "Performance notes"), so calls from
+several threads on one evaluator are safe and run one at a time; the checked path uses the
+model's own workspace of each calling thread. For states in parallel give
+:func:`~redysim.forward_dynamics` a batch. An evaluator cannot be pickled: make one in each
+process.
+
+Measured per call from Python on this project's VM (``benchmarks/lean_call.py``; docs/design.md,
+"Performance notes").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy import ndarray
+
+from redysim._jit import unchecked_call
+from redysim.algorithms._kernels import lean as _lean
+from redysim.algorithms.dynamics import check_out, closed_error, forward_dynamics, inverse_dynamics
+from redysim.algorithms.workspace import Workspace
+from redysim.errors import FieldError
+from redysim.model.tree import Model
+
+KINDS = ("forward_dynamics", "inverse_dynamics")
+FLOAT64 = np.dtype(np.float64)
+
+
+def evaluator(model: Model, kind: str = "forward_dynamics") -> Callable[..., np.ndarray]:
+    """A function computing ``kind`` on ``model`` as fast as a call from Python can (module
+    docstring): ``fd(q, v, tau=None, out=None) -> qdd`` for ``"forward_dynamics"`` (RGE-A, or
+    the planar kernel for a planar chain, as :func:`redysim.forward_dynamics` chooses), or
+    ``id(q, v, qdd, out=None) -> tau`` for ``"inverse_dynamics"``. The result is ``out`` when
+    given, else a new array; the same bits as the public function's.
+
+    Refuses (FieldError) something that is not a Model and an unknown ``kind``, and (CaseError)
+    a model with cut joints, as the public functions refuse it. Building one compiles its
+    kernel on first use in a process (loaded from numba's disk cache after that) and allocates
+    the evaluator's scratch (a :class:`~redysim.algorithms.workspace.Workspace`, ~380 bytes a
+    DOF), kept as long as the evaluator is.
+    """
+    if not isinstance(model, Model):
+        raise FieldError("evaluator", "model", type(model).__name__,
+                         "must be a redysim.Model (Chain.uniform, load_model(...), ...)")
+    if kind not in KINDS:
+        raise FieldError("evaluator", "kind", kind, f"must be one of {', '.join(KINDS)}")
+    if model.cuts:
+        raise closed_error(model, f"evaluator(kind={kind!r})")
+    ws = Workspace(model)
+    serial = bool(ws.tree.serial)
+    if kind == "forward_dynamics":
+        entry = (_lean.FORWARD_PLANAR if model.is_planar else
+                 _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
+        return _forward(model, ws, unchecked_call(entry.compiled))
+    entry = _lean.INVERSE_CHAIN if serial else _lean.INVERSE_TREE
+    return _inverse(model, ws, unchecked_call(entry.compiled))
+
+
+def _forward(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
+    f, i, s, zeros, n = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, model.n_v
+    empty, F, Refused = np.empty, FLOAT64, _lean.Refused
+    if call is None:  # numba disabled: the checked path only
+        return _named(lambda q, v, tau=None, out=None: forward_dynamics(model, q, v, tau, out=out),
+                      model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
+
+    def fd(q, v, tau=None, out=None):
+        # The compiled call unboxes without typing (redysim._jit.unchecked_call): each array
+        # must be a plain ndarray of one dimension and float64, out writeable (checked here,
+        # the ndarray's own attributes: a subclass could override them); lengths and strides
+        # are the kernel's to check.
+        if type(q) is ndarray and type(v) is ndarray and q.dtype is F and v.dtype is F \
+                and q.ndim == 1 and v.ndim == 1:
+            if tau is None:
+                t = zeros
+            elif type(tau) is ndarray and tau.dtype is F and tau.ndim == 1:
+                t = tau
+            else:
+                return forward_dynamics(model, q, v, tau, out=out)
+            try:
+                if out is None:
+                    return call(q, v, t, empty(n), f, i, s)
+                if type(out) is ndarray and out.dtype is F and out.ndim == 1 \
+                        and out.flags.writeable:
+                    return call(q, v, t, out, f, i, s)
+            except Refused:
+                pass
+        return forward_dynamics(model, q, v, tau, out=out)
+
+    return _named(fd, model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
+
+
+def _inverse(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
+    f, i, s, n = ws.kernel_f, ws.kernel_i, ws.scratch, model.n_v
+    empty, F, Refused = np.empty, FLOAT64, _lean.Refused
+
+    def checked(q, v, qdd, out=None):
+        tau = inverse_dynamics(model, q, v, qdd)
+        if out is None:
+            return tau
+        out = check_out(model, out)  # (StateError for an out of another shape: a batch's too)
+        out[:] = tau
+        return out
+
+    if call is None:  # numba disabled
+        return _named(checked, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
+
+    def id_(q, v, qdd, out=None):
+        if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
+                and q.dtype is F and v.dtype is F and qdd.dtype is F \
+                and q.ndim == 1 and v.ndim == 1 and qdd.ndim == 1:  # (as fd's, _forward)
+            try:
+                if out is None:
+                    return call(q, v, qdd, empty(n), f, i, s)
+                if type(out) is ndarray and out.dtype is F and out.ndim == 1 \
+                        and out.flags.writeable:
+                    return call(q, v, qdd, out, f, i, s)
+            except Refused:
+                pass
+        return checked(q, v, qdd, out)
+
+    return _named(id_, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
+
+
+def _named(func, model: Model, kind: str, signature: str):
+    func.__name__ = func.__qualname__ = kind
+    func.__doc__ = (f"{kind}{signature} of {type(model).__name__.lower()} {model.name!r}, "
+                    f"bit for bit redysim.{kind}'s (redysim.evaluator).")
+    func.model, func.kind = model, kind
+    return func

@@ -1,0 +1,243 @@
+"""redysim.evaluator: a model's forward (inverse) dynamics bound once, for the fastest call.
+
+Bit for bit :func:`redysim.forward_dynamics` and :func:`redysim.inverse_dynamics` on chains (the
+serial kernels, and the planar one), trees, a floating robot; ``out`` honoured; what the lean
+path does not take (lists, float32, strided arrays, wrong lengths, a read-only ``out``, a batch)
+taken by the public function, with its conversions and its errors; a model with cut joints
+refused; calls from many threads on one evaluator. No timing here: ``benchmarks/lean_call.py``.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from conftest import random_chain, random_state
+from test_trees import random_configuration, random_tree, robot_urdf
+
+import redysim
+from redysim import Chain, CutJoint, Link, forward_dynamics, inverse_dynamics
+from redysim.errors import CaseError, FieldError, StateError
+from redysim.io.importers import load_model
+
+
+def _models():
+    rng = np.random.default_rng(34)
+    return {
+        "U chain": Chain.uniform(10, "U", length=0.02, linear_density=61.6538, radius=0.05,
+                                 inertia="rod"),
+        "planar R chain": Chain.uniform(5, "R", length=0.3, linear_density=2.0, radius=0.02),
+        "mixed chain": random_chain(rng, 7),
+        "tree": random_tree(3, free=False),
+        "floating tree": random_tree(4, free=True),
+    }
+
+
+MODELS = _models()
+
+
+def _state(rng, model):
+    q = random_configuration(rng, model)
+    return q, rng.normal(size=model.n_v), rng.normal(size=model.n_v)
+
+
+def same_bits(a, b) -> bool:
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_forward_and_inverse_are_the_public_functions_bit_for_bit(name):
+    model = MODELS[name]
+    fd = redysim.evaluator(model)
+    inv = redysim.evaluator(model, "inverse_dynamics")
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        q, v, tau = _state(rng, model)
+        assert same_bits(fd(q, v), forward_dynamics(model, q, v))
+        assert same_bits(fd(q, v, tau), forward_dynamics(model, q, v, tau))
+        qdd = forward_dynamics(model, q, v, tau)
+        assert same_bits(inv(q, v, qdd), inverse_dynamics(model, q, v, qdd))
+    assert model.is_planar == (name == "planar R chain")  # the planar kernel's path is covered
+
+
+@pytest.mark.parametrize("floating", [False, True], ids=["fixed", "floating"])
+def test_robots_of_example_robot_data(floating):
+    model = load_model(robot_urdf("ur_description/urdf/ur5_robot.urdf" if not floating
+                                  else "solo12.urdf"), floating=floating)
+    fd, inv = redysim.evaluator(model), redysim.evaluator(model, "inverse_dynamics")
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        q, v, tau = _state(rng, model)
+        assert same_bits(fd(q, v, tau), forward_dynamics(model, q, v, tau))
+        assert same_bits(inv(q, v, tau), inverse_dynamics(model, q, v, tau))
+
+
+def test_out_is_written_and_returned():
+    model = MODELS["floating tree"]
+    q, v, tau = _state(np.random.default_rng(1), model)
+    out = np.full(model.n_v, np.nan)
+    assert redysim.evaluator(model)(q, v, tau, out=out) is out
+    assert same_bits(out, forward_dynamics(model, q, v, tau))
+    tau_out = np.empty(model.n_v)
+    assert redysim.evaluator(model, "inverse_dynamics")(q, v, out, out=tau_out) is tau_out
+    assert same_bits(tau_out, inverse_dynamics(model, q, v, out))
+    # a fresh array per call without out: results never alias each other or the scratch
+    fd = redysim.evaluator(model)
+    a, b = fd(q, v), fd(q, 2 * v)
+    assert not np.shares_memory(a, b) and not same_bits(a, b)
+
+
+@pytest.mark.parametrize("kind", ["forward_dynamics", "inverse_dynamics"])
+def test_other_inputs_are_converted_as_the_public_function_converts_them(kind):
+    """Lists, ints, float32, strided and reversed views, read-only arrays: the same result as
+    the public function's for the same input (it converts them; the lean path takes only
+    contiguous float64 vectors and leaves the rest to it)."""
+    model = MODELS["mixed chain"]
+    public = forward_dynamics if kind == "forward_dynamics" else inverse_dynamics
+    ev = redysim.evaluator(model, kind)
+    q, v, x = _state(np.random.default_rng(2), model)
+    wide = np.empty((3, model.n_v))
+    wide[0] = q
+    ro = q.copy()
+    ro.flags.writeable = False
+    for qq in (q.tolist(), q.astype(np.float32), wide[0, ::1], wide.T[:, 0].copy(), q[::-1][::-1],
+               np.repeat(q, 2)[::2], q[::-1], ro, (q * 10).astype(np.int64)):
+        assert same_bits(ev(qq, v, x), public(model, qq, v, x)), type(qq)
+    strided_out = np.zeros((model.n_v, 2))[:, 0]
+    with pytest.raises(StateError, match="out .*contiguous"):
+        ev(q, v, x, out=strided_out)
+    ro_out = np.empty(model.n_v)
+    ro_out.flags.writeable = False
+    with pytest.raises(StateError, match="writeable"):
+        ev(q, v, x, out=ro_out)
+
+
+@pytest.mark.parametrize("kind", ["forward_dynamics", "inverse_dynamics"])
+def test_bad_shapes_and_dtypes_are_refused_naming_the_argument(kind):
+    model = MODELS["tree"]
+    ev = redysim.evaluator(model, kind)
+    n = model.n_v
+    q, v, x = _state(np.random.default_rng(3), model)
+    third = "tau" if kind == "forward_dynamics" else "qdd"
+    for args, name, length in (((q[:-1], v, x), "q", n - 1), ((q, np.zeros(n + 2), x), "v", n + 2),
+                               ((q, v, x[:3]), third, 3)):
+        with pytest.raises(StateError, match=rf"{name} has shape \({length},\).*must have shape"):
+            ev(*args)
+    with pytest.raises(StateError, match="out .*shape"):
+        ev(q, v, x, out=np.empty(n + 1))
+    with pytest.raises(StateError, match="out .*float64"):
+        ev(q, v, x, out=np.empty(n, dtype=np.int64))
+    with pytest.raises(StateError, match="v = .*not a numeric"):
+        ev(q, ["a"] * n, x)
+    with pytest.raises(StateError, match="not a numeric"):
+        ev(q, v.astype(complex), x)
+    with pytest.raises(StateError, match=r"q\[2\] = nan: not finite"):
+        ev(np.where(np.arange(n) == 2, np.nan, q), v, x)
+    q2 = np.tile(q, (2, 1))  # a 2-D array is the public function's batch of states
+    assert same_bits(ev(q2, np.tile(v, (2, 1)), np.tile(x, (2, 1))),
+                     (forward_dynamics if kind == "forward_dynamics" else inverse_dynamics)(
+                         model, q2, np.tile(v, (2, 1)), np.tile(x, (2, 1))))
+
+
+@pytest.mark.parametrize("joint", ["R", "S"])  # the planar kernel, the spatial one
+def test_a_singular_model_is_named_as_forward_dynamics_names_it(joint):
+    """A point mass on the last joint's axis: the GIM is singular there."""
+    point = Link(1.0, 1.0, (0.0, 0.0, 0.0), ((0, 0, 0), (0, 0, 0), (0, 0, 0)))
+    rod = Link(1.0, 1.0, (0.5, 0.0, 0.0), ((0.01, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+    model = Chain.build([rod, rod, point], ["R", "R", joint])
+    q = np.full(model.n_q, 0.1)
+    with pytest.raises(StateError, match="singular at DOF") as public:
+        forward_dynamics(model, q, np.zeros(model.n_v))
+    with pytest.raises(StateError) as lean:
+        redysim.evaluator(model)(q, np.zeros(model.n_v))
+    assert str(lean.value) == str(public.value)
+
+
+def test_what_is_not_a_model_or_kind_and_cut_joints_are_refused():
+    with pytest.raises(FieldError, match="model"):
+        redysim.evaluator("ur5_robot.urdf")
+    with pytest.raises(FieldError, match="kind = 'mass_matrix'"):
+        redysim.evaluator(MODELS["tree"], "mass_matrix")
+    closed = MODELS["tree"].with_cuts([CutJoint("pin", 2, (0.1, 0, 0), -1, (0.5, 0, 0))])
+    for kind in ("forward_dynamics", "inverse_dynamics"):
+        with pytest.raises(CaseError, match="cut joints.*ClosedLoops"):
+            redysim.evaluator(closed, kind)
+
+
+def test_calls_from_many_threads_on_one_evaluator_are_safe():
+    """Documented: the compiled call holds the GIL, so threads sharing one evaluator (and its
+    one scratch) take turns; each result is its state's, bit for bit."""
+    from redysim._jit import LEAN_OPTIONS
+
+    assert LEAN_OPTIONS["nogil"] is False  # what the evaluator's thread safety rests on
+    model = MODELS["floating tree"]
+    fd = redysim.evaluator(model)
+    rng = np.random.default_rng(5)
+    states = [_state(rng, model) for _ in range(64)]
+    expected = [forward_dynamics(model, q, v, tau) for q, v, tau in states]
+    failures = []
+
+    def work(offset):
+        for r in range(200):
+            i = (offset + 7 * r) % len(states)
+            q, v, tau = states[i]
+            if not same_bits(fd(q, v, tau), expected[i]):
+                failures.append(i)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not failures
+
+
+def test_the_evaluator_is_a_public_name():
+    assert "evaluator" in redysim.__all__
+    fd = redysim.evaluator(MODELS["U chain"])
+    assert fd.model is MODELS["U chain"] and fd.kind == "forward_dynamics"
+    q, v, _ = random_state(np.random.default_rng(0), MODELS["U chain"])
+    assert same_bits(fd(q, v), forward_dynamics(MODELS["U chain"], q, v))
+
+
+def test_the_planar_entry_loads_the_kernel_it_calls_first():
+    """As ``tests/test_identities.py`` checks of .entry's: the lean planar entry declares the
+    types it calls the planar kernel with (``redysim._jit.EntryPoint``'s callees)."""
+    import numba
+
+    from redysim.algorithms._kernels import lean
+
+    point = lean.FORWARD_PLANAR
+    fresh = numba.njit(point.signature, **{**point.options, "cache": False})(point.func)
+    annotation = fresh.overloads[fresh.signatures[0]].type_annotation
+    called = {}
+    for expr, sig in annotation.calltypes.items():
+        if getattr(expr, "op", None) != "call":
+            continue
+        ty = annotation.typemap.get(expr.func.name)
+        if isinstance(ty, numba.types.Dispatcher):
+            called[ty.dispatcher] = tuple(sig.args)
+    assert called == {kernel: tuple(types) for kernel, types in point.callees}
+
+
+def test_the_evaluator_runs_with_numba_disabled():
+    """NUMBA_DISABLE_JIT=1: no compiled call to bypass the dispatch of; every call takes the
+    public function (the kernels' Python source)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = ("import numpy as np, redysim; c = redysim.Chain.uniform(3, 'U', length=1.0, "
+            "linear_density=1.0, radius=0.1); q = np.full(6, 0.1); "
+            "print([redysim.evaluator(c)(q, q).tolist(), "
+            "redysim.evaluator(c, 'inverse_dynamics')(q, q, q).tolist()])")
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    plain = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True, env=env)
+    c = Chain.uniform(3, "U", length=1.0, linear_density=1.0, radius=0.1)
+    q = np.full(6, 0.1)
+    fd, inv = json.loads(plain.stdout)
+    np.testing.assert_allclose(fd, forward_dynamics(c, q, q), rtol=1e-12)
+    np.testing.assert_allclose(inv, inverse_dynamics(c, q, q, q), rtol=1e-12)
