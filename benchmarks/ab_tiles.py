@@ -1,18 +1,18 @@
-"""The SIMD tiles of two git revisions side by side in one process: 64-state batches, one thread.
+"""The SIMD tiles of two git revisions side by side in one process: 64-state batches.
 
-    .venv/bin/python benchmarks/ab_tiles.py --base d8bc20b [--rounds 7] [--calls 15]
+    .venv/bin/python benchmarks/ab_tiles.py --base d8bc20b [--rounds 7] [--calls 15] [--threads 1]
 
 The base revision's kernels and workspace are copied out of git into a temporary package
 (``benchmarks/ab_kernels.py``'s copier) and its ``_forward_tiled`` (the batch's tiles, in
 ``redysim/algorithms/dynamics.py``) taken from its source; both revisions compile afresh into one
 temporary numba cache. Each side is timed as a user calls it, ``forward_dynamics(chain, Q, QD,
-ws=ws, out=out, threads=1, planar=False)`` (the working tree's function, its ``_forward_tiled``
-pointed at the side's and ``ws`` the side's workspace: the checks before the tiles are the same
-Python for both), on the same 64 states (uniform in +-0.1, as ``make bench-engines``). The calls
-alternate base and head; a round is ``calls`` calls a side, each side read as its fastest; the
-table gives the median over the rounds of each side's time and of the ratio base / head (> 1:
-the head is faster), with the lowest and highest round's ratio. Both sides' qdd are compared bit
-for bit.
+ws=ws, out=out, threads=1, planar=False)`` (``--threads``; the working tree's function, its
+``_forward_tiled`` pointed at the side's and ``ws`` the side's workspace: the checks before the
+tiles are the same Python for both), on the same 64 states (uniform in +-0.1, as ``make
+bench-engines``). The calls alternate base and head; a round is ``calls`` calls a side, each side
+read as its fastest; the table gives the median over the rounds of each side's time and of the
+ratio base / head (> 1: the head is faster), with the lowest and highest round's ratio. Both
+sides' qdd are compared bit for bit.
 
 Both sides' tile buffers are put on a 64-byte boundary (``--misalign`` shifts them by that many
 bytes): a thread's tile arrays are one buffer, and where malloc placed it (16 bytes past a cache
@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
+import io
 import os
 import subprocess
 import sys
@@ -79,14 +81,16 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--calls", type=int, default=15, help="calls a side in a round")
+    ap.add_argument("--threads", type=int, default=1, help="threads a batch (numba's)")
     ap.add_argument("--misalign", type=int, default=0, choices=(0, 8, 16, 24, 32, 40, 48, 56),
                     help="bytes past a 64-byte boundary for both sides' tile buffers")
     a = ap.parse_args(argv)
     head_tiled = dynamics._forward_tiled
     with tempfile.TemporaryDirectory() as tmp:
-        base_ws_class = base_kernels(a.base, Path(tmp))[3]
+        with contextlib.redirect_stderr(io.StringIO()):  # its note is on the passes' columns
+            base_ws_class = base_kernels(a.base, Path(tmp))[3]
         base_tiled = base_forward_tiled(a.base)
-        print(f"base {a.base} vs working tree; {STATES} states, threads=1, load "
+        print(f"base {a.base} vs working tree; {STATES} states, threads={a.threads}, load "
               f"{os.getloadavg()[0]:.2f}; median of {a.rounds} rounds of {a.calls} calls a side "
               f"(each side's fastest call in a round); tile buffers {a.misalign} bytes past 64")
         print(f"{'chain':>8} {'base us':>9} {'head us':>9} {'ns/DOF/state':>13} {'base/head':>10}"
@@ -106,7 +110,8 @@ def main(argv=None) -> int:
                 tiled, ws = sides[side]
                 dynamics._forward_tiled = tiled
                 t0 = time.perf_counter()
-                forward_dynamics(chain, Q, QD, ws=ws, out=outs[side], threads=1, planar=False)
+                forward_dynamics(chain, Q, QD, ws=ws, out=outs[side], threads=a.threads,
+                                 planar=False)
                 return time.perf_counter() - t0
 
             for s in sides:

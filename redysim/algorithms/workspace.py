@@ -23,7 +23,6 @@ from redysim.algorithms._kernels.bundles import (
     sizes_of,
 )
 from redysim.algorithms._kernels.joints import BALL
-from redysim.algorithms._kernels.tiles import tile_sizes
 from redysim.errors import FieldError
 from redysim.model.tree import FREE, Model
 
@@ -130,6 +129,8 @@ class Workspace:
         ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar)},
                             np.int64, header, start=HEADER)  # after the header
         self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar), header))
+        # a thread's row of the SIMD tiles' buffer (tile_buffer), laid out as the others
+        self._tile_items = _layout(segment_sizes("tiles", sizes, planar), header)
         self.kernel_i = np.concatenate((header, ints_packed))
         bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
         self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
@@ -170,13 +171,12 @@ class Workspace:
         return [self.scratch, *extra[:count - 1]]
 
     def tile_buffer(self, count: int) -> np.ndarray:
-        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles
-        (:func:`redysim.algorithms._kernels.tiles.tile_sizes`). Made on first use and kept (grown
-        when more
-        threads are asked for)."""
+        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles,
+        laid out as the Tiles rows of the layout table say (their offsets in ``kernel_i``'s
+        header; :mod:`redysim.algorithms._kernels.tiles`). Made on first use and kept (grown when
+        more threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
-            nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
-            self._tiles = np.zeros((count, sum(tile_sizes.py_func(nb, n))))
+            self._tiles = np.zeros((count, self._tile_items))
         return self._tiles[:count]
 
     @property
