@@ -156,7 +156,8 @@ def test_the_tiles_keep_one_buffer_row_a_thread():
     # a row a thread, laid out by the layout table's Tiles rows (each whole tiles: no padding)
     sizes = segment_sizes("tiles", sizes_of(8, 16, 0, True), False)
     assert buf.shape == (2, sum(sizes.values()))
-    assert ws.nbytes == before + buf.nbytes
+    assert ws.nbytes == before + buf.nbytes + 64  # and up to 64 bytes to align it:
+    assert buf[0].ctypes.data % 64 == 0 and buf[1].ctypes.data % 64 == 0  # each row on a line
     tree, tl = tiles.tile_bundles.py_func(ws.kernel_f, ws.kernel_i, buf[1])
     assert all(np.array_equal(a, b) for a, b in zip(tree, ws.tree, strict=True))
     row = (buf[1].ctypes.data, buf[1].ctypes.data + buf[1].nbytes)

@@ -151,6 +151,7 @@ class Workspace:
         self.no_accel = np.zeros(3)
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
+        self._tiles_raw: np.ndarray | None = None  # (their allocation, a little larger)
         # batches of this system can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
         # chain of revolute and prismatic axes
         self.tiles_ok = bool(t["serial"]) and not (t["dof_kind"] == BALL).any()
@@ -176,7 +177,14 @@ class Workspace:
         header; :mod:`redysim.algorithms._kernels.tiles`). Made on first use and kept (grown when
         more threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
-            self._tiles = np.zeros((count, self._tile_items))
+            # on a 64-byte boundary (each row then too: its segments are whole multiples of
+            # ALIGN items): numpy's allocation is aligned to 16 bytes only, and a buffer 16, 32
+            # or 48 bytes past a boundary made the tiles 1.07-1.35x slower (docs/design.md,
+            # "Performance notes")
+            items = count * self._tile_items
+            self._tiles_raw = np.zeros(items + ALIGN)
+            start = (-self._tiles_raw.ctypes.data // 8) % ALIGN
+            self._tiles = self._tiles_raw[start:start + items].reshape(count, self._tile_items)
         return self._tiles[:count]
 
     @property
@@ -185,4 +193,4 @@ class Workspace:
         system's arrays not counted)."""
         own = sum(v.nbytes for v in vars(self).values()
                   if isinstance(v, np.ndarray) and v.base is None)
-        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer is in own)
+        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer's is in own)
