@@ -45,8 +45,9 @@ jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 # checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only for
 # the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name (numba
 # 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every array a tile
-# kernel is given is a distinct view of its thread's tile buffer (tiles.tile_views) or a chain table
-# it only reads.
+# kernel is given is a distinct view of its thread's tile buffer (the Tiles bundle, its segments
+# laid out by the layout table) or a chain table it only reads; a bundle's arrays reach the compiled
+# function as pointer arguments of their own, so the flag covers them too.
 cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
 TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True)
 jit_tiles: _JITWrapper = numba.njit(**TILE_OPTIONS)

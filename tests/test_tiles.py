@@ -23,6 +23,7 @@ from test_trees import random_tree
 import redysim
 from redysim import StateError, Workspace, forward_dynamics
 from redysim.algorithms._kernels import tiles
+from redysim.algorithms._kernels.bundles import Tiles, numba_types, segment_sizes, sizes_of
 from redysim.errors import FieldError
 from redysim.harness import hiprec
 from redysim.harness.random_chains import MIX_KINDS, _mix_joint, random_chain, random_link
@@ -152,10 +153,38 @@ def test_the_tiles_keep_one_buffer_row_a_thread():
     Q, QD, _ = states(c, 64, 4)
     forward_dynamics(c, Q, QD, ws=ws, threads=2)
     buf = ws.tile_buffer(2)
-    assert buf.shape == (2, sum(tiles.tile_sizes.py_func(8, 16)))
-    assert ws.nbytes == before + buf.nbytes
+    # a row a thread, laid out by the layout table's Tiles rows (each whole tiles: no padding)
+    sizes = segment_sizes("tiles", sizes_of(8, 16, 0, True), False)
+    assert buf.shape == (2, sum(sizes.values()))
+    assert ws.nbytes == before + buf.nbytes + 64  # and up to 64 bytes to align it:
+    assert buf[0].ctypes.data % 64 == 0 and buf[1].ctypes.data % 64 == 0  # each row on a line
+    tree, tl = tiles.tile_bundles.py_func(ws.kernel_f, ws.kernel_i, buf[1])
+    assert all(np.array_equal(a, b) for a, b in zip(tree, ws.tree, strict=True))
+    row = (buf[1].ctypes.data, buf[1].ctypes.data + buf[1].nbytes)
+    spans = sorted((a.ctypes.data, a.ctypes.data + a.nbytes) for a in tl)
+    assert [a.size for a in tl] == [sizes[name] for name in Tiles._fields]
+    assert row[0] <= spans[0][0] and spans[-1][1] <= row[1]  # in the thread's row,
+    assert all(e <= s for (_, e), (s, _) in zip(spans[:-1], spans[1:], strict=True))  # apart
     with pytest.raises(FieldError, match="simd"):
         forward_dynamics(c, Q, QD, simd="yes")
+
+
+@numba.njit
+def _slice_tiles(fdata, idata, buf):
+    tree, tl = tiles.tile_bundles(fdata, idata, buf)
+    return tree.serial + tl.tile_bad.shape[0]
+
+
+def test_the_tiles_slicer_gives_the_layouts_types():
+    # the bundles the tile kernels are called with, as the layout declares them: C-contiguous
+    # arrays, the tiles' 1-D (an array of unknown strides, "A", would keep LLVM from vectorising
+    # the loops over states)
+    ws = Workspace(rope(8))
+    assert _slice_tiles(ws.kernel_f, ws.kernel_i, ws.tile_buffer(1)[0]) == 1 + tiles.LANES
+    typemap = _slice_tiles.overloads[_slice_tiles.signatures[0]].type_annotation.typemap
+    TREE, _, TILES = numba_types()
+    assert all(a.layout == "C" and a.ndim == 1 for a in TILES)
+    assert (typemap["tree"], typemap["tl"]) == (TREE, TILES)
 
 
 @numba.njit

@@ -419,9 +419,9 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     if tiles:
         count = thread_count(threads, tiles, split * Q.shape[1])
         bufs = ws.tile_buffer(count)
-        t = ws.tree
-        args = (t.along, t.joint_voff, t.dof_kind, t.dof_axis, t.dof_u, t.mass, t.inertia_O,
-                t.mass_com, ws.base_accel, Q, V, TAU, out)
+        # the workspace's packed arrays, from which the tiles slice their Tree and Tiles bundles
+        # in compiled code: a bundle passed from Python costs numba's dispatch ~2 us a call
+        args = (ws.kernel_f, ws.kernel_i, Q, V, TAU, out)
         if count == 1:
             bad = _tiles.forward_tiles(*args, 0, split, bufs[0])
         else:  # whole tiles to each block, the blocks on numba's threads

@@ -29,7 +29,6 @@ from redysim.algorithms._kernels.bundles import (
     sizes_of,
 )
 from redysim.algorithms._kernels.joints import BALL
-from redysim.algorithms._kernels.tiles import tile_sizes
 from redysim.errors import FieldError
 from redysim.model.tree import FREE, THREAD_WORKSPACES, Model
 
@@ -159,6 +158,8 @@ class Workspace:
         ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar)},
                             np.int64, header, start=HEADER)  # after the header
         self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar), header))
+        # a thread's row of the SIMD tiles' buffer (tile_buffer), laid out as the others
+        self._tile_items = _layout(segment_sizes("tiles", sizes, planar), header)
         self.kernel_i = np.concatenate((header, ints_packed))
         bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
         self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
@@ -179,6 +180,7 @@ class Workspace:
         self.no_accel = np.zeros(3)
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
+        self._tiles_raw: np.ndarray | None = None  # (their allocation, a little larger)
         # batches of this system can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
         # chain of revolute and prismatic axes
         self.tiles_ok = bool(t["serial"]) and not (t["dof_kind"] == BALL).any()
@@ -199,13 +201,19 @@ class Workspace:
         return [self.scratch, *extra[:count - 1]]
 
     def tile_buffer(self, count: int) -> np.ndarray:
-        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles
-        (:func:`redysim.algorithms._kernels.tiles.tile_sizes`). Made on first use and kept (grown
-        when more
-        threads are asked for)."""
+        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles,
+        laid out as the Tiles rows of the layout table say (their offsets in ``kernel_i``'s
+        header; :mod:`redysim.algorithms._kernels.tiles`). Made on first use and kept (grown when
+        more threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
-            nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
-            self._tiles = np.zeros((count, sum(tile_sizes.py_func(nb, n))))
+            # on a 64-byte boundary (each row then too: its segments are whole multiples of
+            # ALIGN items): numpy's allocation is aligned to 16 bytes only, and a buffer 16, 32
+            # or 48 bytes past a boundary made the tiles 1.07-1.35x slower (docs/design.md,
+            # "Performance notes")
+            items = count * self._tile_items
+            self._tiles_raw = np.zeros(items + ALIGN)
+            start = (-self._tiles_raw.ctypes.data // 8) % ALIGN
+            self._tiles = self._tiles_raw[start:start + items].reshape(count, self._tile_items)
         return self._tiles[:count]
 
     @property
@@ -214,4 +222,4 @@ class Workspace:
         system's arrays not counted)."""
         own = sum(v.nbytes for v in vars(self).values()
                   if isinstance(v, np.ndarray) and v.base is None)
-        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer is in own)
+        return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer's is in own)

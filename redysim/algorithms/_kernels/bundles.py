@@ -10,12 +10,17 @@ path, sliced out of a workspace's packed arrays inside compiled code (:mod:`.ent
 :data:`LAYOUT` is the one table: each array's name, dtype, shape (in the sizes nb bodies, n_v
 velocity coordinates, ng gathering bodies, and nt = nb for a tree, 0 for a serial chain) and the
 packed array that holds it (``tree_f``, ``tree_i``: the system's floats and ints; ``scratch``:
-what the kernels write), and whether it belongs to the :class:`Tree` or :class:`Scratch` bundle
-or is one of the workspace's other segments. From it follow the bundles' fields
-(:data:`Tree`, :data:`Scratch`), their numba types (:func:`numba_types`), the slot of each
-segment's offset in the int array's header (:data:`SLOT`), the packing
-(:func:`segment_sizes`) and the compiled slicer (:func:`bundles_source`, compiled in
-:mod:`.entry`).
+what the kernels write; ``tiles``: one thread's row of the SIMD tiles' buffer), and whether it
+belongs to the :class:`Tree`, :class:`Scratch` or :class:`Tiles` bundle or is one of the
+workspace's other segments. From it follow the bundles' fields (:data:`Tree`, :data:`Scratch`,
+:data:`Tiles`), their numba types (:func:`numba_types`), the slot of each segment's offset in the
+int array's header (:data:`SLOT`), the packing (:func:`segment_sizes`) and the compiled slicers
+(:func:`bundles_source`, compiled in :mod:`.entry`; :func:`slicer_source`, the tiles' in
+:mod:`.tiles`).
+
+The tiles' arrays (:mod:`.tiles`: LANES states side by side, the states the last axis) are
+``flat``: the kernels index them as one vector of their items, by unsigned indices (``tiles.at``),
+so their slicer cuts 1-D views and their numba types are 1-D; their shapes count the items.
 
 Kernels read the fields into locals at their top, once per call, and pass helpers scalars, never
 arrays: an array handed to an inlined helper in a loop costs reference counting per call, ten
@@ -38,6 +43,11 @@ import numpy as np
 
 ALONG_X, PLACED = 0, 1  # placement_code: a translation along the parent's x; any rotation and shift
 GATHER_MASS = 21  # an articulated mass's numbers: X and Z upper triangles (6 + 6), Y (9)
+# the SIMD tiles' sizes (.tiles): states per tile (a compile-time constant: the loops over states
+# have a constant trip count), and the rows of the kinematics' and backward pass's carries
+LANES = 16
+KIN_ROWS = 30  # frame (9), origin, angular velocity, s, om, dv, da, db (3 each)
+BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 
 # the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)
 HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial")
@@ -46,9 +56,10 @@ H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(len(HEADER_FIELDS))
 
 class Field(NamedTuple):
     """One array of the layout: ``shape`` in the size names nb, nb1 (= nb + 1), nv, nt, ng and
-    integers; ``array`` the packed array holding it; ``bundle`` "Tree", "Scratch" or None (a
-    segment only the workspace and the entries read); ``planar``: present only for a planar
-    chain (the planar kernel's); ``doc``: what it is."""
+    integers; ``array`` the packed array holding it; ``bundle`` "Tree", "Scratch", "Tiles" or
+    None (a segment only the workspace and the entries read); ``planar``: present only for a
+    planar chain (the planar kernel's); ``flat``: the kernels take it as a 1-D view of its items
+    (the tiles'); ``doc``: what it is."""
 
     name: str
     dtype: type
@@ -57,6 +68,7 @@ class Field(NamedTuple):
     bundle: str | None
     doc: str
     planar: bool = False
+    flat: bool = False
 
 
 F, I = np.float64, np.int64
@@ -109,6 +121,27 @@ LAYOUT: tuple[Field, ...] = (
     Field("gather_wrench", F, ("ng", 6), "scratch", "Scratch", "their biases"),
     Field("gather_twist", F, ("ng", 6), "scratch", "Scratch", "their forward carry-over"),
     Field("planar", F, ("nb", 12), "scratch", None, "the planar kernel's scratch", True),
+    # one thread's SIMD tiles (.tiles; flat, LANES states the last axis; a serial chain of R and P
+    # axes, so n_q = nv), in its row of the workspace's tile buffer
+    Field("tile_oR", F, ("nb", 9, LANES), "tiles", "Tiles", "body rotations", flat=True),
+    Field("tile_oO", F, ("nb", 3, LANES), "tiles", "Tiles", "body origins", flat=True),
+    Field("tile_oP", F, ("nv", 6, LANES), "tiles", "Tiles", "motion subspace columns", flat=True),
+    Field("tile_W", F, ("nb", 3, LANES), "tiles", "Tiles", "angular velocities", flat=True),
+    Field("tile_C", F, ("nb", 6, LANES), "tiles", "Tiles", "local twist-rates c_k", flat=True),
+    Field("tile_run", F, (KIN_ROWS, LANES), "tiles", "Tiles",
+          "the kinematics' values carried from body to body", flat=True),
+    Field("tile_car", F, (BACK_ROWS, LANES), "tiles", "Tiles",
+          "the articulated mass and bias carried from body to body", flat=True),
+    Field("tile_Psihat", F, ("nv", 6, LANES), "tiles", "Tiles", "RGE-A's Psihat", flat=True),
+    Field("tile_phitil", F, ("nv", LANES), "tiles", "Tiles", "RGE-A's phitil", flat=True),
+    Field("tile_mu", F, (6, LANES), "tiles", "Tiles", "mu, carried from body to body",
+          flat=True),
+    Field("tile_bad", F, (LANES,), "tiles", "Tiles",
+          "per state: 0 while its qdd are finite, else NaN", flat=True),
+    Field("tile_Q", F, ("nv", LANES), "tiles", "Tiles", "the tile's q", flat=True),
+    Field("tile_QD", F, ("nv", LANES), "tiles", "Tiles", "its qd", flat=True),
+    Field("tile_TAU", F, ("nv", LANES), "tiles", "Tiles", "its tau", flat=True),
+    Field("tile_QDD", F, ("nv", LANES), "tiles", "Tiles", "its qdd", flat=True),
 )
 FIELDS = {f.name: f for f in LAYOUT}
 # the slot in the int array's header of each segment's offset (in its packed array)
@@ -135,12 +168,15 @@ if TYPE_CHECKING:
     # bundles (and annotations naming them) are Any.
     Tree: TypeAlias = Any
     Scratch: TypeAlias = Any
+    Tiles: TypeAlias = Any
 else:
     Tree = _bundle("Tree", "A tree's arrays (nb bodies, nv velocity coordinates; nt = nb, or 0 "
                    "for a serial chain), body k's parent before it.\n\n    serial: 1 for a "
                    "serial chain (the nt tables then empty), else 0.", first=(("serial", int),))
     Scratch = _bundle("Scratch", "What the kernels write (all world frame; nb bodies, nv DOF, "
                       "ng gathering bodies).")
+    Tiles = _bundle("Tiles", "One thread's SIMD tile arrays (.tiles; world frame, nb bodies, nv "
+                    "DOF, LANES states side by side, each array flat).")
 
 
 def sizes_of(nb: int, nv: int, ng: int, serial: bool) -> dict[str, int]:
@@ -159,49 +195,73 @@ def segment_sizes(array: str, sizes: dict[str, int], planar: bool) -> dict[str, 
             if f.array == array and (planar or not f.planar)}
 
 
-def bundles_source(shaper: str | None = None) -> str:
-    """The Python source of ``bundles(fdata, idata, scratch)``: the Tree and Scratch bundles as
-    views of a workspace's packed arrays, every segment sliced out inline (a helper taking the
-    slot, a literal int, was compiled once per slot: 3 s of the cold compile). Compiled in
-    :mod:`.entry`; its Python form runs in the workspace itself: one layout, read in one place.
+# the argument of a generated slicer holding each packed array, and the size names' expressions
+PACKED = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch", "tiles": "buf"}
+_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "ng": "ng", "nt": "nt"}
+
+
+def _view(f: Field, shaper: str | None = None) -> str:
+    """The expression slicing field ``f`` out of its packed array (offset at its header slot);
     ``shaper``: the name of a function ``shaper(segment, shape)`` that gives a segment its shape
-    instead of ``segment.reshape(shape)`` (:mod:`.lean`'s unchecked C-contiguous view).
-    """
-    packed = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch"}
-    size = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "ng": "ng", "nt": "nt"}
+    instead of ``segment.reshape(shape)`` (:mod:`.lean`'s unchecked C-contiguous view)."""
+    a, slot = PACKED[f.array], SLOT[f.name]
+    factor = math.prod(d for d in f.shape if not isinstance(d, str))
+    names = [_SIZE[d] for d in f.shape if isinstance(d, str)]
+    count = " * ".join(([str(factor)] if factor > 1 or not names else []) + names)
+    text = f"{a}[h[{slot}]:h[{slot}] + {count}]"
+    if len(f.shape) > 1 and not f.flat:
+        dims = ", ".join(_SIZE[d] if isinstance(d, str) else str(d) for d in f.shape)
+        text = f"{shaper}({text}, ({dims}))" if shaper else text + f".reshape(({dims}))"
+    return text
 
-    def view(f: Field) -> str:
-        a, slot = packed[f.array], SLOT[f.name]
-        factor = math.prod(d for d in f.shape if not isinstance(d, str))
-        names = [size[d] for d in f.shape if isinstance(d, str)]
-        count = " * ".join(([str(factor)] if factor > 1 or not names else []) + names)
-        text = f"{a}[h[{slot}]:h[{slot}] + {count}]"
-        if len(f.shape) > 1:
-            dims = ", ".join(size[d] if isinstance(d, str) else str(d) for d in f.shape)
-            text = f"{shaper}({text}, ({dims}))" if shaper else text + f".reshape(({dims}))"
-        return text
 
-    lines = ["def bundles(fdata, idata, scratch):",
+def slicer_source(name: str, bundles: tuple[str, ...], shaper: str | None = None) -> str:
+    """The Python source of ``name(...)``: the named bundles (one, or a tuple of them) as views
+    of a workspace's packed arrays, every segment sliced out inline (a helper taking the slot, a
+    literal int, was compiled once per slot: 3 s of the cold compile). Its arguments are the
+    packed arrays the bundles' fields are in and the int array ``idata``, whose header holds the
+    sizes and offsets, in :data:`PACKED`'s order (``bundles(fdata, idata, scratch)``,
+    ``tiles_of(idata, buf)``); ``shaper`` as for :func:`_view`."""
+    fields = [f for b in bundles for f in LAYOUT if f.bundle == b]
+    args = [a for k, a in PACKED.items() if k == "tree_i" or any(f.array == k for f in fields)]
+    lines = [f"def {name}({', '.join(args)}):",
              "    h = idata",
              f"    nb, nv, ng = h[{H_NB}], h[{H_NV}], h[{H_NG}]",
-             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty",
-             f"    tree = Tree(h[{H_SERIAL}],"]
-    lines += [f"        {view(f)}," for f in LAYOUT if f.bundle == "Tree"]
-    lines += ["    )", "    s = Scratch("]
-    lines += [f"        {view(f)}," for f in LAYOUT if f.bundle == "Scratch"]
-    lines += ["    )", "    return tree, s", ""]
+             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty"]
+    for b in bundles:
+        first = f"h[{H_SERIAL}]," if b == "Tree" else ""
+        lines += [f"    {b.lower()}_ = {b}({first}"]
+        lines += [f"        {_view(f, shaper)}," for f in LAYOUT if f.bundle == b]
+        lines += ["    )"]
+    lines += [f"    return {', '.join(b.lower() + '_' for b in bundles)}", ""]
     return "\n".join(lines)
 
 
+def bundles_source(shaper: str | None = None) -> str:
+    """The Python source of ``bundles(fdata, idata, scratch)``: the Tree and Scratch bundles as
+    views of a workspace's packed arrays (:func:`slicer_source`). Compiled in :mod:`.entry` (and,
+    with ``shaper``, in :mod:`.lean`); its Python form runs in the workspace itself: one layout,
+    read in one place."""
+    return slicer_source("bundles", ("Tree", "Scratch"), shaper)
+
+
 def numba_types():
-    """(TREE, SCRATCH): the bundles' numba types, C-contiguous arrays of each field's dtype and
-    dimension (imported lazily: the Python form of the layout needs no numba)."""
+    """(TREE, SCRATCH, TILES): the bundles' numba types, C-contiguous arrays of each field's dtype
+    and dimension (1 for a flat field; imported lazily: the Python form of the layout needs no
+    numba)."""
     from numba import types
 
     def array(f: Field):
-        return types.Array(types.float64 if f.dtype is F else types.int64, len(f.shape), "C")
+        return types.Array(types.float64 if f.dtype is F else types.int64,
+                           1 if f.flat else len(f.shape), "C")
 
-    tree = types.NamedTuple((types.int64, *(array(f) for f in LAYOUT if f.bundle == "Tree")),
-                            Tree)
-    scratch = types.NamedTuple(tuple(array(f) for f in LAYOUT if f.bundle == "Scratch"), Scratch)
-    return tree, scratch
+    def named(members: tuple, cls):
+        # as numba types a NamedTuple instance: fields all of one type make a NamedUniTuple
+        if len(set(members)) == 1:
+            return types.NamedUniTuple(members[0], len(members), cls)
+        return types.NamedTuple(members, cls)
+
+    tree = named((types.int64, *(array(f) for f in LAYOUT if f.bundle == "Tree")), Tree)
+    scratch = named(tuple(array(f) for f in LAYOUT if f.bundle == "Scratch"), Scratch)
+    tiles = named(tuple(array(f) for f in LAYOUT if f.bundle == "Tiles"), Tiles)
+    return tree, scratch, tiles

@@ -42,7 +42,7 @@ F_LENGTH, F_IZZ_O, F_MC_X, F_MC_Y, S_PLANAR = (SLOT[k] for k in ("length", "izz_
 _F1, _F2 = (types.Array(types.float64, d, "C") for d in (1, 2))
 _RO = types.Array(types.float64, 1, "C", readonly=True)
 _I1 = types.Array(types.int64, 1, "C")
-TREE, SCRATCH = numba_types()
+TREE, SCRATCH = numba_types()[:2]
 SIGNATURE = types.float64(_F1, _I1, _RO, _RO, _RO, _F1, _F1)
 # the kernels as the entries call them (the bundles' types), loaded before the entries
 # (redysim._jit.EntryPoint: the callees' own machine code, not the entries' copies of it)

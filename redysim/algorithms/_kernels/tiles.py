@@ -19,6 +19,16 @@ What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set
 - the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
   time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
 
+The kernels take named bundles (:mod:`.bundles`): the system's :class:`.bundles.Tree` and one
+thread's :class:`.bundles.Tiles`, the tile arrays, declared in the layout table beside the
+others (flat, their shapes in nb, nv and LANES); each kernel reads the fields it needs into
+locals at its top. :func:`forward_tiles` slices both bundles out of a workspace's packed arrays
+and its thread's row of the tile buffer, in compiled code (:data:`tile_bundles`, generated from
+the table; a bundle passed from Python costs numba's dispatch ~2 us a call). numba hands a
+bundle's arrays to a compiled function as separate pointer arguments, each declared noalias as
+the positional arrays were: LLVM vectorises the same loops into the same packed instructions, and
+a batch runs as fast (docs/design.md, "Performance notes"; ``benchmarks/ab_tiles.py``).
+
 Scope: a serial chain (``Tree.serial``) whose joints are revolute and prismatic axes (R, P, U,
 ...; no ball joint), the spatial recursion. The results agree with the single calls to rounding
 (the operations are the single kernels', grouped alike, but a U joint's two axes are eliminated
@@ -34,8 +44,9 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from redysim._jit import inline, jit, jit_parallel, jit_tiles
+from redysim._jit import inline, inline_generated, jit_borrowed, jit_parallel, jit_tiles
 
+from .bundles import BACK_ROWS, KIN_ROWS, LANES, SLOT, Tiles, Tree, slicer_source
 from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
 from .rge_a import articulated_bias, shift_to_parent
 
@@ -44,17 +55,22 @@ TWO_OVER_PI = 6.36619772367581382433e-01
 PIO2_1, PIO2_1T = 1.57079632673412561417e+00, 6.07710050650619224932e-11
 PIO2_2, PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
 
-# rows of the kinematics carry: frame r (9), origin O (3), angular velocity w (3), s (3),
-# om (3), dv (3), da (3), db (3)
+# rows of the kinematics carry (Tiles.tile_run, KIN_ROWS): frame r (9), origin O (3), angular
+# velocity w (3), s (3), om (3), dv (3), da (3), db (3)
 KR, KO, KW, KS, KOM, KDV, KDA, KDB = 0, 9, 12, 15, 18, 21, 24, 27
-KIN_ROWS = 30
-# rows of the backward carry: X (6), Y (9), Z (6), n (3), f (3)
+# rows of the backward carry (Tiles.tile_car, BACK_ROWS): X (6), Y (9), Z (6), n (3), f (3)
 BX, BY, BZ, BN, BF = 0, 6, 15, 21, 24
-BACK_ROWS = 27
-# states per tile: every tile array is (rows, LANES) flattened, LANES a compile-time constant,
-# so that the loops over states have a constant trip count and the rows constant strides (16:
-# as fast per state as 32 here, and half the work lost in a batch's last, partial tile)
-LANES = 16
+assert KDB + 3 == KIN_ROWS and BF + 3 == BACK_ROWS  # the layout's sizes (.bundles)
+# LANES, states per tile (.bundles): every tile array is (rows, LANES) flattened, LANES a
+# compile-time constant, so that the loops over states have a constant trip count and the rows
+# constant strides (16: as fast per state as 32 here, and half the work lost in a batch's last,
+# partial tile)
+F_BASE_ACCEL = SLOT["base_accel"]  # the header slot of -g's offset in the workspace's floats
+
+# The Tree bundle and one thread's Tiles as views of a workspace's packed arrays and of its row of
+# the tile buffer, generated from the layout table (.bundles.slicer_source)
+tile_bundles = inline_generated(slicer_source("tile_bundles", ("Tree", "Tiles")), "tile_bundles",
+                                dict(Tree=Tree, Tiles=Tiles))
 
 
 @inline
@@ -93,12 +109,15 @@ def sincos_reduced(x):
 
 
 @jit_tiles
-def tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Q, QD, oR, oO, oP, W, C,
-                     run):
+def tile_kinematics(tree, tl):
     """The kinematics pass with ``local_rates`` (:func:`.kinematics.kinematics`) for a tile of
-    a serial chain's states (L = LANES; every array flat, :func:`at`): Q, QD (n, L); writes oR
-    (nb, 9, L), oO (nb, 3, L), oP (n, 6, L), W (nb, 3, L) (angular velocities) and C (nb, 6, L)
-    (local twist-rates c_k). ``run``: (KIN_ROWS, L)."""
+    a serial chain's states (L = LANES; every array flat, :func:`at`): reads ``tl``'s Q, QD (n,
+    L); writes its oR (nb, 9, L), oO (nb, 3, L), oP (n, 6, L), W (nb, 3, L) (angular
+    velocities) and C (nb, 6, L) (local twist-rates c_k), carrying ``run`` (KIN_ROWS, L)."""
+    along, joint_voff, dof_kind = tree.along, tree.joint_voff, tree.dof_kind
+    dof_axis, dof_u = tree.dof_axis, tree.dof_u
+    Q, QD, oR, oO, oP = tl.tile_Q, tl.tile_QD, tl.tile_oR, tl.tile_oO, tl.tile_oP
+    W, C, run = tl.tile_W, tl.tile_C, tl.tile_run
     nb = along.shape[0]
     for b in range(LANES):
         for i in range(KIN_ROWS):
@@ -266,11 +285,14 @@ def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
 
 
 @jit_tiles
-def tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, TAU,
-                   Psihat, phitil, car):
+def tile_backward(tree, tl):
     """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial, axis by axis) for a tile:
-    reads the tile's kinematics and TAU (n, L); writes Psihat (n, 6, L) and phitil (n, L).
-    ``car``: (BACK_ROWS, L), the articulated mass and bias carried from body to body."""
+    reads ``tl``'s kinematics and TAU (n, L); writes its Psihat (n, 6, L) and phitil (n, L),
+    carrying the articulated mass and bias from body to body in ``car`` (BACK_ROWS, L)."""
+    mass, inertia_O, mass_com = tree.mass, tree.inertia_O, tree.mass_com
+    joint_voff, dof_kind = tree.joint_voff, tree.dof_kind
+    oR, oO, oP, W, C, TAU = tl.tile_oR, tl.tile_oO, tl.tile_oP, tl.tile_W, tl.tile_C, tl.tile_TAU
+    Psihat, phitil, car = tl.tile_Psihat, tl.tile_phitil, tl.tile_car
     nb = mass.shape[0]
     for b in range(LANES):
         for i in range(BACK_ROWS):
@@ -485,10 +507,13 @@ def _bias_and_shift(k, shift, oO, C, car):
 
 
 @jit_tiles
-def tile_forward(joint_voff, oO, oP, Psihat, phitil, C, base_accel, QDD, mu, bad):
-    """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for a tile: QDD (n, L).
-    ``mu``: (6, L), carried from body to body; ``bad`` (L,): 0 where every qdd of that state is
-    finite, NaN where one is not."""
+def tile_forward(tree, tl, base_accel):
+    """RGE-A's forward pass (:func:`.rge_a.rge_a_forward`, serial) for a tile: writes ``tl``'s
+    QDD (n, L), carrying ``mu`` (6, L) from body to body, and ``bad`` (L,): 0 where every qdd of
+    that state is finite, NaN where one is not."""
+    joint_voff = tree.joint_voff
+    oO, oP, Psihat, phitil, C = tl.tile_oO, tl.tile_oP, tl.tile_Psihat, tl.tile_phitil, tl.tile_C
+    QDD, mu, bad = tl.tile_QDD, tl.tile_mu, tl.tile_bad
     nb = joint_voff.shape[0] - 1
     for b in range(LANES):
         mu[at(0, b)] = C[at(0 * 6 + 0, b)]
@@ -574,48 +599,24 @@ def tile_out(src, t0, count, dst):
             dst[t0 + b, j] = src[at(j, b)]
 
 
-@inline
-def tile_sizes(nb, n):
-    """The lengths of one thread's tile arrays (:func:`tile_views`), for a chain of nb bodies and
-    n DOF: oR, oO, oP, W, C, run, car, Psihat, phitil, mu, bad, Q, QD, TAU, QDD. (Python calls
-    its ``py_func``: one layout for both.)"""
-    return (nb * 9 * LANES, nb * 3 * LANES, n * 6 * LANES, nb * 3 * LANES, nb * 6 * LANES,
-            KIN_ROWS * LANES, BACK_ROWS * LANES, n * 6 * LANES, n * LANES, 6 * LANES, LANES,
-            n * LANES, n * LANES, n * LANES, n * LANES)
-
-
-@inline
-def tile_views(buf, nb, n):
-    """One thread's tile arrays, as views of its row ``buf`` of the tile buffer."""
-    sizes = tile_sizes(nb, n)
-    o = np.zeros(16, dtype=np.int64)
-    for i in range(15):
-        o[i + 1] = o[i] + sizes[i]
-    return (buf[o[0]:o[1]], buf[o[1]:o[2]], buf[o[2]:o[3]], buf[o[3]:o[4]], buf[o[4]:o[5]],
-            buf[o[5]:o[6]], buf[o[6]:o[7]], buf[o[7]:o[8]], buf[o[8]:o[9]], buf[o[9]:o[10]],
-            buf[o[10]:o[11]], buf[o[11]:o[12]], buf[o[12]:o[13]], buf[o[13]:o[14]],
-            buf[o[14]:o[15]])
-
-
-@jit
-def forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O, mass_com,
-                  base_accel, Q, QD, TAU, QDD, first, last, buf):
-    """QDD rows first..last - 1 by tiles of LANES states (the last one possibly partial), in
-    the tile arrays of ``buf`` (a row of the workspace's tile buffer, :func:`tile_sizes`). TAU
-    has B rows or one (the same for every state). Returns -1, or the first row whose qdd is not
-    finite."""
-    nb, n = mass.shape[0], dof_kind.shape[0]
-    (oR, oO, oP, W, C, run, car, Ps, pt, mu, bad, Qt, QDt, Tt, QDDt) = tile_views(buf, nb, n)
+@jit_borrowed
+def forward_tiles(fdata, idata, Q, QD, TAU, QDD, first, last, buf):
+    """QDD rows first..last - 1 by tiles of LANES states (the last one possibly partial), for
+    the system of a workspace's packed arrays ``fdata``, ``idata``, in the tile arrays of ``buf``
+    (a row of the workspace's tile buffer, laid out as its header says: the Tiles rows of
+    :data:`.bundles.LAYOUT`). TAU has B rows or one (the same for every state). Returns -1, or
+    the first row whose qdd is not finite."""
+    tree, tl = tile_bundles(fdata, idata, buf)
+    base_accel = fdata[idata[F_BASE_ACCEL]:idata[F_BASE_ACCEL] + 3]
+    Qt, QDt, Tt, QDDt, bad = tl.tile_Q, tl.tile_QD, tl.tile_TAU, tl.tile_QDD, tl.tile_bad
     for t0 in range(first, last, LANES):
         count = min(LANES, last - t0)
         tile_in(Q, t0, count, Qt)
         tile_in(QD, t0, count, QDt)
         tile_in(TAU, t0, count, Tt)
-        tile_kinematics(along, joint_voff, dof_kind, dof_axis, dof_u, Qt, QDt, oR, oO, oP, W, C,
-                        run)
-        tile_backward(mass, inertia_O, mass_com, joint_voff, dof_kind, oR, oO, oP, W, C, Tt, Ps,
-                      pt, car)
-        tile_forward(joint_voff, oO, oP, Ps, pt, C, base_accel, QDDt, mu, bad)
+        tile_kinematics(tree, tl)
+        tile_backward(tree, tl)
+        tile_forward(tree, tl, base_accel)
         for b in range(count):
             if bad[b] != 0.0:
                 return t0 + b
@@ -624,11 +625,8 @@ def forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
 
 
 @jit_parallel
-def forward_tiles_parallel(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
-                           mass_com, base_accel, Q, QD, TAU, QDD, edges, bufs, failed):
+def forward_tiles_parallel(fdata, idata, Q, QD, TAU, QDD, edges, bufs, failed):
     """:func:`forward_tiles` for rows edges[i]..edges[i + 1] - 1 in row i of ``bufs``, the
     blocks run by numba's threads; failed[i] is block i's result."""
     for i in prange(edges.shape[0] - 1):
-        failed[i] = forward_tiles(along, joint_voff, dof_kind, dof_axis, dof_u, mass, inertia_O,
-                                  mass_com, base_accel, Q, QD, TAU, QDD, edges[i], edges[i + 1],
-                                  bufs[i])
+        failed[i] = forward_tiles(fdata, idata, Q, QD, TAU, QDD, edges[i], edges[i + 1], bufs[i])
