@@ -190,17 +190,17 @@ class Workspace:
 
     def scratches(self, count: int) -> list[np.ndarray]:
         """``count`` scratch arrays of this workspace's layout, the first its own: one for each
-        thread of a batch (:func:`redysim.forward_dynamics` with (B, n) arrays). Made on first
-        use and kept."""
+        of your threads that run the kernels on this workspace's layout. Made on first use and
+        kept. (A batch's helper threads keep scratch of their own: :mod:`redysim.dynamics`.)"""
         extra = self._extra_scratch
         while len(extra) < count - 1:
             extra.append(np.empty_like(self.scratch))
         return [self.scratch, *extra[:count - 1]]
 
     def tile_buffer(self, count: int) -> np.ndarray:
-        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles
-        (:func:`redysim._kernels.tiles.tile_sizes`). Made on first use and kept (grown when more
-        threads are asked for)."""
+        """(count, size): a row of the SIMD tiles' arrays for each of ``count`` threads (a
+        batch's calling thread takes row 0; :func:`redysim._kernels.tiles.tile_sizes`). Made on
+        first use and kept (grown when more threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
             nb, n = self.tree.mass.shape[0], self.tree.dof_kind.shape[0]
             self._tiles = np.zeros((count, sum(tile_sizes.py_func(nb, n))))
