@@ -14,7 +14,7 @@ help:
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
-	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=),"
+	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=; batches beside a busy process),"
 	@echo "                   appended to the performance history benchmarks/history/bench.jsonl (commit it)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too)"
 	@echo "make lint          ruff"
@@ -74,6 +74,7 @@ bench-core: $(STAMP)
 	$(BIN)/python benchmarks/float32_speed.py
 	$(BIN)/python benchmarks/step_cost.py
 	$(BIN)/python benchmarks/default_path.py
+	$(BIN)/python benchmarks/busy_batch.py
 	$(BIN)/python -m pytest benchmarks/test_bench_core.py --benchmark-only --benchmark-enable \
 		--benchmark-columns=min,median,mean,rounds --benchmark-sort=name \
 		--benchmark-json=results/bench/core.json $(BENCH_ARGS)

@@ -16,7 +16,8 @@ here are one process per core: OpenBLAS's own threads on top made SciPy's Choles
 GIM 150x slower on a 2-core machine (0.23 s instead of 1.5 ms per call) and a 100,000-DOF long
 run burn 1.5 cores for the work of one. Without threadpoolctl (an install without the
 ``harness`` extra, which runs no process pool) only the environment is set: the processes this
-one starts take one thread; this one keeps the BLAS threads numpy started with.
+one starts take one thread; this one keeps the BLAS threads numpy started with. Likewise a pool
+worker runs redysim's batches on one thread (:func:`worker_threads`).
 """
 
 import os
@@ -44,3 +45,17 @@ def limit_blas_threads() -> None:
 
 
 limit_blas_threads()
+
+# redysim's batches (forward_dynamics on (B, n) arrays, simulate_batch) use every core unless this
+# variable says otherwise (redysim.algorithms.dynamics.default_threads). The harness's process pools
+# run one process per core: their workers take one thread each (worker_threads).
+REDYSIM_THREADS = "REDYSIM_THREADS"
+
+
+def worker_threads() -> None:
+    """In a pool worker process (the sweeps' and refinement's pools, the local Dask cluster's
+    workers): one thread for redysim's batches, unless the environment already sets
+    REDYSIM_THREADS (then that). BLAS is one thread already (:func:`limit_blas_threads`, run on
+    import, and the environment a worker inherits); no kernel uses numba's own threads."""
+    if not os.environ.get(REDYSIM_THREADS):
+        os.environ[REDYSIM_THREADS] = "1"

@@ -522,8 +522,11 @@ def finer_references(studies: dict, workers: int, log=print) -> dict:
     if todo:
         log(f"refine: the ropes at twice the finest's links (DOP853 {FINER_RTOL:g}): "
             f"{', '.join(todo)}")
+        from . import worker_threads
+
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx) as pool:
+        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx,
+                                 initializer=worker_threads) as pool:
             futures = {scene: pool.submit(finer_tips, *args) for scene, (args, _) in
                        todo.items()}
             for scene, fut in futures.items():

@@ -83,6 +83,7 @@ from redysim.errors import CaseError, FieldError, SettingsError
 from redysim.integrators.explicit import ALIASES, INTEGRATORS
 from redysim.io.cases import is_case_name
 
+from . import REDYSIM_THREADS, worker_threads
 from .run import execute
 from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec
 from .store import (
@@ -640,6 +641,13 @@ def _store(out: Path, spec: RunSpec, summary: dict, samples: pd.DataFrame | None
     write_parquet_atomic(pd.DataFrame([summary]), out / RUNS_DIR / f"{spec.run_id}.parquet")
 
 
+def _init_worker(parent: int) -> None:
+    """A pool worker's start: one thread for batches (:func:`redysim.harness.worker_threads`:
+    the pool already runs a process per core) and a watch on its sweep."""
+    worker_threads()
+    _watch_parent(parent)
+
+
 def _watch_parent(parent: int) -> None:
     """In a pool worker: exit as soon as the sweep that started it is gone (a ``kill -9`` of the
     sweep left its workers, ~265 MB each, running for ever)."""
@@ -669,7 +677,7 @@ def _pool_results(work: _Work, workers: int,
         while not work.empty or suspects or running:
             if pool is None:
                 pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                           initializer=_watch_parent, initargs=(os.getpid(),))
+                                           initializer=_init_worker, initargs=(os.getpid(),))
             broken = False
             while len(running) < (1 if suspects else workers):
                 spec = (suspects.popleft() if suspects
@@ -723,7 +731,8 @@ def _dask_results(work: _Work, address: str,
         if address == DASK_LOCAL:
             cluster = stack.enter_context(LocalCluster(
                 n_workers=DASK_LOCAL_WORKERS, processes=True, threads_per_worker=1,
-                dashboard_address=None, silence_logs=logging.ERROR))
+                dashboard_address=None, silence_logs=logging.ERROR,
+                env={REDYSIM_THREADS: os.environ.get(REDYSIM_THREADS) or "1"}))
             client = stack.enter_context(Client(cluster))
         else:
             try:

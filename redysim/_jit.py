@@ -51,11 +51,6 @@ jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
 TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True)
 jit_tiles: _JITWrapper = numba.njit(**TILE_OPTIONS)
-# A batch's blocks of tiles run on numba's own threads (prange): its threading layer hands a block
-# to a thread in ~2 us here, a Python thread pool in ~80 us (a 64-state batch at 250 DOF takes ~300
-# us on one core). redysim.algorithms.dynamics serialises these launches (numba's workqueue layer,
-# its fallback without OpenMP or TBB, must not be entered from two threads at once).
-jit_parallel: _JITWrapper = numba.njit(**dict(OPTIONS, parallel=True))
 
 
 def inline(func):

@@ -676,14 +676,16 @@ def simulate(system: Model, t_end: float, *, q0=None, v0=None,
 def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
                    threads: int | None = None, **settings) -> list[Simulation]:
     """Independent motions of one system from the rows of q0 (B, n_q) and v0 (B, n_v) (default
-    zeros): :func:`simulate` of each row, each with its own step sizes, the rows split over
-    ``threads`` threads (default: every core this process may use). The steps run in compiled code
-    without the GIL (:class:`redysim.integrators.explicit.CompiledSolver`), so the threads run at
-    once; each result's ``cpu_s`` is its own thread's. ``settings``: :func:`simulate`'s keywords
-    (integrator, rtol, atol, h, sample, damping); not ``progress`` or ``loops``. Everything is
-    checked before any thread starts: a bad or unknown setting raises SettingsError naming it, a q0
-    or v0 that is not a 2-D array of rows StateError saying what a batch needs. A row that fails
-    raises its StateError, naming the row.
+    zeros): :func:`simulate` of each row, each with its own step sizes, the rows handed out one at a
+    time to the calling thread and up to ``threads`` - 1 helper threads (default
+    :func:`redysim.algorithms.dynamics.default_threads`: every core this process may use, or
+    ``REDYSIM_THREADS``); the caller waits at the end for the rows helpers have started. The steps
+    run in compiled code without the GIL (:class:`redysim.integrators.explicit.CompiledSolver`), so
+    the threads run at once; each result's ``cpu_s`` is its own thread's. ``settings``:
+    :func:`simulate`'s keywords (integrator, rtol, atol, h, sample, damping); not ``progress`` or
+    ``loops``. Everything is checked before any thread starts: a bad or unknown setting raises
+    SettingsError naming it, a q0 or v0 that is not a 2-D array of rows StateError saying what a
+    batch needs. A row that fails raises its StateError, naming the row.
     """
     from redysim.algorithms.dynamics import check_batch, run_blocks
 
@@ -715,7 +717,7 @@ def simulate_batch(system: Model, t_end: float, *, q0, v0=None,
         check_batch(system, "v", v0, Q0.shape[0])
     out: list[Simulation | None] = [None] * Q0.shape[0]
 
-    def rows(_block, first, last):
+    def rows(first, last, _own):
         for i in range(first, last):
             try:
                 out[i] = simulate(system, t_end, q0=Q0[i], v0=V0[i], **settings)

@@ -8,6 +8,8 @@ single calls' correctness is the other files' business.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from test_trees import random_configuration, random_tree
@@ -139,3 +141,307 @@ def test_a_bad_row_of_a_batch_of_motions_is_named():
         redysim.simulate_batch(s, 0.01, q0=Q0, threads=2)
     with pytest.raises(redysim.SettingsError, match="progress"):
         redysim.simulate_batch(s, 0.01, q0=Q0[:2], progress=print)
+
+
+# --------------------------------------------------------------------------- threads A batch's rows
+# go out in chunks from a shared counter: the calling thread takes chunks until none are left,
+# helper threads take chunks when they get to run (redysim.algorithms.dynamics.run_blocks). These
+# pin what that must not change: every row done, each row's bits whatever the chunking and whoever
+# ran it, errors raised on a helper reaching the caller, and threads=1 one call.
+
+CHUNKINGS = [1, 37, 250, 10**6]  # CHUNK_WORK: a chunk a row (or tile), uneven, ~, one chunk
+
+
+@pytest.fixture
+def idle(monkeypatch):
+    """Helpers wanted whatever the machine runs (a batch takes no more helpers than there are
+    idle cores: on a busy test machine these tests would otherwise run on one thread)."""
+    from redysim.algorithms import dynamics
+
+    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: wanted)
+
+
+@pytest.mark.parametrize("chunk_work", CHUNKINGS)
+@pytest.mark.parametrize("system", SYSTEMS)
+def test_every_row_is_its_single_call_whatever_the_chunks(system, chunk_work, monkeypatch,
+                                                          idle):
+    from redysim.algorithms import dynamics
+
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", chunk_work)
+    s = SYSTEMS[system]()
+    Q, QD, TAU = states(s, 45, 8)
+    singles = np.array([forward_dynamics(s, Q[i], QD[i], TAU[i]) for i in range(len(Q))])
+    tau = np.array([inverse_dynamics(s, Q[i], QD[i], singles[i]) for i in range(len(Q))])
+    for threads in (2, 3):
+        out = np.full(QD.shape, np.nan)  # every row written
+        assert forward_dynamics(s, Q, QD, TAU, threads=threads, simd=False, out=out) is out
+        assert np.array_equal(out, singles)
+        assert np.array_equal(inverse_dynamics(s, Q, QD, singles, threads=threads), tau)
+
+
+@pytest.mark.parametrize("rows", [64, 16 * 5 + 9, 16 * 3 + 5])  # tiles; a tail tile; tail rows
+@pytest.mark.parametrize("chunk_work", CHUNKINGS)
+def test_the_tiles_bits_do_not_depend_on_threads_or_chunks(rows, chunk_work, monkeypatch,
+                                                           idle):
+    """Chunks are whole tiles from row 0 (no lane left empty but in the last tile) and the rows
+    after the last tile one more chunk: the same rows run in tiles as on one thread, the same
+    rows one by one, and each row has the same bits."""
+    from redysim.algorithms import dynamics
+    from redysim.algorithms._kernels import tiles
+
+    s = rope(30)
+    Q, QD, TAU = states(s, rows, 9)
+    one = forward_dynamics(s, Q, QD, TAU, threads=1)
+    split = rows - rows % 16 if rows % 16 < dynamics.TILE_MIN_ROWS else rows
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", chunk_work)
+    kernel, chunks = tiles.forward_tiles, []
+
+    def spy(*args):  # the rows each call runs, in rows of Q (args[2]; a helper gets slices of it)
+        at = (args[2].ctypes.data - Q.ctypes.data) // Q.strides[0]
+        chunks.append((at + args[-3], at + args[-2]))
+        return kernel(*args)
+
+    monkeypatch.setattr(tiles, "forward_tiles", spy)
+    for threads in (2, 3, 8):
+        chunks.clear()
+        out = np.full_like(Q, np.nan)
+        forward_dynamics(s, Q, QD, TAU, threads=threads, out=out)
+        assert np.array_equal(out, one)
+        assert sorted(chunks)[0][0] == 0 and max(last for _, last in chunks) == split
+        assert all(first % 16 == 0 and (last % 16 == 0 or last == split)
+                   for first, last in chunks), chunks
+
+
+def test_one_thread_is_one_call_on_the_calling_thread(monkeypatch):
+    """threads=1: the kernels see the whole batch in one call, on the caller's thread (as
+    before chunks), in tiles and in rows."""
+    import threading
+
+    from redysim.algorithms._kernels import batch, tiles
+
+    calls = []
+
+    def spy(name, kernel):
+        def wrapped(*args):
+            calls.append((name, args[-3:-1] if name == "tiles" else args[-2:],
+                          threading.get_ident()))
+            return kernel(*args)
+        return wrapped
+
+    monkeypatch.setattr(tiles, "forward_tiles", spy("tiles", tiles.forward_tiles))
+    monkeypatch.setattr(batch, "forward_rows", spy("rows", batch.forward_rows))
+    s = rope(30)
+    Q, QD, _ = states(s, 16 * 3 + 5, 10)  # three tiles, then 5 rows one by one
+    forward_dynamics(s, Q, QD, threads=1)
+    me = threading.get_ident()
+    assert calls == [("tiles", (0, 48), me), ("rows", (48, 53), me)]
+    calls.clear()
+    forward_dynamics(s, Q, QD, threads=1, simd=False)
+    assert calls == [("rows", (0, 53), me)]
+
+
+def test_an_error_on_a_helper_thread_reaches_the_caller():
+    """A chunk that raises on a helper: the caller raises it; with several chunks raising, the
+    lowest one's exception (as one thread would have met first)."""
+    import threading
+
+    from redysim.algorithms.dynamics import run_blocks
+
+    helper_ran = threading.Event()
+    ran = []
+
+    def call(first, last, own):
+        if own is None and first == 0:  # the caller's first chunk: held until a helper runs one
+            assert helper_ran.wait(60), "no helper thread ran a chunk"
+        elif own is not None:
+            helper_ran.set()
+        ran.append((first, own is None))
+        if first in (3, 5):
+            raise ValueError(f"chunk {first}, {'caller' if own is None else 'helper'}")
+        return first
+
+    for commit in (None, lambda first, last, result: None):
+        helper_ran.clear()
+        ran.clear()
+        with pytest.raises(ValueError, match="chunk 3"):
+            run_blocks(8, 2, lambda f, l, o, c=commit: call(f, l, o) if c is None or o is None
+                       else (call(f, l, o), None), commit=commit)
+        assert (0, True) in ran and any(not caller for _, caller in ran)
+    # without errors: every chunk once, the values in row order, on both threads
+    helper_ran.clear()
+    ran.clear()
+    assert run_blocks(8, 2, lambda f, l, o: call(f, l, o) if f not in (3, 5) else -f) == \
+        [0, 1, 2, -3, 4, -5, 6, 7]
+    assert sorted(first for first, _ in ran) == [0, 1, 2, 4, 6, 7]
+    assert {caller for _, caller in ran} == {True, False}
+
+
+def test_the_caller_takes_back_a_chunk_its_helper_is_late_with():
+    """A helper held up in a chunk (by the OS, say) holds up nobody: the caller runs that chunk
+    itself and returns; the helper's result, when it comes, is dropped."""
+    import threading
+
+    from redysim.algorithms.dynamics import run_blocks
+
+    started, release = threading.Event(), threading.Event()
+    committed, out = [], [None] * 6
+
+    def call(first, last, own):
+        if own is None:
+            if first == 0:
+                assert started.wait(60), "no helper thread ran a chunk"
+            out[first] = ("caller", first)
+            return first
+        started.set()
+        release.wait(60)  # held up until the caller has returned
+        return first, ("helper", first)
+
+    def commit(first, last, result):
+        committed.append(first)
+        out[first] = result
+
+    try:
+        values = run_blocks(6, 2, call, commit=commit)
+    finally:
+        release.set()
+    assert values == list(range(6))
+    assert out == [("caller", i) for i in range(6)] and committed == []
+
+
+def test_a_bad_row_on_threads_is_the_lowest_bad_row(monkeypatch, idle):
+    from redysim.algorithms import dynamics
+
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 1)  # a chunk a row: the bad rows far apart
+    s = rope(8)
+    Q, QD, _ = states(s, 40, 11)
+    Q[33, 2] = Q[7, 1] = np.nan
+    for simd in (True, False):
+        with pytest.raises(StateError, match=r"state 7 of the batch.*q\[1\] = nan"):
+            forward_dynamics(s, Q, QD, threads=2, simd=simd)
+
+
+def test_a_batch_inside_a_batch_does_not_wait_for_busy_helpers(idle):
+    """A batch run from a helper's chunk (simulate_batch rows calling batches, say): the inner
+    caller works through its own chunks, whether or not a helper is free."""
+    import threading
+
+    from redysim.algorithms.dynamics import run_blocks
+
+    s = rope(20)
+    Q, QD, _ = states(s, 64, 12)
+    want = forward_dynamics(s, Q, QD, threads=1)
+    got = {}
+
+    def outer(first, last, own):
+        for i in range(first, last):
+            got[i] = forward_dynamics(s, Q, QD, threads=3)
+
+    t = threading.Thread(target=run_blocks, args=(4, 3, outer))
+    t.start()
+    t.join(120)
+    assert not t.is_alive(), "nested batches deadlocked"
+    assert sorted(got) == [0, 1, 2, 3] and all(np.array_equal(v, want) for v in got.values())
+
+
+def test_no_helper_joins_a_batch_when_no_core_is_idle(monkeypatch):
+    """A batch posts itself to the helpers watching for work, and wakes sleeping ones only for
+    the cores idle at its start; with none, it runs on the calling thread alone (the same
+    bits)."""
+    from redysim.algorithms import dynamics
+
+    posted, jobs = [], dynamics._JOBS
+
+    class Jobs:  # the helpers' queue, counting what is posted to it
+        get, get_nowait = jobs.get, jobs.get_nowait
+
+        def put(self, job):
+            posted.append(job)
+            jobs.put(job)
+
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 100)
+    monkeypatch.setattr(dynamics, "_JOBS", Jobs())
+    s = rope(30)
+    Q, QD, _ = states(s, 64, 15)
+    want = forward_dynamics(s, Q, QD, threads=1)
+    rows = want_rows(s, Q, QD)
+    # (watching helpers, idle cores) -> helpers posted to, of the 3 a 4-thread batch wants
+    for watching, idle, helpers in ((0, 0, 0), (0, -3, 0), (0, 1, 1), (0, 5, 3), (2, 0, 2),
+                                    (3, 0, 3), (1, None, 3)):
+        monkeypatch.setattr(dynamics, "watching_helpers", lambda w=watching: w)
+        monkeypatch.setattr(dynamics, "idle_cores", lambda i=idle: i)
+        for simd, expected in ((True, want), (False, rows)):
+            monkeypatch.setattr(dynamics, "_IDLE", [-1.0, 0])  # (no earlier look)
+            posted.clear()
+            assert np.array_equal(forward_dynamics(s, Q, QD, threads=4, simd=simd), expected)
+            assert len(posted) == helpers, (watching, idle, simd)
+
+
+def want_rows(s, Q, QD):
+    return np.array([forward_dynamics(s, Q[i], QD[i]) for i in range(len(Q))])
+
+
+def test_idle_cores_counts_the_machine():
+    import os
+
+    from redysim.algorithms import dynamics
+
+    idle = dynamics.idle_cores()
+    if not os.path.exists("/proc/loadavg"):
+        assert idle is None
+    else:  # this thread runs: at most every other core is idle (our watching helpers aside)
+        assert isinstance(idle, int)
+        assert idle <= (os.cpu_count() or 1) - 1 + dynamics.watching_helpers()
+
+
+def test_the_default_thread_count_follows_the_environment(monkeypatch):
+    from redysim.algorithms.dynamics import THREADS_VARIABLE, default_threads
+
+    monkeypatch.delenv(THREADS_VARIABLE, raising=False)
+    cores = default_threads()
+    assert cores >= 1
+    monkeypatch.setenv(THREADS_VARIABLE, "1")
+    assert default_threads() == 1
+    s = rope(30)
+    Q, QD, _ = states(s, 64, 13)
+    assert np.array_equal(forward_dynamics(s, Q, QD), forward_dynamics(s, Q, QD, threads=2))
+    for bad in ("0", "two", "-3", "1.5"):
+        monkeypatch.setenv(THREADS_VARIABLE, bad)
+        with pytest.raises(FieldError, match=f"REDYSIM_THREADS = '{re.escape(bad)}': must be"):
+            forward_dynamics(s, Q, QD)
+    monkeypatch.setenv(THREADS_VARIABLE, "two")
+    assert forward_dynamics(s, Q, QD, threads=1).shape == Q.shape  # threads given: not read
+
+
+def test_pool_workers_take_one_thread_unless_told(monkeypatch):
+    pytest.importorskip("pandas")
+    from redysim.algorithms.dynamics import THREADS_VARIABLE, default_threads
+    from redysim.harness import REDYSIM_THREADS, worker_threads
+
+    assert REDYSIM_THREADS == THREADS_VARIABLE
+    monkeypatch.delenv(THREADS_VARIABLE, raising=False)
+    worker_threads()
+    assert default_threads() == 1
+    monkeypatch.setenv(THREADS_VARIABLE, "3")
+    worker_threads()
+    assert default_threads() == 3
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="no fork here")
+def test_a_forked_child_runs_threaded_batches():
+    """The helper threads do not survive a fork: the child starts its own (os.register_at_fork),
+    and its batches run (on the caller alone, were there no helpers)."""
+    import os
+
+    s = rope(30)
+    Q, QD, _ = states(s, 64, 14)
+    want = forward_dynamics(s, Q, QD, threads=1)
+    forward_dynamics(s, Q, QD, threads=2)  # the parent's helpers exist
+    pid = os.fork()
+    if pid == 0:  # the child: exit 0 only if its threaded batch has the bits
+        ok = False
+        try:
+            ok = np.array_equal(forward_dynamics(s, Q, QD, threads=2), want)
+        finally:
+            os._exit(0 if ok else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0

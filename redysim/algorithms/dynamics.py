@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 import reprlib
 import threading
+import time
 from typing import Literal, NamedTuple, overload
 
 import numpy as np
@@ -186,7 +188,7 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     """tau = I(q) qdd + C(q, v) v + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
 
     A batch: q (B, n_q), v and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
-    rows split over threads (``threads``, as for :func:`forward_dynamics`).
+    rows on threads (``threads``, as for :func:`forward_dynamics`).
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
@@ -232,12 +234,16 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
         ``False`` forces the spatial recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
 
-    A batch: q (B, n_q) and v (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau
-    (B, n_v), or (n_v,) for every state; ``out`` (B, n_v). RGE-A only. The rows run in compiled code
-    split over ``threads`` threads (default: every core this process may use, one for batches under
-    ~5,000 DOF-states, where handing rows to a thread costs more than it saves), each with its own
-    scratch of ``ws`` (:meth:`Workspace.scratches`). With ``simd`` (the default), a serial chain of
-    revolute and prismatic axes in the spatial recursion runs its states 16 at a time in SIMD lanes
+    A batch: q (B, n_q) and v (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau (B,
+    n_v), or (n_v,) for every state; ``out`` (B, n_v). RGE-A only. The rows run in compiled code on
+    up to ``threads`` threads (default :func:`default_threads`: every core this process may use, or
+    ``REDYSIM_THREADS``), in chunks of up to 8,000 DOF-states (a smaller batch runs on the calling
+    thread): the caller works through the chunks, and helper threads take chunks too when they get a
+    core, each in arrays of its own; a helper is woken only for a core idle at that instant, and a
+    chunk a helper is late with the caller runs itself, so that a busy machine costs a batch no more
+    than a few percent over ``threads=1`` (docs/design.md, "Threads under load"). Each row's bits do
+    not depend on the threads. With ``simd`` (the default), a serial chain of revolute and prismatic
+    axes in the spatial recursion runs its states 16 at a time in SIMD lanes
     (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the throughput a core at 250 DOF): row i then
     equals the single call to rounding (measured within 4e-15 of max |qdd| on ropes, 1.4e-13 on
     random chains with GIM condition numbers up to 5e5), not bit for bit; ``simd=False`` gives the
@@ -306,13 +312,33 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
 
 
 # --------------------------------------------------------------------------- batches
-THREAD_MIN_WORK = 5000  # DOF x states below which a batch runs on the calling thread alone
-_POOL = None  # the batches' thread pool, made on first use
-_POOL_SIZE = 0  # its workers
+# How a batch's rows run on threads (docs/design.md, "Threads under load"): the calling thread
+# works through the batch chunk by chunk, taking each next chunk from a shared counter, and helper
+# threads (a pool of plain Python threads calling the compiled kernels, which release the GIL)
+# take chunks from the same counter if and when the OS runs them, each in arrays of its own. The
+# caller never waits for a helper to start; at the end it copies in the helpers' chunks, and
+# runs itself any chunk whose helper is late with it: a batch is never held up by a thread the
+# OS has not scheduled (numba's threads, a static split, had made the caller wait a scheduler
+# time slice for the other half when another process kept a core busy: 25x one thread). And a
+# batch wakes helpers only for idle cores (helpers_for).
+CHUNK_WORK = 8000  # DOF x states a chunk of a batch holds at most (~0.16 ms in SIMD tiles, ~0.35
+# ms row by row): a batch under it runs on the calling thread alone (benchmarks/busy_batch.py:
+# 2,000 and 4,000 cost 4-5 % and 2 % more than one thread per 64-state batch at 250 DOF, 8,000
+# under 1 %)
+THREADS_VARIABLE = "REDYSIM_THREADS"  # when set, the default thread count (pool workers: 1)
 
 
 def default_threads() -> int:
-    """The cores this process may run on."""
+    """Threads a batch uses when ``threads`` is not given: the environment variable
+    ``REDYSIM_THREADS`` when it is set (the harness's process pools set 1 in their workers, one
+    thread a process), else the cores this process may run on."""
+    value = os.environ.get(THREADS_VARIABLE)
+    if value:
+        count = int(value) if value.strip().isdigit() else 0
+        if count < 1:
+            raise FieldError("environment", THREADS_VARIABLE, value,
+                             "must be a whole number >= 1 (threads of a batch)")
+        return count
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -355,52 +381,341 @@ def check_batch(model: Model, name: str, x, rows: int | None, *,
                         if arr.shape == (n,) else ""))
 
 
-def thread_count(threads: int | None, rows: int, work: float | None = None) -> int:
-    """Threads for ``rows`` rows: ``threads`` (checked), or every core this process may use;
-    one when ``threads`` is None and ``work`` (DOF x states) is under THREAD_MIN_WORK."""
+def thread_count(threads: int | None, chunks: int) -> int:
+    """Threads for ``chunks`` chunks of work: ``threads`` (checked), or
+    :func:`default_threads`, and no more than there are chunks."""
     count = default_threads() if threads is None else threads
     if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1:
         raise FieldError("dynamics", "threads", threads, "must be a whole number >= 1")
-    if threads is None and work is not None and work < THREAD_MIN_WORK:
-        count = 1
-    return max(1, min(int(count), rows))
+    return max(1, min(int(count), chunks))
 
 
-def run_blocks(rows: int, threads: int | None, call, count: int | None = None) -> list:
-    """call(block, first, last) for one contiguous block of rows per thread (the first block on
-    the calling thread), the results in block order; the first exception raised is re-raised."""
-    global _POOL, _POOL_SIZE
-    count = thread_count(threads, rows) if count is None else count
-    edges = [rows * i // count for i in range(count + 1)]
-    if count == 1:
-        return [call(0, 0, rows)]
-    if _POOL_SIZE < count - 1:
-        from concurrent.futures import ThreadPoolExecutor
+def chunk_edges(units: int, work: int) -> list[int]:
+    """Edges of ceil(work / CHUNK_WORK) chunks of ``units`` (rows, or tiles), at most one a
+    unit, of sizes as equal as may be (``work``: DOF x states)."""
+    chunks = max(1, min(units, -(-work // CHUNK_WORK)))
+    return [units * i // chunks for i in range(chunks + 1)]
 
-        _POOL_SIZE = max(count - 1, default_threads() - 1)
-        _POOL = ThreadPoolExecutor(max_workers=_POOL_SIZE, thread_name_prefix="redysim-batch")
-    assert _POOL is not None  # made above, or by an earlier call (_POOL_SIZE >= count - 1 > 0)
-    futures = [_POOL.submit(call, i, edges[i], edges[i + 1]) for i in range(1, count)]
+
+class _Own:
+    """A helper thread's own buffers (scratch, SIMD tile arrays), by size, the last few kept:
+    a helper never writes into a workspace or into a batch's outputs, so that one left behind
+    by its batch (its chunk taken back by the caller) harms nothing."""
+
+    KEEP = 4
+
+    def __init__(self) -> None:
+        self.arrays: dict[int, np.ndarray] = {}
+
+    def get(self, like: np.ndarray) -> np.ndarray:
+        a = self.arrays.pop(like.size, None)
+        if a is None:
+            a = np.empty(like.size)
+            while len(self.arrays) >= self.KEEP:
+                self.arrays.pop(next(iter(self.arrays)))
+        self.arrays[like.size] = a  # (the most recent last)
+        return a
+
+
+FREE, CALLER, HELPER, DONE, TAKEN_BACK = range(5)  # a chunk's states
+
+
+class _Chunks:
+    """One batch's chunks (``edges``: chunk i is rows edges[i]..edges[i + 1] - 1), handed out in
+    order to whichever thread asks next. ``call(first, last, own)`` runs one: on the calling
+    thread with ``own`` None, in the caller's buffers and outputs; on a helper with its
+    :class:`_Own`. ``commit(first, last, result)``, when given, is how a helper's chunk reaches
+    the outputs: a helper's call then returns (value, result) computed in its own arrays, and
+    the caller commits it, or, when the helper has not finished it by the time one chunk of the
+    caller's would take, runs the chunk itself (a helper held up by the OS holds up nobody).
+    Without ``commit`` the caller waits for the helpers' chunks. Once a chunk has raised, no
+    chunk is handed out any more."""
+
+    __slots__ = ("call", "commit", "edges", "lock", "next", "state", "started", "flags",
+                 "values", "results", "errors", "waiter", "per_row")
+
+    def __init__(self, call, edges: list[int], commit=None):
+        self.call = call
+        self.commit = commit
+        self.edges = edges
+        self.lock = threading.Lock()
+        self.next = 0  # the next chunk to hand out
+        n = len(edges) - 1
+        self.state = [FREE] * n
+        self.started = [0.0] * n  # when a helper took the chunk (perf_counter)
+        self.flags = np.zeros(1, dtype=np.int64)  # chunks helpers run (waited on without GIL)
+        self.values: list = [None] * n
+        self.results: list = [None] * n  # a helper's chunk's arrays, for commit
+        self.errors: dict[int, BaseException] = {}  # chunk -> what it raised
+        self.waiter: threading.Lock | None = None  # (without commit) released when flags is 0
+        self.per_row = 0.0  # the caller's seconds a row, from its own chunks
+
+    def _take(self, state: int) -> int:
+        with self.lock:
+            i = self.next
+            if i >= len(self.state) or self.errors:
+                return -1
+            self.next = i + 1
+            self.state[i] = state
+            if state == HELPER:
+                self.started[i] = time.perf_counter()
+                self.flags[0] += 1
+            return i
+
+    def work(self) -> None:
+        """The caller's part: chunks until none are left (or one has raised)."""
+        edges, rows, spent = self.edges, 0, 0.0
+        while (i := self._take(CALLER)) >= 0:
+            t0 = time.perf_counter()
+            try:
+                self.values[i] = self.call(edges[i], edges[i + 1], None)
+            except BaseException as exc:  # re-raised at the end
+                with self.lock:
+                    self.errors[i] = exc
+            spent += time.perf_counter() - t0
+            rows += edges[i + 1] - edges[i]
+        if rows:
+            self.per_row = spent / rows
+
+    def help(self, own: _Own) -> None:
+        """A helper's part: chunks, if any are left, in its own arrays."""
+        edges = self.edges
+        while (i := self._take(HELPER)) >= 0:
+            value = result = error = None
+            try:
+                value = self.call(edges[i], edges[i + 1], own)
+                if self.commit is not None:
+                    value, result = value
+            except BaseException as exc:
+                error = exc
+            with self.lock:
+                if self.state[i] == HELPER:  # (not taken back by the caller)
+                    self.state[i] = DONE
+                    self.flags[0] -= 1
+                    self.values[i], self.results[i] = value, result
+                    if error is not None:
+                        self.errors[i] = error
+                if not self.flags[0] and self.waiter is not None:
+                    self.waiter.release()
+                    self.waiter = None
+
+    def finish(self) -> list:
+        """After :meth:`work`: the helpers' chunks committed (or run here), the values in row
+        order; or the exception of the lowest chunk that raised."""
+        if self.commit is None:
+            self._wait()
+        else:
+            self._take_back()
+        if self.errors:
+            raise self.errors[min(self.errors)]
+        return self.values
+
+    def _take_back(self) -> None:
+        edges, clock = self.edges, None
+        for i in range(len(self.state)):
+            while self.state[i] == HELPER and not self.errors:
+                # wait while the helper should be about done: its start plus one chunk of the
+                # caller's (and a quarter), spinning, and only while no other thread wants
+                # this core; then take the chunk back
+                rows = edges[i + 1] - edges[i]
+                left = self.started[i] + 1.25 * self.per_row * rows + 20e-6 - time.perf_counter()
+                if left > 0 and _SPIN:
+                    clock = np.empty(2, dtype=np.int64) if clock is None else clock
+                    seen = int(self.flags[0])
+                    if seen and _batch.wait_change(self.flags, 0, seen, int(left * 1e9), AWAY_NS,
+                                                   clock) == 1:
+                        continue  # a helper finished a chunk: look again
+                with self.lock:
+                    mine = self.state[i] == HELPER
+                    if mine:
+                        self.state[i] = TAKEN_BACK
+                        self.flags[0] -= 1
+                if mine:
+                    try:
+                        self.values[i] = self.call(edges[i], edges[i + 1], None)
+                    except BaseException as exc:
+                        with self.lock:
+                            self.errors[i] = exc
+            if self.state[i] == DONE and self.results[i] is not None:
+                self.commit(edges[i], edges[i + 1], self.results[i])
+                self.results[i] = None
+
+    def _wait(self) -> None:
+        """Wait for the chunks that helpers run (none can start any more): a while without
+        sleeping, as long as no other thread wants this core, then asleep."""
+        running = int(self.flags[0])
+        if running and _SPIN:
+            clock = np.empty(2, dtype=np.int64)
+            while running and _batch.wait_change(self.flags, 0, running, CALLER_SPIN_NS,
+                                                 AWAY_NS, clock) == 1:
+                running = int(self.flags[0])
+        with self.lock:
+            if not self.flags[0]:
+                return
+            waiter = self.waiter = threading.Lock()
+            waiter.acquire()
+        interrupted = None
+        while True:  # an interrupt must not let the caller go while a helper writes its arrays
+            try:
+                waiter.acquire()
+                break
+            except BaseException as exc:  # KeyboardInterrupt: re-raised once the helpers stop
+                interrupted = exc
+        if interrupted is not None:
+            raise interrupted
+
+
+# The helpers: plain Python threads, started on first need, that take batches from _JOBS. A
+# helper that has finished a batch watches _POSTED for the next one for HELPER_SPIN_NS without
+# sleeping (waking a sleeping thread took ~60-80 us on our VMs, a quarter of a 64-state batch at
+# 250 DOF), unless its core is wanted by another thread (AWAY_NS: a sched_yield that kept it off
+# its core longer than that), then sleeps in _JOBS.get(). Helpers run SCHED_BATCH (Linux): they
+# never preempt a thread when they wake, and keep a normal share of the CPU.
+_JOBS: queue.SimpleQueue = queue.SimpleQueue()  # batches waiting for a helper
+_POSTED = np.zeros(1, dtype=np.int64)  # batches posted so far (watching helpers see it change)
+_WATCHING: list[bool] = []  # helper k is watching _POSTED (on a core of its own, awake)
+_HELPERS_LOCK = threading.Lock()
+HELPER_SPIN_NS = 200_000
+CALLER_SPIN_NS = 1_000_000  # (without commit) the caller's wait for helpers before it sleeps
+AWAY_NS = 20_000
+IDLE_CHECK_S = 0.002  # how long a look at the machine's idle cores is taken as still true
+_SPIN = _batch.SPIN_OK
+_LOADAVG: int | None = None  # a descriptor of /proc/loadavg, opened on first use
+_IDLE = [-1.0, 0]  # (when, idle cores) of the last look
+
+
+def watching_helpers() -> int:
+    """Helpers awake on a core of their own, watching for the next batch."""
+    return sum(_WATCHING)
+
+
+def idle_cores() -> int | None:
+    """Cores with nothing to run at this instant, from the machine's runnable tasks
+    (/proc/loadavg), this thread and our watching helpers not counted; None where that is not
+    known (not Linux)."""
+    global _LOADAVG
     try:
-        first = call(0, edges[0], edges[1])
-    finally:  # every block finishes before this returns or raises
-        for f in futures:
-            f.exception()
-    return [first, *(f.result() for f in futures)]
+        if _LOADAVG is None:
+            _LOADAVG = os.open("/proc/loadavg", os.O_RDONLY)
+        running = int(os.pread(_LOADAVG, 64, 0).split()[3].split(b"/")[0])
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+    return (os.cpu_count() or 1) - running + watching_helpers()  # (running counts this thread)
 
 
-def _run_rows(rows: int, n: int, threads: int | None, ws: Workspace, call) -> int:
-    """call(scratch, first, last) over the rows, one block a thread, each with its own scratch
-    of ``ws``; the first failing row (the lowest of the blocks') or -1."""
-    count = thread_count(threads, rows, rows * n)
-    scratches = ws.scratches(count)
-    results = run_blocks(rows, threads, lambda i, first, last: call(scratches[i], first,
-                                                                         last), count)
-    failed = [r for r in results if r >= 0]
+def helpers_for(wanted: int) -> int:
+    """How many helpers a batch of the dynamics posts itself to, of ``wanted``: those watching
+    for work (awake on cores of their own), and sleeping ones only for cores idle at this
+    instant (:func:`idle_cores`, looked at no more than every IDLE_CHECK_S): a helper woken onto
+    a busy core joins late, and shares the core, its caches and the GIL with those who run
+    there."""
+    watching = watching_helpers()
+    if watching >= wanted:
+        return wanted
+    now = time.monotonic()
+    if now - _IDLE[0] > IDLE_CHECK_S:
+        idle = idle_cores()
+        _IDLE[:] = now, wanted if idle is None else idle
+    return min(wanted, max(watching, int(_IDLE[1])))
+
+
+def _helper(k: int) -> None:
+    try:  # never preempt another thread on waking (Linux: SCHED_BATCH, same share of the CPU)
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass
+    own, clock = _Own(), np.empty(2, dtype=np.int64)
+    while True:
+        seen = int(_POSTED[0])
+        try:
+            job = _JOBS.get_nowait()
+        except queue.Empty:
+            if _SPIN:
+                _WATCHING[k] = True
+                posted = _batch.wait_change(_POSTED, 0, seen, HELPER_SPIN_NS, AWAY_NS, clock)
+                _WATCHING[k] = False
+                if posted == 1:
+                    continue  # a batch was posted: take it
+            job = _JOBS.get()
+        job.help(own)
+        del job  # (not kept alive, with its arrays, until the next batch)
+
+
+def _after_fork() -> None:  # a forked child has no helper threads: it starts its own
+    global _JOBS, _HELPERS_LOCK, _WATCHING
+    _JOBS, _HELPERS_LOCK, _WATCHING = queue.SimpleQueue(), threading.Lock(), []
+
+
+os.register_at_fork(after_in_child=_after_fork)
+
+
+def run_blocks(rows: int, threads: int | None, call, count: int | None = None,
+               chunk: int = 1, edges: list[int] | None = None, commit=None) -> list:
+    """call(first, last, own) over the rows in chunks of ``chunk`` rows (or the chunks given by
+    ``edges``), on the calling thread (``own`` None) and up to ``count`` - 1 helper threads
+    (``count``: :func:`thread_count` of ``threads``; ``own``: the helper's :class:`_Own`); the
+    chunks' values in row order. With one thread, a single call(0, rows, None).
+
+    The calling thread takes chunks from a shared counter until none are left, and helpers take
+    chunks from the same counter when the OS gets round to running them: the caller never waits
+    for a helper to start. At the end, with ``commit`` (:class:`_Chunks`), it commits the
+    helpers' chunks, taking back those a helper is late with; without, it waits for them (one a
+    helper at most). When a chunk raises, no further chunk starts, and the exception of the
+    lowest-numbered chunk that raised is re-raised.
+    """
+    count = thread_count(threads, rows) if count is None else count
+    if count == 1:
+        return [call(0, rows, None)]
+    if edges is None:
+        edges = [*range(0, rows, chunk), rows]
+    helpers = min(count, len(edges) - 1) - 1
+    job = _Chunks(call, edges, commit)
+    if helpers > 0:
+        if len(_WATCHING) < helpers:
+            with _HELPERS_LOCK:
+                while len(_WATCHING) < helpers:
+                    _WATCHING.append(False)
+                    k = len(_WATCHING) - 1
+                    threading.Thread(target=_helper, args=(k,), name=f"redysim-batch-{k + 1}",
+                                     daemon=True).start()
+        for _ in range(helpers):
+            _JOBS.put(job)
+        _POSTED[0] += 1
+    job.work()
+    return job.finish()
+
+
+def _run_rows(Q, n: int, threads: int | None, ws: Workspace, kernel, out, *inputs) -> int:
+    """kernel(f, i, Q, *inputs, scratch, out, first, last) over the rows of Q in chunks of up to
+    CHUNK_WORK DOF-states, on up to :func:`thread_count` threads (:func:`helpers_for`): the
+    caller in ``ws``'s scratch, into ``out``; a helper in its own scratch, into an array of its
+    own that the caller copies into ``out`` (inputs: arrays of B rows, or of one row for every
+    state). The first failing row (the lowest of the chunks') or -1."""
+    rows = Q.shape[0]
+    edges = chunk_edges(rows, rows * n)
+    count = thread_count(threads, len(edges) - 1)
+    count = 1 + helpers_for(count - 1) if count > 1 else 1
+    f, i = ws.kernel_f, ws.kernel_i
+    if count == 1:
+        return kernel(f, i, Q, *inputs, ws.scratch, out, 0, rows)
+
+    def call(first, last, own):
+        if own is None:
+            return kernel(f, i, Q, *inputs, ws.scratch, out, first, last)
+        mine = np.empty((last - first, out.shape[1]))
+        bad = kernel(f, i, Q[first:last], *(x if x.shape[0] == 1 else x[first:last]
+                                            for x in inputs),
+                     own.get(ws.scratch), mine, 0, last - first)
+        return (bad if bad < 0 else first + bad), mine
+
+    def commit(first, last, mine):
+        out[first:last] = mine
+
+    failed = [r for r in run_blocks(rows, threads, call, count, edges=edges, commit=commit)
+              if r >= 0]
     return min(failed) if failed else -1
 
 
-_TILE_LOCK = threading.Lock()  # one parallel launch at a time (redysim._jit.jit_parallel)
 TILE_MIN_ROWS = _tiles.LANES // 2  # a batch's last tile runs as a tile from this many rows
 TILE_MAX_Q = 1e5  # |q| up to which the tiles' cos and sin reduce angles to within 1 ulp
 TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF, 35 MB here;
@@ -408,33 +723,48 @@ TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF,
 
 
 def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
-    """RGE-A over the batch's rows in SIMD tiles (the tiles split over threads, each with its
-    own tile arrays), the rows after the last tile one by one; the first row whose qdd is not
-    finite, or -1."""
-    B, lanes = Q.shape[0], _tiles.LANES
+    """RGE-A over the batch's rows in SIMD tiles, the rows after the last tile one by one; the
+    first row whose qdd is not finite, or -1. With several threads: chunks of whole tiles, from
+    row 0 (the rows that run in tiles, and in which tile, do not depend on the threads), and the
+    rows after them as one more chunk (:func:`run_blocks`, as :func:`_run_rows`)."""
+    B, n, lanes = Q.shape[0], Q.shape[1], _tiles.LANES
     full, tail = divmod(B, lanes)
     tiles = full + (tail >= TILE_MIN_ROWS)
     split = min(B, tiles * lanes)
-    bad = -1
-    if tiles:
-        count = thread_count(threads, tiles, split * Q.shape[1])
-        bufs = ws.tile_buffer(count)
-        # the workspace's packed arrays, from which the tiles slice their Tree and Tiles bundles
-        # in compiled code: a bundle passed from Python costs numba's dispatch ~2 us a call
-        args = (ws.kernel_f, ws.kernel_i, Q, V, TAU, out)
-        if count == 1:
-            bad = _tiles.forward_tiles(*args, 0, split, bufs[0])
-        else:  # whole tiles to each block, the blocks on numba's threads
-            edges = np.minimum(np.array([tiles * i // count for i in range(count + 1)]) * lanes,
-                               split)
-            failed = np.full(count, -1)
-            with _TILE_LOCK:
-                _tiles.forward_tiles_parallel(*args, edges, bufs, failed)
-            failed = failed[failed >= 0]
-            bad = int(failed.min()) if failed.size else -1
-    if bad < 0 and split < B:
-        bad = _batch.forward_rows(ws.kernel_f, ws.kernel_i, Q, V, TAU, ws.scratch, out, split, B)
-    return bad
+    edges = [min(e * lanes, split) for e in chunk_edges(tiles, B * n)]  # whole tiles
+    edges += [B] if split < B and len(edges) > 2 else []  # (one chunk: one thread, as below)
+    count = thread_count(threads, len(edges) - 1)
+    count = 1 + helpers_for(count - 1) if count > 1 else 1
+    f, i = ws.kernel_f, ws.kernel_i
+    if count == 1:
+        bad = _tiles.forward_tiles(f, i, Q, V, TAU, out, 0, split, ws.tile_buffer(1)[0])
+        if bad < 0 and split < B:
+            bad = _batch.forward_rows(f, i, Q, V, TAU, ws.scratch, out, split, B)
+        return bad
+
+    def call(first, last, own):
+        if own is None:
+            if first >= split:  # the rows after the last tile
+                return _batch.forward_rows(f, i, Q, V, TAU, ws.scratch, out, first, last)
+            return _tiles.forward_tiles(f, i, Q, V, TAU, out, first, last,
+                                        ws.tile_buffer(1)[0])
+        mine = np.empty((last - first, n))
+        q, v = Q[first:last], V[first:last]
+        tau = TAU if TAU.shape[0] == 1 else TAU[first:last]
+        if first >= split:
+            bad = _batch.forward_rows(f, i, q, v, tau, own.get(ws.scratch), mine, 0,
+                                      last - first)
+        else:  # (first is a multiple of 16: the same tiles as on the caller)
+            bad = _tiles.forward_tiles(f, i, q, v, tau, mine, 0, last - first,
+                                       own.get(ws.tile_buffer(1)[0]))
+        return (bad if bad < 0 else first + bad), mine
+
+    def commit(first, last, mine):
+        out[first:last] = mine
+
+    failed = [r for r in run_blocks(B, threads, call, count, edges=edges, commit=commit)
+              if r >= 0]
+    return min(failed) if failed else -1
 
 
 def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True) -> np.ndarray:
@@ -463,9 +793,7 @@ def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True) -> np.
         bad = _forward_tiled(ws, Q, V, TAU, out, threads)
     else:
         rows = _batch.planar_rows if planar else _batch.forward_rows
-        f, i = ws.kernel_f, ws.kernel_i
-        bad = _run_rows(B, model.n_v, threads, ws, lambda scratch, first, last: rows(
-            f, i, Q, V, TAU, scratch, out, first, last))
+        bad = _run_rows(Q, model.n_v, threads, ws, rows, out, V, TAU)
     if bad >= 0:  # the single call of that row says why
         t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
         try:
@@ -486,9 +814,7 @@ def _inverse_batch(model, ws, q, v, qdd, threads) -> np.ndarray:
             raise StateError(f"{name}[{row}, {col}] = {float(arr[row, col])!r}: not finite (state "
                              f"{row} of the batch)")
     out = np.empty((B, model.n_v))
-    f, i = ws.kernel_f, ws.kernel_i
-    bad = _run_rows(B, model.n_v, threads, ws, lambda scratch, first, last: _batch.inverse_rows(
-        f, i, Q, V, QDD, scratch, out, first, last))
+    bad = _run_rows(Q, model.n_v, threads, ws, _batch.inverse_rows, out, V, QDD)
     if bad >= 0:
         raise StateError(f"state {bad} of the batch: " + str(overflow_error(
             "tau", q=Q[bad], v=V[bad], qdd=QDD[bad])))

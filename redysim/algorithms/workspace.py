@@ -193,18 +193,18 @@ class Workspace:
 
     def scratches(self, count: int) -> list[np.ndarray]:
         """``count`` scratch arrays of this workspace's layout, the first its own: one for each
-        thread of a batch (:func:`redysim.forward_dynamics` with (B, n) arrays). Made on first
-        use and kept."""
+        of your threads that run the kernels on this workspace's layout. Made on first use and
+        kept. (A batch's helper threads keep scratch of their own: :mod:`redysim.algorithms.dynamics`.)"""
         extra = self._extra_scratch
         while len(extra) < count - 1:
             extra.append(np.empty_like(self.scratch))
         return [self.scratch, *extra[:count - 1]]
 
     def tile_buffer(self, count: int) -> np.ndarray:
-        """(count, size): a row of the SIMD tiles' arrays for each thread of a batch run in tiles,
-        laid out as the Tiles rows of the layout table say (their offsets in ``kernel_i``'s
-        header; :mod:`redysim.algorithms._kernels.tiles`). Made on first use and kept (grown when
-        more threads are asked for)."""
+        """(count, size): a row of the SIMD tiles' arrays for each of ``count`` threads (a
+        batch's calling thread takes row 0), laid out as the Tiles rows of the layout table say
+        (their offsets in ``kernel_i``'s header; :mod:`redysim.algorithms._kernels.tiles`). Made
+        on first use and kept (grown when more threads are asked for)."""
         if self._tiles is None or self._tiles.shape[0] < count:
             # on a 64-byte boundary (each row then too: its segments are whole multiples of
             # ALIGN items): numpy's allocation is aligned to 16 bytes only, and a buffer 16, 32

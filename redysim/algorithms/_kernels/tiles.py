@@ -42,9 +42,8 @@ References: as :mod:`.rge_a` (Table A.1; Featherstone's ABA for the bias terms).
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
 
-from redysim._jit import inline, inline_generated, jit_borrowed, jit_parallel, jit_tiles
+from redysim._jit import inline, inline_generated, jit_borrowed, jit_tiles
 
 from .bundles import BACK_ROWS, KIN_ROWS, LANES, SLOT, Tiles, Tree, slicer_source
 from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
@@ -622,11 +621,3 @@ def forward_tiles(fdata, idata, Q, QD, TAU, QDD, first, last, buf):
                 return t0 + b
         tile_out(QDDt, t0, count, QDD)
     return -1
-
-
-@jit_parallel
-def forward_tiles_parallel(fdata, idata, Q, QD, TAU, QDD, edges, bufs, failed):
-    """:func:`forward_tiles` for rows edges[i]..edges[i + 1] - 1 in row i of ``bufs``, the
-    blocks run by numba's threads; failed[i] is block i's result."""
-    for i in prange(edges.shape[0] - 1):
-        failed[i] = forward_tiles(fdata, idata, Q, QD, TAU, QDD, edges[i], edges[i + 1], bufs[i])
