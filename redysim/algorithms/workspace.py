@@ -194,7 +194,8 @@ class Workspace:
     def scratches(self, count: int) -> list[np.ndarray]:
         """``count`` scratch arrays of this workspace's layout, the first its own: one for each
         of your threads that run the kernels on this workspace's layout. Made on first use and
-        kept. (A batch's helper threads keep scratch of their own: :mod:`redysim.algorithms.dynamics`.)"""
+        kept. (A batch's helper threads keep scratch of their own:
+        :mod:`redysim.algorithms.dynamics`.)"""
         extra = self._extra_scratch
         while len(extra) < count - 1:
             extra.append(np.empty_like(self.scratch))
