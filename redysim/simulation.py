@@ -60,23 +60,44 @@ NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not
 BATCH_SETTINGS = ("integrator", "rtol", "atol", "h", "sample", "damping", "max_cpu_s")
 
 
+def is_native(integrator) -> bool:
+    """Whether ``integrator`` names a reference engine's own integrator: ``"native"`` (the
+    engine's default) or ``"native:NAME"`` (one of the engine's ``integrators``)."""
+    return isinstance(integrator, str) and (integrator == NATIVE or
+                                            integrator.startswith(NATIVE + ":"))
+
+
+def native_name(integrator: str) -> str | None:
+    """The engine's integrator named by ``"native:NAME"`` (NAME), or None for ``"native"``."""
+    return integrator.split(":", 1)[1] if ":" in integrator else None
+
+
 def _check_simulate_settings(source: str, t_end, *, integrator, rtol, atol, h, sample,
-                             damping, progress=None, max_cpu_s=None) -> tuple[str, bool]:
+                             damping, progress=None, max_cpu_s=None,
+                             adaptive_native: bool = False) -> tuple[str, bool]:
     """Check simulate's settings, naming the bad one (SettingsError); return the canonical
-    integrator name and whether it is fixed-step (an engine's own stepper, NATIVE, is)."""
+    integrator name and whether it is fixed-step (an engine's own stepper, NATIVE, is unless
+    ``adaptive_native``: an engine's error-controlled integrator, which takes tolerances)."""
     if not isinstance(integrator, str):
         raise SettingsError(source, "integrator", integrator, "must be an integrator's name; "
                             f"known: {', '.join((*INTEGRATORS, *ALIASES, NATIVE))}")
     if t_end is None:
         raise SettingsError(source, "t_end", None, "missing: the horizon [s]")
-    integrator = integrator if integrator == NATIVE else canonical(integrator)
-    fixed = integrator in FIXED_STEP or integrator == NATIVE
+    native = is_native(integrator)
+    integrator = integrator if native else canonical(integrator)
+    fixed = integrator in FIXED_STEP or (native and not adaptive_native)
     if fixed and h is None:
         raise SettingsError(source, "h", h, f"{integrator} is a fixed-step integrator: give "
                             "its step h [s]")
-    check_settings(source, method=None if integrator == NATIVE else integrator,
-                   rtol=None if fixed else rtol, atol=None if fixed else atol, h=h,
-                   t_end=t_end, sample=sample)
+    if native and adaptive_native:
+        check_settings(source, method=None, rtol=rtol, atol=atol, h=None, t_end=t_end,
+                       sample=sample)
+        if h is not None:  # the largest step it may take
+            check_settings(source, method=None, h=h, t_end=t_end)
+    else:
+        check_settings(source, method=None if native else integrator,
+                       rtol=None if fixed else rtol, atol=None if fixed else atol, h=h,
+                       t_end=t_end, sample=sample)
     if isinstance(damping, bool) or not isinstance(damping, NUMBERS) or \
             not (math.isfinite(damping) and damping >= 0):
         shown = float(damping) if isinstance(damping, NUMBERS[2:]) else damping
@@ -253,30 +274,48 @@ class _Stop(Exception):
 
 
 class EngineStepper(OdeSolver):
-    """A reference engine's own fixed-step stepper (its native integrator) behind the solver
-    protocol: ``engine`` has ``sim_reset(q0, v0, h)``, ``step_once()`` and ``sim_state()``
-    (``redysim.references``; duck-typed: the core imports no engine). One step a call of
-    :meth:`step`; the state is known at whole steps only, so the sample times must be whole
-    multiples of ``h`` (checked by :class:`Simulator`)."""
+    """A reference engine's own integrator behind the solver protocol: ``engine`` has
+    ``sim_reset(q0, v0, h, integrator=, rtol=, atol=)``, ``step_once()``, ``sim_advance(t)``,
+    ``sim_state()`` and ``sim_counts()`` (``redysim.references``; duck-typed: the core imports no
+    engine). A fixed-step integrator takes one step a call of :meth:`step`, and its state is
+    known at whole steps only, so the sample times must be whole multiples of ``h`` (checked by
+    :class:`Simulator`); an adaptive one (``adaptive``) lands on each sample time ``t_stop`` by
+    its own error control, one call of :meth:`step` per sample, and its steps, rejections and
+    qdd calls are the engine's own count (-1 where it gives none)."""
 
-    def __init__(self, engine, t0: float, y0, t_end: float, h: float, nq: int):
-        self.engine, self.h, self.nq = engine, float(h), nq
+    def __init__(self, engine, t0: float, y0, t_end: float, h: float | None, nq: int, *,
+                 integrator: str | None = None, rtol: float | None = None,
+                 atol: float | None = None, adaptive: bool = False):
+        self.engine, self.nq, self.adaptive = engine, nq, adaptive
+        self.h = float(h) if h else None
         self.t_end = float(t_end)
         self.counters = Counters(nfev=-1)  # the engine does not report its qdd calls
         self.t, self.y = float(t0), np.array(y0, dtype=float)
         self.t_old, self.y_old = self.t, self.y
         self._start = float(t0)
-        engine.sim_reset(self.y[:nq], self.y[nq:], self.h)
+        if adaptive:
+            engine.sim_reset(self.y[:nq], self.y[nq:], self.h, integrator=integrator,
+                             rtol=rtol, atol=atol)
+        else:
+            engine.sim_reset(self.y[:nq], self.y[nq:], self.h, integrator=integrator)
 
     def step(self, t_stop: float | None = None) -> None:
-        self.engine.step_once()
+        if self.adaptive:
+            t_new = self.t_end if t_stop is None else min(float(t_stop), self.t_end)
+            self.engine.sim_advance(t_new - self._start)
+            steps, rejected, nfev = self.engine.sim_counts()
+            self.counters.steps = max(steps, self.counters.steps + 1)
+            self.counters.rejected, self.counters.nfev = rejected, nfev
+        else:
+            self.engine.step_once()
+            self.counters.steps += 1
+            t_new = self._start + self.counters.steps * self.h
         q, v = self.engine.sim_state()
         y = np.concatenate((q, v))
         if not np.isfinite(y).all():
-            raise IntegrationError(f"non-finite state at t = {self.t + self.h:.6g}")
-        self.counters.steps += 1
+            raise IntegrationError(f"non-finite state at t = {t_new:.6g}")
         self.t_old, self.y_old = self.t, self.y
-        self.t, self.y = self._start + self.counters.steps * self.h, y
+        self.t, self.y = t_new, y
 
     def dense(self, ts) -> np.ndarray:
         ts = np.atleast_1d(ts)
@@ -375,20 +414,27 @@ class Simulator:
         if not isinstance(system, Model):
             raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
                             f"{type(system).__name__}")
-        integrator, fixed = _check_simulate_settings(
-            source, t_end, integrator=integrator, rtol=rtol, atol=atol, h=h, sample=sample,
-            damping=damping)
-        native = integrator == NATIVE
+        native = is_native(integrator)
+        native_info = None
         if native:
             if engine is None:
-                raise SettingsError(source, "integrator", NATIVE, "needs a reference engine "
-                                    "(the core has no native stepper: use rk4 with a step h)")
+                raise SettingsError(source, "integrator", integrator, "needs a reference "
+                                    "engine (the core has no native stepper: use rk4 with a "
+                                    "step h)")
+            try:
+                native_info = engine.native_integrator(native_name(integrator))
+            except ValueError as exc:
+                raise SettingsError(source, "integrator", integrator, str(exc)) from None
+        adaptive_native = bool(native_info is not None and native_info.adaptive)
+        integrator, fixed = _check_simulate_settings(
+            source, t_end, integrator=integrator, rtol=rtol, atol=atol, h=h, sample=sample,
+            damping=damping, adaptive_native=adaptive_native)
         self.system, self.source = system, source
         self.t_end, self.integrator = float(t_end), integrator
         self.rtol, self.atol, self.h = rtol, atol, h
         self.sample = sample if sample is not None else t_end / DEFAULT_SAMPLES
         self.ts = sample_times(0.0, self.t_end, self.sample)
-        if native and np.abs(self.ts / h - np.round(self.ts / h)).max() > 1e-6:
+        if fixed and native and np.abs(self.ts / h - np.round(self.ts / h)).max() > 1e-6:
             raise SettingsError(source, "sample", self.sample, f"an engine's own stepper knows "
                                 f"its state at whole steps only: the sample times must be whole "
                                 f"multiples of h = {h:g}")
@@ -438,8 +484,10 @@ class Simulator:
         self.E0 = self._energy_and_com(y0[:self.motion.nq], y0[self.motion.nq:])[0]
         self._rhs = self.motion.rhs  # the solver's; wrapped by run() to check the limits
         if native:
-            assert h is not None  # a native stepper's h was required above (as rk4's)
-            self.solver = EngineStepper(engine, 0.0, y0, self.t_end, h, self.motion.nq)
+            assert native_info is not None
+            self.solver = EngineStepper(engine, 0.0, y0, self.t_end, h, self.motion.nq,
+                                        integrator=native_info.name, rtol=rtol, atol=atol,
+                                        adaptive=adaptive_native)
         elif state is None:
             self.solver = self._make_solver(None)
         else:

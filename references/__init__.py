@@ -40,6 +40,7 @@ from .base import (
     EngineUnavailable,
     JointAxes,
     Limits,
+    NativeIntegrator,
     Trajectory,
     as_model,
     joint_axes,
@@ -68,7 +69,8 @@ def get(name: str) -> type[Engine]:
 
 
 __all__ = ["ENGINES", "LOOP_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
-           "EngineUnavailable", "JointAxes", "Limits", "Trajectory", "LoopEngine",
+           "EngineUnavailable", "JointAxes", "Limits", "NativeIntegrator", "Trajectory",
+           "LoopEngine",
            "LoopStateUnsupported", "as_model", "get", "joint_axes", "load_limits",
            "loop_engine", "DART", "Exudyn", "MuJoCo", "PinocchioABA", "PinocchioABARyRz",
            "PinocchioCRBA"]

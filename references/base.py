@@ -110,12 +110,28 @@ class Limits:
 
 class Trajectory(NamedTuple):
     """Samples of a native simulation: times t (m,), q (m, n_q), v (m, n_v) the velocities v;
-    the integrator's name."""
+    the integrator's name (a key of the engine's ``integrators``)."""
 
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
     integrator: str
+
+
+class NativeIntegrator(NamedTuple):
+    """One of an engine's own time integrators, as runs, sweeps and manifests name it.
+
+    ``name``: the short name (``"rk4"``, ``"implicitfast"``, ``"dopri5"``, ...), the key in the
+    adapter's ``integrators`` and what ``integrator="native:NAME"`` selects; ``adaptive``: it
+    controls its own error and takes tolerances (``rtol``, ``atol``), else it takes a fixed step
+    ``h``; ``what``: the engine's own name and setting of it, for the manifest (e.g.
+    ``"mjINT_IMPLICITFAST"``); ``note``: anything a fair comparison must know (what the
+    integrator leaves out, how its tolerance is read)."""
+
+    name: str
+    adaptive: bool
+    what: str
+    note: str = ""
 
 
 def import_engine(engine: str, package: str, module: str | None = None):
@@ -346,7 +362,13 @@ class Engine(EnginePackage):
       ``_energy(state, y)`` and ``_position(state, body, point)``, y and tau_e engine-ordered
       vectors of length n_v (tau_e None: no applied force);
     - the native stepper, in the core's coordinates: ``_sim_reset(q0, v0, h)``,
-      ``_sim_step()``, ``_sim_state()`` -> (q, v).
+      ``_sim_step()``, ``_sim_state()`` -> (q, v); the integrator chosen and its settings are
+      ``self.sim_integrator`` (a :class:`NativeIntegrator` of ``integrators``) and
+      ``self.sim_settings`` (``h``, ``rtol``, ``atol``), set before ``_sim_reset`` is called.
+      An adaptive integrator implements ``_sim_advance(t)`` (land on time t by its own error
+      control) instead of ``_sim_step``; ``_sim_counts()`` -> (steps, rejected, nfev) where the
+      engine reports them (-1 each where it does not); ``_settings()`` -> dict: the engine's
+      flags and solver settings for the manifest (:meth:`manifest`).
 
     Attributes: ``model`` (the Model built), ``joints`` (:func:`joint_axes` of it), ``free``
     ((body, first q slot, first v slot) of each free joint), ``eidx`` (n_v,): the engine's index
@@ -356,7 +378,9 @@ class Engine(EnginePackage):
     joint and these maps are the identity, so that nothing is converted.
     """
 
-    integrator: ClassVar[str] = ""  # what simulate() uses
+    integrator: ClassVar[str] = ""  # the default native integrator: a key of ``integrators``
+    # the engine's own time integrators, by name (NativeIntegrator); empty: the engine has none
+    integrators: ClassVar[dict[str, NativeIntegrator]] = {}
     depth_limited: ClassVar[bool] = False  # limits.toml's max_links is a body-tree depth
 
     def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
@@ -551,23 +575,41 @@ class Engine(EnginePackage):
         """World position (3,) of the frame "tip" (a chain's distal end: ``Model.from_chain``)."""
         return self.position(q, "tip")
 
-    def simulate(self, q0, v0, t_end: float, h: float, *, every: int = 1) -> Trajectory:
+    def native_integrator(self, name: str | None = None) -> NativeIntegrator:
+        """The engine's own integrator ``name`` (None or "": its default, ``integrator``).
+        Raises ValueError naming the engine's integrators when it has no such one (or none)."""
+        name = name or self.integrator
+        if name not in self.integrators:
+            known = ", ".join(self.integrators) or "none (run it through redysim's integrators)"
+            raise ValueError(f"engine {self.name!r} has no integrator {name!r}; its own: {known}")
+        return self.integrators[name]
+
+    def simulate(self, q0, v0, t_end: float, h: float, *, every: int = 1,
+                 integrator: str | None = None, rtol: float | None = None,
+                 atol: float | None = None) -> Trajectory:
         """The passive motion (no joint force) from (q0, v0) to t_end with the engine's own
-        fixed-step integrator (``integrator``), step h; every ``every``-th step is kept (and the
-        start and the last). Raises ValueError for h <= 0, t_end < 0 (or either not finite) or
-        every < 1."""
+        integrator ``integrator`` (default: ``self.integrator``). A fixed-step one takes the
+        step h; an adaptive one (``rtol``, ``atol``) lands on the grid of h by its own control.
+        Every ``every``-th grid point is kept (and the start and the last). Raises ValueError
+        for h <= 0, t_end < 0 (or either not finite), every < 1 or an unknown integrator."""
         q0, v0 = self._vec("q0", q0, "n_q"), self._vec("v0", v0, "n_v")
         steps = self._steps(t_end, h, every)
         ts, qs, vs = [0.0], [q0.copy()], [v0.copy()]
-        self._sim_reset(q0, v0, h)
+        self.sim_reset(q0, v0, h, integrator=integrator, rtol=rtol, atol=atol)
+        adaptive = self.sim_integrator.adaptive
         for i in range(1, steps + 1):
-            self._sim_step()
+            if adaptive:
+                if i % every and i != steps:
+                    continue
+                self.sim_advance(i * h)
+            else:
+                self._sim_step()
             if i % every == 0 or i == steps:
                 q, v = self._sim_state()
                 ts.append(i * h)
                 qs.append(q)
                 vs.append(v)
-        return Trajectory(np.array(ts), np.array(qs), np.array(vs), self.integrator)
+        return Trajectory(np.array(ts), np.array(qs), np.array(vs), self.sim_integrator.name)
 
     @staticmethod
     def _steps(t_end, h, every) -> int:
@@ -577,18 +619,94 @@ class Engine(EnginePackage):
             raise ValueError(f"every must be a whole number >= 1, got {every!r}")
         return int(round(t_end / h))
 
-    def sim_reset(self, q0, v0, h: float) -> None:
-        """Set the native stepper's state (q0, v0) and step h (before :meth:`step_once`)."""
-        self._steps(0.0, h, 1)
+    def sim_reset(self, q0, v0, h: float | None = None, *, integrator: str | None = None,
+                  rtol: float | None = None, atol: float | None = None) -> None:
+        """Set the native stepper's state (q0, v0) at t = 0 and its integrator (default
+        ``self.integrator``): a fixed-step one takes the step h (required), an adaptive one
+        ``rtol`` (required) and ``atol`` (default ``rtol``), and h, when given, as its largest
+        step. Raises ValueError naming the bad setting."""
+        info = self.native_integrator(integrator)
+        if info.adaptive:
+            if rtol is None or not (math.isfinite(rtol) and rtol > 0):
+                raise ValueError(f"{self.name} integrator {info.name!r} is adaptive: give "
+                                 f"rtol > 0, got {rtol!r}")
+            atol = rtol if atol is None else atol
+            if not (math.isfinite(atol) and atol > 0):
+                raise ValueError(f"{self.name} integrator {info.name!r}: atol must be > 0, got "
+                                 f"{atol!r}")
+            if h is not None:
+                self._steps(0.0, h, 1)
+        else:
+            if rtol is not None or atol is not None:
+                raise ValueError(f"{self.name} integrator {info.name!r} is fixed-step: it takes "
+                                 "a step h, not tolerances")
+            if h is None:
+                raise ValueError(f"{self.name} integrator {info.name!r} is fixed-step: give its "
+                                 "step h")
+            self._steps(0.0, h, 1)
+        self.sim_integrator = info
+        self.sim_settings = {"h": h, "rtol": rtol, "atol": atol}
+        self.sim_t = 0.0
+        self._sim_steps = 0
         self._sim_reset(self._vec("q0", q0, "n_q"), self._vec("v0", v0, "n_v"), h)
 
     def step_once(self) -> None:
-        """One native step from the stepper's state (set by :meth:`sim_reset`)."""
+        """One step of a fixed-step native integrator from the stepper's state (set by
+        :meth:`sim_reset`)."""
+        if self.sim_integrator.adaptive:
+            raise ValueError(f"{self.name} integrator {self.sim_integrator.name!r} is adaptive: "
+                             "advance it to a time (sim_advance), not by a step")
         self._sim_step()
+        self._sim_steps += 1
+        self.sim_t = self._sim_steps * self.sim_settings["h"]
+
+    def sim_advance(self, t: float) -> None:
+        """Advance the native state to time t: an adaptive integrator lands on t by its own
+        control; a fixed-step one takes whole steps to it (ValueError when t is not a whole
+        number of steps from the start, or lies behind the state)."""
+        if not t >= self.sim_t:
+            raise ValueError(f"{self.name}: cannot advance to t = {t!r}, behind the state's "
+                             f"t = {self.sim_t!r}")
+        if self.sim_integrator.adaptive:
+            if t > self.sim_t:
+                self._sim_advance(float(t))
+                self.sim_t = float(t)
+            return
+        h = self.sim_settings["h"]
+        k = t / h
+        if abs(k - round(k)) > 1e-6:
+            raise ValueError(f"{self.name} integrator {self.sim_integrator.name!r} is "
+                             f"fixed-step: t = {t!r} is not a whole number of steps h = {h:g}")
+        while self._sim_steps < round(k):
+            self.step_once()
 
     def sim_state(self) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) of the native stepper now, in the core's coordinates (new arrays)."""
         return self._sim_state()
+
+    def sim_counts(self) -> tuple[int, int, int]:
+        """(steps, rejected steps, qdd evaluations) of the native integrator since
+        :meth:`sim_reset`, as the engine reports them; -1 for what it does not report (a
+        fixed-step integrator's steps are always known)."""
+        steps, rejected, nfev = self._sim_counts()
+        if not self.sim_integrator.adaptive and steps < 0:
+            steps = self._sim_steps
+        return int(steps), int(rejected), int(nfev)
+
+    def manifest(self) -> dict[str, Any]:
+        """Everything a fair comparison must know about how this engine ran: its name and
+        package version, the native integrator and its settings (after :meth:`sim_reset`),
+        and the adapter's flags and solver settings (``_settings``: stages disabled, solver
+        iterations, tolerances)."""
+        info = getattr(self, "sim_integrator", None)
+        out: dict[str, Any] = {"engine": self.name, "package": self.package,
+                               "version": self.version}
+        if info is not None:
+            out.update(integrator=info.name, integrator_what=info.what,
+                       adaptive=info.adaptive, integrator_note=info.note,
+                       **{k: v for k, v in self.sim_settings.items() if v is not None})
+        out.update(self._settings())
+        return out
 
     def __repr__(self) -> str:
         m = self.model
@@ -624,3 +742,12 @@ class Engine(EnginePackage):
 
     def _sim_state(self):
         raise NotImplementedError
+
+    def _sim_advance(self, t: float) -> None:
+        raise NotImplementedError(f"{self.name} has no adaptive integrator")
+
+    def _sim_counts(self) -> tuple[int, int, int]:
+        return -1, -1, -1
+
+    def _settings(self) -> dict[str, Any]:
+        return {}

@@ -65,7 +65,7 @@ import numpy as np
 
 from redysim.model.tree import FREE
 
-from .base import Engine, FreeBlock, free_rotation, rotation_quaternion
+from .base import Engine, FreeBlock, NativeIntegrator, free_rotation, rotation_quaternion
 
 
 def _construction(axes) -> str | None:
@@ -120,7 +120,9 @@ class DART(Engine):
     name = "dart"
     package = "dartpy"
     module = "dartpy"
-    integrator = "World.step, semi-implicit Euler, fixed step"
+    integrator = "semi-implicit-euler"
+    integrators = {"semi-implicit-euler": NativeIntegrator(
+        "semi-implicit-euler", False, "World.step (semi-implicit Euler)")}
 
     @classmethod
     def unsupported(cls, model, joints):

@@ -70,7 +70,14 @@ import numpy as np
 from redysim.algorithms.rbda import rotation
 from redysim.model.tree import FREE
 
-from .base import Engine, FreeBlock, axis, free_rotation, rotation_quaternion
+from .base import (
+    Engine,
+    FreeBlock,
+    NativeIntegrator,
+    axis,
+    free_rotation,
+    rotation_quaternion,
+)
 
 # the start of Exudyn's advice, printed at every solve of more than 1,000 coordinates
 SPARSE_ADVICE = "The number of total coordinates (unknowns) is larger than 1000. Consider a sparse"
@@ -172,7 +179,8 @@ class Exudyn(Engine):
     name = "exudyn"
     package = "exudyn"
     module = "exudyn"
-    integrator = "Exudyn explicit RK44, fixed step"
+    integrator = "rk44"
+    integrators = {"rk44": NativeIntegrator("rk44", False, "DynamicSolverType.RK44")}
 
     def _build(self):
         exu = self.lib

@@ -50,7 +50,7 @@ import numpy as np
 
 from redysim.model.tree import FREE
 
-from .base import Engine
+from .base import Engine, NativeIntegrator
 
 # Pipeline stages the models here have nothing for (no contacts, constraints, actuators, sensors,
 # springs, dampers, friction loss, limits or equalities): disabled, so mj_forward skips their
@@ -88,7 +88,8 @@ class MuJoCo(Engine):
     name = "mujoco"
     package = "mujoco"
     module = "mujoco"
-    integrator = "mj_step, mjINT_RK4, fixed step"
+    integrator = "rk4"
+    integrators = {"rk4": NativeIntegrator("rk4", False, "mj_step, mjINT_RK4")}
     depth_limited = True
 
     @classmethod

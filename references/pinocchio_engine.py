@@ -65,7 +65,7 @@ import numpy as np
 from redysim.algorithms.rbda import quaternion_matrix
 from redysim.model.tree import FREE
 
-from .base import Engine, FreeBlock, depth_first
+from .base import Engine, FreeBlock, NativeIntegrator, depth_first
 
 
 def _axis_model(pin, axis):
@@ -104,7 +104,11 @@ class PinocchioEngine(Engine):
 
     package = "pin"
     module = "pinocchio"
-    integrator = "semi-implicit Euler (fixed step; pin.aba/crba for qdd, pin.integrate for q)"
+    integrator = "semi-implicit-euler"
+    integrators = {"semi-implicit-euler": NativeIntegrator(
+        "semi-implicit-euler", False,
+        "the adapter's own loop: pin.aba/crba for qdd, pin.integrate for q",
+        "Pinocchio has no time integrator: this loop is the adapter's, not the engine's")}
     universal: ClassVar[str] = "universal"
 
     def _build(self):
