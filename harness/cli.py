@@ -26,10 +26,7 @@ from redysim.integrators.explicit import (
     DEFAULT_ATOL,
     DEFAULT_METHOD,
     DEFAULT_RTOL,
-    FIXED_STEP,
     INTEGRATORS,
-    canonical,
-    check_settings,
 )
 from redysim.io.cases import CASES_DIR, list_cases, load_case
 
@@ -183,12 +180,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--method", default=RunSpec.method, choices=CORE_METHODS, metavar="M",
                      help=f"the core's algorithm: {', '.join(CORE_METHODS)}; rge-a is O(n) "
                           f"(default: {RunSpec.method})")
-    sim.add_argument("--integrator", choices=(*INTEGRATORS, *ALIASES, NATIVE), metavar="I",
-                     help=f"{', '.join((*INTEGRATORS, NATIVE))}; adaptive ones take "
-                          f"--rtol/--atol, rk4, midpoint-fixed and native (an engine's own "
-                          f"stepper) take --h; implicit is midpoint, the implicit midpoint "
-                          f"rule with error control, for chains whose explicit steps are bound "
-                          f"by waves (default: the case file's, else {DEFAULT_METHOD})")
+    sim.add_argument("--integrator", type=_integrator, metavar="I",
+                     help=f"{', '.join((*INTEGRATORS, NATIVE))} or native:NAME (one of the "
+                          f"engine's own integrators, listed by `redysim engines`); adaptive "
+                          f"ones take --rtol/--atol, rk4, midpoint-fixed and an engine's "
+                          f"fixed-step ones take --h; implicit is midpoint, the implicit "
+                          f"midpoint rule with error control, for chains whose explicit steps "
+                          f"are bound by waves (default: the scenario's, else {DEFAULT_METHOD})")
     sim.add_argument("--rtol", type=positive, metavar="R",
                      help=f"relative tolerance of an adaptive integrator, in [100 eps, 1) "
                           f"(default: the case file's, else {DEFAULT_RTOL:g})")
@@ -279,6 +277,19 @@ def build_parser() -> argparse.ArgumentParser:
     _model_flags(info)
     info.set_defaults(func=cmd_info)
     return ap
+
+
+def _integrator(text: str) -> str:
+    """An argparse type: one of redysim's integrators, "native" or "native:NAME" (whether the
+    engine has NAME is checked with the engine, naming its own)."""
+    from redysim.harness.spec import NATIVE
+
+    if text in (*INTEGRATORS, *ALIASES, NATIVE) or (text.startswith(NATIVE + ":") and
+                                                    len(text) > len(NATIVE) + 1):
+        return text
+    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
+                                     f"{', '.join((*INTEGRATORS, *ALIASES, NATIVE))}, or "
+                                     "native:NAME)")
 
 
 def _lock(text: str) -> tuple[str, list[float]]:
@@ -382,11 +393,13 @@ def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
 
 
 KIND_NAMES = {"case": "a rope case", "urdf": "a URDF", "mjcf": "an MJCF file",
-              "dh": "a DH robot file", "linkage": "a linkage file"}
+              "dh": "a DH robot file", "linkage": "a linkage file",
+              "scenario": "a scenario file"}
 # the flags each kind of file has no use for: refused by name rather than ignored
 UNUSED_FLAGS = {"case": ("floating", "mimic"), "urdf": ("links", "precision"),
                 "mjcf": ("links", "precision", "mimic"), "dh": ("links", "precision", "mimic"),
-                "linkage": ("links", "precision", "mimic", "floating")}
+                "linkage": ("links", "precision", "mimic", "floating"),
+                "scenario": ("links", "precision", "mimic", "floating")}
 FLAG_USES = {"links": "coarse-grains a rope case's chain",
              "precision": "sets the arithmetic of a rope case's run (robot and linkage files "
                           "run in float64)",
@@ -395,23 +408,14 @@ FLAG_USES = {"links": "coarse-grains a rope case's chain",
 
 
 def file_kind(name: str) -> str:
-    """What ``redysim simulate`` or ``info`` is given: ``"urdf"``, ``"mjcf"`` (.xml), ``"dh"``
-    (a DH robot .toml), ``"linkage"`` (a linkage .toml) or ``"case"`` (a case name, or any
-    other .toml: a rope case file)."""
-    suffix = Path(name).suffix.lower()
-    if suffix == ".urdf":
-        return "urdf"
-    if suffix == ".xml":
-        return "mjcf"
-    if suffix == ".toml" and Path(name).is_file():
-        from redysim.io.dh import is_robot_file
-        from redysim.io.linkage_files import is_linkage_file
+    """What ``redysim simulate`` or ``info`` is given (:func:`redysim.io.scenarios.file_kind`):
+    ``"urdf"``, ``"mjcf"``, ``"dh"``, ``"linkage"``, ``"scenario"`` (a scenario file, or the
+    name of a built-in one) or ``"case"`` (a rope case's name or file)."""
+    from redysim.io.scenarios import file_kind as kind_of
+    from redysim.io.scenarios import scenario_path
 
-        if is_robot_file(name):
-            return "dh"
-        if is_linkage_file(name):
-            return "linkage"
-    return "case"
+    p = scenario_path(name) if not Path(name).suffix else None
+    return kind_of(p if p is not None else name)
 
 
 def _refuse_unused_flags(args: argparse.Namespace, kind: str) -> None:
@@ -448,39 +452,79 @@ def _load_system(args: argparse.Namespace):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    """``redysim simulate``: one run, printed."""
+    """``redysim simulate``: one run of any scenario (a rope case, a scenario file, a robot or
+    linkage file) by the core or an engine, through the harness's run
+    (:func:`redysim.harness.run.execute`), printed."""
+    from redysim.harness.spec import CORE, RunSpec
+    from redysim.io.scenarios import load_scenario
+
     kind = file_kind(args.case)
     _refuse_unused_flags(args, kind)
-    if kind != "case":
-        return _simulate_model(args, kind)
-    if args.lock:
+    if args.lock and kind in ("case", "linkage", "scenario"):
+        why = {"case": "a rope case has no named joints",
+               "linkage": "a linkage file's driver and cuts set its motion",
+               "scenario": "a scenario file locks its joints in its [model] table (lock)"}[kind]
         raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
-                            "(.urdf, .xml, cases/robots/*.toml); a rope case has no named joints")
-    from redysim.harness.spec import CORE, RunSpec
-
-    case = load_case(args.case)  # a missing or malformed case is bad input (exit 2)
+                            f"(.urdf, .xml, cases/robots/*.toml); {why}")
+    options: dict = {}
+    if kind in ("urdf", "mjcf", "dh"):
+        options = {"floating": args.floating or None, "mimic": args.mimic,
+                   "lock": dict(args.lock) or None}
+        options = {k: v for k, v in options.items() if v is not None}
+    scn = load_scenario(args.case, options=options)  # a bad file is bad input (exit 2)
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
                    integrator=args.integrator or "", rtol=args.rtol or 0.0,
-                   atol=args.atol or 0.0, h=args.h or 0.0, t_end=args.t_end or 0.0,
-                   sample=args.sample or 0.0, max_cpu_s=args.max_cpu or 0.0,
-                   links=args.links or 0, precision=args.precision or "float64")
-    spec.resolved(case, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
+                   atol=args.atol or 0.0, h=args.h or 0.0,
+                   t_end=args.t_end or 0.0, sample=args.sample or 0.0,
+                   max_cpu_s=args.max_cpu or 0.0, links=args.links or 0,
+                   precision=args.precision or "float64").with_options(**options)
+    spec.resolved(scn, source=SOURCE, names=FLAGS)  # bad settings: exit 2, naming the flag
     if args.engine != CORE:
         _check_engine(args.engine)
     if args.out is not None:
         _check_out(args.out)
     from redysim.harness.run import execute
 
-    res = execute(spec, progress=_report_progress, max_wall_s=args.max_wall)
+    if kind != "case":
+        print_scenario(scn, args.case)
+    states = args.out is not None and kind != "case"
+    res = execute(spec, progress=_report_progress, max_wall_s=args.max_wall, states=states)
     print_run(res.summary, res.rows)
     if args.out is not None:
         import pandas as pd
 
+        samples = res.samples
+        if states and res.states is not None:
+            m = scn.model
+            cols = {**{f"q{i}": res.states[:, i] for i in range(m.n_q)},
+                    **{f"v{i}": res.states[:, m.n_q + i] for i in range(m.n_v)}}
+            samples = pd.concat([samples, pd.DataFrame(cols)], axis=1)
         summary_path = args.out.with_suffix(".summary" + args.out.suffix)
-        _save(res.samples, args.out)
+        _save(samples, args.out)
         _save(pd.DataFrame([res.summary]), summary_path)
-        print(f"saved: {args.out} (samples), {summary_path} (summary)")
+        what = "samples" + (": t, path, energy, delta_M, COM, q, v" if states else "")
+        print(f"saved: {args.out} ({what}), {summary_path} (summary)")
     return _exit_code(res.summary["status"], res.summary["reason"])
+
+
+def print_scenario(scn, given: str) -> None:
+    """A scenario's model as a few lines: bodies, coordinates, mass, base, loops, and what its
+    file holds that the model does not (``Model.notes``: never dropped in silence)."""
+    m = scn.model
+    base = "floating base" if m.quaternions.size else "fixed base"
+    print(f"{m.name}   ({given}: {m.n_bodies} bodies, n_q = {m.n_q}, n_v = {m.n_v}, "
+          f"{m.total_mass:.6g} kg, {base})")
+    print(f"  scenario      {scn.description or scn.name}; observed: {', '.join(scn.observe)}")
+    if m.cuts:
+        from redysim.algorithms.loops import ClosedLoops
+
+        loops = ClosedLoops(m)
+        print(f"  loops         {len(m.cuts)} cut joint{'s' if len(m.cuts) > 1 else ''}, "
+              f"{loops.m} equations")
+    if m.notes:
+        print("  dropped       from the file, not simulated (Model.notes):")
+        for note in m.notes:
+            print(f"    {note}")
 
 
 def _exit_code(status: str, reason: str) -> int:
@@ -493,97 +537,6 @@ def _exit_code(status: str, reason: str) -> int:
         return EXIT_STOPPED
     print(f"{PROG}: run failed: {reason}", file=sys.stderr)
     return EXIT_RUN_FAILED
-
-
-def _simulate_model(args: argparse.Namespace, kind: str) -> int:
-    """``redysim simulate ROBOT.urdf``: a passive fall of a model, printed (and saved)."""
-    import numpy as np
-
-    from redysim.harness.run import PROGRESS_EVERY_S
-    from redysim.harness.spec import CORE, RunSpec
-    from redysim.simulation import simulate
-
-    if args.engine != CORE:
-        raise SettingsError(SOURCE, "--engine", args.engine, "a robot file runs on the core; "
-                            "the engines take models through redysim.references (Python)")
-    if args.method != RunSpec.method:
-        raise SettingsError(SOURCE, "--method", args.method, "a robot file runs RGE-A")
-    if args.lock and kind == "linkage":
-        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a robot's joint; a "
-                            "linkage file's driver and cuts set its motion")
-    t_end = args.t_end or 1.0
-    integrator = args.integrator or DEFAULT_METHOD
-    fixed = canonical(integrator) in FIXED_STEP
-    for flag, value in (("--rtol", args.rtol), ("--atol", args.atol)):
-        if fixed and value is not None:
-            raise SettingsError(SOURCE, flag, value, f"applies to adaptive integrators; "
-                                f"{integrator!r} is fixed-step (give its step --h)")
-    rtol, atol = args.rtol or DEFAULT_RTOL, args.atol or DEFAULT_ATOL
-    check_settings(SOURCE, FLAGS, method=integrator, rtol=None if fixed else rtol,
-                   atol=None if fixed else atol, h=args.h, t_end=t_end, sample=args.sample)
-    if fixed and args.h is None:
-        raise SettingsError(SOURCE, "--h", None, f"{integrator} needs its step: give --h")
-    if args.out is not None:
-        _check_out(args.out)
-    model, loops, q0 = _load_system(args)
-    if args.lock:
-        model = model.locked(dict(args.lock))
-    report = _progress_every(PROGRESS_EVERY_S)
-
-    def progress(t, t_end_, steps, wall):
-        report(t, t_end_, steps, wall)
-        if args.max_wall is not None and wall > args.max_wall:  # your patience: "stopped"
-            return (f"stopped by your wall-clock limit, --max-wall = {args.max_wall:g} s, at "
-                    f"t = {t:.6g} (the samples so far are kept)")
-        return None
-
-    sim = simulate(model, t_end, q0=q0, integrator=integrator, rtol=rtol, atol=atol, h=args.h,
-                   sample=args.sample, progress=progress, loops=loops, max_cpu_s=args.max_cpu)
-    status = {0: "ok", 1: "stopped"}.get(sim.status, "failed")
-    base = "floating base" if model.quaternions.size else "fixed base"
-    print(f"{model.name}   ({args.case}: {model.n_bodies} bodies, n_q = {model.n_q}, "
-          f"n_v = {model.n_v}, {model.total_mass:.6g} kg, {base})")
-    settings = f"h {args.h:g} s" if fixed else f"rtol {rtol:g}, atol {atol:g}"
-    print(f"  run           passive fall from rest, {t_end:g} s, {integrator} ({settings})")
-    print(f"  status        {status}{'' if sim.status == 0 else ': ' + sim.message}")
-    print(f"  E(0)          {sim.E0:.6f} J")
-    print(f"  steps         {sim.steps} ({sim.rejected} rejected), {sim.nfev} RHS calls")
-    print(f"  CPU           {sim.cpu_s:.3f} s (wall {sim.wall_s:.3f} s; JIT compile or cache "
-          f"load {sim.jit_s:.3f} s, timed apart)")
-    if sim.delta_M.size:
-        print(f"  |delta_M|     average {np.abs(sim.delta_M).mean():.3e} J/kg, max "
-              f"{np.abs(sim.delta_M).max():.3e} J/kg over {sim.t.size} samples")
-    if model.quaternions.size:
-        print(f"  quaternion    largest | |q| - 1 | after a step, before its projection: "
-              f"{sim.quaternion_error:.1e}")
-    if loops is not None:
-        forces = f"{np.abs(sim.forces).max():.4g} N" if sim.forces.size else "none sampled"
-        print(f"  loops         {len(loops.cuts)} cut joint{'s' if len(loops.cuts) > 1 else ''}, "
-              f"{loops.m} equations; largest residual after a step, before its projection: "
-              f"{sim.residual_q:.1e} m, {sim.residual_v:.1e} m/s; largest loop force "
-              f"{forces}")
-        if sim.near_change_point is not None:
-            print(f"  change point  the motion passed near one at t = "
-                  f"{sim.near_change_point:.6g} s (a configuration where the mechanism can "
-                  "switch branches: check the branch it left on)")
-    if model.notes:
-        print("  dropped       from the file, not simulated (Model.notes):")
-        for note in model.notes:
-            print(f"    {note}")
-    print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'COM x [m]':>12} {'COM y [m]':>12} "
-          f"{'COM z [m]':>12}")
-    for t, dM, c in zip(sim.t, sim.delta_M, sim.com, strict=True):
-        print(f"{t:10.4f} {dM:15.3e} {c[0]:12.6f} {c[1]:12.6f} {c[2]:12.6f}")
-    if args.out is not None:
-        import pandas as pd
-
-        cols = {"t": sim.t, "energy": sim.energy, "delta_M": sim.delta_M,
-                **{f"com_{a}": sim.com[:, i] for i, a in enumerate("xyz")},
-                **{f"q{i}": sim.q[:, i] for i in range(model.n_q)},
-                **{f"v{i}": sim.v[:, i] for i in range(model.n_v)}}
-        _save(pd.DataFrame(cols), args.out)
-        print(f"saved: {args.out} (samples: t, energy, delta_M, COM, q, v)")
-    return _exit_code(status, sim.message)
 
 
 def _progress_every(seconds: float):
@@ -599,29 +552,49 @@ def _progress_every(seconds: float):
 
 
 def print_run(summary: dict, samples: list[tuple]) -> None:
-    """A run's summary and its samples (t, delta_M, tip position) as a readable table;
-    ``samples``: one tuple per sample, in :data:`redysim.harness.run.SAMPLE_COLUMNS` order."""
+    """A run's summary and its samples (t, delta_M, the observed path's position, the centre
+    of mass) as a readable table; ``samples``: one tuple per sample, in
+    :data:`redysim.harness.run.SAMPLE_COLUMNS` order."""
     from redysim.harness.run import SAMPLE_COLUMNS
 
     s = summary
+    frame = s.get("frame") or "tip"
     print(f"{s['label']}   (run {s['run_id']}, {s['n_dof']} DOF)")
     print(f"  status        {s['status']}{': ' + s['reason'] if s['reason'] else ''}")
     print(f"  E(0)          {s['E0']:.6f} J")
-    print(f"  steps         {s['steps']} ({s['rejected']} rejected), {s['nfev']} RHS calls")
+    rejected = "rejections not reported" if s["rejected"] < 0 else f"{s['rejected']} rejected"
+    calls = ("RHS calls not reported by the engine" if s["nfev"] < 0 else
+             f"{s['nfev']} RHS calls")
+    print(f"  steps         {s['steps']} ({rejected}), {calls}")
     print(f"  CPU           {s['cpu_s']:.3f} s (wall {s['wall_s']:.3f} s; JIT compile or "
           f"cache load {s['jit_s']:.3f} s, timed apart)")
     print(f"  |delta_M|     average {s['avg_abs_delta_M']:.3e} J/kg, "
           f"max {s['max_abs_delta_M']:.3e} J/kg over {s['n_samples']} samples")
+    if s.get("quaternion_error"):
+        print(f"  quaternion    largest | |q| - 1 | after a step, before its projection: "
+              f"{s['quaternion_error']:.1e}")
+    if not math.isnan(s.get("max_loop_force", math.nan)):
+        print(f"  loops         largest residual after a step, before its projection: "
+              f"{s['residual_q']:.1e} m, {s['residual_v']:.1e} m/s; largest loop force "
+              f"{s['max_loop_force']:.4g} N")
+        if not math.isnan(s.get("near_change_point", math.nan)):
+            print(f"  change point  the motion passed near one at t = "
+                  f"{s['near_change_point']:.6g} s (a configuration where the mechanism can "
+                  "switch branches: check the branch it left on)")
     if not math.isnan(s["max_tip_err"]):  # a reference solution exists
-        print(f"  tip error     {s['max_tip_err']:.3e} m (max over the samples, against the "
-              f"reference solution)")
+        print(f"  {frame[:12]:<12}  path error {s['max_tip_err']:.3e} m (max over the samples, "
+              f"against the reference solution)")
     if len(samples):
-        print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {'tip x [m]':>12} {'tip y [m]':>12} "
-              f"{'tip z [m]':>12}")
-        shown = [SAMPLE_COLUMNS.index(c) for c in ("t", "delta_M", "tip_x", "tip_y", "tip_z")]
+        head = frame if len(frame) <= 10 else frame[:9] + "~"
+        print(f"\n{'t [s]':>10} {'delta_M [J/kg]':>15} {head + ' x [m]':>16} "
+              f"{head + ' y [m]':>16} {head + ' z [m]':>16} {'COM x [m]':>12} "
+              f"{'COM y [m]':>12} {'COM z [m]':>12}")
+        shown = [SAMPLE_COLUMNS.index(c) for c in ("t", "delta_M", "tip_x", "tip_y", "tip_z",
+                                                   "com_x", "com_y", "com_z")]
         for row in samples:
-            t, dM, x, y, z = (row[i] for i in shown)
-            print(f"{t:10.4f} {dM:15.3e} {x:12.6f} {y:12.6f} {z:12.6f}")
+            t, dM, x, y, z, cx, cy, cz = (row[i] for i in shown)
+            print(f"{t:10.4f} {dM:15.3e} {x:16.6f} {y:16.6f} {z:16.6f} {cx:12.6f} {cy:12.6f} "
+                  f"{cz:12.6f}")
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

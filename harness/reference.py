@@ -1,9 +1,10 @@
-"""Reference solutions: each case integrated at tight tolerance with the core, cached on disk.
+"""Reference solutions: each scenario integrated at tight tolerance with the core, cached on disk.
 
-The reference of (case, horizon, sample interval) is the core's RGE-A integrated by our DOP853
+The reference of (scenario, horizon, sample interval) is the core's RGE-A integrated by our DOP853
 under ode45's max-norm control at ``REF_RTOL`` (atol = ``REF_ATOL``); it is checked by an
-independent integrator, SciPy's DOP853 (RMS norm) at ``CHECK_RTOL``, and the max tip distance
-between the two is stored as ``tol_estimate``, an estimate of the reference's own error.
+independent integrator, SciPy's DOP853 (RMS norm) at ``CHECK_RTOL``, and the max distance
+between the two observed paths (a rope's tip, a robot's observed frame) is stored as
+``tol_estimate``, an estimate of the reference's own error.
 
 Why not tighter: qdd of a long chain carries rounding noise of order eps x cond(GIM) x |qdd|
 relative (cond ~ 4 nl^4), and a max-norm error test at a tolerance below that noise takes tiny
@@ -11,11 +12,11 @@ steps without gaining accuracy (docs/design.md, "Integrators": reference solutio
 measures of a run against the reference: the max tip-position error over the samples and the
 final-state error (``redysim.harness.run``).
 
-The cache key is a hash of the case file's bytes, the horizon, the interval, the settings and the
-core's source (every ``.py`` of ``redysim/``), so editing a case or the core invalidates its
-references; a damaged cache file reads as missing and is recomputed. Files are ``.npz`` written
-atomically (temp file + ``os.replace``) under ``results/reference/`` (``REDYSIM_RESULTS`` moves
-``results/``).
+The cache key is a hash of the scenario's bytes (its file and its model's), the horizon, the
+interval, the settings and the core's source (every ``.py`` of ``redysim/``), so editing a
+scenario, a model file or the core invalidates its references; a damaged cache file reads as
+missing and is recomputed. Files are ``.npz`` written atomically (temp file + ``os.replace``)
+under ``results/reference/`` (``REDYSIM_RESULTS`` moves ``results/``).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from redysim.integrators.explicit import Counters
+from redysim.io.scenarios import Scenario
 from redysim.simulation import frame_observer
 
 from .provenance import code_digest
@@ -49,7 +51,8 @@ def results_dir() -> Path:
 
 @dataclass
 class Reference:
-    """Samples ``t`` (m,), full states ``y`` (m, 2n), tip positions ``tip`` (m, 3)."""
+    """Samples ``t`` (m,), full states ``y`` (m, n_q + n_v), positions of the observed path
+    ``tip`` (m, 3)."""
 
     t: np.ndarray
     y: np.ndarray
@@ -60,15 +63,21 @@ class Reference:
     cpu_s: float
 
 
+def _scenario(case) -> Scenario:
+    return case if isinstance(case, Scenario) else Scenario.from_case(case)
+
+
 def _key(case, t_end: float, interval: float, rtol: float = REF_RTOL) -> str:
-    blob = json.dumps({"case": case.digest, "t_end": t_end, "dt": interval,
+    case = _scenario(case)
+    blob = json.dumps({"case": case.digest, "frame": case.frame, "t_end": t_end, "dt": interval,
                        "method": REF_METHOD, "rtol": rtol, "check": [CHECK_METHOD, CHECK_RTOL],
                        "core": code_digest()})
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
 def reference_path(case, t_end: float, interval: float) -> Path:
-    return results_dir() / "reference" / f"{case.name}-{_key(case, t_end, interval)}.npz"
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in _scenario(case).name)
+    return results_dir() / "reference" / f"{name}-{_key(case, t_end, interval)}.npz"
 
 
 def load_reference(case, t_end: float, interval: float) -> Reference | None:
@@ -85,10 +94,11 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
 
 
 def _solve(case, t_end, interval, method, rtol):
-    """The case integrated by the one simulation driver (its tip force included): samples,
-    states, tip positions, counts, CPU time."""
+    """The scenario integrated by the one simulation driver (a rope's tip force included):
+    samples, states, observed positions, counts, CPU time."""
+    case = _scenario(case)
     sim = case.simulator(t_end, integrator=method, rtol=rtol, atol=rtol, sample=interval,
-                         observe={"tip": frame_observer(case.chain, "tip")})
+                         observe={"tip": frame_observer(case.model, case.frame)})
     res = sim.run(clock="process")
     if res.status != 0:
         raise RuntimeError(f"reference of {case.name} failed: {res.message}")
@@ -113,19 +123,20 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
 
 
 def ensure_references(specs) -> dict[tuple, Reference]:
-    """Compute the missing references of a list of RunSpecs (once per case, horizon, interval).
-    A spec whose case or settings are bad is skipped: its run fails with the reason."""
-    from redysim import load_case
+    """Compute the missing references of a list of RunSpecs (once per scenario, horizon,
+    interval). A spec whose scenario or settings are bad is skipped: its run fails with the
+    reason."""
     from redysim.errors import RedysimError
+    from redysim.io.scenarios import load_scenario
 
     out = {}
     for spec in specs:
         try:
-            case = load_case(spec.case)
+            case = load_scenario(spec.case, options=spec.model_options())
             run = spec.resolved(case)
         except (RedysimError, OSError):
             continue
-        key = (spec.case, run.t_end, run.sample)
+        key = (spec.case, spec.options, run.t_end, run.sample)
         if key not in out:
             out[key] = compute_reference(case, run.t_end, run.sample)
     return out

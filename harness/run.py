@@ -1,4 +1,4 @@
-"""Execute one run: a case, simulated by one engine and algorithm with one integrator.
+"""Execute one run: a scenario, simulated by one engine and algorithm with one integrator.
 
 :func:`execute` never raises for a run that goes wrong: a NaN, an energy blow-up past the spec's
 bound, an engine's refusal or a missing package, the spec's CPU-time limit, any exception: the
@@ -7,10 +7,12 @@ A run stopped by the caller's wall-clock limit (``execute(max_wall_s=...)``: the
 ``redysim simulate --max-wall``) is ``"stopped"``: not a result, and never kept as one by a
 sweep (which sets no wall-clock limit).
 
-Per sample (the spec's interval): tip position, velocity and acceleration, E = T + V and
-delta_M = (E - E0) / M (Eq. 11), all computed by the core from the run's state (the energy is a
-measurement, the same for every engine). The tip acceleration needs qdd at the sample: one extra
-call of the run's own qdd per sample, not counted in ``nfev`` (the integrator's count).
+Per sample (the spec's interval): the observed path's position, velocity and acceleration (the
+``tip_*`` columns: a rope's tip, or the scenario's first observed frame, named in the row's
+``frame``), E = T + V, delta_M = (E - E0) / M (Eq. 11) and the centre of mass, all computed by
+the core from the run's state (a measurement, the same for every engine). The path's
+acceleration needs qdd at the sample: one extra call of the run's own qdd per sample, not
+counted in ``nfev`` (the integrator's count).
 
 Per run: the model's size (links, DOF, and for the core the bytes of its Workspace: every array
 the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall time of the
@@ -31,16 +33,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redysim import load_case
 from redysim.integrators.explicit import sample_times
-from redysim.simulation import Simulator, frame_observer
+from redysim.io.scenarios import Scenario, load_scenario
+from redysim.simulation import Simulator, frame_observer, is_native
 
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
-from .spec import CORE, NATIVE, RunSpec
+from .spec import CORE, RunSpec
 
 SAMPLE_COLUMNS = ("run_id", "t", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz",
-                  "tip_ax", "tip_ay", "tip_az", "E", "delta_M")
+                  "tip_ax", "tip_ay", "tip_az", "E", "delta_M", "com_x", "com_y", "com_z")
 PROGRESS_EVERY_S = 5.0  # wall seconds between two progress reports of a run
 
 
@@ -53,6 +55,7 @@ class RunResult:
     spec: RunSpec
     summary: dict
     rows: list
+    states: np.ndarray | None = None  # (n_samples, n_q + n_v) with execute(states=True)
 
     @functools.cached_property
     def samples(self):
@@ -73,11 +76,14 @@ class RunStopped(RunFailed):
     """Raised inside a run stopped by the caller's wall-clock limit: status "stopped"."""
 
 
-def run_case(spec: RunSpec, case):
-    """The case as the run models it, and its coarsening (None for the case's own chain):
-    with ``spec.links``, the chain coarse-grained to that many links and the initial state mapped
-    by the coarsening's chord projection (:mod:`redysim.algorithms.coarse`)."""
-    return coarse_case(case, spec.links)
+def run_case(spec: RunSpec, scn: Scenario):
+    """The scenario as the run models it, and its coarsening (None for its own model): with
+    ``spec.links``, a rope's chain coarse-grained to that many links and the initial state
+    mapped by the coarsening's chord projection (:mod:`redysim.algorithms.coarse`)."""
+    if scn.case is None or not spec.links:
+        return scn, None
+    case, cz = coarse_case(scn.case, spec.links)
+    return Scenario.from_case(case), cz
 
 
 def coarse_case(case, links: int):
@@ -99,10 +105,10 @@ class _Dynamics:
     """The run's accelerations, as :class:`redysim.simulation.Simulator` takes them: the core
     (RGE-A, GE-N or RGE-N) in float64 (``qdd`` None: the simulator calls the core itself, in
     compiled steps where it can), the core in emulated float32, or a reference engine's; and
-    the case's tip force as generalized forces with its potential."""
+    a rope's tip force as generalized forces with its potential."""
 
-    def __init__(self, spec: RunSpec, case):
-        self.chain = case.chain
+    def __init__(self, spec: RunSpec, case: Scenario):
+        self.chain = case.model
         self.n = self.chain.n_dof
         self.build_s = 0.0
         self.engine = None
@@ -126,12 +132,16 @@ class _Dynamics:
         else:
             from redysim import references
 
+            if case.model.cuts:
+                raise RunFailed(f"engine {spec.engine!r} on a closed-loop scenario: the engines' "
+                                "loop adapters (redysim.references.loop_engine) do not run in "
+                                "the harness yet; the core runs it")
             cls = references.get(spec.engine)
-            lim = cls.limits(case)
+            lim = cls.limits(case.model)
             if not lim.ok:
                 raise RunFailed(f"refused by the engine: {lim.reason}")
             t0 = time.perf_counter()
-            self.engine = cls(case)
+            self.engine = cls(case.model)
             self.build_s = time.perf_counter() - t0
             self.version = self.engine.version
             engine = self.engine
@@ -147,7 +157,7 @@ class _Dynamics:
 
 
 def execute(spec: RunSpec, *, reference=True, progress=None,
-            max_wall_s: float | None = None) -> RunResult:
+            max_wall_s: float | None = None, states: bool = False) -> RunResult:
     """Run ``spec`` and return its summary row and samples (never raises for a failing run).
 
     The row holds the run's settings as run (:meth:`RunSpec.resolved`: the case's where the
@@ -159,26 +169,32 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
     stopped, its samples so far kept, with status ``"stopped"`` (not a result: what a run
     reaches in a given wall time depends on the machine's load). The spec's own limit is
     ``spec.max_cpu_s``, in CPU time: a run past it is ``"failed"``.
+    ``states``: keep (q, v) at every sample too (``RunResult.states``; ``redysim simulate
+    --out`` saves them); a sweep keeps none.
     """
     reset_peak_rss()  # this run's peak, not the worker's before it
     row = {**spec.to_dict(), "run_id": spec.run_id, "label": spec.label, "status": "ok",
            "reason": "", "steps": 0, "rejected": 0, "nfev": 0, "cpu_s": math.nan,
            "wall_s": math.nan, "jit_s": math.nan, "build_s": math.nan, "peak_rss_mib": math.nan,
-           "n_dof": 0, "n_links": 0, "model_mib": math.nan, "E0": math.nan,
+           "n_dof": 0, "n_links": 0, "model_mib": math.nan, "E0": math.nan, "frame": "",
+           "engine_config": "",
            "avg_abs_delta_M": math.nan, "max_abs_delta_M": math.nan,
            "t_reached": 0.0, "n_samples": 0, "max_tip_err": math.nan, "final_state_err": math.nan,
-           "ref_tol_estimate": math.nan}
+           "ref_tol_estimate": math.nan, "quaternion_error": 0.0, "residual_q": 0.0,
+           "residual_v": 0.0, "max_loop_force": math.nan, "near_change_point": math.nan}
     samples: list[tuple] = []
-    last = {}  # the state at the last sample, for the final-state error
+    last: dict = {"states": [] if states else None}  # the last state (final-state error)
     engine_version = ""
     coarsening = None
+    dyn_engine = [None]  # the engine built, for its manifest
     try:
-        case = load_case(spec.case)
+        case = load_scenario(spec.case, options=spec.model_options())
         spec = spec.resolved(case)
         case, coarsening = run_case(spec, case)
-        row.update(n_dof=case.chain.n_dof, n_links=case.chain.n_links)
+        row.update(n_dof=case.model.n_v, n_links=case.model.n_bodies, frame=case.frame)
         row.update(spec.to_dict(), label=spec.label)
         dyn = _Dynamics(spec, case)
+        dyn_engine[0] = dyn.engine
         engine_version = dyn.version
         row["build_s"] = dyn.build_s
         _integrate(spec, case, dyn, row, samples, last, progress, max_wall_s)
@@ -187,9 +203,10 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
     except RunFailed as exc:
         row.update(status="failed", reason=str(exc))
     except Exception as exc:  # an engine's or the core's error: recorded, never raised
-        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = traceback.extract_tb(exc.__traceback__)[-1]
         row.update(status="failed", reason=f"{type(exc).__name__}: {exc} "
-                                           f"(at {last.filename.rsplit('/', 1)[-1]}:{last.lineno})")
+                                           f"(at {where.filename.rsplit('/', 1)[-1]}:"
+                                           f"{where.lineno})")
     if samples:
         abs_dM = np.abs([s[SAMPLE_COLUMNS.index("delta_M")] for s in samples])
         row["avg_abs_delta_M"] = float(abs_dM.mean())
@@ -201,12 +218,19 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
         tip = SAMPLE_COLUMNS.index("tip_x")
         pos = np.array([s[tip:tip + 3] for s in samples])
         _compare_with_reference(spec, row, pos, last.get("y"), coarsening)
+    if dyn_engine[0] is not None:
+        import json
+
+        row["engine_config"] = json.dumps(dyn_engine[0].manifest(), sort_keys=True,
+                                          default=str)
     row.update(provenance(engine_version))
-    return RunResult(spec, row, samples)
+    kept = last.get("states")
+    return RunResult(spec, row, samples, None if kept is None else np.array(kept))
 
 
 def initial_state(spec: RunSpec, case) -> np.ndarray:
-    """y0 = (q0, v0) of the run: the case's, shifted by ``spec.perturb`` (RunSpec's meaning)."""
+    """y0 = (q0, v0) of the run: the scenario's, shifted by ``spec.perturb`` (RunSpec's
+    meaning; a free joint's quaternion is normalised again by the simulator)."""
     y0 = np.concatenate((case.q0, case.v0))
     if spec.perturb:
         y0 = y0 + spec.perturb * np.maximum(np.abs(y0), 1.0)
@@ -218,23 +242,26 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     """Integrate a resolved spec (every setting explicit) by the one simulation driver
     (:class:`redysim.simulation.Simulator`); past ``spec.max_cpu_s`` of CPU time the run fails
     (RunFailed), past ``max_wall_s`` of wall time it is stopped (RunStopped)."""
-    chain, n = case.chain, case.chain.n_dof
+    chain, n = case.model, case.model.n_q
     y0 = initial_state(spec, case)
-    if spec.integrator == NATIVE:
+    native = is_native(spec.integrator)
+    if native:
         if dyn.engine is None:
-            raise RunFailed("integrator 'native' needs a reference engine (the core has no "
-                            "native stepper: use 'rk4' with a step h)")
-        if not spec.h > 0:
-            raise RunFailed("integrator 'native' needs a step h > 0")
-        per = sample_times(0.0, spec.t_end, spec.sample) / spec.h
-        if np.abs(per - np.round(per)).max() > 1e-6:
-            raise RunFailed(f"native stepping: sample times must be whole multiples of h = "
-                            f"{spec.h:g}")
+            raise RunFailed(f"integrator {spec.integrator!r} needs a reference engine (the core "
+                            "has no native stepper: use 'rk4' with a step h)")
+        if spec.stepped(spec.integrator):
+            if not spec.h > 0:
+                raise RunFailed(f"integrator {spec.integrator!r} needs a step h > 0")
+            per = sample_times(0.0, spec.t_end, spec.sample) / spec.h
+            if np.abs(per - np.round(per)).max() > 1e-6:
+                raise RunFailed(f"native stepping: sample times must be whole multiples of "
+                                f"h = {spec.h:g}")
     sim = Simulator(chain, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=spec.integrator,
                     rtol=spec.rtol, atol=spec.atol, h=spec.h or None, sample=spec.sample,
                     method=dyn.method, qdd=dyn.qdd, tau=dyn.tau, potential=dyn.potential,
-                    engine=dyn.engine, energy_bound=spec.energy_bound, keep_states=False,
-                    observe={"tip": frame_observer(chain, "tip", acceleration=True)},
+                    engine=dyn.engine, energy_bound=spec.energy_bound,
+                    keep_states=last.get("states") is not None,
+                    observe={"tip": frame_observer(chain, case.frame, acceleration=True)},
                     source=f"run {spec.label}")
     row["jit_s"], row["E0"] = sim.jit_s, sim.E0
     row["model_mib"] = sim.motion.ws.nbytes / 2**20 if dyn.engine is None else math.nan
@@ -267,19 +294,26 @@ def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
     tips = res.observed["tip"]
     for i, t in enumerate(res.t):
         samples.append((spec.run_id, float(t), *tips[i], float(res.energy[i]),
-                        float(res.delta_M[i])))
+                        float(res.delta_M[i]), *res.com[i]))
     last["y"] = res.y_final
+    if last.get("states") is not None and res.q.shape[0]:
+        last["states"] = np.concatenate((res.q, res.v), axis=1)
     row.update(steps=res.steps, rejected=res.rejected, nfev=res.nfev, cpu_s=res.cpu_s,
-               wall_s=res.wall_s)
+               wall_s=res.wall_s, quaternion_error=res.quaternion_error,
+               residual_q=res.residual_q, residual_v=res.residual_v)
+    if res.forces is not None:
+        row["max_loop_force"] = float(np.abs(res.forces).max()) if res.forces.size else 0.0
+    if res.near_change_point is not None:
+        row["near_change_point"] = float(res.near_change_point)
 
 
 def _compare_with_reference(spec: RunSpec, row: dict, pos, y_final, coarsening=None) -> None:
-    """Errors against the case's reference solution; ``pos``: the tip positions at the
-    samples, (n_samples, 3). A coarse-grained run is compared with the case's own (fine)
-    reference: its tip is the same point of the rope, and its final state is compared with the
-    reference's mapped to the coarse model (the chord projection)."""
-    case = load_case(spec.case)
-    ref = load_reference(case, row["t_end"], row["sample"])
+    """Errors against the scenario's reference solution; ``pos``: the observed path's
+    positions at the samples, (n_samples, 3). A coarse-grained rope is compared with the case's
+    own (fine) reference: its tip is the same point of the rope, and its final state is
+    compared with the reference's mapped to the coarse model (the chord projection)."""
+    scn = load_scenario(spec.case, options=spec.model_options())
+    ref = load_reference(scn, row["t_end"], row["sample"])
     if ref is None or len(ref.t) != len(pos):
         return
     row["max_tip_err"] = float(np.linalg.norm(pos - ref.tip, axis=1).max())
@@ -287,6 +321,17 @@ def _compare_with_reference(spec: RunSpec, row: dict, pos, y_final, coarsening=N
     if y_final is not None:
         y_ref = ref.y[-1]
         if coarsening is not None:
-            n = case.chain.n_dof
+            n = scn.model.n_q
             y_ref = np.concatenate(coarsening.to_coarse(y_ref[:n], y_ref[n:]))
-        row["final_state_err"] = float(np.abs(y_final - y_ref).max())
+        row["final_state_err"] = _state_error(scn.model, y_final, y_ref)
+
+
+def _state_error(model, y, y_ref) -> float:
+    """max |y - y_ref| over the coordinates, a free joint's quaternion compared up to its sign
+    (q and -q are the same rotation)."""
+    d = np.abs(np.asarray(y) - np.asarray(y_ref))
+    for i in getattr(model, "quaternions", ()):
+        other = np.abs(np.asarray(y)[i:i + 4] + np.asarray(y_ref)[i:i + 4])
+        if other.max() < d[i:i + 4].max():
+            d[i:i + 4] = other
+    return float(d.max())

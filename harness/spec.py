@@ -1,12 +1,14 @@
-"""What a run is: (case, engine and algorithm, integrator, tolerances or step, horizon, sampling).
+"""What a run is: (scenario, engine and algorithm, integrator, tolerances or step, horizon,
+sampling).
 
 A :class:`RunSpec` is plain data (it pickles, it goes to a Dask worker, it is one row of a sweep's
-cross product). Its settings default to the case file's ``[simulation]`` table: an empty
-integrator and zero tolerances, step, horizon and sample interval mean "the case's", and
-:meth:`RunSpec.resolved` fills them in (and checks every setting, naming the bad one). Its
-:attr:`RunSpec.run_id` is a stable hash of its fields, of the case file's bytes and of the code,
-so a resumed sweep can tell which runs are already done, and never reuses a run computed from
-another version of the case or of the code.
+cross product). Its ``case`` is any scenario (:mod:`redysim.io.scenarios`: a scenario file, a rope
+case, a model file by itself). Its settings default to the scenario's ``[simulation]`` table: an
+empty integrator and zero tolerances, step, horizon and sample interval mean "the scenario's",
+and :meth:`RunSpec.resolved` fills them in (and checks every setting, naming the bad one). Its
+:attr:`RunSpec.run_id` is a stable hash of its fields, of every byte that defines the scenario
+(its file, its model's file) and of the code, so a resumed sweep can tell which runs are already
+done, and never reuses a run computed from another version of the scenario or of the code.
 """
 
 from __future__ import annotations
@@ -21,21 +23,32 @@ from pathlib import Path
 from redysim.algorithms.methods import METHODS as CORE_METHODS
 from redysim.errors import SettingsError
 from redysim.integrators.explicit import FIXED_STEP, canonical, check_settings
-from redysim.io.cases import case_path, file_digest
+from redysim.io.scenarios import (
+    DEFAULT_SAMPLES,
+    MODEL_OPTIONS,
+    Scenario,
+    digest_of,
+    source_files,
+)
+from redysim.simulation import is_native, native_name
 
 CORE = "redysim"  # the engine name of our own core
-NATIVE = "native"  # integrator name: the engine's own time stepping
-STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerances
+NATIVE = "native"  # integrator name: the engine's own time stepping ("native:NAME": one of them)
+STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerances (and an
+# engine's fixed-step "native:NAME": :func:`stepped`)
 PRECISIONS = ("float64", "float32")  # RunSpec.precision: the arithmetic of the core's qdd
 
-__all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest"]
+__all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest",
+           "native_integrator"]
 
 
 @dataclass(frozen=True)
 class RunSpec:
     """One run.
 
-    case:        a case name from ``cases/`` or the path of a case file.
+    case:        a scenario (:mod:`redysim.io.scenarios`): a built-in scenario's or rope case's
+                 name, or the path of a scenario, case or model file (.urdf, MJCF .xml, DH
+                 robot or linkage .toml).
     engine:      ``"redysim"`` (the core) or a reference engine's name
                  (``redysim.references.ENGINES``).
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
@@ -43,8 +56,10 @@ class RunSpec:
     integrator:  a name from ``redysim.integrators.explicit.INTEGRATORS`` (``"ode45"``,
     ``"dop853"``,
                  ``"rk4"``, ``"midpoint"`` alias ``"implicit"``, ``"midpoint-fixed"``,
-                 ``"scipy-RK45"``, ...) or ``"native"`` (the engine's own stepper;
-                 needs ``h``); ``""``: the case's (ode45 unless its file says otherwise).
+                 ``"scipy-RK45"``, ...), ``"native"`` (the engine's default integrator) or
+                 ``"native:NAME"`` (one of the engine's own, ``Engine.integrators``: a
+                 fixed-step one needs ``h``, an adaptive one tolerances); ``""``: the case's
+                 (ode45 unless its file says otherwise).
     rtol, atol:  tolerances of an adaptive integrator; 0: the case's (1e-4 and 1e-6 unless its
                  file says otherwise). A fixed-step integrator takes none.
     h:           the step of a fixed-step integrator (``rk4``, ``midpoint-fixed``,
@@ -76,6 +91,9 @@ class RunSpec:
                  with ``fused_phi``; numpy-emulated, so slow, and its CPU time says nothing of
                  float32's speed: ``benchmarks/float32_speed.py`` measures that). The integrator's
                  state and stage sums stay float64.
+    options:     the model loader's options for a model file given by itself, as JSON
+                 (:meth:`with_options`: floating, mimic, equality, lock); "" for none (a
+                 scenario file sets its own).
     """
 
     case: str
@@ -92,23 +110,52 @@ class RunSpec:
     perturb: float = 0.0
     links: int = 0
     precision: str = "float64"
+    options: str = ""
 
     def __post_init__(self):
         if self.engine != CORE and self.method in CORE_METHODS:
             object.__setattr__(self, "method", "")
 
+    def with_options(self, **options) -> RunSpec:
+        """This run with the model loader's options (floating, mimic, equality, lock; None
+        values dropped) as canonical JSON."""
+        given = {k: v for k, v in options.items() if v not in (None, False, {}, ())}
+        unknown = set(given) - set(MODEL_OPTIONS)
+        if unknown:
+            raise SettingsError("run", "options", sorted(unknown),
+                                f"unknown; known: {', '.join(MODEL_OPTIONS)}")
+        return replace(self, options=json.dumps(given, sort_keys=True) if given else "")
+
+    def model_options(self) -> dict:
+        """The model loader's options (:attr:`options` read back)."""
+        return json.loads(self.options) if self.options else {}
+
+    def stepped(self, integrator: str) -> bool:
+        """Whether ``integrator`` takes a step h (not tolerances) for this run's engine: ours
+        of :data:`FIXED_STEP`, and an engine's fixed-step own ones."""
+        if is_native(integrator):
+            info = native_integrator(self.engine, integrator)
+            return info is None or not info.adaptive
+        return integrator in FIXED_STEP
+
     def resolved(self, case, *, source: str = "run", names: dict[str, str] | None = None
                  ) -> RunSpec:
-        """This run with every "the case's" setting taken from ``case`` (a loaded
-        :class:`redysim.Case`), and every setting checked: raises
-        :class:`~redysim.errors.SettingsError` naming the field (renamed by ``names``, e.g.
-        ``{"rtol": "--rtol"}``) and the value.
+        """This run with every "the scenario's" setting taken from ``case`` (a loaded
+        :class:`redysim.io.scenarios.Scenario`, or a rope :class:`redysim.Case`), and every
+        setting checked: raises :class:`~redysim.errors.SettingsError` naming the field
+        (renamed by ``names``, e.g. ``{"rtol": "--rtol"}``) and the value.
 
         A step given to an adaptive integrator, or tolerances to a fixed-step one, are refused
         rather than ignored."""
         names = names or {}
+        scn = case if isinstance(case, Scenario) else Scenario.from_case(case)
+        rope = scn.case
         if self.links:
-            nl = case.chain.n_links
+            if rope is None:
+                raise SettingsError(source, names.get("links", "links"), self.links,
+                                    f"coarse-grains a rope case's chain; {scn.name} is a "
+                                    f"{scn.kind} scenario")
+            nl = rope.chain.n_links
             if isinstance(self.links, bool) or int(self.links) != self.links or \
                     self.links < 1 or nl % int(self.links):
                 raise SettingsError(source, names.get("links", "links"), self.links,
@@ -121,18 +168,33 @@ class RunSpec:
             raise SettingsError(source, names.get("precision", "precision"), self.precision,
                                 f"reduced precision is the core's only (engine {self.engine!r} "
                                 "computes in its own arithmetic)")
-        integrator = self.integrator or case.integrator
+        integrator = self.integrator or scn.integrator
         integrator = canonical(integrator) if isinstance(integrator, str) else integrator
-        stepped = integrator in STEPPED
-        t_end = self.t_end or case.t_end
-        sample = self.sample or min(case.sample_interval, t_end)
+        native = is_native(integrator)
+        if native:
+            key = names.get("integrator", "integrator")
+            if self.engine == CORE:
+                raise SettingsError(source, key, integrator, "needs a reference engine: it is "
+                                    "an engine's own integrator, and the core has none (choose "
+                                    "an engine, or one of redysim's integrators)")
+            if native_integrator(self.engine, integrator) is None:
+                from redysim import references
+
+                own = references.get(self.engine).integrators
+                raise SettingsError(source, key, integrator, f"engine {self.engine!r} has no "
+                                    f"such integrator; its own: "
+                                    f"{', '.join('native:' + n for n in own) or 'none'}")
+        stepped = self.stepped(integrator)
+        t_end = self.t_end or scn.t_end
+        sample = self.sample or (min(scn.sample_interval, t_end) if scn.sample_interval else
+                                 t_end / DEFAULT_SAMPLES)
         if stepped:
             if self.rtol or self.atol:
                 key = "rtol" if self.rtol else "atol"
                 raise SettingsError(source, names.get(key, key), getattr(self, key),
                                     f"applies to adaptive integrators; {integrator!r} is "
                                     "fixed-step (give its step h)")
-            h = self.h or (case.h if integrator == case.integrator else None)
+            h = self.h or (scn.h if integrator == scn.integrator else None)
             if not h:
                 raise SettingsError(source, names.get("h", "h"), None,
                                     f"missing: integrator {integrator!r} is fixed-step and "
@@ -140,12 +202,13 @@ class RunSpec:
             rtol = atol = 0.0
         else:
             h = self.h or None  # refused below: an adaptive integrator takes no step
-            rtol, atol = self.rtol or case.rtol, self.atol or case.atol
-        check_settings(source, names, method=integrator, rtol=None if stepped else rtol,
+            rtol, atol = self.rtol or scn.rtol, self.atol or scn.atol
+        check_settings(source, names, method=None if native else integrator,
+                       rtol=None if stepped else rtol,
                        atol=None if stepped else atol, h=h, t_end=t_end,
                        sample=min(sample, t_end), extra_methods=(NATIVE,))
-        if self.t_end and self.t_end > case.t_end:  # the case file checked its own horizon
-            _check_horizon(case, float(t_end), source, names.get("t_end", "t_end"))
+        if self.t_end and self.t_end > scn.t_end and rope is not None:
+            _check_horizon(rope, float(t_end), source, names.get("t_end", "t_end"))
         return replace(self, integrator=integrator, rtol=rtol, atol=atol, h=h or 0.0,
                        links=int(self.links),
                        t_end=float(t_end), sample=float(min(sample, t_end)))
@@ -158,7 +221,7 @@ class RunSpec:
         any machine; a run finished from another version of the case or of the code is not
         reused."""
         from .provenance import code_digest
-        blob = json.dumps({**asdict(self), "case_digest": case_digest(self.case),
+        blob = json.dumps({**asdict(self), "case_digest": case_digest(self.case, self.options),
                            "code": code_digest()}, sort_keys=True, default=repr)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -179,6 +242,8 @@ class RunSpec:
             extra += f" links={self.links}"
         if self.precision != "float64":
             extra += f" {self.precision}"
+        if self.options:
+            extra += f" {self.options}"
         return f"{self.case} {algo} {integrator}{step}{extra}"
 
     def to_dict(self) -> dict:
@@ -203,17 +268,32 @@ def _check_horizon(case, t_end: float, source: str, name: str) -> None:
                             f"{MAX_RADIANS / motion.omega:.3g} s")
 
 
-def case_digest(case: str) -> str:
-    """SHA-256 of the case file's bytes ("missing" when it cannot be read: the run then fails
-    with the loader's message). Cached per file version (path, size, modification time)."""
+def native_integrator(engine: str, integrator: str):
+    """The :class:`redysim.references.NativeIntegrator` that ``integrator`` ("native" or
+    "native:NAME") names for ``engine``, or None when the engine has no such one (or is not
+    an engine). Imports no engine package (the adapters' tables are class attributes)."""
+    from redysim import references
+
     try:
-        path = case_path(case)
-        st = os.stat(path)
+        cls = references.get(engine)
+    except KeyError:
+        return None
+    name = native_name(integrator) or cls.integrator
+    return cls.integrators.get(name)
+
+
+def case_digest(case: str, options: str = "") -> str:
+    """SHA-256 over every file that defines the scenario (the scenario or case file, its model
+    file) and the model options ("missing" when one cannot be read: the run then fails with the
+    loader's message). Cached per file version (path, size, modification time)."""
+    try:
+        stats = tuple((str(Path(p).resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+                      for p in source_files(case) for st in (os.stat(p),))
     except (OSError, ValueError):
         return "missing"
-    return _digest(str(Path(path).resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+    return _digest(os.fspath(case), options, stats)
 
 
 @functools.lru_cache(maxsize=1024)
-def _digest(path: str, _size: int, _mtime_ns: int, _ino: int) -> str:
-    return file_digest(path)
+def _digest(case: str, options: str, _stats: tuple) -> str:
+    return digest_of(case, json.loads(options) if options else None)

@@ -440,7 +440,7 @@ def test_cli_simulate_prints_a_summary_and_saves_parquet(tmp_path, capsys):
     samples = read_parquet(out)
     summary = read_parquet(tmp_path / "tip.summary.parquet")
     assert len(samples) == 5 and summary["status"].tolist() == ["ok"]
-    table = text.split("tip z [m]")[1].split("saved:")[0]
+    table = text.split("COM z [m]")[1].split("saved:")[0]
     assert len(table.strip().splitlines()) == 5
 
 
@@ -455,8 +455,10 @@ def test_cli_exit_codes_for_bad_input_and_failed_runs(capsys):
             main(["simulate", "STUDY-R3", "--rtol", bad])
         assert info.value.code == 2
         assert f"argument --rtol: '{bad}' must be a finite number > 0" in capsys.readouterr().err
-    assert main(["simulate", "STUDY-R3", "--integrator", "native", "--h", "0.01"]) == 1
-    assert capsys.readouterr().err.startswith("redysim: run failed: integrator 'native' needs")
+    # an engine's own integrator asked of the core: bad input, refused before anything runs
+    assert main(["simulate", "STUDY-R3", "--integrator", "native", "--h", "0.01"]) == 2
+    assert capsys.readouterr().err.startswith("redysim: error: command line: --integrator = "
+                                              "'native': needs a reference engine")
     bad = Path(__file__).parent / "bad_inputs" / "states.toml"  # a state list, not a case
     assert main(["simulate", str(bad)]) == 2
     err = capsys.readouterr().err

@@ -672,7 +672,7 @@ def test_max_wall_on_a_model_file_stops_it_as_stopped(capsys):
                  "--sample", "1", "--max-wall", "0.5"])
     out, err = capsys.readouterr()
     assert code == 3
-    assert "status        stopped: stopped by your wall-clock limit, --max-wall = 0.5 s" in out
+    assert "status        stopped: stopped by the wall-clock limit, max_wall_s = 0.5 s" in out
     assert "run stopped:" in err
 
 
