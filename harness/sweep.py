@@ -6,10 +6,13 @@ method x integrator x tolerance or step)::
     [sweep]
     name = "smoke"
     description = "two chains, two integrators, two tolerances"
-    cases = ["STUDY-R3", "RE-U125-L1"]   # names from cases/, or paths of case files
+    cases = ["STUDY-R3", "RE-U125-L1"]   # scenarios: names from cases/ and cases/scenarios/,
+                                         # or paths of case, scenario or model files
     engines = ["redysim"]                # default ["redysim"]; others: redysim.references.ENGINES
     methods = ["rge-a"]                  # the core's methods (default ["rge-a"]); engines take none
-    integrators = ["ode45", "rk4"]       # redysim.integrators.explicit.INTEGRATORS or "native"
+    integrators = ["ode45", "rk4"]       # redysim.integrators.explicit.INTEGRATORS, "native" or
+                                         # "native:NAME" (an engine's own: each engine of the
+                                         # table that has it; the others skip it)
     rtols = [1e-4, 1e-6]                 # adaptive integrators: one run per rtol
     atol_ratio = 1e-2                    # atol = rtol * atol_ratio (default); or atols = [...],
                                          # paired with rtols one to one
@@ -78,14 +81,16 @@ from typing import Any
 import pandas as pd
 from tqdm import tqdm
 
-from redysim import list_cases, load_case, references
-from redysim.errors import CaseError, FieldError, SettingsError
+from redysim import list_cases, references
+from redysim.errors import FieldError, RedysimError, SettingsError
 from redysim.integrators.explicit import ALIASES, INTEGRATORS
 from redysim.io.cases import is_case_name
+from redysim.io.scenarios import list_scenarios, load_scenario
+from redysim.simulation import is_native
 
 from . import REDYSIM_THREADS, worker_threads
 from .run import execute
-from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec
+from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec, native_integrator
 from .store import (
     FILE_MODE,
     PARQUET_SUFFIX,
@@ -227,7 +232,7 @@ class _Checker:
     def __init__(self, source: str, base: Path):
         self.source = source
         self.base = base
-        self.case_names = set(list_cases())
+        self.case_names = set(list_cases()) | set(list_scenarios())
         self.engines = (CORE, *references.ENGINES)
         self.loaded: dict[str, Any] = {}  # case -> its loaded Case
 
@@ -235,7 +240,7 @@ class _Checker:
         """``spec`` with the case's settings filled in and every setting checked; a bad one
         fails naming the sweep file's field (``fields_``: RunSpec field -> sweep field)."""
         if spec.case not in self.loaded:
-            self.loaded[spec.case] = load_case(spec.case)
+            self.loaded[spec.case] = load_scenario(spec.case)
         names = {k: f"{where}.{v}" for k, v in fields_.items()}
         try:
             return spec.resolved(self.loaded[spec.case], source=self.source, names=names)
@@ -297,21 +302,32 @@ class _Checker:
         relative to the sweep file's folder). A name without a folder or ``.toml`` is a
         built-in case only (:func:`redysim.io.cases.case_path`)."""
         name = self.text(field, value)
-        if is_case_name(name):
+        if is_case_name(name) and not name.lower().endswith((".urdf", ".xml")):
             if name not in self.case_names:
-                self.fail(field, value, f"no such case; known cases: "
-                                        f"{', '.join(sorted(self.case_names))} (a case file "
-                                        "is given by its path, e.g. ./mine.toml)")
+                self.fail(field, value, f"no such case or scenario; known: "
+                                        f"{', '.join(sorted(self.case_names))} (a file is "
+                                        "given by its path, e.g. ./mine.toml)")
             return name
         path = Path(name) if Path(name).is_absolute() else self.base / name
         if not path.is_file():
-            self.fail(field, value, "no such case file")
+            self.fail(field, value, "no such file")
         resolved = str(path.resolve())
         try:
-            self.loaded[resolved] = load_case(resolved)
-        except CaseError as exc:
-            self.fail(field, value, f"bad case file: {exc}")
+            self.loaded[resolved] = load_scenario(resolved)
+        except (RedysimError, OSError) as exc:
+            self.fail(field, value, f"bad scenario file: {exc}")
         return resolved
+
+    def integrator(self, field: str, value: Any) -> str:
+        """One of redysim's integrators, "native", or "native:NAME" of at least one engine."""
+        value = self.text(field, value)
+        if is_native(value) and value != NATIVE:
+            own = {f"native:{n}" for cls in references.ENGINES.values() for n in cls.integrators}
+            if value not in own:
+                self.fail(field, value, f"no engine has this integrator; engines' own: "
+                                        f"{', '.join(sorted(own))}")
+            return value
+        return self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
 
     def choice(self, field: str, value: Any, known: Sequence[str], what: str) -> str:
         value = self.text(field, value)
@@ -327,7 +343,7 @@ class _Checker:
         if key == "methods":
             return self.choice(field, value, CORE_METHODS, "method of the core")
         if key == "integrators":
-            return self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+            return self.integrator(field, value)
         if key == "precisions":
             return self.choice(field, value, PRECISIONS, "precision")
         if key == "links":
@@ -360,7 +376,10 @@ class _Checker:
     def expand(self, where: str, settings: dict) -> list[RunSpec]:
         """The cross product one [sweep] or [[sweep.product]] table declares."""
         integrators = settings.get("integrators", [RunSpec.integrator])
-        stepped = [i for i in integrators if i in STEPPED_INTEGRATORS]
+        engines = settings.get("engines", [CORE])
+        stepped = [i for i in integrators if i in STEPPED_INTEGRATORS or (
+            is_native(i) and any(RunSpec("", engine=e).stepped(i) for e in engines
+                                 if e != CORE))]
         if stepped and "h" not in settings:
             self.fail(f"{where}.h", None, f"missing: integrator {stepped[0]!r} is fixed-step "
                                           "and needs step sizes, e.g. h = [1e-3]")
@@ -372,6 +391,10 @@ class _Checker:
                 methods = settings.get("methods", [RunSpec.method]) if engine == CORE else [""]
                 for method in methods:
                     for integrator in integrators:
+                        if is_native(integrator) and (engine == CORE or (
+                                integrator != NATIVE and native_integrator(
+                                    engine, integrator) is None)):
+                            continue  # an engine's own integrator: the engines that have it
                         for perturb, links, precision in itertools.product(
                                 settings.get("perturbs", [RunSpec.perturb]),
                                 settings.get("links", [RunSpec.links]),
@@ -379,7 +402,7 @@ class _Checker:
                             run = dict(case=case, engine=engine, method=method,
                                        integrator=integrator, perturb=perturb, links=links,
                                        precision=precision, **common)
-                            if integrator in STEPPED_INTEGRATORS:
+                            if RunSpec("", engine=engine).stepped(integrator):
                                 runs = [RunSpec(**run, h=h) for h in settings.get("h", [0.0])]
                             else:
                                 runs = [RunSpec(**run, rtol=r, atol=a) for r, a in tols]
@@ -402,7 +425,7 @@ class _Checker:
             elif key == "method":
                 run[key] = self.choice(field, value, CORE_METHODS, "method of the core")
             elif key == "integrator":
-                run[key] = self.choice(field, value, KNOWN_INTEGRATORS, "integrator")
+                run[key] = self.integrator(field, value)
             elif key == "precision":
                 run[key] = self.choice(field, value, PRECISIONS, "precision")
             elif key == "links":

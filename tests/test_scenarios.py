@@ -1,0 +1,162 @@
+"""Scenarios as data (redysim.io.scenarios): every built-in one loads and runs; bad files get named
+errors; a rope case run as a scenario is the case's run; and the truths no engine supplies hold in
+the core (free fall, zero gravity, the Dzhanibekov flip's period)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from redysim.errors import CaseError, SettingsError
+from redysim.harness.run import execute
+from redysim.harness.spec import RunSpec
+from redysim.io.scenarios import list_scenarios, load_scenario, robot_data_file
+from redysim.simulation import frame_observer
+
+REPO = Path(__file__).resolve().parents[1]
+NEEDS_ROBOTS = pytest.mark.skipif(robot_data_file("ur5_robot.urdf") is None,
+                                  reason="example-robot-data is not installed")
+
+
+def test_the_built_in_scenarios_are_there():
+    assert {"UR5-FALL", "PANDA-FALL", "TALOS-FALL", "TALOS-ZERO-G", "DZHANIBEKOV",
+            "DOUBLE-PENDULUM", "FOUR-BAR", "JANSEN-LEG", "PUMA560-FALL"} <= set(list_scenarios())
+
+
+@NEEDS_ROBOTS
+@pytest.mark.parametrize("name", list_scenarios())
+def test_every_built_in_scenario_loads_and_runs_a_short_while(name):
+    scn = load_scenario(name)
+    assert scn.model.n_q == scn.q0.size and scn.model.n_v == scn.v0.size
+    res = execute(RunSpec(name, t_end=min(scn.t_end, 0.05), sample=0.01), reference=False)
+    assert res.ok, res.summary["reason"]
+    assert res.summary["frame"] == scn.frame and len(res.rows) == 6
+
+
+def test_a_rope_case_as_a_scenario_is_the_case():
+    """The same chain, state, settings and tip: the rope's harness is the scenario harness."""
+    from redysim import load_case
+
+    case, scn = load_case("STUDY-R3"), load_scenario("STUDY-R3")
+    assert scn.kind == "case" and scn.frame == "tip" and scn.digest == case.digest
+    assert np.array_equal(scn.q0, case.q0) and scn.model.n_links == case.chain.n_links
+    res = execute(RunSpec("STUDY-R3", t_end=0.1, sample=0.05), reference=False)
+    sim = case.simulator(0.1, sample=0.05,
+                         observe={"tip": frame_observer(case.chain, "tip")}).run()
+    tip = np.array([r[2:5] for r in res.rows])
+    assert np.array_equal(tip, sim.observed["tip"][:, :3])  # bit for bit
+
+
+def _write(tmp_path, text: str, name: str = "s.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+PENDULUM = (REPO / "cases" / "scenarios" / "models" / "double_pendulum.urdf").as_posix()
+HANDLE = (REPO / "cases" / "scenarios" / "models" / "t_handle.urdf").as_posix()
+
+
+@pytest.mark.parametrize("body, field, fragment", [
+    ('[model]\nfile = "no_such.urdf"\n', "model.file", "no such file"),
+    ('[model]\n', "model.file", "missing"),
+    (f'[model]\nfile = "{PENDULUM}"\n[observe]\nframes = ["elbowz"]\n', "observe.frames",
+     "no such frame or body"),
+    (f'[model]\nfile = "{PENDULUM}"\n[initial]\nq = [0.1]\n', "initial.q",
+     "must be a list of 2 numbers"),
+    (f'[model]\nfile = "{PENDULUM}"\n[initial]\nv = [0.1, 0.2, 0.3]\n', "initial.v",
+     "must be a list of 2 numbers"),
+    (f'[model]\nfile = "{HANDLE}"\nfloating = true\n[initial]\nq = [0, 0, 0, 2, 0, 0, 0]\n',
+     "initial.q[3:7]", "unit quaternion"),
+    (f'[model]\nfile = "{PENDULUM}"\n[initial]\nrandom = {{ q = 0.1 }}\n', "initial.random",
+     "seed required"),
+    (f'[model]\nfile = "{PENDULUM}"\nmass = 3\n', "model.mass", "unknown field"),
+    (f'[model]\nfile = "{PENDULUM}"\n[simulation]\nrtol = 2.0\n', "simulation.rtol",
+     "must be < 1"),
+    (f'[model]\nfile = "{PENDULUM}"\n[observe]\npoints = {{ p = {{ body = "nobody", '
+     'at = [0, 0, 0] } }\n', "observe.points.p.body", "no such body"),
+])
+def test_bad_scenario_files_get_named_errors(tmp_path, body, field, fragment):
+    p = _write(tmp_path, "[scenario]\nname = \"bad\"\n" + body)
+    with pytest.raises((CaseError, FileNotFoundError)) as info:
+        load_scenario(p)
+    text = str(info.value)
+    assert str(p) in text and field in text and fragment in text, text
+
+
+def test_an_engine_without_that_integrator_is_named():
+    scn = load_scenario("DOUBLE-PENDULUM")
+    with pytest.raises(SettingsError, match="has no such integrator; its own: native:"):
+        RunSpec("DOUBLE-PENDULUM", engine="mujoco", integrator="native:leapfrog",
+                h=1e-3).resolved(scn)
+    with pytest.raises(SettingsError, match="needs a reference engine"):
+        RunSpec("DOUBLE-PENDULUM", integrator="native", h=1e-3).resolved(scn)
+
+
+def test_the_double_pendulum_conserves_energy():
+    scn = load_scenario("DOUBLE-PENDULUM")
+    sim = scn.simulator(rtol=1e-10, atol=1e-12).run()
+    assert sim.status == 0 and np.ptp(sim.q[:, 1]) > 1.0  # the lower bar swings
+    # 2 kg of bars falling ~1.5 m: E ~ 30 J; the integrator's tolerance bounds the drift
+    assert np.abs(sim.delta_M).max() < 1e-8
+
+
+@NEEDS_ROBOTS
+def test_talos_in_free_fall_keeps_its_com_on_the_parabola():
+    """Only gravity acts: c(t) = c0 + cdot0 t + g t^2 / 2 exactly (the floating base's truth)."""
+    scn = load_scenario("TALOS-FALL")
+    sim = scn.simulator(rtol=1e-10, atol=1e-12).run()
+    assert sim.status == 0
+    t, c = sim.t, sim.com
+    cdot0 = (c[1] - c[0]) / (t[1] - t[0]) - 0.5 * scn.model.gravity * (t[1] - t[0])
+    parabola = c[0] + np.outer(t, cdot0) + 0.5 * np.outer(t ** 2, scn.model.gravity)
+    # cdot0 from the first interval carries the integrator's error over it: ~1e-9 m here
+    assert np.abs(c - parabola).max() < 1e-7
+    assert abs(c[-1, 2] - c[0, 2] - cdot0[2] * t[-1] + 0.5 * 9.81 * t[-1] ** 2) < 1e-7
+
+
+@NEEDS_ROBOTS
+def test_talos_in_zero_gravity_keeps_its_com_on_a_line_and_its_energy():
+    scn = load_scenario("TALOS-ZERO-G")
+    assert not scn.model.gravity.any()
+    sim = scn.simulator(rtol=1e-10, atol=1e-12).run()
+    assert sim.status == 0
+    second = sim.com[2:] - 2 * sim.com[1:-1] + sim.com[:-2]  # a straight line, uniform speed
+    assert np.abs(second).max() < 1e-9
+    assert np.abs(sim.delta_M).max() < 1e-9
+
+
+def _flip_half_period(I1, I2, I3, w) -> float:
+    """Half the period of the body-frame spin about the middle axis of a torque-free body
+    (Landau and Lifshitz, Mechanics, section 37): omega_2 changes sign every 2 K(k) / lambda."""
+    E2 = I1 * w[0] ** 2 + I2 * w[1] ** 2 + I3 * w[2] ** 2  # 2 E
+    L2 = (I1 * w[0]) ** 2 + (I2 * w[1]) ** 2 + (I3 * w[2]) ** 2
+    if L2 > E2 * I2:
+        lam = math.sqrt((I3 - I2) * (L2 - E2 * I1) / (I1 * I2 * I3))
+        m = (I2 - I1) * (E2 * I3 - L2) / ((I3 - I2) * (L2 - E2 * I1))
+    else:
+        lam = math.sqrt((I2 - I1) * (E2 * I3 - L2) / (I1 * I2 * I3))
+        m = (I3 - I2) * (L2 - E2 * I1) / ((I2 - I1) * (E2 * I3 - L2))
+    return 2.0 * float(ellipk(m)) / lam
+
+
+def test_the_dzhanibekov_flip_has_its_closed_form_period():
+    """A free body spun about its middle axis flips over: the times between the sign changes of
+    its body-frame spin about that axis match 2 K(k) / lambda, and energy is kept."""
+    scn = load_scenario("DZHANIBEKOV")
+    w0 = scn.v0[3:]
+    sim = scn.simulator(16.0, rtol=1e-11, atol=1e-12, sample=0.001).run()
+    assert sim.status == 0
+    w2 = sim.v[:, 4]  # body-frame y
+    crossings = []
+    for i in np.flatnonzero(np.sign(w2[1:]) != np.sign(w2[:-1])):
+        t0, t1 = sim.t[i], sim.t[i + 1]
+        crossings.append(t0 + (t1 - t0) * w2[i] / (w2[i] - w2[i + 1]))  # linear, 1 ms apart
+    assert len(crossings) >= 3, "it flips over several times in 16 s"
+    half = _flip_half_period(1.0, 2.0, 3.0, w0)
+    assert np.diff(crossings) == pytest.approx(half, rel=1e-5)
+    assert np.abs(sim.delta_M).max() < 1e-9
