@@ -132,20 +132,19 @@ class _Dynamics:
         else:
             from redysim import references
 
-            if case.model.cuts:
-                raise RunFailed(f"engine {spec.engine!r} on a closed-loop scenario: the engines' "
-                                "loop adapters (redysim.references.loop_engine) do not run in "
-                                "the harness yet; the core runs it")
-            cls = references.get(spec.engine)
-            lim = cls.limits(case.model)
-            if not lim.ok:
-                raise RunFailed(f"refused by the engine: {lim.reason}")
-            t0 = time.perf_counter()
-            self.engine = cls(case.model)
-            self.build_s = time.perf_counter() - t0
-            self.version = self.engine.version
-            engine = self.engine
-            self.qdd = lambda q, v, tau: engine.qdd(q, v, tau)
+            if case.model.cuts:  # the engine's loop adapter: its own constraints
+                self.qdd = _loop_engine_of(spec, case, self)
+            else:
+                cls = references.get(spec.engine)
+                lim = cls.limits(case.model)
+                if not lim.ok:
+                    raise RunFailed(f"refused by the engine: {lim.reason}")
+                t0 = time.perf_counter()
+                self.engine = cls(case.model)
+                self.build_s = time.perf_counter() - t0
+                self.version = self.engine.version
+                engine = self.engine
+                self.qdd = lambda q, v, tau: engine.qdd(q, v, tau)
         self.tau = self.potential = None
         if self.force is not None:
             from redysim import Workspace
@@ -154,6 +153,33 @@ class _Dynamics:
             ws, force, chain = Workspace(self.chain), self.force, self.chain
             self.tau = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
             self.potential = lambda q: tip_force_potential(chain, q, force, ws=ws)
+
+
+def _loop_engine_of(spec: RunSpec, case: Scenario, dyn: _Dynamics):
+    """The constrained accelerations of an engine's loop adapter on a closed-loop scenario
+    (:mod:`redysim.references.loops`: the engine's own loop constraints); RunFailed when the
+    engine has none, cannot build the loops, or is asked to step natively."""
+    from redysim import references
+    from redysim.algorithms.loops import ClosedLoops
+
+    if is_native(spec.integrator):
+        raise RunFailed(f"integrator {spec.integrator!r}: an engine's own stepper on closed "
+                        "loops does not run in the harness (its loop adapter gives qdd: run it "
+                        "through redysim's integrators)")
+    cls = next((c for c in references.LOOP_ENGINES.values()
+                if spec.engine in (c.name, c.adapter.name)), None)
+    if cls is None:
+        raise RunFailed(f"engine {spec.engine!r} has no loop adapter; loop engines: "
+                        f"{', '.join(references.LOOP_ENGINES)}")
+    loops = ClosedLoops(case.model)
+    lim = cls.limits(loops)
+    if not lim.ok:
+        raise RunFailed(f"refused by the engine: {lim.reason}")
+    t0 = time.perf_counter()
+    eng = references.loop_engine(cls.name, loops)
+    dyn.build_s = time.perf_counter() - t0
+    dyn.version = eng.version
+    return lambda q, v, tau: eng.forward_dynamics(q, v, tau)
 
 
 def execute(spec: RunSpec, *, reference=True, progress=None,

@@ -202,9 +202,10 @@ class _Motion:
         return tau
 
     def qdd_of(self, t, q, v, out=None):
-        """vdot at (t, q, v): the loops', the provider's or the core's."""
+        """vdot at (t, q, v): the provider's (with loops: an engine's constrained
+        accelerations, its loop adapter's), the loops' or the core's."""
         tau = self.forces(t, q, v)
-        if self.loops is not None:
+        if self.loops is not None and self.qdd is None:
             a = self.loops.forward_dynamics(q, v, tau)
         elif self.qdd is not None:
             a = np.asarray(self.qdd(q, v, tau), dtype=float)
@@ -369,7 +370,9 @@ class Simulator:
 
     - ``qdd(q, v, tau) -> (n_v,)``: the accelerations' provider, instead of the core's forward
       dynamics by ``method`` ("rge-a", "ge-n", "rge-n"): a reference engine's, or the core in
-      emulated float32. ``engine`` with ``integrator="native"``: the engine steps itself
+      emulated float32; with loops, the constrained accelerations (an engine's loop adapter,
+      :mod:`redysim.references.loops`), the loops still projected after every step. ``engine``
+      with ``integrator="native"`` or ``"native:NAME"``: the engine steps itself
       (:class:`EngineStepper`).
     - ``tau(t, q, v) -> (n_v,)``: generalized forces (a tip force's joint torques, loads), and
       ``damping``: a viscous torque -damping * v at every joint [N m s]; ``potential(q)``: the
