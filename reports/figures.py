@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from redysim.harness.spec import CORE, NATIVE, STEPPED  # noqa: E402
+from redysim.harness.spec import CORE, NATIVE  # noqa: E402
 
 from .content import Figure  # noqa: E402
 from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
@@ -388,10 +388,13 @@ def _failed_group(label: str, runs: pd.DataFrame) -> str:
 
 
 def work_precision(ctx: Ctx) -> list[Figure]:
-    """One figure per (case, horizon) of runs measured against a reference solution."""
+    """One figure per (scenario, horizon) of runs measured against a reference solution: the
+    observed path's error against CPU time, the core's integrators and the engines' (through
+    ode45 and their own), and the energy drift of the same runs beside them."""
     runs = ctx.res.runs
     title0 = "Work-precision"
-    how = "not run: make reproduce (sweeps/quick-work-precision.toml)"
+    how = ("not run: make reproduce (sweeps/quick-work-precision.toml, "
+           "sweeps/quick-work-precision-robots.toml)")
     if runs.empty or "max_tip_err" not in runs:
         return [missing("wp", "work-precision", title0, "", how)]
     measured = runs[pd.to_numeric(runs["max_tip_err"], errors="coerce").notna()]
@@ -403,36 +406,49 @@ def work_precision(ctx: Ctx) -> list[Figure]:
         cases = runs[(runs["case"] == case) & np.isclose(runs["horizon"].astype(float), horizon)
                      & runs["sweep"].isin(set(g["sweep"]))]
         failed = cases[cases["status"] != "ok"]
-        fig, axes = new_figure(2, width=PANEL_W * 3, height=PANEL_H * 1.45,
+        frame = str(g["frame"].dropna().iloc[0]) if "frame" in g and \
+            g["frame"].dropna().astype(str).str.len().gt(0).any() else "tip"
+        fig, axes = new_figure(3, width=PANEL_W * 4.2, height=PANEL_H * 1.45,
                                footer=provenance_line(g))
         core = g[g["engine"] == CORE]
         engines = g[g["engine"] != CORE]
         for ax, part, colour_by in ((axes[0], core, "integrator"), (axes[1], engines, "engine")):
             keys = list(dict.fromkeys(part[colour_by]))
+            styles: dict[str, int] = {}
             for label, c in part.groupby(part.apply(_wp_label, axis=1)):
                 i = keys.index(c[colour_by].iloc[0])
-                key = "h" if c["integrator"].iloc[0] in STEPPED else "rtol"
+                key = "h" if c["h"].astype(float).gt(0).all() else "rtol"
                 c = c.sort_values(key, ascending=False)
-                style = "--" if c["integrator"].iloc[0] == NATIVE else "-"
-                ax.loglog(c["cpu_s"], np.maximum(c["max_tip_err"], ERROR_FLOOR), style,
-                          color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)], ms=3.5,
-                          label=label)
+                native = str(c["integrator"].iloc[0]).startswith(NATIVE)
+                n = styles[c[colour_by].iloc[0]] = styles.get(c[colour_by].iloc[0], -1) + 1
+                style = ("--", "-.", ":", (0, (5, 1, 1, 1)))[n % 4] if native else "-"
+                for a, y in ((ax, "max_tip_err"), (axes[2], "max_abs_delta_M")):
+                    a.loglog(c["cpu_s"], np.maximum(c[y].astype(float), ERROR_FLOOR),
+                             linestyle=style, color=f"C{i % 10}" if a is ax else
+                             f"C{(i + (0 if part is core else 5)) % 10}",
+                             marker=WP_MARKERS[(i + n) % len(WP_MARKERS)], ms=3.5,
+                             label=label if a is ax else None, alpha=1.0 if a is ax else 0.6)
         ref = core[core["integrator"] == "ode45"].sort_values("rtol", ascending=False)
         if len(ref):
             axes[1].loglog(ref["cpu_s"], np.maximum(ref["max_tip_err"], ERROR_FLOOR), "k:",
                            lw=1.5, label=f"{CORE} ode45 (for scale)")
         axes[0].set(title="(a) the core (RGE-A), every integrator")
-        axes[1].set(title="(b) every engine: ode45 (solid), its own stepper (dashed)")
-        for ax in axes:
-            ax.set(xlabel="CPU time [s]", ylabel="max tip error [m]")
-            ax.legend(fontsize=FONT_PT - 2, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        axes[1].set(title="(b) every engine: ode45 (solid), its own (dashed)")
+        axes[2].set(title="(c) energy drift of the same runs", xlabel="CPU time [s]",
+                    ylabel="max |delta_M| [J/kg]")
+        for ax in axes[:2]:
+            ax.set(xlabel="CPU time [s]", ylabel=f"max {frame} error [m]")
+            ax.legend(fontsize=FONT_PT - 2.5, loc="upper left", bbox_to_anchor=(1.0, 1.0))
         gone = "; ".join(_failed_group(label, f) for label, f in
                          failed.groupby(failed.apply(_wp_label, axis=1), sort=False)) \
             if len(failed) else ""
-        caption = (f"{case} over {horizon:g} s: error = the largest distance of the tip from the "
-                   "reference solution (DOP853 at 1e-10, checked by SciPy's DOP853 at 1e-13) over "
-                   "the samples, against CPU time; one curve per engine and integrator, points "
-                   "from loose to tight tolerance (or large to small step)."
+        path = "tip" if frame == "tip" else f"observed frame ({frame})"
+        caption = (f"{case} over {horizon:g} s: error = the largest distance of the {path} from "
+                   "the reference solution (DOP853 at 1e-10, checked by SciPy's DOP853 at 1e-13) "
+                   "over the samples, against CPU time; one curve per engine and integrator, "
+                   "points from loose to tight tolerance (or large to small step); (c): the "
+                   "largest energy drift per unit mass of the same runs (a symplectic stepper can "
+                   "keep it small while its path is far off)."
                    + (f" Failed runs (not drawn): {gone}." if gone else ""))
         figs.append(_figure(f"wp-{case}-{horizon:g}", "work-precision",
                             f"{title0}: {case}, {horizon:g} s", caption, fig))

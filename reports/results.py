@@ -40,7 +40,6 @@ from redysim.harness.longrun import load_checkpoint
 from redysim.harness.spec import CORE
 from redysim.harness.store import parquet_files, read_parquet
 from redysim.harness.sweep import PLAN_FILE, RUNS_DIR, SAMPLES_DIR
-from redysim.io.cases import load_case
 
 SWEEPS_DIR = "sweeps"
 PRECISION_DIR = "precision"
@@ -72,8 +71,11 @@ def _parquet(path: Path) -> pd.DataFrame | None:
 
 @functools.cache
 def _case(case: str):
-    """A loaded case (cached: the report asks about each case many times)."""
-    return load_case(case)
+    """A loaded scenario, a rope case or another (cached: the report asks about each case many
+    times)."""
+    from redysim.io.scenarios import load_scenario
+
+    return load_scenario(case)
 
 
 def case_horizon(case: str) -> float:
@@ -83,7 +85,8 @@ def case_horizon(case: str) -> float:
 
 def case_sample_interval(case: str) -> float:
     """A case's own sample interval [s] (its file's, else t_end / 20, as a run takes it)."""
-    return _case(case).sample_interval
+    scn = _case(case)
+    return scn.sample_interval or scn.t_end / 20
 
 
 class Results:

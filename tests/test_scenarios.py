@@ -160,3 +160,28 @@ def test_the_dzhanibekov_flip_has_its_closed_form_period():
     half = _flip_half_period(1.0, 2.0, 3.0, w0)
     assert np.diff(crossings) == pytest.approx(half, rel=1e-5)
     assert np.abs(sim.delta_M).max() < 1e-9
+
+
+@pytest.mark.engine
+def test_redysim_compare_writes_a_page_with_agreement_runs_and_advice(tmp_path, capsys,
+                                                                      monkeypatch):
+    """The user's command on a small model: every run against the reference, the page and PDF
+    written, the advice naming a run that met the tolerance."""
+    pytest.importorskip("mujoco")
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))  # the reference's cache
+    from redysim.harness.cli import main
+
+    out = tmp_path / "cmp"
+    assert main(["compare", "DOUBLE-PENDULUM", "--t-end", "0.2", "--engine", "mujoco",
+                 "--out", str(out), "--workers", "1", "--no-progress"]) == 0
+    html = (out / "compare.html").read_text()
+    assert "Single-state agreement with the core" in html and "cheapest here" in html
+    assert (out / "compare.pdf").read_bytes().startswith(b"%PDF")
+    import pandas as pd
+
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert set(runs["engine"]) == {"redysim", "mujoco"} and (runs["status"] == "ok").all()
+    assert runs["max_tip_err"].notna().all()  # every run measured against the reference
+    assert {"native:rk4", "ode45"} <= set(runs[runs["engine"] == "mujoco"]["integrator"])
+    assert main(["compare", str(tmp_path / "none.urdf")]) == 2
+    assert "does not exist" in capsys.readouterr().err

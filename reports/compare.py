@@ -1,0 +1,292 @@
+"""``redysim compare MODEL``: what a user with their own model runs to choose an engine and an
+integrator for it.
+
+For any scenario (:mod:`redysim.io.scenarios`: a .urdf, an MJCF .xml, a DH robot or linkage
+.toml, a scenario file, a rope case), it
+
+1. builds the model in every reference engine and checks single-state agreement with the core
+   at seeded random states (qdd, the GIM, the bias, the energy), or says why an engine cannot
+   build it (its ``limits``);
+2. runs the scenario's passive motion through the harness (:func:`redysim.harness.sweep.run_sweep`,
+   so the runs are cached and resumable like any sweep's): the core with its integrators, every
+   engine through ode45 (its qdd) and with each of its own integrators over a ladder of steps or
+   tolerances, each measured against the scenario's reference solution (DOP853 at 1e-10,
+   checked by SciPy's DOP853 at 1e-13: :mod:`redysim.harness.reference`);
+3. writes a short page, ``compare.html`` and ``compare.pdf`` in ``--out``: the agreement table,
+   the observed path's error and the energy drift over time, a work-precision plot, every run,
+   and the advice "for this accuracy, this engine and setting was cheapest here" (the least CPU
+   time among the runs whose path error is within it, measured here, on this machine).
+
+    python -m redysim.reports.compare ur5_robot.urdf --out results/compare/ur5
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from redysim.harness.spec import CORE, RunSpec
+
+from .content import DIFFER, INFO, MATCH, NOT_RUN, Headline, Report, Row, Section, Table
+from .figures import ERROR_FLOOR, FONT_PT, PANEL_H, PANEL_W, WP_MARKERS, _figure, new_figure
+from .robots import STAGES, TOLERANCE, agreement
+from .text import provenance_line
+
+HTML_FILE, PDF_FILE = "compare.html", "compare.pdf"
+CORE_RTOLS = (1e-4, 1e-7, 1e-10)
+ENGINE_RTOLS = (1e-4, 1e-7)
+STEP_DIVISIONS = (5, 25, 125)  # fixed steps h = sample / n: they land on every sample
+NATIVE_RTOLS = (1e-4, 1e-7)
+ADVICE_TOLS = (1e-2, 1e-4, 1e-6)  # m: path tolerances the advice answers for
+MAX_CPU_S = 120.0  # a run's CPU limit here [s]
+
+
+def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
+         engines=None) -> list[RunSpec]:
+    """The runs of a comparison: the core (ode45, dop853 at CORE_RTOLS; rk4 at the steps
+    sample / STEP_DIVISIONS), every engine through ode45 (ENGINE_RTOLS) and with each of its own
+    integrators (fixed: those steps; adaptive: NATIVE_RTOLS); closed loops: no native stepping
+    (the harness refuses it)."""
+    from redysim import references
+
+    steps = [sample / n for n in STEP_DIVISIONS]
+
+    base = dict(case=target, t_end=t_end, sample=sample, max_cpu_s=MAX_CPU_S)
+    specs = [RunSpec(**base, integrator=i, rtol=r, atol=r * 1e-2)
+             for i in ("ode45", "dop853") for r in CORE_RTOLS]
+    specs += [RunSpec(**base, integrator="rk4", h=h) for h in steps]
+    for name, cls in references.ENGINES.items():
+        if engines is not None and name not in engines:
+            continue
+        if name in ("pinocchio-aba-ryrz", "pinocchio-crba"):  # variants of one engine
+            continue
+        specs += [RunSpec(**base, engine=name, integrator="ode45", rtol=r, atol=r * 1e-2)
+                  for r in ENGINE_RTOLS]
+        if scn.model.cuts:
+            continue
+        for own, info in cls.integrators.items():
+            if info.adaptive:
+                specs += [RunSpec(**base, engine=name, integrator=f"native:{own}", rtol=r,
+                                  atol=r * 1e-2) for r in NATIVE_RTOLS]
+            else:
+                specs += [RunSpec(**base, engine=name, integrator=f"native:{own}", h=h)
+                          for h in steps]
+    return [s.with_options(**options) for s in specs]
+
+
+def setting(r) -> str:
+    """'h 0.001' or 'rtol 1e-07' of a run row."""
+    return f"h {float(r['h']):g}" if float(r["h"]) > 0 else f"rtol {float(r['rtol']):g}"
+
+
+def label(r) -> str:
+    return f"{r['engine']} {r['integrator']}"
+
+
+def advice(runs: pd.DataFrame, tols=ADVICE_TOLS) -> list[dict]:
+    """For each path tolerance: the cheapest run (least CPU time) whose path error is within
+    it, overall and per engine; None where no run met it."""
+    ok = runs[(runs["status"] == "ok") & pd.to_numeric(runs["max_tip_err"],
+                                                        errors="coerce").notna()]
+    out = []
+    for tol in tols:
+        met = ok[ok["max_tip_err"].astype(float) <= tol]
+        best = met.loc[met["cpu_s"].astype(float).idxmin()] if len(met) else None
+        per = {e: g.loc[g["cpu_s"].astype(float).idxmin()] for e, g in met.groupby("engine")}
+        out.append({"tol": tol, "best": best, "per_engine": per})
+    return out
+
+
+def _samples(out: Path, run_id: str) -> pd.DataFrame | None:
+    p = out / "samples" / f"{run_id}.parquet"
+    return pd.read_parquet(p) if p.is_file() else None
+
+
+def _path_figures(scn, runs: pd.DataFrame, out: Path, ref):
+    """The observed path's distance from the reference and the energy drift over time, for the
+    core's tightest run and each engine's tightest run of each integrator (the last of its
+    ladder)."""
+    fig, axes = new_figure(2, width=PANEL_W * 3.0, height=PANEL_H * 1.5,
+                           footer=provenance_line(runs))
+    ok = runs[runs["status"] == "ok"]
+    shown = []
+    for _, g in ok.groupby(ok.apply(label, axis=1), sort=False):
+        key = "h" if g["h"].astype(float).gt(0).all() else "rtol"
+        shown.append(g.sort_values(key).iloc[0])  # the smallest step or tolerance
+    for i, r in enumerate(shown):
+        s = _samples(out, r["run_id"])
+        if s is None or ref is None or len(s) != len(ref.t):
+            continue
+        err = np.linalg.norm(s[["tip_x", "tip_y", "tip_z"]].to_numpy() - ref.tip, axis=1)
+        style = "-" if r["engine"] == CORE else "--"
+        kw = dict(color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)], ms=2.5,
+                  markevery=max(1, len(s) // 8), linestyle=style)
+        axes[0].semilogy(s["t"], np.maximum(err, ERROR_FLOOR),
+                         label=f"{label(r)} {setting(r)}", **kw)
+        axes[1].semilogy(s["t"], np.maximum(np.abs(s["delta_M"]), ERROR_FLOOR), **kw)
+    axes[0].set(title=f"(a) {scn.frame}: distance from the reference", xlabel="t [s]",
+                ylabel="error [m]")
+    axes[1].set(title="(b) energy drift", xlabel="t [s]", ylabel="|delta_M| [J/kg]")
+    _legend_right(axes)
+    return _figure("compare-paths", "tip-path", f"{scn.name}: the observed path and the energy",
+                   f"The tightest run of each engine and integrator (its smallest step or "
+                   f"tolerance): (a) the distance of {scn.frame!r} from the reference solution "
+                   f"over time, (b) the energy drift per unit mass |delta_M| (computed by the core "
+                   f"from each run's states, the same measurement for every engine).", fig)
+
+
+def _legend_right(axes) -> None:
+    """The first panel's legend, right of the last panel (outside both)."""
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[-1].legend(handles, labels, fontsize=FONT_PT - 2.5, loc="upper left",
+                    bbox_to_anchor=(1.02, 1.0))
+
+
+def _wp_figure(scn, runs: pd.DataFrame):
+    fig, axes = new_figure(2, width=PANEL_W * 3.0, height=PANEL_H * 1.5,
+                           footer=provenance_line(runs))
+    ok = runs[(runs["status"] == "ok")]
+    for i, (name, g) in enumerate(ok.groupby(ok.apply(label, axis=1), sort=False)):
+        key = "h" if g["h"].astype(float).gt(0).all() else "rtol"
+        g = g.sort_values(key, ascending=False)
+        style = "-" if g["engine"].iloc[0] == CORE else "--"
+        for ax, col in ((axes[0], "max_tip_err"), (axes[1], "max_abs_delta_M")):
+            ax.loglog(g["cpu_s"].astype(float), np.maximum(g[col].astype(float), ERROR_FLOOR),
+                      linestyle=style, color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)],
+                      ms=3.5, label=name if ax is axes[0] else None)
+    axes[0].set(title=f"(a) {scn.frame}: max error against CPU", xlabel="CPU time [s]",
+                ylabel="max error [m]")
+    axes[1].set(title="(b) energy drift against CPU", xlabel="CPU time [s]",
+                ylabel="max |delta_M| [J/kg]")
+    _legend_right(axes)
+    return _figure("compare-wp", "work-precision", f"{scn.name}: work against precision",
+                   "Every run: the largest distance of the observed frame from the reference "
+                   "over the samples (a) and the largest energy drift (b), against the CPU time "
+                   "of the integration (JIT compile and engine build timed apart); one curve per "
+                   "engine and integrator, from loose to tight. Solid: the core; dashed: an "
+                   "engine.", fig)
+
+
+def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, ref) -> Report:
+    """The comparison page as a :class:`~redysim.reports.content.Report`."""
+    from redysim.harness.provenance import provenance
+
+    m = scn.model
+    base = "floating base" if m.quaternions.size else "fixed base"
+    intro = [f"{target}: {m.name}, {m.n_bodies} bodies, n_q = {m.n_q}, n_v = {m.n_v}, "
+             f"{m.total_mass:.6g} kg, {base}{f', {len(m.cuts)} cut joints' if m.cuts else ''}. "
+             f"Scenario: {scn.description or scn.name}; observed: {scn.frame}; "
+             f"horizon {runs['t_end'].astype(float).max():g} s."]
+    if m.notes:
+        intro.append("From the file, not simulated (Model.notes): " + "; ".join(m.notes))
+    agree_t = Table("compare-agreement", "Single-state agreement with the core",
+                    ["engine", "status", *STAGES, "note"],
+                    notes=[f"Worst relative difference max|engine - core| / max|core| over "
+                           f"seeded random states; within {TOLERANCE:g} is agreement."])
+    for r in agree:
+        vals = [r[s] for s in STAGES]
+        good = r["status"] == "ok" and all(v <= TOLERANCE for v in vals)
+        agree_t.rows.append(Row([r["engine"], r["status"],
+                                 *(f"{v:.1e}" if not math.isnan(v) else "" for v in vals),
+                                 r.get("reason", "")[:160]],
+                                MATCH if good else (NOT_RUN if r["status"] != "ok" else DIFFER)))
+    adv = advice(runs)
+    adv_t = Table("compare-advice", "For this accuracy, this engine and setting was cheapest "
+                  "here", ["path tolerance [m]", "cheapest run", "CPU [s]", "error [m]",
+                           "cheapest per engine (CPU s)"],
+                  notes=["Measured on this machine in this comparison: the least CPU time of "
+                         "the integration among the runs whose largest path error is within "
+                         "the tolerance; the JIT compile and the engine's build are not counted."])
+    heads = []
+    for a in adv:
+        b = a["best"]
+        per = "; ".join(f"{e}: {label(r).split(' ', 1)[1]} {setting(r)} ({float(r['cpu_s']):.3g})"
+                        for e, r in sorted(a["per_engine"].items()))
+        if b is None:
+            adv_t.rows.append(Row([f"{a['tol']:g}", "no run met it", "", "", ""], NOT_RUN))
+            continue
+        adv_t.rows.append(Row([f"{a['tol']:g}", f"{label(b)} {setting(b)}",
+                               f"{float(b['cpu_s']):.3g}", f"{float(b['max_tip_err']):.2e}",
+                               per], INFO))
+        heads.append(Headline(f"cheapest within {a['tol']:g} m", f"{label(b)} {setting(b)}",
+                              f"{float(b['cpu_s']):.3g} s CPU, error "
+                              f"{float(b['max_tip_err']):.1e} m"))
+    runs_t = Table("compare-runs", "Every run", ["run", "status", "steps", "RHS calls",
+                                                  "CPU [s]", "path error [m]",
+                                                  "max |delta_M| [J/kg]", "reason"])
+    for _, r in runs.iterrows():
+        runs_t.rows.append(Row([f"{label(r)} {setting(r)}", r["status"], str(r["steps"]),
+                                "" if int(r["nfev"]) < 0 else str(r["nfev"]),
+                                f"{float(r['cpu_s']):.3g}", f"{float(r['max_tip_err']):.2e}",
+                                f"{float(r['max_abs_delta_M']):.2e}", str(r["reason"])[:140]],
+                               INFO if r["status"] == "ok" else DIFFER))
+    manifests = Table("compare-engines", "The engines as they ran",
+                      ["engine", "version", "integrator", "configuration"])
+    seen = set()
+    for _, r in runs[runs["engine"] != CORE].iterrows():
+        key = (r["engine"], r["integrator"])
+        if key in seen or not str(r.get("engine_config", "")):
+            continue
+        seen.add(key)
+        manifests.rows.append(Row([r["engine"], str(r.get("engine_version", "")),
+                                   r["integrator"], str(r["engine_config"])[:400]], INFO))
+    figs = [_path_figures(scn, runs, out, ref), _wp_figure(scn, runs)]
+    here = provenance()
+    return Report(f"redysim compare: {scn.name}", f"{target}: every engine, every integrator, "
+                  "against a reference solution", here["date"], heads,
+                  [Section("model", "The model and its agreement", intro, [agree_t]),
+                   Section("advice", "What to run", [], [adv_t, *figs]),
+                   Section("runs", "The runs", [], [runs_t, manifests])],
+                  provenance_line(here, what="page built with"))
+
+
+def compare(target: str, out: Path, *, options: dict | None = None, t_end: float = 0.0,
+            workers: int | None = None, engines=None, progress: bool = True,
+            log=print) -> tuple[Path, Path]:
+    """Run the comparison of ``target`` into ``out`` and write its page (module docstring)."""
+    from redysim.harness.reference import compute_reference
+    from redysim.harness.store import write_text_atomic
+    from redysim.harness.sweep import run_sweep
+    from redysim.io.scenarios import load_scenario
+
+    from .build import render_html
+    from .pdf import write_pdf
+
+    options = options or {}
+    scn = load_scenario(target, options=options)
+    horizon = t_end or scn.t_end
+    sample = min(scn.sample_interval or horizon / 20, horizon)
+    log(f"compare: {scn.name}: single-state agreement in every engine")
+    agree = agreement(scn.name, scn.model)
+    specs = plan(target, scn, options=options, t_end=horizon, sample=sample, engines=engines)
+    log(f"compare: {len(specs)} runs over {horizon:g} s (cached in {out / 'runs'})")
+    runs = run_sweep(specs, out, name=f"compare-{scn.name}", workers=workers,
+                     progress=progress, reference=True)
+    ref = compute_reference(scn, horizon, sample)
+    report = build(target, scn, runs, agree, out, ref)
+    html = write_text_atomic(render_html(report), out / HTML_FILE)
+    pdf = write_pdf(report, out / PDF_FILE)
+    bad = int((runs["status"] != "ok").sum())
+    log(f"compare: {html} and {pdf} ({len(runs)} runs, {bad} failed)")
+    return html, pdf
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("model")
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--floating", action="store_true")
+    ap.add_argument("--t-end", type=float, default=0.0)
+    args = ap.parse_args(argv)
+    compare(args.model, args.out, options={"floating": True} if args.floating else {},
+            t_end=args.t_end)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
