@@ -394,13 +394,13 @@ def _tip_errors(case_name: str, t_end: float, sample: float, specs) -> list[floa
     """Max tip error of each run against the reference of (case, t_end, sample), by
     :func:`redysim.harness.run.execute` and :func:`redysim.harness.reference.compute_reference` (the
     reference computed afresh, see :func:`_fresh_results_dir`)."""
-    from redysim import load_case
+    from redysim.io.scenarios import load_scenario
 
     from .reference import compute_reference
 
     out = []
     with _fresh_results_dir():
-        compute_reference(load_case(case_name), t_end, sample)
+        compute_reference(load_scenario(case_name), t_end, sample)
         for spec in specs:
             err = _run(spec, reference=True)["max_tip_err"]
             if not math.isfinite(err):
@@ -442,6 +442,100 @@ def measure_work_precision(gate: Gate) -> list[Measurement]:
     return out
 
 
+SCENARIO_COLUMNS = {"path": "max_tip_err", "drift": "max_abs_delta_M",
+                    "loop": "residual_q"}
+
+
+def measure_scenario_runs(gate: Gate) -> list[Measurement]:
+    """One value per run of a scenario (``params``: case, t_end, sample, what = "path" (the
+    observed path's max error against the reference, computed afresh), "drift" (max
+    |delta_M|) or "loop" (the largest loop residual after a step, before its projection), and
+    runs = [{engine, integrator, rtol or h}, ...])."""
+    from redysim.io.scenarios import load_scenario
+
+    from .reference import compute_reference
+    from .spec import RunSpec
+
+    p = gate.params
+    column = SCENARIO_COLUMNS[p["what"]]
+    out = []
+    with _fresh_results_dir():
+        if p["what"] == "path":
+            compute_reference(load_scenario(p["case"]), float(p["t_end"]), float(p["sample"]))
+        for run in p["runs"]:
+            tol = float(run.get("rtol", 0.0))
+            spec = RunSpec(case=p["case"], engine=run.get("engine", "redysim"),
+                           integrator=run["integrator"], rtol=tol, atol=tol * 1e-2,
+                           h=float(run.get("h", 0.0)), t_end=float(p["t_end"]),
+                           sample=float(p["sample"]))
+            row = _run(spec, reference=p["what"] == "path")
+            value = float(row[column])
+            if not math.isfinite(value):
+                raise RuntimeError(f"{spec.label}: no {column} measured")
+            setting = f"h {spec.h:g}" if spec.h else f"rtol {spec.rtol:g}"
+            out.append(Measurement(value, f"{spec.engine} {spec.integrator} {setting}",
+                                   f"{row['steps']} steps"))
+    return out
+
+
+def measure_truth(gate: Gate) -> list[Measurement]:
+    """A scenario's exact truth, measured on the core's run (``params``: case, truth, rtol,
+    and t_end):
+
+    - "free-fall": the largest distance of the centre of mass from its parabola c0 + cdot0 t +
+      g t^2 / 2 [m] (cdot0 from the first sample interval, less its gravity part);
+    - "straight-line": the largest second difference of the centre of mass over the samples [m]
+      (zero on a line travelled at uniform speed);
+    - "flip-period": |measured - closed form| / closed form of the half period of the
+      Dzhanibekov flip (the time between sign changes of the body's spin about its middle axis;
+      the closed form 2 K(k) / lambda of Landau and Lifshitz, Mechanics, section 37)."""
+    import numpy as np
+
+    from redysim.io.scenarios import load_scenario
+
+    p = gate.params
+    scn = load_scenario(p["case"])
+    rtol = float(p["rtol"])
+    if p["truth"] == "flip-period":
+        sim = scn.simulator(float(p["t_end"]), rtol=rtol, atol=rtol * 0.1, sample=1e-3).run()
+        w2 = sim.v[:, 4]
+        idx = np.flatnonzero(np.sign(w2[1:]) != np.sign(w2[:-1]))
+        cross = [sim.t[i] + (sim.t[i + 1] - sim.t[i]) * w2[i] / (w2[i] - w2[i + 1]) for i in idx]
+        if len(cross) < 3:
+            raise RuntimeError(f"{scn.name}: {len(cross)} flips in {p['t_end']} s; need 3")
+        inertia = np.diag(scn.model.inertia_com[0])
+        half = flip_half_period(*inertia, scn.v0[3:])
+        err = float(np.abs(np.diff(cross) / half - 1.0).max())
+        return [Measurement(err, scn.name, f"half period {half:.6f} s, {len(cross)} flips")]
+    sim = scn.simulator(rtol=rtol, atol=rtol * 0.1).run()
+    if sim.status != 0:
+        raise RuntimeError(f"{scn.name}: {sim.message}")
+    t, c, g = sim.t, sim.com, scn.model.gravity
+    if p["truth"] == "free-fall":
+        cdot0 = (c[1] - c[0]) / (t[1] - t[0]) - 0.5 * g * (t[1] - t[0])
+        dev = c - (c[0] + np.outer(t, cdot0) + 0.5 * np.outer(t ** 2, g))
+        return [Measurement(float(np.abs(dev).max()), scn.name, f"{sim.steps} steps")]
+    second = c[2:] - 2 * c[1:-1] + c[:-2]
+    return [Measurement(float(np.abs(second).max()), scn.name, f"{sim.steps} steps")]
+
+
+def flip_half_period(I1: float, I2: float, I3: float, w) -> float:
+    """Half the period of a torque-free body's spin about its middle principal axis (moments
+    I1 < I2 < I3, body-frame angular velocity w at any instant): 2 K(k) / lambda, the time
+    between the sign changes of w_2 (Landau and Lifshitz, Mechanics, section 37)."""
+    from scipy.special import ellipk
+
+    E2 = I1 * w[0] ** 2 + I2 * w[1] ** 2 + I3 * w[2] ** 2  # 2 E
+    L2 = (I1 * w[0]) ** 2 + (I2 * w[1]) ** 2 + (I3 * w[2]) ** 2
+    if L2 > E2 * I2:
+        lam = math.sqrt((I3 - I2) * (L2 - E2 * I1) / (I1 * I2 * I3))
+        m = (I2 - I1) * (E2 * I3 - L2) / ((I3 - I2) * (L2 - E2 * I1))
+    else:
+        lam = math.sqrt((I2 - I1) * (E2 * I3 - L2) / (I1 * I2 * I3))
+        m = (I3 - I2) * (L2 - E2 * I1) / ((I2 - I1) * (E2 * I3 - L2))
+    return 2.0 * float(ellipk(m)) / lam
+
+
 MEASURES: dict[str, Callable[[Gate], list[Measurement]]] = {
     "table9": measure_table9,
     "table11_cond2": measure_table11_cond2,
@@ -451,6 +545,8 @@ MEASURES: dict[str, Callable[[Gate], list[Measurement]]] = {
     "energy_drift": measure_energy_drift,
     "integration_error": measure_integration_error,
     "work_precision": measure_work_precision,
+    "scenario_runs": measure_scenario_runs,
+    "truth": measure_truth,
 }
 
 
