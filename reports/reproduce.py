@@ -12,7 +12,10 @@ one per core).
 Quick mode (the default): the sweeps ``sweeps/quick-tables.toml`` (Tables 1-4 up to 2,500 DOF
 at the paper's horizons, RE-U3750-L30 shortened, Table 6's GE-N on RE-U125-L1) and
 ``sweeps/quick-work-precision.toml`` (every integrator and engine on RE-U125-L1 over 0.05 s)
-and ``sweeps/quick-drift-ensemble.toml`` (RE-U125-L1's drift from 8 perturbed initial states);
+and ``sweeps/quick-drift-ensemble.toml`` (RE-U125-L1's drift from 8 perturbed initial states),
+``sweeps/quick-work-precision-robots.toml`` (the UR5, the Panda and Talos floating, 0.5 s: the
+core, every engine through ode45 and with its own integrators) and
+``sweeps/quick-scenarios.toml`` (the truth scenarios of ``cases/scenarios/`` in every engine);
 the precision tables 8, 10, 11, A.2 and IEEE (:mod:`redysim.reports.precision_tables`, Table 8
 without its sensitivity runs); Table 9 and the conditioning study
 (:mod:`redysim.reports.gim_study`); the operation counts (:mod:`redysim.reports.opcount`); the
@@ -57,7 +60,8 @@ from redysim.harness.store import write_json_atomic
 QUICK = "quick"
 FULL = "full"
 SWEEPS = Path(str(resources.files("redysim.sweep_files")))  # package data
-QUICK_SWEEPS = ("quick-tables", "quick-work-precision", "quick-drift-ensemble")
+QUICK_SWEEPS = ("quick-tables", "quick-work-precision", "quick-drift-ensemble",
+                "quick-work-precision-robots", "quick-scenarios")
 TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6": "table6"}
 # Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
 # Table 5's checkpointed long runs (hours each).

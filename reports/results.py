@@ -83,6 +83,11 @@ def case_horizon(case: str) -> float:
     return _case(case).t_end
 
 
+def scenario_gravity(case: str):
+    """A scenario's gravity (3,) [m/s^2], as its model has it."""
+    return _case(case).model.gravity
+
+
 def case_sample_interval(case: str) -> float:
     """A case's own sample interval [s] (its file's, else t_end / 20, as a run takes it)."""
     scn = _case(case)
