@@ -308,6 +308,7 @@ class EngineStepper(OdeSolver):
             self.counters.steps = max(steps, self.counters.steps + 1)
             self.counters.rejected, self.counters.nfev = rejected, nfev
         else:
+            assert self.h is not None  # a fixed-step native integrator's h (Simulator checks)
             self.engine.step_once()
             self.counters.steps += 1
             t_new = self._start + self.counters.steps * self.h

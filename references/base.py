@@ -18,8 +18,10 @@ core runs, and it answers in the core's names, units and coordinates:
 ``energy(q, v)``           (T, V) in J; V = -sum m_k g . r_Ck (zero with every COM at the origin)
 ``position(q, frame)``     world position (3,) [m] of a frame of ``model.frames``
 ``tip(q)``                 ``position(q, "tip")``: a chain's distal end (``Model.from_chain``)
-``simulate(q0, v0, ...)``  the engine's own fixed-step integrator -> :class:`Trajectory`;
-                           ``sim_reset``, ``step_once``, ``sim_state``: the same, step by step
+``simulate(q0, v0, ...)``  the engine's own integrator -> :class:`Trajectory`; ``sim_reset``,
+                           ``step_once``/``sim_advance``, ``sim_state``: the same, step by step;
+                           ``integrators``: its integrators by name (:class:`NativeIntegrator`,
+                           none for Pinocchio), ``sim_counts``, ``manifest``
 ``version``, ``name``      the engine package's version string; the adapter's registered name
 ``limits(model)``          :class:`Limits`: can the engine take the model, and if not, why
 =========================  ==================================================================
@@ -381,6 +383,7 @@ class Engine(EnginePackage):
     integrator: ClassVar[str] = ""  # the default native integrator: a key of ``integrators``
     # the engine's own time integrators, by name (NativeIntegrator); empty: the engine has none
     integrators: ClassVar[dict[str, NativeIntegrator]] = {}
+    no_integrator: ClassVar[str] = ""  # why ``integrators`` is empty, in the engine's words
     depth_limited: ClassVar[bool] = False  # limits.toml's max_links is a body-tree depth
 
     def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
@@ -578,10 +581,17 @@ class Engine(EnginePackage):
     def native_integrator(self, name: str | None = None) -> NativeIntegrator:
         """The engine's own integrator ``name`` (None or "": its default, ``integrator``).
         Raises ValueError naming the engine's integrators when it has no such one (or none)."""
+        if not self.integrators:
+            why = f" ({self.no_integrator})" if self.no_integrator else ""
+            raise ValueError(
+                f"engine {self.name!r} has no time integrator of its own{why}: run it through "
+                f"redysim's integrators, its qdd in ours, e.g. `redysim simulate CASE --engine "
+                f"{self.name} --integrator ode45` (Python: Simulator(model, t_end, "
+                f"qdd=eng.qdd, integrator='ode45'))")
         name = name or self.integrator
         if name not in self.integrators:
-            known = ", ".join(self.integrators) or "none (run it through redysim's integrators)"
-            raise ValueError(f"engine {self.name!r} has no integrator {name!r}; its own: {known}")
+            raise ValueError(f"engine {self.name!r} has no integrator {name!r}; its own: "
+                             f"{', '.join(self.integrators)}")
         return self.integrators[name]
 
     def simulate(self, q0, v0, t_end: float, h: float, *, every: int = 1,

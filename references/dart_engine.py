@@ -49,9 +49,31 @@ halves of the velocity are swapped by the index map, so that y = (v_world, w_wor
 core's slots, and then B = diag(1, R^T) and c = 0, as d/dt (R^T w_world) = R^T dw_world/dt
 (w x w = 0).
 
-``simulate``: a ``dartpy.simulation.World`` holding only this skeleton, ``World.step()`` at the
-fixed time step h (DART's semi-implicit Euler). With no shapes the collision detector finds
-nothing and the constraint solver has no constraint to solve.
+Native integrator (``DART.integrators``): a ``dartpy.simulation.World`` holding only this
+skeleton, ``World.step()`` at the fixed time step h:
+
+| name                | what                     | step  | order | note                         |
+|---------------------|--------------------------|-------|-------|------------------------------|
+| semi-implicit-euler | World.step (setTimeStep) | fixed | 1     | forward dynamics (ABA), then |
+|                     |                          |       |       | v += h a, then q by the new  |
+|                     |                          |       |       | v; the only one DART has     |
+
+DART 6.20 has no other integrator to choose from Python, checked: ``World`` has no
+``setIntegrator`` (its methods: step, setTimeStep, setTime, setGravity, the collision detector,
+the constraint solver, deactivation, threads), dartpy has no ``integration`` module (its
+modules: collision, common, constraint, dynamics, gui, math, optimizer, simulation, utils), and
+the only integration calls are ``Skeleton/Joint.integratePositions`` and
+``integrateVelocities``, the two halves of this same step (an RK4 built from them would be this
+adapter's integrator, not DART's; DART 6's C++ ``integration::RK4Integrator`` needs an
+``IntegrableSystem``, which no ``World`` or ``Skeleton`` is and dartpy does not bind).
+With no shapes the collision detector (FCL) finds nothing and the constraint solver
+(``BoxedLcpConstraintSolver``, Dantzig, PGS as its fallback) has no constraint to solve.
+``World`` deactivation (sleeping of slow bodies; dartpy 6.20 enables it by default, 0.01 m/s
+and 0.05 rad/s for 0.5 s) is turned off: it put nothing to sleep here (a free box at 1 mm/s and
+a chain at 2e-3 rad/s ran the same with and without it, measured), but a reference run must not
+depend on it. ``sim_counts``: the steps, no rejections, one forward dynamics a step;
+``manifest``: the time step, the deactivation, the collision detector, the LCP solvers, split
+impulse and the threads.
 
 Limit: building the skeleton costs ~n^3 in time (54 s at 2,000 DOF; docs/design.md, "Reference
 engines"), so time, not memory, stops it (references/limits.toml). ``limits`` refuses a
@@ -122,7 +144,10 @@ class DART(Engine):
     module = "dartpy"
     integrator = "semi-implicit-euler"
     integrators = {"semi-implicit-euler": NativeIntegrator(
-        "semi-implicit-euler", False, "World.step (semi-implicit Euler)")}
+        "semi-implicit-euler", False, "World.step at World.setTimeStep(h)",
+        "semi-implicit Euler: forward dynamics (ABA), v += h a, then q by the new v; first "
+        "order; DART's only integrator (module docstring); no shapes, so no contacts; World "
+        "deactivation (sleeping) off")}
 
     @classmethod
     def unsupported(cls, model, joints):
@@ -249,13 +274,37 @@ class DART(Engine):
             self.world = self.lib.simulation.World()
             self.world.setGravity(np.asarray(self.model.gravity, dtype=float))
             self.world.addSkeleton(self.skel)
+            sleep = self.world.getDeactivationOptions()  # a copy: set back (module docstring)
+            sleep.mEnabled = False
+            self.world.setDeactivationOptions(sleep)
         self.world.setTimeStep(h)
         self.world.setTime(0.0)
         qe, blocks = self._state(q0, v0)
         self._set(qe, self._to_engine(v0, blocks))
+        self._dart_steps = 0
 
     def _sim_step(self):
         self.world.step()
+        self._dart_steps += 1
+
+    def _sim_counts(self):
+        return self._dart_steps, 0, self._dart_steps
+
+    def _settings(self):
+        out: dict = {"shape_nodes": sum(int(b.getNumShapeNodes()) for b in self.bodynodes)}
+        w = self.world
+        if w is None:
+            return out
+        sleep, cs = w.getDeactivationOptions(), w.getConstraintSolver()
+        out.update({"World.timestep": w.getTimeStep(), "deactivation": bool(sleep.mEnabled),
+                    "collision_detector": w.getCollisionDetector().getType(),
+                    "constraint_solver": type(cs).__name__,
+                    "lcp_solver": type(cs.getBoxedLcpSolver()).__name__,
+                    "lcp_fallback": type(cs.getSecondaryBoxedLcpSolver()).__name__,
+                    "split_impulse": bool(cs.isSplitImpulseEnabled()),
+                    "constraints": int(cs.getNumConstraints()),
+                    "threads": int(w.getNumSimulationThreads())})
+        return out
 
     def _sim_state(self):
         qe = np.array(self.skel.getPositions())

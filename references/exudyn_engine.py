@@ -44,15 +44,91 @@ given state. ``tau`` enters through the tree's ``jointForceVector``.
 ODE2 right-hand side, which is phi with tau = 0). ``energy``: T = v^T M v / 2 with Exudyn's M,
 V = -sum m g . r_C with the COM positions from ``SensorKinematicTree`` (Exudyn has no energy call
 for the tree). ``position``: a ``SensorKinematicTree`` on the body's last link at the point
-(turned by A^T). ``simulate``: Exudyn's explicit ``RK44`` at the fixed step h, the state written
-back as the initial state after every step.
+(turned by A^T).
+
+Native integrators (``Exudyn.integrators``; ``simulate``, ``sim_reset(..., integrator=NAME)``,
+``redysim.simulation.Simulator(..., engine=eng, integrator="native:NAME")``): Exudyn's own
+solvers of ``exudyn.DynamicSolverType`` on this model, each run one ``MainSolverExplicit`` or
+``MainSolverImplicitSecondOrder`` initialised at ``sim_reset``. Orders measured on the 3-link
+chain and a free box (tests/test_engines_native.py):
+
+| name              | what (DynamicSolverType)  | step     | order | note                       |
+|-------------------|---------------------------|----------|-------|----------------------------|
+| explicit-euler    | ExplicitEuler             | fixed    | 1     |                            |
+| explicit-midpoint | ExplicitMidpoint          | fixed    | 2     |                            |
+| rk33              | RK33                      | fixed    | 3     | Heun's 3-stage             |
+| rk44              | RK44                      | fixed    | 4     | classic; the default       |
+| rk67              | RK67                      | fixed    | 6     | Butcher's 7-stage          |
+| velocity-verlet   | VelocityVerlet            | fixed    | 1     | 2 only if qdd ignores v    |
+| ode23             | ODE23, automaticStepSize  | adaptive | 3(2)  | Bogacki-Shampine           |
+| dopri5            | DOPRI5, automaticStepSize | adaptive | 5(4)  | Dormand-Prince             |
+| generalized-alpha | GeneralizedAlpha          | fixed    | 2     | rho_inf = 0.9, implicit    |
+| trapezoidal       | TrapezoidalIndex2         | fixed    | 2     | Newmark 1/4, 1/2, implicit |
+
+What a fair comparison must know (each entry's ``note`` and the ``manifest`` say it too):
+
+- Explicit fixed steps (``computeEndOfStepAccelerations`` off, Lie-group integration on, which
+  no coordinate of this tree uses) and the implicit ones are taken one at a time as
+  ``SolveSteps``'s loop body takes them (``InitializeStep``, ``DiscontinuousIteration``,
+  ``FinishStep``): bit for bit one continuous ``SolveSystem`` over the same steps, with the
+  same Newton iterations and Jacobians (measured). Calling ``SolveSteps`` once a step instead
+  asks for a new Jacobian every step (200 in 200 steps against 21), and restarting the solver
+  every step (as the adapter once did for RK44) makes generalized-alpha first order for
+  rho_inf < 1 (its algorithmic acceleration is history; observed order between h = 2.5 and
+  1.25 ms: 1.02 at rho_inf = 0.5, 1.40 at 0.9, against 1.99 run through).
+- ``VelocityVerlet`` evaluates the end-of-step acceleration at the half-step velocity, so it is
+  first order wherever qdd depends on v (Coriolis and centripetal terms: measured 1.02, and
+  reproduced bit for bit by that scheme written out); Exudyn prints "VelocityVerlet: still under
+  development". ``DVERK6`` is in ``DynamicSolverType`` but Exudyn 1.13.6's explicit solver
+  refuses it ("must be an explicit solver (ExplicitEuler, ..., VelocityVerlet), but it is
+  DVERK6"): not registered.
+- ``ODE23`` and ``DOPRI5`` (``automaticStepSize``; tolerances ``relativeTolerance``,
+  ``absoluteTolerance``): each call of ``sim_advance(t)`` runs ``SolveSteps`` from the state kept
+  to t, landing on t by a shortened last step (Exudyn's own end-time rule), the next call
+  starting from Exudyn's proposed step; ``h``, when given, is the largest step, else the interval.
+  Exudyn computes every stage of every step (no first-same-as-last: 7 qdd a DOPRI5 step where 6
+  would do), counted in ``sim_counts`` as stages x (accepted + rejected) + 2 (below). Its error
+  norm scales coordinate i by atol + max(y_old_i, y_new_i) rtol with SIGNED values (Hairer,
+  Norsett & Wanner use |y|): a negative coordinate gets a tighter scale than atol, one near
+  -atol/rtol a zero one (a 3-link chain hanging along x: its mirror image, q0 and v0 negated,
+  took 508 ODE23 steps where the original took 569 at rtol = atol = 1e-6, measured). Its first
+  step is the largest allowed (the whole interval without ``initialStepSize``); the adapter
+  gives it the standard starting step (HNW I, II.4, from two qdd calls). When the proposed
+  step reaches ``minimumStepSize`` (1e-8 s) Exudyn ACCEPTS the step with only a warning
+  ("automatic stepsize control reached minStepSize; integration continued, but error will be
+  larger than given tolerances"): on the 3-link chain with a velocity at -1 = -atol/rtol, ODE23
+  took its own first step, the whole 0.5 s, as one step (error 29 rad, at every rtol from 1e-4
+  to 1e-10; measured). The adapter raises RuntimeError instead.
+- ``GeneralizedAlpha`` at rho_inf = 0.9, Exudyn's default: on these conservative, unconstrained
+  systems rho_inf = 1 is marginally more accurate (3-link chain, 0.5 s, h = 5 ms: 7.06e-3
+  against 7.18e-3; 1.16e-2 at 0.5) but is the trapezoidal rule, registered as ``trapezoidal``
+  (``TrapezoidalIndex2`` as ``exudyn.solver.SolveDynamic`` sets it: ``useNewmark``,
+  ``useIndex2Constraints``); 0.9 keeps the generalized-alpha's damping of unresolved high
+  frequencies that its users run it for. Consistent initial accelerations; Newton (modified,
+  numerical Jacobian) to relative 1e-10 and absolute 1e-12: with Exudyn's defaults, 1e-8 and
+  1e-10, Newton's error shows at small steps (3-link chain, 0.5 s, h = 50 us: 9.2e-7 against
+  7.2e-7, for 6 % fewer iterations; measured); ``adaptiveStep`` off, so the step stays
+  h and a Newton failure fails the run instead of halving the step silently. ``sim_counts``
+  gives no qdd count for them (-1); the manifest has the Newton iterations and Jacobians.
+- A free joint: the explicit fixed steps centre its chart again after every step (as before);
+  the adaptive ones after every interval, intervals cut so that the body turns at most 0.5 rad
+  in one; the implicit ones keep the chart (their history lives in it) until an angle passes
+  0.5 rad, then centre it and restart the solver (consistent accelerations again: a one-off
+  O(h) perturbation of the algorithmic acceleration, order 2 kept, measured).
+- Constraints: this tree has none, and every solver above steps it. With the loops' cut joints
+  (``references/loops.py``) only the implicit ones apply: the explicit solvers abort ("explicit
+  integrator detected object ... which contains constraints that cannot be solved") or, with
+  ``explicit.eliminateConstraints = False``, ignore them (references/README.md, "Loops").
+- The state stepped is kept by the adapter and written back before every step, so a ``qdd``,
+  ``bias`` or ``position`` call between steps (which set the system's state and a free joint's
+  chart) leaves the run as it was (tested).
 
 Limit: the tree's mass matrix is dense (O(n^2) memory) and factorised every right-hand side
 (O(n^3) time): time stops it first (references/limits.toml).
 
 A free joint, which the tree's 1-DOF joints cannot be, is PrismaticX/Y/Z along the world axes
 then RevoluteX/Y/Z in a frame turned by the body's rotation at the state asked (rewritten at
-every call, and after every step of ``simulate``): a chart of the rotation centred at the state,
+every call, and as the native integrators say above): a chart of the rotation centred at the state,
 where its rates are exactly the body-frame angular velocity, so it is never near an Euler-angle
 singularity; its one correction, dE/dt w, is added to the angular acceleration (class
 docstring).
@@ -64,6 +140,7 @@ import contextlib
 import io
 import re
 import sys
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -90,7 +167,7 @@ def _without_sparse_advice():
     buf = io.StringIO()
     try:
         with contextlib.redirect_stdout(buf):
-            yield
+            yield buf  # what was printed, for a caller that reads Exudyn's warnings
     finally:
         # one message per "Python WARNING" (each starts on a new line)
         messages = re.split(r"(?=\nPython WARNING)", buf.getvalue())
@@ -152,6 +229,80 @@ def _joint_kinds(exu) -> dict:
             "P": (J.PrismaticX, J.PrismaticY, J.PrismaticZ)}
 
 
+class _Solver(NamedTuple):
+    """How one native integrator runs: its ``DynamicSolverType`` member, ``kind`` ("explicit":
+    a fixed-step Runge-Kutta or Verlet step of MainSolverExplicit, "adaptive": one of its
+    error-controlled ones, "implicit": MainSolverImplicitSecondOrder), its nominal order and its
+    qdd evaluations per attempted step (its stages; -1: Newton iterations instead)."""
+
+    solver_type: str
+    kind: str
+    order: int
+    per_step: int
+
+
+SPECTRAL_RADIUS = 0.9  # generalized-alpha's rho_inf: Exudyn's default (module docstring)
+NEWTON_RTOL, NEWTON_ATOL = 1e-10, 1e-12  # the implicit solvers' Newton tolerances (docstring)
+CHART_ANGLE = 0.5  # [rad]: a free joint's chart is centred again before it turns further
+MIN_STEP_WARNING = "reached minStepSize"  # Exudyn's words when its step control gives up
+
+_COMMON = ("EigenDense; ObjectKinematicTree, no constraints; a free joint steps in a chart "
+           "centred at the state (module docstring)")
+_SOLVERS = {
+    "explicit-euler": _Solver("ExplicitEuler", "explicit", 1, 1),
+    "explicit-midpoint": _Solver("ExplicitMidpoint", "explicit", 2, 2),
+    "rk33": _Solver("RK33", "explicit", 3, 3),
+    "rk44": _Solver("RK44", "explicit", 4, 4),
+    "rk67": _Solver("RK67", "explicit", 6, 7),
+    "velocity-verlet": _Solver("VelocityVerlet", "explicit", 1, 1),
+    "ode23": _Solver("ODE23", "adaptive", 3, 4),
+    "dopri5": _Solver("DOPRI5", "adaptive", 5, 7),
+    "generalized-alpha": _Solver("GeneralizedAlpha", "implicit", 2, -1),
+    "trapezoidal": _Solver("TrapezoidalIndex2", "implicit", 2, -1),
+}
+_ADAPTIVE_NOTE = (
+    "Exudyn's step control (Hairer-Norsett-Wanner I, p. 168) scales each coordinate's error by "
+    "atol + max(y_old, y_new) rtol with SIGNED values, not |y|: a negative coordinate is held "
+    "tighter than atol, one near -atol/rtol infinitely so (mirrored motions take different "
+    "steps, measured); when its proposal reaches minimumStepSize (1e-8 s) Exudyn accepts the "
+    "step anyway with a warning: the adapter raises instead. The first step is the standard "
+    "starting step (HNW I, II.4) from two qdd calls (Exudyn's own first step is the largest); "
+    "each sample time is landed on by a shortened step and the next call starts from Exudyn's "
+    "proposal; no FSAL: every stage computed every step")
+_NOTES = {
+    "explicit-euler": "explicit Euler, first order",
+    "explicit-midpoint": "explicit midpoint rule, second order",
+    "rk33": "Heun's third-order Runge-Kutta (3 stages)",
+    "rk44": "classic fourth-order Runge-Kutta; the default",
+    "rk67": "Butcher's 7-stage sixth-order Runge-Kutta",
+    "velocity-verlet": (
+        "kick-drift-kick Verlet, second order only when qdd does not depend on v: Exudyn "
+        "evaluates the end-of-step qdd at the half-step velocity, so with Coriolis and "
+        "centripetal terms it is FIRST order (measured, and reproduced bit for bit by that "
+        "scheme); Exudyn prints 'VelocityVerlet: still under development'"),
+    "ode23": "Bogacki-Shampine 3(2), 4 stages; " + _ADAPTIVE_NOTE,
+    "dopri5": "Dormand-Prince 5(4), 7 stages; " + _ADAPTIVE_NOTE,
+    "generalized-alpha": (
+        f"Chung-Hulbert generalized-alpha, second order, spectral radius rho_inf = "
+        f"{SPECTRAL_RADIUS} (Exudyn's default; rho_inf = 1 is 'trapezoidal'), consistent "
+        f"initial accelerations; stepped as one continuous solve (restarting it every step, "
+        f"as a one-step method, makes it first order for rho_inf < 1, measured); Newton "
+        f"(modified, numerical Jacobian) to rtol {NEWTON_RTOL:g}, atol {NEWTON_ATOL:g}; fixed "
+        f"step (adaptiveStep off: a failed Newton fails the run)"),
+    "trapezoidal": (
+        f"Exudyn's TrapezoidalIndex2 (as SolveDynamic sets it: its implicit solver with "
+        f"useNewmark, beta = 1/4, gamma = 1/2, and index-2 constraints, none here): the "
+        f"trapezoidal rule, second order, no numerical damping (generalized-alpha at rho_inf "
+        f"= 1); Newton as generalized-alpha's (rtol {NEWTON_RTOL:g}, atol {NEWTON_ATOL:g})"),
+}
+NATIVE = {name: NativeIntegrator(
+    name, sol.kind == "adaptive",
+    f"DynamicSolverType.{sol.solver_type}, "
+    + ("MainSolverImplicitSecondOrder" if sol.kind == "implicit" else "MainSolverExplicit")
+    + (" with automaticStepSize" if sol.kind == "adaptive" else ", one step of h a call"),
+    f"{_NOTES[name]}; {_COMMON}") for name, sol in _SOLVERS.items()}
+
+
 # a free joint as six 1-DOF tree links: P along the world's x, y, z, then R about x, y, z of a
 # frame turned by the body's rotation at the state (module docstring)
 FREE_AXES = tuple(axis(kind, np.eye(3)[i]) for kind in "PR" for i in range(3))
@@ -172,15 +323,15 @@ class Exudyn(Engine):
     angular velocity (w_body = E(a, b, c) (a, b, c)' with E(0) = 1): no Euler-angle singularity is
     ever near. So B = 1 and c = (0, dE/dt (a, b, c)') = (0, 0, 0, w_y w_z, -w_x w_z, w_x w_y)
     (d/dt of E at the centre applied to w), which the adapter adds to the angular acceleration.
-    The applied force is the core's (E(0)^T = 1). ``simulate`` steps in that chart and centres
-    it again at the state reached after every step.
+    The applied force is the core's (E(0)^T = 1). The native integrators step in that chart and
+    centre it again (module docstring: after every step, every interval, or past 0.5 rad).
     """
 
     name = "exudyn"
     package = "exudyn"
     module = "exudyn"
     integrator = "rk44"
-    integrators = {"rk44": NativeIntegrator("rk44", False, "DynamicSolverType.RK44")}
+    integrators = NATIVE
 
     def _build(self):
         exu = self.lib
@@ -349,26 +500,279 @@ class Exudyn(Engine):
         return np.array(self.mbs.GetSensorValues(sensor))
 
     # ------------------------------------------------------------------ native stepping
+    # One Exudyn solver per run, initialised at sim_reset. A fixed-step method takes each step
+    # as SolveSteps's loop body does (InitializeStep, DiscontinuousIteration, FinishStep; bit
+    # for bit one continuous SolveSystem, generalized-alpha's algorithmic acceleration and
+    # modified Newton's Jacobian carried over, measured); SolveSteps itself would ask for a new
+    # Jacobian at every call. An adaptive one runs SolveSteps up to each time asked. The state
+    # stepped is kept here and written back before every solve, so that a qdd, bias or position
+    # call between steps (which set the system's state) changes nothing.
     def _sim_reset(self, q0, v0, h):
-        self.ss_step = _settings(self.lib, self.lib.DynamicSolverType.RK44, h, 1)
-        qe, blocks = self._state(q0, v0)
-        self._set_state(qe, self._to_engine(v0, blocks), None)
+        exu, info = self.lib, self.sim_integrator
+        sol = _SOLVERS[info.name]
+        qe, blocks = self._state(q0, v0)  # a free joint's chart centred at q0
+        ye = self._to_engine(v0, blocks)
+        rtol, atol = self.sim_settings["rtol"], self.sim_settings["atol"]
+        ss = _settings(exu, getattr(exu.DynamicSolverType, sol.solver_type), h or 1.0, 1)
+        ti = ss.timeIntegration
+        ti.adaptiveStep = False  # a fixed step stays fixed: a failed step fails the run
+        first = None
+        if sol.kind == "adaptive":
+            ti.automaticStepSize = True
+            ti.relativeTolerance, ti.absoluteTolerance = rtol, atol
+            first = self._starting_step(qe, ye, sol.order, rtol, atol, h)
+            ti.initialStepSize = first
+        if sol.kind == "implicit":
+            ga = ti.generalizedAlpha
+            ga.spectralRadius = SPECTRAL_RADIUS
+            # TrapezoidalIndex2 is, as exudyn.solver.SolveDynamic sets it, this solver with
+            # Newmark's beta = 1/4, gamma = 1/2 and index-2 constraints (none here)
+            ga.useNewmark = ga.useIndex2Constraints = sol.solver_type == "TrapezoidalIndex2"
+            ga.computeInitialAccelerations = True
+            ti.newton.relativeTolerance, ti.newton.absoluteTolerance = NEWTON_RTOL, NEWTON_ATOL
+            solver = exu.MainSolverImplicitSecondOrder()
+        else:
+            solver = exu.MainSolverExplicit()
+        self._exu: dict[str, Any] = {
+            "solver": solver, "ss": ss, "kind": sol.kind, "n": 0, "t": 0.0, "steps": 0,
+            "rejected": 0, "first_step": first, "h_next": first, "restarts": 0,
+            "newton": 0, "jacobians": 0}
+        self._sim_start(qe, ye)
         self._sim_qv = (q0.copy(), v0.copy())
 
-    def _sim_step(self):
+    def _sim_start(self, qe, ye):
+        """Initialise the run's solver at the engine state (qe, ye) (consistent initial
+        accelerations for the implicit ones) and keep that state and its chart."""
+        ex = self._exu
+        self._set_state(qe, ye, None)  # the initial configuration, which InitializeSolver reads
         with _without_sparse_advice():
-            self.solver.SolveSystem(self.mbs, self.ss_step)
-        sd = self.mbs.systemData
-        qe, ye = np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
-        if self.identity:
-            self._set_state(qe, ye, None)
-            return
-        q, v = self._sim_qv = self._chart_to_core(qe, ye)
-        qe, blocks = self._state(q, v)  # the chart centred at the state reached
-        self._set_state(qe, self._to_engine(v, blocks), None)
+            ex["solver"].InitializeSolver(self.mbs, ex["ss"])
+        self._sim_keep()
+
+    def _sim_keep(self):
+        """Keep the solver's current state (coordinates, rates, accelerations) and chart."""
+        sd, cur = self.mbs.systemData, self.lib.ConfigurationType.Current
+        self._sim_e = tuple(np.array(f(configuration=cur)) for f in (
+            sd.GetODE2Coordinates, sd.GetODE2Coordinates_t, sd.GetODE2Coordinates_tt))
+        self._sim_hts = [self.hts[link].copy() for _, _, link in self.free_links]
+
+    def _sim_restore(self, t0):
+        """Write the kept state and chart back (a call between steps may have changed them),
+        as the current state and the step's start at time t0."""
+        sd, C = self.mbs.systemData, self.lib.ConfigurationType
+        qe, ye, ae = self._sim_e
+        self._set_state(qe, ye, None, which="Current")
+        for cfg in (C.Current, C.StartOfStep):
+            sd.SetODE2Coordinates(qe, configuration=cfg)
+            sd.SetODE2Coordinates_t(ye, configuration=cfg)
+            sd.SetODE2Coordinates_tt(ae, configuration=cfg)
+            sd.SetTime(t0, configurationType=cfg)
+        changed = False
+        for (_, _, link), T in zip(self.free_links, self._sim_hts, strict=True):
+            if not np.array_equal(self.hts[link], T):
+                self.hts[link], changed = T.copy(), True
+        if changed:
+            self.mbs.SetObjectParameter(self.tree, "jointHTs", self.hts)
+
+    def _solve_to(self, t0, t1):
+        """Advance the run's solver from the kept state at t0 to t1: one step (fixed step, t1 =
+        t0 + h) or Exudyn's own steps (adaptive). Raises RuntimeError when the step fails or
+        Exudyn's step size control gives up."""
+        ex = self._exu
+        s, ss, mbs = ex["solver"], ex["ss"], self.mbs
+        self._sim_restore(t0)
+        s.it.startTime, s.it.endTime = t0, t1
+        with _without_sparse_advice() as out:
+            if ex["kind"] == "adaptive":
+                h_max = self.sim_settings["h"] or (t1 - t0)
+                s.it.maxStepSize = h_max
+                s.it.initialStepSize = min(ex["h_next"], h_max)
+                ok = s.SolveSteps(mbs, ss)
+            else:  # SolveSteps's loop body, one step (the class comment above)
+                s.it.currentStepIndex, s.it.currentStepSize = 1, self.sim_settings["h"]
+                s.InitializeStep(mbs, ss)
+                s.it.lastStepSize = s.it.currentStepSize
+                ok = s.DiscontinuousIteration(mbs, ss)
+                if ok:
+                    s.FinishStep(mbs, ss)
+                    s.it.currentStepIndex = 2
+        name = self.sim_integrator.name
+        if MIN_STEP_WARNING in out.getvalue():
+            raise RuntimeError(
+                f"exudyn {name}: its step size control reached minimumStepSize "
+                f"({ss.timeIntegration.minimumStepSize:g} s) between t = {t0:.9g} and "
+                f"{t1:.9g} s and Exudyn accepted the step anyway, its error above the tolerance "
+                f"(rtol {self.sim_settings['rtol']:g}, atol {self.sim_settings['atol']:g}; its "
+                f"error scale is atol + max(y_old, y_new) rtol, signed)")
+        if not ok:
+            why = ("Newton did not converge" if ex["kind"] == "implicit" else
+                   s.GetErrorString() or "no reason given")
+            raise RuntimeError(f"exudyn {name}: the step from t = {t0:.9g} to {t1:.9g} s "
+                               f"failed ({why})")
+        ex["steps"] += s.it.currentStepIndex - 1
+        if ex["kind"] == "adaptive":
+            ex["rejected"] = int(s.it.rejectedAutomaticStepSizeSteps)
+            ex["h_next"] = float(s.it.currentStepSize)
+        self._sim_keep()
+
+    def _sim_recentre(self):
+        """Centre each free joint's chart at the state reached (module docstring): the kept
+        state in the new chart; False (nothing done) when there is no free joint."""
+        if not self.free_links:
+            return False
+        qe, ye, _ = self._sim_e
+        q, v = self._chart_to_core(qe, ye)
+        qe, blocks = self._state(q, v)
+        ye = self._to_engine(v, blocks)
+        ae = np.zeros(self.model.n_v)
+        if self.sim_integrator.name == "velocity-verlet":  # it reads qdd at the step's start
+            ae = self._qdd(qe, ye, None)
+        self._sim_e = (qe, ye, ae)
+        self._sim_hts = [self.hts[link].copy() for _, _, link in self.free_links]
+        return True
+
+    def _chart_angle(self) -> float:
+        """The largest chart angle of any free joint now (0 without one)."""
+        qe = self._sim_e[0]
+        return max((float(np.abs(qe[vs + 3:vs + 6]).max()) for _, vs, _ in self.free_links),
+                   default=0.0)
+
+    def _sim_step(self):
+        ex = self._exu
+        h = self.sim_settings["h"]
+        n = ex["n"]
+        self._solve_to(n * h, (n + 1) * h)
+        ex["n"] = n + 1
+        if ex["kind"] == "implicit":
+            s = ex["solver"]
+            ex["newton_run"] = (int(s.it.newtonStepsCount), int(s.it.newtonJacobiCount))
+            if self._chart_angle() > CHART_ANGLE:  # a new chart: a restart, re-initialised
+                self._sim_counts_fold()
+                self._sim_recentre()
+                ex["restarts"] += 1
+                self._sim_start(*self._sim_e[:2])
+        else:  # one-step methods: the chart centred again after every step, as before
+            self._sim_recentre()
+        self._sim_qv = None
+
+    def _sim_counts_fold(self):
+        """Add the implicit solver's Newton counts so far to the run's (before a restart)."""
+        ex = self._exu
+        newton, jac = ex.pop("newton_run", (0, 0))
+        ex["newton"] += newton
+        ex["jacobians"] += jac
+
+    def _sim_advance(self, t):
+        ex = self._exu
+        while ex["t"] < t:
+            t1 = t
+            if self.free_links:  # stop where a chart has turned CHART_ANGLE at most
+                ye = self._sim_e[1]
+                w = max(float(np.abs(ye[vs + 3:vs + 6]).max()) for _, vs, _ in self.free_links)
+                if w * (t - ex["t"]) > CHART_ANGLE:
+                    t1 = ex["t"] + CHART_ANGLE / w
+            self._solve_to(ex["t"], t1)
+            ex["t"] = t1
+            self._sim_recentre()
+            self._sim_qv = None
+
+    def _starting_step(self, qe, ye, order, rtol, atol, h_max) -> float:
+        """The standard starting step of an error-controlled method whose error estimate is of
+        order ``order`` - 1 (Hairer, Norsett & Wanner I, II.4; scipy's select_initial_step),
+        with Exudyn's own qdd at the start and after one Euler step."""
+        a0 = self._qdd(qe, ye, None)
+        y0, f0 = np.concatenate([qe, ye]), np.concatenate([ye, a0])
+        scale = atol + np.abs(y0) * rtol
+
+        def rms(x):
+            return float(np.sqrt(np.mean((x / scale) ** 2)))
+
+        d0, d1 = rms(y0), rms(f0)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        if h_max:
+            h0 = min(h0, h_max)
+        n = self.model.n_v
+        y1 = y0 + h0 * f0
+        f1 = np.concatenate([y1[n:], self._qdd(y1[:n], y1[n:], None)])
+        d2 = rms(f1 - f0) / h0
+        big = max(d1, d2)
+        h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** (1.0 / order)
+        h = min(100 * h0, h1)
+        return float(min(h, h_max) if h_max else h)
+
+    def _sim_counts(self):
+        ex = self._exu
+        sol = _SOLVERS[self.sim_integrator.name]
+        if sol.kind == "implicit":
+            return ex["steps"], 0, -1
+        starting = 2 if sol.kind == "adaptive" else 0  # the starting step's qdd calls
+        return (ex["steps"], ex["rejected"],
+                sol.per_step * (ex["steps"] + ex["rejected"]) + starting)
+
+    def _settings(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "linear_solver": "EigenDense", "threads": 1, "constraints": 0,
+            "qdd": f"one ExplicitEuler step of {QDD_STEP:g} s, computeEndOfStepAccelerations "
+                   "off (module docstring)"}
+        ex = getattr(self, "_exu", None)
+        if ex is None:
+            return out
+        ss = ex["ss"]
+        ti = ss.timeIntegration
+        out.update({"threads": int(ss.parallel.numberOfThreads),
+                    "linear_solver": str(ss.linearSolver.solverType).split(".")[-1],
+                    "solverType": str(ti.solverType).split(".")[-1],
+                    "adaptiveStep": bool(ti.adaptiveStep),
+                    "constraints": int(ex["solver"].GetAEsize())})
+        if ex["kind"] != "implicit":
+            e = ti.explicit
+            out.update({"useLieGroupIntegration": bool(e.useLieGroupIntegration),
+                        "computeEndOfStepAccelerations": bool(e.computeEndOfStepAccelerations)})
+        if ex["kind"] == "adaptive":
+            out.update({"automaticStepSize": True, "relativeTolerance": ti.relativeTolerance,
+                        "absoluteTolerance": ti.absoluteTolerance,
+                        "minimumStepSize": ti.minimumStepSize,
+                        "stepSizeSafety": ti.stepSizeSafety,
+                        "stepSizeMaxIncrease": ti.stepSizeMaxIncrease,
+                        "first_step": ex["first_step"],
+                        "maxStepSize": self.sim_settings["h"] or "each interval asked",
+                        "free_joint_chart": f"centred again after each interval, intervals cut "
+                                            f"to turn {CHART_ANGLE} rad at most"})
+        if ex["kind"] == "implicit":
+            ga, nw = ti.generalizedAlpha, ti.newton
+            newton, jac = ex.get("newton_run", (0, 0))
+            out.update({"spectralRadius": 1.0 if ga.useNewmark else ga.spectralRadius,
+                        "newmarkBeta": ga.newmarkBeta if ga.useNewmark else None,
+                        "newmarkGamma": ga.newmarkGamma if ga.useNewmark else None,
+                        "useNewmark": bool(ga.useNewmark),
+                        "useIndex2Constraints": bool(ga.useIndex2Constraints),
+                        "computeInitialAccelerations": bool(ga.computeInitialAccelerations),
+                        "newton.relativeTolerance": nw.relativeTolerance,
+                        "newton.absoluteTolerance": nw.absoluteTolerance,
+                        "newton.maxIterations": int(nw.maxIterations),
+                        "newton.useModifiedNewton": bool(nw.useModifiedNewton),
+                        "newton.numericalDifferentiation.relativeEpsilon":
+                            nw.numericalDifferentiation.relativeEpsilon,
+                        "newton_iterations": ex["newton"] + newton,
+                        "jacobians": ex["jacobians"] + jac,
+                        "free_joint_chart": f"kept while it turns < {CHART_ANGLE} rad, then "
+                                            f"centred again and the solver restarted",
+                        "restarts": ex["restarts"]})
+        elif ex["kind"] == "explicit":
+            out["free_joint_chart"] = "centred again after every step"
+        return out
 
     def _sim_state(self):
+        qe, ye, _ = self._sim_e
         if self.identity:
-            sd = self.mbs.systemData
-            return np.array(sd.GetODE2Coordinates()), np.array(sd.GetODE2Coordinates_t())
+            return qe.copy(), ye.copy()
+        if self._sim_qv is None:  # the kept state in its chart (the chart is the kept one)
+            saved = [self.hts[link] for _, _, link in self.free_links]
+            for (_, _, link), T in zip(self.free_links, self._sim_hts, strict=True):
+                self.hts[link] = T
+            try:
+                self._sim_qv = self._chart_to_core(qe, ye)
+            finally:
+                for (_, _, link), T in zip(self.free_links, saved, strict=True):
+                    self.hts[link] = T
         return self._sim_qv[0].copy(), self._sim_qv[1].copy()

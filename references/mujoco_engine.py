@@ -25,8 +25,14 @@ What the model contains and why (docs/design.md, "Reference engines"):
 - ``compiler.balanceinertia`` only when a body's inertia violates the triangle inequality (the
   paper's rod model does; docs/design.md, "Chain conventions"); the exact principal moments are
   then written back into ``model.body_inertia`` after compiling.
-- ``option.gravity = model.gravity``; ``option.integrator = mjINT_RK4`` (``simulate``'s; it does
-  not enter ``mj_forward``).
+- ``option.gravity = model.gravity``; ``option.integrator`` is set by ``sim_reset`` to the native
+  integrator asked (below; ``mjINT_RK4`` until then): none of these four enters ``mj_forward``'s
+  ``qacc`` (checked: ``qdd`` is bit for bit the same under each).
+- ``mjDSBL_AUTORESET`` for the native stepper: by default ``mj_step`` resets the state to
+  ``qpos0`` (and the time to 0) when a position, velocity or acceleration is NaN or above 1e10,
+  with only a warning, and steps on: a diverging run then LOOKS finite (measured: the 3-link
+  chain at RK4, h = 0.2 s, ended at a finite state after a silent reset). Disabled, divergence
+  shows as the NaN it is (``redysim.simulation.EngineStepper`` fails the run on it).
 
 MuJoCo numbers bodies and DOF depth-first; the adapter maps them to the Model's order by joint
 name (a chain's order is MuJoCo's). Free joint: MuJoCo's free joint IS the core's convention
@@ -36,7 +42,42 @@ velocity), so B = 1, c = 0 (``redysim.references.base``): no conversion but the 
 ``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
 ``bias`` is ``-qfrc_bias``; ``energy`` is ``mj_energyPos``/``mj_energyVel``'s (V, T), reordered;
 ``position``: the body's ``xpos + xmat @ point``.
-``simulate`` uses ``mj_step`` with ``mjINT_RK4`` at the fixed step h.
+
+Native integrators (``MuJoCo.integrators``; ``simulate``, ``sim_reset(..., integrator=NAME)``,
+``redysim.simulate(..., engine=eng, integrator="native:NAME")``): ``mj_step`` at the fixed step
+``opt.timestep = h``, ``opt.integrator`` set by ``sim_reset``:
+
+| name         | what (opt.integrator) | step  | order | note                                  |
+|--------------|-----------------------|-------|-------|---------------------------------------|
+| euler        | mjINT_EULER           | fixed | 1     | semi-implicit Euler: v += h qacc,     |
+|              |                       |       |       | then q by the new v. MuJoCo's Euler   |
+|              |                       |       |       | integrates joint damping implicitly;  |
+|              |                       |       |       | there is none here (and               |
+|              |                       |       |       | mjDSBL_EULERDAMP): plain semi-implicit|
+| implicitfast | mjINT_IMPLICITFAST    | fixed | 1     | implicit in velocity for damping and  |
+|              |                       |       |       | actuator derivatives, not the         |
+|              |                       |       |       | Coriolis/centripetal (RNE) ones: bit  |
+|              |                       |       |       | for bit euler on jointed models here; |
+|              |                       |       |       | a standalone free body gets its       |
+|              |                       |       |       | gyroscopic terms (= implicit)         |
+| implicit     | mjINT_IMPLICIT        | fixed | 1     | implicit in velocity, D = velocity    |
+|              |                       |       |       | derivative of the smooth forces (here |
+|              |                       |       |       | the RNE terms)                        |
+| rk4          | mjINT_RK4             | fixed | 4     | classic Runge-Kutta on (qpos, qvel);  |
+|              |                       |       |       | the default                           |
+
+(bit for bit: measured on the 3-link chain and a free box, 100 steps of 1 ms.)
+
+``mjINT_DISCRETE`` (new in 4.0, "under active development" in its documentation) is not
+registered: on these models (no damping, stiffness or constraints) it is bit for bit ``euler``
+on a chain and ``implicitfast`` on a free body (measured), and it turns ``mj_forward``'s
+``qacc`` into the step map (v+ - v)/h, which the adapter's ``qdd`` must not become.
+``sim_counts``: steps counted here, no rejections, qdd evaluations 4 a step for RK4 (``mj_step``'s
+``mj_forward`` and three ``mj_forwardSkip`` in ``mj_RungeKutta``) and 1 for the others (the
+counts follow from MuJoCo's source; MuJoCo reports none). ``manifest`` records ``opt``: the
+timestep, the integrator, the disabled and enabled flags by name (contacts and constraints off,
+no warmstart relevance without a constraint solve), the constraint solver's settings and the
+fluid (density, viscosity, wind: zero, so no fluid forces).
 
 Limits: MuJoCo refuses a body tree deeper than 1,023 ("depth limit exceeded in signature
 computation"), and compile time grows ~n^3 (references/limits.toml); its compiler refuses a
@@ -51,6 +92,32 @@ import numpy as np
 from redysim.model.tree import FREE
 
 from .base import Engine, NativeIntegrator
+
+_NOTE_ALL = ("no damping, contacts or constraints (the stages off: manifest 'disabled'); "
+             "mjDSBL_AUTORESET set: a blow-up is NaN, not a silent reset to qpos0")
+# name -> (NativeIntegrator, its mjtIntegrator member, qdd evaluations per step)
+_INTEGRATORS = {
+    "euler": (NativeIntegrator(
+        "euler", False, "mj_step, opt.integrator = mjINT_EULER",
+        "semi-implicit Euler (v += h qacc, then q by the new v), first order; MuJoCo's Euler "
+        "integrates joint damping implicitly, and these models have none (mjDSBL_EULERDAMP "
+        "set too): plain semi-implicit Euler here; " + _NOTE_ALL), "mjINT_EULER", 1),
+    "implicitfast": (NativeIntegrator(
+        "implicitfast", False, "mj_step, opt.integrator = mjINT_IMPLICITFAST",
+        "implicit in velocity for damping/actuator derivatives, not the Coriolis/centripetal "
+        "(RNE) ones, first order: with none of those here it is bit for bit euler on jointed "
+        "models; a standalone free body gets its gyroscopic derivatives (then bit for bit "
+        "implicit); " + _NOTE_ALL), "mjINT_IMPLICITFAST", 1),
+    "implicit": (NativeIntegrator(
+        "implicit", False, "mj_step, opt.integrator = mjINT_IMPLICIT",
+        "implicit in velocity, (M - h D) v' = ..., D the velocity derivative of the smooth "
+        "forces (here the RNE Coriolis/centripetal terms), first order; " + _NOTE_ALL),
+        "mjINT_IMPLICIT", 1),
+    "rk4": (NativeIntegrator(
+        "rk4", False, "mj_step, opt.integrator = mjINT_RK4",
+        "classic 4-stage Runge-Kutta on (qpos, qvel), fourth order; " + _NOTE_ALL),
+        "mjINT_RK4", 4),
+}
 
 # Pipeline stages the models here have nothing for (no contacts, constraints, actuators, sensors,
 # springs, dampers, friction loss, limits or equalities): disabled, so mj_forward skips their
@@ -89,7 +156,7 @@ class MuJoCo(Engine):
     package = "mujoco"
     module = "mujoco"
     integrator = "rk4"
-    integrators = {"rk4": NativeIntegrator("rk4", False, "mj_step, mjINT_RK4")}
+    integrators = {name: entry[0] for name, entry in _INTEGRATORS.items()}
     depth_limited = True
 
     @classmethod
@@ -110,7 +177,9 @@ class MuJoCo(Engine):
         spec.option.gravity = np.asarray(m.gravity, dtype=float)
         for name in _DISABLED:
             spec.option.disableflags |= int(getattr(mj.mjtDisableBit, name))
-        spec.option.integrator = int(mj.mjtIntegrator.mjINT_RK4)
+        spec.option.integrator = int(mj.mjtIntegrator.mjINT_RK4)  # sim_reset sets the one asked
+        # mj_step's silent reset to qpos0 on a NaN or huge state: off (module docstring)
+        spec.option.disableflags |= int(mj.mjtDisableBit.mjDSBL_AUTORESET)
         spec.compiler.inertiafromgeom = int(mj.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
         principal, balance, bodies = [], False, []
         hinge, slide = mj.mjtJoint.mjJNT_HINGE, mj.mjtJoint.mjJNT_SLIDE
@@ -220,13 +289,44 @@ class MuJoCo(Engine):
     def _sim_reset(self, q0, v0, h):
         m, d = self.mjmodel, self.mjdata
         m.opt.timestep = h
+        m.opt.integrator = int(getattr(self.lib.mjtIntegrator,
+                                       _INTEGRATORS[self.sim_integrator.name][1]))
         self.lib.mj_resetData(m, d)
         qe, blocks = self._state(q0, v0)
         d.qpos[:] = qe
         d.qvel[:] = self._to_engine(v0, blocks)
+        self._mj_steps = 0
 
     def _sim_step(self):
         self.lib.mj_step(self.mjmodel, self.mjdata)
+        self._mj_steps += 1
+
+    def _sim_counts(self):
+        per_step = _INTEGRATORS[self.sim_integrator.name][2]
+        return self._mj_steps, 0, per_step * self._mj_steps
+
+    def _settings(self):
+        """MuJoCo's ``opt`` as compiled (the loop adapter turns constraints on in the same
+        model): flags by name, the constraint solver's settings, the fluid."""
+        mj, opt = self.lib, self.mjmodel.opt
+        disabled = [n for n, b in mj.mjtDisableBit.__members__.items()
+                    if n != "mjNDISABLE" and opt.disableflags & int(b)]
+        enabled = [n for n, b in mj.mjtEnableBit.__members__.items()
+                   if n != "mjNENABLE" and opt.enableflags & int(b)]
+        integ = {int(v): n for n, v in mj.mjtIntegrator.__members__.items()}
+        return {"opt.integrator": integ[int(opt.integrator)], "opt.timestep": opt.timestep,
+                "disabled": disabled, "enabled": enabled,
+                "contacts": "off" if "mjDSBL_CONTACT" in disabled else "on",
+                "constraints": "off" if "mjDSBL_CONSTRAINT" in disabled else "on",
+                "warmstart": "mjDSBL_WARMSTART" not in disabled,
+                "autoreset": "mjDSBL_AUTORESET" not in disabled,
+                "solver": mj.mjtSolver(opt.solver).name, "iterations": int(opt.iterations),
+                "tolerance": opt.tolerance, "ls_iterations": int(opt.ls_iterations),
+                "noslip_iterations": int(opt.noslip_iterations),
+                "jacobian": mj.mjtJacobian(opt.jacobian).name,
+                "density": opt.density, "viscosity": opt.viscosity,
+                "wind": [float(x) for x in opt.wind], "gravity": [float(x) for x in opt.gravity],
+                "equalities": int(self.mjmodel.neq)}
 
     def _sim_state(self):
         d = self.mjdata

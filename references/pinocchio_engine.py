@@ -50,10 +50,14 @@ v_local). The applied force's linear part turns by R^T. Energies are invariant.
 Limit (references/limits.toml): ``pin.Data`` allocates the second-order-derivative tensors
 (nv^3 each) whatever algorithm is called, so memory, not time, stops it.
 
-``simulate``: Pinocchio has no time integrator; the adapter steps semi-implicit (symplectic)
-Euler with a fixed step h in Pinocchio's own coordinates: y += h qdd(q, y); q = pin.integrate(q,
-h y) (plain addition for R and P joints, whose configuration is the angle or displacement; the
-Lie-group exponential for a free joint).
+No native integrator (``integrators`` is empty): Pinocchio has no time integrator, only the
+dynamics (``aba``, ``crba``, ...) and the Lie-group ``integrate`` of a configuration by a
+velocity. ``simulate``, ``sim_reset`` and ``integrator="native"`` are refused with that reason,
+naming the way to run Pinocchio: through redysim's integrators, its qdd in ours
+(``redysim simulate CASE --engine pinocchio-aba --integrator ode45``). Until 2026-11 the adapter
+stepped semi-implicit Euler itself (v += h qdd; q = pin.integrate(q, h v)) and called it
+Pinocchio's native integrator: any such trajectory was this adapter's integrator, not the
+engine's, which a comparison of engines' own integrators must not contain.
 """
 
 from __future__ import annotations
@@ -65,7 +69,7 @@ import numpy as np
 from redysim.algorithms.rbda import quaternion_matrix
 from redysim.model.tree import FREE
 
-from .base import Engine, FreeBlock, NativeIntegrator, depth_first
+from .base import Engine, FreeBlock, depth_first
 
 
 def _axis_model(pin, axis):
@@ -104,11 +108,10 @@ class PinocchioEngine(Engine):
 
     package = "pin"
     module = "pinocchio"
-    integrator = "semi-implicit-euler"
-    integrators = {"semi-implicit-euler": NativeIntegrator(
-        "semi-implicit-euler", False,
-        "the adapter's own loop: pin.aba/crba for qdd, pin.integrate for q",
-        "Pinocchio has no time integrator: this loop is the adapter's, not the engine's")}
+    integrator = ""
+    integrators = {}  # Pinocchio has none (module docstring)
+    no_integrator = ("Pinocchio has none: it gives the dynamics, not a time stepping; any "
+                     "trajectory would be an adapter's integrator, not Pinocchio's")
     universal: ClassVar[str] = "universal"
 
     def _build(self):
@@ -185,24 +188,6 @@ class PinocchioEngine(Engine):
     def _position(self, qp, body, point):
         self.lib.forwardKinematics(self.pm, self.data, qp)
         return self.data.oMi[self.body_joint[body]].act(point).copy()
-
-    # ------------------------------------------------------------------ native stepping
-    def _sim_reset(self, q0, v0, h):
-        qp, blocks = self._state(q0, v0)
-        self._qp, self._y, self._h = qp.copy(), np.array(self._to_engine(v0, blocks)), h
-
-    def _sim_step(self):
-        self._y = self._y + self._h * self._qdd(self._qp, self._y, None)
-        self._qp = self.lib.integrate(self.pm, self._qp, self._h * self._y)
-
-    def _sim_state(self):
-        if self.identity:
-            return self._qp.copy(), self._y.copy()
-        q = self._qp[self.qidx]
-        for _, qs, _ in self.free:
-            q[qs + 3:qs + 7] = np.roll(q[qs + 3:qs + 7], 1)  # w first
-        _, blocks = self._state(q, np.zeros(self.model.n_v))
-        return q, self._from_engine(self._y, blocks)
 
 
 class PinocchioABA(PinocchioEngine):
