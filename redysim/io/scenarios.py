@@ -479,7 +479,7 @@ def _random(source, model: Model, spec, q0, v0) -> tuple[np.ndarray, np.ndarray]
         amp[key] = float(a)
     rng = np.random.default_rng(seed)
     q0, v0 = q0.copy(), v0.copy()
-    free_q = set()
+    free_q: set[int] = set()
     for k, t in enumerate(model.joint_types):
         if t == FREE:
             free_q.update(range(int(model.joint_qoff[k]), int(model.joint_qoff[k + 1])))
