@@ -92,7 +92,14 @@ Two Drake defects, measured (tests/test_engines_drake.py, ``known_engine_defect`
 - ``radau3`` stalls near 1e-5: 8.6e-6 (pendulum) and 1.9e-5 (box) at accuracy 1e-8, its steps
   20-60x those at 1e-4.
 
-Limits (references/limits.toml): measured with ``references/measure_limits.py``.
+Loops: none. Drake's constraints (ball, weld, coupler, distance) exist for a discrete plant with
+the SAP solver only: a continuous plant takes them and finalizes, then its first
+``EvalTimeDerivatives`` raises "Continuous time does not support constraints" (measured; test
+``test_a_continuous_plant_takes_no_loop_constraint``). SAP's are compliant and act by a step's
+impulses, not the hard constraint forces the loop adapters compare (``references/README.md``).
+
+Limits (references/limits.toml): memory. ``MultibodyPlant.Finalize()`` allocates ~n^2 bytes in
+the number of Drake bodies (one per axis); measured with ``references/measure_limits.py``.
 """
 
 from __future__ import annotations

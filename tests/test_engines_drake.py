@@ -278,3 +278,46 @@ def test_radau3_stalls_near_1e5():
         loose, (loose_steps, _, _), _ = _run(model_id, "radau3", 0.1, rtol=1e-4)
         assert err > 100 * 1e-8 and err > loose / 10, (model_id, err, loose)
         assert steps > 20 * loose_steps
+
+
+# --------------------------------------------------------------------------- loops
+def test_a_continuous_plant_takes_no_loop_constraint():
+    """Why Drake has no loop adapter (references/README.md, "Loops"): Drake's loop-closing
+    constraints (ball, weld, coupler) exist only for a discrete plant with the SAP solver
+    (compliant, through a step's impulses); the continuous plant every stage here uses takes
+    them and finalizes, then refuses at its first dynamics evaluation, saying so."""
+    engine_or_skip("drake")
+    from pydrake.math import RigidTransform
+    from pydrake.multibody import tree
+    from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
+    from pydrake.systems.analysis import Simulator as DrakeSimulator
+
+    def plant_with(time_step, add):
+        plant = MultibodyPlant(time_step)
+        inertia = tree.SpatialInertia(1.0, np.zeros(3), tree.UnitInertia(0.01, 0.01, 0.01))
+        a, b = plant.AddRigidBody("a", inertia), plant.AddRigidBody("b", inertia)
+        ja = plant.AddJoint(tree.RevoluteJoint("ja", plant.world_frame(), a.body_frame(),
+                                               [0.0, 0.0, 1.0]))
+        frame = plant.AddFrame(tree.FixedOffsetFrame("F", plant.world_frame(),
+                                                     RigidTransform([1.0, 0.0, 0.0])))
+        jb = plant.AddJoint(tree.RevoluteJoint("jb", frame, b.body_frame(), [0.0, 0.0, 1.0]))
+        add(plant, a, b, ja, jb)
+        if time_step:
+            plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+        plant.Finalize()
+        assert plant.num_constraints() == 1
+        return plant, plant.CreateDefaultContext()
+
+    adds = {
+        "ball": lambda p, a, b, ja, jb: p.AddBallConstraint(a, [0.5, 0, 0], b, [-0.5, 0, 0]),
+        "weld": lambda p, a, b, ja, jb: p.AddWeldConstraint(
+            a, RigidTransform([0.5, 0, 0]), b, RigidTransform([-0.5, 0, 0])),
+        "coupler": lambda p, a, b, ja, jb: p.AddCouplerConstraint(ja, jb, 1.0),
+    }
+    for add in adds.values():
+        plant, context = plant_with(0.0, add)
+        with pytest.raises(RuntimeError, match="Continuous time does not support constraints"):
+            plant.EvalTimeDerivatives(context)
+        plant, context = plant_with(1e-3, add)
+        simulator = DrakeSimulator(plant, context)  # the discrete SAP plant steps
+        simulator.AdvanceTo(0.01)
