@@ -183,8 +183,8 @@ def test_the_manifest_records_the_configuration():
 
 
 def test_an_adaptive_run_through_the_core_simulator():
-    """``redysim.simulation.Simulator`` runs Drake's error-controlled RK3 as ``native:runge_kutta3``, landing
-    on the samples, with Drake's own counts."""
+    """``redysim.simulation.Simulator`` runs Drake's error-controlled RK3 as
+    ``native:runge_kutta3``, landing on the samples, with Drake's own counts."""
     model, q0, v0, _ = _start("box")
     eng = _engine("box")
     sim = Simulator(model, T_END, q0=q0, v0=v0, integrator="native:runge_kutta3",
