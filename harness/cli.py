@@ -41,7 +41,7 @@ EXTRA_OF = {**dict.fromkeys(("pandas", "pyarrow", "distributed", "dask", "tqdm",
                              "jinja2", "reportlab", "psutil", "mpmath", "threadpoolctl"),
                             "harness"),
             "mujoco": "models",
-            **dict.fromkeys(("pinocchio", "dartpy", "exudyn"), "engines")}
+            **dict.fromkeys(("pinocchio", "dartpy", "exudyn", "pydrake"), "engines")}
 
 DESCRIPTION = """\
 redysim: O(n) dynamics of very long serial chains (ReDySim: DeNOC + Reverse Gaussian

@@ -1,4 +1,4 @@
-"""Reference engines: the same model in Pinocchio, MuJoCo, DART and Exudyn.
+"""Reference engines: the same model in Pinocchio, MuJoCo, DART, Exudyn and Drake.
 
 One adapter class per engine, registered under its name in :data:`ENGINES` (Pinocchio three
 times: ``pinocchio-aba``, ``pinocchio-aba-ryrz`` and ``pinocchio-crba``, one construction with
@@ -47,6 +47,7 @@ from .base import (
     load_limits,
 )
 from .dart_engine import DART
+from .drake_engine import Drake
 from .exudyn_engine import Exudyn
 from .loops import LOOP_ENGINES, LoopEngine, LoopStateUnsupported, loop_engine
 from .mujoco_engine import MuJoCo
@@ -54,7 +55,7 @@ from .pinocchio_engine import PinocchioABA, PinocchioABARyRz, PinocchioCRBA
 
 ENGINES: dict[str, type[Engine]] = {
     cls.name: cls
-    for cls in (PinocchioABA, PinocchioABARyRz, PinocchioCRBA, MuJoCo, DART, Exudyn)
+    for cls in (PinocchioABA, PinocchioABARyRz, PinocchioCRBA, MuJoCo, DART, Exudyn, Drake)
 }
 
 
@@ -72,5 +73,5 @@ __all__ = ["ENGINES", "LOOP_ENGINES", "Axis", "Engine", "EngineLimitExceeded",
            "EngineUnavailable", "JointAxes", "Limits", "NativeIntegrator", "Trajectory",
            "LoopEngine",
            "LoopStateUnsupported", "as_model", "get", "joint_axes", "load_limits",
-           "loop_engine", "DART", "Exudyn", "MuJoCo", "PinocchioABA", "PinocchioABARyRz",
+           "loop_engine", "DART", "Drake", "Exudyn", "MuJoCo", "PinocchioABA", "PinocchioABARyRz",
            "PinocchioCRBA"]

@@ -58,6 +58,7 @@ TOLERANCE = {
     "mujoco": Tolerance(chains=1e-8, trees=1e-10),
     "dart": Tolerance(chains=1e-11, trees=1e-11),
     "exudyn": Tolerance(chains=1e-8, trees=1e-10),
+    "drake": Tolerance(chains=1e-11, trees=1e-11),
 }
 assert set(TOLERANCE) == set(references.ENGINES)
 

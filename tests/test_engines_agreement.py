@@ -60,7 +60,7 @@ FAMILY_SIZES = {f: SIZES for f in JOINTS + AXIS_FAMILIES}
 # 2e-7 is above the dense engines' tolerance and a miss there would say nothing about the engine:
 # S50 is for the O(n) recursions only (measured <= 1.6e-12 there, pin.aba + Universal aside).
 # 10 S-links reach 2.7e6 (the same 1.3 deg: a good stress, cond * eps = 6e-10) for every engine.
-RECURSIVE = ("pinocchio-aba", "pinocchio-aba-ryrz", "dart")
+RECURSIVE = ("pinocchio-aba", "pinocchio-aba-ryrz", "dart", "drake")
 DENSE_MAX_LINKS = {"S": 10}
 KINDS = ("spread", "straight")
 SEEDS = (0, 1, 2)

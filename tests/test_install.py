@@ -31,7 +31,7 @@ from redysim.harness import BLAS_THREAD_VARIABLES, cli
 REPO = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())
 OPTIONAL = PYPROJECT["project"]["optional-dependencies"]
-IMPORT_NAME = {"pin": "pinocchio"}  # distribution -> module, where the two differ
+IMPORT_NAME = {"pin": "pinocchio", "drake": "pydrake"}  # distribution -> module, where they differ
 
 
 def requirement_name(req: str) -> str:
