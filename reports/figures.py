@@ -398,7 +398,10 @@ def work_precision(ctx: Ctx) -> list[Figure]:
     if runs.empty or "max_tip_err" not in runs:
         return [missing("wp", "work-precision", title0, "", how)]
     measured = runs[pd.to_numeric(runs["max_tip_err"], errors="coerce").notna()]
-    groups = list(measured.groupby(["case", "horizon"]))
+    # a work-precision diagram needs curves: a group whose every curve is one point (the truth
+    # scenarios' single settings, sweeps/quick-scenarios.toml) is tabulated, not drawn
+    groups = [(key, g) for key, g in measured.groupby(["case", "horizon"])
+              if g.groupby(g.apply(_wp_label, axis=1)).size().max() >= 3]
     if not groups:
         return [missing("wp", "work-precision", title0, "", how)]
     figs = []
