@@ -18,6 +18,7 @@ import importlib.util
 import math
 import os
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from redysim.errors import RedysimError, SettingsError
@@ -51,28 +52,13 @@ examples:
   redysim cases                                   # the chains of the paper
   redysim simulate RE-U125-L1 --t-end 0.1         # one run, printed
   redysim sweep sweeps/smoke.toml                 # a declared set of runs, saved as Parquet
+  redysim simulate UR5-FALL --engine mujoco --integrator native:implicit --h 1e-3
+  redysim compare ur5_robot.urdf                  # your model in every engine: a page
+  redysim engines                                 # the engines and their own integrators
 
 `redysim COMMAND --help` explains each command. Without extras, cases, info and simulate run
-on the core; sweep, advise and simulate --out need pip install 'redysim[harness]', --engine
+on the core; sweep, advise, compare and simulate --out need 'redysim[harness]', --engine
 needs 'redysim[engines]', an MJCF file 'redysim[models]'."""
-
-COMPARE_HELP = """\
-Compare your model in every engine with every integrator, against a reference solution.
-
-It builds the model in every reference engine and checks single-state agreement with the core
-(qdd, GIM, bias, energy at seeded random states), then runs the scenario's passive motion: the
-core with its integrators, every engine through ode45 and with each of its own integrators, over
-a ladder of steps and tolerances, each measured against the reference solution (DOP853 at
-1e-10, checked by SciPy's DOP853 at 1e-13). It writes compare.html and compare.pdf: the
-agreement, the observed path's error and the energy drift over time, work against precision,
-every run with each engine's configuration, and the advice: for this accuracy, this engine and
-setting was cheapest here. The runs are cached: run it again and only what changed runs.
-
-examples:
-  redysim compare ur5_robot.urdf
-  redysim compare talos_reduced.urdf --floating --mimic independent --t-end 0.5
-  redysim compare cases/loops/jansen_leg.toml
-  redysim compare UR5-FALL --engine mujoco --engine exudyn"""
 
 ENGINES_HELP = """\
 List the reference engines: whether each is installed (its version), and its own integrators
@@ -181,8 +167,10 @@ def _whole(text: str) -> int:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of every command."""
+def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
+    """The argument parser of every command; ``extra``: functions that add the commands of the
+    layer above (``add(subparsers)``: :func:`redysim.reports.commands.main` adds ``compare``,
+    whose page the reports render; the harness never imports the reports)."""
     from redysim import references
     from redysim.harness.spec import CORE, CORE_METHODS, NATIVE, RunSpec
 
@@ -293,29 +281,6 @@ def build_parser() -> argparse.ArgumentParser:
                           "results)")
     adv.set_defaults(func=cmd_advise)
 
-    cmp_ = sub.add_parser("compare", description=COMPARE_HELP, formatter_class=fmt,
-                          help="your model in every engine with every integrator against a "
-                               "reference: agreement, paths, drift, work-precision, advice "
-                               "(an HTML page and a PDF)")
-    cmp_.add_argument("model", metavar="MODEL",
-                      help="a .urdf, an MJCF .xml, a DH robot or linkage .toml, a scenario "
-                           "file or name (cases/scenarios/), or a rope case")
-    cmp_.add_argument("--t-end", type=positive, metavar="T",
-                      help="horizon [s] (default: the scenario's; a model file's own: 1 s)")
-    cmp_.add_argument("--out", type=Path, metavar="DIR",
-                      help="where the runs and the page go (default: results/compare/<name>)")
-    cmp_.add_argument("--workers", type=_whole, metavar="N",
-                      help="processes running the runs (default: the number of CPU cores)")
-    cmp_.add_argument("--engine", dest="engines", action="append",
-                      choices=tuple(references.ENGINES), metavar="E",
-                      help="compare only these engines (repeat; default: every engine)")
-    cmp_.add_argument("--no-progress", dest="progress", action="store_false",
-                      help="no progress bar")
-    _model_flags(cmp_)
-    cmp_.add_argument("--lock", type=_lock, action="append", default=[], metavar="JOINT=VALUE",
-                      help="a robot file: hold a joint at a coordinate; repeat for more")
-    cmp_.set_defaults(func=cmd_compare)
-
     eng = sub.add_parser("engines", description=ENGINES_HELP, formatter_class=fmt,
                          help="the reference engines, their versions and their own integrators")
     eng.set_defaults(func=cmd_engines)
@@ -326,6 +291,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="a .urdf, an MJCF .xml, a case .toml, or a case name")
     _model_flags(info)
     info.set_defaults(func=cmd_info)
+    for add in extra:
+        add(sub)
     return ap
 
 
@@ -812,34 +779,6 @@ def cmd_advise(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_compare(args: argparse.Namespace) -> int:
-    """``redysim compare MODEL``: :func:`redysim.reports.compare.compare`."""
-    from redysim.io.scenarios import load_scenario
-
-    kind = file_kind(args.model)
-    _refuse_unused_flags(args, kind)
-    if args.lock and kind not in ("urdf", "mjcf", "dh"):
-        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
-                            "(.urdf, .xml, cases/robots/*.toml)")
-    options: dict = {}
-    if kind in ("urdf", "mjcf", "dh"):
-        options = {k: v for k, v in {"floating": args.floating or None, "mimic": args.mimic,
-                                     "lock": dict(args.lock) or None}.items() if v is not None}
-    scn = load_scenario(args.model, options=options)  # a bad file: exit 2, before any run
-    for package in ("pandas", "pyarrow", "matplotlib", "jinja2", "reportlab"):
-        if importlib.util.find_spec(package) is None:
-            raise ModuleNotFoundError(name=package)
-    from redysim.reports.compare import compare
-
-    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in scn.name)
-    out = args.out or Path("results") / "compare" / name
-    html, pdf = compare(args.model, out, options=options, t_end=args.t_end or 0.0,
-                        workers=args.workers, engines=args.engines, progress=args.progress,
-                        log=lambda msg: print(msg, file=sys.stderr, flush=True))
-    print(f"{html}\n{pdf}")
-    return EXIT_OK
-
-
 def cmd_engines(args: argparse.Namespace) -> int:
     """``redysim engines``: each reference engine, whether it is installed (its version), and
     its own integrators (name, fixed step or tolerances, what the engine calls it)."""
@@ -876,9 +815,11 @@ def cmd_cases(args: argparse.Namespace) -> int:
     return EXIT_RUN_FAILED if bad else EXIT_OK
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``redysim`` console script; returns the exit code."""
-    args = build_parser().parse_args(argv)
+def main(argv: list[str] | None = None, *, extra: Sequence[Callable] = ()) -> int:
+    """The commands of the harness (``extra``: those of the layer above, see
+    :func:`build_parser`); returns the exit code. The ``redysim`` console script is
+    :func:`redysim.reports.commands.main`, which adds ``compare``."""
+    args = build_parser(extra).parse_args(argv)
     try:
         return args.func(args)
     except (RedysimError, FileNotFoundError) as exc:  # bad input: a case, a sweep file, a path

@@ -169,7 +169,7 @@ def test_redysim_compare_writes_a_page_with_agreement_runs_and_advice(tmp_path, 
     written, the advice naming a run that met the tolerance."""
     pytest.importorskip("mujoco")
     monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))  # the reference's cache
-    from redysim.harness.cli import main
+    from redysim.reports.commands import main  # the console script: the harness's + compare
 
     out = tmp_path / "cmp"
     assert main(["compare", "DOUBLE-PENDULUM", "--t-end", "0.2", "--engine", "mujoco",
