@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import zipfile
 from dataclasses import dataclass
@@ -42,6 +43,9 @@ REF_RTOL = 1e-10
 REF_ATOL = 1e-10
 CHECK_METHOD = "scipy-DOP853"
 CHECK_RTOL = 1e-13
+# A second method for a scenario that is not a rope: the same DOP853 on another engine's qdd
+# (Pinocchio's ABA: an independent implementation of the dynamics), when installed and able.
+CONFIRM_ENGINE = "pinocchio-aba"
 
 
 def results_dir() -> Path:
@@ -52,7 +56,10 @@ def results_dir() -> Path:
 @dataclass
 class Reference:
     """Samples ``t`` (m,), full states ``y`` (m, n_q + n_v), positions of the observed path
-    ``tip`` (m, 3)."""
+    ``tip`` (m, 3); ``tol_estimate``: the path's largest distance from SciPy's DOP853 at 1e-13
+    (a second integrator on the core's qdd); ``engine_check``: from DOP853 on another engine's
+    qdd (:data:`CONFIRM_ENGINE`, a second implementation of the dynamics; scenarios that are
+    not ropes), ``engine_check_by`` naming it (or why there is none)."""
 
     t: np.ndarray
     y: np.ndarray
@@ -61,6 +68,8 @@ class Reference:
     steps: int
     nfev: int
     cpu_s: float
+    engine_check: float = float("nan")  # max path distance from the engine's own solution
+    engine_check_by: str = ""  # the engine and its version, or why there is none
 
 
 def _scenario(case) -> Scenario:
@@ -88,17 +97,19 @@ def load_reference(case, t_end: float, interval: float) -> Reference | None:
     try:
         with np.load(p) as z:
             return Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]),
-                             int(z["steps"]), int(z["nfev"]), float(z["cpu_s"]))
+                             int(z["steps"]), int(z["nfev"]), float(z["cpu_s"]),
+                             float(z["engine_check"]), str(z["engine_check_by"]))
     except (OSError, ValueError, KeyError, zipfile.BadZipFile):
         return None  # damaged (the writer is atomic, so only outside damage does this)
 
 
-def _solve(case, t_end, interval, method, rtol):
-    """The scenario integrated by the one simulation driver (a rope's tip force included):
-    samples, states, observed positions, counts, CPU time."""
+def _solve(case, t_end, interval, method, rtol, qdd=None):
+    """The scenario integrated by the one simulation driver (a rope's tip force included; an
+    engine's ``qdd`` instead of the core's when given): samples, states, observed positions,
+    counts, CPU time."""
     case = _scenario(case)
     sim = case.simulator(t_end, integrator=method, rtol=rtol, atol=rtol, sample=interval,
-                         observe={"tip": frame_observer(case.model, case.frame)})
+                         observe={"tip": frame_observer(case.model, case.frame)}, qdd=qdd)
     res = sim.run(clock="process")
     if res.status != 0:
         raise RuntimeError(f"reference of {case.name} failed: {res.message}")
@@ -116,10 +127,36 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
     ts, Y, P, cnt, cpu = _solve(case, t_end, interval, REF_METHOD, REF_RTOL)
     _, _, P_check, _, _ = _solve(case, t_end, interval, CHECK_METHOD, CHECK_RTOL)
     est = float(np.linalg.norm(P - P_check, axis=1).max())
+    by, engine_est = _confirm(case, t_end, interval, P)
     p.parent.mkdir(parents=True, exist_ok=True)
     write_npz_atomic(p, t=ts, y=Y, tip=P, tol_estimate=est, steps=cnt.steps, nfev=cnt.nfev,
-                     cpu_s=cpu)
-    return Reference(ts, Y, P, est, cnt.steps, cnt.nfev, cpu)
+                     cpu_s=cpu, engine_check=engine_est, engine_check_by=by)
+    return Reference(ts, Y, P, est, cnt.steps, cnt.nfev, cpu, engine_est, by)
+
+
+def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
+    """(who, the largest path distance) of the reference against the same DOP853 on
+    :data:`CONFIRM_ENGINE`'s qdd: a second implementation of the dynamics. Ropes (their numbers
+    checked against the paper and the engines elsewhere) and closed loops are not confirmed so;
+    an engine that is missing or refuses says why."""
+    scn = _scenario(case)
+    if scn.case is not None:
+        return "none: a rope case (checked against the paper's tables and the engines)", math.nan
+    if scn.model.cuts:
+        return "none: closed loops (the engines' loop adapters take assembled states only)", \
+            math.nan
+    from redysim import references
+
+    cls = references.get(CONFIRM_ENGINE)
+    if not cls.available():
+        return f"none: {cls.package} is not installed", math.nan
+    lim = cls.limits(scn.model)
+    if not lim.ok:
+        return f"none: {lim.reason}", math.nan
+    eng = cls(scn.model)
+    _, _, P_engine, _, _ = _solve(scn, t_end, interval, REF_METHOD, REF_RTOL, qdd=eng.qdd)
+    return (f"{CONFIRM_ENGINE} {eng.version}",
+            float(np.linalg.norm(P - P_engine, axis=1).max()))
 
 
 def ensure_references(specs) -> dict[tuple, Reference]:

@@ -206,7 +206,8 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
            "engine_config": "",
            "avg_abs_delta_M": math.nan, "max_abs_delta_M": math.nan,
            "t_reached": 0.0, "n_samples": 0, "max_tip_err": math.nan, "final_state_err": math.nan,
-           "ref_tol_estimate": math.nan, "quaternion_error": 0.0, "residual_q": 0.0,
+           "ref_tol_estimate": math.nan, "ref_engine_check": math.nan,
+           "quaternion_error": 0.0, "residual_q": 0.0,
            "residual_v": 0.0, "max_loop_force": math.nan, "near_change_point": math.nan}
     samples: list[tuple] = []
     last: dict = {"states": [] if states else None}  # the last state (final-state error)
@@ -344,6 +345,7 @@ def _compare_with_reference(spec: RunSpec, row: dict, pos, y_final, coarsening=N
         return
     row["max_tip_err"] = float(np.linalg.norm(pos - ref.tip, axis=1).max())
     row["ref_tol_estimate"] = ref.tol_estimate
+    row["ref_engine_check"] = ref.engine_check
     if y_final is not None:
         y_ref = ref.y[-1]
         if coarsening is not None:

@@ -185,3 +185,21 @@ def test_redysim_compare_writes_a_page_with_agreement_runs_and_advice(tmp_path, 
     assert {"native:rk4", "ode45"} <= set(runs[runs["engine"] == "mujoco"]["integrator"])
     assert main(["compare", str(tmp_path / "none.urdf")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.engine
+@NEEDS_ROBOTS
+def test_a_robots_reference_is_confirmed_by_a_second_implementation(tmp_path, monkeypatch):
+    """Two checks of a reference: a second integrator on the core's qdd (SciPy's DOP853 at
+    1e-13), and the same DOP853 on Pinocchio's qdd (an independent implementation of the
+    dynamics); a rope and a linkage say why they have no engine check."""
+    pytest.importorskip("pinocchio")
+    from redysim.harness.reference import compute_reference
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path))
+    ref = compute_reference(load_scenario("UR5-FALL"), 0.2, 0.05)
+    assert ref.engine_check_by.startswith("pinocchio-aba ")
+    assert ref.engine_check < 1e-10 and ref.tol_estimate < 1e-9  # measured 4e-15 and 1.7e-12
+    for name, why in (("STUDY-R3", "a rope case"), ("FOUR-BAR", "closed loops")):
+        ref = compute_reference(load_scenario(name), 0.1, 0.05)
+        assert math.isnan(ref.engine_check) and why in ref.engine_check_by
