@@ -382,8 +382,10 @@ def _from_file(path: Path) -> Scenario:
     idoc = doc.get("initial", {})
     q0, v0 = _initial(source, model, idoc, linkage_q0)
     case = None
-    if kind == "case":
-        case = load_case(mfile)
+    if kind == "case":  # the rope's harness (tip force, coarsening) runs this scenario's chain
+        from dataclasses import replace
+
+        case = replace(load_case(mfile), chain=model, q0=q0, v0=v0)
     return _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
                    description=str(head.get("description", "")), model_file=mfile)
 
