@@ -203,3 +203,15 @@ def test_a_robots_reference_is_confirmed_by_a_second_implementation(tmp_path, mo
     for name, why in (("STUDY-R3", "a rope case"), ("FOUR-BAR", "closed loops")):
         ref = compute_reference(load_scenario(name), 0.1, 0.05)
         assert math.isnan(ref.engine_check) and why in ref.engine_check_by
+
+
+def test_a_scenario_on_a_rope_case_runs_its_own_gravity(tmp_path):
+    """A scenario's [model] gravity replaces the case file's, in the rope's own harness too."""
+    p = _write(tmp_path, '[scenario]\nname = "moon"\n[model]\nfile = "STUDY-R3"\n'
+                         'gravity = [0.0, -1.62, 0.0]\n[simulation]\nt_end = 0.2\n')
+    moon, earth = load_scenario(p), load_scenario("STUDY-R3")
+    assert moon.kind == "case" and moon.case.chain.gravity[1] == -1.62
+    fall = [s.simulator(0.2, sample=0.1, rtol=1e-10, atol=1e-12).run().q[-1, 0]
+            for s in (moon, earth)]
+    # released horizontal, the first joint turns about 6x less far on the moon (g ratio 6.06)
+    assert fall[1] / fall[0] == pytest.approx(9.81 / 1.62, rel=0.05)
