@@ -157,8 +157,9 @@ class _Dynamics:
 
 def _loop_engine_of(spec: RunSpec, case: Scenario, dyn: _Dynamics):
     """The constrained accelerations of an engine's loop adapter on a closed-loop scenario
-    (:mod:`redysim.references.loops`: the engine's own loop constraints); RunFailed when the
-    engine has none, cannot build the loops, or is asked to step natively."""
+    (:mod:`redysim.references.loops`: the engine's own loop constraints), at each stage's state
+    projected onto the loops; RunFailed when the engine has none, cannot build the loops, or is
+    asked to step natively."""
     from redysim import references
     from redysim.algorithms.loops import ClosedLoops
 
@@ -179,7 +180,15 @@ def _loop_engine_of(spec: RunSpec, case: Scenario, dyn: _Dynamics):
     eng = references.loop_engine(cls.name, loops)
     dyn.build_s = time.perf_counter() - t0
     dyn.version = eng.version
-    return lambda q, v, tau: eng.forward_dynamics(q, v, tau)
+
+    def qdd(q, v, tau):
+        # the adapters take assembled states only (1e-6 of the model's size), and a Runge-Kutta
+        # stage, a rejected trial step's above all, leaves the loops by its own error: the
+        # engine is asked at the stage's state projected onto the loops (the core's projection,
+        # as after every step), a change of the order of that error
+        qp, vp = loops.project(q, v)[:2]
+        return eng.forward_dynamics(qp, vp, tau)
+    return qdd
 
 
 def execute(spec: RunSpec, *, reference=True, progress=None,

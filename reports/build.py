@@ -608,9 +608,9 @@ def scenarios_section(res: Results) -> Section:
                        "its reference solution (the core's DOP853 at 1e-10, checked by SciPy's "
                        "DOP853 at 1e-13) over the samples. COM values are computed from the "
                        "run's sampled centre of mass (every 0.025 or 0.05 s). A loop adapter "
-                       "takes assembled states only (to 1e-6 m), so an explicit Runge-Kutta "
-                       "stage of a trial step can leave the loop by more and be refused: that "
-                       "failure is the adapter's, shown as it is."])
+                       "takes assembled states only, so it is asked at each Runge-Kutta stage's "
+                       "state projected onto the loops (docs/design.md, Scenarios); DART's "
+                       "takes v = 0 only, and says so."])
     runs = res.runs
     sel = runs[runs["sweep"] == SCENARIOS_SWEEP] if "sweep" in runs else runs.iloc[0:0]
     if sel.empty:

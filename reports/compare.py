@@ -60,10 +60,14 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     specs = [RunSpec(**base, integrator=i, rtol=r, atol=r * 1e-2)
              for i in ("ode45", "dop853") for r in CORE_RTOLS]
     specs += [RunSpec(**base, integrator="rk4", h=h) for h in steps]
-    for name, cls in references.ENGINES.items():
+    # a closed mechanism: the engines with a loop adapter, by the adapter's tree engine's name
+    # (Pinocchio's loops are built on its CRBA; Drake's continuous plant takes no constraints)
+    names = ([c.adapter.name for c in references.LOOP_ENGINES.values()] if scn.model.cuts
+             else [n for n in references.ENGINES
+                   if n not in ("pinocchio-aba-ryrz", "pinocchio-crba")])  # one per engine
+    for name in names:
+        cls = references.get(name)
         if engines is not None and name not in engines:
-            continue
-        if name in ("pinocchio-aba-ryrz", "pinocchio-crba"):  # variants of one engine
             continue
         specs += [RunSpec(**base, engine=name, integrator="ode45", rtol=r, atol=r * 1e-2)
                   for r in ENGINE_RTOLS]
