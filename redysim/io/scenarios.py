@@ -385,6 +385,9 @@ def _from_file(path: Path) -> Scenario:
     if kind == "case":  # the rope's harness (tip force, coarsening) runs this scenario's chain
         from dataclasses import replace
 
+        from redysim.model.tree import Chain
+
+        assert isinstance(model, Chain)  # a case's chain, its gravity perhaps replaced
         case = replace(load_case(mfile), chain=model, q0=q0, v0=v0)
     return _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
                    description=str(head.get("description", "")), model_file=mfile)
