@@ -327,9 +327,9 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
 
 def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
     """A Simulation's samples as the run's rows (tip, E, delta_M), its counts into ``row``."""
-    tips = res.observed["tip"]
+    tips, run_id = res.observed["tip"], spec.run_id  # the id hashes files: once a run
     for i, t in enumerate(res.t):
-        samples.append((spec.run_id, float(t), *tips[i], float(res.energy[i]),
+        samples.append((run_id, float(t), *tips[i], float(res.energy[i]),
                         float(res.delta_M[i]), *res.com[i]))
     last["y"] = res.y_final
     if last.get("states") is not None and res.q.shape[0]:
