@@ -66,19 +66,25 @@ List the reference engines: whether each is installed (its version), and its own
 error-controlled ones --rtol/--atol."""
 
 SIMULATE_HELP = """\
-Simulate one case and print its summary: E(0), steps, rejected steps, RHS calls, CPU time, JIT
-compile time (timed apart), average |delta_M| (energy drift per unit mass) and the tip position
-at every sample. Horizon and sample interval default to the case file's.
+Simulate one scenario and print its summary: E(0), steps, rejected steps, RHS calls, CPU time,
+JIT compile time (timed apart), average |delta_M| (energy drift per unit mass), and at every
+sample the observed frame's position (a rope's tip) and the centre of mass. Horizon and sample
+interval default to the scenario's.
 
-A robot (a .urdf, an MJCF .xml, or a DH robot file such as cases/robots/puma560.toml) falls
-passively under gravity from its file's configuration (every joint at zero, unless the MJCF
-gives one) at rest, simulated by the core: the summary gives the energy drift, the centre of
-mass at every sample and what the importer dropped from the file (damping, friction, limits:
-not simulated). With --floating, a URDF's or MJCF's root body gets a free joint and the robot
-falls freely: its centre of mass follows a parabola. --lock holds joints at given values (a
-reduced model). Horizon 1 s and 10 samples unless given. A flag that the kind of file given
-has no use for (--links or --precision float32 on a robot, --floating on a rope case, --mimic
-on anything but a URDF) is refused by name, never ignored.
+A scenario is a rope case (its name or file), a scenario file (cases/scenarios/: a model file,
+a state, a horizon and what to observe; its name, e.g. UR5-FALL, or its path), or a model file
+by itself: a robot (a .urdf, an MJCF .xml, a DH robot file such as cases/robots/puma560.toml)
+falls passively under gravity from its file's configuration at rest (a floating base tumbles
+from seeded random velocities), a linkage (cases/loops/*.toml) moves with its loops closed; the
+summary says what the importer dropped from the file (damping, friction, limits: not simulated).
+With --floating, a URDF's or MJCF's root body gets a free joint. --lock holds joints at given
+values (a reduced model). Horizon 1 s and 20 samples unless given. A flag that the kind of file
+given has no use for (--links or --precision float32 on a robot, --floating on a rope case,
+--mimic on anything but a URDF) is refused by name, never ignored.
+
+Every engine runs every scenario: --engine E computes qdd (redysim's integrators step it), and
+--integrator native:NAME lets the engine step itself with one of its own integrators (`redysim
+engines` lists them; a fixed-step one takes --h, an error-controlled one --rtol/--atol).
 
 Time limits: --max-cpu S is part of the run (a run past S seconds of CPU time fails, whatever
 else the machine is doing); --max-wall S is your patience (the run is stopped after S seconds
@@ -88,8 +94,10 @@ examples:
   redysim simulate RE-U125-L1 --t-end 0.1 --sample 0.01
   redysim simulate STUDY-R3 --integrator rk4 --h 1e-3 --t-end 1
   redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet
+  redysim simulate UR5-FALL --engine mujoco --integrator native:implicit --h 1.25e-3
+  redysim simulate TALOS-FALL --engine drake --integrator native:runge_kutta3 --rtol 1e-6
   redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
-  redysim simulate solo12.urdf --floating
+  redysim simulate solo12.urdf --floating --engine pinocchio-aba
   redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \\
       --lock joint6=0                           # the talk's free fall of joints 2 and 3
   redysim simulate cases/loops/hoekens_straight_line.toml --rtol 1e-10 --atol 1e-12
@@ -179,8 +187,9 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sim = sub.add_parser("simulate", description=SIMULATE_HELP, formatter_class=fmt,
-                         help="run one case with one engine and integrator; print energy "
-                              "drift and tip position")
+                         help="run one scenario (a rope case, a scenario file, a robot or "
+                              "linkage file) with one engine and integrator; print energy "
+                              "drift and the observed path")
     sim.add_argument("case", metavar="CASE",
                      help="a case name (see `redysim cases`), the path of a case file, a "
                           "robot (.urdf, MJCF .xml, cases/robots/*.toml) or a closed-loop "
@@ -554,18 +563,6 @@ def _exit_code(status: str, reason: str) -> int:
         return EXIT_STOPPED
     print(f"{PROG}: run failed: {reason}", file=sys.stderr)
     return EXIT_RUN_FAILED
-
-
-def _progress_every(seconds: float):
-    """A progress callback that reports at most every ``seconds`` of the run's wall time (the
-    ``wall`` it is given: JIT compiling before the run does not count)."""
-    next_report = [seconds]
-
-    def report(t, t_end, steps, wall):
-        if wall >= next_report[0]:
-            _report_progress(t, t_end, steps, wall)
-            next_report[0] = wall + seconds
-    return report
 
 
 def print_run(summary: dict, samples: list[tuple]) -> None:

@@ -202,6 +202,10 @@ class RunSpec:
             rtol = atol = 0.0
         else:
             h = self.h or None  # refused below: an adaptive integrator takes no step
+            if native and h:  # (check_settings knows ours only)
+                raise SettingsError(source, names.get("h", "h"), h, f"is the step of a "
+                                    f"fixed-step integrator; {integrator!r} is "
+                                    "error-controlled (give its rtol and atol)")
             rtol, atol = self.rtol or scn.rtol, self.atol or scn.atol
         check_settings(source, names, method=None if native else integrator,
                        rtol=None if stepped else rtol,

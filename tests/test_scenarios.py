@@ -95,6 +95,13 @@ def test_an_engine_without_that_integrator_is_named():
                 h=1e-3).resolved(scn)
     with pytest.raises(SettingsError, match="needs a reference engine"):
         RunSpec("DOUBLE-PENDULUM", integrator="native", h=1e-3).resolved(scn)
+    # an engine's error-controlled integrator takes tolerances, as ours: a step is refused
+    with pytest.raises(SettingsError, match="'native:dopri5' is error-controlled"):
+        RunSpec("DOUBLE-PENDULUM", engine="exudyn", integrator="native:dopri5",
+                h=1e-3).resolved(scn)
+    with pytest.raises(SettingsError, match="applies to adaptive integrators"):
+        RunSpec("DOUBLE-PENDULUM", engine="mujoco", integrator="native:rk4", h=1e-3,
+                rtol=1e-6).resolved(scn)
 
 
 def test_the_double_pendulum_conserves_energy():
