@@ -141,9 +141,9 @@ def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
     an engine that is missing or refuses says why."""
     scn = _scenario(case)
     if scn.case is not None:
-        return "none: a rope case (checked against the paper's tables and the engines)", math.nan
+        return "none: a rope case, checked against the paper's tables and the engines", math.nan
     if scn.model.cuts:
-        return "none: closed loops (the engines' loop adapters take assembled states only)", \
+        return "none: closed loops, which the engines' loop adapters take assembled only", \
             math.nan
     from redysim import references
 

@@ -230,12 +230,12 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
              f"Scenario: {scn.description or scn.name}; observed: {scn.frame}; "
              f"horizon {runs['t_end'].astype(float).max():g} s."]
     if ref is not None:
-        check = (f"and by the same DOP853 on {ref.engine_check_by}'s qdd: "
+        check = (f"and by the same DOP853 on {ref.engine_check_by}'s qdd to "
                  f"{ref.engine_check:.1e} m" if math.isfinite(ref.engine_check)
-                 else f"a second engine: {ref.engine_check_by}")
+                 else f"no second engine ({ref.engine_check_by.removeprefix('none: ')})")
         intro.append(f"The reference solution: the core's DOP853 at 1e-10 ({ref.steps} steps), "
                      f"confirmed by SciPy's DOP853 at 1e-13 to {ref.tol_estimate:.1e} m "
-                     f"(the observed path's largest distance) {check}.")
+                     f"(the observed path's largest distance); {check}.")
     if m.notes:
         intro.append("From the file, not simulated (Model.notes): " + "; ".join(m.notes))
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
