@@ -109,7 +109,6 @@ class _Dynamics:
 
     def __init__(self, spec: RunSpec, case: Scenario):
         self.chain = case.model
-        self.n = self.chain.n_dof
         self.build_s = 0.0
         self.engine = None
         self.force = case.tip_force
@@ -221,10 +220,10 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
     samples: list[tuple] = []
     last: dict = {"states": [] if states else None}  # the last state (final-state error)
     engine_version = ""
-    coarsening = None
+    coarsening = scn = None
     dyn_engine = [None]  # the engine built, for its manifest
     try:
-        case = load_scenario(spec.case, options=spec.model_options())
+        scn = case = load_scenario(spec.case, options=spec.model_options())
         spec = spec.resolved(case)
         case, coarsening = run_case(spec, case)
         row.update(n_dof=case.model.n_v, n_links=case.model.n_bodies, frame=case.frame)
@@ -253,7 +252,7 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
     if reference and row["status"] == "ok" and samples:
         tip = SAMPLE_COLUMNS.index("tip_x")
         pos = np.array([s[tip:tip + 3] for s in samples])
-        _compare_with_reference(spec, row, pos, last.get("y"), coarsening)
+        _compare_with_reference(scn, row, pos, last.get("y"), coarsening)
     if dyn_engine[0] is not None:
         import json
 
@@ -343,12 +342,12 @@ def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
         row["near_change_point"] = float(res.near_change_point)
 
 
-def _compare_with_reference(spec: RunSpec, row: dict, pos, y_final, coarsening=None) -> None:
-    """Errors against the scenario's reference solution; ``pos``: the observed path's
-    positions at the samples, (n_samples, 3). A coarse-grained rope is compared with the case's
-    own (fine) reference: its tip is the same point of the rope, and its final state is
-    compared with the reference's mapped to the coarse model (the chord projection)."""
-    scn = load_scenario(spec.case, options=spec.model_options())
+def _compare_with_reference(scn: Scenario, row: dict, pos, y_final, coarsening=None) -> None:
+    """Errors against the reference solution of ``scn`` (the run's scenario as loaded, before
+    any coarsening); ``pos``: the observed path's positions at the samples, (n_samples, 3). A
+    coarse-grained rope is compared with the case's own (fine) reference: its tip is the same
+    point of the rope, and its final state is compared with the reference's mapped to the coarse
+    model (the chord projection)."""
     ref = load_reference(scn, row["t_end"], row["sample"])
     if ref is None or len(ref.t) != len(pos):
         return

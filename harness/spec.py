@@ -39,7 +39,7 @@ STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerance
 PRECISIONS = ("float64", "float32")  # RunSpec.precision: the arithmetic of the core's qdd
 
 __all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest",
-           "native_integrator"]
+           "native_integrator", "stepped"]
 
 
 @dataclass(frozen=True)
@@ -131,12 +131,8 @@ class RunSpec:
         return json.loads(self.options) if self.options else {}
 
     def stepped(self, integrator: str) -> bool:
-        """Whether ``integrator`` takes a step h (not tolerances) for this run's engine: ours
-        of :data:`FIXED_STEP`, and an engine's fixed-step own ones."""
-        if is_native(integrator):
-            info = native_integrator(self.engine, integrator)
-            return info is None or not info.adaptive
-        return integrator in FIXED_STEP
+        """Whether ``integrator`` takes a step h for this run's engine (:func:`stepped`)."""
+        return stepped(self.engine, integrator)
 
     def resolved(self, case, *, source: str = "run", names: dict[str, str] | None = None
                  ) -> RunSpec:
@@ -270,6 +266,16 @@ def _check_horizon(case, t_end: float, source: str, name: str) -> None:
                             f"through ~{motion.omega * t_end:.3g} rad over it: more than the "
                             f"{MAX_RADIANS:.0e} a run can integrate; at most "
                             f"{MAX_RADIANS / motion.omega:.3g} s")
+
+
+def stepped(engine: str, integrator: str) -> bool:
+    """Whether ``integrator`` takes a step h (not tolerances) on ``engine``: ours of
+    :data:`FIXED_STEP`, and an engine's fixed-step own ones (an unknown one counts as fixed:
+    it is refused by name when the run is resolved)."""
+    if is_native(integrator):
+        info = native_integrator(engine, integrator)
+        return info is None or not info.adaptive
+    return integrator in FIXED_STEP
 
 
 def native_integrator(engine: str, integrator: str):

@@ -90,7 +90,16 @@ from redysim.simulation import is_native
 
 from . import REDYSIM_THREADS, worker_threads
 from .run import execute
-from .spec import CORE, CORE_METHODS, NATIVE, PRECISIONS, STEPPED, RunSpec, native_integrator
+from .spec import (
+    CORE,
+    CORE_METHODS,
+    NATIVE,
+    PRECISIONS,
+    STEPPED,
+    RunSpec,
+    native_integrator,
+    stepped,
+)
 from .store import (
     FILE_MODE,
     PARQUET_SUFFIX,
@@ -377,11 +386,10 @@ class _Checker:
         """The cross product one [sweep] or [[sweep.product]] table declares."""
         integrators = settings.get("integrators", [RunSpec.integrator])
         engines = settings.get("engines", [CORE])
-        stepped = [i for i in integrators if i in STEPPED_INTEGRATORS or (
-            is_native(i) and any(RunSpec("", engine=e).stepped(i) for e in engines
-                                 if e != CORE))]
-        if stepped and "h" not in settings:
-            self.fail(f"{where}.h", None, f"missing: integrator {stepped[0]!r} is fixed-step "
+        fixed = [i for i in integrators if i in STEPPED_INTEGRATORS or (
+            is_native(i) and any(stepped(e, i) for e in engines if e != CORE))]
+        if fixed and "h" not in settings:
+            self.fail(f"{where}.h", None, f"missing: integrator {fixed[0]!r} is fixed-step "
                                           "and needs step sizes, e.g. h = [1e-3]")
         tols = self.tolerances(where, settings)
         common = {k: settings[k] for k in SHARED_SCALARS if k in settings}
@@ -402,7 +410,7 @@ class _Checker:
                             run = dict(case=case, engine=engine, method=method,
                                        integrator=integrator, perturb=perturb, links=links,
                                        precision=precision, **common)
-                            if RunSpec("", engine=engine).stepped(integrator):
+                            if stepped(engine, integrator):
                                 runs = [RunSpec(**run, h=h) for h in settings.get("h", [0.0])]
                             else:
                                 runs = [RunSpec(**run, rtol=r, atol=a) for r, a in tols]

@@ -624,8 +624,9 @@ def scenarios_section(res: Results) -> Section:
         rows = sel[sel["case"] == case]
         rows = rows.assign(_core=rows["engine"] != CORE).sort_values(
             ["_core", "engine", "integrator"])
+        truth = {r["run_id"]: _truth(res, r) for _, r in rows.iterrows() if r["status"] == "ok"}
         within = {r["engine"] for _, r in rows.iterrows() if r["status"] == "ok"
-                  and r["integrator"] == "ode45" and _truth(res, r) <= bound}
+                  and r["integrator"] == "ode45" and truth[r["run_id"]] <= bound}
         for _, r in rows.iterrows():
             setting = f"h {float(r['h']):g}" if float(r["h"]) > 0 else f"rtol {float(r['rtol']):g}"
             name = f"{r['engine']} {r['integrator']} {setting}"
@@ -633,7 +634,7 @@ def scenarios_section(res: Results) -> Section:
                 tab.rows.append(Row([case, name, r["status"], what, "", f"<= {bound:g}", "",
                                      str(r["reason"])[:200]], NOT_RUN))
                 continue
-            value = _truth(res, r)
+            value = truth[r["run_id"]]
             ok = math.isfinite(value) and value <= bound
             note = ""
             if not ok:

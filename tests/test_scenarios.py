@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.special import ellipk
 
 from redysim.errors import CaseError, SettingsError
+from redysim.harness.gates import flip_half_period
 from redysim.harness.run import execute
 from redysim.harness.spec import RunSpec
 from redysim.io.scenarios import list_scenarios, load_scenario, robot_data_file
@@ -137,20 +137,6 @@ def test_talos_in_zero_gravity_keeps_its_com_on_a_line_and_its_energy():
     assert np.abs(sim.delta_M).max() < 1e-9
 
 
-def _flip_half_period(I1, I2, I3, w) -> float:
-    """Half the period of the body-frame spin about the middle axis of a torque-free body
-    (Landau and Lifshitz, Mechanics, section 37): omega_2 changes sign every 2 K(k) / lambda."""
-    E2 = I1 * w[0] ** 2 + I2 * w[1] ** 2 + I3 * w[2] ** 2  # 2 E
-    L2 = (I1 * w[0]) ** 2 + (I2 * w[1]) ** 2 + (I3 * w[2]) ** 2
-    if L2 > E2 * I2:
-        lam = math.sqrt((I3 - I2) * (L2 - E2 * I1) / (I1 * I2 * I3))
-        m = (I2 - I1) * (E2 * I3 - L2) / ((I3 - I2) * (L2 - E2 * I1))
-    else:
-        lam = math.sqrt((I2 - I1) * (E2 * I3 - L2) / (I1 * I2 * I3))
-        m = (I3 - I2) * (L2 - E2 * I1) / ((I2 - I1) * (E2 * I3 - L2))
-    return 2.0 * float(ellipk(m)) / lam
-
-
 def test_the_dzhanibekov_flip_has_its_closed_form_period():
     """A free body spun about its middle axis flips over: the times between the sign changes of
     its body-frame spin about that axis match 2 K(k) / lambda, and energy is kept."""
@@ -164,7 +150,7 @@ def test_the_dzhanibekov_flip_has_its_closed_form_period():
         t0, t1 = sim.t[i], sim.t[i + 1]
         crossings.append(t0 + (t1 - t0) * w2[i] / (w2[i] - w2[i + 1]))  # linear, 1 ms apart
     assert len(crossings) >= 3, "it flips over several times in 16 s"
-    half = _flip_half_period(1.0, 2.0, 3.0, w0)
+    half = flip_half_period(1.0, 2.0, 3.0, w0)  # 2 K(k) / lambda, the gate's closed form
     assert np.diff(crossings) == pytest.approx(half, rel=1e-5)
     assert np.abs(sim.delta_M).max() < 1e-9
 

@@ -560,7 +560,7 @@ def _finish(source: str, path: Path, kind: str, model: Model, q0, v0, doc: dict,
     sample = float(sample) if sample is not None else 0.0  # 0: the run's horizon / 20
     observe = _frames(source, model, doc.get("observe", {}), default=(default_frame(model),))
     opts = {k: v for k, v in options.items() if v is not None}
-    digest = digest_of(path, None if kind == "scenario" or doc else opts)
+    digest = digest_of(path, None if doc else opts)  # a scenario file holds its options
     return Scenario(name=name, path=path, kind=kind, model=model, q0=q0, v0=v0,
                     t_end=float(t_end), observe=observe, integrator=integrator,
                     rtol=float(rtol), atol=float(atol), h=None if h is None else float(h),
