@@ -254,8 +254,11 @@ def test_simulator_runs_a_fixed_step_native_integrator():
                     sample=0.02, engine=eng).run()
     assert sim.status == 0 and sim.steps == 100 and len(sim.t) == 6
     own = eng.simulate(q0, v0, 0.1, 1e-3, integrator="implicitfast", every=20)
-    # the same run (the Simulator normalises the samples' quaternions)
-    assert np.abs(sim.q - own.q).max() < 1e-15 and np.array_equal(sim.v, own.v)
+    # the same run, to rounding: the Simulator normalises q0's quaternion (and the samples'),
+    # whose norm BLAS computes; on this CPU's default kernels that is exact here, under the
+    # Haswell, Sandybridge and Zen kernels it moves q0 by an ulp and the whole run follows
+    # (measured 4.4e-16 in q, 1.3e-15 in v of |v| 6.1)
+    assert np.abs(sim.q - own.q).max() < 1e-15 and np.abs(sim.v - own.v).max() < 1e-14
     assert eng.manifest()["opt.integrator"] == "mjINT_IMPLICITFAST"
     with pytest.raises(SettingsError, match=r"integrator = 'native:nope'.*its own: euler, "
                                             r"implicitfast, implicit, rk4"):
