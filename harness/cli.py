@@ -528,7 +528,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         summary_path = args.out.with_suffix(".summary" + args.out.suffix)
         _save(samples, args.out)
         _save(pd.DataFrame([res.summary]), summary_path)
-        what = "samples" + (": t, path, energy, delta_M, COM, q, v" if states else "")
+        what = "samples" + (": t, path, energy, delta_M, COM, momentum, q, v" if states else "")
         print(f"saved: {args.out} ({what}), {summary_path} (summary)")
     return _exit_code(res.summary["status"], res.summary["reason"])
 

@@ -488,10 +488,19 @@ def measure_truth(gate: Gate) -> list[Measurement]:
       (zero on a line travelled at uniform speed);
     - "flip-period": |measured - closed form| / closed form of the half period of the
       Dzhanibekov flip (the time between sign changes of the body's spin about its middle axis;
-      the closed form 2 K(k) / lambda of Landau and Lifshitz, Mechanics, section 37)."""
+      the closed form 2 K(k) / lambda of Landau and Lifshitz, Mechanics, section 37);
+    - "momentum": max |h_G(t) - h_G(0)| / max |h_G(0)|, the angular momentum about the centre
+      of mass (:func:`redysim.momentum`), kept without external forces but uniform gravity;
+    - "mode": the largest |tip_x - x0 cos(omega_1 t)| / |x0| of a hanging chain released from
+      its first mode (:func:`redysim.harness.truths.mode_deviation`);
+    - "catenary": the observed frame's distance at t_end from its place on the pinned chain's
+      static equilibrium [m] (:func:`redysim.harness.truths.catenary_point`; a damped run)
+    (harness/truths.py has the closed forms)."""
     import numpy as np
 
     from redysim.io.scenarios import load_scenario
+
+    from .truths import flip_half_period
 
     p = gate.params
     scn = load_scenario(p["case"])
@@ -504,9 +513,36 @@ def measure_truth(gate: Gate) -> list[Measurement]:
         if len(cross) < 3:
             raise RuntimeError(f"{scn.name}: {len(cross)} flips in {p['t_end']} s; need 3")
         inertia = np.diag(scn.model.inertia_com[0])
-        half = flip_half_period(*inertia, scn.v0[3:])
+        half = flip_half_period(*inertia, scn.v0[3:])  # harness/truths.py
         err = float(np.abs(np.diff(cross) / half - 1.0).max())
         return [Measurement(err, scn.name, f"half period {half:.6f} s, {len(cross)} flips")]
+    if p["truth"] == "momentum":
+        from redysim.algorithms.dynamics import momentum
+
+        def h_of(sample):
+            return momentum(scn.model, sample.q, sample.v, ws=sample.ws).angular
+
+        sim = scn.simulator(rtol=rtol, atol=rtol * 0.1, observe={"h": h_of}).run()
+        if sim.status != 0:
+            raise RuntimeError(f"{scn.name}: {sim.message}")
+        h = sim.observed["h"]
+        return [Measurement(float(np.abs(h - h[0]).max() / np.abs(h[0]).max()), scn.name,
+                            f"{sim.steps} steps, |h_G| {np.linalg.norm(h[0]):.3g} kg m^2/s")]
+    if p["truth"] in ("mode", "catenary"):
+        from redysim.simulation import frame_observer
+
+        from .truths import catenary_point, mode_deviation
+
+        sim = scn.simulator(rtol=rtol, atol=rtol * 0.1,
+                            observe={"p": frame_observer(scn.model, scn.frame)}).run()
+        if sim.status != 0:
+            raise RuntimeError(f"{scn.name}: {sim.message}")
+        pos = sim.observed["p"][:, :3]
+        if p["truth"] == "mode":
+            dev = mode_deviation(scn.model, scn.q0, sim.t, pos[:, 0])
+        else:
+            dev = float(np.linalg.norm(pos[-1] - catenary_point(scn.model, scn.frame)))
+        return [Measurement(dev, scn.name, f"{sim.steps} steps")]
     sim = scn.simulator(rtol=rtol, atol=rtol * 0.1).run()
     if sim.status != 0:
         raise RuntimeError(f"{scn.name}: {sim.message}")
@@ -517,23 +553,6 @@ def measure_truth(gate: Gate) -> list[Measurement]:
         return [Measurement(float(np.abs(dev).max()), scn.name, f"{sim.steps} steps")]
     second = c[2:] - 2 * c[1:-1] + c[:-2]
     return [Measurement(float(np.abs(second).max()), scn.name, f"{sim.steps} steps")]
-
-
-def flip_half_period(I1: float, I2: float, I3: float, w) -> float:
-    """Half the period of a torque-free body's spin about its middle principal axis (moments
-    I1 < I2 < I3, body-frame angular velocity w at any instant): 2 K(k) / lambda, the time
-    between the sign changes of w_2 (Landau and Lifshitz, Mechanics, section 37)."""
-    from scipy.special import ellipk
-
-    E2 = I1 * w[0] ** 2 + I2 * w[1] ** 2 + I3 * w[2] ** 2  # 2 E
-    L2 = (I1 * w[0]) ** 2 + (I2 * w[1]) ** 2 + (I3 * w[2]) ** 2
-    if L2 > E2 * I2:
-        lam = math.sqrt((I3 - I2) * (L2 - E2 * I1) / (I1 * I2 * I3))
-        m = (I2 - I1) * (E2 * I3 - L2) / ((I3 - I2) * (L2 - E2 * I1))
-    else:
-        lam = math.sqrt((I2 - I1) * (E2 * I3 - L2) / (I1 * I2 * I3))
-        m = (I3 - I2) * (L2 - E2 * I1) / ((I2 - I1) * (E2 * I3 - L2))
-    return 2.0 * float(ellipk(m)) / lam
 
 
 MEASURES: dict[str, Callable[[Gate], list[Measurement]]] = {

@@ -41,8 +41,12 @@ from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
 from .spec import CORE, RunSpec
 
+# the observed path (tip_*), the energy, the centre of mass, and the momentum: linear (p_*,
+# kg m/s) and angular about the centre of mass (h_*, kg m^2/s), both world frame
+# (redysim.momentum): constant where no external force acts (h_G also under uniform gravity)
 SAMPLE_COLUMNS = ("run_id", "t", "tip_x", "tip_y", "tip_z", "tip_vx", "tip_vy", "tip_vz",
-                  "tip_ax", "tip_ay", "tip_az", "E", "delta_M", "com_x", "com_y", "com_z")
+                  "tip_ax", "tip_ay", "tip_az", "E", "delta_M", "com_x", "com_y", "com_z",
+                  "p_x", "p_y", "p_z", "h_x", "h_y", "h_z")
 PROGRESS_EVERY_S = 5.0  # wall seconds between two progress reports of a run
 
 
@@ -294,9 +298,10 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
     sim = Simulator(chain, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=spec.integrator,
                     rtol=spec.rtol, atol=spec.atol, h=spec.h or None, sample=spec.sample,
                     method=dyn.method, qdd=dyn.qdd, tau=dyn.tau, potential=dyn.potential,
-                    engine=dyn.engine, energy_bound=spec.energy_bound,
+                    engine=dyn.engine, energy_bound=spec.energy_bound, damping=case.damping,
                     keep_states=last.get("states") is not None,
-                    observe={"tip": frame_observer(chain, case.frame, acceleration=True)},
+                    observe={"tip": frame_observer(chain, case.frame, acceleration=True),
+                             "momentum": _momentum_observer(chain)},
                     source=f"run {spec.label}")
     row["jit_s"], row["E0"] = sim.jit_s, sim.E0
     row["model_mib"] = sim.motion.ws.nbytes / 2**20 if dyn.engine is None else math.nan
@@ -324,12 +329,25 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         raise RunFailed(res.message)
 
 
+def _momentum_observer(model):
+    """The momentum (redysim.momentum) at each sample as one row [p (3), h_G (3)]."""
+    from redysim.algorithms.dynamics import momentum
+
+    def observe(s):
+        mom = momentum(model, s.q, s.v, ws=s.ws)
+        return np.concatenate((mom.linear, mom.angular))
+
+    return observe
+
+
 def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
-    """A Simulation's samples as the run's rows (tip, E, delta_M), its counts into ``row``."""
+    """A Simulation's samples as the run's rows (tip, E, delta_M, COM, momentum), its counts
+    into ``row``."""
     tips, run_id = res.observed["tip"], spec.run_id  # the id hashes files: once a run
+    mom = res.observed["momentum"]
     for i, t in enumerate(res.t):
         samples.append((run_id, float(t), *tips[i], float(res.energy[i]),
-                        float(res.delta_M[i]), *res.com[i]))
+                        float(res.delta_M[i]), *res.com[i], *mom[i]))
     last["y"] = res.y_final
     if last.get("states") is not None and res.q.shape[0]:
         last["states"] = np.concatenate((res.q, res.v), axis=1)

@@ -429,6 +429,13 @@ class Simulator:
                 native_info = engine.native_integrator(native_name(integrator))
             except ValueError as exc:
                 raise SettingsError(source, "integrator", integrator, str(exc)) from None
+            extra = [name for name, given in (("tau", tau is not None), ("damping", damping),
+                                              ("loops", loops is not None or system.cuts))
+                     if given]
+            if extra:  # the engine steps its own model: nothing of ours reaches it
+                raise SettingsError(source, "integrator", integrator, f"steps the engine's own "
+                                    f"model, which has none of {', '.join(extra)}: run it "
+                                    "through redysim's integrators (ode45, dop853, rk4, ...)")
         adaptive_native = bool(native_info is not None and native_info.adaptive)
         integrator, fixed = _check_simulate_settings(
             source, t_end, integrator=integrator, rtol=rtol, atol=atol, h=h, sample=sample,

@@ -24,6 +24,7 @@ from redysim.harness.spec import CORE, NATIVE  # noqa: E402
 
 from .content import Figure  # noqa: E402
 from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
+from .results import momentum_drift, momentum_kept  # noqa: E402
 from .scaling import SLOPE_MIN_DOF, slopes  # noqa: E402
 from .text import footer_lines, provenance_line  # noqa: E402
 
@@ -418,8 +419,9 @@ def work_precision(ctx: Ctx) -> list[Figure]:
         failed = cases[cases["status"] != "ok"]
         frame = str(g["frame"].dropna().iloc[0]) if "frame" in g and \
             g["frame"].dropna().astype(str).str.len().gt(0).any() else "tip"
-        fig, axes = new_figure(3, width=PANEL_W * 4.2, height=PANEL_H * 1.45,
-                               footer=provenance_line(g))
+        kept = momentum_kept(str(case))  # a floating system: (d) its angular momentum
+        fig, axes = new_figure(4 if kept else 3, width=PANEL_W * (5.4 if kept else 4.2),
+                               height=PANEL_H * 1.45, footer=provenance_line(g))
         core = g[g["engine"] == CORE]
         engines = g[g["engine"] != CORE]
         for ax, part, colour_by in ((axes[0], core, "integrator"), (axes[1], engines, "engine")):
@@ -432,7 +434,12 @@ def work_precision(ctx: Ctx) -> list[Figure]:
                 native = str(c["integrator"].iloc[0]).startswith(NATIVE)
                 n = styles[c[colour_by].iloc[0]] = styles.get(c[colour_by].iloc[0], -1) + 1
                 style = ("--", "-.", ":", (0, (5, 1, 1, 1)))[n % 4] if native else "-"
-                for a, y in ((ax, "max_tip_err"), (axes[2], "max_abs_delta_M")):
+                if kept:
+                    c = c.assign(h_drift=[momentum_drift(ctx.res.samples(r))
+                                          for r in c["run_id"]])
+                panels = ((ax, "max_tip_err"), (axes[2], "max_abs_delta_M")) + \
+                    (((axes[3], "h_drift"),) if kept else ())
+                for a, y in panels:
                     a.loglog(c["cpu_s"], np.maximum(c[y].astype(float), ERROR_FLOOR),
                              linestyle=style, color=f"C{i % 10}" if a is ax else
                              f"C{(i + (0 if part is core else 5)) % 10}",
@@ -446,6 +453,9 @@ def work_precision(ctx: Ctx) -> list[Figure]:
         axes[1].set(title="(b) every engine: ode45 (solid), its own (dashed)")
         axes[2].set(title="(c) energy drift of the same runs", xlabel="CPU time [s]",
                     ylabel="max |delta_M| [J/kg]")
+        if kept:
+            axes[3].set(title="(d) angular momentum drift (about the COM)",
+                        xlabel="CPU time [s]", ylabel="max |h_G - h_G(0)| / |h_G(0)|")
         for ax in axes[:2]:
             ax.set(xlabel="CPU time [s]", ylabel=f"max {frame} error [m]")
             ax.legend(fontsize=FONT_PT - 2.5, loc="upper left", bbox_to_anchor=(1.0, 1.0))
@@ -458,7 +468,10 @@ def work_precision(ctx: Ctx) -> list[Figure]:
                    "over the samples, against CPU time; one curve per engine and integrator, "
                    "points from loose to tight tolerance (or large to small step); (c): the "
                    "largest energy drift per unit mass of the same runs (a symplectic stepper can "
-                   "keep it small while its path is far off)."
+                   "keep it small while its path is far off)"
+                   + ("; (d): the largest change of the angular momentum about the centre of "
+                      "mass over its size, kept exactly by the floating system (redysim.momentum "
+                      "of the runs' states)" if kept else "") + "."
                    + (f" Failed runs (not drawn): {gone}." if gone else ""))
         figs.append(_figure(f"wp-{case}-{horizon:g}", "work-precision",
                             f"{title0}: {case}, {horizon:g} s", caption, fig))

@@ -32,6 +32,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from redysim.harness.longrun import CHECKPOINT as LONGRUN_CHECKPOINT
@@ -86,6 +87,26 @@ def case_horizon(case: str) -> float:
 def scenario_gravity(case: str):
     """A scenario's gravity (3,) [m/s^2], as its model has it."""
     return _case(case).model.gravity
+
+
+def momentum_kept(case: str) -> bool:
+    """Whether a scenario's angular momentum about its centre of mass is constant: a floating
+    system (a free root joint) under no force but uniform gravity (no tip force, damping or
+    loops)."""
+    scn = _case(case)
+    m = scn.model
+    return bool(m.joint_types and m.joint_types[0] == "free" and scn.tip_force is None
+                and not scn.damping and not m.cuts)
+
+
+def momentum_drift(samples: pd.DataFrame | None) -> float:
+    """max |h_G(t) - h_G(0)| / max |h_G(0)| over a run's samples (their h_* columns); NaN
+    without them."""
+    if samples is None or len(samples) < 2 or "h_x" not in samples:
+        return math.nan
+    h = samples.sort_values("t")[["h_x", "h_y", "h_z"]].to_numpy(dtype=float)
+    size = np.abs(h[0]).max()
+    return float(np.abs(h - h[0]).max() / size) if size > 0 else math.nan
 
 
 def case_sample_interval(case: str) -> float:

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from redysim.errors import CaseError, SettingsError
-from redysim.harness.gates import flip_half_period
 from redysim.harness.run import execute
 from redysim.harness.spec import RunSpec
+from redysim.harness.truths import flip_half_period
 from redysim.io.scenarios import list_scenarios, load_scenario, robot_data_file
 from redysim.simulation import frame_observer
 
@@ -24,7 +24,8 @@ NEEDS_ROBOTS = pytest.mark.skipif(robot_data_file("ur5_robot.urdf") is None,
 
 def test_the_built_in_scenarios_are_there():
     assert {"UR5-FALL", "PANDA-FALL", "TALOS-FALL", "TALOS-ZERO-G", "DZHANIBEKOV",
-            "DOUBLE-PENDULUM", "FOUR-BAR", "JANSEN-LEG", "PUMA560-FALL"} <= set(list_scenarios())
+            "DOUBLE-PENDULUM", "FOUR-BAR", "JANSEN-LEG", "PUMA560-FALL", "HANGING-MODE",
+            "CATENARY"} <= set(list_scenarios())
 
 
 @NEEDS_ROBOTS
@@ -77,6 +78,8 @@ HANDLE = (REPO / "cases" / "scenarios" / "models" / "t_handle.urdf").as_posix()
     (f'[model]\nfile = "{PENDULUM}"\nmass = 3\n', "model.mass", "unknown field"),
     (f'[model]\nfile = "{PENDULUM}"\n[simulation]\nrtol = 2.0\n', "simulation.rtol",
      "must be < 1"),
+    (f'[model]\nfile = "{PENDULUM}"\ndamping = -0.1\n', "model.damping", "finite number >= 0"),
+    (f'[model]\nfile = "{PENDULUM}"\ndamping = "some"\n', "model.damping", "finite number >= 0"),
     (f'[model]\nfile = "{PENDULUM}"\n[observe]\npoints = {{ p = {{ body = "nobody", '
      'at = [0, 0, 0] } }\n', "observe.points.p.body", "no such body"),
 ])

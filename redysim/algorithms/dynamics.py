@@ -946,6 +946,38 @@ def delta_M(model: Model, q, v, E0: float, *, ws: Workspace | None = None) -> fl
     return (T + V - E0) / model.total_mass
 
 
+class Momentum(NamedTuple):
+    """The system's momentum in the world frame: ``linear`` [kg m/s], ``angular`` about its
+    centre of mass [kg m^2/s] and the centre of mass ``com`` [m]."""
+
+    linear: np.ndarray
+    angular: np.ndarray
+    com: np.ndarray
+
+
+def momentum(model: Model, q, v, *, ws: Workspace | None = None) -> Momentum:
+    """Linear momentum and angular momentum about the centre of mass G (world frame): with c_k,
+    v_k body k's centre of mass and its velocity, R_k its rotation and w_k its angular velocity,
+    p = sum m_k v_k and h_G = sum (R_k I_k R_k^T w_k + m_k (c_k - G) x v_k). Without external
+    forces (zero gravity, no loads) both are constant: the truths of a floating system."""
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    ws = _ws(model, ws)
+    _run_kinematics(model, ws, q, v, ws.zeros, ws.no_accel)
+    oR, m = ws.oR, model.mass
+    r = np.einsum("kij,kj->ki", oR, model.com)  # each centre of mass from its body's origin
+    c = ws.oO + r
+    w = ws.t[:, :3]
+    vc = ws.t[:, 3:] + np.cross(w, r)
+    G = (m[:, None] * c).sum(axis=0) / m.sum()
+    linear = (m[:, None] * vc).sum(axis=0)
+    spin = np.einsum("kij,kjl,kml,km->i", oR, model.inertia_com, oR, w)  # R I R^T w
+    angular = spin + np.cross(c - G, m[:, None] * vc).sum(axis=0)
+    if not (np.isfinite(linear).all() and np.isfinite(angular).all()):
+        raise overflow_error("the momentum", q=q, v=v)
+    return Momentum(linear, angular, G)
+
+
 class Tip(NamedTuple):
     """Position, velocity and acceleration of a point fixed in a body (world frame): the tip of
     a chain (the distal end of its last link), or a model's named frame."""

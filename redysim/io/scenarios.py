@@ -10,7 +10,10 @@ A scenario is any of:
     [model]      file: a .urdf, an MJCF .xml, a DH robot .toml, a linkage .toml or a rope case
                  (a path relative to the scenario file, a built-in case's name, or
                  "example-robot-data:<file>" for a URDF of that package); floating, mimic,
-                 equality (the loader's options), lock = {joint = value}, gravity = [gx, gy, gz]
+                 equality (the loader's options), lock = {joint = value}, gravity = [gx, gy, gz],
+                 damping: a viscous torque -damping * v at every joint [N m s] (0: none; applied
+                 by redysim's integrators whichever engine gives qdd; an engine's own stepper
+                 refuses a damped scenario rather than run it undamped)
     [initial]    posture = "file" (default: the file's configuration) or "neutral"; q, v
                  (explicit lists, n_q and n_v long; v = 0 for rest); random = {seed, q, v}:
                  uniform perturbations of +-q [rad, m] of every joint coordinate that is not a
@@ -70,7 +73,7 @@ KINDS = ("case", "urdf", "mjcf", "dh", "linkage")
 MODEL_SUFFIXES = (".urdf", ".xml")  # a model file by itself, never a built-in name
 _FIELDS = {
     "scenario": {"name", "description"},
-    "model": {"file", "floating", "mimic", "equality", "lock", "gravity"},
+    "model": {"file", "floating", "mimic", "equality", "lock", "gravity", "damping"},
     "initial": {"posture", "q", "v", "random"},
     "simulation": {"t_end", "sample_interval", "integrator", "rtol", "atol", "h"},
     "observe": {"frames", "points"},
@@ -110,6 +113,7 @@ class Scenario:
     tip_force: np.ndarray | None = None
     options: dict[str, Any] = field(default_factory=dict)
     model_file: Path | None = None
+    damping: float = 0.0  # N m s: a viscous torque -damping * v at every joint
 
     @property
     def chain(self) -> Model:
@@ -125,6 +129,8 @@ class Scenario:
         """A :class:`redysim.simulation.Simulator` of this scenario: its model from its initial
         state (or ``q0``, ``v0``), a rope's tip force applied, its settings and horizon unless
         ``t_end`` and ``settings`` give others (``settings``: the Simulator's keywords)."""
+        if self.damping and settings.get("damping") is None:
+            settings["damping"] = self.damping
         if self.case is not None:  # its tip force and settings: the case's
             return self.case.simulator(t_end, q0=self.q0 if q0 is None else q0,
                                        v0=self.v0 if v0 is None else v0, **settings)
@@ -381,6 +387,11 @@ def _from_file(path: Path) -> Scenario:
     name = head.get("name", path.stem)
     if not isinstance(name, str) or not name:
         raise CaseError(source, "scenario.name", name, "must be a non-empty string")
+    damping = mdoc.get("damping", 0.0)
+    if isinstance(damping, bool) or not isinstance(damping, int | float) or \
+            not (math.isfinite(damping) and damping >= 0):
+        raise CaseError(source, "model.damping", damping, "must be a finite number >= 0: the "
+                        "viscous torque -damping * v at every joint [N m s] (0: none)")
     model = _points(source, model, doc.get("observe", {}))
     idoc = doc.get("initial", {})
     q0, v0 = _initial(source, model, idoc, linkage_q0)
@@ -392,8 +403,13 @@ def _from_file(path: Path) -> Scenario:
 
         assert isinstance(model, Chain)  # a case's chain, its gravity perhaps replaced
         case = replace(load_case(mfile), chain=model, q0=q0, v0=v0)
-    return _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
-                   description=str(head.get("description", "")), model_file=mfile)
+    scn = _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
+                  description=str(head.get("description", "")), model_file=mfile)
+    if damping:
+        from dataclasses import replace
+
+        scn = replace(scn, damping=float(damping))
+    return scn
 
 
 def _with_frames(model: Model, frames: dict) -> Model:
