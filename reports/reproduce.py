@@ -66,7 +66,8 @@ TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6":
 # Full mode: the cheap sweeps first, so an interrupted run leaves the most tables done; then
 # Table 5's checkpointed long runs (hours each).
 FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
-               "work-precision-RE-U125-L1", "work-precision-RE-U750-L6", "table6")
+               "work-precision-RE-U125-L1", "work-precision-RE-U750-L6", "table6",
+               "quick-work-precision-robots", "quick-scenarios", "scenarios-round")
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs redysim.harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables

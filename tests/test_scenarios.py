@@ -60,6 +60,7 @@ def _write(tmp_path, text: str, name: str = "s.toml") -> Path:
 
 PENDULUM = (REPO / "cases" / "scenarios" / "models" / "double_pendulum.urdf").as_posix()
 HANDLE = (REPO / "cases" / "scenarios" / "models" / "t_handle.urdf").as_posix()
+CRANK = (REPO / "cases" / "loops" / "crank_rocker.toml").as_posix()
 
 
 @pytest.mark.parametrize("body, field, fragment", [
@@ -79,6 +80,12 @@ HANDLE = (REPO / "cases" / "scenarios" / "models" / "t_handle.urdf").as_posix()
     (f'[model]\nfile = "{PENDULUM}"\n[simulation]\nrtol = 2.0\n', "simulation.rtol",
      "must be < 1"),
     (f'[model]\nfile = "{PENDULUM}"\ndamping = -0.1\n', "model.damping", "finite number >= 0"),
+    (f'[model]\nfile = "{PENDULUM}"\n[initial]\ndriver_v = 1.0\n', "initial.driver_v",
+     "needs a linkage file with an [initial] driver"),
+    (f'[model]\nfile = "{CRANK}"\n[initial]\ndriver_v = 1.0\nv = [1, 2, 3]\n',
+     "initial.driver_v", "give v or driver_v, not both"),
+    (f'[model]\nfile = "{CRANK}"\n[initial]\ndriver_v = "fast"\n', "initial.driver_v",
+     "must be a finite number"),
     (f'[model]\nfile = "{PENDULUM}"\ndamping = "some"\n', "model.damping", "finite number >= 0"),
     (f'[model]\nfile = "{PENDULUM}"\n[observe]\npoints = {{ p = {{ body = "nobody", '
      'at = [0, 0, 0] } }\n', "observe.points.p.body", "no such body"),
@@ -211,3 +218,19 @@ def test_a_scenario_on_a_rope_case_runs_its_own_gravity(tmp_path):
             for s in (moon, earth)]
     # released horizontal, the first joint turns about 6x less far on the moon (g ratio 6.06)
     assert fall[1] / fall[0] == pytest.approx(9.81 / 1.62, rel=0.05)
+
+
+@pytest.mark.parametrize("name", ["FOUR-BAR-ROUND", "JANSEN-LEG-ROUND"])
+def test_driver_v_spins_the_crank_with_the_loops_kept(name):
+    """driver_v sets the crank's velocity; the other joints' follow from the loops: J v0 = 0 to
+    rounding, and the crank's entry is the one given."""
+    from redysim.algorithms.loops import ClosedLoops
+    from redysim.io.linkage_files import load_linkage
+
+    scn = load_scenario(name)
+    driver = load_linkage(scn.model_file).driver
+    _, J, Jv, _ = ClosedLoops(scn.model).evaluate(scn.q0, scn.v0)
+    assert scn.v0[driver] == pytest.approx(2 * math.pi * (2 if name.startswith("FOUR") else 1),
+                                           rel=1e-14)
+    assert np.abs(Jv).max() <= 1e-13 * np.abs(scn.v0).max()
+    assert np.count_nonzero(scn.v0) > 1  # the others move too

@@ -107,7 +107,7 @@ def test_a_damped_scenario_damps_its_runs(tmp_path, monkeypatch):
     # the start's energy above the equilibrium is 2.4e-7 J/kg (6.6e-5 m off it): after 1 s
     # the dampers have taken nearly all of it; undamped, delta_M would stay at rounding level
     assert res.rows[-1][SAMPLE_COLUMNS.index("delta_M")] < -2e-7
-    assert load_scenario("CATENARY").damping == 0.05
+    assert load_scenario("CATENARY").damping == 0.03
 
 
 @pytest.mark.engine

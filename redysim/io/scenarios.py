@@ -17,7 +17,9 @@ A scenario is any of:
     [initial]    posture = "file" (default: the file's configuration) or "neutral"; q, v
                  (explicit lists, n_q and n_v long; v = 0 for rest); random = {seed, q, v}:
                  uniform perturbations of +-q [rad, m] of every joint coordinate that is not a
-                 free joint's, and +-v of every velocity, from a seeded generator
+                 free joint's, and +-v of every velocity, from a seeded generator; a linkage
+                 of one degree of freedom: driver_v, its driver's velocity (the others follow
+                 from the loops)
     [simulation] t_end, sample_interval, integrator, rtol, atol, h
     [observe]    frames = [...]: frames of the model (``Model.frames``; a linkage's named points,
                  "coupler.P"), body names (their origins), or points named here, points =
@@ -74,7 +76,7 @@ MODEL_SUFFIXES = (".urdf", ".xml")  # a model file by itself, never a built-in n
 _FIELDS = {
     "scenario": {"name", "description"},
     "model": {"file", "floating", "mimic", "equality", "lock", "gravity", "damping"},
-    "initial": {"posture", "q", "v", "random"},
+    "initial": {"posture", "q", "v", "random", "driver_v"},
     "simulation": {"t_end", "sample_interval", "integrator", "rtol", "atol", "h"},
     "observe": {"frames", "points"},
 }
@@ -306,8 +308,8 @@ def load_scenario(name_or_path: str | os.PathLike, *,
         if options:
             raise CaseError(str(p), "options", options, "a rope case takes no model options")
         return Scenario.from_case(load_case(p))
-    model, loops_q0 = _load_model(str(p), p, kind, options)
-    q0 = model.initial() if loops_q0 is None else loops_q0
+    model, linkage = _load_model(str(p), p, kind, options)
+    q0 = model.initial() if linkage is None else linkage.q0
     v0 = np.zeros(model.n_v)
     description = f"a passive motion of {p.name} from its file's configuration, at rest"
     if model.quaternions.size:  # at rest in uniform gravity a free body falls as one piece
@@ -322,7 +324,8 @@ def load_scenario(name_or_path: str | os.PathLike, *,
 
 
 def _load_model(source: str, path: Path, kind: str, options: dict) -> tuple[Model, Any]:
-    """(model, q0 of a linkage or None) of a model file with the loader's options."""
+    """(model, the Linkage of a linkage file or None) of a model file with the loader's
+    options."""
     from redysim.io.importers import load_model
     from redysim.io.linkage_files import load_linkage
 
@@ -336,7 +339,7 @@ def _load_model(source: str, path: Path, kind: str, options: dict) -> tuple[Mode
         # its named points ("coupler.P", "ghi.F") as frames a scenario can observe
         points = {name: (int(b), tuple(float(x) for x in pt))
                   for name, (b, pt) in linkage.points.items() if b >= 0}
-        return _with_frames(linkage.model, points), linkage.q0
+        return _with_frames(linkage.model, points), linkage
     if kind == "case":
         case = load_case(path)
         return case.chain, None
@@ -380,7 +383,7 @@ def _from_file(path: Path) -> Scenario:
     if kind == "scenario":
         raise CaseError(source, "model.file", mdoc["file"], "is a scenario file, not a model")
     options = {k: mdoc[k] for k in MODEL_OPTIONS if k in mdoc}
-    model, linkage_q0 = _load_model(source, mfile, kind, options)
+    model, linkage = _load_model(source, mfile, kind, options)
     if "gravity" in mdoc:
         g = _vector(source, "model.gravity", mdoc["gravity"], 3)
         model = _with_gravity(model, g)
@@ -394,7 +397,7 @@ def _from_file(path: Path) -> Scenario:
                         "viscous torque -damping * v at every joint [N m s] (0: none)")
     model = _points(source, model, doc.get("observe", {}))
     idoc = doc.get("initial", {})
-    q0, v0 = _initial(source, model, idoc, linkage_q0)
+    q0, v0 = _initial(source, model, idoc, linkage)
     case = None
     if kind == "case":  # the rope's harness (tip force, coarsening) runs this scenario's chain
         from dataclasses import replace
@@ -459,9 +462,11 @@ def _vector(source, name, value, n) -> np.ndarray:
     return a
 
 
-def _initial(source: str, model: Model, idoc: dict, linkage_q0) -> tuple[np.ndarray, np.ndarray]:
+def _initial(source: str, model: Model, idoc: dict, linkage) -> tuple[np.ndarray, np.ndarray]:
     """(q0, v0) from the [initial] table (module docstring), checked: lengths, finiteness,
-    unit quaternions."""
+    unit quaternions; a linkage's q0 its file's (assembled), and its v0 given or made from
+    ``driver_v`` (:func:`_driver_velocity`)."""
+    linkage_q0 = None if linkage is None else linkage.q0
     posture = idoc.get("posture", "file")
     if posture not in ("file", "neutral"):
         raise CaseError(source, "initial.posture", posture, "choose 'file' (the model file's "
@@ -475,7 +480,12 @@ def _initial(source: str, model: Model, idoc: dict, linkage_q0) -> tuple[np.ndar
     if "q" in idoc:
         q0 = _vector(source, "initial.q", idoc["q"], model.n_q)
     v = idoc.get("v", 0.0)
-    if isinstance(v, int | float) and not isinstance(v, bool) and v == 0:
+    if "driver_v" in idoc:
+        if "v" in idoc:
+            raise CaseError(source, "initial.driver_v", idoc["driver_v"], "give v or driver_v, "
+                            "not both")
+        v0 = _driver_velocity(source, model, linkage, q0, idoc["driver_v"])
+    elif isinstance(v, int | float) and not isinstance(v, bool) and v == 0:
         v0 = np.zeros(model.n_v)
     else:
         v0 = _vector(source, "initial.v", v, model.n_v)
@@ -497,6 +507,34 @@ def _initial(source: str, model: Model, idoc: dict, linkage_q0) -> tuple[np.ndar
     for a in (q0, v0):
         a.flags.writeable = False
     return q0, v0
+
+
+def _driver_velocity(source: str, model: Model, linkage, q0, w) -> np.ndarray:
+    """The velocities of a linkage's joints with its driver at ``w`` [rad/s, or m/s] and the
+    loops kept (J v = 0): the least-squares solution of [J; e_driver] v = [0; w], exact for a
+    mechanism the driver moves on its own (one degree of freedom); refused where the driver
+    leaves the others free (more degrees of freedom) or cannot move (a structure)."""
+    from redysim.algorithms.loops import ClosedLoops
+
+    where = "initial.driver_v"
+    if linkage is None or linkage.driver is None:
+        raise CaseError(source, where, w, "needs a linkage file with an [initial] driver")
+    if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w):
+        raise CaseError(source, where, w, "must be a finite number (the driver's velocity)")
+    J = ClosedLoops(model, source=source).evaluate(q0, np.zeros(model.n_v))[1]
+    e = np.zeros(model.n_v)
+    e[linkage.driver] = 1.0
+    A = np.vstack((J, e))
+    b = np.zeros(A.shape[0])
+    b[-1] = w
+    s = np.linalg.svd(J, compute_uv=False)
+    rank = int((s > s[0] * 1e-10).sum()) if s.size and s[0] > 0 else 0
+    if model.n_v - rank != 1:
+        raise CaseError(source, where, w, f"the linkage has {model.n_v - rank} degrees of "
+                        "freedom here; driver_v sets a one-degree-of-freedom mechanism's (give "
+                        f"all {model.n_v} velocities as v)")
+    v0, *_ = np.linalg.lstsq(A, b, rcond=None)
+    return v0
 
 
 def _random(source, model: Model, spec, q0, v0) -> tuple[np.ndarray, np.ndarray]:
