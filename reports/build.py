@@ -565,6 +565,14 @@ SCENARIO_BOUNDS = {  # the truth each scenario has, its measure and its bound
     "JANSEN-LEG-ROUND": ("largest loop residual [m]", 1e-8),
     "CATENARY": ("sag point off the discrete catenary at 8 s [m]", 1e-11),
 }
+LOOP_SCENARIOS = ("FOUR-BAR", "JANSEN-LEG", "FOUR-BAR-ROUND", "JANSEN-LEG-ROUND", "CATENARY")
+LOOP_FINDINGS = {  # an engine's loop adapter outside a loop scenario's bound: the cause
+    "mujoco": "MuJoCo's loop constraints are soft (its constrained qdd carries a regularisation "
+              "of 1e-4 of A's diagonal: references/loops.py), so the loop is kept to that, not "
+              "to the step's error",
+}
+MUJOCO_DAMPED = ("under the damping MuJoCo's loop adapter takes ~17x the core's steps, at 1.5 "
+                 "ms a call from Python; undamped, as many as the core's; cause not yet found")
 MOMENTUM_BOUND = 1e-8  # max |h_G(t) - h_G(0)| / max |h_G(0)| where it is kept
 
 
@@ -670,11 +678,16 @@ def scenarios_section(res: Results) -> Section:
             setting = f"h {float(r['h']):g}" if float(r["h"]) > 0 else f"rtol {float(r['rtol']):g}"
             name = f"{r['engine']} {r['integrator']} {setting}"
             if r["status"] != "ok":
+                reason = str(r["reason"])[:200]
+                if r["engine"] == "mujoco" and case == "CATENARY":
+                    reason += f" ({MUJOCO_DAMPED})"
                 tab.rows.append(Row([case, name, r["status"], what, "", f"<= {bound:g}", "", "",
-                                     str(r["reason"])[:200]], NOT_RUN))
+                                     reason], NOT_RUN))
                 continue
             value = truth[r["run_id"]]
             ok = math.isfinite(value) and value <= bound
+            known = LOOP_FINDINGS.get(r["engine"]) if r["engine"] != CORE and \
+                case in LOOP_SCENARIOS else None
             kept = momentum_kept(case)
             drift = momentum_drift(res.samples(r["run_id"])) if kept else math.nan
             if kept:
@@ -684,7 +697,8 @@ def scenarios_section(res: Results) -> Section:
                 note = ("outside the bound; the engine's model is within it through ode45: "
                         "this is its own stepper's truncation error at this step (the path "
                         "error shows it)" if r["engine"] in within and
-                        str(r["integrator"]).startswith("native") else "outside the bound")
+                        str(r["integrator"]).startswith("native") else
+                        f"outside the bound: {known}" if known else "outside the bound")
             tab.rows.append(Row([case, name, "ok", what, sci(value, 1), f"<= {bound:g}",
                                  sci(drift, 1) if kept else "",
                                  sci(float(r["max_tip_err"]), 1), note],
