@@ -8,11 +8,12 @@ A batch of ``--states`` states of a U rope (``--dof`` DOF, a list) through
 each at the default thread count and at ``threads=1``, beside the same states as single calls in
 a Python loop. Two phases: quiet (whatever else the machine runs: its load from other processes
 is printed) and busy, with ``--busy`` competitors (``python -c 'while True: pass'``, each in a
-session of its own, killed at the end whatever happens). Each phase: ``--rounds`` rounds, each
-timing ``--calls`` calls of every variant one after another (the order rotating round by round),
-every call timed alone. Prints per variant the median and mean time of a call and the ratios of
-the default to ``threads=1`` (> 1.10: the threads cost more than 10 %); writes
-``results/bench/busy_batch.json``.
+session of its own, killed at the end whatever happens). Each phase: ``--rounds`` rounds of
+``--calls`` calls of every variant, in turns of 5 calls of each (in an order drawn afresh each
+turn, so that every variant meets the same load and follows every other), every call timed
+alone. Prints per variant
+the median and mean time of a call and the ratio of the median to ``threads=1``'s (> 1.10: the
+threads cost more than 10 %); writes ``results/bench/busy_batch.json``.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -34,6 +36,7 @@ from redysim import Chain, forward_dynamics
 from redysim.algorithms.dynamics import default_threads
 
 BUSY = "while True: pass"
+BLOCK = 5  # calls of a variant back to back
 
 
 def rope(dof: int) -> Chain:
@@ -82,13 +85,17 @@ def phase(calls: dict, rounds: int, per_round: int) -> tuple[dict, float]:
     names = list(calls)
     busy0, total0 = cpu_jiffies()
     own0, wall0 = os.times(), time.perf_counter()
-    for r in range(rounds):
-        for name in names[r % len(names):] + names[:r % len(names)]:
-            fn, record = calls[name], times[name]
-            for _ in range(per_round):
-                t0 = time.perf_counter()
-                fn()
-                record.append(time.perf_counter() - t0)
+    order = random.Random(0)
+    for _ in range(rounds):
+        for c in range(0, per_round, BLOCK):  # short blocks of each variant in turn: all see
+            # the same load, each runs back to back; in an order drawn afresh each turn, since
+            # a block pays for what the block before it left in the caches
+            for name in order.sample(names, len(names)):
+                fn, record = calls[name], times[name]
+                for _ in range(min(BLOCK, per_round - c)):
+                    t0 = time.perf_counter()
+                    fn()
+                    record.append(time.perf_counter() - t0)
     busy1, total1 = cpu_jiffies()
     own1, wall1 = os.times(), time.perf_counter()
     hz = os.sysconf("SC_CLK_TCK")
@@ -110,6 +117,13 @@ def wait_quiet(limit_s: float) -> None:
     end = time.monotonic() + limit_s
     while time.monotonic() < end and others_load(0.5) > 0.25:
         pass
+
+
+def paired(a: list[float], b: list[float]) -> float:
+    """The median over turns of (median of a's calls in the turn) / (b's): a ratio of calls
+    made a few milliseconds apart, which the machine's drifts over a phase do not move."""
+    blocks = [slice(i, i + BLOCK) for i in range(0, min(len(a), len(b)), BLOCK)]
+    return float(np.median([np.median(a[k]) / np.median(b[k]) for k in blocks]))
 
 
 def summary(times: dict) -> dict:
@@ -180,7 +194,10 @@ def main(argv=None) -> int:
                 times, others = phase(calls, args.rounds, args.calls)
             finally:
                 stop_competitors(procs)
-            results[label] = {"others_cores": others, "variants": summary(times)}
+            results[label] = {"others_cores": others, "variants": summary(times),
+                              "paired": {name: paired(times[name],
+                                                      times[f"{name.split(',')[0]}, threads=1"])
+                                         for name in times if "default threads" in name}}
         redysim.algorithms.dynamics.CHUNK_WORK = default_chunk
         report["configs"].append({"dof": dof, "states": args.states,
                                   "chunk_work": args.chunk_work or default_chunk, **results})
@@ -205,8 +222,11 @@ def main(argv=None) -> int:
             v = res["variants"]
             single = v[f"{args.states} single calls"]["median_s"]
             best = min(m["median_s"] for k, m in v.items() if k.startswith("tiles"))
+            pairs = "; ".join(f"{name.replace(', default threads', '')} {r:.2f}"
+                              for name, r in res["paired"].items())
             print(f"{label:5s}: others' load {res['others_cores']:.2f} cores; "
-                  f"{args.states} single calls / fastest tiles {single / best:.1f}x")
+                  f"{args.states} single calls / fastest tiles {single / best:.1f}x; "
+                  f"default / threads=1, turn by turn (median): {pairs}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
     return 0

@@ -159,6 +159,7 @@ def idle(monkeypatch):
     from redysim.algorithms import dynamics
 
     monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: wanted)
+    monkeypatch.setattr(dynamics, "ADAPT", False)  # (no batch alone to measure its time)
 
 
 @pytest.mark.parametrize("chunk_work", CHUNKINGS)
@@ -360,6 +361,7 @@ def test_no_helper_joins_a_batch_when_no_core_is_idle(monkeypatch):
 
     monkeypatch.setattr(dynamics, "CHUNK_WORK", 100)
     monkeypatch.setattr(dynamics, "_JOBS", Jobs())
+    monkeypatch.setattr(dynamics, "ADAPT", False)
     s = rope(30)
     Q, QD, _ = states(s, 64, 15)
     want = forward_dynamics(s, Q, QD, threads=1)
@@ -374,6 +376,69 @@ def test_no_helper_joins_a_batch_when_no_core_is_idle(monkeypatch):
             posted.clear()
             assert np.array_equal(forward_dynamics(s, Q, QD, threads=4, simd=simd), expected)
             assert len(posted) == helpers, (watching, idle, simd)
+
+
+def test_helpers_are_taken_only_while_they_pay(monkeypatch):
+    """Each workspace measures, kind of batch by kind, its seconds a DOF-state alone and with
+    helpers: the first two batches run alone; helpers are kept while the median of the last
+    batches with them is under GAIN of the time alone (one slow batch decides nothing), else
+    paused for 4, 8, 16, ... batches; a batch in REFRESH runs alone to keep that time fresh; a
+    busy machine (no helper to be had) runs alone."""
+    from redysim.algorithms import dynamics
+    from redysim.algorithms.dynamics import GAIN, REFRESH, _Speed
+
+    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: wanted)
+    speed = _Speed()
+    for per in (5.0, 1.0):  # the first two alone (the first slowed by first touches)
+        assert speed.plan(2) == 1
+        speed.record(False, per)
+    assert speed.alone == 1.0  # (a faster batch alone is followed at once)
+    assert speed.plan(2) == 2
+    speed.record(True, 9.0)  # one slow batch with helpers (its helpers woke from sleep, say)
+    for _ in range(REFRESH - 2):  # helpers that pay
+        assert speed.plan(2) == 2
+        speed.record(True, 0.6)
+    assert speed.plan(2) == 2
+    speed.record(True, 0.6)
+    assert speed.plan(2) == 1  # the REFRESH-th: alone
+    speed.record(False, 1.0)
+    speed = _Speed()
+    speed.skip = 0
+    speed.record(False, 1.0)
+    pauses = []
+    for _ in range(4):  # helpers that do not pay: longer and longer pauses
+        for _ in range(3):
+            assert speed.plan(2) == 2
+            speed.record(True, GAIN * 1.0 + 0.01)
+        alone = 0
+        while speed.plan(2) == 1:
+            speed.record(False, 1.0)
+            alone += 1
+        pauses.append(alone)
+    assert pauses == [4, 8, 16, 32]
+    for _ in range(3):  # paying again: no pause
+        speed.record(True, 0.5)
+        assert speed.plan(2) == 2
+    assert speed.backoff == 0
+    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: 0)  # a busy machine
+    assert speed.plan(2) == 1
+
+
+def test_a_workspace_measures_each_kind_of_batch(monkeypatch):
+    from redysim.algorithms import dynamics
+
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 100)
+    s = rope(30)
+    ws = Workspace(s)
+    Q, QD, _ = states(s, 64, 16)
+    for _ in range(3):
+        forward_dynamics(s, Q, QD, ws=ws, threads=2)
+        forward_dynamics(s, Q, QD, ws=ws, threads=2, simd=False)
+        inverse_dynamics(s, Q, QD, QD, ws=ws, threads=2)
+    assert len(ws.batch_speed) == 3
+    assert all(v.alone is not None and v.alone > 0 for v in ws.batch_speed.values())
+    forward_dynamics(s, Q, QD, ws=ws, threads=1)  # one thread: nothing to measure
+    assert len(ws.batch_speed) == 3
 
 
 def want_rows(s, Q, QD):

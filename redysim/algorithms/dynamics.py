@@ -239,8 +239,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     up to ``threads`` threads (default :func:`default_threads`: every core this process may use, or
     ``REDYSIM_THREADS``), in chunks of up to 8,000 DOF-states (a smaller batch runs on the calling
     thread): the caller works through the chunks, and helper threads take chunks too when they get a
-    core, each in arrays of its own; a helper is woken only for a core idle at that instant, and a
-    chunk a helper is late with the caller runs itself, so that a busy machine costs a batch no more
+    core, each in arrays of its own; a helper is woken only for a core idle at that instant, a
+    chunk a helper is late with the caller runs itself, and each workspace measures, per kind of
+    batch, whether helpers pay (else it pauses them), so that a busy machine costs a batch no more
     than a few percent over ``threads=1`` (docs/design.md, "Threads under load"). Each row's bits do
     not depend on the threads. With ``simd`` (the default), a serial chain of revolute and prismatic
     axes in the spatial recursion runs its states 16 at a time in SIMD lanes
@@ -319,7 +320,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
 # caller never waits for a helper to start; at the end it copies in the helpers' chunks, and
 # runs itself any chunk whose helper is late with it: a batch is never held up by a thread the
 # OS has not scheduled (numba's threads, a static split, had made the caller wait a scheduler
-# time slice for the other half when another process kept a core busy: 25x one thread). And a
+# time slice for the other half when another process kept a core busy: 13-24x one thread). And a
 # batch wakes helpers only for idle cores (helpers_for).
 CHUNK_WORK = 8000  # DOF x states a chunk of a batch holds at most (~0.16 ms in SIMD tiles, ~0.35
 # ms row by row): a batch under it runs on the calling thread alone (benchmarks/busy_batch.py:
@@ -339,10 +340,16 @@ def default_threads() -> int:
             raise FieldError("environment", THREADS_VARIABLE, value,
                              "must be a whole number >= 1 (threads of a batch)")
         return count
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+    now = time.monotonic()
+    if now - _CORES[0] > 1.0:  # (looked at once a second: ~1 us a look)
+        try:
+            _CORES[:] = now, len(os.sched_getaffinity(0))
+        except AttributeError:  # not on Linux
+            _CORES[:] = now, os.cpu_count() or 1
+    return int(_CORES[1])
+
+
+_CORES = [-2.0, 1]  # (when, cores this process may use) of the last look
 
 
 def _is_batch(x) -> bool:
@@ -406,11 +413,15 @@ class _Own:
 
     def __init__(self) -> None:
         self.arrays: dict[int, np.ndarray] = {}
+        try:  # the helper thread's CPU-time clock, which the caller reads to see it progress
+            self.clock: int | None = time.pthread_getcpuclockid(threading.get_ident())
+        except (AttributeError, OSError):
+            self.clock = None
 
     def get(self, like: np.ndarray) -> np.ndarray:
         a = self.arrays.pop(like.size, None)
         if a is None:
-            a = np.empty(like.size)
+            a = np.zeros(like.size)  # (as a workspace's tile arrays start)
             while len(self.arrays) >= self.KEEP:
                 self.arrays.pop(next(iter(self.arrays)))
         self.arrays[like.size] = a  # (the most recent last)
@@ -431,8 +442,8 @@ class _Chunks:
     Without ``commit`` the caller waits for the helpers' chunks. Once a chunk has raised, no
     chunk is handed out any more."""
 
-    __slots__ = ("call", "commit", "edges", "lock", "next", "state", "started", "flags",
-                 "values", "results", "errors", "waiter", "per_row")
+    __slots__ = ("call", "commit", "edges", "lock", "next", "state", "started", "clocks",
+                 "flags", "values", "results", "errors", "waiter", "per_row")
 
     def __init__(self, call, edges: list[int], commit=None):
         self.call = call
@@ -442,7 +453,8 @@ class _Chunks:
         self.next = 0  # the next chunk to hand out
         n = len(edges) - 1
         self.state = [FREE] * n
-        self.started = [0.0] * n  # when a helper took the chunk (perf_counter)
+        # a helper's chunk: (perf_counter, the helper's CPU time, its CPU-time clock) when taken
+        self.started: list[tuple[float, int, int | None]] = [(0.0, 0, None)] * n
         self.flags = np.zeros(1, dtype=np.int64)  # chunks helpers run (waited on without GIL)
         self.values: list = [None] * n
         self.results: list = [None] * n  # a helper's chunk's arrays, for commit
@@ -450,15 +462,17 @@ class _Chunks:
         self.waiter: threading.Lock | None = None  # (without commit) released when flags is 0
         self.per_row = 0.0  # the caller's seconds a row, from its own chunks
 
-    def _take(self, state: int) -> int:
+    def _take(self, state: int, own: _Own | None = None) -> int:
         with self.lock:
             i = self.next
             if i >= len(self.state) or self.errors:
                 return -1
             self.next = i + 1
             self.state[i] = state
-            if state == HELPER:
-                self.started[i] = time.perf_counter()
+            if own is not None:
+                clock = own.clock
+                self.started[i] = (time.perf_counter(),
+                                   0 if clock is None else time.clock_gettime_ns(clock), clock)
                 self.flags[0] += 1
             return i
 
@@ -480,7 +494,7 @@ class _Chunks:
     def help(self, own: _Own) -> None:
         """A helper's part: chunks, if any are left, in its own arrays."""
         edges = self.edges
-        while (i := self._take(HELPER)) >= 0:
+        while (i := self._take(HELPER, own)) >= 0:
             value = result = error = None
             try:
                 value = self.call(edges[i], edges[i + 1], own)
@@ -514,18 +528,15 @@ class _Chunks:
         edges, clock = self.edges, None
         for i in range(len(self.state)):
             while self.state[i] == HELPER and not self.errors:
-                # wait while the helper should be about done: its start plus one chunk of the
-                # caller's (and a quarter), spinning, and only while no other thread wants
-                # this core; then take the chunk back
-                rows = edges[i + 1] - edges[i]
-                left = self.started[i] + 1.25 * self.per_row * rows + 20e-6 - time.perf_counter()
-                if left > 0 and _SPIN:
+                left = self._left(i)
+                if left is not None and _SPIN:  # spin while the helper should be about done
                     clock = np.empty(2, dtype=np.int64) if clock is None else clock
                     seen = int(self.flags[0])
-                    if seen and _batch.wait_change(self.flags, 0, seen, int(left * 1e9), AWAY_NS,
-                                                   clock) == 1:
-                        continue  # a helper finished a chunk: look again
-                with self.lock:
+                    if seen:
+                        _batch.wait_change(self.flags, 0, seen, int(left * 1e9), AWAY_NS, clock,
+                                           False)
+                        continue  # a helper finished a chunk, or time to look again
+                with self.lock:  # late, or this core is wanted: the chunk is the caller's
                     mine = self.state[i] == HELPER
                     if mine:
                         self.state[i] = TAKEN_BACK
@@ -540,6 +551,24 @@ class _Chunks:
                 self.commit(edges[i], edges[i + 1], self.results[i])
                 self.results[i] = None
 
+    def _left(self, i: int) -> float | None:
+        """Seconds to wait for helper chunk i before looking again, or None: take it back.
+
+        The chunk is the caller's work of ``per_row`` a row, allowed 1.5x on the helper (two
+        threads share caches). From the CPU time the helper has had since it took the chunk
+        (its CPU-time clock), at the rate it got it: left when the caller would finish sooner
+        itself (a helper the OS holds up gets no CPU time); without that clock, from the wall
+        time since it took the chunk."""
+        t0, cpu0, clock = self.started[i]
+        work = 1.5 * self.per_row * (self.edges[i + 1] - self.edges[i]) + 20e-6
+        elapsed = time.perf_counter() - t0
+        if clock is None:
+            left = work - elapsed
+            return left if left > 0 else None
+        cpu = (time.clock_gettime_ns(clock) - cpu0) * 1e-9
+        rate = cpu / elapsed if elapsed > 0 else 1.0
+        left = max(work - cpu, 0.1 * work) / max(rate, 1e-3)
+        return min(left, 0.1 * work + 10e-6) if left < work / 1.5 else None
     def _wait(self) -> None:
         """Wait for the chunks that helpers run (none can start any more): a while without
         sleeping, as long as no other thread wants this core, then asleep."""
@@ -547,7 +576,7 @@ class _Chunks:
         if running and _SPIN:
             clock = np.empty(2, dtype=np.int64)
             while running and _batch.wait_change(self.flags, 0, running, CALLER_SPIN_NS,
-                                                 AWAY_NS, clock) == 1:
+                                                 AWAY_NS, clock, False) == 1:
                 running = int(self.flags[0])
         with self.lock:
             if not self.flags[0]:
@@ -578,7 +607,8 @@ _HELPERS_LOCK = threading.Lock()
 HELPER_SPIN_NS = 200_000
 CALLER_SPIN_NS = 1_000_000  # (without commit) the caller's wait for helpers before it sleeps
 AWAY_NS = 20_000
-IDLE_CHECK_S = 0.002  # how long a look at the machine's idle cores is taken as still true
+IDLE_CHECK_S = 0.002  # how long a look at the machine that found idle cores stays true
+BUSY_CHECK_S = 0.02  # and one that found none (a look costs ~10 us; a busy machine stays busy)
 _SPIN = _batch.SPIN_OK
 _LOADAVG: int | None = None  # a descriptor of /proc/loadavg, opened on first use
 _IDLE = [-1.0, 0]  # (when, idle cores) of the last look
@@ -606,17 +636,82 @@ def idle_cores() -> int | None:
 def helpers_for(wanted: int) -> int:
     """How many helpers a batch of the dynamics posts itself to, of ``wanted``: those watching
     for work (awake on cores of their own), and sleeping ones only for cores idle at this
-    instant (:func:`idle_cores`, looked at no more than every IDLE_CHECK_S): a helper woken onto
-    a busy core joins late, and shares the core, its caches and the GIL with those who run
-    there."""
+    instant (:func:`idle_cores`, looked at no more than every IDLE_CHECK_S, or BUSY_CHECK_S
+    after a look that found none): a helper woken onto a busy core joins late, and shares the
+    core, its caches and the GIL with those who run there."""
     watching = watching_helpers()
     if watching >= wanted:
         return wanted
     now = time.monotonic()
-    if now - _IDLE[0] > IDLE_CHECK_S:
+    if now - _IDLE[0] > (IDLE_CHECK_S if _IDLE[1] > 0 else BUSY_CHECK_S):
         idle = idle_cores()
         _IDLE[:] = now, wanted if idle is None else idle
     return min(wanted, max(watching, int(_IDLE[1])))
+
+
+class _Speed:
+    """Seconds a DOF-state for one kind of batch on one workspace (:attr:`Workspace.batch_speed`),
+    alone and with helpers: a batch takes helpers only while they pay."""
+
+    __slots__ = ("alone", "shared", "skip", "backoff", "since_alone")
+
+    def __init__(self) -> None:
+        self.alone: float | None = None
+        self.shared: list[float] = []  # the last few batches with helpers
+        self.skip = 2  # batches to run alone before helpers are tried (again): the first two
+        # (the first pays for first touches of its arrays)
+        self.backoff = 0  # the last such pause
+        self.since_alone = 0  # batches with helpers since the last alone
+
+    def plan(self, count: int) -> int:
+        """Threads for the next batch, of ``count``: 1 to measure the time alone (the first two
+        batches, every REFRESH-th, and while helpers have not paid), else 1 +
+        :func:`helpers_for`."""
+        if not ADAPT:
+            return 1 + helpers_for(count - 1)
+        if self.alone is None or self.skip > 0 or self.since_alone >= REFRESH:
+            self.skip = max(0, self.skip - 1)
+            return 1
+        return 1 + helpers_for(count - 1)
+
+    def record(self, shared: bool, per: float) -> None:
+        """A batch's seconds a DOF-state, with helpers or alone. The time alone follows a faster
+        batch at once and a slower one by a quarter (what else runs slows a batch, never speeds
+        it up: helpers must beat the time alone at its best); with helpers, the median of the
+        last SAMPLES batches (one slowed by the OS, or the first after a pause, whose helpers
+        wake from sleep, decides nothing) must be under GAIN of it, judged from 3 batches on,
+        else helpers pause for 4, 8, ..., 256 batches."""
+        if not shared:
+            a = self.alone
+            self.alone = per if a is None or per < a else a + 0.25 * (per - a)
+            self.since_alone = 0
+            return
+        self.since_alone += 1
+        self.shared = [*self.shared[1 - SAMPLES:], per]
+        if len(self.shared) < 3 or self.alone is None:
+            return
+        if float(np.median(self.shared)) > GAIN * self.alone:  # no gain: a pause
+            self.backoff = min(max(2 * self.backoff, 4), 256)
+            self.skip, self.shared = self.backoff, []
+        else:
+            self.backoff = 0
+
+
+ADAPT = True  # batches measure what helpers buy them (_Speed); tests turn it off
+GAIN = 0.97  # helpers are kept while a batch with them takes under 0.97 of its time alone
+REFRESH = 32  # and one batch in REFRESH runs alone, to keep that time fresh
+SAMPLES = 7  # batches with helpers whose median is judged
+
+
+def _speed(ws: Workspace, key, threads: int | None, chunks: int) -> tuple[int, _Speed | None]:
+    """(threads, the speed record to report the batch's time to) for a batch of ``chunks``."""
+    count = thread_count(threads, chunks)
+    if count == 1:
+        return 1, None
+    speed = ws.batch_speed.get(key)
+    if speed is None:
+        speed = ws.batch_speed[key] = _Speed()
+    return speed.plan(count), speed
 
 
 def _helper(k: int) -> None:
@@ -632,7 +727,8 @@ def _helper(k: int) -> None:
         except queue.Empty:
             if _SPIN:
                 _WATCHING[k] = True
-                posted = _batch.wait_change(_POSTED, 0, seen, HELPER_SPIN_NS, AWAY_NS, clock)
+                posted = _batch.wait_change(_POSTED, 0, seen, HELPER_SPIN_NS, AWAY_NS, clock,
+                                            True)
                 _WATCHING[k] = False
                 if posted == 1:
                     continue  # a batch was posted: take it
@@ -693,11 +789,14 @@ def _run_rows(Q, n: int, threads: int | None, ws: Workspace, kernel, out, *input
     state). The first failing row (the lowest of the chunks') or -1."""
     rows = Q.shape[0]
     edges = chunk_edges(rows, rows * n)
-    count = thread_count(threads, len(edges) - 1)
-    count = 1 + helpers_for(count - 1) if count > 1 else 1
+    count, speed = _speed(ws, (kernel, len(edges)), threads, len(edges) - 1)
     f, i = ws.kernel_f, ws.kernel_i
+    t0 = time.perf_counter()
     if count == 1:
-        return kernel(f, i, Q, *inputs, ws.scratch, out, 0, rows)
+        bad = kernel(f, i, Q, *inputs, ws.scratch, out, 0, rows)
+        if speed is not None:
+            speed.record(False, (time.perf_counter() - t0) / (rows * n))
+        return bad
 
     def call(first, last, own):
         if own is None:
@@ -713,6 +812,8 @@ def _run_rows(Q, n: int, threads: int | None, ws: Workspace, kernel, out, *input
 
     failed = [r for r in run_blocks(rows, threads, call, count, edges=edges, commit=commit)
               if r >= 0]
+    if speed is not None:
+        speed.record(True, (time.perf_counter() - t0) / (rows * n))
     return min(failed) if failed else -1
 
 
@@ -733,13 +834,15 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     split = min(B, tiles * lanes)
     edges = [min(e * lanes, split) for e in chunk_edges(tiles, B * n)]  # whole tiles
     edges += [B] if split < B and len(edges) > 2 else []  # (one chunk: one thread, as below)
-    count = thread_count(threads, len(edges) - 1)
-    count = 1 + helpers_for(count - 1) if count > 1 else 1
+    count, speed = _speed(ws, ("tiles", len(edges)), threads, len(edges) - 1)
     f, i = ws.kernel_f, ws.kernel_i
+    t0 = time.perf_counter()
     if count == 1:
         bad = _tiles.forward_tiles(f, i, Q, V, TAU, out, 0, split, ws.tile_buffer(1)[0])
         if bad < 0 and split < B:
             bad = _batch.forward_rows(f, i, Q, V, TAU, ws.scratch, out, split, B)
+        if speed is not None:
+            speed.record(False, (time.perf_counter() - t0) / (B * n))
         return bad
 
     def call(first, last, own):
@@ -764,6 +867,8 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
 
     failed = [r for r in run_blocks(B, threads, call, count, edges=edges, commit=commit)
               if r >= 0]
+    if speed is not None:
+        speed.record(True, (time.perf_counter() - t0) / (B * n))
     return min(failed) if failed else -1
 
 

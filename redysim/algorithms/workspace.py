@@ -178,6 +178,10 @@ class Workspace:
         self.base_accel = f[header[SLOT["base_accel"]]:header[SLOT["base_accel"]] + 3]  # -g
         self.gravity = f[header[SLOT["gravity"]]:header[SLOT["gravity"]] + 3]
         self.no_accel = np.zeros(3)
+        # what helper threads buy this workspace's batches, by kind of batch: measured as they
+        # run (redysim.algorithms.dynamics._Speed), so that a batch takes helpers only while
+        # they pay
+        self.batch_speed: dict = {}
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
         self._tiles_raw: np.ndarray | None = None  # (their allocation, a little larger)
