@@ -80,7 +80,8 @@ KNOWN_DEFECTS = {
     # S50: 1.1e-3 spread, 8.8e-10 straight, vs <= 4.8e-13 for RY -> RZ -> RX, 1.6e-12 DART
     ("pinocchio-aba", "S", 50, "spread", "qdd"): PIN_UNIVERSAL,
     ("pinocchio-aba", "S", 50, "straight", "qdd"): PIN_UNIVERSAL,
-    # mix50 spread (state seed 1): 1.7e-11 from the core; against 50 digits DART errs by 1.8e-11,
+    # mix50 spread (state seed 1): 1.7e-11 from the core (4.8e-12 to 3.1e-11 as the BLAS kernels
+    # vary: not a strict xfail); against 50 digits DART errs by 1.8e-11,
     # DART with its S joints split into RevoluteJoints by 1.4e-12, the core by 4.3e-13
     # (test_dart_euler_joint_inaccuracy in test_engines_limits.py)
     ("dart", "mix", 50, "spread", "qdd"): DART_EULER,
@@ -143,8 +144,14 @@ def _params():
                         marks = []
                         reason = KNOWN_DEFECTS.get((name, joint, nl, kind, stage))
                         if reason:
+                            # strict: a pass says upstream fixed it; but DART's Euler defect
+                            # on mix50 reads 4.8e-12 to 3.1e-11 from the core as the BLAS
+                            # kernels move the state's last bits, around the 1e-11 tolerance:
+                            # not strict, its fix is detected by
+                            # test_engines_limits.py::test_dart_euler_joint_inaccuracy
                             marks = [pytest.mark.known_engine_defect,
-                                     pytest.mark.xfail(strict=True, reason=reason)]
+                                     pytest.mark.xfail(strict=reason != DART_EULER,
+                                                       reason=reason)]
                         out.append(pytest.param(name, joint, nl, kind, stage, marks=marks,
                                                 id=f"{name}-{joint}{nl}-{kind}-{stage}"))
     return out
