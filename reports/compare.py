@@ -158,8 +158,9 @@ def _path_figures(scn, runs: pd.DataFrame, out: Path, ref):
     """The observed path's distance from the reference and the energy drift over time, for the
     core's tightest run and each engine's tightest run of each integrator (the last of its
     ladder)."""
-    fig, axes = new_figure(2, width=PANEL_W * 3.0, height=PANEL_H * 1.5,
-                           footer=provenance_line(runs))
+    kept = scn.momentum_kept  # a floating system under no force but gravity: (c) its h_G
+    fig, axes = new_figure(3 if kept else 2, width=PANEL_W * (4.2 if kept else 3.0),
+                           height=PANEL_H * 1.5, footer=provenance_line(runs))
     ok = runs[runs["status"] == "ok"]
     shown = []
     for _, g in ok.groupby(ok.apply(label, axis=1), sort=False):
@@ -176,6 +177,13 @@ def _path_figures(scn, runs: pd.DataFrame, out: Path, ref):
         axes[0].semilogy(s["t"], np.maximum(err, ERROR_FLOOR),
                          label=f"{label(r)} {setting(r)}", **kw)
         axes[1].semilogy(s["t"], np.maximum(np.abs(s["delta_M"]), ERROR_FLOOR), **kw)
+        if kept and "h_x" in s:
+            h = s[["h_x", "h_y", "h_z"]].to_numpy(dtype=float)
+            drift = np.abs(h - h[0]).max(axis=1) / max(np.abs(h[0]).max(), 1e-300)
+            axes[2].semilogy(s["t"], np.maximum(drift, ERROR_FLOOR), **kw)
+    if kept:
+        axes[2].set(title="(c) angular momentum about the COM", xlabel="t [s]",
+                    ylabel="|h_G - h_G(0)| / |h_G(0)|")
     axes[0].set(title=f"(a) {scn.frame}: distance from the reference", xlabel="t [s]",
                 ylabel="error [m]")
     axes[1].set(title="(b) energy drift", xlabel="t [s]", ylabel="|delta_M| [J/kg]")
@@ -184,7 +192,10 @@ def _path_figures(scn, runs: pd.DataFrame, out: Path, ref):
                    f"The tightest run of each engine and integrator (its smallest step or "
                    f"tolerance): (a) the distance of {scn.frame!r} from the reference solution "
                    f"over time, (b) the energy drift per unit mass |delta_M| (computed by the core "
-                   f"from each run's states, the same measurement for every engine).", fig)
+                   f"from each run's states, the same measurement for every engine)"
+                   + ("; (c) the change of the angular momentum about the centre of mass over "
+                      "its size, which the floating system keeps exactly (redysim.momentum of "
+                      "the runs' states)" if kept else "") + ".", fig)
 
 
 def _legend_right(axes) -> None:

@@ -93,10 +93,7 @@ def momentum_kept(case: str) -> bool:
     """Whether a scenario's angular momentum about its centre of mass is constant: a floating
     system (a free root joint) under no force but uniform gravity (no tip force, damping or
     loops)."""
-    scn = _case(case)
-    m = scn.model
-    return bool(m.joint_types and m.joint_types[0] == "free" and scn.tip_force is None
-                and not scn.damping and not m.cuts)
+    return bool(_case(case).momentum_kept)
 
 
 def momentum_drift(samples: pd.DataFrame | None) -> float:

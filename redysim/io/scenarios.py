@@ -123,6 +123,15 @@ class Scenario:
         return self.model
 
     @property
+    def momentum_kept(self) -> bool:
+        """Whether the angular momentum about the centre of mass is constant: a floating system
+        (a free root joint) under no force but uniform gravity (no tip force, damping or
+        loops)."""
+        m = self.model
+        return bool(m.joint_types and m.joint_types[0] == FREE and self.tip_force is None
+                    and not self.damping and not m.cuts)
+
+    @property
     def frame(self) -> str:
         """The observed path's frame: the first of ``observe``."""
         return self.observe[0]
