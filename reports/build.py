@@ -570,6 +570,10 @@ LOOP_FINDINGS = {  # an engine's loop adapter outside a loop scenario's bound: t
     "mujoco": "MuJoCo's loop constraints are soft (its constrained qdd carries a regularisation "
               "of 1e-4 of A's diagonal: references/loops.py), so the loop is kept to that, not "
               "to the step's error",
+    "exudyn": "Exudyn forms the loops' velocity term d2g/dq2 v^2 by numerical differentiation "
+              "(relative epsilon 1e-7: references/loops.py), so at speed its constrained qdd is "
+              "off by ~1.6e-7 of its size (measured on FOUR-BAR-ROUND), which the loop and the "
+              "path then carry",
 }
 MUJOCO_DAMPED = ("under the damping MuJoCo's loop adapter takes ~17x the core's steps, at 1.5 "
                  "ms a call: its soft constraint leaves J qdd + Jdot v = 1.4e-3 m/s^2 at every "
