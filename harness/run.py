@@ -173,7 +173,9 @@ def _loop_engine_of(spec: RunSpec, case: Scenario, dyn: _Dynamics):
     cls = next((c for c in references.LOOP_ENGINES.values()
                 if spec.engine in (c.name, c.adapter.name)), None)
     if cls is None:
-        raise RunFailed(f"engine {spec.engine!r} has no loop adapter; engines with one: "
+        why = getattr(references.ENGINES.get(spec.engine), "no_loops", "")
+        raise RunFailed(f"engine {spec.engine!r} has no loop adapter"
+                        + (f" ({why})" if why else "") + "; engines with one: "
                         f"{', '.join(c.adapter.name for c in references.LOOP_ENGINES.values())}")
     loops = ClosedLoops(case.model)
     lim = cls.limits(loops)

@@ -207,6 +207,12 @@ class Drake(DrakePackage, Engine):
     # the simulator Context's cache (Drake's default: on); False disables it (module docstring:
     # the FSAL integrators' stale cache after a rejected step), at ~6x the cost a derivative
     sim_caching: bool = True
+    # why there is no loop adapter (references/README.md, "Loops"; measured in
+    # tests/test_engines_drake.py, test_a_continuous_plant_takes_no_loop_constraint)
+    no_loops = ("Drake's loop-closing constraints exist only for a discrete plant with its SAP "
+                "solver: a continuous plant refuses them at its first dynamics evaluation, so it "
+                "gives no constrained qdd, and SAP's compliant steps are not the model compared "
+                "here")
 
     @classmethod
     def unsupported(cls, model, joints):
