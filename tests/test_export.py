@@ -168,6 +168,7 @@ SHIPPED = [
     ("hoekens_straight_line", _linkage("loops/hoekens_straight_line.toml"), CRANK),
     ("jansen_leg", _linkage("loops/jansen_leg.toml"), CRANK),
     ("pinned_chain_100", _linkage("loops/pinned_chain_100.toml"), THIN),
+    ("pinned_chain_10", _linkage("loops/pinned_chain_10.toml"), THIN),
     ("ur5-fixed", _robot("ur_description/urdf/ur5_robot.urdf", False), None),
     ("panda-fixed", _robot("panda_description/urdf/panda.urdf", False), None),
     ("solo12-floating", _robot("solo12.urdf", True), None),

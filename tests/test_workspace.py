@@ -74,6 +74,7 @@ def calls(system, q, qd, x, Q, QD):
         "delta_M": lambda **kw: redysim.delta_M(system, q, qd, 1.5, **kw),
         "frame_motion": lambda **kw: redysim.frame_motion(system, q, qd, x, frame=f, **kw),
         "joint_positions": lambda **kw: redysim.joint_positions(system, q, **kw),
+        "momentum": lambda **kw: redysim.momentum(system, q, qd, **kw),
     }
     if "tip" in system.frames:
         out["tip"] = lambda **kw: redysim.tip(system, q, qd, x, **kw)
