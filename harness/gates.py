@@ -517,15 +517,13 @@ def measure_truth(gate: Gate) -> list[Measurement]:
         err = float(np.abs(np.diff(cross) / half - 1.0).max())
         return [Measurement(err, scn.name, f"half period {half:.6f} s, {len(cross)} flips")]
     if p["truth"] == "momentum":
-        from redysim.algorithms.dynamics import momentum
+        from redysim.simulation import momentum_observer
 
-        def h_of(sample):
-            return momentum(scn.model, sample.q, sample.v, ws=sample.ws).angular
-
-        sim = scn.simulator(rtol=rtol, atol=rtol * 0.1, observe={"h": h_of}).run()
+        sim = scn.simulator(rtol=rtol, atol=rtol * 0.1,
+                            observe={"m": momentum_observer(scn.model)}).run()
         if sim.status != 0:
             raise RuntimeError(f"{scn.name}: {sim.message}")
-        h = sim.observed["h"]
+        h = sim.observed["m"][:, 3:]
         return [Measurement(float(np.abs(h - h[0]).max() / np.abs(h[0]).max()), scn.name,
                             f"{sim.steps} steps, |h_G| {np.linalg.norm(h[0]):.3g} kg m^2/s")]
     if p["truth"] in ("mode", "catenary"):

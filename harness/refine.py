@@ -354,24 +354,15 @@ def hanging_modes(chain, m: int = N_MODES) -> np.ndarray:
     """The ``m`` lowest small-oscillation frequencies [rad/s] of a planar chain hanging straight
     down (joint 1 at -90 degrees, the others at 0), gravity along -Y.
 
-    The stiffness is exact: with phi_j the angle of link j from the downward vertical, the
-    potential's Hessian at phi = 0 is diagonal, w_j = g (l_j (mass below link j) + m_j c_j,x),
-    and phi = T q with T the lower triangle of ones, so K = T^T diag(w) T, K_ab = sum of w_j over
-    j >= max(a, b). The mass matrix is the core's (composite bodies). Solved as the symmetric
+    The stiffness is exact (:func:`redysim.harness.truths.hanging_stiffness`); the mass matrix
+    is the core's (composite bodies). Solved as the symmetric
     generalised eigenproblem K x = omega^2 M x."""
     from scipy.linalg import eigh
 
-    if not chain.is_planar:
-        raise ValueError(f"{chain.name}: hanging_modes needs a planar chain of revolute joints")
-    g = -float(chain.gravity[1])
-    below = np.concatenate((np.cumsum(chain.mass[::-1])[::-1][1:], [0.0]))
-    w = g * (chain.length * below + chain.mass * chain.com[:, 0])
-    s = np.cumsum(w[::-1])[::-1]  # s_j = sum of w over j' >= j
-    idx = np.arange(chain.n_dof)
-    K = s[np.maximum(idx[:, None], idx[None, :])]
-    q = np.zeros(chain.n_dof)
-    q[0] = -math.pi / 2
-    M = mass_matrix(chain, q)
+    from .truths import hanging_stiffness, hanging_straight
+
+    K = hanging_stiffness(chain)
+    M = mass_matrix(chain, hanging_straight(chain))
     lam = eigh(K, M, eigvals_only=True, subset_by_index=[0, min(m, chain.n_dof) - 1])
     return np.sqrt(lam)
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from redysim.integrators.explicit import sample_times
 from redysim.io.scenarios import Scenario, load_scenario
-from redysim.simulation import Simulator, frame_observer, is_native
+from redysim.simulation import Simulator, frame_observer, is_native, momentum_observer
 
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
@@ -303,7 +303,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                     engine=dyn.engine, energy_bound=spec.energy_bound, damping=case.damping,
                     keep_states=last.get("states") is not None,
                     observe={"tip": frame_observer(chain, case.frame, acceleration=True),
-                             "momentum": _momentum_observer(chain)},
+                             "momentum": momentum_observer(chain)},
                     source=f"run {spec.label}")
     row["jit_s"], row["E0"] = sim.jit_s, sim.E0
     row["model_mib"] = sim.motion.ws.nbytes / 2**20 if dyn.engine is None else math.nan
@@ -329,17 +329,6 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
         raise RunStopped(res.message)
     if res.status != 0:
         raise RunFailed(res.message)
-
-
-def _momentum_observer(model):
-    """The momentum (redysim.momentum) at each sample as one row [p (3), h_G (3)]."""
-    from redysim.algorithms.dynamics import momentum
-
-    def observe(s):
-        mom = momentum(model, s.q, s.v, ws=s.ws)
-        return np.concatenate((mom.linear, mom.angular))
-
-    return observe
 
 
 def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:

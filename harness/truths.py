@@ -41,14 +41,32 @@ def _hanging_matrices(chain) -> tuple[np.ndarray, np.ndarray]:
                          "axes")
     m, l, c = chain.mass, chain.length, chain.com[:, 0]
     inertia = chain.inertia_com[:, 2, 2]
-    g = -float(chain.gravity[1])
-    below = np.concatenate((np.cumsum(m[::-1])[::-1][1:], [0.0]))
+    below = _mass_below(chain)
     w = m * c + l * below
     n = chain.n_dof
     upper = np.triu(np.outer(l, w), 1)  # [i, j] = l_i w_j for i < j
     m_abs = upper + upper.T + np.diag(m * c ** 2 + inertia + l ** 2 * below)
     T = np.tril(np.ones((n, n)))
-    return T.T @ m_abs @ T, T.T @ np.diag(g * w) @ T
+    return T.T @ m_abs @ T, hanging_stiffness(chain)
+
+
+def _mass_below(chain) -> np.ndarray:
+    """B_j: the mass of the links after link j."""
+    return np.concatenate((np.cumsum(chain.mass[::-1])[::-1][1:], [0.0]))
+
+
+def hanging_stiffness(chain) -> np.ndarray:
+    """K of the chain hanging straight down, in its relative joint angles (exact): the
+    potential's Hessian in the absolute angles is diag(w), w_j = g (m_j c_j + l_j B_j), and
+    phi = T q, so K = T^T diag(w) T, K[a, b] = the sum of w_j over j >= max(a, b) (O(n^2))."""
+    if not getattr(chain, "is_planar", False):
+        raise ValueError(f"{chain.name}: a hanging chain's modes need a planar chain of "
+                         "revolute joints")
+    w = -float(chain.gravity[1]) * (chain.mass * chain.com[:, 0] + chain.length
+                                    * _mass_below(chain))
+    tail = np.cumsum(w[::-1])[::-1]  # the sum of w over j' >= j
+    idx = np.arange(chain.n_dof)
+    return tail[np.maximum(idx[:, None], idx[None, :])]
 
 
 def hanging_straight(chain) -> np.ndarray:

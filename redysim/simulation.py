@@ -361,6 +361,18 @@ def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = Fa
     return observe
 
 
+def momentum_observer(system: Model):
+    """An observer for :class:`Simulator`: the momentum (:func:`redysim.momentum`) at each
+    sample as one row [p (3), h_G (3)]: linear, and angular about the centre of mass."""
+    from redysim.algorithms.dynamics import momentum
+
+    def observe(s: Sample):
+        mom = momentum(system, s.q, s.v, ws=s.ws)
+        return np.concatenate((mom.linear, mom.angular))
+
+    return observe
+
+
 class Simulator:
     """One run of a system, assembled in one place: every simulation of redysim (``simulate``,
     the harness's runs, sweeps, reference solutions, long runs and refinement studies) is one.

@@ -575,12 +575,14 @@ LOOP_FINDINGS = {  # an engine's loop adapter outside a loop scenario's bound: t
               "off by ~1.6e-7 of its size (measured on FOUR-BAR-ROUND), which the loop and the "
               "path then carry",
 }
-MUJOCO_DAMPED = ("under the damping MuJoCo's loop adapter takes ~17x the core's steps, at 1.5 "
-                 "ms a call: its soft constraint leaves J qdd + Jdot v = 1.4e-3 m/s^2 at every "
-                 "state (the core's 1e-14; d qdd / dy has the core's eigenvalues), which each "
-                 "stage's projection onto the loops removes in a jump of order h; as the chain "
-                 "comes to rest the error control runs on atol alone and those jumps set the "
-                 "step")
+FAILED_FINDINGS = {  # (engine, scenario) -> the measured cause of a run that stopped
+    ("mujoco", "CATENARY"): (
+        "under the damping MuJoCo's loop adapter takes ~17x the core's steps, at 1.5 ms a "
+        "call: its soft constraint leaves J qdd + Jdot v = 1.4e-3 m/s^2 at every state (the "
+        "core's 1e-14; d qdd / dy has the core's eigenvalues), which each stage's projection "
+        "onto the loops removes in a jump of order h; as the chain comes to rest the error "
+        "control runs on atol alone and those jumps set the step"),
+}
 MOMENTUM_BOUND = 1e-8  # max |h_G(t) - h_G(0)| / max |h_G(0)| where it is kept
 
 
@@ -600,9 +602,10 @@ def _truth(res: Results, r) -> float:
         if s is None or not len(s):
             return math.nan
         from redysim.harness.truths import catenary_point, mode_deviation
-        from redysim.io.scenarios import load_scenario
 
-        scn = load_scenario(case)
+        from .results import _case
+
+        scn = _case(case)  # (loaded once for the table's rows)
         if case == "HANGING-MODE":
             return mode_deviation(scn.model, scn.q0, s["t"].to_numpy(), s["tip_x"].to_numpy())
         last = s.sort_values("t").iloc[-1]
@@ -687,8 +690,8 @@ def scenarios_section(res: Results) -> Section:
             name = f"{r['engine']} {r['integrator']} {setting}"
             if r["status"] != "ok":
                 reason = str(r["reason"])[:200]
-                if r["engine"] == "mujoco" and case == "CATENARY":
-                    reason += f" ({MUJOCO_DAMPED})"
+                if (r["engine"], case) in FAILED_FINDINGS:
+                    reason += f" ({FAILED_FINDINGS[r['engine'], case]})"
                 tab.rows.append(Row([case, name, r["status"], what, "", f"<= {bound:g}", "", "",
                                      reason], NOT_RUN))
                 continue

@@ -34,6 +34,7 @@ from redysim.harness.spec import CORE, RunSpec
 
 from .content import DIFFER, INFO, MATCH, NOT_RUN, Headline, Report, Row, Section, Table
 from .figures import ERROR_FLOOR, FONT_PT, PANEL_H, PANEL_W, WP_MARKERS, _figure, new_figure
+from .results import momentum_drift_series
 from .robots import STAGES, TOLERANCE, agreement
 from .text import provenance_line
 
@@ -178,9 +179,8 @@ def _path_figures(scn, runs: pd.DataFrame, out: Path, ref):
                          label=f"{label(r)} {setting(r)}", **kw)
         axes[1].semilogy(s["t"], np.maximum(np.abs(s["delta_M"]), ERROR_FLOOR), **kw)
         if kept and "h_x" in s:
-            h = s[["h_x", "h_y", "h_z"]].to_numpy(dtype=float)
-            drift = np.abs(h - h[0]).max(axis=1) / max(np.abs(h[0]).max(), 1e-300)
-            axes[2].semilogy(s["t"], np.maximum(drift, ERROR_FLOOR), **kw)
+            axes[2].semilogy(np.sort(s["t"].to_numpy()),
+                             np.maximum(momentum_drift_series(s), ERROR_FLOOR), **kw)
     if kept:
         axes[2].set(title="(c) angular momentum about the COM", xlabel="t [s]",
                     ylabel="|h_G - h_G(0)| / |h_G(0)|")

@@ -96,14 +96,19 @@ def momentum_kept(case: str) -> bool:
     return bool(_case(case).momentum_kept)
 
 
-def momentum_drift(samples: pd.DataFrame | None) -> float:
-    """max |h_G(t) - h_G(0)| / max |h_G(0)| over a run's samples (their h_* columns); NaN
-    without them."""
-    if samples is None or len(samples) < 2 or "h_x" not in samples:
-        return math.nan
+def momentum_drift_series(samples: pd.DataFrame) -> np.ndarray:
+    """|h_G(t) - h_G(0)| / max |h_G(0)| (max over the components) at each of a run's samples,
+    in the order of t (their h_* columns)."""
     h = samples.sort_values("t")[["h_x", "h_y", "h_z"]].to_numpy(dtype=float)
     size = np.abs(h[0]).max()
-    return float(np.abs(h - h[0]).max() / size) if size > 0 else math.nan
+    return np.abs(h - h[0]).max(axis=1) / size if size > 0 else np.full(len(h), math.nan)
+
+
+def momentum_drift(samples: pd.DataFrame | None) -> float:
+    """The largest :func:`momentum_drift_series` over a run's samples; NaN without them."""
+    if samples is None or len(samples) < 2 or "h_x" not in samples:
+        return math.nan
+    return float(momentum_drift_series(samples).max())
 
 
 def case_sample_interval(case: str) -> float:

@@ -415,13 +415,9 @@ def _from_file(path: Path) -> Scenario:
 
         assert isinstance(model, Chain)  # a case's chain, its gravity perhaps replaced
         case = replace(load_case(mfile), chain=model, q0=q0, v0=v0)
-    scn = _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
-                  description=str(head.get("description", "")), model_file=mfile)
-    if damping:
-        from dataclasses import replace
-
-        scn = replace(scn, damping=float(damping))
-    return scn
+    return _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
+                   description=str(head.get("description", "")), model_file=mfile,
+                   damping=float(damping))
 
 
 def _with_frames(model: Model, frames: dict) -> Model:
@@ -598,7 +594,8 @@ def default_frame(model: Model) -> str:
 
 
 def _finish(source: str, path: Path, kind: str, model: Model, q0, v0, doc: dict, options,
-            case, *, name: str, description: str, model_file: Path | None = None) -> Scenario:
+            case, *, name: str, description: str, model_file: Path | None = None,
+            damping: float = 0.0) -> Scenario:
     sim = doc.get("simulation", {})
     base = case
     t_end = sim.get("t_end", base.t_end if base is not None else DEFAULT_T_END)
@@ -629,4 +626,4 @@ def _finish(source: str, path: Path, kind: str, model: Model, q0, v0, doc: dict,
                     rtol=float(rtol), atol=float(atol), h=None if h is None else float(h),
                     sample_interval=sample, description=description, digest=digest,
                     case=case, tip_force=None if case is None else case.tip_force,
-                    options=opts, model_file=model_file or path)
+                    options=opts, model_file=model_file or path, damping=damping)
