@@ -420,23 +420,24 @@ def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
 
 KIND_NAMES = {"case": "a rope case", "urdf": "a URDF", "mjcf": "an MJCF file",
               "dh": "a DH robot file", "linkage": "a linkage file",
-              "scenario": "a scenario file"}
+              "protein": "a protein file", "scenario": "a scenario file"}
 # the flags each kind of file has no use for: refused by name rather than ignored
 UNUSED_FLAGS = {"case": ("floating", "mimic"), "urdf": ("links", "precision"),
                 "mjcf": ("links", "precision", "mimic"), "dh": ("links", "precision", "mimic"),
                 "linkage": ("links", "precision", "mimic", "floating"),
+                "protein": ("links", "precision", "mimic"),
                 "scenario": ("links", "precision", "mimic", "floating")}
 FLAG_USES = {"links": "coarse-grains a rope case's chain",
              "precision": "sets the arithmetic of a rope case's run (robot and linkage files "
                           "run in float64)",
              "mimic": "applies to a URDF's <mimic> joints",
-             "floating": "gives the root body of a URDF or an MJCF file a free joint"}
+             "floating": "gives the root body of a URDF, an MJCF or a protein file a free joint"}
 
 
 def file_kind(name: str) -> str:
     """What ``redysim simulate`` or ``info`` is given (:func:`redysim.io.scenarios.file_kind`):
-    ``"urdf"``, ``"mjcf"``, ``"dh"``, ``"linkage"``, ``"scenario"`` (a scenario file, or the
-    name of a built-in one) or ``"case"`` (a rope case's name or file)."""
+    ``"urdf"``, ``"mjcf"``, ``"dh"``, ``"linkage"``, ``"protein"``, ``"scenario"`` (a scenario
+    file, or the name of a built-in one) or ``"case"`` (a rope case's name or file)."""
     from redysim.io.scenarios import file_kind as kind_of
     from redysim.io.scenarios import scenario_path
 
@@ -493,7 +494,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
                             f"(.urdf, .xml, cases/robots/*.toml); {why}")
     options: dict = {}
-    if kind in ("urdf", "mjcf", "dh"):
+    if kind in ("urdf", "mjcf", "dh", "protein"):
         options = {"floating": args.floating or None, "mimic": args.mimic,
                    "lock": dict(args.lock) or None}
         options = {k: v for k, v in options.items() if v is not None}

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 import mpmath
 import numpy as np
 
-from redysim import Chain
+from redysim import Chain, Model
 from redysim.algorithms.precision import rebind
 from redysim.algorithms.workspace import bundles_in
 
@@ -138,21 +138,22 @@ def kernel_function(name: str, arith: Arithmetic) -> types.FunctionType:
 
 
 # --------------------------------------------------------------------------- chain and state
-def chain_arrays(chain: Chain, arith: Arithmetic) -> dict[str, np.ndarray]:
-    """The per-link arrays the kernels read, recomputed in ``arith`` from the chain's doubles.
+def chain_arrays(chain: Model, arith: Arithmetic) -> dict[str, np.ndarray]:
+    """The per-body arrays the kernels read, recomputed in ``arith`` from the model's doubles.
 
-    length, mass: converted; inertia_O = I_C + m (|c|^2 1 - c c^T) and mass_com = m c computed
-    in ``arith`` from mass, com and inertia_com (exact at dps = 50: the products of doubles need
-    ~32 digits). dof_u: for mpf, each axis re-normalised at the working precision (a general axis
-    stored as a double is a unit vector only to ~1e-16, and Rodrigues' formula is a rotation only
-    for a unit axis; the exact problem takes the double vector's direction). Coordinate axes are
-    exactly (1, 0, 0) etc. either way.
+    mass: converted; inertia_O = I_C + m (|c|^2 1 - c c^T) and mass_com = m c computed in ``arith``
+    from mass, com and inertia_com (exact at dps = 50: the products of doubles need ~32 digits).
+    dof_u: for mpf, each axis re-normalised at the working precision (a general axis stored as a
+    double is a unit vector only to ~1e-16, and Rodrigues' formula is a rotation only for a unit
+    axis; the exact problem takes the double vector's direction). Coordinate axes are exactly
+    (1, 0, 0) etc. either way. ``length``: a chain's link lengths (a chain only: any other
+    model's placements are taken as they are, converted).
     """
     with arith.context():
         m = arith.array(chain.mass)
         c = arith.array(chain.com)
         ic = arith.array(chain.inertia_com)
-        nl = chain.n_links
+        nl = chain.n_bodies
         inertia_O = np.empty((nl, 3, 3), dtype=arith.dtype)
         mass_com = np.empty((nl, 3), dtype=arith.dtype)
         for k in range(nl):
@@ -169,8 +170,10 @@ def chain_arrays(chain: Chain, arith: Arithmetic) -> dict[str, np.ndarray]:
                 u = dof_u[j]
                 norm = mpmath.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
                 dof_u[j] = [u[0] / norm, u[1] / norm, u[2] / norm]
-        return {"length": arith.array(chain.length), "mass": m, "inertia_O": inertia_O,
-                "mass_com": mass_com, "dof_u": dof_u}
+        out = {"mass": m, "inertia_O": inertia_O, "mass_com": mass_com, "dof_u": dof_u}
+        if isinstance(chain, Chain):
+            out["length"] = arith.array(chain.length)
+        return out
 
 
 def _state(chain, arith, q, v, tau):
@@ -182,7 +185,7 @@ def _state(chain, arith, q, v, tau):
 
 
 # --------------------------------------------------------------------------- kernels in arith
-def rge_a_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
+def rge_a_qdd(chain: Model, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
     """qdd by the core's spatial RGE-A kernel (``rge_a_forward_dynamics``) run in ``arith``.
 
     Returns an array of ``arith``'s scalars (object array of mpf, or float32).
@@ -199,13 +202,13 @@ def rge_a_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> 
     return qdd
 
 
-def _bundles(chain: Chain, arith: Arithmetic):
+def _bundles(chain: Model, arith: Arithmetic):
     """The kernels' Tree and Scratch bundles in ``arith``, the tree's arrays from
-    :func:`chain_arrays`."""
+    :func:`chain_arrays` (a chain's placements from its lengths, any other model's converted)."""
     a = chain_arrays(chain, arith)
-    along = np.concatenate((arith.zeros(1), a["length"][:-1]))
-    return bundles_in(chain, arith.array, arith.zeros, along=along, mass=a["mass"],
-                      inertia_O=a["inertia_O"], mass_com=a["mass_com"], dof_u=a["dof_u"])
+    extra = {"along": np.concatenate((arith.zeros(1), a["length"][:-1]))} if "length" in a else {}
+    return bundles_in(chain, arith.array, arith.zeros, mass=a["mass"], inertia_O=a["inertia_O"],
+                      mass_com=a["mass_com"], dof_u=a["dof_u"], **extra)
 
 
 def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
@@ -246,7 +249,7 @@ def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = 
 
 
 # --------------------------------------------------------------------------- the reference
-def qdd_reference(chain: Chain, q, v, tau=None, dps: int = DEFAULT_DPS, *,
+def qdd_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS, *,
                   output: str = "float"):
     """The exact qdd of the double-precision input, to ~dps - 10 digits, in O(n).
 
@@ -330,16 +333,19 @@ def _rodrigues(u, angle):
             [t * u[2] * u[0] - s * u[1], t * u[2] * u[1] + s * u[0], c + t * u[2] * u[2]]]
 
 
-def newton_euler_mp(chain: Chain, q, v, qdd, *, gravity: bool = True) -> list:
+def newton_euler_mp(chain: Model, q, v, qdd, *, gravity: bool = True) -> list:
     """tau = I qdd + C v + (gravity terms if ``gravity``): textbook Newton-Euler about the
     centres of mass, in mpmath at the current precision. Independent of the core's kernels
-    (no DeNOC matrices, no articulated masses); revolute axes only (R, U, S, general R).
+    (no DeNOC matrices, no articulated masses); revolute axes only (R, U, S, general R), serial
+    models (a chain, or any model whose body k hangs from body k - 1: a protein backbone).
 
     Forward: a_O of each joint origin (fixed in the parent), w and wd axis by axis; backward:
     F = m a_C, N = I_C wd + w x (I_C w), moments about O_k, tau_j = e_j . n_k.
     """
     mpf = mpmath.mpf
-    nl = chain.n_links
+    nl = chain.n_bodies
+    if any(int(p) != k - 1 for k, p in enumerate(chain.parent)):
+        raise NotImplementedError("dense_reference: serial models only (body k on body k - 1)")
     q, v, qdd = ([mpf(float(x)) for x in vec] for vec in (q, v, qdd))
     zero3 = [mpf(0)] * 3
     R = [[mpf(1) if i == j else mpf(0) for j in range(3)] for i in range(3)]
@@ -349,10 +355,11 @@ def newton_euler_mp(chain: Chain, q, v, qdd, *, gravity: bool = True) -> list:
     j = 0
     # forward: k = 1..nl
     for k in range(nl):
-        if k > 0:
-            r = _scale(mpf(float(chain.length[k - 1])), [R[0][0], R[1][0], R[2][0]])
-            aO = _add(aO, _add(_cross(wd, r), _cross(w, _cross(w, r))))
-            O = _add(O, r)
+        # joint k's placement in body k - 1 (a chain's: its parent's length along x)
+        r = _matvec(R, [mpf(float(x)) for x in chain.placement_p[k]])
+        aO = _add(aO, _add(_cross(wd, r), _cross(w, _cross(w, r))))
+        O = _add(O, r)
+        R = _matmul(R, [[mpf(float(x)) for x in row] for row in chain.placement_R[k]])
         axes = []
         for kind, u in chain.joints[k].axes():
             if kind != "R":
@@ -390,7 +397,7 @@ def newton_euler_mp(chain: Chain, q, v, qdd, *, gravity: bool = True) -> list:
     return tau
 
 
-def dense_reference(chain: Chain, q, v, tau=None, dps: int = DEFAULT_DPS) -> list:
+def dense_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS) -> list:
     """qdd by an independent dense solve in mpmath (O(n^3), for small chains: tests only).
 
     GIM column i = newton_euler_mp(q, 0, e_i, no gravity); phi = tau - newton_euler_mp(q, v, 0);
@@ -406,7 +413,7 @@ def dense_reference(chain: Chain, q, v, tau=None, dps: int = DEFAULT_DPS) -> lis
         return [x[i] for i in range(n)]
 
 
-def dense_gim_mp(chain: Chain, q, dps: int = DEFAULT_DPS) -> mpmath.matrix:
+def dense_gim_mp(chain: Model, q, dps: int = DEFAULT_DPS) -> mpmath.matrix:
     """The GIM in mpmath by the independent Newton-Euler (column i = I e_i); small chains."""
     n = chain.n_dof
     with mpmath.workdps(dps):

@@ -81,11 +81,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     kind = file_kind(args.model)
     _refuse_unused_flags(args, kind)
-    if args.lock and kind not in ("urdf", "mjcf", "dh"):
+    if args.lock and kind not in ("urdf", "mjcf", "dh", "protein"):
         raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
                             "(.urdf, .xml, cases/robots/*.toml)")
     options: dict = {}
-    if kind in ("urdf", "mjcf", "dh"):
+    if kind in ("urdf", "mjcf", "dh", "protein"):
         options = {k: v for k, v in {"floating": args.floating or None, "mimic": args.mimic,
                                      "lock": dict(args.lock) or None}.items() if v is not None}
     scn = load_scenario(args.model, options=options)  # a bad file: exit 2, before any run

@@ -962,8 +962,9 @@ def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = 
     """The model in ``path``: ``.urdf`` (:func:`load_urdf`: ``floating``, ``mimic``,
     ``strict``), MJCF ``.xml`` (:func:`load_mjcf`: ``floating``, ``equality``, ``strict``), a
     robot ``.toml`` (a DH table, :mod:`redysim.io.dh`) or a case ``.toml`` (its chain), whose base
-    is the world: ``floating=True`` is refused for them. Raises FileNotFoundError,
-    ModelFileError or CaseError."""
+    is the world: ``floating=True`` is refused for them; a protein ``.toml``
+    (:mod:`redysim.io.proteins`: ``floating=True`` frees its first residue). Raises
+    FileNotFoundError, ModelFileError or CaseError."""
     p = Path(path)
     src = str(p)
     _check_flags(src, floating=floating, strict=strict)
@@ -979,6 +980,10 @@ def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = 
     if suffix == ".toml":  # a robot's DH table (redysim.io.dh), else a rope case file
         from redysim.io.dh import is_robot_file, load_robot
         from redysim.io.linkage_files import is_linkage_file
+        from redysim.io.proteins import is_protein_file, load_protein
+        if is_protein_file(p):  # a protein backbone (redysim.io.proteins): floats if asked
+            protein = load_protein(p, floating=True if floating else None)
+            return protein.model
         robot = is_robot_file(p)
         if not robot and is_linkage_file(p):
             raise ModelFileError(src, "[linkage]", None, "a closed-loop linkage: a tree alone "

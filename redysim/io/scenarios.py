@@ -71,7 +71,7 @@ ROBOT_DATA = "example-robot-data:"  # a model file of the example-robot-data pac
 DEFAULT_T_END = 1.0  # s: a model file's own scenario
 DEFAULT_SAMPLES = 20
 QUATERNION_TOL = 1e-6
-KINDS = ("case", "urdf", "mjcf", "dh", "linkage")
+KINDS = ("case", "urdf", "mjcf", "dh", "linkage", "protein")
 MODEL_SUFFIXES = (".urdf", ".xml")  # a model file by itself, never a built-in name
 _FIELDS = {
     "scenario": {"name", "description"},
@@ -193,8 +193,9 @@ def robot_data_file(name: str) -> Path | None:
 
 def file_kind(path: str | os.PathLike) -> str:
     """What a file is: ``"urdf"``, ``"mjcf"`` (.xml), ``"dh"`` (a DH robot .toml),
-    ``"linkage"`` (a linkage .toml), ``"scenario"`` (a .toml with a ``[scenario]`` table) or
-    ``"case"`` (a case name, or any other .toml: a rope case file)."""
+    ``"linkage"`` (a linkage .toml), ``"protein"`` (a protein backbone .toml), ``"scenario"``
+    (a .toml with a ``[scenario]`` table) or ``"case"`` (a case name, or any other .toml: a
+    rope case file)."""
     suffix = Path(path).suffix.lower()
     if suffix == ".urdf":
         return "urdf"
@@ -203,9 +204,12 @@ def file_kind(path: str | os.PathLike) -> str:
     if suffix == ".toml" and Path(path).is_file():
         from redysim.io.dh import is_robot_file
         from redysim.io.linkage_files import is_linkage_file
+        from redysim.io.proteins import is_protein_file
 
         if is_scenario_file(path):
             return "scenario"
+        if is_protein_file(path):
+            return "protein"
         if is_robot_file(path):
             return "dh"
         if is_linkage_file(path):
