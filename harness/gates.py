@@ -525,7 +525,8 @@ def measure_truth(gate: Gate) -> list[Measurement]:
             raise RuntimeError(f"{scn.name}: {sim.message}")
         h = sim.observed["m"][:, 3:]
         return [Measurement(float(np.abs(h - h[0]).max() / np.abs(h[0]).max()), scn.name,
-                            f"{sim.steps} steps, |h_G| {np.linalg.norm(h[0]):.3g} kg m^2/s")]
+                            f"{sim.steps} steps, |h_G| {np.linalg.norm(h[0]):.3g} (the model's "
+                            "units: kg m^2/s in SI)")]
     if p["truth"] in ("mode", "catenary"):
         from redysim.simulation import frame_observer
 

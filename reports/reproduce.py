@@ -261,6 +261,16 @@ class Reproduction:
                 f"{doc['slope']:.2f}, {lr['n']:,} rods for {lr['t_end']:g} s in "
                 f"{lr['cpu_s']:.0f} s")
 
+    def proteins(self, full: bool = False) -> str:
+        from . import proteins
+
+        doc = proteins.run(self.results / "proteins", full=full, log=self.say)
+        core = [r for r in doc["true_error"] if r["method"].startswith("redysim")]
+        pc = doc["per_call"][-1]
+        return (f"{len(doc['sizes'])} backbones, the core's worst true error "
+                f"{max(r['rel2'] for r in core):.1e}; {pc['residues']:,} residues "
+                f"{pc['backbone_ns_per_dof']:.0f} ns/DOF (the rope {pc['rope_ns_per_dof']:.0f})")
+
     def refine(self) -> str:
         from redysim.harness import refine
 
@@ -305,6 +315,7 @@ class Reproduction:
             p.add("CPU scaling", self.scaling)
             p.add("robots and trees", self.robots)
             p.add("closed loops", self.loops)
+            p.add("protein backbones", self.proteins)
             p.add("model size (refinement studies)", self.refine)
             p.add("implicit integrator, 100,000 DOF", self.implicit)
         else:
@@ -319,6 +330,7 @@ class Reproduction:
             p.add("true-error study", lambda: self.error_study(None))
             p.add("robots and trees", self.robots)
             p.add("closed loops", lambda: self.loops(full=True))
+            p.add("protein backbones", lambda: self.proteins(full=True))
             p.add("model size (refinement studies)", self.refine)
             p.add("implicit integrator, 100,000 DOF", self.implicit)
         p.add("report", self.build)

@@ -51,6 +51,7 @@ OPCOUNT_FILE = Path("opcount") / "opcount.json"
 SCALING_FILE = Path("scaling") / "scaling.parquet"
 ROBOTS_FILE = Path("robots") / "robots.json"
 LOOPS_FILE = Path("loops") / "loops.json"
+PROTEINS_FILE = Path("proteins") / "proteins.json"
 REFINE_FILE = Path("refine") / "refine.json"
 BENCH_DIR = "bench"
 REPRODUCE_GLOB = "reproduce-*.json"
@@ -238,6 +239,11 @@ class Results:
     def refine(self) -> dict | None:
         """``refine/refine.json`` (:mod:`redysim.harness.refine`), or None."""
         return _json(self.root / REFINE_FILE)
+
+    @functools.cached_property
+    def proteins(self) -> dict | None:
+        """``proteins/proteins.json`` (:mod:`redysim.reports.proteins`), or None."""
+        return _json(self.root / PROTEINS_FILE)
 
     @functools.cached_property
     def loops(self) -> dict | None:

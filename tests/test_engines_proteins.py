@@ -72,3 +72,22 @@ def test_every_engine_builds_and_agrees(case, name):
     else:  # floating: against the core, which the fixed-base case ties to the reference
         core = redysim.forward_dynamics(model, q, v, tau)
         assert rel(qdd, core) < (DENSE_TOL if name in DENSE else 1e-11)
+
+
+def test_the_reports_study_runs_and_judges_the_core(tmp_path):
+    """reports/proteins.py on the 100-residue chain: a row per method and state, the core's
+    within its bound, every engine's row numbered or refused by name; the section renders."""
+    from redysim.reports.content import MATCH
+    from redysim.reports.proteins import RECURSIVE_BOUND, proteins_section, run
+    from redysim.reports.results import Results
+
+    doc = run(tmp_path / "proteins", sizes=(100,), log=lambda _msg: None)
+    core = [r for r in doc["true_error"] if r["method"].startswith("redysim")]
+    assert len(core) == 2 and all(r["rel2"] < RECURSIVE_BOUND for r in core)
+    assert {r["method"] for r in doc["true_error"]} >= {"redysim (RGE-A)", *references.ENGINES}
+    assert all(r["status"] == "ok" or r["reason"] for r in doc["true_error"])
+    assert doc["per_call"][0]["backbone_s"] > 0 and doc["per_call"][0]["rope_s"] > 0
+    sec = proteins_section(Results(tmp_path))
+    err = sec.items[0]
+    assert err.not_run == ""
+    assert [r.kind for r in err.rows if r.cells[4].startswith("redysim")] == [MATCH, MATCH]
