@@ -645,6 +645,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_RUN_FAILED if len(failed) else EXIT_OK
 
 
+INFO_MAX_INDENT = 12  # redysim info: indentation levels shown
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     """``redysim info``: the model's tree, one line per body, children indented under parents."""
     from redysim import Model
@@ -660,19 +663,21 @@ def cmd_info(args: argparse.Namespace) -> int:
     children: dict[int, list[int]] = {}
     for k, p in enumerate(model.parent):
         children.setdefault(int(p), []).append(k)
-    width = max(map(len, model.body_names)) + 2 * _depth(model)
-
-    def show(k: int, depth: int) -> None:
+    # children indented under parents, to INFO_MAX_INDENT levels (deeper bodies: their depth
+    # in brackets, so a chain of 20,000 bodies does not print 20,000-deep indentation)
+    deep = _depth(model) > INFO_MAX_INDENT
+    width = max(map(len, model.body_names)) + 2 * min(_depth(model), INFO_MAX_INDENT) + \
+        (8 if deep else 0)
+    stack = [(root, 0) for root in reversed(children.get(-1, []))]
+    while stack:  # depth first, parents before children (no recursion: chains are deep)
+        k, depth = stack.pop()
         axes = ", ".join(_axis_text(model, j) for j in range(model.joint_voff[k],
                                                             model.joint_voff[k + 1]))
-        label = f"{'  ' * depth}{model.body_names[k]}"
+        label = f"{'  ' * min(depth, INFO_MAX_INDENT)}" + \
+            (f"[{depth}] " if depth > INFO_MAX_INDENT else "") + model.body_names[k]
         print(f"  {label:<{width}}  {model.joint_types[k]:<5} {model.joint_names[k]} "
               f"[{axes}]  m = {model.mass[k]:.6g} kg")
-        for c in children.get(k, []):
-            show(c, depth + 1)
-
-    for root in children.get(-1, []):
-        show(root, 0)
+        stack.extend((c, depth + 1) for c in reversed(children.get(k, [])))
     for name, (body, point) in model.frames.items():
         print(f"  frame {name}: on {model.body_names[body]} at {tuple(float(x) for x in point)}")
     for note in model.notes:

@@ -445,6 +445,12 @@ def test_redysim_info_prints_the_tree(capsys, tmp_path):
     assert "frame tip: on link3 at (1.0, 0.0, 0.0)" in capsys.readouterr().out
     assert main(["info", robot_urdf("panda_description/urdf/panda.urdf")]) == 2
     assert "mimic" in capsys.readouterr().err
+    # a chain 5,000 bodies deep (the tree was printed by recursion, which stopped at ~1,000):
+    # indented 12 levels, deeper bodies by their depth
+    assert main(["info", "RE-U5000-L100"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[5000].split()[:2] == ["[4999]", "link5000"]
+    assert lines[5000].startswith("  " + "  " * 12 + "[4999]")
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -28,10 +28,10 @@ A scenario is any of:
 
 - a **rope case** (a name of ``cases/`` or a case file; :mod:`redysim.io.cases`), whose observed
   path is its tip and whose tip force is applied;
-- a **model file** by itself (.urdf, MJCF .xml, DH robot .toml, linkage .toml): a passive motion
-  from the file's configuration at rest for 1 s (a floating base: with seeded random velocities,
-  since at rest in uniform gravity it would fall as one rigid piece), observing its tip frame or
-  its last body.
+- a **model file** by itself (.urdf, MJCF .xml, DH robot, linkage or protein .toml): a passive
+  motion from the file's configuration at rest for 1 s (a floating base or a model without
+  gravity: with seeded random velocities, since at rest in uniform gravity it would fall as one
+  rigid piece, and without gravity not move), observing its tip frame or its last body.
 
 :func:`load_scenario` reads any of them into a :class:`Scenario`. Every bad value raises
 :class:`~redysim.errors.CaseError` naming the file, the field and the value; a model file's own
@@ -81,7 +81,8 @@ _FIELDS = {
     "observe": {"frames", "points"},
 }
 MODEL_OPTIONS = ("floating", "mimic", "equality", "lock")
-# a floating model file's own scenario: seeded random velocities of this amplitude [rad/s, m/s]
+# a floating or weightless model file's own scenario: seeded random velocities of this amplitude
+# [rad/s, m/s]
 FLOATING_SEED, FLOATING_V = 20261127, 0.5
 
 
@@ -325,11 +326,13 @@ def load_scenario(name_or_path: str | os.PathLike, *,
     q0 = model.initial() if linkage is None else linkage.q0
     v0 = np.zeros(model.n_v)
     description = f"a passive motion of {p.name} from its file's configuration, at rest"
-    if model.quaternions.size:  # at rest in uniform gravity a free body falls as one piece
+    weightless = not np.any(model.gravity)
+    if model.quaternions.size or weightless:  # at rest it would fall as one piece, or stay
         q0, v0 = _random(str(p), model, {"seed": FLOATING_SEED, "v": FLOATING_V}, q0, v0)
-        description = (f"{p.name} tumbling in free fall from its file's configuration with "
-                       f"seeded random velocities (uniform in +-{FLOATING_V:g}, seed "
-                       f"{FLOATING_SEED}): at rest it would fall as one rigid piece")
+        description = (f"{p.name} {'moving freely' if weightless else 'tumbling in free fall'}"
+                       f" from its file's configuration with seeded random velocities (uniform "
+                       f"in +-{FLOATING_V:g}, seed {FLOATING_SEED}): at rest it would "
+                       + ("not move (no gravity)" if weightless else "fall as one rigid piece"))
     for a in (q0, v0):
         a.flags.writeable = False
     return _finish(str(p), p, kind, model, q0, v0, {}, options, None,
