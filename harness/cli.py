@@ -335,9 +335,9 @@ def _model_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--floating", action="store_true",
                         help="a URDF's or MJCF's root body gets a free joint (a legged or "
                              "flying robot)")
-    parser.add_argument("--mimic", choices=("refuse", "independent"),
-                        help="a URDF's mimic joints: refuse them (default) or let them move "
-                             "independently")
+    parser.add_argument("--mimic", choices=("couple", "independent", "refuse"),
+                        help="a URDF's mimic joints: couple them to their leaders (default), "
+                             "let them move independently, or refuse them")
 
 
 # --------------------------------------------------------------------------- commands
@@ -680,6 +680,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         stack.extend((c, depth + 1) for c in reversed(children.get(k, [])))
     for name, (body, point) in model.frames.items():
         print(f"  frame {name}: on {model.body_names[body]} at {tuple(float(x) for x in point)}")
+    for c in model.couplings:
+        print(f"  coupling: {c.follower} = {c.multiplier:g} * {c.leader} + {c.offset:g}")
     for note in model.notes:
         print(f"  note: {note}")
     for c in loops.cuts if loops is not None else ():

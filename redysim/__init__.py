@@ -37,7 +37,7 @@ _WHERE = {
     **dict.fromkeys(("CaseError", "FieldError", "RedysimError", "SettingsError", "StateError"),
                     "errors"),
     **dict.fromkeys(("ModelFileError", "load_model"), "io.importers"),
-    **dict.fromkeys(("Body", "Chain", "CutJoint", "Model", "TreeJoint"), "model.tree"),
+    **dict.fromkeys(("Body", "Chain", "Coupling", "CutJoint", "Model", "TreeJoint"), "model.tree"),
     **dict.fromkeys(("Simulation", "simulate", "simulate_batch"), "simulation"),
     "ClosedLoops": "algorithms.loops",
     **dict.fromkeys(("Coarsening", "coarsen"), "algorithms.coarse"),

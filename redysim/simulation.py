@@ -193,6 +193,7 @@ class _Motion:
         self.plain_q = np.array(plain_q, dtype=np.int64)
         self.plain_v = np.array(plain_v, dtype=np.int64)
         self.mass = system.total_mass
+        self.couplings = system.coupling_index if system.couplings else None
 
     def forces(self, t, q, v):
         """The generalized forces at (t, q, v): tau's and the damping's (None: none)."""
@@ -242,13 +243,22 @@ class _Motion:
     def project(self, y, record: bool = True) -> float:
         """Divide each quaternion of ``y`` by its norm, in place; the largest | |q| - 1 |. With
         loops, move (q, v) back onto them (in place), keeping the largest residuals met (when
-        ``record``: a step's, not an interpolated sample's)."""
+        ``record``: a step's, not an interpolated sample's); with couplings, each follower back
+        on its leader (a Runge-Kutta step keeps a linear coupling to rounding)."""
         if self.loops is not None:
             nq = self.nq
             y[:nq], y[nq:], rq, rv = self.loops.project(y[:nq], y[nq:])
             if record:
                 self.residual_q, self.residual_v = max(self.residual_q, rq), \
                     max(self.residual_v, rv)
+        if self.couplings is not None:  # followers back on their leaders (linear: exact)
+            fq, lq, fv, lv, m, off = self.couplings
+            nq = self.nq
+            want_q, want_v = m * y[lq] + off, m * y[nq + lv]
+            if record:
+                self.residual_q = max(self.residual_q, float(np.abs(y[fq] - want_q).max()))
+                self.residual_v = max(self.residual_v, float(np.abs(y[nq + fv] - want_v).max()))
+            y[fq], y[nq + fv] = want_q, want_v
         worst = 0.0
         for i in self.quaternions:
             norm = math.sqrt(float(y[i:i + 4] @ y[i:i + 4]))
@@ -520,10 +530,11 @@ class Simulator:
     @property
     def compiled(self) -> bool:
         """Whether the steps run in compiled code: ours, on the core's RGE-A, dq/dt = v, no
-        forces, loops or damping (the same steps as the Python loop, bit for bit)."""
+        forces, loops, couplings or damping (the same steps as the Python loop, bit for bit)."""
         m = self.motion
         can = (m.qdd is None and m.method == "rge-a" and m.tau is None and not m.damping
-               and m.loops is None and not m.free and self.integrator in TABLEAU_NAMES)
+               and m.loops is None and not m.free and not self.system.couplings
+               and self.integrator in TABLEAU_NAMES)
         return can and self._compiled is not False
 
     def _make_solver(self, state):

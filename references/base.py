@@ -385,6 +385,10 @@ class Engine(EnginePackage):
     integrators: ClassVar[dict[str, NativeIntegrator]] = {}
     no_integrator: ClassVar[str] = ""  # why ``integrators`` is empty, in the engine's words
     depth_limited: ClassVar[bool] = False  # limits.toml's max_links is a body-tree depth
+    # how the engine holds a model's couplings (Model.couplings: mimic joints) in its qdd; ""
+    # when it does not (limits then refuses a coupled model, naming this reason)
+    couples: ClassVar[str] = ""
+    no_couplings: ClassVar[str] = "no joint coupling built in this adapter"
 
     def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
@@ -435,6 +439,11 @@ class Engine(EnginePackage):
         why = cls.unsupported(model, joints)
         if why:
             return Limits(False, f"{cls.name}: {why}")
+        if model.couplings and not cls.couples:
+            return Limits(False, f"{cls.name}: the model couples joints "
+                                 f"({', '.join(c.follower for c in model.couplings)} follow "
+                                 f"others: mimic joints), which this engine does not build: "
+                                 f"{cls.no_couplings}")
         return Limits(True, "")
 
     @classmethod

@@ -127,6 +127,7 @@ _DISABLED = ("mjDSBL_CONTACT", "mjDSBL_CONSTRAINT", "mjDSBL_ACTUATION", "mjDSBL_
              "mjDSBL_SPRING", "mjDSBL_DAMPER", "mjDSBL_FRICTIONLOSS", "mjDSBL_LIMIT",
              "mjDSBL_EQUALITY", "mjDSBL_ISLAND", "mjDSBL_EULERDAMP")
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: a moving body needs mass and inertia above it
+COUPLING_TOLERANCE = 1e-15  # opt.tolerance of a coupled model's constraint solve (Newton)
 
 
 def _principal(I):
@@ -155,6 +156,9 @@ class MuJoCo(Engine):
     name = "mujoco"
     package = "mujoco"
     module = "mujoco"
+    couples = ("one mjEQ_JOINT equality per coupling (polycoef = offset, multiplier), solimp "
+               "at MuJoCo's hardest (d = mjMAXIMP), Newton solver: MuJoCo's soft constraint, "
+               "regularised as its loops are")
     integrator = "rk4"
     integrators = {name: entry[0] for name, entry in _INTEGRATORS.items()}
     depth_limited = True
@@ -209,6 +213,19 @@ class MuJoCo(Engine):
                 j.axis = axis.u
             bodies.append(body)
         spec.compiler.balanceinertia = balance
+        if m.couplings:  # each as a joint equality, q1 = polycoef[0] + polycoef[1] q2
+            index = {name: k for k, name in enumerate(m.joint_names)}
+            for stage in ("mjDSBL_CONSTRAINT", "mjDSBL_EQUALITY"):
+                spec.option.disableflags &= ~int(getattr(mj.mjtDisableBit, stage))
+            spec.option.solver = mj.mjtSolver.mjSOL_NEWTON
+            spec.option.tolerance = COUPLING_TOLERANCE
+            for i, c in enumerate(m.couplings):
+                eq = spec.add_equality()
+                eq.name, eq.type, eq.objtype = f"coupling{i}", mj.mjtEq.mjEQ_JOINT, \
+                    mj.mjtObj.mjOBJ_JOINT
+                eq.name1, eq.name2 = f"j{index[c.follower]}_0", f"j{index[c.leader]}_0"
+                eq.data[:5] = [c.offset, c.multiplier, 0.0, 0.0, 0.0]
+                eq.solimp = np.array([mj.mjMAXIMP, mj.mjMAXIMP, 0.001, 0.5, 2.0])
         self.spec, self.spec_bodies, self.principal = spec, bodies, np.array(principal)
         self._compile()
 

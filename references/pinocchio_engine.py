@@ -143,6 +143,8 @@ class PinocchioEngine(Engine):
         self.pm, self.data = pm, pin.Data(pm)
         assert pm.check(self.data), "Pinocchio's Model.check failed"
         self.body_joint = [last[k] for k in range(m.n_bodies)]
+        if m.couplings:
+            self._mimic(first)
         # the core's slots -> Pinocchio's: each body's coordinates are consecutive in both
         self.qidx = np.zeros(m.n_q, dtype=np.int64)
         for k in range(m.n_bodies):
@@ -150,6 +152,33 @@ class PinocchioEngine(Engine):
             nq, nv = m.joint_qoff[k + 1] - m.joint_qoff[k], m.joint_voff[k + 1] - m.joint_voff[k]
             self.qidx[m.joint_qoff[k]:m.joint_qoff[k + 1]] = jm.idx_q + np.arange(nq)
             self.eidx[m.joint_voff[k]:m.joint_voff[k + 1]] = jm.idx_v + np.arange(nv)
+
+    def _mimic(self, first):
+        """Pinocchio's own coupled model (``pin.transformJointIntoMimic`` of each follower onto
+        its leader: Pinocchio's mimic joints, with nq = nv = 0, as ``buildModelFromUrdf(...,
+        mimic=True)`` makes them) beside the tree: ``pmm``, ``dmm``; ``mq``, ``mv``: the tree's
+        engine q and v slot of each of its coordinates; ``G`` (tree nv, its nv): v_tree = G v."""
+        pin, m, pm = self.lib, self.model, self.pm
+        index = {name: k for k, name in enumerate(m.joint_names)}
+        pmm = pm
+        for c in m.couplings:
+            pmm = pin.transformJointIntoMimic(pmm, first[index[c.leader]],
+                                              first[index[c.follower]], c.multiplier, c.offset)
+        self.pmm, self.dmm = pmm, pin.Data(pmm)
+        G = np.zeros((pm.nv, pmm.nv))
+        mq, mv = np.zeros(pmm.nq, dtype=np.int64), np.zeros(pmm.nv, dtype=np.int64)
+        rule = {first[index[c.follower]]: (first[index[c.leader]], c.multiplier)
+                for c in m.couplings}
+        for j in range(1, pm.njoints):
+            full, red = pm.joints[j], pmm.joints[j]
+            if j in rule:  # a mimic: its velocity m times its leader's
+                leader, mult = rule[j]
+                G[full.idx_v, pmm.joints[leader].idx_v] = mult
+                continue
+            mq[red.idx_q:red.idx_q + red.nq] = full.idx_q + np.arange(full.nq)
+            mv[red.idx_v:red.idx_v + red.nv] = full.idx_v + np.arange(full.nv)
+            G[full.idx_v + np.arange(full.nv), red.idx_v + np.arange(red.nv)] = 1.0
+        self.mq, self.mv, self.G = mq, mv, G
 
     def _engine_state(self, q, v):
         q = q.copy()
@@ -190,11 +219,16 @@ class PinocchioEngine(Engine):
         return self.data.oMi[self.body_joint[body]].act(point).copy()
 
 
+ABA_NO_MIMIC = ("Pinocchio's ABA refuses mimic joints ('This algorithm does not support Joint "
+                "Mimic type in the model', pin.aba, 4.1.0); pinocchio-crba builds them")
+
+
 class PinocchioABA(PinocchioEngine):
     """Pinocchio ``pin.aba`` with ``JointModelUniversal`` U joints (module docstring)."""
 
     name = "pinocchio-aba"
     universal = "universal"
+    no_couplings = ABA_NO_MIMIC
 
 
 class PinocchioABARyRz(PinocchioEngine):
@@ -203,6 +237,7 @@ class PinocchioABARyRz(PinocchioEngine):
 
     name = "pinocchio-aba-ryrz"
     universal = "ryrz"
+    no_couplings = ABA_NO_MIMIC
 
 
 class PinocchioCRBA(PinocchioEngine):
@@ -211,9 +246,19 @@ class PinocchioCRBA(PinocchioEngine):
 
     name = "pinocchio-crba"
     universal = "universal"
+    couples = ("Pinocchio's mimic joints (pin.transformJointIntoMimic of each follower onto its "
+               "leader, as buildModelFromUrdf(..., mimic=True) reads a URDF): qdd from that "
+               "model's crba and nonLinearEffects, tau mapped as G^T tau")
 
     def _qdd(self, qp, y, tau_e):
         pin = self.lib
+        if self.model.couplings:  # Pinocchio's coupled model, in its own coordinates
+            qr, yr = qp[self.mq], y[self.mv]
+            M = pin.crba(self.pmm, self.dmm, qr)
+            rhs = -pin.nonLinearEffects(self.pmm, self.dmm, qr, yr)
+            if tau_e is not None:
+                rhs = rhs + self.G.T @ tau_e
+            return self.G @ _upper_cholesky_solve(M, rhs)
         M = pin.crba(self.pm, self.data, qp)  # upper triangle filled
         rhs = -pin.nonLinearEffects(self.pm, self.data, qp, y)
         if tau_e is not None:

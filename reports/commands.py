@@ -41,7 +41,7 @@ setting was cheapest here. The runs are cached: run it again and only what chang
 
 examples:
   redysim compare ur5_robot.urdf
-  redysim compare talos_reduced.urdf --floating --mimic independent --t-end 0.5
+  redysim compare talos_reduced.urdf --floating --t-end 0.5
   redysim compare cases/loops/jansen_leg.toml
   redysim compare UR5-FALL --engine mujoco --engine exudyn"""
 

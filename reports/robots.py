@@ -4,7 +4,9 @@ qdd call beside ``pin.aba``, and passive falls (the report's "Robots and trees" 
     python -m redysim.reports.robots [--out results/robots]
 
 Robots: URDFs of the ``example-robot-data`` package (an arm, a hand, a quadruped with a fixed
-and with a floating base, a humanoid), read by :func:`redysim.load_model`, and the DH robots
+and with a floating base, a humanoid, reduced and full), read by :func:`redysim.load_model` with
+its defaults (mimic joints coupled: the Panda's fingers, the full Talos's grippers), and the DH
+robots
 that come with redysim (the repository's ``cases/robots/``: the package data
 ``redysim.case_files.robots``, found in an installed redysim too). For each:
 
@@ -40,13 +42,15 @@ import numpy as np
 TOLERANCE = 1e-10  # relative agreement the issue asks of every engine on every stage
 STATES = 3
 SEED = 20261123
-ROBOTS = (  # label, file in example-robot-data, floating base
+ROBOTS = (  # label, file in example-robot-data, floating base; mimic joints coupled (the default)
     ("UR5 arm", "ur_description/urdf/ur5_robot.urdf", False),
-    ("Panda arm", "panda_description/urdf/panda.urdf", False),
+    ("Panda arm (finger mimic coupled)", "panda_description/urdf/panda.urdf", False),
     ("Allegro hand", "allegro_hand_description/urdf/allegro_right_hand.urdf", False),
     ("Solo12 quadruped, fixed base", "solo12.urdf", False),
     ("Solo12 quadruped, floating base", "solo12.urdf", True),
     ("Talos humanoid (reduced), floating base", "talos_reduced.urdf", True),
+    ("Talos humanoid (full v2, 12 gripper mimics coupled), floating base",
+     "talos_data/robots/talos_full_v2.urdf", True),
 )
 TIMED = ("UR5 arm", "Talos humanoid (reduced), floating base")
 FALL = dict(t_end=1.0, rtol=1e-8, atol=1e-10)
@@ -77,7 +81,7 @@ def models():
     for label, file, floating in ROBOTS:
         path = robot_file(file)
         if path is not None:
-            out.append((label, load_model(path, floating=floating, mimic="independent"), path))
+            out.append((label, load_model(path, floating=floating), path))
     robots_dir = resources.files("redysim.case_files.robots")  # package data, not a path
     for toml in sorted((f for f in robots_dir.iterdir() if f.name.endswith(".toml")),
                        key=lambda f: f.name):
@@ -117,7 +121,7 @@ def agreement(label, model) -> list[dict]:
     rows = []
     for name in references.ENGINES:
         row = {"robot": label, "engine": name, "n_v": model.n_v, "status": "ok", "reason": "",
-               **dict.fromkeys(STAGES, math.nan)}
+               "couplings": len(model.couplings), **dict.fromkeys(STAGES, math.nan)}
         cls = references.get(name)
         try:
             if not cls.available():

@@ -18,6 +18,7 @@ import pytest
 from conftest import rel, stable_seed
 from test_trees import random_configuration
 
+import redysim
 from redysim import forward_dynamics, inverse_dynamics, mass_matrix, rbda
 from redysim.errors import CaseError, FieldError
 from redysim.io.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_model, load_urdf
@@ -630,11 +631,30 @@ EQUALITY = """<mujoco><default><geom contype="0" conaffinity="0"/></default><wor
 
 
 @pytest.mark.engine
+def test_a_joint_equality_of_degree_one_is_a_coupling(tmp_path):
+    """MuJoCo's y - y0 = a0 + a1 (x - x0) about the joints' refs: q_ja = a1 q_jb + a0 + y0 -
+    a1 x0, held exactly (MuJoCo's softness announced); equality="drop" drops it."""
+    text = EQUALITY.format(eq='<joint name="c" joint1="ja" joint2="jb" polycoef="0.1 -2 0 0 0"/>')
+    text = text.replace('<joint name="ja" axis="0 1 0"/>', '<joint name="ja" axis="0 1 0" '
+                        'ref="0.2"/>').replace('<joint name="jb" axis="0 1 0"/>',
+                                               '<joint name="jb" axis="0 1 0" ref="0.3"/>')
+    path = write(tmp_path, f'<mujoco><compiler angle="radian"/>{text[len("<mujoco>"):]}',
+                 "c.xml")
+    model = load_model(path)
+    (c,) = model.couplings
+    assert (c.follower, c.leader, c.multiplier) == ("ja", "jb", -2.0)
+    assert c.offset == pytest.approx(0.1 + 0.2 + 2 * 0.3, abs=1e-15)
+    notes_with(model, "equality 'c': solref, solimp", "held exactly")
+    assert not load_model(path, equality="drop").couplings
+
+
+@pytest.mark.engine
 @pytest.mark.parametrize("eq, what", [
     ('<connect name="loop" body1="a" body2="b" anchor="0.3 0 0"/>',
      "connect of body 'a' and body 'b'"),
     ('<weld name="loop" body1="a" body2="b"/>', "weld of body 'a' and body 'b'"),
-    ('<joint name="loop" joint1="ja" joint2="jb"/>', "joint of joint 'ja' and joint 'jb'"),
+    ('<joint name="loop" joint1="ja" joint2="jb" polycoef="0 1 0.5 0 0"/>',
+     "joint of joint 'ja' and joint 'jb'"),  # of degree 2: no coupling
 ])
 def test_an_equality_constraint_is_refused_or_dropped_by_name(tmp_path, eq, what):
     """A loop closure or coupling: refused by default, with the hint to build closed loops with
@@ -781,14 +801,44 @@ def test_what_does_not_act_in_a_urdf_is_one_line(tmp_path):
     assert load_model(path).n_v == 1
 
 
-def test_a_mimic_joint_let_move_independently_is_announced(tmp_path):
+def test_a_mimic_joint_is_a_coupling_or_moves_independently_as_asked(tmp_path):
+    """By default a mimic couples (q_j2 = 2 q_j1 + 0.1, the model's Coupling); "independent"
+    lets it move on its own, announced; "refuse" refuses it by name."""
     text = urdf(more=LINK.format(n="tip", extra="") + '<joint name="j2" type="revolute">'
                 '<parent link="arm"/><child link="tip"/><axis xyz="0 0 1"/>'
                 '<mimic joint="j1" multiplier="2" offset="0.1"/></joint>')
     path = write(tmp_path, text, "r.urdf")
-    refused(lambda: load_model(path), "joint 'j2'/mimic.joint", "mimic joint couples")
+    model = load_model(path, strict=True)
+    assert model.couplings == (redysim.Coupling("j2", "j1", 2.0, 0.1),)
+    assert model.neutral()[model.joint_names.index("j2")] == 0.1  # on its leader at 0
+    refused(lambda: load_model(path, mimic="refuse"), "joint 'j2'/mimic.joint",
+            "mimic joint couples", "mimic='couple'")
     model = load_model(path, mimic="independent", strict=True)
+    assert not model.couplings
     notes_with(model, "joint 'j2': mimic = 'j1' * 2 + 0.1 dropped (it moves independently")
+
+
+@pytest.mark.parametrize("extra, field, fragments", [
+    ('<mimic joint="nope"/>', "joint 'j2'/mimic.joint", ("no joint of that name",)),
+    ('<mimic joint="j1" multiplier="x"/>', "joint 'j2'/mimic.multiplier", ()),
+    ('<mimic joint="j2"/>', "joint 'j2'/mimic.joint", ("cycle",)),
+])
+def test_a_bad_mimic_is_refused_by_name(tmp_path, extra, field, fragments):
+    text = urdf(more=LINK.format(n="tip", extra="") + '<joint name="j2" type="revolute">'
+                f'<parent link="arm"/><child link="tip"/><axis xyz="0 0 1"/>{extra}</joint>')
+    refused(lambda: load_model(write(tmp_path, text, "r.urdf")), field, *fragments)
+
+
+def test_a_mimic_of_a_mimic_is_composed_onto_the_first_leader(tmp_path):
+    """j3 mimics j2 (x3, +0.2), which mimics j1 (x2, +0.1): q3 = 3 (2 q1 + 0.1) + 0.2."""
+    text = urdf(more=LINK.format(n="tip", extra="") + LINK.format(n="end", extra="")
+                + '<joint name="j2" type="revolute"><parent link="arm"/><child link="tip"/>'
+                '<axis xyz="0 0 1"/><mimic joint="j1" multiplier="2" offset="0.1"/></joint>'
+                '<joint name="j3" type="prismatic"><parent link="tip"/><child link="end"/>'
+                '<axis xyz="1 0 0"/><mimic joint="j2" multiplier="3" offset="0.2"/></joint>')
+    model = load_model(write(tmp_path, text, "r.urdf"))
+    assert set(model.couplings) == {redysim.Coupling("j2", "j1", 2.0, 0.1),
+                                    redysim.Coupling("j3", "j1", 6.0, 0.5)}
 
 
 # --------------------------------------------------------------------------- URDF: refused

@@ -173,6 +173,62 @@ def _phi(model, ws, q, v, tau):
     return ws.phi
 
 
+COUPLING_TOL = 1e-9  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f| (and for v, qdd)
+
+
+def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
+    """Refuse a state off the model's couplings (StateError naming the joints and values): a
+    follower's ``q`` must be m q_l + offset, its ``v`` (or ``qdd``) m times its leader's."""
+    i = 0 if name == "q" else 2
+    idx = model.coupling_index
+    f, ld, m = idx[i], idx[i + 1], idx[4]
+    want = m * x[ld] + (idx[5] if name == "q" else 0.0)
+    bad = np.abs(x[f] - want) > COUPLING_TOL * (1.0 + np.abs(x[f]))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        c = model.couplings[k]
+        raise StateError(f"{name}[{int(f[k])}] = {x[f[k]]:.17g}, joint {c.follower!r}, follows "
+                         f"joint {c.leader!r} ({name}[{int(ld[k])}] = {x[ld[k]]:.17g}) with "
+                         f"multiplier {c.multiplier:g}" + (f" and offset {c.offset:g}"
+                                                           if name == "q" else "")
+                         + f": it must be {want[k]:.17g} (model.couple(q, v) sets the "
+                         "followers from their leaders)")
+
+
+def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.ndarray:
+    """qdd of a coupled model (:meth:`Model.with_couplings`), by Featherstone's method on the
+    tree: qdd0 the tree's, X = M^-1 J^T by the tree's forward dynamics with no gravity and no
+    velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
+    qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
+    couplings are linear, so Jdot v = 0)."""
+    if method != "rge-a" and planar:
+        raise ValueError("planar=True takes method 'rge-a'")
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    tau = check_state(model, "tau", tau, optional=True)
+    check_coupled(model, "q", q)
+    check_coupled(model, "v", v)
+    tree, free = model.tree, model.free_tree
+    qdd = forward_dynamics(tree, q, v, tau, method)
+    _, _, fv, lv, m, _ = model.coupling_index
+    n, k = model.n_v, fv.shape[0]
+    J = np.zeros((k, n))
+    J[np.arange(k), fv] = 1.0
+    np.subtract.at(J, (np.arange(k), lv), m)
+    zeros = np.zeros(n)
+    X = np.column_stack([forward_dynamics(free, q, zeros, row, method) for row in J])
+    lam = np.linalg.solve(J @ X, -(J @ qdd))
+    qdd = qdd + X @ lam
+    qdd[fv] = m * qdd[lv]  # exactly on the couplings (the solve leaves rounding)
+    if not np.isfinite(qdd).all():
+        raise overflow_error("qdd", q=q, v=v, tau=tau)
+    if out is None:
+        return qdd
+    out = check_out(model, out)
+    out[:] = qdd
+    return out
+
+
 def closed_error(model: Model, what: str) -> CaseError:
     """The refusal of ``what`` on a model with cut joints, whose tree's answer would ignore
     them silently."""
@@ -189,14 +245,26 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
 
     A batch: q (B, n_q), v and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
     rows on threads (``threads``, as for :func:`forward_dynamics`).
+
+    A coupled model (:meth:`Model.with_couplings`): q, v and qdd must keep the couplings, and
+    tau is the tree's (each joint's torque for that motion, with no coupling force), which
+    :func:`forward_dynamics` maps back to qdd.
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
     if _is_batch(q):
+        if model.couplings:
+            return np.array([inverse_dynamics(model, *row, ws=ws)
+                             for row in zip(*(check_batch(model, name, x, None)
+                                              for name, x in (("q", q), ("v", v),
+                                                              ("qdd", qdd))), strict=True)])
         return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads)
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     qdd = check_state(model, "qdd", qdd)
+    if model.couplings:  # the tree's torques: the coupled motion's, with no coupling force
+        for name, x in (("q", q), ("v", v), ("qdd", qdd)):
+            check_coupled(model, name, x)
     ws = _ws(model, ws)
     c = model
     _run_kinematics(c, ws, q, v, qdd, ws.base_accel)
@@ -257,11 +325,27 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     itself. Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.
 
-    A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them).
+    A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
+    model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion, by Featherstone's
+    method on the tree (1 + len(couplings) tree calls, in Python: no batch kernels); q and v must
+    keep its couplings (StateError otherwise: ``model.couple(q, v)`` sets them).
     """
     ws = _ws(model, ws)
-    if model.cuts:
-        raise closed_error(model, "forward_dynamics")
+    if model.cuts or model.couplings:
+        if model.cuts:
+            raise closed_error(model, "forward_dynamics")
+        if _is_batch(q):
+            Q = check_batch(model, "q", q, None)
+            V = check_batch(model, "v", v, Q.shape[0])
+            T = None if tau is None else np.broadcast_to(np.asarray(tau, dtype=float),
+                                                         (Q.shape[0], model.n_v))
+            res = np.array([_coupled_forward(model, Q[i], V[i], None if T is None else T[i],
+                                             method, planar, None) for i in range(Q.shape[0])])
+            if out is not None:
+                out[...] = res
+                return out
+            return res
+        return _coupled_forward(model, q, v, tau, method, planar, out)
     is_planar = model.is_planar
     if planar is None:
         planar = is_planar

@@ -61,6 +61,11 @@ def evaluator(model: Model, kind: str = "forward_dynamics") -> Callable[..., np.
         raise FieldError("evaluator", "kind", kind, f"must be one of {', '.join(KINDS)}")
     if model.cuts:
         raise closed_error(model, f"evaluator(kind={kind!r})")
+    if model.couplings:
+        raise FieldError("evaluator", "model", model.name, "a coupled model (its couplings: "
+                         f"{', '.join(c.follower for c in model.couplings)}): the lean entries "
+                         "run the tree's recursions only; call redysim.forward_dynamics or "
+                         "inverse_dynamics, which keep the couplings")
     ws = Workspace(model)
     serial = bool(ws.tree.serial)
     if kind == "forward_dynamics":

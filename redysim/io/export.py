@@ -12,8 +12,10 @@ the model's initial pose (:meth:`Model.initial`; MuJoCo's qpos0), the inertia as
 (mass, COM, principal moments ``diaginertia`` and, unless the tensor is diagonal, their axes
 ``quat``: MuJoCo checks A + B >= C on principal moments strictly, so a lamina's, which round-off
 may break by an ulp, get their largest set to the sum of the others), gravity as ``<option
-gravity>``. No geometry, so no contacts; no damping, armature or limits. MuJoCo composes a
-body's joints one after the other, each about its own anchor ``pos`` and ``axis``, fixed in the
+gravity>``, a coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's
+y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest). No geometry,
+so no contacts; no damping, armature or limits. MuJoCo composes a body's joints one after the
+other, each about its own anchor ``pos`` and ``axis``, fixed in the
 body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
 
 - A massless body (mass 0, inertia 0) with exactly one child is merged into that child, which
@@ -38,7 +40,8 @@ repeated body or joint names.
 from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
 but the last hang from massless links (``<body>_axis<i>``); a free joint is left out (URDF has
 none that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model`
-offers). The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw, converted from the
+offers). A coupling is the follower's ``<mimic joint multiplier offset>``. The placement is
+written as ``xyz`` and ``rpy`` (roll-pitch-yaw, converted from the
 rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model
 whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
 -z, in the origins of the joints from ``world`` (an XML comment says which); the dynamics as
@@ -74,6 +77,7 @@ MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the least mass and principal moment of a 
 # nested bodies load, 497 do not (tests/test_export.py checks both sides).
 MJCF_MAX_DEPTH = 496
 MJCF_MAX_DOFS = 6  # DOFs MuJoCo's compiler takes in one body
+MJCF_HARD_SOLIMP = "0.9999 0.9999 0.001 0.5 2"  # a coupling's equality: MuJoCo's hardest
 TRIANGLE_RTOL = 1e-12  # a principal moment above the sum of the others by round-off (a lamina)
 GRAVITY_RTOL = 1e-14  # |g| = 9.81 to round-off, for URDF
 URDF_ROOT = "world"
@@ -382,6 +386,13 @@ def to_mjcf(system: Model) -> str:
                 ET.SubElement(body, "joint", attrs)
         ET.SubElement(body, "inertial", inertials[i])
         elements.append(body)
+    if model.couplings:  # MuJoCo's y - y0 = a0 + a1 (x - x0), y0 and x0 the joints' refs
+        eq = ET.SubElement(root, "equality")
+        fq, lq, _, _, m, off = model.coupling_index
+        for c, f, ld, mult, o in zip(model.couplings, fq, lq, m, off, strict=True):
+            a0 = o - q0[f] + mult * q0[ld]
+            ET.SubElement(eq, "joint", joint1=c.follower, joint2=c.leader,
+                          polycoef=f"{_num(a0)} {_num(mult)} 0 0 0", solimp=MJCF_HARD_SOLIMP)
     return _xml(root)
 
 
@@ -483,12 +494,18 @@ def to_urdf(system: Model) -> str:
                           ixz=_num(I[0, 2]), iyy=_num(I[1, 1]), iyz=_num(I[1, 2]),
                           izz=_num(I[2, 2]))
 
+    mimics = {c.follower: c for c in model.couplings}
+
     def joint(name, kind, parent, child, xyz, R, axis):
         el = ET.SubElement(root, "joint", name=name, type=kind)
         ET.SubElement(el, "origin", xyz=_vec(xyz), rpy=_vec(_rpy(R)))
         ET.SubElement(el, "parent", link=parent)
         ET.SubElement(el, "child", link=child)
         ET.SubElement(el, "axis", xyz=_vec(axis))
+        if name in mimics:  # a coupling: q = multiplier q_joint + offset
+            c = mimics[name]
+            ET.SubElement(el, "mimic", joint=c.leader, multiplier=_num(c.multiplier),
+                          offset=_num(c.offset))
 
     for k in range(model.n_bodies):
         name = model.body_names[k]

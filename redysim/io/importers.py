@@ -13,8 +13,13 @@ are described z up). A root link named ``world`` is the world, as MuJoCo and Gaz
 Refused, naming the file and the element: not well-formed XML, a link or joint name used twice,
 a joint whose parent or child link does not exist, a link that is the child of two joints or a
 cycle of joints (a kinematic loop), two root links, a planar joint, a floating joint below a
-link that moves, a mimic joint (unless ``mimic="independent"``, Pinocchio's default), a
-malformed number, an <inertial> without its <mass> or <inertia> (urdfdom refuses them too).
+link that moves, a malformed number, an <inertial> without its <mass> or <inertia> (urdfdom
+refuses them too). A mimic joint (``<mimic joint multiplier offset>``: q = multiplier q_joint +
+offset) is a coupling of the model (:class:`~redysim.model.tree.Coupling`; a mimic of a mimic is
+composed onto the first leader), as Pinocchio's ``mimic=True`` reads it: the default,
+``mimic="couple"``; ``mimic="independent"`` lets it move on its own (announced; what
+Pinocchio's and MuJoCo's URDF readers do by default), ``mimic="refuse"`` refuses it. A mimic on
+a fixed joint moves nothing and is announced.
 
 **MJCF** is compiled by MuJoCo first (``mujoco.MjSpec``; the ``models`` extra installs it),
 because a file's meaning is its compiler's: inertias from geometry, default classes, angles in
@@ -27,9 +32,11 @@ massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed
 P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
--a_n. Refused: a ball joint, a free joint below the root, an active equality constraint (a loop
-closure or a coupling; closed loops are built with :func:`redysim.load_linkage` and
-:class:`redysim.ClosedLoops`) unless ``equality="drop"``, a file nested deeper than MuJoCo's
+-a_n. A joint equality of degree 1 between two hinge or slide joints is a coupling of the model
+(:class:`~redysim.model.tree.Coupling`, held exactly: MuJoCo's softness announced). Refused: a
+ball joint, a free joint below the root, any other active equality constraint (a loop closure;
+closed loops are built with :func:`redysim.load_linkage` and :class:`redysim.ClosedLoops`) unless
+``equality="drop"`` (which drops every equality, couplings too), a file nested deeper than MuJoCo's
 XML reader takes (:data:`MJCF_MAX_DEPTH` elements), and what MuJoCo's compiler refuses (its
 message kept, the element named).
 
@@ -73,6 +80,7 @@ from redysim.model.tree import (
     FIXED,
     FREE,
     Body,
+    Coupling,
     Model,
     TreeJoint,
     drop_world_fixed,
@@ -84,7 +92,7 @@ __all__ = ["ModelFileError", "load_model", "load_urdf", "load_mjcf", "MIMIC", "E
            "MJCF_MAX_DEPTH", "URDF_GRAVITY"]
 
 URDF_GRAVITY = (0.0, 0.0, -9.81)  # URDF has no gravity; robots are described z up
-MIMIC = ("refuse", "independent")
+MIMIC = ("couple", "independent", "refuse")
 EQUALITY = ("refuse", "drop")
 # MuJoCo's XML reader (tinyxml2) refuses a document nested deeper than this many elements
 # (measured with MuJoCo 4.0: <mujoco><worldbody>, 496 nested <body>, a <joint> in the last)
@@ -398,7 +406,7 @@ def _urdf_unread(report: _Report, root, mimic: str) -> None:
                 limits.append((name, [float(lo), float(hi)]))
             bounds += any(lim.get(k) is not None for k in ("effort", "velocity"))
         mim = joint.find("mimic")
-        if mim is not None and mimic == "independent":
+        if mim is not None and (mimic == "independent" or jtype == "fixed"):
             mimics.append((name, f"{mim.get('joint')!r} * {mim.get('multiplier', '1')} + "
                                  f"{mim.get('offset', '0')}"))
     for link in root.findall("link"):
@@ -406,7 +414,8 @@ def _urdf_unread(report: _Report, root, mimic: str) -> None:
         if n:
             collision.append((link.get("name"), None))
         report.unread_count("<visual>", len(link.findall("visual")))
-    report.drop("joint", mimics, "mimic", "it moves independently: mimic='independent'",
+    report.drop("joint", mimics, "mimic", "it moves independently: mimic='independent'"
+                if mimic == "independent" else "a fixed joint moves nothing to couple",
                 motion=False)
     report.drop("joint", damping, "<dynamics> damping", "no joint damping in the core")
     report.drop("joint", friction, "<dynamics> friction", "no joint friction in the core")
@@ -421,13 +430,61 @@ def _urdf_unread(report: _Report, root, mimic: str) -> None:
             report.unread_count(f"<{element.tag}>", 1)
 
 
-def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "refuse",
+def _urdf_mimics(src: str, root, mimic: str) -> list[Coupling]:
+    """The couplings of a URDF's mimic joints (``mimic="couple"``; none for "independent"),
+    each composed onto its first leader (a mimic of a mimic: multipliers multiplied, offsets
+    carried); ModelFileError naming the element for a mimic ``mimic="refuse"`` refuses, a
+    leader that is no joint or not one R or P axis, a mimic cycle or a bad number. A mimic on a
+    fixed joint moves nothing: left out (announced by :func:`_urdf_unread`)."""
+    types = {j.get("name"): j.get("type") for j in root.findall("joint")}
+    rule: dict[str, tuple[str, float, float]] = {}
+    for joint_el in root.findall("joint"):
+        mimic_el = joint_el.find("mimic")
+        if mimic_el is None:
+            continue
+        name = joint_el.get("name")
+        where = f"joint {name!r}/mimic"
+        if mimic == "refuse":
+            raise ModelFileError(src, f"{where}.joint", mimic_el.get("joint"), "a mimic joint "
+                                 "couples two joints; load with mimic='couple' (the default) to "
+                                 "keep the coupling, mimic='independent' to let it move on its "
+                                 "own, or remove the <mimic>")
+        if mimic == "independent" or types.get(name) == "fixed":
+            continue
+        leader = mimic_el.get("joint")
+        if leader not in types:
+            raise ModelFileError(src, f"{where}.joint", leader, "no joint of that name")
+        for who, jt in ((name, types[name]), (leader, types[leader])):
+            if jt not in ("revolute", "continuous", "prismatic"):
+                raise ModelFileError(src, f"{where}.joint" if who == leader else
+                                     f"joint {name!r}.type", jt, f"joint {who!r} is {jt}: a "
+                                     "mimic couples one revolute, continuous or prismatic "
+                                     "joint to another")
+        m = float(_numbers(src, f"{where}.multiplier", mimic_el.get("multiplier"), 1, (1,))[0])
+        off = float(_numbers(src, f"{where}.offset", mimic_el.get("offset"), 1, (0,))[0])
+        rule[name] = (leader, m, off)
+    out = []
+    for name, (leader, m, off) in rule.items():
+        seen = {name}
+        while leader in rule:  # compose onto the first leader: q = m (m2 q2 + o2) + o
+            if leader in seen:
+                raise ModelFileError(src, f"joint {name!r}/mimic.joint", leader, "the mimic "
+                                     f"joints {sorted(seen)} follow one another in a cycle")
+            seen.add(leader)
+            leader, m2, o2 = rule[leader]
+            m, off = m * m2, m * o2 + off
+        out.append(Coupling(name, leader, m, off))
+    return out
+
+
+def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
               strict: bool = False) -> Model:
     """A URDF's tree, gravity -9.81 along z (module doc).
 
     ``floating``: the root link gets a free joint (a legged or flying robot; initial q its
-    pose at the origin), else it is fixed to the world. ``mimic``: "refuse" (the default) a
-    mimic joint, or let it move "independent"ly (announced). ``strict``: refuse, instead of
+    pose at the origin), else it is fixed to the world. ``mimic``: "couple" (the default) a
+    mimic joint to its leader (:attr:`Model.couplings`), let it move "independent"ly
+    (announced), or "refuse" it. ``strict``: refuse, instead of
     announcing in :attr:`Model.notes`, what would change the motion and the core does not
     model (damping, friction, limits, collision geometry). Raises ModelFileError naming the
     file, the element (``joint 'elbow'``, ``link 'base'``) and the value."""
@@ -442,14 +499,7 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
     if root.tag != "robot":
         raise ModelFileError(src, f"<{root.tag}>", None, "a URDF's root element is <robot>")
     links, children, base = _urdf_graph(src, root)
-    for joint_el in root.findall("joint"):
-        mimic_el = joint_el.find("mimic")
-        if mimic_el is not None and mimic == "refuse":
-            raise ModelFileError(src, f"joint {joint_el.get('name')!r}/mimic.joint",
-                                 mimic_el.get("joint"), "a mimic joint couples two "
-                                 "joints, which a tree of independent joints cannot hold; load "
-                                 "with mimic='independent' to let it move on its own "
-                                 "(Pinocchio's default), or remove the <mimic>")
+    couplings = _urdf_mimics(src, root, mimic)
     report = _Report(src)
     _urdf_unread(report, root, mimic)
 
@@ -529,6 +579,8 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
 
     model = _finish(bodies, joints, parents, URDF_GRAVITY, root.get("name") or path.stem, src,
                     report.notes(strict))
+    if couplings:
+        model = model.with_couplings(couplings, source=src)
     if free_poses:
         q = model.neutral()
         kept = [k for k, j in enumerate(joints) if j.type == FREE]
@@ -868,13 +920,32 @@ def _mjcf_contacts(mj, m, report: _Report, *, filterparent: bool) -> None:
                 "no contacts in the core")
 
 
-def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> None:
-    """Refuse an active equality constraint (or drop it, announced, with equality='drop');
+def _mjcf_coupling(mj, m, e: int) -> Coupling | None:
+    """The coupling an equality holds (a joint equality of two hinge or slide joints whose
+    polynomial is of degree 1 at most: MuJoCo's y - y0 = a0 + a1 (x - x0), x0 and y0 the joints'
+    qpos0, i.e. q_y = a1 q_x + a0 + y0 - a1 x0), else None."""
+    if int(m.eq_type[e]) != int(mj.mjtEq.mjEQ_JOINT) or int(m.eq_obj2id[e]) < 0:
+        return None
+    j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+    scalar = (int(mj.mjtJoint.mjJNT_HINGE), int(mj.mjtJoint.mjJNT_SLIDE))
+    a = np.asarray(m.eq_data[e][:5], dtype=float)
+    if int(m.jnt_type[j1]) not in scalar or int(m.jnt_type[j2]) not in scalar or np.any(a[2:]):
+        return None
+    y0, x0 = float(m.qpos0[m.jnt_qposadr[j1]]), float(m.qpos0[m.jnt_qposadr[j2]])
+    return Coupling(_name(mj, m, "joint", j1), _name(mj, m, "joint", j2), float(a[1]),
+                    float(a[0] + y0 - a[1] * x0))
+
+
+def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> list[Coupling]:
+    """The couplings of the active joint equalities of degree 1 between two hinge or slide
+    joints (held exactly: MuJoCo's soft constraint without its softness, announced); refuse any
+    other active equality constraint (or drop every one, announced, with equality='drop');
     announce an inactive one."""
     off = m.opt.disableflags & (mj.mjtDisableBit.mjDSBL_EQUALITY |
                                 mj.mjtDisableBit.mjDSBL_CONSTRAINT)
     active: list[tuple[str, str, str]] = []
     inactive: list[tuple[str, str, str]] = []
+    couplings: list[tuple[str, Coupling]] = []
     for e in range(m.neq):
         kind = mj.mjtEq(int(m.eq_type[e])).name.removeprefix("mjEQ_").lower()
         name = _name(mj, m, "equality", e)
@@ -885,6 +956,10 @@ def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> None:
         between = [mj.mj_id2name(m, code, int(i)) or f"{obj}{int(i)}"
                    for i in (m.eq_obj1id[e], m.eq_obj2id[e]) if int(i) >= 0]
         what = f"{kind} of " + " and ".join(f"{obj} {n!r}" for n in between)
+        coupling = _mjcf_coupling(mj, m, e)
+        if m.eq_active0[e] and not off and coupling is not None and equality == "refuse":
+            couplings.append((name, coupling))
+            continue
         (active if m.eq_active0[e] and not off else inactive).append((name, what, kind))
     if active and equality == "refuse":
         name, what, kind = active[0]
@@ -898,6 +973,10 @@ def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> None:
                 "equality='drop': the tree moves without it", motion=False)
     report.drop("equality", [(n, w) for n, w, _ in inactive], "constraint", "inactive in the "
                 "file (active = false, or equality disabled by a flag)", motion=False)
+    report.drop("equality", [(n, f"{c.follower!r} = {c.multiplier:g} {c.leader!r} + "
+                             f"{c.offset:g}") for n, c in couplings], "solref, solimp",
+                "a joint coupling, held exactly (Model.couplings), not softly as MuJoCo does")
+    return [c for _, c in couplings]
 
 
 def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str = "refuse",
@@ -907,10 +986,11 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
 
     ``floating``: the one root body without joints gets a free joint (its file pose the
     initial q); refused when a root body already moves on other joints or several roots have
-    none. ``equality``: "refuse" (the default) an active equality constraint, or "drop" it
-    (announced). ``strict``: refuse, instead of announcing in :attr:`Model.notes`, what would
-    change the motion and the core does not model. Raises ModelFileError naming the file, the
-    element (``joint 'knee'``, ``body 'torso'``) and the value."""
+    none. ``equality``: "refuse" (the default) an active equality constraint that is no
+    coupling (a joint equality of degree 1: kept as one, :attr:`Model.couplings`), or "drop"
+    every one (announced). ``strict``: refuse, instead of announcing in :attr:`Model.notes`,
+    what would change the motion and the core does not model. Raises ModelFileError naming the
+    file, the element (``joint 'knee'``, ``body 'torso'``) and the value."""
     path = Path(path)
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
@@ -919,11 +999,13 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     m = _compile_mjcf(mj, path, floating)
     bodies, joints, parents = _mjcf_tree(mj, m, src)
     report = _Report(src)
-    _mjcf_equality(mj, m, src, report, equality)
+    couplings = _mjcf_equality(mj, m, src, report, equality)
     _mjcf_unread(mj, m, report)
     gravity = (0.0, 0.0, 0.0) if m.opt.disableflags & mj.mjtDisableBit.mjDSBL_GRAVITY else \
         tuple(float(g) for g in m.opt.gravity)
     model = _finish(bodies, joints, parents, gravity, path.stem, src, report.notes(strict))
+    if couplings:
+        model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))
     return model
 
@@ -957,7 +1039,7 @@ def _check_inertia_to_move(model: Model, src: str) -> None:
 
 
 # --------------------------------------------------------------------------- any file
-def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = "refuse",
+def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
                equality: str = "refuse", strict: bool = False) -> Model:
     """The model in ``path``: ``.urdf`` (:func:`load_urdf`: ``floating``, ``mimic``,
     ``strict``), MJCF ``.xml`` (:func:`load_mjcf`: ``floating``, ``equality``, ``strict``), a

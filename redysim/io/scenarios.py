@@ -516,6 +516,18 @@ def _initial(source: str, model: Model, idoc: dict, linkage) -> tuple[np.ndarray
     if model.cuts and linkage_q0 is not None and ("q" in idoc or "random" in idoc):
         raise CaseError(source, "initial", sorted(idoc), "a linkage's q0 is assembled from its "
                         "driver (its file's [initial] table); give v only")
+    if model.couplings:  # followers on their leaders: set after a random perturbation, else
+        # the state given must keep them
+        from redysim.algorithms.dynamics import check_coupled
+        from redysim.errors import StateError
+
+        if "random" in idoc:
+            q0, v0 = model.couple(q0, v0)
+        for name, x in (("q", q0), ("v", v0)):
+            try:
+                check_coupled(model, name, x)
+            except StateError as exc:
+                raise CaseError(source, f"initial.{name}", None, str(exc)) from None
     for a in (q0, v0):
         a.flags.writeable = False
     return q0, v0

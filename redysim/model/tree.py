@@ -190,6 +190,10 @@ class Model:
                           (:mod:`redysim.io.importers`: dropped attributes, things not read).
         cuts:             the cut joints that close the model's loops (:meth:`with_cuts`; none
                           for a tree).
+        couplings:        joints whose coordinate follows another's, q_f = m q_l + offset
+                          (:class:`Coupling`, :meth:`with_couplings`: a URDF mimic joint); the
+                          coordinates stay the tree's, n_v, of which the couplings hold
+                          len(couplings): the mechanism moves with n_v - len(couplings) DOF.
 
     A model also carries its own scratch: a dynamics function called without ``ws=`` uses the
     calling thread's :class:`~redysim.algorithms.workspace.Workspace` of the model, made on the
@@ -222,6 +226,7 @@ class Model:
     notes: tuple[str, ...] = ()  # what the file holds and the model does not, one line each
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
     cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
+    couplings: tuple = ()  # joints that follow others (Coupling: a URDF mimic joint)
     # The per-thread workspaces (a threading.local), in the instance's __dict__ once made
     # (redysim.algorithms.workspace.model_workspace); declared here for the type checker only (a
     # ClassVar is no dataclass field, and the class itself has no such attribute).
@@ -396,7 +401,101 @@ class Model:
         if cuts is not None and not isinstance(cuts, str | CutJoint) and len(cuts) == 0:
             return dataclasses.replace(self, cuts=())
         check_cuts(self, cuts, source or f"{self.name}.with_cuts")
+        if self.couplings:
+            _fail(source or f"{self.name}.with_cuts", "cuts", [c.name for c in cuts],
+                  "a model with couplings takes no cut joints (not supported together yet)")
         return dataclasses.replace(self, cuts=tuple(cuts))
+
+    def with_couplings(self, couplings: Sequence, *, source: str | None = None) -> Model:
+        """The model with these couplings (:class:`Coupling`: a joint's coordinate held at a
+        multiple of another's plus an offset, q_f = m q_l + offset, as a URDF mimic joint),
+        checked against it. :func:`redysim.forward_dynamics` then gives the coupled motion
+        (Featherstone's method on the tree's recursions: the tree's qdd, corrected by the
+        coupling forces), :func:`redysim.simulate` keeps the followers on their leaders; the GIM,
+        phi, inverse dynamics and energy are the tree's, in its coordinates. ``with_couplings(())``
+        is the uncoupled tree. Raises CaseError naming a bad coupling (``source``: where they
+        come from): an unknown joint, a joint that is not R or P, a follower that follows twice
+        or leads another (give each follower its first leader: q_f = m1 m2 q_l + ...), a joint
+        that follows itself, a number that is not finite, or a model with cut joints."""
+        import dataclasses
+
+        where = source or f"{self.name}.with_couplings"
+        if couplings is not None and not isinstance(couplings, str | Coupling) and \
+                len(couplings) == 0:
+            return dataclasses.replace(self, couplings=())
+        if isinstance(couplings, Coupling | str) or not isinstance(couplings, Sequence):
+            _fail(where, "couplings", type(couplings).__name__, "must be a list of Coupling")
+        if self.cuts:
+            _fail(where, "couplings", [c.follower for c in couplings if isinstance(c, Coupling)],
+                  "a model with cut joints takes no couplings (not supported together yet)")
+        index = {name: k for k, name in enumerate(self.joint_names)}
+        followers: set[str] = set()
+        for i, c in enumerate(couplings):
+            if not isinstance(c, Coupling):
+                _fail(where, f"couplings[{i}]", type(c).__name__, "must be a redysim.Coupling")
+            for side in ("follower", "leader"):
+                name = getattr(c, side)
+                if name not in index:
+                    shown = ", ".join(self.joint_names[:12]) + (", ..." if self.n_bodies > 12
+                                                                else "")
+                    _fail(where, f"couplings[{i}].{side}", name, f"no such joint; joints: {shown}")
+                jt = self.joint_types[index[name]]
+                if jt not in ("R", "P"):
+                    _fail(where, f"couplings[{i}].{side}", name, f"a {jt} joint: a coupling "
+                          "holds one R or P joint's coordinate to another's")
+            if c.follower == c.leader:
+                _fail(where, f"couplings[{i}].leader", c.leader, "a joint cannot follow itself")
+            if c.follower in followers:
+                _fail(where, f"couplings[{i}].follower", c.follower, "follows twice")
+            followers.add(c.follower)
+        for i, c in enumerate(couplings):
+            if c.leader in followers:
+                _fail(where, f"couplings[{i}].leader", c.leader, "itself follows another joint: "
+                      "give the follower that joint's leader (multipliers multiplied, offsets "
+                      "carried)")
+        return dataclasses.replace(self, couplings=tuple(couplings))
+
+    @cached_property
+    def coupling_index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                      np.ndarray, np.ndarray]:
+        """The couplings as arrays: (follower q index, leader q index, follower v index, leader
+        v index, multiplier, offset), one entry per coupling."""
+        index = {name: k for k, name in enumerate(self.joint_names)}
+        f = [index[c.follower] for c in self.couplings]
+        ld = [index[c.leader] for c in self.couplings]
+        out = (self.joint_qoff[f], self.joint_qoff[ld], self.joint_voff[f], self.joint_voff[ld],
+               np.array([c.multiplier for c in self.couplings], dtype=float),
+               np.array([c.offset for c in self.couplings], dtype=float))
+        for a in out:
+            a.flags.writeable = False
+        return out  # type: ignore[return-value]
+
+    def couple(self, q, v=None):
+        """(q, v) with every follower's coordinate and velocity set from its leader's
+        (q_f = m q_l + offset, v_f = m v_l): copies; q alone when ``v`` is None. The identity
+        for a model without couplings."""
+        q = np.array(q, dtype=float)
+        fq, lq, fv, lv, m, off = self.coupling_index
+        q[fq] = m * q[lq] + off
+        if v is None:
+            return q
+        v = np.array(v, dtype=float)
+        v[fv] = m * v[lv]
+        return q, v
+
+    @cached_property
+    def tree(self) -> Model:
+        """The model without its couplings (itself when it has none)."""
+        import dataclasses
+
+        return dataclasses.replace(self, couplings=()) if self.couplings else self
+
+    @cached_property
+    def free_tree(self) -> Model:
+        """:attr:`tree` without gravity: M^-1 x is its forward dynamics at v = 0, tau = x."""
+        import dataclasses
+
+        return dataclasses.replace(self.tree, gravity=_readonly(np.zeros(3)))
 
     def locked(self, values: Mapping[str, float | Sequence[float]]) -> Model:
         """The model with the named joints held at the given coordinates (a reduced model, as
@@ -406,6 +505,11 @@ class Model:
         (U: 2, S: 3, free: the 7 of q). Raises CaseError naming ``values`` when it is not such a
         mapping, an unknown joint, or a value that is not the joint's count of finite numbers."""
         where = f"{self.name}.locked"
+        coupled = {n for c in self.couplings for n in (c.follower, c.leader)}
+        if isinstance(values, Mapping) and coupled & set(values):
+            _fail(where, "values", sorted(coupled & set(values)), "a coupled joint (a follower "
+                  "or a leader of model.couplings): lock the uncoupled model "
+                  "(model.with_couplings(())), then couple what is left")
         if self.cuts:
             _fail(where, "cuts", [c.name for c in self.cuts], "a model with cut joints: lock "
                   "joints of the open tree (model.with_cuts(())), then cut it again (the cuts "
@@ -449,9 +553,10 @@ class Model:
         if not bodies:
             _fail(where, "values", sorted(values), "every joint is locked: nothing moves")
         frames = {f: (kept[b], tuple(pt)) for f, (b, pt) in self.frames.items() if b in kept}
-        return Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
-                           name=f"{self.name} ({len(values)} joints locked)", frames=frames,
-                           source=where)
+        out = Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
+                          name=f"{self.name} ({len(values)} joints locked)", frames=frames,
+                          source=where)
+        return out.with_couplings(self.couplings, source=where) if self.couplings else out
 
     # ----------------------------------------------------------------------- derived facts
     @cached_property
@@ -561,15 +666,18 @@ class Model:
                          if t == FREE], dtype=np.int64)
 
     def neutral(self) -> np.ndarray:
-        """The configuration with every joint at zero and every quaternion the identity."""
+        """The configuration with every joint at zero and every quaternion the identity (a
+        follower at its coupling's offset)."""
         q = np.zeros(self.n_q)
         q[self.quaternions] = 1.0
-        return q
+        return self.couple(q) if self.couplings else q
 
     def initial(self) -> np.ndarray:
         """The configuration the model's file gives (MJCF: MuJoCo's qpos0, joint refs and free
         bodies' poses; URDF: a floating base's pose), else :meth:`neutral`."""
-        return self.neutral() if self.initial_q is None else self.initial_q.copy()
+        if self.initial_q is None:
+            return self.neutral()
+        return self.couple(self.initial_q) if self.couplings else self.initial_q.copy()
 
     def __getstate__(self) -> dict:
         """Pickling and copying: the model's data, without its per-thread workspaces (scratch,
@@ -587,6 +695,30 @@ class Model:
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, bodies={self.n_bodies}, n_q={self.n_q}, n_v={self.n_v}, "
                 f"mass={self.total_mass:.6g} kg)")
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """Joint ``follower``'s coordinate held at ``multiplier`` times joint ``leader``'s plus
+    ``offset``: q_f = m q_l + offset [rad or m] (a URDF ``<mimic>``, an MJCF joint equality of
+    first degree); both R or P joints of the model, named."""
+
+    follower: str
+    leader: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+    def __post_init__(self):
+        source = f"Coupling {self.follower!r}" if isinstance(self.follower, str) else "Coupling"
+        for side in ("follower", "leader"):
+            if not isinstance(getattr(self, side), str) or not getattr(self, side):
+                raise CaseError(source, side, getattr(self, side), "must be a joint's name")
+        for key in ("multiplier", "offset"):
+            x = getattr(self, key)
+            if isinstance(x, bool) or not isinstance(x, int | float | np.floating | np.integer) \
+                    or not math.isfinite(x):
+                raise CaseError(source, key, _plain(x), "must be a finite number")
+            object.__setattr__(self, key, float(x))
 
 
 KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> constraint equations
