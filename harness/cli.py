@@ -475,7 +475,7 @@ def _load_system(args: argparse.Namespace):
     if file_kind(path) == "linkage":
         linkage = load_linkage(path)
         return linkage.model, linkage.loops, linkage.q0
-    return load_model(path, floating=args.floating, mimic=args.mimic or "refuse"), None, None
+    return load_model(path, floating=args.floating, mimic=args.mimic or "couple"), None, None
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -548,6 +548,11 @@ def print_scenario(scn, given: str) -> None:
         loops = ClosedLoops(m)
         print(f"  loops         {len(m.cuts)} cut joint{'s' if len(m.cuts) > 1 else ''}, "
               f"{loops.m} equations")
+    if m.couplings:
+        print(f"  couplings     {len(m.couplings)} (mimic joints; {m.n_v - len(m.couplings)} "
+              "DOF move): " + ", ".join(f"{c.follower} = {c.multiplier:g} * {c.leader} + "
+                                        f"{c.offset:g}" for c in m.couplings[:4])
+              + (", ..." if len(m.couplings) > 4 else ""))
     if m.notes:
         print("  dropped       from the file, not simulated (Model.notes):")
         for note in m.notes:

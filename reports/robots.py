@@ -92,7 +92,8 @@ def models():
 
 def random_state(model, rng):
     """A seeded configuration (joint angles in [-1.2, 1.2], a random unit quaternion for a free
-    joint, a random base position), velocity and torque."""
+    joint, a random base position), velocity and torque; a coupled model's followers set from
+    their leaders."""
     q = model.neutral()
     for k, t in enumerate(model.joint_types):
         qs, qe = model.joint_qoff[k], model.joint_qoff[k + 1]
@@ -101,7 +102,8 @@ def random_state(model, rng):
             q[qs:qs + 7] = [*rng.normal(size=3), *(quat / np.linalg.norm(quat))]
         else:
             q[qs:qe] = rng.uniform(-1.2, 1.2, qe - qs)
-    return q, rng.normal(size=model.n_v), rng.normal(size=model.n_v)
+    q, v = model.couple(q, rng.normal(size=model.n_v))  # followers on their leaders
+    return q, v, rng.normal(size=model.n_v)
 
 
 def _rel(a, b) -> float:
@@ -190,7 +192,8 @@ def fall(label, model) -> dict:
 
     v0 = None
     if model.quaternions.size:  # tumbling: joints and base spinning (module docstring)
-        v0 = np.random.default_rng(SEED).uniform(-1.0, 1.0, model.n_v)
+        v0 = model.couple(model.initial(), np.random.default_rng(SEED).uniform(-1.0, 1.0,
+                                                                              model.n_v))[1]
     sim = simulate(model, FALL["t_end"], v0=v0, rtol=FALL["rtol"], atol=FALL["atol"])
     row = {"robot": label, "n_v": model.n_v, "status": "ok" if sim.status == 0 else "failed",
            "reason": sim.message if sim.status else "", "steps": sim.steps,

@@ -382,8 +382,8 @@ def _robot(*joints):
 @pytest.mark.parametrize("body, element, fragment", [
     ("<link name='a'>", "<xml>", "not well-formed"),
     (_robot(("j", "revolute", "a", "b", ""), ("k", "revolute", "b", "c",
-                                              '<mimic joint="j"/>')),
-     "joint 'k'/mimic.joint", "mimic joint couples"),
+                                              '<mimic joint="x"/>')),
+     "joint 'k'/mimic.joint", "no joint of that name"),
     (_robot(("j", "planar", "a", "b", "")), "joint 'j'.type", "unsupported joint type"),
     (_robot(("j", "revolute", "a", "b", ""), ("k", "revolute", "c", "b", "")),
      "joint 'k'/child.link", "kinematic loop"),
