@@ -4,8 +4,9 @@
 :func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
 trees"). Any of :data:`redysim.integrators.explicit.INTEGRATORS` steps it; ours (ode45, dop853, rk4)
-in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`) when there is no free joint,
-and the implicit midpoint (:mod:`redysim.integrators.implicit`) with a chain's tension
+in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`; free joints and damping
+included, not loops, couplings or forces), and the implicit midpoint
+(:mod:`redysim.integrators.implicit`) with a chain's tension
 preconditioner. A quaternion integrated so drifts off the unit sphere by the integrator's error;
 after every accepted step it is projected back (divided by its norm; so are the samples interpolated
 between steps), the largest norm error seen before a projection is reported, and the kernels read
@@ -27,6 +28,7 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
+from redysim.algorithms._kernels.rk_run import configuration_rate, project_quaternions
 from redysim.algorithms.dynamics import check_state, energy, forward_dynamics
 from redysim.algorithms.loops import NEAR_CHANGE_POINT
 from redysim.algorithms.workspace import Workspace
@@ -192,6 +194,8 @@ class _Motion:
             plain_v.extend(range(voff[k], voff[k + 1]))
         self.plain_q = np.array(plain_q, dtype=np.int64)
         self.plain_v = np.array(plain_v, dtype=np.int64)
+        self.free_q = np.array([qs for qs, _ in free], dtype=np.int64)
+        self.free_v = np.array([vs for _, vs in free], dtype=np.int64)
         self.mass = system.total_mass
         self.couplings = system.coupling_index if system.couplings else None
 
@@ -229,15 +233,8 @@ class _Motion:
         if not self.free:
             out[:nq] = v
             return out
-        out[self.plain_q] = v[self.plain_v]
-        for qs, vs in self.free:
-            out[qs:qs + 3] = v[vs:vs + 3]
-            qw, qx, qy, qz = y[qs + 3:qs + 7]
-            wx, wy, wz = v[vs + 3:vs + 6]
-            out[qs + 3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
-            out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
-            out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
-            out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+        # v_world and q (x) [0; w_body] / 2 for a free joint: the compiled steps' own function
+        configuration_rate(nq, self.plain_q, self.plain_v, self.free_q, self.free_v, y, out)
         return out
 
     def project(self, y, record: bool = True) -> float:
@@ -259,12 +256,11 @@ class _Motion:
                 self.residual_q = max(self.residual_q, float(np.abs(y[fq] - want_q).max()))
                 self.residual_v = max(self.residual_v, float(np.abs(y[nq + fv] - want_v).max()))
             y[fq], y[nq + fv] = want_q, want_v
-        worst = 0.0
-        for i in self.quaternions:
-            norm = math.sqrt(float(y[i:i + 4] @ y[i:i + 4]))
-            worst = max(worst, abs(norm - 1.0))
-            y[i:i + 4] /= norm
-        return worst
+        if not self.free:
+            return 0.0
+        worst = np.zeros(1)  # the compiled steps' own projection
+        project_quaternions(self.free_q, y, worst)
+        return float(worst[0])
 
     def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
         """E = T + V, and the centre of mass from the same kinematics pass."""
@@ -420,8 +416,9 @@ class Simulator:
       same steps, bit for bit: an independent path for checks); None chooses.
 
     The solver is chosen here: ours in compiled code
-    (:class:`~redysim.integrators.explicit.CompiledSolver`) when qdd is the core's RGE-A and dq/dt =
-    v with no forces, loops or damping; the implicit midpoint with a chain's tension preconditioner;
+    (:class:`~redysim.integrators.explicit.CompiledSolver`) when qdd is the core's RGE-A with no
+    forces, loops or couplings (free joints and damping included); the implicit midpoint with a
+    chain's tension preconditioner;
     SciPy's; the Python loop otherwise. Every solver follows one protocol
     (:class:`redysim.integrators.protocol.OdeSolver`). The first RHS and energy calls and the
     steppers' kernels (JIT compile or disk-cache load) are made in the constructor and timed apart
@@ -529,12 +526,12 @@ class Simulator:
     # ----------------------------------------------------------------------- assembly
     @property
     def compiled(self) -> bool:
-        """Whether the steps run in compiled code: ours, on the core's RGE-A, dq/dt = v, no
-        forces, loops, couplings or damping (the same steps as the Python loop, bit for bit)."""
+        """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints and
+        damping included, no forces, loops or couplings (the same steps as the Python loop, bit
+        for bit)."""
         m = self.motion
-        can = (m.qdd is None and m.method == "rge-a" and m.tau is None and not m.damping
-               and m.loops is None and not m.free and not self.system.couplings
-               and self.integrator in TABLEAU_NAMES)
+        can = (m.qdd is None and m.method == "rge-a" and m.tau is None and m.loops is None
+               and not self.system.couplings and self.integrator in TABLEAU_NAMES)
         return can and self._compiled is not False
 
     def _make_solver(self, state):
@@ -543,7 +540,8 @@ class Simulator:
         if self.compiled:
             planar = self.system.is_planar
             return CompiledSolver(rhs, 0.0, self.y0, self.t_end, self.integrator,
-                                  ws=self.motion.ws, planar=planar, state=state, **kw)
+                                  ws=self.motion.ws, planar=planar, state=state,
+                                  damping=self.motion.damping, free=self.motion.free, **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one
@@ -662,7 +660,11 @@ class Simulator:
         if loops is not None:
             loops.nearest_change_point()  # from here on
 
+        compiled_free = isinstance(self.solver, CompiledSolver) and bool(motion.free)
+
         def step_done(s):
+            if compiled_free:  # every step of the call but its last projected in compiled code
+                worst[0] = max(worst[0], float(s.quaternion_worst[0]))
             worst[0] = max(worst[0], motion.project(s.y))
             check_limits(s.t)
             if loops is not None:

@@ -321,3 +321,33 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
         runs.append(((c.steps, c.rejected, c.nfev), np.array(samples)))
     assert runs[0][0] == runs[1][0] and runs[0][0][0] > 20
     assert np.array_equal(runs[0][1], runs[1][1])
+
+
+@pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
+                                        ("rk4", {"h": 1e-3})])
+@pytest.mark.parametrize("free, damping", [(True, 0.0), (False, 0.3), (True, 0.3)])
+def test_floating_and_damped_motions_step_in_compiled_code_in_the_same_bits(method, kw, free,
+                                                                            damping):
+    """A floating tree (its quaternion's rate and projection) and joint damping step in compiled
+    code (Simulator.compiled), the same steps as the Python loop and every sample, the largest
+    quaternion error and the energy equal bit for bit."""
+    from conftest import stable_seed
+    from test_trees import random_configuration, random_tree
+
+    from redysim.simulation import Simulator
+
+    model = random_tree(stable_seed("compiled-free", free), n_bodies=10, free=free, fixed=1)
+    rng = np.random.default_rng(7)
+    q, v = random_configuration(rng, model), rng.normal(size=model.n_v)
+    runs = []
+    for compiled in (True, False):
+        sim = Simulator(model, 0.25, q0=q, v0=v, integrator=method, damping=damping,
+                        compiled=compiled, sample=0.05, **kw)
+        assert sim.compiled is compiled
+        runs.append(sim.run())
+    a, b = runs
+    assert a.status == b.status == 0 and a.steps == b.steps > 10 and a.nfev == b.nfev
+    for name in ("t", "q", "v", "energy", "com"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.quaternion_error == b.quaternion_error

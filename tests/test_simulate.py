@@ -44,7 +44,10 @@ def test_a_floating_tree_falls_freely_with_every_integrator(integrator):
     assert sim.status == 0, sim.message
     quats = sim.q[:, model.quaternions[0]:model.quaternions[0] + 4]
     assert np.abs(np.linalg.norm(quats, axis=1) - 1).max() < 1e-15
-    assert 0 < sim.quaternion_error < 1e-6  # it did drift, and was projected back
+    # it drifted (but for DOP853 at 1e-10: 13 steps, |q| within rounding of 1), and was
+    # projected back
+    assert (0 <= sim.quaternion_error if integrator == "dop853" else 0 < sim.quaternion_error) \
+        and sim.quaternion_error < 1e-6
     assert _parabola_error(sim, model.gravity) < 1e-8
     assert np.abs(sim.delta_M).max() < 1e-6
 

@@ -2,10 +2,13 @@
 
 :func:`rk_steps` is :class:`redysim.integrators.explicit.Solver`'s stepping (``_stages``,
 ``_error``, ``_adaptive_step``, ``_fixed_step``, ``_accept``) written once more, operation for
-operation, for the motion of a chain or a tree without a free joint: dy/dt = (qd, qdd(q, qd)) with
-qdd from the forward-dynamics entry (:mod:`.entry`) on a workspace's packed arrays. The stage sums
-and the error norm are the same compiled functions (:mod:`.rk`), the controller the same arithmetic
-in the same order, so a run takes the same steps as the Python loop and ends in the same bits
+operation, for the motion of a chain or a tree, with free joints (their quaternions projected
+after each accepted step, as the Python loop does) and joint damping: dy/dt = (dq/dt, qdd(q, v))
+with qdd from the forward-dynamics entry (:mod:`.entry`) on a workspace's packed arrays. The
+stage sums and the error norm are the same compiled functions (:mod:`.rk`), the controller the
+same arithmetic in the same order, and a free joint's dq/dt and projection the same compiled
+functions the Python loop calls, so a run takes the same steps as the Python loop and ends in the
+same bits
 (``tests/test_integrate.py`` compares them on the paper's cases). Python is left once per sample
 interval (or every ``max_steps`` steps) instead of at every right-hand side: a 250-DOF ode45 step
 then costs its seven qdd calls and nothing more.
@@ -37,14 +40,29 @@ RGE_A, PLANAR = 0, 1  # which entry computes qdd
 
 
 class Motion(NamedTuple):
-    """dy/dt = (qd, qdd(q, qd)): ``kind`` the entry computing qdd (RGE_A or PLANAR) on a
-    workspace's packed arrays ``fdata``, ``idata``, ``scratch``; ``zeros`` (n_v,) its tau."""
+    """dy/dt = (dq/dt, qdd(q, v)), y = (q, v): ``kind`` the entry computing qdd (RGE_A or PLANAR)
+    on a workspace's packed arrays ``fdata``, ``idata``, ``scratch``; ``zeros`` (n_v,) its tau
+    without damping. ``nq``: the length of q; ``damping``: a viscous torque -damping * v at every
+    joint (0: none), built in ``tau`` (n_v,). A free joint (its q slot of x in ``free_q``, its v
+    slot of the linear velocity in ``free_v``) moves as dq/dt = (v_world, q (x) [0; w] / 2), every
+    other coordinate q[plain_q[i]] as v[plain_v[i]]; each accepted step's quaternions are divided
+    by their norms before the next step (``worst`` [0]: the largest | |q| - 1 | met before), the
+    last step's of a call left to the caller, who projects after the step's samples as the Python
+    loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v."""
 
     kind: int
     fdata: np.ndarray
     idata: np.ndarray
     scratch: np.ndarray
     zeros: np.ndarray
+    nq: int
+    damping: float
+    tau: np.ndarray
+    plain_q: np.ndarray
+    plain_v: np.ndarray
+    free_q: np.ndarray
+    free_v: np.ndarray
+    worst: np.ndarray
 
 
 class Scheme(NamedTuple):
@@ -108,17 +126,65 @@ def _copy(src, dst):
 
 @jit_borrowed
 def _rhs(motion, y, out):
-    """out = (qd, qdd(q, qd)) for y = (q, qd); False when qdd is not finite."""
-    n = y.shape[0] // 2
-    for k in range(n):
-        out[k] = y[n + k]
+    """out = (dq/dt, qdd(q, v)) for y = (q, v); False when qdd is not finite. The same arithmetic
+    in the same order as redysim.simulation's Python right-hand side (tau = -damping * v; qdd;
+    then dq/dt)."""
+    nq = motion.nq
+    nv = y.shape[0] - nq
+    tau = motion.zeros
+    if motion.damping != 0.0:
+        tau = motion.tau
+        d = -motion.damping
+        for k in range(nv):
+            tau[k] = d * y[nq + k]
     if motion.kind == RGE_A:
-        flag = _rge_a(motion.fdata, motion.idata, y[:n], y[n:], motion.zeros, motion.scratch,
-                      out[n:])
+        flag = _rge_a(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
+                      out[nq:])
     else:
-        flag = _planar(motion.fdata, motion.idata, y[:n], y[n:], motion.zeros, motion.scratch,
-                       out[n:])
+        flag = _planar(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
+                       out[nq:])
+    if motion.free_q.shape[0] == 0:
+        for k in range(nq):
+            out[k] = y[nq + k]
+        return flag == 0.0
+    configuration_rate(nq, motion.plain_q, motion.plain_v, motion.free_q, motion.free_v, y, out)
     return flag == 0.0
+
+
+@jit_borrowed
+def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
+    """dq/dt into out[:nq] for y = (q, v) with free joints (``free_q``: each one's q slot of x,
+    ``free_v`` its v slot of the linear velocity): v_world and q (x) [0; w] / 2, every other
+    coordinate q[plain_q[i]] moving as v[plain_v[i]]. The Python loop (redysim.simulation) calls
+    this same function, so that both paths round alike (the compiled steps inline it; its
+    multiply-adds may fuse, in both)."""
+    for i in range(plain_q.shape[0]):
+        out[plain_q[i]] = y[nq + plain_v[i]]
+    for j in range(free_q.shape[0]):
+        qs, vs = free_q[j], nq + free_v[j]
+        for k in range(3):
+            out[qs + k] = y[vs + k]
+        qw, qx, qy, qz = y[qs + 3], y[qs + 4], y[qs + 5], y[qs + 6]
+        wx, wy, wz = y[vs + 3], y[vs + 4], y[vs + 5]
+        out[qs + 3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
+        out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
+        out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
+        out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+
+
+@jit_borrowed
+def project_quaternions(free_q, y, worst):
+    """Each free joint's quaternion divided by its norm, in place; the largest | |q| - 1 | met
+    into worst[0]. The Python loop's projection is this function too."""
+    for j in range(free_q.shape[0]):
+        i = free_q[j] + 3
+        norm = math.sqrt(y[i] * y[i] + y[i + 1] * y[i + 1] + y[i + 2] * y[i + 2]
+                         + y[i + 3] * y[i + 3])
+        e = abs(norm - 1.0)
+        if e > worst[0]:
+            worst[0] = e
+        for k in range(4):
+            y[i + k] = y[i + k] / norm
 
 
 @jit_borrowed
@@ -154,6 +220,8 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
     taken = 0
     t_stop = min(t_stop, t_end)
     while taken < max_steps and ts[0] < t_end:
+        if taken > 0:  # the step before: its quaternions (the last step's are the caller's to
+            project_quaternions(motion.free_q, y, motion.worst)  # project after its samples)
         t = ts[0]
         if adaptive:
             hmin = ctl.hmin_eps * (np.nextafter(abs(t), np.inf) - abs(t))
