@@ -275,3 +275,16 @@ def test_mujocos_joint_equality_is_the_coupling_softened_by_its_regulariser(file
     assert np.abs(got - soft).max() < 1e-9 * np.abs(got).max()
     hard = redysim.forward_dynamics(model, q, v, tau)
     assert np.abs(got - hard).max() > 1e-9 * np.abs(hard).max()  # the softness is seen
+
+
+def test_a_coupled_batch_takes_one_tau_or_a_row_each_and_refuses_other_shapes():
+    model = coupled_tree(stable_seed("coupled-batch"), free=False)
+    rng = np.random.default_rng(4)
+    (q1, v1), (q2, v2) = state(model, rng), state(model, rng)
+    tau = rng.normal(size=model.n_v)
+    Q, V = np.stack([q1, q2]), np.stack([v1, v2])
+    one = redysim.forward_dynamics(model, Q, V, tau)
+    assert np.array_equal(one[1], redysim.forward_dynamics(model, q2, v2, tau))
+    assert np.array_equal(redysim.forward_dynamics(model, Q, V, np.stack([tau, tau])), one)
+    with pytest.raises(StateError, match="tau"):
+        redysim.forward_dynamics(model, Q, V, np.ones(3))

@@ -337,8 +337,12 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
         if _is_batch(q):
             Q = check_batch(model, "q", q, None)
             V = check_batch(model, "v", v, Q.shape[0])
-            T = None if tau is None else np.broadcast_to(np.asarray(tau, dtype=float),
-                                                         (Q.shape[0], model.n_v))
+            T = None
+            if tau is not None:  # (n_v,) for every state, or a row each
+                T = np.asarray(tau, dtype=float)
+                if T.shape == (model.n_v,):
+                    T = np.broadcast_to(T, (Q.shape[0], model.n_v))
+                T = check_batch(model, "tau", T, Q.shape[0])
             res = np.array([_coupled_forward(model, Q[i], V[i], None if T is None else T[i],
                                              method, planar, None) for i in range(Q.shape[0])])
             if out is not None:
