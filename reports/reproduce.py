@@ -248,9 +248,14 @@ class Reproduction:
 
         doc = robots.run(self.results / "robots", log=self.say)
         ok = [r for r in doc["agreement"] if r["status"] == "ok"]
-        worst = max((max(r[s] for s in robots.STAGES) for r in ok), default=float("nan"))
+        # MuJoCo's coupled qdd is soft by design (the report says so): counted apart
+        soft = [r for r in ok if r.get("couplings") and r["engine"] == "mujoco"]
+        hard = [r for r in ok if r not in soft]
+        worst = max((max(r[s] for s in robots.STAGES) for r in hard), default=float("nan"))
         return (f"{len(doc['falls'])} robots, {len(ok)} robot x engine pairs built, worst "
-                f"relative difference {worst:.1e}")
+                f"relative difference {worst:.1e}"
+                + (f" (and MuJoCo's soft mimic couplings, {len(soft)} robots: up to "
+                   f"{max(r['qdd'] for r in soft):.1e} in qdd)" if soft else ""))
 
     def loops(self, full: bool = False) -> str:
         from . import loops
