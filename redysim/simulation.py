@@ -182,7 +182,6 @@ class _Motion:
         free = [(int(system.joint_qoff[k]), int(system.joint_voff[k]))
                 for k, t in enumerate(system.joint_types) if t == FREE]
         self.free = free
-        self.quaternions = np.array([qs + 3 for qs, _ in free], dtype=np.int64)
         plain_q: list[int] = []
         plain_v: list[int] = []
         qoff = system.joint_qoff
@@ -541,7 +540,9 @@ class Simulator:
             planar = self.system.is_planar
             return CompiledSolver(rhs, 0.0, self.y0, self.t_end, self.integrator,
                                   ws=self.motion.ws, planar=planar, state=state,
-                                  damping=self.motion.damping, free=self.motion.free, **kw)
+                                  damping=self.motion.damping,
+                                  free=(self.motion.free_q, self.motion.free_v,
+                                        self.motion.plain_q, self.motion.plain_v), **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one

@@ -201,22 +201,21 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
     couplings are linear, so Jdot v = 0)."""
-    if method != "rge-a" and planar:
-        raise ValueError("planar=True takes method 'rge-a'")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     tau = check_state(model, "tau", tau, optional=True)
     check_coupled(model, "q", q)
     check_coupled(model, "v", v)
     tree, free = model.tree, model.free_tree
-    qdd = forward_dynamics(tree, q, v, tau, method)
+    qdd = forward_dynamics(tree, q, v, tau, method, planar=planar)
     _, _, fv, lv, m, _ = model.coupling_index
     n, k = model.n_v, fv.shape[0]
     J = np.zeros((k, n))
     J[np.arange(k), fv] = 1.0
     np.subtract.at(J, (np.arange(k), lv), m)
     zeros = np.zeros(n)
-    X = np.column_stack([forward_dynamics(free, q, zeros, row, method) for row in J])
+    X = np.column_stack([forward_dynamics(free, q, zeros, row, method, planar=planar)
+                         for row in J])
     lam = np.linalg.solve(J @ X, -(J @ qdd))
     qdd = qdd + X @ lam
     qdd[fv] = m * qdd[lv]  # exactly on the couplings (the solve leaves rounding)

@@ -41,7 +41,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -479,7 +479,9 @@ class CompiledSolver(Solver):
     """A :class:`Solver` whose steps run in compiled code
     (:mod:`redysim.algorithms._kernels.rk_run`), for the motion of a chain or a tree: y = (q, v),
     dy/dt = (dq/dt, qdd), qdd with a joint ``damping`` torque -damping * v when given, and
-    ``free`` joints ((q slot of x, v slot of the linear velocity) each) whose quaternions move
+    ``free`` joints (the arrays (free_q, free_v, plain_q, plain_v) of
+    :class:`redysim.algorithms._kernels.rk_run.Motion`: each free joint's q slot of x and v slot
+    of its linear velocity, and the other coordinates' q and v slots) whose quaternions move
     as q (x) [0; w] / 2 and are divided by their norms after every accepted step but a call's
     last, which the caller projects after its samples, as the Python loop does
     (``quaternion_worst`` [0]: the largest | |q| - 1 | met before a projection in compiled code).
@@ -496,7 +498,7 @@ class CompiledSolver(Solver):
                  ws, planar: bool = False, rtol: float = 1e-4, atol: float = 1e-6,
                  h: float | None = None, hmax: float | None = None,
                  state: SolverState | None = None, max_steps: int = 1000,
-                 damping: float = 0.0, free: Sequence[tuple[int, int]] = ()):
+                 damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None):
         from redysim.algorithms._kernels import rk_run
 
         super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
@@ -507,12 +509,8 @@ class CompiledSolver(Solver):
         tab = self.tab
         nv = ws.zeros.shape[0]
         nq = self.n - nv
-        free_q = np.array([qs for qs, _ in free], dtype=np.int64)
-        free_v = np.array([vs for _, vs in free], dtype=np.int64)
-        plain_q = np.array([i for i in range(nq) if not any(qs <= i < qs + 7 for qs in free_q)]
-                           if free else [], dtype=np.int64)
-        plain_v = np.array([i for i in range(nv) if not any(vs <= i < vs + 6 for vs in free_v)]
-                           if free else [], dtype=np.int64)
+        none = np.zeros(0, dtype=np.int64)
+        free_q, free_v, plain_q, plain_v = (none,) * 4 if free is None else free
         self.quaternion_worst = np.zeros(1)  # the largest | |q| - 1 | before a projection
         self._motion = rk_run.Motion(rk_run.PLANAR if planar else rk_run.RGE_A, ws.kernel_f,
                                      ws.kernel_i, ws.scratch, ws.zeros, nq, float(damping),

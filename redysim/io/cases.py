@@ -209,6 +209,16 @@ def file_digest(path: str | os.PathLike) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def has_table(path: str | os.PathLike, table: str) -> bool:
+    """True for a file with a ``[table]`` line (read as text: no full parse; False when it
+    cannot be read): what kind of TOML file a path is, cheaply."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return any(line.strip() == f"[{table}]" for line in fh)
+    except OSError:
+        return False
+
+
 def read_toml(path: str | os.PathLike) -> tuple[dict, bytes]:
     """(document, raw bytes) of a UTF-8 TOML file (a case, robot or linkage file); its syntax
     errors and non-UTF-8 bytes as a CaseError naming the file."""

@@ -342,11 +342,9 @@ def is_protein_document(doc: dict) -> bool:
 
 def is_protein_file(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a TOML protein file (read as text: a ``[protein]`` line)."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            return any(line.strip() == "[protein]" for line in fh)
-    except OSError:
-        return False
+    from redysim.io.cases import has_table
+
+    return has_table(path, "protein")
 
 
 def load_protein(path: str | os.PathLike, *, floating: bool | None = None) -> Protein:

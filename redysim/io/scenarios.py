@@ -63,7 +63,7 @@ from redysim.integrators.explicit import (
     canonical,
     check_settings,
 )
-from redysim.io.cases import CASES_DIR, Case, is_case_name, load_case, read_toml
+from redysim.io.cases import CASES_DIR, Case, has_table, is_case_name, load_case, read_toml
 from redysim.model.tree import FREE, Model
 
 SCENARIOS_DIR = Path(CASES_DIR) / "scenarios"
@@ -220,11 +220,7 @@ def file_kind(path: str | os.PathLike) -> str:
 
 def is_scenario_file(path: str | os.PathLike) -> bool:
     """True for a TOML file with a ``[scenario]`` table (read as text: no full parse)."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            return any(line.strip() == "[scenario]" for line in fh)
-    except OSError:
-        return False
+    return has_table(path, "scenario")
 
 
 def scenario_path(name_or_path: str | os.PathLike) -> Path | None:
