@@ -132,7 +132,15 @@ How many links does a scene need? From a refinement study (one rope at several l
 at several integrator tolerances, measured against the finest model: `python -m
 redysim.harness.refine`, which `make reproduce` runs), print the run of least CPU whose tip
 path stayed within --tip-tol of the finest model's, what the finest model cost for the same
-tolerance, and the command that runs the advised model. For the hanging chain, the coarsest
+tolerance, and the command that runs the advised model.
+
+Any rope case (a case name or your own case file): the study is run for it, here, and stopped
+once the answer is known: your model by DOP853 at 1e-10 (the reference) and every coarser model
+(link counts that divide yours) by ode45 at 1e-8; the reference's own error by Richardson where
+the observed order is steady, else against the rope at twice your links; then every setting on
+the coarsest model within the tolerance and the next finer one. The advice is checked by running
+it again. Runs are cached in --out (default results/advise/CASE): ask again, with another
+tolerance too, and only what is new runs. For the hanging chain, the coarsest
 model whose first --modes frequencies are within --freq-tol of the continuum's (a chain of n
 links has n modes: a model with fewer than --modes cannot meet it, and more modes than the
 study's finest model has are refused). Needs the 'harness' extra.
@@ -141,7 +149,9 @@ examples:
   redysim advise fall --tip-tol 0.01
   redysim advise spin --tip-tol 1e-3
   redysim advise hanging --modes 3 --freq-tol 0.001
-  redysim advise results/refine/pulled --tip-tol 0.05"""
+  redysim advise results/refine/pulled --tip-tol 0.05
+  redysim advise RE-U125-L1 --tip-tol 1e-3 --t-end 0.3
+  redysim advise my_rope.toml --tip-tol 0.01"""
 
 CASES_HELP = """\
 List the case files that come with redysim (every chain of the paper: the repository's cases/,
@@ -274,8 +284,8 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
                               "tolerance, from a refinement study's measurements")
     adv.add_argument("scene", metavar="SCENE",
                      help="spin, fall, whip, pulled (their studies under RESULTS/refine/), "
-                          "hanging (the hanging chain's modes), or the folder of a refinement "
-                          "sweep's results")
+                          "hanging (the hanging chain's modes), the folder of a refinement "
+                          "sweep's results, or a rope case (name or file): its own study")
     adv.add_argument("--tip-tol", type=positive, metavar="M",
                      help="tip-path tolerance [m]: the largest distance from the finest "
                           "model's tip over the samples")
@@ -288,6 +298,15 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
     adv.add_argument("--results", type=Path, metavar="DIR",
                      help="where the studies of spin, fall, whip and pulled are (default: "
                           "results)")
+    adv.add_argument("--t-end", type=positive, metavar="T",
+                     help="a rope case's study: its horizon [s] (default: the case's t_end)")
+    adv.add_argument("--out", type=Path, metavar="DIR",
+                     help="a rope case's study: where its runs are cached (default "
+                          "results/advise/CASE)")
+    adv.add_argument("--workers", type=_whole, metavar="N",
+                     help="a rope case's study: processes (default: every core)")
+    adv.add_argument("--no-progress", action="store_true",
+                     help="a rope case's study: no progress bar")
     adv.set_defaults(func=cmd_advise)
 
     eng = sub.add_parser("engines", description=ENGINES_HELP, formatter_class=fmt,
@@ -758,6 +777,13 @@ def cmd_advise(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--results", str(args.results), f"says where the studies "
                             f"of {', '.join(refine.SCENES)} are; a folder given as SCENE is "
                             "read as it is")
+    own = (args.t_end, args.out, args.workers)
+    if args.scene not in refine.SCENES and not (Path(args.scene) / "runs").is_dir():
+        return _advise_own(args)
+    if any(v is not None for v in own):
+        raise SettingsError(SOURCE, "--t-end/--out/--workers", next(v for v in own if v
+                                                                     is not None),
+                            "set a rope case's own study; a finished study is read as it is")
     folder = (refine.study_folder(args.results or Path("results"), args.scene)
               if args.scene in refine.SCENES else Path(args.scene))
     try:
@@ -786,6 +812,64 @@ def cmd_advise(args: argparse.Namespace) -> int:
         else study.case
     print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
           f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {study.reference['t_end']:g}")
+    return EXIT_OK
+
+
+def _advise_own(args: argparse.Namespace) -> int:
+    """``redysim advise CASE --tip-tol M``: a rope case's own study (refine.own_study)."""
+    from redysim.harness import refine
+    from redysim.io.cases import case_path
+    from redysim.io.scenarios import file_kind
+
+    scene = args.scene
+    if args.results is not None:
+        raise SettingsError(SOURCE, "--results", str(args.results), "says where the studies "
+                            f"of {', '.join(refine.SCENES)} are; a rope case's study goes to "
+                            "--out")
+    kind = file_kind(scene)
+    if kind != "case":
+        raise SettingsError(SOURCE, "SCENE", scene, f"is a {kind} file: advise studies a rope "
+                            "(a case file: a chain coarse-grained and refined); a robot's "
+                            "reductions (joints to lock, bodies to fuse) are not advised yet")
+    try:
+        path = case_path(scene)
+    except FileNotFoundError as exc:
+        raise SettingsError(SOURCE, "SCENE", scene, f"is no study ({', '.join(refine.SCENES)}, "
+                            f"hanging), no study's folder (no runs/ folder there) and no rope "
+                            f"case: {exc}") from None
+    out = args.out or Path("results") / "advise" / path.stem
+    st = refine.own_study(path, args.tip_tol, out, t_end=args.t_end or 0.0,
+                          workers=args.workers, progress=not args.no_progress)
+    conv, ref = st.conv, st.study.reference
+    print(f"{path.stem}: {int(ref['n_links'])} links over {float(ref['t_end']):g} s; reference "
+          f"{ref['integrator']} rtol {ref['rtol']:g} ({ref['cpu_s']:.3g} s CPU)")
+    print("  model error (tip path, max over the samples) at "
+          + ", ".join(f"{d['links']} links {d['tip_err']:.2g} m" for d in conv["levels"])
+          + "; local orders " + ", ".join(f"{o:.2f}" for o in st.orders))
+    for note in st.notes:
+        print(f"  {note}")
+    if not st.converges or st.advice is None:
+        if st.converges and not st.notes:
+            print(f"  no measured run met {st.tol:g} m")
+        return EXIT_RUN_FAILED
+    print(f"  your model's own error: {st.ref_error:.2g} m ({st.ref_error_how})"
+          if math.isfinite(st.ref_error) else f"  your model's own error: {st.ref_error_how}")
+    a = st.advice
+    print(f"advice for a tip path within {st.tol:g} m: {a.links} links, {a.integrator} rtol "
+          f"{a.rtol:g} (atol {a.rtol * 1e-2:g})")
+    print(f"  measured: tip error {a.tip_err:.3g} m against your model"
+          + (f" (+ its own {st.ref_error:.2g} m)" if math.isfinite(st.ref_error) else "")
+          + f", CPU {a.cpu_s:.3g} s, {a.steps:,} steps ({a.candidates} runs met it)")
+    if math.isfinite(a.finest_cpu_s):
+        print(f"  your model ({a.finest_links} links) meets it at rtol {a.finest_rtol:g} in "
+              f"{a.finest_cpu_s:.3g} s of CPU: {a.saved:.1f}x the advised run's")
+    if st.check is not None:
+        c = st.check
+        print(f"  checked: run again (the Python stepping loop), tip error {c['tip_err']:.3g} m "
+              f"against your model, {c['cpu_s']:.3g} s CPU, {c['steps']:,} steps")
+    case = os.path.relpath(path) if str(path).startswith(os.getcwd() + os.sep) else str(path)
+    print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
+          f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {float(ref['t_end']):g}")
     return EXIT_OK
 
 

@@ -67,7 +67,9 @@ FINER_RTOL = 1e-8
 ADVICE_TOLERANCES = {"spin": (1e-2, 1e-3), "fall": (1e-2, 1e-3), "whip": (5e-2,),
                      "pulled": (1e-2, 1e-3)}
 RESULTS_FILE = "refine.json"
-COSTS = ("cpu_s", "nfev", "steps")  # advise's measures of a run's cost (columns of the runs)
+# advise's measures of a run's cost: columns of the runs, and "work", RHS calls x links (the
+# O(n) recursions' work: no machine's load changes it, and it compares models of any size)
+COSTS = ("cpu_s", "nfev", "steps", "work")
 
 
 class StudyError(Exception):
@@ -207,7 +209,8 @@ def advise(study: Study, tol: float, *, precision: str = "float64",
     """The coarsest model and cheapest integrator setting, from measured data, whose tip path
     stays within ``tol`` [m] of the reference's: of the study's runs that met ``tol``, the one
     of least ``cost`` (a column of the runs: ``"cpu_s"``, the measured CPU time, by default;
-    ``"nfev"`` or ``"steps"`` count work without the machine's noise), ties broken by fewer
+    ``"nfev"`` or ``"steps"`` count work without the machine's noise, ``"work"`` RHS calls x
+    links, across models of different sizes too), ties broken by fewer
     links, then by the run id. None when no run met it. Raises SettingsError for a ``tol`` that
     is not a distance > 0, a ``precision`` not in the study's runs' or an unknown ``cost``."""
     from redysim.errors import SettingsError
@@ -223,7 +226,7 @@ def advise(study: Study, tol: float, *, precision: str = "float64",
                             f"choose one of {', '.join(PRECISIONS)}")
     if cost not in COSTS:
         raise SettingsError("advise", "cost", cost, f"choose one of {', '.join(COSTS)}")
-    r = study.runs
+    r = study.runs.assign(work=study.runs["nfev"] * study.runs["n_links"])
     ok = r[(r["status"] == "ok") & (r["precision"] == precision)
            & (r["run_id"] != study.reference["run_id"]) & (r["tip_err"] <= tol)]
     if ok.empty:
@@ -347,6 +350,220 @@ def float32_pairs(study: Study) -> list[dict]:
                     "cpu32_s": float(a["cpu_s"]),
                     "cpu64_s": None if b is None else float(b["cpu_s"])})
     return out
+
+
+# --------------------------------------------------------------------------- a user's rope
+OWN_REFERENCE = ("dop853", 1e-10)  # the user's model at this setting: the study's reference
+OWN_LEVEL = ("ode45", 1e-8)        # each coarser model at this setting: its model error
+OWN_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)  # the settings tried on the models that meet tol
+OWN_INTEGRATORS = ("ode45", "dop853")
+MIN_LEVEL_RATIO = 1.8  # consecutive coarse levels at least this far apart in link count
+STEADY = 0.25          # the last two local orders within this fraction of each other: steady
+MIN_ORDER = 0.3        # below this the error does not fall with the links: no convergence
+
+
+def coarse_levels(links: int) -> list[int]:
+    """The coarser models of a study: divisors d of ``links`` (2 <= d < links, a coarse link
+    lumps the same number of fine ones), finest first, each at most 1/MIN_LEVEL_RATIO of the
+    one before it (the user's model the first)."""
+    out, last = [], links
+    for d in range(links - 1, 1, -1):
+        if links % d == 0 and last / d >= MIN_LEVEL_RATIO:
+            out.append(d)
+            last = d
+    return out
+
+
+def local_orders(levels: list[dict]) -> list[float]:
+    """The order between each two consecutive levels (coarse to fine, ``convergence``'s),
+    log(e_coarse / e_fine) / log(n_fine / n_coarse); nan where an error is 0 or missing."""
+    out = []
+    for a, b in zip(levels, levels[1:], strict=False):
+        ea, eb = a["tip_err"], b["tip_err"]
+        ok = ea > 0 and eb > 0 and math.isfinite(ea) and math.isfinite(eb)
+        out.append(math.log(ea / eb) / math.log(b["links"] / a["links"]) if ok else math.nan)
+    return out
+
+
+def verdict(levels: list[dict]) -> tuple[list[float], bool, bool]:
+    """(local orders, converges, steady) of a study's levels (coarse to fine): it converges when
+    every finer level's error is smaller and the last local orders are at least MIN_ORDER; its
+    order is steady when the last two agree within STEADY (relative)."""
+    orders = local_orders(levels)
+    errs = [d["tip_err"] for d in levels]
+    falls = all(a > b for a, b in zip(errs, errs[1:], strict=False))
+    last = orders[-2:]
+    converges = bool(falls and last and all(math.isfinite(o) and o >= MIN_ORDER for o in last))
+    steady = bool(converges and len(last) == 2
+                  and abs(last[0] - last[1]) <= STEADY * max(last))
+    return orders, converges, steady
+
+
+@dataclass
+class OwnStudy:
+    """A study :func:`own_study` ran on a user's rope, and what it concluded.
+
+    ``ref_error``: the estimated tip-path error of the user's model (the reference) itself,
+    ``ref_error_how`` says how (Richardson from a steady order, or a model of twice the
+    links); ``advice`` (None: none met the tolerance, ``notes`` say why) for a tip path within
+    ``tol - ref_error`` of the reference, so within ``tol`` of the converged path;
+    ``check``: the advised run done afresh (Python stepping loop) against the reference."""
+
+    case: str
+    tol: float
+    study: Study
+    conv: dict
+    orders: list
+    converges: bool
+    ref_error: float
+    ref_error_how: str
+    advice: Advice | None
+    check: dict | None
+    notes: list
+
+
+def _refined(case_file: str, case, factor: int = 2):
+    """The case at ``factor`` times its links, or (None, why) when it cannot be refined into
+    the same physical rope (its file does not give a link count to multiply, or its initial
+    state depends on the link count: mapped back, it is not the case's own)."""
+    from redysim.algorithms.coarse import coarsen
+    from redysim.errors import CaseError
+
+    try:
+        fine = finer_case(case_file, factor)
+    except (CaseError, KeyError, TypeError, ValueError) as exc:
+        return None, f"its file cannot be refined ({exc})"
+    back = coarsen(fine.chain, links=case.chain.n_links)
+    q0, v0 = back.to_coarse(fine.q0, fine.v0)
+    off = max(float(np.abs(q0 - case.q0).max()), float(np.abs(v0 - case.v0).max()))
+    if off > 1e-9:
+        return None, (f"its initial state depends on the link count (the refined rope's, "
+                      f"mapped back, is {off:.2g} off its own): a finer model would be another "
+                      "motion")
+    return fine, ""
+
+
+def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: float = 0.0,
+              workers: int | None = None, progress: bool = True, check: bool = True,
+              log=print) -> OwnStudy:
+    """A refinement study of a user's rope (a case file), run for a tip-path tolerance ``tol``
+    [m] and stopped once the answer is known; the runs are cached in ``out`` (a sweep's
+    folder: run again, only what changed runs).
+
+    1. The user's model by DOP853 at 1e-10 (the reference) and each coarser model
+       (:func:`coarse_levels`) by ode45 at 1e-8: the model error of every level, their local
+       orders of convergence.
+    2. The reference's own error: Richardson from the finest coarse level when the last two
+       local orders agree (within STEADY); else measured against the rope at twice the links
+       (DOP853 at FINER_RTOL) when the case can be refined into the same rope; else unknown
+       (said). A study whose errors do not fall with the links does not converge (a singular
+       scene): said, no advice.
+    3. The coarsest level whose model error is within ``tol`` less the reference's, the next
+       finer one and the user's own, at every setting of OWN_INTEGRATORS x OWN_RTOLS;
+       :func:`advise` on all the runs for ``tol`` less the reference's error, by their work
+       (RHS calls x links: the choice does not depend on the machine's load), and the advice
+       run afresh."""
+    from redysim.errors import SettingsError
+
+    from .spec import RunSpec
+    from .sweep import run_sweep
+
+    if isinstance(tol, bool) or not isinstance(tol, int | float) or not (
+            tol > 0 and math.isfinite(tol)):
+        raise SettingsError("advise", "--tip-tol", _shown(tol), "must be a tip distance > 0 [m]")
+    from redysim.io.cases import case_path
+
+    path = str(case_path(case_file))
+    case = load_case(path)
+    nl = case.chain.n_links
+    levels = coarse_levels(nl)
+    if not levels:
+        raise SettingsError("advise", "CASE", path, f"has {nl} links: no coarser model (a coarse "
+                            "link lumps the same number of fine ones, so the count needs a "
+                            "divisor between 2 and itself)")
+    horizon = float(t_end or case.t_end)
+    sample = min(case.sample_interval or horizon / 20, horizon)
+    base = dict(case=path, t_end=horizon, sample=sample)
+    ref_spec = RunSpec(**base, integrator=OWN_REFERENCE[0], rtol=OWN_REFERENCE[1],
+                       atol=OWN_REFERENCE[1] * 1e-2)
+    specs = [ref_spec] + [RunSpec(**base, links=n, integrator=OWN_LEVEL[0], rtol=OWN_LEVEL[1],
+                                  atol=OWN_LEVEL[1] * 1e-2) for n in levels]
+    out = Path(out)
+    name = f"advise-{case.name}"
+    log(f"advise: {case.name}: {nl} links over {horizon:g} s; the reference ({OWN_REFERENCE[0]} "
+        f"{OWN_REFERENCE[1]:g}) and {len(levels)} coarser models ({', '.join(map(str, levels))} "
+        f"links, {OWN_LEVEL[0]} {OWN_LEVEL[1]:g}); runs cached in {out}")
+    runs = run_sweep(specs, out, name=name, workers=workers, progress=progress)
+    ref_row = runs[runs["run_id"] == ref_spec.run_id].iloc[0]
+    if ref_row["status"] != "ok":
+        raise SettingsError("advise", "CASE", path, f"its reference run failed: "
+                            f"{ref_row['reason']}")
+    study = load_study(out, case.name)
+    conv = convergence(study)
+    lv = conv["levels"]
+    orders, converges, steady = verdict(lv)
+    notes: list[str] = []
+    if not converges:
+        notes.append("the tip path does not settle as links are added (model errors "
+                     + ", ".join(f"{d['tip_err']:.2g} m at {d['links']}" for d in lv)
+                     + f" links; local orders {', '.join(f'{o:.2f}' for o in orders)}): a "
+                     "singular scene (a whip's tip, a bare end pulled by a force) has no "
+                     "converged path for a coarser model to approach")
+        return OwnStudy(path, tol, study, conv, orders, False, math.nan, "", None, None, notes)
+    last = orders[-2:]
+    if steady:
+        c = lv[-1]
+        p = last[-1]
+        ref_error = c["tip_err"] / ((nl / c["links"]) ** p - 1.0)
+        how = (f"Richardson: order {p:.2f} steady over the last levels, from {c['links']} "
+               f"links' error {c['tip_err']:.2g} m")
+    else:
+        fine, why = _refined(path, case)
+        if fine is None:
+            ref_error = math.nan
+            how = (f"unknown: the order is not steady (local orders "
+                   f"{', '.join(f'{o:.2f}' for o in orders)}) and {why}")
+        else:
+            log(f"advise: the order is not steady: the rope at {2 * nl} links "
+                f"(DOP853 {FINER_RTOL:g}) measures the reference's own error")
+            finer = finer_references({study.scene: study}, workers=1,
+                                     log=lambda *_: None)[study.scene]
+            ref_error = float(np.linalg.norm(study.tips[study.reference["run_id"]]
+                                             - finer["tips"], axis=1).max())
+            how = (f"measured: the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}), the "
+                   f"order not steady (local orders {', '.join(f'{o:.2f}' for o in orders)})")
+    budget = tol - ref_error if math.isfinite(ref_error) else tol
+    if not math.isfinite(ref_error):
+        notes.append("the reference's own error is not known: the advice is within the "
+                     "tolerance of your model, not of the converged path")
+    if budget <= 0:
+        notes.append(f"your model itself is {ref_error:.2g} m from the converged path "
+                     f"({how}): more than {tol:g} m; refine it (more links) or ask less")
+        return OwnStudy(path, tol, study, conv, orders, True, ref_error, how, None, None, notes)
+    # the coarsest level within the budget and the next finer one (the user's model when none
+    # is): a finer model at a looser setting can be the cheaper
+    # (and the user's own model, for what the advice saves)
+    meeting = [d["links"] for d in lv if d["tip_err"] <= budget]
+    chosen = [nl]
+    if meeting:
+        finer_levels = [d["links"] for d in lv if d["links"] > meeting[0]]
+        chosen = list(dict.fromkeys([meeting[0], (finer_levels or [nl])[0], nl]))
+    log(f"advise: settings on {', '.join(map(str, chosen))} links "
+        f"({len(OWN_INTEGRATORS) * len(OWN_RTOLS)} each)")
+    specs += [RunSpec(**base, links=0 if n == nl else n, integrator=i, rtol=r, atol=r * 1e-2)
+              for n in chosen for i in OWN_INTEGRATORS for r in OWN_RTOLS]
+    run_sweep(specs, out, name=name, workers=workers, progress=progress)
+    study = load_study(out, case.name)
+    a = advise(study, budget, cost="work")
+    result = OwnStudy(path, tol, study, conv, orders, True, ref_error, how, a, None, notes)
+    if a is not None and check:
+        ref = study.reference
+        tips, cpu, steps = _tips(case, a.links, a.integrator, a.rtol, a.rtol * 1e-2,
+                                 horizon, sample)
+        err = float(np.linalg.norm(tips - study.tips[ref["run_id"]], axis=1).max())
+        result.check = {"tip_err": err, "cpu_s": cpu, "steps": int(steps),
+                        "bound": err + (ref_error if math.isfinite(ref_error) else 0.0)}
+    return result
 
 
 # --------------------------------------------------------------------------- hanging modes

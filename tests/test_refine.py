@@ -233,3 +233,98 @@ def test_bad_advise_arguments_are_named(argv, fragment, capsys):
 
     assert main(argv) == 2
     assert fragment in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- a user's rope
+def test_coarse_levels_divide_the_links_and_step_down_by_at_least_1_8():
+    assert refine.coarse_levels(250) == [125, 50, 25, 10, 5, 2]
+    assert refine.coarse_levels(12) == [6, 3]
+    assert refine.coarse_levels(7) == []  # a prime: no coarse link lumps the same number
+
+
+def level(links, err):
+    return {"links": links, "tip_err": err}
+
+
+def test_the_verdict_on_a_studys_levels():
+    # errors 4^-k at 2^k links: order 2 throughout, steady
+    orders, converges, steady = refine.verdict([level(2, 1 / 4), level(4, 1 / 16),
+                                                level(8, 1 / 64)])
+    assert orders == pytest.approx([2.0, 2.0]) and converges and steady
+    # falling at orders 1 then 2: converging, not steady
+    orders, converges, steady = refine.verdict([level(2, 0.4), level(4, 0.2), level(8, 0.05)])
+    assert orders == pytest.approx([1.0, 2.0]) and converges and not steady
+    # a whip's tip: the error grows with the links somewhere: no convergence
+    assert refine.verdict([level(2, 0.1), level(4, 0.12), level(8, 0.05)])[1:] == (False, False)
+    # falling too slowly (order 0.1) to be a convergence
+    assert refine.verdict([level(2, 0.1), level(4, 0.0933), level(8, 0.0871)])[1] is False
+
+
+def test_a_rope_whose_initial_state_depends_on_its_links_is_not_refined(small_fall, tmp_path):
+    curled = tmp_path / "curled.toml"
+    curled.write_text(SMALL_FALL.replace("q = 0.0", "q = { fill = 10.0, unit = \"deg\" }"))
+    fine, why = refine._refined(str(curled), redysim.load_case(curled))
+    assert fine is None and "depends on the link count" in why
+    fine, why = refine._refined(str(small_fall), redysim.load_case(small_fall))
+    assert fine is not None and fine.chain.n_links == 16 and why == ""
+
+
+@pytest.mark.slow
+def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_path):
+    """The study of a 32-link falling rope over 0.1 s; its advice, simulated through the public
+    API, is within the tolerance of a 128-link rope by DOP853 at 1e-10 (a model the study never
+    ran), and cheaper in RHS calls x links than the user's model meeting it."""
+    case = tmp_path / "fall32.toml"
+    case.write_text(SMALL_FALL.replace("links = 8", "links = 32"))
+    tol = 2e-3
+    st = refine.own_study(case, tol, tmp_path / "study", workers=1, progress=False,
+                          log=lambda *_: None)
+    a = st.advice
+    assert st.converges and a is not None and a.links < 32
+    assert st.check["tip_err"] == pytest.approx(a.tip_err, rel=1e-9)  # run again: the same
+    assert math.isfinite(st.ref_error) and a.tip_err + st.ref_error <= tol
+    # independently: the advised model against a 4x finer rope
+    from redysim import coarsen
+    from redysim.simulation import Simulator, frame_observer
+
+    def tips(chain, q0, v0, integrator, rtol):
+        sim = Simulator(chain, 0.1, q0=q0, v0=v0, integrator=integrator, rtol=rtol,
+                                atol=rtol * 1e-2, sample=0.02,
+                                observe={"tip": frame_observer(chain, "tip")})
+        return sim.run().observed["tip"][:, :3]
+
+    fine = refine.finer_case(case, 4)
+    ref = tips(fine.chain, fine.q0, fine.v0, "dop853", 1e-10)
+    user = redysim.load_case(case)
+    cz = coarsen(user.chain, links=a.links)
+    got = tips(cz.coarse, *cz.to_coarse(user.q0, user.v0), a.integrator, a.rtol)
+    assert np.linalg.norm(got - ref, axis=1).max() <= tol
+    # asked again: every run cached (its file untouched), none run again
+    files = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "study" / "runs").iterdir()}
+    again = refine.own_study(case, tol, tmp_path / "study", workers=1, progress=False,
+                             log=lambda *_: None, check=False)
+    assert {p.name: p.stat().st_mtime_ns
+            for p in (tmp_path / "study" / "runs").iterdir()} == files
+    assert again.advice == st.advice
+
+
+@pytest.mark.slow
+def test_advise_on_a_case_file_and_what_it_refuses(tmp_path, small_fall, capsys):
+    from redysim.harness.cli import main
+
+    out = tmp_path / "adv"
+    assert main(["advise", str(small_fall), "--tip-tol", "0.01", "--out", str(out),
+                 "--workers", "1", "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "advice for a tip path within 0.01 m" in text and "run it: redysim simulate" in text
+    assert "checked: run again" in text and "model error" in text
+    prime = tmp_path / "prime.toml"
+    prime.write_text(SMALL_FALL.replace("links = 8", "links = 7"))
+    assert main(["advise", str(prime), "--tip-tol", "0.01"]) == 2
+    assert "no coarser model" in capsys.readouterr().err
+    robot = tmp_path / "arm.urdf"
+    robot.write_text("<robot name='a'><link name='b'/></robot>")
+    assert main(["advise", str(robot), "--tip-tol", "0.01"]) == 2
+    assert "is a urdf file" in capsys.readouterr().err
+    assert main(["advise", "fall", "--tip-tol", "0.01", "--t-end", "1"]) == 2
+    assert "a finished study is read as it is" in capsys.readouterr().err
