@@ -39,7 +39,8 @@ MAX_FAILED_SHOWN = 20  # failed runs listed after a sweep
 # (pyproject.toml's [project.optional-dependencies]; dask comes with distributed; mujoco is in
 # 'engines' too, and a missing engine is refused naming 'engines' by --engine's own check)
 EXTRA_OF = {**dict.fromkeys(("pandas", "pyarrow", "distributed", "dask", "tqdm", "matplotlib",
-                             "jinja2", "reportlab", "psutil", "mpmath", "threadpoolctl"),
+                             "jinja2", "reportlab", "psutil", "mpmath", "threadpoolctl",
+                             "tomli_w"),
                             "harness"),
             "mujoco": "models",
             **dict.fromkeys(("pinocchio", "dartpy", "exudyn", "pydrake"), "engines")}
@@ -140,7 +141,14 @@ once the answer is known: your model by DOP853 at 1e-10 (the reference) and ever
 the observed order is steady, else against the rope at twice your links; then every setting on
 the coarsest model within the tolerance and the next finer one. The advice is checked by running
 it again. Runs are cached in --out (default results/advise/CASE): ask again, with another
-tolerance too, and only what is new runs. For the hanging chain, the coarsest
+tolerance too, and only what is new runs.
+
+A robot's scenario (a scenario's name or file, or a robot file): which joints can be locked at
+their initial values (their bodies fused) with the path of --observe (default: the scenario's
+first observed frame) within --tip-tol: each joint locked alone and run, ranked by its effect,
+then locked together from the least effect up while the set, run again, stays within it; the
+costs of the full and the reduced model; a scenario file of the reduced model, checked by running
+it. For the hanging chain, the coarsest
 model whose first --modes frequencies are within --freq-tol of the continuum's (a chain of n
 links has n modes: a model with fewer than --modes cannot meet it, and more modes than the
 study's finest model has are refused). Needs the 'harness' extra.
@@ -151,7 +159,8 @@ examples:
   redysim advise hanging --modes 3 --freq-tol 0.001
   redysim advise results/refine/pulled --tip-tol 0.05
   redysim advise RE-U125-L1 --tip-tol 1e-3 --t-end 0.3
-  redysim advise my_rope.toml --tip-tol 0.01"""
+  redysim advise my_rope.toml --tip-tol 0.01
+  redysim advise TALOS-FALL --tip-tol 1e-3 --observe arm_left_7_link"""
 
 CASES_HELP = """\
 List the case files that come with redysim (every chain of the paper: the repository's cases/,
@@ -307,6 +316,9 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
                      help="a rope case's study: processes (default: every core)")
     adv.add_argument("--no-progress", action="store_true",
                      help="a rope case's study: no progress bar")
+    adv.add_argument("--observe", metavar="FRAME",
+                     help="a robot scenario: the frame whose path --tip-tol bounds (default: "
+                          "the scenario's first observed frame)")
     adv.set_defaults(func=cmd_advise)
 
     eng = sub.add_parser("engines", description=ENGINES_HELP, formatter_class=fmt,
@@ -777,12 +789,12 @@ def cmd_advise(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--results", str(args.results), f"says where the studies "
                             f"of {', '.join(refine.SCENES)} are; a folder given as SCENE is "
                             "read as it is")
-    own = (args.t_end, args.out, args.workers)
+    own = (args.t_end, args.out, args.workers, args.observe)
     if args.scene not in refine.SCENES and not (Path(args.scene) / "runs").is_dir():
         return _advise_own(args)
     if any(v is not None for v in own):
-        raise SettingsError(SOURCE, "--t-end/--out/--workers", next(v for v in own if v
-                                                                     is not None),
+        raise SettingsError(SOURCE, "--t-end/--out/--workers/--observe",
+                            next(v for v in own if v is not None),
                             "set a rope case's own study; a finished study is read as it is")
     folder = (refine.study_folder(args.results or Path("results"), args.scene)
               if args.scene in refine.SCENES else Path(args.scene))
@@ -827,10 +839,11 @@ def _advise_own(args: argparse.Namespace) -> int:
                             f"of {', '.join(refine.SCENES)} are; a rope case's study goes to "
                             "--out")
     kind = file_kind(scene)
-    if kind != "case":
-        raise SettingsError(SOURCE, "SCENE", scene, f"is a {kind} file: advise studies a rope "
-                            "(a case file: a chain coarse-grained and refined); a robot's "
-                            "reductions (joints to lock, bodies to fuse) are not advised yet")
+    if kind != "case" or _is_scenario_name(scene):
+        return _advise_robot(args)
+    if args.observe is not None:
+        raise SettingsError(SOURCE, "--observe", args.observe, "a rope's study follows its tip; "
+                            "--observe names a robot scenario's frame")
     try:
         path = case_path(scene)
     except FileNotFoundError as exc:
@@ -870,6 +883,53 @@ def _advise_own(args: argparse.Namespace) -> int:
     case = os.path.relpath(path) if str(path).startswith(os.getcwd() + os.sep) else str(path)
     print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
           f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {float(ref['t_end']):g}")
+    return EXIT_OK
+
+
+def _is_scenario_name(name: str) -> bool:
+    """A built-in scenario's name (``UR5-FALL``): not a rope case's."""
+    from redysim.io.scenarios import list_scenarios
+
+    return name in list_scenarios()
+
+
+def _advise_robot(args: argparse.Namespace) -> int:
+    """``redysim advise SCENARIO --tip-tol M [--observe FRAME]``: the joints a robot's scene can
+    do without (harness.reduce)."""
+    from redysim.harness import reduce
+
+    if args.workers is not None:
+        raise SettingsError(SOURCE, "--workers", args.workers, "a robot's reductions run one "
+                            "after another (each set is decided by the runs before it)")
+    name = Path(args.scene).stem if Path(args.scene).suffix else args.scene
+    out = args.out or Path("results") / "advise" / name
+    r = reduce.reductions(args.scene, args.tip_tol, out, frame=args.observe,
+                          t_end=args.t_end or 0.0)
+    print(f"{r.scenario}: {r.full_dof} DOF; the path of {r.frame!r} over {r.t_end:g} s, each "
+          f"model by {reduce.REFERENCE[0]} rtol {reduce.REFERENCE[1]:g}")
+    shown = (r.candidates if len(r.candidates) <= 12
+             else r.candidates[:8] + [("...", math.nan)] + r.candidates[-3:])
+    print("  each joint locked alone, least effect first: "
+          + ", ".join(n if n == "..." else f"{n} {e:.2g} m" for n, e in shown))
+    for note in r.notes:
+        print(f"  {note}")
+    if not r.locked:
+        print(f"no joint can be locked within {r.tol:g} m (the least effect: "
+              f"{r.candidates[0][0]} {r.candidates[0][1]:.2g} m)")
+        return EXIT_RUN_FAILED
+    p = r.practical
+    full, red = p["full"], p["reduced"]
+    print(f"advice for a path within {r.tol:g} m: lock {len(r.locked)} joints (their bodies "
+          f"fused), {r.full_dof} -> {r.reduced_dof} DOF: {', '.join(r.locked)}")
+    print(f"  measured: path error {r.error:.3g} m (each set run, never summed); at "
+          f"{reduce.PRACTICAL[0]} rtol {reduce.PRACTICAL[1]:g} the reduced model's error is "
+          f"{p['error']:.3g} m, {red['nfev']:,} RHS calls of {red['dof']} DOF in "
+          f"{red['cpu_s']:.3g} s of CPU against the full model's {full['nfev']:,} of "
+          f"{full['dof']} DOF in {full['cpu_s']:.3g} s")
+    if r.file is not None:
+        print(f"  checked: the reduced scenario file, run on its own, follows the advised path "
+              f"to {r.file_check:.2g} m")
+        print(f"  run it: redysim simulate {r.file}")
     return EXIT_OK
 
 
