@@ -697,8 +697,50 @@ def run_all(results: Path, *, workers: int = 2, scenes=tuple(SCENES), check: boo
     summary["hanging"] = modes_study()
     summary["hanging"]["advice"] = [advise_modes(summary["hanging"], m, tol)
                                     for m, tol in ((1, 0.01), (3, 0.01), (5, 0.001))]
+    summary["own"] = own_summary(out, workers, log)
+    summary["reduce"] = reduce_summary(out, log)
     write_json_atomic(summary, out / RESULTS_FILE)
     return summary
+
+
+# what `redysim advise` is shown doing in the report: a rope case none of the studies above is,
+# and a robot's scenario
+OWN_EXAMPLE = ("RE-U125-L1", 1e-3, 0.3)    # case, tip tolerance [m], horizon [s]
+REDUCE_EXAMPLE = ("TALOS-FALL", 1e-3)      # scenario, path tolerance [m] on its observed frame
+
+
+def own_summary(out: Path, workers: int, log=print) -> dict:
+    """:func:`own_study` of OWN_EXAMPLE, as the report shows it."""
+    case, tol, t_end = OWN_EXAMPLE
+    st = own_study(case, tol, out / f"own-{case}", t_end=t_end, workers=workers,
+                   progress=False, log=log)
+    a = st.advice
+    return {"case": case, "tol": tol, "t_end": t_end, "links": int(st.study.reference["n_links"]),
+            "reference_cpu_s": float(st.study.reference["cpu_s"]),
+            "levels": [{k: _plain(d[k]) for k in ("links", "tip_err", "cpu_s")}
+                       for d in st.conv["levels"]],
+            "orders": [_plain(o) for o in st.orders], "converges": st.converges,
+            "ref_error": _plain(st.ref_error), "ref_error_how": st.ref_error_how,
+            "advice": None if a is None else {**asdict(a), "saved": _plain(a.saved)},
+            "check": st.check, "notes": st.notes}
+
+
+def reduce_summary(out: Path, log=print) -> dict:
+    """:func:`redysim.harness.reduce.reductions` of REDUCE_EXAMPLE, as the report shows it;
+    ``{"skipped": why}`` without the robot's files (example-robot-data)."""
+    from redysim.io.scenarios import robot_data_file
+
+    from . import reduce
+
+    scenario, tol = REDUCE_EXAMPLE
+    if robot_data_file("talos_reduced.urdf") is None:
+        return {"skipped": "example-robot-data is not installed (the test extra installs it)"}
+    r = reduce.reductions(scenario, tol, out / f"reduce-{scenario}", log=log)
+    return {"scenario": r.scenario, "frame": r.frame, "tol": r.tol, "t_end": r.t_end,
+            "full_dof": r.full_dof, "reduced_dof": r.reduced_dof,
+            "candidates": [[n, _plain(e)] for n, e in r.candidates],
+            "locked": sorted(r.locked), "error": r.error, "practical": r.practical,
+            "file_check": _plain(r.file_check), "notes": r.notes}
 
 
 def finer_references(studies: dict, workers: int, log=print) -> dict:

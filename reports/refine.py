@@ -178,10 +178,95 @@ def refine_section(res) -> Section:
         figs.append(_modes_figure(hang, prov))
     else:
         modes.not_run = NOT_RAN
-    for t in (conv, orders, advice, f32, modes):
+    own, reduced = own_table(doc), reduce_table(doc)
+    for t in (conv, orders, advice, f32, modes, own, reduced):
         t.provenance = prov
-    sec.items += [*figs, conv, orders, advice, f32, float32_speed_table(res), modes]
+    sec.items += [*figs, conv, orders, advice, f32, float32_speed_table(res), modes, own,
+                  reduced]
     return sec
+
+
+def own_table(doc: dict) -> Table:
+    """``redysim advise CASE``: a rope case's own study (harness.refine.own_study)."""
+    t = Table("refine-own", "redysim advise on a rope case of no study above: its own study, "
+              "run for the tolerance", ["what", "value"])
+    o = doc.get("own")
+    if not o:
+        t.not_run = NOT_RAN
+        return t
+    t.rows.append(Row(["case, horizon, tolerance",
+                       f"{o['case']} ({o['links']} links), {o['t_end']:g} s, tip path within "
+                       f"{o['tol']:g} m"], INFO))
+    t.rows.append(Row(["model error (ode45 1e-8) against the case's own model (DOP853 1e-10, "
+                       f"{o['reference_cpu_s']:.3g} s CPU)",
+                       ", ".join(f"{d['links']} links {_fmt_err(d['tip_err'])} m"
+                                 for d in o["levels"])
+                       + "; local orders " + ", ".join(num(x, 3) for x in o["orders"])], INFO))
+    t.rows.append(Row(["the case's own error", (f"{_fmt_err(o['ref_error'])} m: "
+                                                if o["ref_error"] is not None else "")
+                       + o["ref_error_how"]], INFO))
+    for note in o["notes"]:
+        t.rows.append(Row(["note", note], INFO))
+    a, chk = o["advice"], o["check"]
+    if a is None:
+        t.rows.append(Row(["advice", "none met the tolerance"], NOT_RUN))
+        return t
+    bound = chk["bound"] if chk else a["tip_err"] + (o["ref_error"] or 0.0)
+    t.rows.append(Row(["advice", f"{a['links']} links, {a['integrator']} rtol {a['rtol']:g}: "
+                       f"{seconds(a['cpu_s'])} of CPU, {a['steps']:,} steps"],
+                      MATCH if bound <= o["tol"] else DIFFER))
+    t.rows.append(Row(["checked (run again)", f"tip error {_fmt_err(chk['tip_err'])} m against "
+                       f"the case's model, with its own error {_fmt_err(bound)} m"
+                       if chk else "not checked"], MATCH if chk and bound <= o["tol"]
+                      else DIFFER))
+    if a["finest_cpu_s"] is not None and finite(a["finest_cpu_s"]):
+        t.rows.append(Row(["the case's own model at its cheapest setting within the tolerance",
+                           f"rtol {a['finest_rtol']:g}, {seconds(a['finest_cpu_s'])} of CPU: "
+                           f"{a['saved']:.1f}x the advised run's"], INFO))
+    t.notes.append("redysim advise CASE --tip-tol M (harness/refine.py, own_study): the case's "
+                   "model and every coarser one (link counts that divide it), the case's own "
+                   "error by Richardson where the order is steady or against the rope at twice "
+                   "the links, then settings on the coarsest model within the tolerance less "
+                   "that error; the advice is the least RHS calls x links within it. Green: "
+                   "the advice, run again, plus the case's own error is within the tolerance.")
+    return t
+
+
+def reduce_table(doc: dict) -> Table:
+    """``redysim advise SCENARIO``: the joints a robot's scene can lock (harness.reduce)."""
+    t = Table("refine-reduce", "redysim advise on a robot's scenario: the joints it can lock "
+              "for a path tolerance, ranked by their measured effect", ["what", "value"])
+    r = doc.get("reduce")
+    if not r:
+        t.not_run = NOT_RAN
+        return t
+    if "skipped" in r:
+        t.not_run = f"not run: {r['skipped']}"
+        return t
+    cands = r["candidates"]
+    t.rows.append(Row(["scenario, frame, tolerance", f"{r['scenario']} ({r['full_dof']} DOF), "
+                       f"the path of {r['frame']!r} over {r['t_end']:g} s within "
+                       f"{r['tol']:g} m"], INFO))
+    t.rows.append(Row(["each joint locked alone (least effect first)",
+                       ", ".join(f"{n} {_fmt_err(e)}" for n, e in cands[:6]) + ", ..., "
+                       + ", ".join(f"{n} {_fmt_err(e)}" for n, e in cands[-3:]) + " m"], INFO))
+    p = r["practical"]
+    ok = bool(r["locked"]) and r["error"] <= r["tol"]
+    t.rows.append(Row(["locked together", f"{len(r['locked'])} joints, {r['full_dof']} -> "
+                       f"{r['reduced_dof']} DOF: {', '.join(r['locked'])}"], INFO))
+    t.rows.append(Row(["their path error (each set run)", f"{_fmt_err(r['error'])} m; the "
+                       f"reduced scenario file run on its own: "
+                       f"{_fmt_err(r['file_check'])} m from it"], MATCH if ok else DIFFER))
+    t.rows.append(Row(["cost at ode45 1e-6", f"reduced {p['reduced']['nfev']:,} RHS calls of "
+                       f"{p['reduced']['dof']} DOF, {seconds(p['reduced']['cpu_s'])}; full "
+                       f"{p['full']['nfev']:,} of {p['full']['dof']} DOF, "
+                       f"{seconds(p['full']['cpu_s'])}; the reduced model's error there "
+                       f"{_fmt_err(p['error'])} m"], INFO))
+    t.notes.append("redysim advise SCENARIO --tip-tol M (harness/reduce.py): each joint held at "
+                   "its initial value (Model.locked, its body fused) and the reduced model run "
+                   "by DOP853 1e-10 against the full model's run; then joints locked together, "
+                   "least effect first, while the set, run again, stays within the tolerance.")
+    return t
 
 
 def float32_speed_table(res) -> Table:

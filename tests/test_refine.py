@@ -328,3 +328,36 @@ def test_advise_on_a_case_file_and_what_it_refuses(tmp_path, small_fall, capsys)
     assert "is a urdf file" in capsys.readouterr().err
     assert main(["advise", "fall", "--tip-tol", "0.01", "--t-end", "1"]) == 2
     assert "a finished study is read as it is" in capsys.readouterr().err
+
+
+def test_the_reports_advice_tables_judge_the_check_against_the_tolerance():
+    pytest.importorskip("matplotlib")
+    from redysim.reports.content import DIFFER, MATCH
+    from redysim.reports.refine import own_table, reduce_table
+
+    advice = {"links": 25, "integrator": "ode45", "rtol": 1e-3, "tip_err": 1.8e-4,
+              "cpu_s": 4e-3, "steps": 89, "finest_cpu_s": 0.04, "finest_rtol": 1e-3,
+              "saved": 10.0}
+    own = {"case": "C", "tol": 1e-3, "t_end": 0.3, "links": 125, "reference_cpu_s": 0.4,
+           "levels": [{"links": 5, "tip_err": 5e-3, "cpu_s": 1e-3}], "orders": [],
+           "converges": True, "ref_error": 6e-5, "ref_error_how": "measured", "notes": [],
+           "advice": advice, "check": {"tip_err": 1.8e-4, "cpu_s": 4e-3, "steps": 89,
+                                       "bound": 2.4e-4}}
+    kinds = {r.cells[0]: r.kind for r in own_table({"own": own}).rows}
+    assert kinds["advice"] == MATCH and kinds["checked (run again)"] == MATCH
+    own["check"]["bound"] = 2e-3  # the advice, run again, out of the tolerance: red
+    kinds = {r.cells[0]: r.kind for r in own_table({"own": own}).rows}
+    assert kinds["advice"] == DIFFER and kinds["checked (run again)"] == DIFFER
+    assert own_table({}).not_run
+    red = {"scenario": "S", "frame": "f", "tol": 1e-3, "t_end": 0.5, "full_dof": 38,
+           "reduced_dof": 17, "candidates": [["a", 1e-6]] * 10, "locked": ["a"],
+           "error": 3e-4, "file_check": 0.0, "notes": [],
+           "practical": {"full": {"nfev": 79, "dof": 38, "cpu_s": 2e-3},
+                         "reduced": {"nfev": 79, "dof": 17, "cpu_s": 1e-3}, "error": 3e-4}}
+    rows = {r.cells[0]: r for r in reduce_table({"reduce": red}).rows}
+    assert rows["their path error (each set run)"].kind == MATCH
+    assert "38 -> 17 DOF" in rows["locked together"].cells[1]
+    red["error"] = 2e-3
+    rows = {r.cells[0]: r for r in reduce_table({"reduce": red}).rows}
+    assert rows["their path error (each set run)"].kind == DIFFER
+    assert reduce_table({"reduce": {"skipped": "no robots"}}).not_run == "not run: no robots"
