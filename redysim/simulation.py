@@ -682,10 +682,18 @@ class Simulator:
 
         solver = self.solver
         unexpected = None
+        # an engine's own adaptive advance checks the CPU limit between its own steps
+        engine_limit = isinstance(solver, EngineStepper) and math.isfinite(cpu_end) and hasattr(
+            solver.engine, "set_sim_deadline")
+        if engine_limit:
+            solver.engine.set_sim_deadline(cpu, cpu_end)
         try:
             status, message = advance(solver, self.ts, on_sample=on_sample, on_step=step_done)
         except _Stop as stop:
             status, message = stop.status, stop.message
+        except TimeoutError as exc:  # that engine's advance stopped at the limit
+            status, message = -1, (f"time limit: max_cpu_s = {max_cpu_s:g} s of CPU reached "
+                                   f"after t = {solver.t:.6g} ({exc})")
         except StateError as exc:  # qdd not defined or overflowed at a stage
             status, message = -1, f"at t = {solver.t:.6g}: {exc}"
         except Exception as exc:  # a provider's own error (an engine's): raised, with the
@@ -693,6 +701,8 @@ class Simulator:
             status, message = -1, f"at t = {solver.t:.6g}: {type(exc).__name__}: {exc}"
         finally:
             self._rhs = motion.rhs
+            if engine_limit:
+                solver.engine.set_sim_deadline(None, math.inf)
         near = None
         if loops is not None:
             ratio = loops.nearest_change_point()  # the failing step's own, if any

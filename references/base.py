@@ -679,6 +679,22 @@ class Engine(EnginePackage):
         self._sim_steps += 1
         self.sim_t = self._sim_steps * self.sim_settings["h"]
 
+    # (clock, deadline): the CPU-time limit inside the native stepper's own advance
+    _deadline: tuple = (None, math.inf)
+
+    def set_sim_deadline(self, clock, deadline: float) -> None:
+        """A CPU-time limit inside the native stepper's own advance: an adaptive integrator
+        lands on a sample time by its own steps, which one call from Python cannot check. Once
+        ``clock()`` passes ``deadline``, an engine that can stop between its own steps (Drake: a
+        monitor; Exudyn: a pre-step function) stops there and :meth:`sim_advance` raises
+        TimeoutError; ``math.inf``: no limit (the default). :class:`redysim.Simulator` sets it
+        from a run's ``max_cpu_s`` and clears it after the run."""
+        self._deadline = (clock, float(deadline))
+
+    def _past_deadline(self) -> bool:
+        clock, deadline = self._deadline
+        return clock is not None and math.isfinite(deadline) and clock() > deadline
+
     def sim_advance(self, t: float) -> None:
         """Advance the native state to time t: an adaptive integrator lands on t by its own
         control; a fixed-step one takes whole steps to it (ValueError when t is not a whole

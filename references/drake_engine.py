@@ -385,7 +385,23 @@ class Drake(DrakePackage, Engine):
         self._sim.AdvanceTo(min(self._k * h, self._sim.get_context().get_time() + h))
 
     def _sim_advance(self, t: float) -> None:
-        self._sim.AdvanceTo(t)
+        sim = self._sim
+        if math.isfinite(self._deadline[1]):  # a monitor at every step checks the CPU limit
+            from pydrake.systems.framework import EventStatus
+
+            def monitor(context):
+                if self._past_deadline():
+                    return EventStatus.ReachedTermination(None, "CPU-time limit")
+                return EventStatus.DidNothing()
+
+            sim.set_monitor(monitor)
+        else:
+            sim.clear_monitor()
+        sim.AdvanceTo(t)
+        now = sim.get_context().get_time()
+        if now < t:
+            raise TimeoutError(f"drake stopped its advance to t = {t:.6g} at t = {now:.6g}, "
+                               "its CPU-time limit reached")
 
     def _sim_state(self):
         ctx = self._sim.get_context()

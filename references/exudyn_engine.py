@@ -138,6 +138,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import re
 import sys
 from typing import Any, NamedTuple
@@ -587,7 +588,17 @@ class Exudyn(Engine):
                 h_max = self.sim_settings["h"] or (t1 - t0)
                 s.it.maxStepSize = h_max
                 s.it.initialStepSize = min(ex["h_next"], h_max)
-                ok = s.SolveSteps(mbs, ss)
+                limited = math.isfinite(self._deadline[1])
+                if limited:  # the CPU limit checked before every step (False: stop)
+                    mbs.SetPreStepUserFunction(lambda mbs, t: not self._past_deadline())
+                try:
+                    ok = s.SolveSteps(mbs, ss)
+                finally:
+                    if limited:
+                        mbs.SetPreStepUserFunction(0)
+                if limited and self._past_deadline():
+                    raise TimeoutError(f"exudyn stopped its advance to t = {t1:.6g} at t = "
+                                       f"{s.it.currentTime:.6g}, its CPU-time limit reached")
             else:  # SolveSteps's loop body, one step (the class comment above)
                 s.it.currentStepIndex, s.it.currentStepSize = 1, self.sim_settings["h"]
                 s.InitializeStep(mbs, ss)

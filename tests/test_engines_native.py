@@ -286,6 +286,27 @@ def test_simulator_runs_an_adaptive_native_integrator(model_id):
         "DOPRI5", 1e-9, 1e-9)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "integrator"), [("drake", "implicit_euler"),
+                                                  ("exudyn", "dopri5")])
+def test_an_engines_own_adaptive_advance_stops_at_the_cpu_limit(name, integrator):
+    """An adaptive native integrator lands on each sample by its own steps: before the limit
+    reached inside the engine's advance (Drake's monitor, Exudyn's pre-step function), a slow
+    one on a 250-DOF rope ran one sample interval for over ten minutes past a 120 s limit. Now
+    the run stops at the limit, failed, its message says where, and the engine is left with no
+    limit for its next run."""
+    engine_or_skip(name)
+    from redysim.harness.run import execute
+    from redysim.harness.spec import RunSpec
+
+    res = execute(RunSpec("RE-U125-L1", engine=name, integrator=f"native:{integrator}",
+                          rtol=1e-7, atol=1e-9, t_end=0.2, max_cpu_s=0.5), reference=False)
+    s = res.summary
+    assert not res.ok and s["reason"].startswith("time limit: max_cpu_s = 0.5 s")
+    assert f"{name} stopped its advance" in s["reason"] and s["t_reached"] < 0.2
+    assert s["cpu_s"] < 5.0  # one step past the limit at most (not minutes)
+
+
 # --------------------------------------------------------------------------- MuJoCo
 def test_mujoco_implicitfast_is_euler_on_a_chain_and_implicit_on_a_free_body():
     """Without damping or actuators MuJoCo's implicitfast has nothing to treat implicitly on a
