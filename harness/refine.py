@@ -385,6 +385,30 @@ def local_orders(levels: list[dict]) -> list[float]:
     return out
 
 
+def three_level_order(n1: int, n2: int, n3: int, d12: float, d23: float) -> float:
+    """The order p with which errors C n^-p give the differences d12 between n1 and n2 links and
+    d23 between n2 and n3 (n1 < n2 < n3): the root of (n1^-p - n2^-p) / (n2^-p - n3^-p) =
+    d12 / d23, by bisection on (0, 16]; 0 when the differences do not shrink fast enough for
+    any p > 0 (their ratio at most its limit ln(n2/n1) / ln(n3/n2) as p -> 0), nan when a
+    difference is not a positive number."""
+    if not (d12 > 0 and d23 > 0 and math.isfinite(d12) and math.isfinite(d23)):
+        return math.nan
+    target = d12 / d23
+
+    def ratio(p):
+        return (n1 ** -p - n2 ** -p) / (n2 ** -p - n3 ** -p)
+
+    if target <= math.log(n2 / n1) / math.log(n3 / n2):
+        return 0.0
+    lo, hi = 1e-9, 16.0
+    if target >= ratio(hi):
+        return hi
+    for _ in range(200):  # ratio rises with p
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ratio(mid) < target else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 def verdict(levels: list[dict]) -> tuple[list[float], bool, bool]:
     """(local orders, converges, steady) of a study's levels (coarse to fine): it converges when
     every finer level's error is smaller and the last local orders are at least MIN_ORDER; its
@@ -454,10 +478,12 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
        (:func:`coarse_levels`) by ode45 at 1e-8: the model error of every level, their local
        orders of convergence.
     2. The reference's own error: Richardson from the finest coarse level when the last two
-       local orders agree (within STEADY); else measured against the rope at twice the links
-       (DOP853 at FINER_RTOL) when the case can be refined into the same rope; else unknown
-       (said). A study whose errors do not fall with the links does not converge (a singular
-       scene): said, no advice.
+       local orders agree (within STEADY); else from the rope at twice the links (DOP853 at
+       FINER_RTOL) when the case can be refined into the same rope: its difference from the
+       reference and the order that the finest coarse level, the reference and it show
+       (:func:`three_level_order`) give the rest of the way to the converged path; else unknown
+       (said). A study whose errors do not fall with the links, or whose three finest models
+       show no positive order, does not converge (a singular scene): said, no advice.
     3. The coarsest level whose model error is within ``tol`` less the reference's, the next
        finer one and the user's own, at every setting of OWN_INTEGRATORS x OWN_RTOLS;
        :func:`advise` on all the runs for ``tol`` less the reference's error, by their work
@@ -528,10 +554,23 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
                 f"(DOP853 {FINER_RTOL:g}) measures the reference's own error")
             finer = finer_references({study.scene: study}, workers=1,
                                      log=lambda *_: None)[study.scene]
-            ref_error = float(np.linalg.norm(study.tips[study.reference["run_id"]]
-                                             - finer["tips"], axis=1).max())
-            how = (f"measured: the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}), the "
-                   f"order not steady (local orders {', '.join(f'{o:.2f}' for o in orders)})")
+            step = float(np.linalg.norm(study.tips[study.reference["run_id"]]
+                                        - finer["tips"], axis=1).max())
+            c = lv[-1]
+            p = three_level_order(c["links"], nl, finer["links"], c["tip_err"], step)
+            if not p > 0:
+                notes.append(f"the tip path does not settle as links are added: your model "
+                             f"and the rope at {finer['links']} links differ by {step:.2g} m, "
+                             f"no less than {c['links']} links and yours ({c['tip_err']:.2g} m) "
+                             "allow for a converging sequence: a singular scene (a whip's tip, "
+                             "a bare end pulled by a force), no converged path to advise for")
+                return OwnStudy(path, tol, study, conv, orders, False, math.nan, "", None,
+                                None, notes)
+            ref_error = step / ((finer["links"] / nl) ** p - 1.0)
+            how = (f"estimated from the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}): "
+                   f"{step:.2g} m from yours, order {p:.2f} over {c['links']}, {nl} and "
+                   f"{finer['links']} links, the rest of the way by that order (the order not "
+                   f"steady over the levels: {', '.join(f'{o:.2f}' for o in orders)})")
     budget = tol - ref_error if math.isfinite(ref_error) else tol
     if not math.isfinite(ref_error):
         notes.append("the reference's own error is not known: the advice is within the "

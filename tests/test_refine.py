@@ -324,8 +324,8 @@ def test_advise_on_a_case_file_and_what_it_refuses(tmp_path, small_fall, capsys)
     assert "no coarser model" in capsys.readouterr().err
     robot = tmp_path / "arm.urdf"
     robot.write_text("<robot name='a'><link name='b'/></robot>")
-    assert main(["advise", str(robot), "--tip-tol", "0.01"]) == 2
-    assert "is a urdf file" in capsys.readouterr().err
+    assert main(["advise", str(robot), "--tip-tol", "0.01"]) == 2  # a robot: its reductions,
+    assert "arm.urdf" in (err := capsys.readouterr().err) and "no body moves" in err  # named
     assert main(["advise", "fall", "--tip-tol", "0.01", "--t-end", "1"]) == 2
     assert "a finished study is read as it is" in capsys.readouterr().err
 
@@ -361,3 +361,14 @@ def test_the_reports_advice_tables_judge_the_check_against_the_tolerance():
     rows = {r.cells[0]: r for r in reduce_table({"reduce": red}).rows}
     assert rows["their path error (each set run)"].kind == DIFFER
     assert reduce_table({"reduce": {"skipped": "no robots"}}).not_run == "not run: no robots"
+
+
+def test_the_order_of_three_models_from_their_two_differences():
+    e = [n ** -2.0 for n in (10, 20, 40)]  # errors C n^-p with p = 2 exactly
+    assert refine.three_level_order(10, 20, 40, e[0] - e[1], e[1] - e[2]) == pytest.approx(2.0)
+    e = [n ** -0.5 for n in (25, 125, 250)]  # unequal ratios, a low order
+    assert refine.three_level_order(25, 125, 250, e[0] - e[1], e[1] - e[2]) == \
+        pytest.approx(0.5)
+    # differences that do not shrink: no positive order (a singular scene)
+    assert refine.three_level_order(10, 20, 40, 1.0, 1.0) == 0.0
+    assert math.isnan(refine.three_level_order(10, 20, 40, 0.0, 1.0))
