@@ -16,7 +16,9 @@ help:
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
 	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=; batches beside a busy process),"
 	@echo "                   appended to the performance history benchmarks/history/bench.jsonl (commit it)"
-	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too)"
+	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too);"
+	@echo "                   the latency/throughput ladder: xArm7, Talos, a 250-DOF rope, from a call to a"
+	@echo "                   simulated second at 1e-6 m (benchmarks/ladder.py, ~10 min)"
 	@echo "make lint          ruff"
 
 $(BIN)/python:
@@ -85,6 +87,7 @@ bench-engines: $(STAMP)
 	$(BIN)/python -m pytest benchmarks/test_bench_engines.py --benchmark-only --benchmark-enable \
 		--benchmark-json=results/bench/engines.json $(BENCH_ARGS)
 	$(BIN)/python -m redysim.references.report_bench results/bench/engines.json
+	$(BIN)/python benchmarks/ladder.py
 	$(BIN)/python -m redysim.reports.history append results/bench/engines.json
 
 lint: $(STAMP)

@@ -35,14 +35,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import time
-import timeit
 from pathlib import Path
 
 import numba
 import numpy as np
-from conftest import machine
+from conftest import machine, side_by_side
 
 import redysim
 from redysim import Chain, Workspace, forward_dynamics, inverse_dynamics
@@ -127,27 +125,6 @@ def calls(label: str, model) -> dict:
     }
 
 
-def side_by_side(fns: dict, rounds: int, round_s: float) -> dict:
-    """Per-call seconds of each callable, the callables alternating within every round."""
-    numbers = {}
-    for k, fn in fns.items():
-        fn()
-        number, _ = timeit.Timer(fn).autorange()
-        t0 = time.perf_counter()
-        timeit.Timer(fn).timeit(number)
-        numbers[k] = max(1, int(number * round_s / max(time.perf_counter() - t0, 1e-9)))
-    per_call: dict[str, list[float]] = {k: [] for k in fns}
-    items = list(fns.items())
-    for r in range(rounds):
-        for k, fn in items if r % 2 == 0 else items[::-1]:
-            per_call[k].append(timeit.Timer(fn).timeit(numbers[k]) / numbers[k])
-    for k in per_call:
-        if k == "floor: kernel":
-            per_call[k] = [t / LOOP for t in per_call[k]]
-    return {k: {"median_s": statistics.median(v), "min_s": min(v), "number": numbers[k]}
-            for k, v in per_call.items()}
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=41)
@@ -168,7 +145,8 @@ def main(argv=None) -> int:
     rows = []
     print(f"{'model':18s} {'call':22s} {'us':>16s} {'pin / call':>11s}")
     for label, model in models.items():
-        res = side_by_side(calls(label, model), args.rounds, args.round_ms / 1e3)
+        res = side_by_side(calls(label, model), args.rounds, args.round_ms / 1e3,
+                           per={"floor: kernel": LOOP})
         for name, r in res.items():
             base = res["pin.rnea" if name.startswith(("pin.rnea", "id ")) else "pin.aba"]
             ratio = base["median_s"] / r["median_s"]

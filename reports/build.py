@@ -445,6 +445,114 @@ def bench_table(res: Results) -> Table:
     return t
 
 
+LADDER_RUNGS = {1: "call from Python", 2: "inside compiled code", 3: "batch of 64",
+                4: "a simulated second"}
+
+
+def ladder_core_reference(rows: list[dict]) -> dict:
+    """(system, rung) -> the core's time per state that the rung's rows are divided by: its
+    first row of the rung (benchmarks/ladder.py writes them so: the evaluator, the kernel's
+    loop, the default batch, the cheapest run)."""
+    ref: dict = {}
+    for r in rows:
+        if r["engine"] == "core" and "per_state_s" in r:
+            ref.setdefault((r["system"], r["rung"]), r["per_state_s"])
+    return ref
+
+
+def ladder_table(res: Results) -> Table:
+    """The latency/throughput ladder (benchmarks/ladder.py, make bench-engines)."""
+    t = Table("ladder", "Latency and throughput ladder: forward dynamics per state, from a call "
+              "from Python to a whole simulated second, the core beside every engine",
+              ["system", "DOF", "rung", "engine", "version", "how", "per state",
+               "ns/DOF", "x core", "note"])
+    doc = res.bench("ladder")
+    if doc is None:
+        t.not_run = "not run: make bench-engines (benchmarks/ladder.py)"
+        return t
+    tol = doc.get("tolerance_m", math.nan)
+    for r in doc["rows"]:
+        rung = LADDER_RUNGS.get(r["rung"], str(r["rung"]))
+        head = [r["system"], f"{r['dof']:,}", rung, r["engine"], str(r.get("version", "")),
+                r.get("call", "")]
+        if "per_state_s" not in r:
+            t.rows.append(Row(head + ["", "", "", r.get("note", "")], NOT_RUN))
+            continue
+        note = (f"path error {r['error_m']:.1e} m, {r['steps']:,} steps" if r["rung"] == 4
+                else r.get("note", ""))
+        t.rows.append(Row(head + [seconds(r["per_state_s"]), num(r["ns_per_dof"], 3),
+                                  num(r.get("x_core", math.nan), 3), note], INFO))
+    m = doc.get("machine", {})
+    t.notes += [
+        "Rungs 1-3 timed side by side in one process (every callable alternating within each "
+        "round), the median per state over the rounds. 1: one state's qdd from Python (the "
+        "core's evaluator and its default call; pin.aba; MuJoCo's qpos and qvel set and "
+        "mj_forward; DART, Exudyn and Drake as their adapters call them). 2: the computation "
+        "repeated inside compiled code (the core's kernel in a numba loop; pin.abaInParallel on "
+        "one thread over 64 states; mj_step with nstep, Euler: mj_forward and the update). 3: 64 "
+        "states in one call on every core (the core's batch; pin.abaInParallel; MuJoCo's "
+        "rollout of one step from each).",
+        f"4: the CPU time per simulated second of the engine's cheapest run (among redysim "
+        f"compare's: the core's integrators, the engine through ode45 and with each of its "
+        f"own integrators over a ladder of steps or tolerances) whose observed path stays "
+        f"within {tol:g} m of the scenario's reference solution over "
+        f"{doc.get('t_end_s', 1.0):g} s; 'how' names that run.",
+        "x core: per state over the core's of the same rung (its evaluator, its kernel's loop, "
+        "its default batch, its cheapest run). The systems: the xArm7 (XARM7-FALL, 7 DOF), "
+        "Talos reduced on a floating base (TALOS-FALL, 38 DOF), RE-U125-L1's rope swinging from "
+        "30 degrees off the vertical (cases/ladder/swing-U125-L1.toml, 250 DOF); each engine "
+        "builds the core's own model (one adapter an engine: Pinocchio's with a U joint as two "
+        "revolute joints on the rope).",
+    ]
+    t.provenance = (f"results/bench/ladder.json: {m.get('cpu', '')}, {m.get('cores', '')} "
+                    f"cores, Python {m.get('python', '')}, redysim {m.get('redysim', '')}, "
+                    f"{doc.get('date', '')}, load average {doc.get('load', [[math.nan]])[0][0]:.2f}"
+                    " at start")
+    return t
+
+
+def ladder_figure(res: Results):
+    """The ladder as lines: per system, time per state against the rung, a line per engine
+    through the rungs it has (the core: the rows its table divides by)."""
+    from .figures import PANEL_H, PANEL_W, WP_MARKERS, _figure, missing, new_figure
+
+    title = "Latency and throughput ladder"
+    caption = ("Forward dynamics per state, log scale, on each rung of the ladder table: 1 a call "
+               "from Python, 2 the same inside compiled code, 3 a batch of 64 states on every "
+               "core, 4 the CPU time per simulated second at the stated path accuracy (the "
+               "engine's cheapest run). A line per engine through the rungs it has; the core's "
+               "evaluator, kernel loop, default batch and cheapest run.")
+    doc = res.bench("ladder")
+    if doc is None:
+        return missing("ladder", "perf-ladder", title, caption,
+                       "not run: make bench-engines (benchmarks/ladder.py)")
+    rows = [r for r in doc["rows"] if "per_state_s" in r]
+    systems = list(dict.fromkeys(r["system"] for r in rows))
+    m = doc.get("machine", {})
+    fig, axes = new_figure(len(systems), width=PANEL_W * len(systems), height=PANEL_H * 1.3,
+                           footer=f"results/bench/ladder.json: {m.get('cpu', '')}, "
+                                  f"{doc.get('date', '')}")
+    engines = list(dict.fromkeys(r["engine"] for r in rows))
+    for ax, system in zip(np.atleast_1d(axes), systems, strict=True):
+        for i, engine in enumerate(engines):
+            first: dict = {}
+            for r in rows:  # an engine's first row of each rung (the core's reference rows)
+                if r["system"] == system and r["engine"] == engine:
+                    first.setdefault(r["rung"], r["per_state_s"])
+            if not first:
+                continue
+            xs = sorted(first)
+            ax.semilogy(xs, [first[x] for x in xs], marker=WP_MARKERS[i % len(WP_MARKERS)],
+                        color=f"C{i % 10}", lw=2.0 if engine == "core" else 1.0, ms=4,
+                        label=engine)
+        dof = next(r["dof"] for r in rows if r["system"] == system)
+        ax.set(title=f"{system} ({dof:,} DOF)", xticks=list(LADDER_RUNGS),
+               xticklabels=["call", "compiled", "batch 64", "1 s"], ylabel="s per state "
+               "(rung 4: CPU s per simulated s)")
+    np.atleast_1d(axes)[-1].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    return _figure("ladder", "perf-ladder", title, caption, fig)
+
+
 # --------------------------------------------------------------------------- robots and trees
 ROBOTS_NOT_RUN = "not run: python -m redysim.reports.robots (make reproduce runs it)"
 MUJOCO_SOFT_COUPLING = ("qdd only: MuJoCo holds a mimic coupling softly, a joint equality with its "
@@ -887,7 +995,8 @@ def build_report(res: Results, history: Path = H.HISTORY_FILE) -> Report:
                             F.op_counts(ctx), *F.work_precision(ctx), limits_table(res),
                             ieee_table(res), F.true_error(ctx), true_error_table(res),
                             F.true_error(ctx, "random"), true_error_table(res, "random"),
-                            bench_table(res), H.history_figure(history)])
+                            bench_table(res), ladder_figure(res), ladder_table(res),
+                            H.history_figure(history)])
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
                   [setup_section(ctx), paper, figs, beyond, robots_section(res),

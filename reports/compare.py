@@ -47,6 +47,18 @@ ADVICE_TOLS = (1e-2, 1e-4, 1e-6)  # m: path tolerances the advice answers for
 MAX_CPU_S = 120.0  # a run's CPU limit here [s]
 
 
+def engine_names(model) -> list[str]:
+    """One adapter per engine for ``model`` (a tree): Pinocchio's ``pin.aba``, with each U joint
+    (and the U part of an S joint) as two revolute joints where the model has any
+    (``pinocchio-aba-ryrz``: its ``JointModelUniversal`` loses the articulated inertia's symmetry
+    on long chains, references/pinocchio_engine.py), and the other engines' one adapter."""
+    from redysim import references
+
+    split = any(t in ("U", "S") for t in model.joint_types)
+    drop = ("pinocchio-crba", "pinocchio-aba" if split else "pinocchio-aba-ryrz")
+    return [n for n in references.ENGINES if n not in drop]
+
+
 def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
          engines=None) -> list[RunSpec]:
     """The runs of a comparison: the core (ode45, dop853 at CORE_RTOLS; rk4 at the steps
@@ -64,8 +76,7 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     # a closed mechanism: the engines with a loop adapter, by the adapter's tree engine's name
     # (Pinocchio's loops are built on its CRBA; Drake's continuous plant takes no constraints)
     names = ([c.adapter.name for c in references.LOOP_ENGINES.values()] if scn.model.cuts
-             else [n for n in references.ENGINES
-                   if n not in ("pinocchio-aba-ryrz", "pinocchio-crba")])  # one per engine
+             else engine_names(scn.model))
     for name in names:
         cls = references.get(name)
         if engines is not None and name not in engines:

@@ -50,7 +50,7 @@ class Figure:
 
     id: str
     family: str  # tip-path, tip-speed, drift, conditioning, scaling, opcount, work-precision,
-    #              true-error, perf-history
+    #              true-error, perf-history, perf-ladder
     title: str
     caption: str
     png: bytes | None = None

@@ -190,6 +190,22 @@ def test_redysim_compare_writes_a_page_with_agreement_runs_and_advice(tmp_path, 
     assert "does not exist" in capsys.readouterr().err
 
 
+def test_compare_runs_pinocchio_with_its_stable_u_joints_on_a_rope():
+    """One Pinocchio adapter a comparison: pin.aba with U joints split into two revolute joints
+    on a model that has U joints (its JointModelUniversal drifts on long chains), pin.aba with
+    its own joints on the rest; never the CRBA adapter (the same model as pin.aba's)."""
+    from redysim import references
+    from redysim.reports.compare import engine_names
+
+    rope = engine_names(load_scenario("RE-U125-L1").model)
+    pendulum = engine_names(load_scenario("DOUBLE-PENDULUM").model)
+    assert "pinocchio-aba-ryrz" in rope and "pinocchio-aba" not in rope
+    assert "pinocchio-aba" in pendulum and "pinocchio-aba-ryrz" not in pendulum
+    others = set(references.ENGINES) - {"pinocchio-aba", "pinocchio-aba-ryrz", "pinocchio-crba"}
+    assert others <= set(rope) and others <= set(pendulum)
+    assert "pinocchio-crba" not in rope + pendulum
+
+
 @pytest.mark.engine
 @NEEDS_ROBOTS
 def test_a_robots_reference_is_confirmed_by_a_second_implementation(tmp_path, monkeypatch):
