@@ -895,7 +895,7 @@ def _is_scenario_name(name: str) -> bool:
 
 def _advise_robot(args: argparse.Namespace) -> int:
     """``redysim advise SCENARIO --tip-tol M [--observe FRAME]``: the joints a robot's scene can
-    do without (harness.reduce)."""
+    do without (redysim.harness.reduce)."""
     from redysim.harness import reduce
 
     if args.workers is not None:

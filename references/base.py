@@ -687,8 +687,9 @@ class Engine(EnginePackage):
         lands on a sample time by its own steps, which one call from Python cannot check. Once
         ``clock()`` passes ``deadline``, an engine that can stop between its own steps (Drake: a
         monitor; Exudyn: a pre-step function) stops there and :meth:`sim_advance` raises
-        TimeoutError; ``math.inf``: no limit (the default). :class:`redysim.Simulator` sets it
-        from a run's ``max_cpu_s`` and clears it after the run."""
+        TimeoutError; ``math.inf``: no limit (the default).
+        :class:`redysim.simulation.Simulator` sets it from a run's ``max_cpu_s`` and clears it
+        after the run."""
         self._deadline = (clock, float(deadline))
 
     def _past_deadline(self) -> bool:

@@ -187,7 +187,7 @@ def refine_section(res) -> Section:
 
 
 def own_table(doc: dict) -> Table:
-    """``redysim advise CASE``: a rope case's own study (harness.refine.own_study)."""
+    """``redysim advise CASE``: a rope case's own study (redysim.harness.refine.own_study)."""
     t = Table("refine-own", "redysim advise on a rope case of no study above: its own study, "
               "run for the tolerance", ["what", "value"])
     o = doc.get("own")
@@ -233,7 +233,7 @@ def own_table(doc: dict) -> Table:
 
 
 def reduce_table(doc: dict) -> Table:
-    """``redysim advise SCENARIO``: the joints a robot's scene can lock (harness.reduce)."""
+    """``redysim advise SCENARIO``: the joints a robot's scene can lock (redysim.harness.reduce)."""
     t = Table("refine-reduce", "redysim advise on a robot's scenario: the joints it can lock "
               "for a path tolerance, ranked by their measured effect", ["what", "value"])
     r = doc.get("reduce")
