@@ -18,7 +18,7 @@ help:
 	@echo "                   appended to the performance history benchmarks/history/bench.jsonl (commit it)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too);"
 	@echo "                   the latency/throughput ladder: xArm7, Talos, a 250-DOF rope, from a call to a"
-	@echo "                   simulated second at 1e-6 m (benchmarks/ladder.py, ~10 min)"
+	@echo "                   simulated second at 1e-6 m (benchmarks/ladder.py, ~30 min: each engine's runs)"
 	@echo "make lint          ruff"
 
 $(BIN)/python:
