@@ -282,9 +282,11 @@ def second_rows(label: str, scenario: str, out: Path, tol: float, log=print) -> 
             mine = ok[ok["engine"] == engine]
             least = (f"; its least error {float(mine['max_tip_err'].astype(float).min()):.1e} m"
                      if len(mine) else "")
-            n_all = int((runs["engine"] == engine).sum())
-            rows.append({**row, "call": "", "note": f"no run within {tol:g} m ({n_all} runs"
-                         f"{least})"})
+            own = runs[runs["engine"] == engine]
+            limited = int(own["reason"].astype(str).str.startswith("time limit").sum())
+            cap = f", {limited} stopped at the CPU limit of a run" if limited else ""
+            rows.append({**row, "call": "", "note": f"no run within {tol:g} m ({len(own)} runs"
+                         f"{cap}{least})"})
             continue
         rows.append({**row, "call": f"{run_label(best).split(' ', 1)[1]} {setting(best)}",
                      "per_state_s": float(best["cpu_s"]) / T_END, "min_s": float("nan"),
