@@ -520,8 +520,9 @@ def ladder_figure(res: Results):
     caption = ("Forward dynamics per state, log scale, on each rung of the ladder table: 1 a call "
                "from Python, 2 the same inside compiled code, 3 a batch of 64 states on every "
                "core, 4 the CPU time per simulated second at the stated path accuracy (the "
-               "engine's cheapest run). A line per engine through the rungs it has; the core's "
-               "evaluator, kernel loop, default batch and cheapest run.")
+               "engine's cheapest run: another unit, not joined to the rest). A line per engine "
+               "through the rungs 1-3 it has; the core's evaluator, kernel loop, default batch "
+               "and cheapest run.")
     doc = res.bench("ladder")
     if doc is None:
         return missing("ladder", "perf-ladder", title, caption,
@@ -541,15 +542,26 @@ def ladder_figure(res: Results):
                     first.setdefault(r["rung"], r["per_state_s"])
             if not first:
                 continue
-            xs = sorted(first)
-            ax.semilogy(xs, [first[x] for x in xs], marker=WP_MARKERS[i % len(WP_MARKERS)],
-                        color=f"C{i % 10}", lw=2.0 if engine == "core" else 1.0, ms=4,
-                        label=engine)
+            # rungs 1-3 (time per state) joined; rung 4 (CPU per simulated second) a marker
+            xs = sorted(x for x in first if x < 4)
+            style = dict(marker=WP_MARKERS[i % len(WP_MARKERS)], color=f"C{i % 10}", ms=4)
+            if xs:
+                ax.semilogy(xs, [first[x] for x in xs], lw=2.0 if engine == "core" else 1.0,
+                            label=engine, **style)
+            if 4 in first:
+                ax.semilogy([4], [first[4]], linestyle="none", ms=6,
+                            **({} if xs else {"label": engine}), **{k: v for k, v in
+                                                                     style.items() if k != "ms"})
         dof = next(r["dof"] for r in rows if r["system"] == system)
         ax.set(title=f"{system} ({dof:,} DOF)", xticks=list(LADDER_RUNGS),
                xticklabels=["call", "compiled", "batch 64", "1 s"], ylabel="s per state "
                "(rung 4: CPU s per simulated s)")
-    np.atleast_1d(axes)[-1].legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    handles: dict = {}  # every panel's engines, once (Pinocchio's adapter differs on the rope)
+    for ax in np.atleast_1d(axes):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    np.atleast_1d(axes)[-1].legend(handles.values(), handles.keys(), loc="upper left",
+                                   bbox_to_anchor=(1.0, 1.0))
     return _figure("ladder", "perf-ladder", title, caption, fig)
 
 
