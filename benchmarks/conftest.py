@@ -27,6 +27,20 @@ def machine() -> dict:
             "numpy": np.__version__, "numba": numba.__version__, "redysim": redysim.__version__}
 
 
+def loop_of(kernel):
+    """A compiled loop calling ``kernel`` (a lean entry: q, v, tau, out, fdata, idata, scratch)
+    ``count`` times on the same arguments: the kernel's cost inside compiled code."""
+    from redysim._jit import LEAN_OPTIONS
+
+    @numba.njit(**dict(LEAN_OPTIONS, cache=False))
+    def loop(q, v, tau, out, f, i, s, count):
+        for _ in range(count):
+            kernel(q, v, tau, out, f, i, s)
+        return out
+
+    return loop
+
+
 def side_by_side(fns: dict, rounds: int, round_s: float, per: dict | None = None) -> dict:
     """Seconds per call of each callable (per state: divided by ``per[name]``, the states or
     calls one invocation does), the callables alternating within every round (the order

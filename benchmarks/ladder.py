@@ -52,13 +52,11 @@ import os
 import time
 from pathlib import Path
 
-import numba
 import numpy as np
-from conftest import machine, side_by_side
+from conftest import loop_of, machine, side_by_side
 
 import redysim
 from redysim import forward_dynamics, references
-from redysim._jit import LEAN_OPTIONS
 from redysim.algorithms._kernels import lean
 from redysim.reports.build import ladder_core_reference
 from redysim.reports.compare import engine_names
@@ -93,23 +91,13 @@ def states(model, count: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     return Q, V
 
 
-def _loop_of(kernel):
-    @numba.njit(**dict(LEAN_OPTIONS, cache=False))
-    def loop(q, v, tau, out, f, i, s, count):
-        for _ in range(count):
-            kernel(q, v, tau, out, f, i, s)
-        return out
-
-    return loop
-
-
 def core_calls(model, Q, V) -> dict:
     """The core's callables of rungs 1-3: name -> (rung, callable, states per call)."""
     q, v = Q[0], V[0]
     fd = redysim.evaluator(model)
     ws = redysim.Workspace(model)
     entry = (lean.FORWARD_CHAIN if ws.tree.serial else lean.FORWARD_TREE).compiled
-    loop = _loop_of(entry)
+    loop = loop_of(entry)
     out = np.empty(model.n_v)
     f, i, s, z = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros
     ref = forward_dynamics(model, q, v)

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from conftest import machine, side_by_side
+from conftest import loop_of, machine, side_by_side
 
 import redysim
 from redysim import Chain, Workspace, forward_dynamics, inverse_dynamics
@@ -73,16 +73,6 @@ def pinocchio_of(label: str, model):
     return PinocchioABA(model).pm
 
 
-def _loop_of(kernel):
-    @numba.njit(**dict(LEAN_OPTIONS, cache=False))
-    def loop(q, v, tau, out, f, i, s, count):
-        for _ in range(count):
-            kernel(q, v, tau, out, f, i, s)
-        return out
-
-    return loop
-
-
 def _noop(q, v, tau, out, f, i, s):
     return out
 
@@ -104,7 +94,7 @@ def calls(label: str, model) -> dict:
     aba = pin.aba
     entry = (lean.FORWARD_CHAIN if ws.tree.serial else lean.FORWARD_TREE).compiled
     raw = unchecked_call(entry)
-    loop = _loop_of(entry)
+    loop = loop_of(entry)
     f, i, s, z = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros
     loop(q, v, z, out, f, i, s, 1)
     inv = redysim.evaluator(model, "inverse_dynamics")
