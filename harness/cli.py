@@ -250,9 +250,10 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
                           "used S seconds of CPU time is stopped and recorded as failed, "
                           "whatever else the machine is doing (default: no limit)")
     sim.add_argument("--links", type=_whole, metavar="N",
-                     help="a rope case: coarse-grain its chain to N links (N must divide its "
-                          "link count; each coarse link lumps the same number of fine ones, "
-                          "its initial state mapped along the chords); see `redysim advise`")
+                     help="a rope case: coarse-grain its chain to N links (each coarse link "
+                          "lumps the same number of fine ones, its initial state mapped along "
+                          "the chords); an N that does not divide its link count rebuilds a "
+                          "straight rope from its file at N links; see `redysim advise`")
     sim.add_argument("--precision", choices=PRECISION_CHOICES,
                      help="a rope case: the arithmetic of the core's qdd: float64 (default) or "
                           "float32 (numpy-emulated IEEE single: slow, for accuracy studies)")

@@ -446,6 +446,12 @@ class OwnStudy:
     notes: list
 
 
+def _tip_error(out: Path, scene: str, run_id: str) -> float:
+    """A finished run's tip-path error against its study's reference (max over the samples)."""
+    runs = load_study(out, scene).runs
+    return float(runs.loc[runs["run_id"] == run_id, "tip_err"].iloc[0])
+
+
 def _refined(case_file: str, case, factor: int = 2):
     """The case at ``factor`` times its links, or (None, why) when it cannot be refined into
     the same physical rope (its file does not give a link count to multiply, or its initial
@@ -484,12 +490,16 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
        (:func:`three_level_order`) give the rest of the way to the converged path; else unknown
        (said). A study whose errors do not fall with the links, or whose three finest models
        show no positive order, does not converge (a singular scene): said, no advice.
-    3. The coarsest level whose model error is within ``tol`` less the reference's, the next
-       finer one and the user's own, at every setting of OWN_INTEGRATORS x OWN_RTOLS;
+    3. The coarsest level whose model error is within ``tol`` less the reference's; between it
+       and the next coarser level (which is not), the rope rebuilt at other counts, bisected
+       (ode45 at 1e-8; a straight rope's file only: :func:`redysim.io.cases.rebuild_problem`)
+       down to the least count that is; that count, the level, and the user's own model at
+       every setting of OWN_INTEGRATORS x OWN_RTOLS;
        :func:`advise` on all the runs for ``tol`` less the reference's error, by their work
        (RHS calls x links: the choice does not depend on the machine's load), and the advice
        run afresh."""
     from redysim.errors import SettingsError
+    from redysim.io.cases import rebuild_problem
 
     from .spec import RunSpec
     from .sweep import run_sweep
@@ -587,6 +597,29 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
     if meeting:
         finer_levels = [d["links"] for d in lv if d["links"] > meeting[0]]
         chosen = list(dict.fromkeys([meeting[0], (finer_levels or [nl])[0], nl]))
+        coarser = [d for d in lv if d["links"] < meeting[0]]
+        why = rebuild_problem(case)
+        if coarser and meeting[0] - coarser[-1]["links"] > 1 and why:
+            notes.append(f"only link counts that divide yours were tried: {why}")
+        elif coarser and meeting[0] - coarser[-1]["links"] > 1:
+            # the counts between the failing level and the first that meets: the rope rebuilt
+            # at each (its file at that count), bisected
+            lo, hi = coarser[-1]["links"], meeting[0]
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                specs.append(RunSpec(**base, links=mid, integrator=OWN_LEVEL[0],
+                                     rtol=OWN_LEVEL[1], atol=OWN_LEVEL[1] * 1e-2))
+                runs = run_sweep(specs, out, name=name, workers=workers, progress=False)
+                row = runs[runs["run_id"] == specs[-1].run_id].iloc[0]
+                if row["status"] != "ok":
+                    notes.append(f"the rope rebuilt at {mid} links failed ({row['reason']}): "
+                                 "the search between the levels stopped there")
+                    break
+                err = _tip_error(out, case.name, specs[-1].run_id)
+                log(f"advise: the rope rebuilt at {mid} links: model error {err:.3g} m")
+                lo, hi = (lo, mid) if err <= budget else (mid, hi)
+            if hi < meeting[0]:
+                chosen = list(dict.fromkeys([hi, meeting[0], nl]))
     log(f"advise: settings on {', '.join(map(str, chosen))} links "
         f"({len(OWN_INTEGRATORS) * len(OWN_RTOLS)} each)")
     specs += [RunSpec(**base, links=0 if n == nl else n, integrator=i, rtol=r, atol=r * 1e-2)

@@ -91,13 +91,20 @@ def run_case(spec: RunSpec, scn: Scenario):
 
 
 def coarse_case(case, links: int):
-    """``case`` with its chain coarse-grained to ``links`` links (0 or its own count: as it
-    is) and its initial state mapped along the chords; and the coarsening (None: none)."""
+    """``case`` at ``links`` links (0 or its own count: as it is), and the coarsening (None:
+    none): lumped when ``links`` divides its count (its chain coarse-grained, its initial state
+    mapped along the chords), else the same rope rebuilt with that many links
+    (:func:`rebuilt_case`; a straight rope's only)."""
     if not links or links == case.chain.n_links:
         return case, None
     from dataclasses import replace
 
     from redysim.algorithms.coarse import coarsen
+
+    if case.chain.n_links % links:
+        from redysim.io.cases import rebuilt_case
+
+        return rebuilt_case(case, links), None
 
     cz = coarsen(case.chain, links=links, name=f"{case.name}@{links}")
     q0, v0 = cz.to_coarse(case.q0, case.v0)

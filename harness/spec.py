@@ -82,8 +82,10 @@ class RunSpec:
                  how much a result depends on round-off (``sweeps/drift-ensemble.toml``).
     links:       the model's link count: the case's chain coarse-grained to this many links
                  (:func:`redysim.coarsen`: every k = n_links / links consecutive links lumped
-                 into one; it must divide the case's count), its initial state mapped by the
-                 coarsening's chord projection. 0 (the default): the case's own chain.
+                 into one), its initial state mapped by the coarsening's chord projection; a
+                 count that does not divide the case's rebuilds a straight rope from its file
+                 at that count (:func:`redysim.io.cases.rebuilt_case`: the same rope, as
+                 lumping gives where both apply). 0 (the default): the case's own chain.
                  Refinement studies run one rope at several counts (``sweeps/refine-*.toml``).
     precision:   the arithmetic of the dynamics (qdd): ``"float64"`` (default) or
                  ``"float32"`` (the core only: every operation of the same kernel source rounded to
@@ -152,11 +154,18 @@ class RunSpec:
                                     f"coarse-grains a rope case's chain; {scn.name} is a "
                                     f"{scn.kind} scenario")
             nl = rope.chain.n_links
-            if isinstance(self.links, bool) or int(self.links) != self.links or \
-                    self.links < 1 or nl % int(self.links):
+            if isinstance(self.links, bool) or int(self.links) != self.links or self.links < 1:
                 raise SettingsError(source, names.get("links", "links"), self.links,
-                                    f"must be a whole number that divides the case's {nl} "
-                                    "links (a coarse link lumps the same number of fine ones)")
+                                    "must be a whole number of links >= 1")
+            if nl % int(self.links):
+                from redysim.io.cases import rebuild_problem
+
+                why = rebuild_problem(rope)
+                if why:
+                    raise SettingsError(source, names.get("links", "links"), self.links,
+                                        f"does not divide the case's {nl} links (a coarse link "
+                                        f"lumps the same number of fine ones), and the rope "
+                                        f"cannot be rebuilt at that count: {why}")
         if self.precision not in PRECISIONS:
             raise SettingsError(source, names.get("precision", "precision"), self.precision,
                                 f"choose one of {', '.join(PRECISIONS)}")

@@ -91,17 +91,44 @@ def test_a_coarse_run_starts_from_the_same_state_and_records_its_size(small_fall
     assert coarse["model_mib"] < fine["model_mib"]
 
 
-def test_bad_links_and_precision_are_named(small_fall):
+def test_a_count_that_does_not_divide_rebuilds_a_straight_rope(small_fall, tmp_path):
+    """links = 3 of an 8-link rope: the rope rebuilt from its file at 3 links (the same body:
+    its potential energy at rest is the 8-link rope's); where lumping also applies (4 links)
+    the two are the same model to rounding."""
+    fine = execute(RunSpec(str(small_fall), t_end=0.02, sample=0.01), reference=False).summary
+    three = execute(RunSpec(str(small_fall), t_end=0.02, sample=0.01, links=3),
+                    reference=False).summary
+    assert (three["n_links"], three["n_dof"]) == (3, 3)
+    assert three["E0"] == pytest.approx(fine["E0"], rel=1e-13)
+    from redysim.harness.run import coarse_case
+    from redysim.io.cases import rebuilt_case
+
     case = redysim.load_case(small_fall)
-    with pytest.raises(SettingsError, match="links = 3: must be a whole number that divides "
-                                            "the case's 8 links"):
-        RunSpec(str(small_fall), links=3).resolved(case)
+    lumped, rebuilt = coarse_case(case, 4)[0].chain, rebuilt_case(case, 4).chain
+    for field in ("mass", "length", "inertia_O", "mass_com"):
+        assert np.allclose(getattr(lumped, field), getattr(rebuilt, field), rtol=1e-13,
+                           atol=1e-16), field
+    q = np.random.default_rng(3).uniform(-1.0, 1.0, 4)
+    v = np.random.default_rng(4).uniform(-1.0, 1.0, 4)
+    a = redysim.forward_dynamics(lumped, q, v)
+    assert np.abs(a - redysim.forward_dynamics(rebuilt, q, v)).max() <= 1e-12 * np.abs(a).max()
+
+
+def test_bad_links_and_precision_are_named(small_fall, tmp_path):
+    case = redysim.load_case(small_fall)
+    with pytest.raises(SettingsError, match="links = 0.5: must be a whole number of links"):
+        RunSpec(str(small_fall), links=0.5).resolved(case)  # type: ignore[arg-type]
+    curled = tmp_path / "curled.toml"  # bent from the start: another shape at 3 links
+    curled.write_text(SMALL_FALL.replace("q = 0.0", "q = { fill = 10.0, unit = \"deg\" }"))
+    with pytest.raises(SettingsError, match=r"links = 3: does not divide the case's 8 links.*"
+                                            r"cannot be rebuilt.*curled.toml starts bent"):
+        RunSpec(str(curled), links=3).resolved(redysim.load_case(curled))
     with pytest.raises(SettingsError, match="precision = 'float16': choose one of"):
         RunSpec(str(small_fall), precision="float16").resolved(case)
     with pytest.raises(SettingsError, match="reduced precision is the core's only"):
         RunSpec(str(small_fall), engine="mujoco", precision="float32").resolved(case)
-    doc = {"sweep": {"name": "s", "cases": [str(small_fall)], "links": [8, 3]}}
-    with pytest.raises(SweepError, match=r"sweep.links.*3"):
+    doc = {"sweep": {"name": "s", "cases": [str(curled)], "links": [8, 3]}}
+    with pytest.raises(SweepError, match=r"sweep.links.*3.*starts bent"):
         sweep_from_dict(doc, source="s.toml")
     doc["sweep"]["links"] = [8, 2.5]
     with pytest.raises(SweepError, match=r"sweep.links\[1\] = 2.5: must be a whole number"):
@@ -284,7 +311,7 @@ def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_pat
     assert st.check["tip_err"] == pytest.approx(a.tip_err, rel=1e-9)  # run again: the same
     assert math.isfinite(st.ref_error) and a.tip_err + st.ref_error <= tol
     # independently: the advised model against a 4x finer rope
-    from redysim import coarsen
+    from redysim.harness.run import coarse_case
     from redysim.simulation import Simulator, frame_observer
 
     def tips(chain, q0, v0, integrator, rtol):
@@ -295,9 +322,8 @@ def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_pat
 
     fine = refine.finer_case(case, 4)
     ref = tips(fine.chain, fine.q0, fine.v0, "dop853", 1e-10)
-    user = redysim.load_case(case)
-    cz = coarsen(user.chain, links=a.links)
-    got = tips(cz.coarse, *cz.to_coarse(user.q0, user.v0), a.integrator, a.rtol)
+    model = coarse_case(redysim.load_case(case), a.links)[0]  # lumped or rebuilt
+    got = tips(model.chain, model.q0, model.v0, a.integrator, a.rtol)
     assert np.linalg.norm(got - ref, axis=1).max() <= tol
     # asked again: every run cached (its file untouched), none run again
     files = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "study" / "runs").iterdir()}

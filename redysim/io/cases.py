@@ -690,3 +690,39 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
                 sample_interval=min(float(sim.get("sample_interval", t_end / DEFAULT_SAMPLES)),
                                     t_end),
                 digest=digest, tip_force=tip_force)
+
+
+def rebuild_problem(case) -> str:
+    """Why ``case`` cannot be rebuilt at another link count ("" when it can): the rope must come
+    from a file with a uniform ``[chain] links = N`` and start straight (every relative angle and
+    rate but the first joint's zero), so that the rope at any count is the same body in the same
+    state. (Lumping such a rope's links, as :func:`redysim.coarsen` does, gives the rope rebuilt
+    at the coarser count: each lumped link is the segment it replaces.)"""
+    path = getattr(case, "path", None)
+    if path is None or not Path(path).is_file():
+        return "it has no case file to rebuild from"
+    table = read_toml(path)[0].get("chain", {})
+    if "links" not in table or "link" in table:
+        return f"{path} does not give a uniform [chain] links = N (its links are listed)"
+    chain = case.chain
+    bent = max(float(np.abs(case.q0[int(chain.joint_qoff[1]):]).max(initial=0.0)),
+               float(np.abs(case.v0[int(chain.joint_voff[1]):]).max(initial=0.0)))
+    if bent:
+        return (f"{path} starts bent or bending (relative angles or rates beyond the first "
+                f"joint's, up to {bent:.3g}): at another count the rope's shape would differ")
+    return ""
+
+
+def rebuilt_case(case, links: int):
+    """The rope of ``case`` (a straight rope's file: :func:`rebuild_problem`) rebuilt with
+    ``links`` uniform links: the same material, length, radius and tip mass, the same initial
+    state (its first joint's angle and rate). Raises CaseError naming the case when it cannot
+    be rebuilt."""
+    why = rebuild_problem(case)
+    if why:
+        raise CaseError(str(getattr(case, "path", case.name)), "links", links,
+                        f"does not divide the case's {case.chain.n_links} links, and {why}")
+    doc = json.loads(json.dumps(read_toml(case.path)[0]))  # a deep copy
+    doc["chain"]["links"] = int(links)
+    doc["case"]["name"] = f"{case.name}@{links}"
+    return case_from_dict(doc, source=f"{case.path} (rebuilt at {links} links)", path=case.path)
