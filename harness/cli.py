@@ -860,6 +860,9 @@ def _advise_own(args: argparse.Namespace) -> int:
     print("  model error (tip path, max over the samples) at "
           + ", ".join(f"{d['links']} links {d['tip_err']:.2g} m" for d in conv["levels"])
           + "; local orders " + ", ".join(f"{o:.2f}" for o in st.orders))
+    if st.searched:
+        print("  the rope rebuilt between those counts: "
+              + ", ".join(f"{d['links']} links {d['tip_err']:.2g} m" for d in st.searched))
     for note in st.notes:
         print(f"  {note}")
     if not st.converges or st.advice is None:

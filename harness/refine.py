@@ -30,7 +30,7 @@ import argparse
 import json
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -431,7 +431,9 @@ class OwnStudy:
     ``ref_error_how`` says how (Richardson from a steady order, or a model of twice the
     links); ``advice`` (None: none met the tolerance, ``notes`` say why) for a tip path within
     ``tol - ref_error`` of the reference, so within ``tol`` of the converged path;
-    ``check``: the advised run done afresh (Python stepping loop) against the reference."""
+    ``check``: the advised run done afresh (Python stepping loop) against the reference;
+    ``searched``: the counts between two levels the rope was rebuilt at, in the order tried,
+    with their model errors (``links``, ``tip_err``)."""
 
     case: str
     tol: float
@@ -444,6 +446,7 @@ class OwnStudy:
     advice: Advice | None
     check: dict | None
     notes: list
+    searched: list = field(default_factory=list)  # the rebuilt counts bisected: links, tip_err
 
 
 def _tip_error(out: Path, scene: str, run_id: str) -> float:
@@ -593,7 +596,7 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
     # is): a finer model at a looser setting can be the cheaper
     # (and the user's own model, for what the advice saves)
     meeting = [d["links"] for d in lv if d["tip_err"] <= budget]
-    chosen = [nl]
+    chosen, searched = [nl], []
     if meeting:
         finer_levels = [d["links"] for d in lv if d["links"] > meeting[0]]
         chosen = list(dict.fromkeys([meeting[0], (finer_levels or [nl])[0], nl]))
@@ -616,6 +619,7 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
                                  "the search between the levels stopped there")
                     break
                 err = _tip_error(out, case.name, specs[-1].run_id)
+                searched.append({"links": mid, "tip_err": err})
                 log(f"advise: the rope rebuilt at {mid} links: model error {err:.3g} m")
                 lo, hi = (lo, mid) if err <= budget else (mid, hi)
             if hi < meeting[0]:
@@ -627,7 +631,8 @@ def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: floa
     run_sweep(specs, out, name=name, workers=workers, progress=progress)
     study = load_study(out, case.name)
     a = advise(study, budget, cost="work")
-    result = OwnStudy(path, tol, study, conv, orders, True, ref_error, how, a, None, notes)
+    result = OwnStudy(path, tol, study, conv, orders, True, ref_error, how, a, None, notes,
+                      searched)
     if a is not None and check:
         ref = study.reference
         tips, cpu, steps = _tips(case, a.links, a.integrator, a.rtol, a.rtol * 1e-2,
@@ -791,6 +796,7 @@ def own_summary(out: Path, workers: int, log=print) -> dict:
             "reference_cpu_s": float(st.study.reference["cpu_s"]),
             "levels": [{k: _plain(d[k]) for k in ("links", "tip_err", "cpu_s")}
                        for d in st.conv["levels"]],
+            "searched": [{k: _plain(d[k]) for k in ("links", "tip_err")} for d in st.searched],
             "orders": [_plain(o) for o in st.orders], "converges": st.converges,
             "ref_error": _plain(st.ref_error), "ref_error_how": st.ref_error_how,
             "advice": None if a is None else {**asdict(a), "saved": _plain(a.saved)},

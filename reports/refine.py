@@ -202,6 +202,10 @@ def own_table(doc: dict) -> Table:
                        ", ".join(f"{d['links']} links {_fmt_err(d['tip_err'])} m"
                                  for d in o["levels"])
                        + "; local orders " + ", ".join(num(x, 3) for x in o["orders"])], INFO))
+    if o.get("searched"):
+        t.rows.append(Row(["the rope rebuilt between two levels (bisected; ode45 1e-8)",
+                           ", ".join(f"{d['links']} links {_fmt_err(d['tip_err'])} m"
+                                     for d in o["searched"])], INFO))
     t.rows.append(Row(["the case's own error", (f"{_fmt_err(o['ref_error'])} m: "
                                                 if o["ref_error"] is not None else "")
                        + o["ref_error_how"]], INFO))
@@ -226,9 +230,11 @@ def own_table(doc: dict) -> Table:
     t.notes.append("redysim advise CASE --tip-tol M (harness/refine.py, own_study): the case's "
                    "model and every coarser one (link counts that divide it), the case's own "
                    "error by Richardson where the order is steady or against the rope at twice "
-                   "the links, then settings on the coarsest model within the tolerance less "
-                   "that error; the advice is the least RHS calls x links within it. Green: "
-                   "the advice, run again, plus the case's own error is within the tolerance.")
+                   "the links, the counts between the last level that misses the tolerance less "
+                   "that error and the first that meets it bisected (the rope rebuilt at each), "
+                   "then settings on the least count within it; the advice is the least RHS "
+                   "calls x links within it. Green: the advice, run again, plus the case's own "
+                   "error is within the tolerance.")
     return t
 
 

@@ -308,6 +308,13 @@ def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_pat
                           log=lambda *_: None)
     a = st.advice
     assert st.converges and a is not None and a.links < 32
+    # between the last level that missed (4 links) and the first that met (8), the rope was
+    # rebuilt at counts that do not divide 32, and the advice is one of them
+    levels = {d["links"]: d["tip_err"] for d in st.conv["levels"]}
+    budget = tol - st.ref_error
+    assert levels[4] > budget >= levels[8]
+    assert st.searched and all(4 < d["links"] < 8 for d in st.searched)
+    assert a.links in {d["links"] for d in st.searched if d["tip_err"] <= budget}
     assert st.check["tip_err"] == pytest.approx(a.tip_err, rel=1e-9)  # run again: the same
     assert math.isfinite(st.ref_error) and a.tip_err + st.ref_error <= tol
     # independently: the advised model against a 4x finer rope
@@ -367,8 +374,12 @@ def test_the_reports_advice_tables_judge_the_check_against_the_tolerance():
     own = {"case": "C", "tol": 1e-3, "t_end": 0.3, "links": 125, "reference_cpu_s": 0.4,
            "levels": [{"links": 5, "tip_err": 5e-3, "cpu_s": 1e-3}], "orders": [],
            "converges": True, "ref_error": 6e-5, "ref_error_how": "measured", "notes": [],
+           "searched": [{"links": 15, "tip_err": 3.8e-4}],
            "advice": advice, "check": {"tip_err": 1.8e-4, "cpu_s": 4e-3, "steps": 89,
                                        "bound": 2.4e-4}}
+    rows = {r.cells[0]: r for r in own_table({"own": own}).rows}
+    assert "15 links 3.80e-04 m" in rows["the rope rebuilt between two levels (bisected; ode45 "
+                                        "1e-8)"].cells[1]
     kinds = {r.cells[0]: r.kind for r in own_table({"own": own}).rows}
     assert kinds["advice"] == MATCH and kinds["checked (run again)"] == MATCH
     own["check"]["bound"] = 2e-3  # the advice, run again, out of the tolerance: red
