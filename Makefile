@@ -14,7 +14,8 @@ help:
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
-	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=; batches beside a busy process),"
+	@echo "make bench         benchmarks of the core (pytest-benchmark; JIT compile timed apart; default call vs ws=; batches beside a busy process;"
+	@echo "                   whether an adaptive rope pays: benchmarks/adaptive_rope.py, ~2 min),"
 	@echo "                   appended to the performance history benchmarks/history/bench.jsonl (commit it)"
 	@echo "make bench-engines qdd per call, core vs every reference engine, 20..100,000 DOF (history too);"
 	@echo "                   the latency/throughput ladder: xArm7, Talos, a 250-DOF rope, from a call to a"
@@ -74,6 +75,7 @@ bench-core: $(STAMP)
 	@mkdir -p results/bench
 	$(BIN)/python benchmarks/jit_times.py
 	$(BIN)/python benchmarks/float32_speed.py
+	$(BIN)/python benchmarks/adaptive_rope.py
 	$(BIN)/python benchmarks/step_cost.py
 	$(BIN)/python benchmarks/default_path.py
 	$(BIN)/python benchmarks/busy_batch.py

@@ -182,8 +182,111 @@ def refine_section(res) -> Section:
     for t in (conv, orders, advice, f32, modes, own, reduced):
         t.provenance = prov
     sec.items += [*figs, conv, orders, advice, f32, float32_speed_table(res), modes, own,
-                  reduced]
+                  reduced, adaptive_figure(res), adaptive_table(res)]
     return sec
+
+
+ADAPTIVE_HOW = "not run: make bench (benchmarks/adaptive_rope.py)"
+
+
+def _adaptive_label(row: dict) -> str:
+    if "eps" in row:
+        return (f"grouped by the indicator, eps {row['eps']:g} m, {row['coarsest']}-"
+                f"{row['finest']} groups")
+    plan = row["plan"]
+    return "schedule: " + ", then ".join(
+        f"{n} links" + (f" from {t:g} s" if t else "") for t, n in plan)
+
+
+def adaptive_table(res) -> Table:
+    """Does a rope whose resolution follows the motion pay? benchmarks/adaptive_rope.py's
+    measurements (docs/design.md, "Adaptive resolution: measured, not built")."""
+    t = Table("refine-adaptive", "Resolution that follows the motion, measured: the best static "
+              "model against welded and released groups of links and against switched "
+              "schedules (work: RHS calls x links)",
+              ["scene", "model", "tip error [m]", "within", "work", "work, normalised",
+               "groups (mean, max)", "switches", "energy lost at welds [J]",
+               "momentum residual"])
+    doc = res.bench("adaptive_rope")
+    if doc is None:
+        t.not_run = ADAPTIVE_HOW
+        return t
+    for sc in doc["scenes"]:
+        tol = sc["tip_tol"]
+        best = sc["best_static"]
+        for r in sc["static"]:
+            t.rows.append(Row([sc["scene"], f"static, {r['links']} links (the rope rebuilt)",
+                               _fmt_err(r["error"]), "yes" if r["error"] <= tol else "no",
+                               integer(r["work"]), integer(r["work"]), "", "", "", ""],
+                              MATCH if r == best else INFO))
+        for r in sc["oracle"] + sc["indicator"]:
+            t.rows.append(Row([sc["scene"], _adaptive_label(r), _fmt_err(r["error"]),
+                               "yes" if r["error"] <= tol else "no", integer(r["work"]),
+                               integer(round(r["work_normalised"])),
+                               f"{r['mean_groups']:.1f}, {r['max_groups']}",
+                               integer(r["switches"]), _fmt_err(r["weld_energy_J"]),
+                               _fmt_err(r["momentum_residual"])],
+                              DIFFER if r["error"] <= tol and r["work_normalised"]
+                              > 0.5 * best["work"] else INFO))
+        a = sc.get("best_adaptive")
+        t.notes.append(
+            f"{sc['scene']} ({sc['case']}, {sc['t_end']:g} s, ode45 {sc['rtol']:g}, tolerance "
+            f"{tol:g} m): the best static model meets it with {best['links']} links, work "
+            f"{best['work']:,}; " + (f"the cheapest adaptive run that meets it does "
+                                     f"{a['work_normalised']:,.0f} normalised, "
+                                     f"{a['work_normalised'] / best['work']:.2f}x the static's "
+                                     "(the target was 0.5x)" if a else
+                                     "no adaptive run meets it") + ".")
+    t.notes.append(
+        "Static: the scene's rope rebuilt with N uniform links. Grouped: the fine rope's links "
+        "welded in groups along a binary tree, split where the accelerations of the joints' "
+        "points leave the fine rope's by more than a drift of eps in 0.05 s, welded where "
+        "quiet, decided every 0.01 s; a weld is an inelastic impulse that keeps G^T M v (the "
+        "momentum residual: its largest violation) and loses the energy shown. Schedule: "
+        "uniform models switched at fixed times. Adaptive runs restart ode45's stages at every "
+        "sample time: 'normalised' divides their work by that overhead, measured on a fixed "
+        "grouping. Green: the best static model; red: an adaptive run within the tolerance "
+        "but not at half the static's work. docs/design.md, 'Adaptive resolution: measured, "
+        "not built'.")
+    t.provenance = "benchmarks/adaptive_rope.py: " + provenance_line(doc.get("provenance"))
+    return t
+
+
+def adaptive_figure(res) -> Figure:
+    """Error against work: the static ropes, the grouped runs and the schedules, per scene."""
+    title = "Model size: resolution that follows the motion"
+    caption = ("Tip-path error against work (RHS calls x links, the adaptive runs' normalised) "
+               "for the rope rebuilt at N links (line), the runs grouped by the indicator and "
+               "the switched schedules; the dashed line is the scene's tolerance. An adaptive "
+               "run pays where it lies left of the static line at the same error; the table's "
+               "notes compare the cheapest run within the tolerance with the best static "
+               "model.")
+    doc = res.bench("adaptive_rope")
+    if doc is None:
+        return missing("refine-adaptive", "refinement", title, caption, ADAPTIVE_HOW)
+    from matplotlib.ticker import NullFormatter
+
+    scenes = doc["scenes"]
+    fig, axes = new_figure(len(scenes), width=PANEL_W * len(scenes), height=PANEL_H * 1.2,
+                           footer="benchmarks/adaptive_rope.py: "
+                                  + provenance_line(doc.get("provenance")))
+    for ax, sc in zip(np.atleast_1d(axes), scenes, strict=True):
+        st = sorted(sc["static"], key=lambda r: r["work"])
+        ax.loglog([r["work"] for r in st], [r["error"] for r in st], "-o", ms=3, color="k",
+                  label="static, N links")
+        for r in st:
+            ax.annotate(str(r["links"]), (r["work"], r["error"]), fontsize=FONT_PT - 3,
+                        xytext=(3, 3), textcoords="offset points")
+        for rows, marker, label in ((sc["indicator"], "s", "grouped (indicator)"),
+                                    (sc["oracle"], "^", "switched schedule")):
+            ax.loglog([r["work_normalised"] for r in rows], [r["error"] for r in rows],
+                      marker, ls="none", ms=4, label=label)
+        ax.axhline(sc["tip_tol"], ls="--", lw=1, color="grey")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # (log minor labels overlap)
+        ax.set(xlabel="work: RHS calls x links", ylabel="tip-path error [m]",
+               title=f"{sc['scene']}: {sc['case']}, {sc['t_end']:g} s")
+        ax.legend(fontsize=FONT_PT - 2)
+    return _figure("refine-adaptive", "refinement", title, caption, fig)
 
 
 def own_table(doc: dict) -> Table:

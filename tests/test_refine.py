@@ -409,3 +409,40 @@ def test_the_order_of_three_models_from_their_two_differences():
     # differences that do not shrink: no positive order (a singular scene)
     assert refine.three_level_order(10, 20, 40, 1.0, 1.0) == 0.0
     assert math.isnan(refine.three_level_order(10, 20, 40, 0.0, 1.0))
+
+
+def test_the_adaptive_table_marks_the_best_static_model_and_adaptive_runs_short_of_the_target():
+    """benchmarks/adaptive_rope.py's results in the report: green the best static model, red an
+    adaptive run within the tolerance that does not halve its work; the figure draws."""
+    pytest.importorskip("matplotlib")
+    from redysim.reports.content import DIFFER, INFO, MATCH
+    from redysim.reports.refine import adaptive_figure, adaptive_table
+
+    static = [{"links": 8, "error": 6e-2, "nfev": 500, "work": 4000},
+              {"links": 9, "error": 4.8e-2, "nfev": 600, "work": 5400}]
+    run = {"error": 4.5e-2, "work": 11500, "work_normalised": 8100.0, "switches": 2,
+           "mean_groups": 10.0, "max_groups": 16, "weld_energy_J": -2e-3,
+           "momentum_residual": 1e-15}
+    cheap = {**run, "error": 9e-2, "work_normalised": 2000.0, "eps": 0.1, "coarsest": 4,
+             "finest": 16}
+    scene = {"scene": "whip", "case": "fall-R256.toml", "t_end": 0.8, "tip_tol": 5e-2,
+             "rtol": 1e-3, "static": static, "best_static": static[1],
+             "oracle": [{**run, "plan": [[0.0, 8], [0.4, 16]]}], "indicator": [cheap],
+             "best_adaptive": {**run, "plan": [[0.0, 8], [0.4, 16]]}}
+
+    class Res:
+        def bench(self, name):
+            return {"scenes": [scene], "provenance": {}} if name == "adaptive_rope" else None
+
+    t = adaptive_table(Res())
+    kinds = [r.kind for r in t.rows]
+    assert kinds == [INFO, MATCH, DIFFER, INFO]  # 8 links; 9 (best); the schedule; missed
+    assert "8 links, then 16 links from 0.4 s" in t.rows[2].cells[1]
+    assert "1.50x the static's" in t.notes[0]
+    assert not adaptive_figure(Res()).not_run
+
+    class Empty:
+        def bench(self, name):
+            return None
+
+    assert adaptive_table(Empty()).not_run and adaptive_figure(Empty()).not_run
