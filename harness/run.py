@@ -155,14 +155,7 @@ class _Dynamics:
                 self.version = self.engine.version
                 engine = self.engine
                 self.qdd = lambda q, v, tau: engine.qdd(q, v, tau)
-        self.tau = self.potential = None
-        if self.force is not None:
-            from redysim import Workspace
-            from redysim.algorithms.loads import tip_force_potential, tip_force_torques
-
-            ws, force, chain = Workspace(self.chain), self.force, self.chain
-            self.tau = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
-            self.potential = lambda q: tip_force_potential(chain, q, force, ws=ws)
+        # the case's tip force: the Simulator's tip_force (its torques and potential)
 
 
 def _loop_engine_of(spec: RunSpec, case: Scenario, dyn: _Dynamics):
@@ -306,7 +299,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                                 f"h = {spec.h:g}")
     sim = Simulator(chain, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=spec.integrator,
                     rtol=spec.rtol, atol=spec.atol, h=spec.h or None, sample=spec.sample,
-                    method=dyn.method, qdd=dyn.qdd, tau=dyn.tau, potential=dyn.potential,
+                    method=dyn.method, qdd=dyn.qdd, tip_force=dyn.force,
                     engine=dyn.engine, energy_bound=spec.energy_bound, damping=case.damping,
                     keep_states=last.get("states") is not None,
                     observe={"tip": frame_observer(chain, case.frame, acceleration=True),

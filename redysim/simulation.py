@@ -28,8 +28,10 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
+from redysim.algorithms._kernels.planar import planar_tip_torques
 from redysim.algorithms._kernels.rk_run import configuration_rate, project_quaternions
 from redysim.algorithms.dynamics import check_state, energy, forward_dynamics
+from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
 from redysim.algorithms.loops import NEAR_CHANGE_POINT
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import SettingsError, StateError
@@ -170,10 +172,13 @@ class _Motion:
     ``loops`` the loops closed (:class:`redysim.algorithms.loops.ClosedLoops`)."""
 
     def __init__(self, system: Model, loops=None, damping: float = 0.0, *, qdd=None,
-                 method: str = "rge-a", tau=None):
+                 method: str = "rge-a", tau=None, tip_force=None):
         self.system = system
         self.loops, self.damping = loops, float(damping)
         self.qdd, self.method, self.tau = qdd, method, tau
+        self.tip_force = tip_force  # (3,) or None: a constant world force at a chain's tip
+        self.length = (None if tip_force is None
+                       else np.ascontiguousarray(system.length, dtype=float))
         self.residual_q = self.residual_v = 0.0  # the largest met after a step
         self.ws = Workspace(system)  # the RHS's, and between steps the samples' and observers'
         self.nq, self.nv = system.n_q, system.n_v
@@ -199,11 +204,24 @@ class _Motion:
         self.couplings = system.coupling_index if system.couplings else None
 
     def forces(self, t, q, v):
-        """The generalized forces at (t, q, v): tau's and the damping's (None: none)."""
+        """The generalized forces at (t, q, v): the tip force's, tau's and the damping's (None:
+        none). A planar chain's tip force and damping come from the compiled steps' own function
+        (:func:`redysim.algorithms._kernels.planar.planar_tip_torques`): both paths round
+        alike."""
+        if self.tip_force is not None:
+            if self.system.is_planar:
+                tip = np.empty(self.nv)
+                planar_tip_torques(self.length, q, self.tip_force, -self.damping, v, tip)
+            else:
+                tip = tip_force_torques(self.system, q, self.tip_force, ws=self.ws)
+                if self.damping:
+                    tip = tip - self.damping * v
+            return tip if self.tau is None else tip + np.asarray(self.tau(t, q, v), dtype=float)
         tau = None if self.tau is None else np.asarray(self.tau(t, q, v), dtype=float)
         if self.damping:
             tau = -self.damping * v if tau is None else tau - self.damping * v
         return tau
+
 
     def qdd_of(self, t, q, v, out=None):
         """vdot at (t, q, v): the provider's (with loops: an engine's constrained
@@ -392,10 +410,12 @@ class Simulator:
       :mod:`redysim.references.loops`), the loops still projected after every step. ``engine``
       with ``integrator="native"`` or ``"native:NAME"``: the engine steps itself
       (:class:`EngineStepper`).
-    - ``tau(t, q, v) -> (n_v,)``: generalized forces (a tip force's joint torques, loads), and
-      ``damping``: a viscous torque -damping * v at every joint [N m s]; ``potential(q)``: the
-      potential energy [J] of the forces ``tau`` gives, when they have one (counted in E, so
-      that delta_M stays an energy balance).
+    - ``tau(t, q, v) -> (n_v,)``: generalized forces (loads), and ``damping``: a viscous torque
+      -damping * v at every joint [N m s]; ``potential(q)``: the potential energy [J] of the
+      forces ``tau`` gives, when they have one (counted in E, so that delta_M stays an energy
+      balance). ``tip_force``: a constant world force [N] (3,) at a chain's tip (a case's
+      ``[load] tip_force``): its joint torques J^T F, and its potential -F . p_tip counted in E
+      (:mod:`redysim.algorithms.loads`); on a planar chain its steps run in compiled code.
     - ``loops``: a :class:`redysim.algorithms.loops.ClosedLoops` of the system (by default, a model
           with
       cut joints, :meth:`Model.with_cuts`, gets its own): its loops closed, (q, v) projected
@@ -432,7 +452,7 @@ class Simulator:
                  potential=None, damping: float = 0.0, loops=None, engine=None,
                  observe=None, keep_states: bool = True, energy_bound: float | None = None,
                  state: SolverState | None = None, skip_until: float | None = None,
-                 compiled: bool | None = None, source: str = "simulate"):
+                 compiled: bool | None = None, source: str = "simulate", tip_force=None):
         if not isinstance(system, Model):
             raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
                             f"{type(system).__name__}")
@@ -448,6 +468,7 @@ class Simulator:
             except ValueError as exc:
                 raise SettingsError(source, "integrator", integrator, str(exc)) from None
             extra = [name for name, given in (("tau", tau is not None), ("damping", damping),
+                                              ("tip_force", tip_force is not None),
                                               ("loops", loops is not None or system.cuts))
                      if given]
             if extra:  # the engine steps its own model: nothing of ours reaches it
@@ -480,7 +501,19 @@ class Simulator:
             from redysim.algorithms.loops import ClosedLoops
 
             loops = ClosedLoops(system, source=source)
-        self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau)
+        if tip_force is not None:
+            if system.chain_layout is not None:
+                raise SettingsError(source, "tip_force", tip_force, f"acts at a chain's tip; "
+                                    f"{system.name!r} is a tree (no single tip)")
+            try:
+                tip_force = check_force(tip_force)
+            except StateError as exc:
+                raise SettingsError(source, "tip_force", tip_force, str(exc)) from None
+            if potential is None:
+                force, ws_p = tip_force, Workspace(system)
+                potential = lambda q: tip_force_potential(system, q, force, ws=ws_p)  # noqa: E731
+        self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau,
+                              tip_force=tip_force)
         self.potential = potential
         self.loops = loops
         y0 = np.concatenate((q0, v0))
@@ -526,11 +559,12 @@ class Simulator:
     @property
     def compiled(self) -> bool:
         """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints and
-        damping included, no forces, loops or couplings (the same steps as the Python loop, bit
-        for bit)."""
+        damping included, a tip force on a planar chain, no other forces, no loops or couplings
+        (the same steps as the Python loop, bit for bit)."""
         m = self.motion
         can = (m.qdd is None and m.method == "rge-a" and m.tau is None and m.loops is None
-               and not self.system.couplings and self.integrator in TABLEAU_NAMES)
+               and not self.system.couplings and self.integrator in TABLEAU_NAMES
+               and (m.tip_force is None or self.system.is_planar))
         return can and self._compiled is not False
 
     def _make_solver(self, state):
@@ -542,7 +576,8 @@ class Simulator:
                                   ws=self.motion.ws, planar=planar, state=state,
                                   damping=self.motion.damping,
                                   free=(self.motion.free_q, self.motion.free_v,
-                                        self.motion.plain_q, self.motion.plain_v), **kw)
+                                        self.motion.plain_q, self.motion.plain_v),
+                                  tip_force=self.motion.tip_force, **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one

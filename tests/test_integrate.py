@@ -351,3 +351,53 @@ def test_floating_and_damped_motions_step_in_compiled_code_in_the_same_bits(meth
     for name in ("t", "q", "v", "energy", "com"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert a.quaternion_error == b.quaternion_error
+
+
+def test_a_planar_chains_tip_torques_are_the_general_loads():
+    """The compiled tip torques of a planar chain (the steps' own) equal the loads module's
+    J^T F from the kinematics (tip_force_torques) to rounding, damping added on top."""
+    from redysim import load_case
+    from redysim.algorithms._kernels.planar import planar_tip_torques
+    from redysim.algorithms.loads import tip_force_torques
+
+    chain = load_case("cases/refine/pulled-R128.toml").chain
+    rng = np.random.default_rng(5)
+    F = np.array([4.905, -2.0, 0.7])  # (F_z does no work in the plane)
+    for _ in range(3):
+        q, v = rng.uniform(-1.0, 1.0, chain.n_dof), rng.normal(size=chain.n_dof)
+        want = tip_force_torques(chain, q, F)
+        got = np.empty(chain.n_dof)
+        planar_tip_torques(chain.length, q, F, 0.0, v, got)
+        assert np.abs(got - want).max() <= 1e-13 * np.abs(want).max()
+        planar_tip_torques(chain.length, q, F, -0.3, v, got)
+        assert np.abs(got - (want - 0.3 * v)).max() <= 1e-13 * np.abs(want).max()
+
+
+@pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
+                                        ("rk4", {"h": 1e-3})])
+@pytest.mark.parametrize("damping", [0.0, 0.02])
+def test_a_pulled_chain_steps_in_compiled_code_in_the_same_bits(method, kw, damping):
+    """A planar chain pulled at its tip (the case's [load] tip_force) steps in compiled code:
+    the same steps as the Python loop, every sample and the energy (the force's potential in
+    it) equal bit for bit; the energy balance holds."""
+    from redysim import coarsen, load_case
+    from redysim.simulation import Simulator
+
+    case = load_case("cases/refine/pulled-R128.toml")
+    cz = coarsen(case.chain, links=8)
+    q0, v0 = cz.to_coarse(case.q0, case.v0)
+    runs = []
+    for compiled in (True, False):
+        sim = Simulator(cz.coarse, 0.3, q0=q0, v0=v0, integrator=method, damping=damping,
+                        tip_force=case.tip_force, compiled=compiled, sample=0.05, **kw)
+        assert sim.compiled is compiled
+        runs.append(sim.run())
+    a, b = runs
+    assert a.status == b.status == 0 and a.steps == b.steps > 10 and a.nfev == b.nfev
+    for name in ("t", "q", "v", "energy", "com"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    if damping:  # the damping takes energy out
+        assert a.energy[-1] < a.energy[0]
+    else:  # T + V - F . p_tip is conserved (rk4 at h = 1e-3: to its truncation)
+        assert np.abs(a.delta_M).max() < (1e-4 if method == "rk4" else 1e-6)

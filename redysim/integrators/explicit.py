@@ -487,8 +487,9 @@ class CompiledSolver(Solver):
     (``quaternion_worst`` [0]: the largest | |q| - 1 | met before a projection in compiled code).
 
     ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
-    kernel. The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same
-    bits; :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
+    kernel; ``tip_force``: a constant world force (3,) at a planar chain's tip (None: none).
+    The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
+    :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
     reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
     between calls), and :meth:`dense` interpolates in that last step as Solver does. ``rhs``
     (Python) is still given: DOP853's dense output calls it for its extra stages.
@@ -498,7 +499,8 @@ class CompiledSolver(Solver):
                  ws, planar: bool = False, rtol: float = 1e-4, atol: float = 1e-6,
                  h: float | None = None, hmax: float | None = None,
                  state: SolverState | None = None, max_steps: int = 1000,
-                 damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None):
+                 damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None,
+                 tip_force: np.ndarray | None = None):
         from redysim.algorithms._kernels import rk_run
 
         super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
@@ -512,10 +514,16 @@ class CompiledSolver(Solver):
         none = np.zeros(0, dtype=np.int64)
         free_q, free_v, plain_q, plain_v = (none,) * 4 if free is None else free
         self.quaternion_worst = np.zeros(1)  # the largest | |q| - 1 | before a projection
+        if tip_force is not None and not planar:
+            raise ValueError("a tip force steps in compiled code on a planar chain only")
         self._motion = rk_run.Motion(rk_run.PLANAR if planar else rk_run.RGE_A, ws.kernel_f,
                                      ws.kernel_i, ws.scratch, ws.zeros, nq, float(damping),
                                      np.zeros(nv), plain_q, plain_v, free_q, free_v,
-                                     self.quaternion_worst)
+                                     self.quaternion_worst,
+                                     np.zeros(0) if tip_force is None
+                                     else np.array(tip_force, dtype=float),
+                                     np.zeros(0) if tip_force is None
+                                     else np.ascontiguousarray(ws.chain.length, dtype=float))
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)

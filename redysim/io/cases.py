@@ -145,12 +145,7 @@ class Case:
             if settings.get(key) is None:
                 settings[key] = value
         if self.tip_force is not None and "tau" not in settings:
-            from redysim.algorithms.loads import tip_force_potential, tip_force_torques
-            from redysim.algorithms.workspace import Workspace
-
-            ws, force, chain = Workspace(self.chain), self.tip_force, self.chain
-            settings["tau"] = lambda _t, q, _v: tip_force_torques(chain, q, force, ws=ws)
-            settings["potential"] = lambda q: tip_force_potential(chain, q, force, ws=ws)
+            settings.setdefault("tip_force", self.tip_force)
         return Simulator(self.chain, t_end or self.t_end,
                          q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
                          integrator=integrator, source=str(self.path), **settings)

@@ -143,3 +143,24 @@ def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, gravity, q, qd, tau
         m0 += x
         nonfinite += x * 0.0
     return nonfinite
+
+
+@jit_borrowed
+def planar_tip_torques(length, q, force, d, qd, out):
+    """out = J_tip(q)^T F + d * qd (nl,) for a planar R chain: the joint torques of a constant
+    world force ``force`` (3,) at the tip (the distal end of the last link), tau_k = (p_tip -
+    O_k) x F = sum_{i >= k} l_i (cos th_i F_y - sin th_i F_x), th_i = q_0 + ... + q_i, with a
+    viscous ``d * qd`` added (d = -damping; 0: none). The Python loop and the compiled steps both
+    call this function (:mod:`redysim.simulation`, :mod:`.rk_run`), so that they round alike."""
+    nl = length.shape[0]
+    th = 0.0
+    for k in range(nl):
+        th += q[k]
+        out[k] = length[k] * (math.cos(th) * force[1] - math.sin(th) * force[0])
+    acc = 0.0
+    for k in range(nl - 1, -1, -1):
+        acc += out[k]
+        out[k] = acc
+    if d != 0.0:
+        for k in range(nl):
+            out[k] = out[k] + d * qd[k]

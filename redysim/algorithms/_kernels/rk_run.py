@@ -33,6 +33,7 @@ from redysim._jit import jit_borrowed
 
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
+from .planar import planar_tip_torques
 from .rk import combine, error_norm
 
 ERR_NONFINITE, ERR_HMIN, ERR_QDD = -1, -2, -3
@@ -48,7 +49,9 @@ class Motion(NamedTuple):
     other coordinate q[plain_q[i]] as v[plain_v[i]]; each accepted step's quaternions are divided
     by their norms before the next step (``worst`` [0]: the largest | |q| - 1 | met before), the
     last step's of a call left to the caller, who projects after the step's samples as the Python
-    loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v."""
+    loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v. ``tip``:
+    a constant world force (3,) at a planar chain's tip, empty for none, its torques and the
+    damping's into ``tau`` by :func:`.planar.planar_tip_torques` (``length``: the links' (nl,))."""
 
     kind: int
     fdata: np.ndarray
@@ -63,6 +66,8 @@ class Motion(NamedTuple):
     free_q: np.ndarray
     free_v: np.ndarray
     worst: np.ndarray
+    tip: np.ndarray
+    length: np.ndarray
 
 
 class Scheme(NamedTuple):
@@ -132,7 +137,10 @@ def _rhs(motion, y, out):
     nq = motion.nq
     nv = y.shape[0] - nq
     tau = motion.zeros
-    if motion.damping != 0.0:
+    if motion.tip.shape[0] != 0:  # a tip force (a planar chain's), and the damping with it
+        tau = motion.tau
+        planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
+    elif motion.damping != 0.0:
         tau = motion.tau
         d = -motion.damping
         for k in range(nv):
