@@ -36,6 +36,7 @@ from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
+from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace, model_workspace
 from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
@@ -1160,11 +1161,11 @@ def momentum(model: Model, q, v, *, ws: Workspace | None = None) -> Momentum:
     r = np.einsum("kij,kj->ki", oR, model.com)  # each centre of mass from its body's origin
     c = ws.oO + r
     w = ws.t[:, :3]
-    vc = ws.t[:, 3:] + np.cross(w, r)
+    vc = ws.t[:, 3:] + cross(w, r)
     G = (m[:, None] * c).sum(axis=0) / m.sum()
     linear = (m[:, None] * vc).sum(axis=0)
     spin = np.einsum("kij,kjl,kml,km->i", oR, model.inertia_com, oR, w)  # R I R^T w
-    angular = spin + np.cross(c - G, m[:, None] * vc).sum(axis=0)
+    angular = spin + cross(c - G, m[:, None] * vc).sum(axis=0)
     if not (np.isfinite(linear).all() and np.isfinite(angular).all()):
         raise overflow_error("the momentum", q=q, v=v)
     return Momentum(linear, angular, G)
@@ -1217,11 +1218,11 @@ def frame_motion(model: Model, q, v, qdd=None, *, frame: str,
     w, v_origin = ws.t[k, :3], ws.t[k, 3:]
     pos = ws.oO[k] + r
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
-        vel = v_origin + np.cross(w, r)
+        vel = v_origin + cross(w, r)
         acc = None
         if qdd is not None:
             wd, vd = ws.td[k, :3], ws.td[k, 3:]
-            acc = vd + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+            acc = vd + cross(wd, r) + cross(w, cross(w, r))
     if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
         raise overflow_error("the tip's motion" if frame == TIP else f"the motion of {frame!r}",
                              q=q, v=v, qdd=qdd)

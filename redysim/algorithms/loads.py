@@ -21,6 +21,7 @@ import reprlib
 import numpy as np
 
 from redysim.algorithms.dynamics import _run_kinematics, _ws, check_state, overflow_error
+from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import FieldError, StateError
 from redysim.model.parts import numeric_array
@@ -70,7 +71,7 @@ def tip_force_torques(chain: Model, q, force, *, ws: Workspace | None = None) ->
     link_of_dof = np.repeat(np.arange(chain.n_links), np.diff(chain.joint_qoff))
     with np.errstate(over="ignore", invalid="ignore"):  # reported just below
         arm = p - ws.oO[link_of_dof]
-        tau = np.einsum("ij,ij->i", ws.oP[:, :3], np.cross(arm, F)) + ws.oP[:, 3:] @ F
+        tau = np.einsum("ij,ij->i", ws.oP[:, :3], cross(arm, F)) + ws.oP[:, 3:] @ F
     if not np.isfinite(tau).all():
         raise overflow_error("tau", q=q, force=F)
     return tau

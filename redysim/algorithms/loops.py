@@ -45,6 +45,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from redysim.algorithms.vectors import cross
 from redysim.errors import CaseError, StateError
 from redysim.model.tree import FREE, KINDS, CutJoint, Model, check_cuts
 
@@ -121,8 +122,8 @@ class ClosedLoops:
         r = ws.oR[body] @ np.asarray(point, dtype=float)
         w, vO = ws.t[body, :3], ws.t[body, 3:]
         wd, aO = ws.td[body, :3], ws.td[body, 3:]
-        return ws.oO[body] + r, vO + np.cross(w, r), aO + np.cross(wd, r) \
-            + np.cross(w, np.cross(w, r))
+        return ws.oO[body] + r, vO + cross(w, r), aO + cross(wd, r) \
+            + cross(w, cross(w, r))
 
     def _jacobian_block(self, ws, path, x) -> np.ndarray:
         """(3, n): the velocity of world point x fixed to the body at the path's start."""
@@ -130,7 +131,7 @@ class ClosedLoops:
         J = np.zeros((3, self.model.n_v))
         if axes.size:
             P = ws.oP[axes]
-            J[:, axes] = (P[:, 3:] + np.cross(P[:, :3], x - ws.oO[owners])).T
+            J[:, axes] = (P[:, 3:] + cross(P[:, :3], x - ws.oO[owners])).T
         return J
 
     def _angular_block(self, ws, path) -> np.ndarray:
@@ -158,12 +159,12 @@ class ClosedLoops:
             Jw = Jw - self._angular_block(ws, paths[1])
         w, alpha = wa - wb, aa - ab
         if c.kind == "weld":  # w_a - w_b = 0 along the world axes
-            phi = 0.5 * sum(np.cross(RB[:, k], RA[:, k]) for k in range(3))
+            phi = 0.5 * sum(cross(RB[:, k], RA[:, k]) for k in range(3))
             return phi, Jw, w, alpha
         u = np.column_stack([RB[:, 1], RB[:, 0]])  # along y_B and x_B: fixed on body b
         zA = RA[:, 2]
         phi = np.array([zA @ RB[:, 0], -(zA @ RB[:, 1])])
-        Jdv = u.T @ alpha + np.array([w @ np.cross(wb, u[:, 0]), w @ np.cross(wb, u[:, 1])])
+        Jdv = u.T @ alpha + np.array([w @ cross(wb, u[:, 0]), w @ cross(wb, u[:, 1])])
         return phi, u.T @ Jw, u.T @ w, Jdv
 
     def evaluate(self, q, v):
