@@ -23,6 +23,9 @@ from numba.core import cpu, options
 if TYPE_CHECKING:  # numba's stub type of njit(**options): a kernel is a Dispatcher of its function
     from numba.core.decorators import _JITWrapper
 
+# False under NUMBA_DISABLE_JIT: the kernels are then their Python source, and what exists in
+# compiled code only (the lean entries' intrinsics, a dispatcher's compiled wrapper) is not there
+JIT_ENABLED: bool = not getattr(numba.config, "DISABLE_JIT", 0)  # (numba.config: no stubs)
 OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 jit: _JITWrapper = numba.njit(**OPTIONS)
 # IEEE arithmetic as written: no FMA fusion either, so that every result is the same on every

@@ -1,6 +1,7 @@
 """redysim.evaluator: a model's forward (inverse) dynamics bound once, for the fastest call.
 
-Bit for bit :func:`redysim.forward_dynamics` and :func:`redysim.inverse_dynamics` on chains (the
+Bit for bit :func:`redysim.forward_dynamics` and :func:`redysim.inverse_dynamics` (its checked
+path; its default path for contiguous float64 vectors is the evaluator's entry) on chains (the
 serial kernels, and the planar one), trees, a floating robot; ``out`` honoured; what the lean
 path does not take (lists, float32, strided arrays, wrong lengths, a read-only ``out``, a batch)
 taken by the public function, with its conversions and its errors; a model with cut joints
@@ -46,6 +47,19 @@ def same_bits(a, b) -> bool:
     return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
+def checked_forward(model, q, v, tau=None):
+    """forward_dynamics by its checked path (lists are converted there, then the entry that
+    releases the GIL): not the lean entry that small models' contiguous vectors take."""
+    return forward_dynamics(model, q.tolist(), v.tolist(), None if tau is None else tau.tolist())
+
+
+def checked_inverse(model, q, v, qdd):
+    """inverse_dynamics by its checked path (lists are converted there, then the kinematics and
+    the backward pass called one by one): not the lean entry that contiguous float64 vectors
+    take, so that the two are compared."""
+    return inverse_dynamics(model, q.tolist(), v.tolist(), qdd.tolist())
+
+
 @pytest.mark.parametrize("name", MODELS)
 def test_forward_and_inverse_are_the_public_functions_bit_for_bit(name):
     model = MODELS[name]
@@ -54,10 +68,12 @@ def test_forward_and_inverse_are_the_public_functions_bit_for_bit(name):
     rng = np.random.default_rng(7)
     for _ in range(40):
         q, v, tau = _state(rng, model)
-        assert same_bits(fd(q, v), forward_dynamics(model, q, v))
-        assert same_bits(fd(q, v, tau), forward_dynamics(model, q, v, tau))
+        assert same_bits(fd(q, v), checked_forward(model, q, v))
+        assert same_bits(fd(q, v, tau), checked_forward(model, q, v, tau))
+        assert same_bits(forward_dynamics(model, q, v, tau), checked_forward(model, q, v, tau))
         qdd = forward_dynamics(model, q, v, tau)
-        assert same_bits(inv(q, v, qdd), inverse_dynamics(model, q, v, qdd))
+        assert same_bits(inv(q, v, qdd), checked_inverse(model, q, v, qdd))
+        assert same_bits(inverse_dynamics(model, q, v, qdd), checked_inverse(model, q, v, qdd))
     assert model.is_planar == (name == "planar R chain")  # the planar kernel's path is covered
 
 
@@ -69,8 +85,10 @@ def test_robots_of_example_robot_data(floating):
     rng = np.random.default_rng(11)
     for _ in range(20):
         q, v, tau = _state(rng, model)
-        assert same_bits(fd(q, v, tau), forward_dynamics(model, q, v, tau))
-        assert same_bits(inv(q, v, tau), inverse_dynamics(model, q, v, tau))
+        assert same_bits(fd(q, v, tau), checked_forward(model, q, v, tau))
+        assert same_bits(forward_dynamics(model, q, v, tau), checked_forward(model, q, v, tau))
+        assert same_bits(inv(q, v, tau), checked_inverse(model, q, v, tau))
+        assert same_bits(inverse_dynamics(model, q, v, tau), checked_inverse(model, q, v, tau))
 
 
 def test_out_is_written_and_returned():
@@ -78,10 +96,10 @@ def test_out_is_written_and_returned():
     q, v, tau = _state(np.random.default_rng(1), model)
     out = np.full(model.n_v, np.nan)
     assert redysim.evaluator(model)(q, v, tau, out=out) is out
-    assert same_bits(out, forward_dynamics(model, q, v, tau))
+    assert same_bits(out, checked_forward(model, q, v, tau))
     tau_out = np.empty(model.n_v)
     assert redysim.evaluator(model, "inverse_dynamics")(q, v, out, out=tau_out) is tau_out
-    assert same_bits(tau_out, inverse_dynamics(model, q, v, out))
+    assert same_bits(tau_out, checked_inverse(model, q, v, out))
     # a fresh array per call without out: results never alias each other or the scratch
     fd = redysim.evaluator(model)
     a, b = fd(q, v), fd(q, 2 * v)
@@ -241,3 +259,35 @@ def test_the_evaluator_runs_with_numba_disabled():
     fd, inv = json.loads(plain.stdout)
     np.testing.assert_allclose(fd, forward_dynamics(c, q, q), rtol=1e-12)
     np.testing.assert_allclose(inv, inverse_dynamics(c, q, q, q), rtol=1e-12)
+
+
+@pytest.mark.parametrize("links", [10, 60, 260])  # 20 DOF; past the forward (100), inverse (500)
+def test_the_default_calls_are_the_checked_paths_bits_at_any_size_and_on_threads(links):
+    """forward_dynamics and inverse_dynamics by default (the lean entries up to their limits,
+    the entries that release the GIL above), against their checked paths, bit for bit; from four
+    threads at once, each thread's results its sequential ones."""
+    model = Chain.uniform(links, "U", length=0.02, linear_density=61.6538, radius=0.05)
+    rng = np.random.default_rng(links)
+    states = [_state(rng, model) for _ in range(8)]
+    want = []
+    for q, v, tau in states:
+        qdd = forward_dynamics(model, q, v, tau)
+        assert same_bits(qdd, checked_forward(model, q, v, tau))
+        back = inverse_dynamics(model, q, v, qdd)
+        assert same_bits(back, checked_inverse(model, q, v, qdd))
+        want.append((qdd, back))
+    got: dict = {}
+
+    def work(k):
+        got[k] = [(forward_dynamics(model, q, v, tau),
+                   inverse_dynamics(model, q, v, forward_dynamics(model, q, v, tau)))
+                  for _ in range(20) for q, v, tau in states][-len(states):]
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for k in range(4):
+        assert all(same_bits(a, c) and same_bits(b, d)
+                   for (a, b), (c, d) in zip(got[k], want, strict=True))

@@ -23,7 +23,9 @@ from typing import Literal, NamedTuple, overload
 import numpy as np
 from numpy import ndarray
 
+from redysim._jit import JIT_ENABLED
 from redysim.algorithms._kernels import batch as _batch
+from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms._kernels import tiles as _tiles
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
 from redysim.algorithms._kernels.energy import energy as _energy
@@ -174,6 +176,14 @@ def _phi(model, ws, q, v, tau):
     return ws.phi
 
 
+# Calls of at most this many DOF go to the evaluator's lean entries (redysim.evaluator), which
+# hold the GIL. forward_dynamics: ~1 us saved of a few, while a larger model's call is long
+# enough for the GIL to matter to other threads (its own entry releases it) and the saving is a
+# few percent. inverse_dynamics: its checked path spends ~14 us in Python (holding the GIL)
+# calling the passes; up to ~500 DOF the lean entry holds it for less than that in all (200
+# DOF: 6.3 us against 20.6; 1,000 DOF: 25.5 against 41.2, 14 of them held)
+LEAN_MAX_DOF = 100
+LEAN_INVERSE_MAX_DOF = 500
 COUPLING_TOL = 1e-9  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f| (and for v, qdd)
 
 
@@ -249,6 +259,10 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     A coupled model (:meth:`Model.with_couplings`): q, v and qdd must keep the couplings, and
     tau is the tree's (each joint's torque for that motion, with no coupling force), which
     :func:`forward_dynamics` maps back to qdd.
+
+    Contiguous float64 vectors of a model of at most LEAN_INVERSE_MAX_DOF DOF go to one compiled
+    function as they are (:func:`redysim.evaluator`'s inverse entry, the same passes and bits);
+    anything else is checked and converted first.
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
@@ -259,6 +273,14 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
                                               for name, x in (("q", q), ("v", v),
                                                               ("qdd", qdd))), strict=True)])
         return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads)
+    if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
+            and not model.couplings and JIT_ENABLED and model.n_v <= LEAN_INVERSE_MAX_DOF:
+        ws = _ws(model, ws)
+        entry = (_lean.INVERSE_CHAIN if ws.tree.serial else _lean.INVERSE_TREE).compiled
+        try:  # the hot path, the evaluator's entry: it checks lengths, strides and the result
+            return entry(q, v, qdd, np.empty(model.n_v), ws.kernel_f, ws.kernel_i, ws.scratch)
+        except (TypeError, _lean.Refused):  # not contiguous float64, a length, not finite:
+            pass  # converted and checked below, which names what is wrong
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     qdd = check_state(model, "qdd", qdd)
@@ -322,7 +344,8 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
     ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
     these go to the compiled entry point as they are, which checks their types and sizes
-    itself. Anything else is checked and converted first: lists at once, other arrays (float32,
+    itself (up to LEAN_MAX_DOF DOF, :func:`redysim.evaluator`'s entry, which keeps the GIL; the
+    same bits). Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
@@ -364,6 +387,13 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                 and type(qdd) is ndarray:
             if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
                 return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
+            if JIT_ENABLED and model.n_v <= LEAN_MAX_DOF:  # the hottest: the evaluator's
+                lean = (_lean.FORWARD_PLANAR if planar else  # entry, the same passes and bits
+                        _lean.FORWARD_CHAIN if ws.tree.serial else _lean.FORWARD_TREE).compiled
+                try:
+                    return lean(q, v, t, qdd, ws.kernel_f, ws.kernel_i, ws.scratch)
+                except (TypeError, _lean.Refused):  # the entry below converts and names why
+                    pass
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
