@@ -222,7 +222,6 @@ class _Motion:
             tau = -self.damping * v if tau is None else tau - self.damping * v
         return tau
 
-
     def qdd_of(self, t, q, v, out=None):
         """vdot at (t, q, v): the provider's (with loops: an engine's constrained
         accelerations, its loop adapter's), the loops' or the core's."""
@@ -414,8 +413,9 @@ class Simulator:
       -damping * v at every joint [N m s]; ``potential(q)``: the potential energy [J] of the
       forces ``tau`` gives, when they have one (counted in E, so that delta_M stays an energy
       balance). ``tip_force``: a constant world force [N] (3,) at a chain's tip (a case's
-      ``[load] tip_force``): its joint torques J^T F, and its potential -F . p_tip counted in E
-      (:mod:`redysim.algorithms.loads`); on a planar chain its steps run in compiled code.
+      ``[load] tip_force``): its joint torques J^T F (added to ``tau``'s), and its potential
+      -F . p_tip counted in E (added to ``potential``'s; :mod:`redysim.algorithms.loads`); on a
+      planar chain its steps run in compiled code.
     - ``loops``: a :class:`redysim.algorithms.loops.ClosedLoops` of the system (by default, a model
           with
       cut joints, :meth:`Model.with_cuts`, gets its own): its loops closed, (q, v) projected
@@ -509,9 +509,11 @@ class Simulator:
                 tip_force = check_force(tip_force)
             except StateError as exc:
                 raise SettingsError(source, "tip_force", tip_force, str(exc)) from None
-            if potential is None:
-                force, ws_p = tip_force, Workspace(system)
-                potential = lambda q: tip_force_potential(system, q, force, ws=ws_p)  # noqa: E731
+            force, ws_p, given = tip_force, Workspace(system), potential
+
+            def potential(q):  # the force's, and the caller's for its tau (if any)
+                own = tip_force_potential(system, q, force, ws=ws_p)
+                return own if given is None else own + given(q)
         self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau,
                               tip_force=tip_force)
         self.potential = potential

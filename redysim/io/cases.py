@@ -144,7 +144,7 @@ class Case:
         for key, value in defaults.items():
             if settings.get(key) is None:
                 settings[key] = value
-        if self.tip_force is not None and "tau" not in settings:
+        if self.tip_force is not None:  # (a tau given adds to it)
             settings.setdefault("tip_force", self.tip_force)
         return Simulator(self.chain, t_end or self.t_end,
                          q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
