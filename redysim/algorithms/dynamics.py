@@ -176,13 +176,12 @@ def _phi(model, ws, q, v, tau):
     return ws.phi
 
 
-# Calls of at most this many DOF go to the evaluator's lean entries (redysim.evaluator), which
-# hold the GIL. forward_dynamics: ~1 us saved of a few, while a larger model's call is long
-# enough for the GIL to matter to other threads (its own entry releases it) and the saving is a
-# few percent. inverse_dynamics: its checked path spends ~14 us in Python (holding the GIL)
-# calling the passes; up to ~500 DOF the lean entry holds it for less than that in all (200
-# DOF: 6.3 us against 20.6; 1,000 DOF: 25.5 against 41.2, 14 of them held)
-LEAN_MAX_DOF = 100
+# inverse_dynamics calls of at most this many DOF go to the evaluator's lean entry
+# (redysim.evaluator), which holds the GIL: its checked path spends ~14 us in Python (holding
+# the GIL) calling the passes, and up to ~500 DOF the lean entry holds it for less than that in
+# all (200 DOF: 6.3 us against 20.6; 1,000 DOF: 25.5 against 41.2, 14 of them held).
+# (forward_dynamics keeps its own entry: the lean one saved ~0.7 us a call on the UR5 but
+# doubled a fresh install's first call, 18.6 to 38.8 s of compiling; docs/design.md)
 LEAN_INVERSE_MAX_DOF = 500
 COUPLING_TOL = 1e-9  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f| (and for v, qdd)
 
@@ -344,8 +343,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
     ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
     these go to the compiled entry point as they are, which checks their types and sizes
-    itself (up to LEAN_MAX_DOF DOF, :func:`redysim.evaluator`'s entry, which keeps the GIL; the
-    same bits). Anything else is checked and converted first: lists at once, other arrays (float32,
+    itself. Anything else is checked and converted first: lists at once, other arrays (float32,
     strided) after numba refuses their types, ~0.1 ms a call here.
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
@@ -387,13 +385,6 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                 and type(qdd) is ndarray:
             if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
                 return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
-            if JIT_ENABLED and model.n_v <= LEAN_MAX_DOF:  # the hottest: the evaluator's
-                lean = (_lean.FORWARD_PLANAR if planar else  # entry, the same passes and bits
-                        _lean.FORWARD_CHAIN if ws.tree.serial else _lean.FORWARD_TREE).compiled
-                try:
-                    return lean(q, v, t, qdd, ws.kernel_f, ws.kernel_i, ws.scratch)
-                except (TypeError, _lean.Refused):  # the entry below converts and names why
-                    pass
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
