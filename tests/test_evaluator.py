@@ -291,3 +291,16 @@ def test_the_default_calls_are_the_checked_paths_bits_at_any_size_and_on_threads
     for k in range(4):
         assert all(same_bits(a, c) and same_bits(b, d)
                    for (a, b), (c, d) in zip(got[k], want, strict=True))
+
+
+def test_the_default_inverse_leaves_the_workspace_as_the_checked_path_does():
+    """The implicit integrator's tension preconditioner reads the Newton-Euler wrenches and the
+    link axes that inverse_dynamics leaves in the workspace: the lean entry leaves the same."""
+    from redysim import Workspace
+
+    model = MODELS["U chain"]
+    q, v, qdd = _state(np.random.default_rng(9), model)
+    lean, checked = Workspace(model), Workspace(model)
+    inverse_dynamics(model, q, v, qdd, ws=lean)
+    inverse_dynamics(model, q.tolist(), v.tolist(), qdd.tolist(), ws=checked)
+    assert same_bits(lean.s.W, checked.s.W) and same_bits(lean.oR, checked.oR)
