@@ -509,13 +509,14 @@ class Simulator:
                 tip_force = check_force(tip_force)
             except StateError as exc:
                 raise SettingsError(source, "tip_force", tip_force, str(exc)) from None
-            force, ws_p, given = tip_force, Workspace(system), potential
-
-            def potential(q):  # the force's, and the caller's for its tau (if any)
-                own = tip_force_potential(system, q, force, ws=ws_p)
-                return own if given is None else own + given(q)
         self.motion = _Motion(system, loops, self.damping, qdd=qdd, method=method, tau=tau,
                               tip_force=tip_force)
+        if tip_force is not None:  # its potential, on the samples' workspace
+            force, ws, given = tip_force, self.motion.ws, potential
+
+            def potential(q):  # the force's, and the caller's for its tau (if any)
+                own = tip_force_potential(system, q, force, ws=ws)
+                return own if given is None else own + given(q)
         self.potential = potential
         self.loops = loops
         y0 = np.concatenate((q0, v0))

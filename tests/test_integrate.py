@@ -335,22 +335,29 @@ def test_floating_and_damped_motions_step_in_compiled_code_in_the_same_bits(meth
     from conftest import stable_seed
     from test_trees import random_configuration, random_tree
 
-    from redysim.simulation import Simulator
-
     model = random_tree(stable_seed("compiled-free", free), n_bodies=10, free=free, fixed=1)
     rng = np.random.default_rng(7)
     q, v = random_configuration(rng, model), rng.normal(size=model.n_v)
+    a, b = _compiled_and_python_runs(model, 0.25, q0=q, v0=v, integrator=method,
+                                     damping=damping, **kw)
+    assert a.quaternion_error == b.quaternion_error
+
+
+def _compiled_and_python_runs(model, t_end, **settings):
+    """The same Simulator run stepped in compiled code and in the Python loop (each checked to
+    be so): the same steps, RHS calls and every sample bit for bit; returns both."""
+    from redysim.simulation import Simulator
+
     runs = []
     for compiled in (True, False):
-        sim = Simulator(model, 0.25, q0=q, v0=v, integrator=method, damping=damping,
-                        compiled=compiled, sample=0.05, **kw)
+        sim = Simulator(model, t_end, compiled=compiled, sample=0.05, **settings)
         assert sim.compiled is compiled
         runs.append(sim.run())
     a, b = runs
     assert a.status == b.status == 0 and a.steps == b.steps > 10 and a.nfev == b.nfev
     for name in ("t", "q", "v", "energy", "com"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
-    assert a.quaternion_error == b.quaternion_error
+    return a, b
 
 
 def test_a_planar_chains_tip_torques_are_the_general_loads():
@@ -382,21 +389,12 @@ def test_a_pulled_chain_steps_in_compiled_code_in_the_same_bits(method, kw, damp
     the same steps as the Python loop, every sample and the energy (the force's potential in
     it) equal bit for bit; the energy balance holds."""
     from redysim import coarsen, load_case
-    from redysim.simulation import Simulator
 
     case = load_case("cases/refine/pulled-R128.toml")
     cz = coarsen(case.chain, links=8)
     q0, v0 = cz.to_coarse(case.q0, case.v0)
-    runs = []
-    for compiled in (True, False):
-        sim = Simulator(cz.coarse, 0.3, q0=q0, v0=v0, integrator=method, damping=damping,
-                        tip_force=case.tip_force, compiled=compiled, sample=0.05, **kw)
-        assert sim.compiled is compiled
-        runs.append(sim.run())
-    a, b = runs
-    assert a.status == b.status == 0 and a.steps == b.steps > 10 and a.nfev == b.nfev
-    for name in ("t", "q", "v", "energy", "com"):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    a, _ = _compiled_and_python_runs(cz.coarse, 0.3, q0=q0, v0=v0, integrator=method,
+                                     damping=damping, tip_force=case.tip_force, **kw)
     if damping:  # the damping takes energy out
         assert a.energy[-1] < a.energy[0]
     else:  # T + V - F . p_tip is conserved (rk4 at h = 1e-3: to its truncation)
