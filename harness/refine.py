@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from redysim import coarsen, load_case, mass_matrix
-from redysim.io.cases import CASES_DIR, case_from_dict, read_toml
+from redysim.io.cases import CASES_DIR, case_with_links, read_toml
 
 from .provenance import provenance
 from .store import write_json_atomic
@@ -246,11 +246,9 @@ def finer_case(case_file: str | Path, factor: int):
     same physical rope at a finer discretisation, for checking advice against a reference it was
     not chosen with. The case's initial state must not depend on the link count (true of the
     refinement scenes: a first-joint angle or rate, the rest zero)."""
-    doc, raw = read_toml(case_file)
-    doc = json.loads(json.dumps(doc))  # a deep copy
-    doc["chain"]["links"] = int(doc["chain"]["links"]) * factor
-    doc["case"]["name"] = f"{doc['case']['name']}x{factor}"
-    return case_from_dict(doc, source=f"{case_file} (links x {factor})")
+    doc = read_toml(case_file)[0]
+    return case_with_links(case_file, int(doc["chain"]["links"]) * factor,
+                           f"{doc['case']['name']}x{factor}", f"{case_file} (links x {factor})")
 
 
 def _tips(case, links: int, integrator: str, rtol: float, atol: float, t_end: float,

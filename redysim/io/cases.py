@@ -717,7 +717,14 @@ def rebuilt_case(case, links: int):
     if why:
         raise CaseError(str(getattr(case, "path", case.name)), "links", links,
                         f"does not divide the case's {case.chain.n_links} links, and {why}")
-    doc = json.loads(json.dumps(read_toml(case.path)[0]))  # a deep copy
+    return case_with_links(case.path, links, f"{case.name}@{links}",
+                           f"{case.path} (rebuilt at {links} links)")
+
+
+def case_with_links(path, links: int, name: str, source: str) -> Case:
+    """The case file at ``path`` read with its ``[chain] links`` set to ``links`` and its name
+    to ``name`` (the file itself unchanged); ``source`` names it in messages."""
+    doc = json.loads(json.dumps(read_toml(path)[0]))  # a deep copy
     doc["chain"]["links"] = int(links)
-    doc["case"]["name"] = f"{case.name}@{links}"
-    return case_from_dict(doc, source=f"{case.path} (rebuilt at {links} links)", path=case.path)
+    doc["case"]["name"] = name
+    return case_from_dict(doc, source=source, path=Path(path))
