@@ -45,6 +45,7 @@ import argparse
 import contextlib
 import datetime as _dt
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -76,6 +77,13 @@ REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
 IMPLICIT_REF_T = {QUICK: 0.02, FULL: 0.48}
 IMPLICIT_SAMPLE = 0.01  # s
 LOG_DIR = "logs"
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its children that have ended (sweep workers, long
+    runs): what a step costs when another process shares the machine, which wall time is not."""
+    usage = (resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN))
+    return sum(u.ru_utime + u.ru_stime for u in usage)
 
 
 @dataclass
@@ -365,10 +373,10 @@ class Reproduction:
         started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
         record = {"mode": plan.mode, "started": started, "steps": [], "provenance": provenance(),
                   "machine": provenance()["machine"]}
-        failed = 0
+        failed, cpu0 = 0, _cpu_s()
         for name, fn in plan.steps:
             self.say(f"{name} ...")
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), _cpu_s()
             try:
                 detail = fn() or ""
                 status = "ok"
@@ -376,9 +384,9 @@ class Reproduction:
                 traceback.print_exc()
                 detail, status = f"{type(exc).__name__}: {exc}", "failed"
                 failed += 1
-            wall = time.perf_counter() - t0
-            self.say(f"{name}: {status} in {wall:.1f} s. {detail}")
-            record["steps"].append({"step": name, "wall_s": wall, "status": status,
+            wall, cpu = time.perf_counter() - t0, _cpu_s() - c0
+            self.say(f"{name}: {status} in {wall:.1f} s (CPU {cpu:.1f} s). {detail}")
+            record["steps"].append({"step": name, "wall_s": wall, "cpu_s": cpu, "status": status,
                                     "detail": str(detail)})
             record["wall_s"] = time.perf_counter() - self.t0
             record["finished"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
@@ -386,7 +394,7 @@ class Reproduction:
                 write_json_atomic(record, self.results / REPRODUCE_FILE.format(plan.kind))
         total = time.perf_counter() - self.t0
         m, s = divmod(int(round(total)), 60)
-        self.say(f"{plan.mode}: finished in {m} min {s} s"
+        self.say(f"{plan.mode}: finished in {m} min {s} s, CPU {_cpu_s() - cpu0:.0f} s"
                  + (f"; {failed} step(s) failed" if failed else ""))
         return 1 if failed else 0
 
