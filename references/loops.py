@@ -271,18 +271,12 @@ class LoopEngine(EnginePackage):
     def _planar_gap(self, q) -> str:
         """A planar cut built as a ball: its points must also meet in z (constant on a planar
         mechanism, see :func:`non_planar`)."""
-        if self.planar_exact:
+        if self.planar_exact or not any(c.kind == "planar" for c in self.loops.cuts):
             return ""
-        from redysim.algorithms.rbda import kinematics
-
-        kin = None
-        for c in self.loops.cuts:
+        for c, (pa, pb) in zip(self.loops.cuts, self.loops.cut_points(q), strict=True):
             if c.kind != "planar":
                 continue
-            kin = kin or kinematics(self.model, q, np.zeros(self.model.n_v))
-            za, zb = (float(np.asarray(p, dtype=float)[2]) if b < 0 else
-                      float((kin.O[b] + kin.R[b] @ np.asarray(p, dtype=float))[2])
-                      for b, p in ((c.body_a, c.point_a), (c.body_b, c.point_b)))
+            za, zb = float(pa[2]), float(pb[2])
             if abs(za - zb) > self.PLANAR_GAP * self.loops.size:
                 return (f"the planar cut {c.name!r} has its points {abs(za - zb):.3g} m apart in "
                         "world z, which it leaves free; this engine's ball constraint would "

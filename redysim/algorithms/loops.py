@@ -258,6 +258,13 @@ class ClosedLoops:
         lam = self._solve(J @ X, -(J @ qdd0 + Jdv), q)
         return qdd0 + X @ lam, lam
 
+    def cut_points(self, q) -> list[tuple[np.ndarray, np.ndarray]]:
+        """World positions (point a, point b) of every cut joint's two points at q (they meet,
+        where a loop is closed, in the coordinates the cut constrains)."""
+        ws = self._kinematics(np.asarray(q, dtype=float), self._zeros)
+        return [(self._point(ws, c.body_a, c.point_a)[0], self._point(ws, c.body_b, c.point_b)[0])
+                for c in self.cuts]
+
     def check_start(self, q, tol: float = 1e-6) -> None:
         """Refuse a configuration that violates a loop by more than ``tol`` (relative to the
         model's size), naming the cut joint: a start to be projected is one near the loops."""

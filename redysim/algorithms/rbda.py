@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from redysim.algorithms.vectors import cross as vcross
 from redysim.model.parts import KIND_CODES
 from redysim.model.tree import BALL, Model, quaternion_matrix  # noqa: F401  (re-exported)
 
@@ -110,16 +111,16 @@ def kinematics(model: Model, q, v, vdot=None, base_accel=None) -> Kinematics:
                     S[3:, j] = e
                     Ok = Ok + e * q[qi]
                 qi += 1
-            Pd_v += np.concatenate((np.cross(om, S[:3, j]), np.cross(om, S[3:, j]))) * v[j]
+            Pd_v += np.concatenate((vcross(om, S[:3, j]), vcross(om, S[3:, j]))) * v[j]
             rel += S[:, j] * v[j]
             if kind == REVOLUTE:
                 om = om + S[:3, j] * v[j]
         if model.joint_types[k] == "free":  # the ball's columns turn with the body itself
             w_k = tp[:3] + rel[:3]
-            Pd_v[:3] = np.cross(w_k, rel[:3])
+            Pd_v[:3] = vcross(w_k, rel[:3])
         r = Ok - Op
         t[k] = shift(r) @ tp + rel
-        cb = np.concatenate((np.zeros(3), np.cross(tp[:3], t[k, 3:] - tp[3:]))) + Pd_v
+        cb = np.concatenate((np.zeros(3), vcross(tp[:3], t[k, 3:] - tp[3:]))) + Pd_v
         c[k] = cb
         sl = slice(model.joint_voff[k], model.joint_voff[k + 1])
         td[k] = shift(r) @ tdp + cb + S[:, sl] @ vdot[sl]
@@ -131,7 +132,7 @@ def _link_wrench(M, w):
     """Body k's velocity-product wrench about O_k when its twist-rate is zero (the angular
     acceleration and the acceleration of O_k): [w x (I_O w); w x (w x m d)] (Newton-Euler)."""
     md = np.array([M[2, 4], M[0, 5], M[1, 3]])  # from C(m d) in M's upper-right block
-    return np.concatenate((np.cross(w, M[:3, :3] @ w), np.cross(w, np.cross(w, md))))
+    return np.concatenate((vcross(w, M[:3, :3] @ w), vcross(w, vcross(w, md))))
 
 
 def inverse_dynamics(model: Model, q, v, vdot) -> np.ndarray:
