@@ -91,6 +91,7 @@ from typing import ClassVar
 import numpy as np
 
 from redysim.algorithms.loops import ClosedLoops
+from redysim.algorithms.vectors import cross
 from redysim.model.tree import Model
 
 from .base import (
@@ -142,7 +143,7 @@ def inert_moments(model: Model) -> tuple[Model, list[int], str]:
         if not axes or any(a is None for a in axes):
             return model, [], f"{name} has a zero principal moment and turns about any axis"
         n = axes[0] / np.linalg.norm(axes[0])
-        if any(np.linalg.norm(np.cross(a, n)) > PARALLEL for a in axes):
+        if np.any(np.linalg.norm(cross(np.array(axes), n), axis=-1) > PARALLEL):
             return model, [], (f"{name} has a zero principal moment and turns about "
                                "non-parallel axes, so the moment can enter its dynamics")
         for j in thin:
@@ -174,7 +175,7 @@ def non_planar(loops: ClosedLoops, cut) -> str:
             for i in range(int(model.joint_voff[body]), int(model.joint_voff[body + 1])):
                 u = kin.R[body] @ np.asarray(model.dof_u[i], dtype=float)  # world, at q = 0
                 kind = int(model.dof_kind[i])
-                if (kind == 0 and np.linalg.norm(np.cross(u, z)) > PARALLEL) or \
+                if (kind == 0 and np.linalg.norm(cross(u, z)) > PARALLEL) or \
                         (kind == 1 and abs(u @ z) > PARALLEL) or kind not in (0, 1):
                     return (f"the planar cut {cut.name!r} leaves world z free, but body {body} "
                             f"({model.body_names[body]}) moves its points along z; this engine's "

@@ -117,20 +117,26 @@ class Reproduction:
     # ----------------------------------------------------------------------- steps
     def warm_up(self) -> None:
         """Compile (or load from numba's disk cache) every kernel once, before the sweep workers
-        start: they then load machine code instead of compiling it each."""
+        start: they then load machine code instead of compiling it each (two workers compiling
+        the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s)."""
         import numpy as np
 
         from redysim import Chain, energy, forward_dynamics, mass_matrix, tip, udu_factors
+        from redysim.algorithms.dynamics import inverse_dynamics
+        from redysim.simulation import Simulator
 
         for chain in (Chain.uniform(3, "U", mass=1.0), Chain.uniform(3, "R", mass=1.0)):
             q = np.full(chain.n_dof, 0.1)
             for method in ("rge-a", "ge-n", "rge-n"):
                 forward_dynamics(chain, q, q, method=method)
             forward_dynamics(chain, q, q, planar=False)
+            inverse_dynamics(chain, q, q, q)
             energy(chain, q, q)
             tip(chain, q, q, q)
             mass_matrix(chain, q)
             udu_factors(chain, q)
+        # one rk_steps serves every chain and tree, planar or not (its Motion bundle's types)
+        Simulator(chain, 0.02, sample=0.01, compiled=True).run()
 
     def sweep(self, name: str) -> str:
         from redysim.harness.sweep import load_sweep, run_sweep

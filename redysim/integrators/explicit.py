@@ -522,8 +522,10 @@ class CompiledSolver(Solver):
                                      self.quaternion_worst,
                                      np.zeros(0) if tip_force is None
                                      else np.array(tip_force, dtype=float),
+                                     # a writable copy: the model's own array is read-only,
+                                     # and numba would compile rk_steps once more for it
                                      np.zeros(0) if tip_force is None
-                                     else np.ascontiguousarray(ws.chain.length, dtype=float))
+                                     else np.array(ws.chain.length, dtype=float))
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
