@@ -51,6 +51,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -86,6 +87,15 @@ def _cpu_s() -> float:
     return sum(u.ru_utime + u.ru_stime for u in usage)
 
 
+def warm_stepping() -> None:
+    """Compile the compiled stepping (rk_steps): one serves every chain and tree, planar or not
+    (its Motion bundle's types are the same)."""
+    from redysim import Chain
+    from redysim.simulation import Simulator
+
+    Simulator(Chain.uniform(3, "U", mass=1.0), 0.02, sample=0.01, compiled=True).run()
+
+
 @dataclass
 class Plan:
     """What one invocation runs: named steps, in order. ``mode`` says what for ("quick",
@@ -118,25 +128,42 @@ class Reproduction:
     def warm_up(self) -> None:
         """Compile (or load from numba's disk cache) every kernel once, before the sweep workers
         start: they then load machine code instead of compiling it each (two workers compiling
-        the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s)."""
+        the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s).
+        rk_steps compiles in a second process (:func:`warm_stepping`) once what it calls (the
+        entries it links, the energy at its samples) is cached, beside the other kernels here,
+        where there is a second core."""
         import numpy as np
 
         from redysim import Chain, energy, forward_dynamics, mass_matrix, tip, udu_factors
         from redysim.algorithms.dynamics import inverse_dynamics
-        from redysim.simulation import Simulator
 
-        for chain in (Chain.uniform(3, "U", mass=1.0), Chain.uniform(3, "R", mass=1.0)):
+        chains = (Chain.uniform(3, "U", mass=1.0), Chain.uniform(3, "R", mass=1.0))
+        for chain in chains:  # first what the stepping process calls: the entries, energy
             q = np.full(chain.n_dof, 0.1)
-            for method in ("rge-a", "ge-n", "rge-n"):
+            forward_dynamics(chain, q, q)
+            energy(chain, q, q)
+        side = None
+        if (self.workers or os.cpu_count() or 1) > 1:
+            side = subprocess.Popen(
+                [sys.executable, "-c",
+                 "from redysim.reports.reproduce import warm_stepping; warm_stepping()"],
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        for chain in chains:
+            q = np.full(chain.n_dof, 0.1)
+            for method in ("ge-n", "rge-n"):
                 forward_dynamics(chain, q, q, method=method)
             forward_dynamics(chain, q, q, planar=False)
             inverse_dynamics(chain, q, q, q)
-            energy(chain, q, q)
             tip(chain, q, q, q)
             mass_matrix(chain, q)
             udu_factors(chain, q)
-        # one rk_steps serves every chain and tree, planar or not (its Motion bundle's types)
-        Simulator(chain, 0.02, sample=0.01, compiled=True).run()
+        if side is not None:
+            output = side.communicate()[0]
+            if side.returncode == 0:
+                return
+            self.say(f"  compiling rk_steps in a second process failed ({side.returncode}: "
+                     f"{output.strip()[-300:]}); compiling it here")
+        warm_stepping()
 
     def sweep(self, name: str) -> str:
         from redysim.harness.sweep import load_sweep, run_sweep
@@ -149,10 +176,10 @@ class Reproduction:
             ": " + "; ".join(f"{r.label}: {str(r.reason)[:80]}" for r in bad.itertuples())
             if len(bad) else "")
 
-    def _longrun(self, case: str, out: Path | None = None, **flags) -> dict:
+    def _longrun(self, case: str, out: Path | None = None, tag: str = "", **flags) -> dict:
         """One checkpointed long run (:mod:`redysim.harness.longrun`) in a process of its own, so
         that the peak RSS it records is its own, not this process's after every earlier step; its
-        output goes to the log line by line. Returns its final checkpoint."""
+        output goes to the log line by line (after ``tag``). Returns its final checkpoint."""
         from redysim import load_case
         from redysim.harness import longrun
 
@@ -165,7 +192,7 @@ class Reproduction:
         with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                               text=True) as proc:
             for line in proc.stdout:
-                self.say(f"  {line.rstrip()}")
+                self.say(f"  {tag}{line.rstrip()}")
                 tail = (tail + [line.rstrip()])[-5:]
         if proc.returncode != 0:
             raise RuntimeError(f"longrun {case} exited {proc.returncode}: " + " | ".join(tail))
@@ -191,18 +218,25 @@ class Reproduction:
     def implicit(self) -> str:
         """The implicit midpoint on RE-U50000-L1000 to 5 s (about a minute), and the explicit
         ode45 run it is measured against, to IMPLICIT_REF_T[mode] (35 ms a step at ~1e-5 s: 0.02
-        s is ~70 s, 0.48 s ~35 min): both checkpointed long runs sampled every 0.01 s."""
+        s is ~70 s, 0.48 s ~35 min): both checkpointed long runs sampled every 0.01 s, run side
+        by side."""
         from redysim.harness import longrun
 
         from .implicit import CASE
 
-        done = []
         t_ref = IMPLICIT_REF_T[self.mode]
-        for kw, folder in ((dict(integrator="midpoint", t_end=5.0), f"{CASE}-midpoint"),
-                           (dict(t_end=t_ref), f"{CASE}-ode45-{t_ref:g}")):
-            ck = self._longrun(CASE, out=self.results / "longrun" / folder,
-                               sample=IMPLICIT_SAMPLE, every=60.0, **kw)
-            done.append(longrun.summary(ck))
+        runs = [(dict(integrator="midpoint", t_end=5.0), f"{CASE}-midpoint"),
+                (dict(t_end=t_ref), f"{CASE}-ode45-{t_ref:g}")]
+
+        def one(kw, folder):
+            return longrun.summary(self._longrun(
+                CASE, out=self.results / "longrun" / folder, tag=f"[{folder}] ",
+                sample=IMPLICIT_SAMPLE, every=60.0, **kw))
+
+        # the two runs are independent processes: side by side where there are two cores (each
+        # records its own CPU time and peak RSS); one after the other with --workers 1
+        with ThreadPoolExecutor(max_workers=min(2, self.workers or os.cpu_count() or 1)) as ex:
+            done = list(ex.map(lambda r: one(*r), runs))
         return " | ".join(done)
 
     def precision(self, names: tuple[str, ...], sensitivity: bool) -> str:
