@@ -293,11 +293,17 @@ def setup_section(ctx: Ctx) -> Section:
     sec.items.append(src)
     for doc in ctx.res.reproductions:
         r = Table(f"reproduction-{doc.get('mode', '')}".replace(" ", "-").replace(",", ""),
-                  f"Reproduction: {doc.get('mode')}", ["step", "wall time", "status", "detail"],
-                  [Row([s["step"], seconds(s["wall_s"]), s["status"], s.get("detail", "")],
+                  f"Reproduction: {doc.get('mode')}",
+                  ["step", "wall time", "CPU time", "status", "detail"],
+                  [Row([s["step"], seconds(s["wall_s"]), seconds(s.get("cpu_s")), s["status"],
+                        s.get("detail", "")],
                        MATCH if s["status"] == "ok" else DIFFER) for s in doc.get("steps", [])])
-        r.notes.append(f"Total wall time {seconds(doc.get('wall_s'))} up to the report, started "
-                       f"{doc.get('started', '')}.")
+        cpu = sum(s.get("cpu_s", math.nan) for s in doc["steps"]) if doc.get("steps") \
+            else math.nan
+        r.notes.append(f"Total wall time {seconds(doc.get('wall_s'))} up to the report"
+                       + (f", CPU {seconds(cpu)} (this process's and its ended children's: sweep "
+                          "workers, long runs)" if math.isfinite(cpu) else "")
+                       + f", started {doc.get('started', '')}.")
         r.provenance = provenance_line(doc.get("provenance"), what="results/reproduce-*.json")
         sec.items.append(r)
     return sec

@@ -35,8 +35,9 @@ everything above at full size.
 
 Everything resumes: a sweep skips the runs it has finished (redysim.harness.sweep), the error
 study the cells it has, and the other steps take seconds to minutes. Progress and each step's wall
-time are printed, and ``results/reproduce-<kind>.json`` (kind: quick, full or tables) records them
-for the report. A failed step is reported and the others still run; the exit code is then 1.
+and CPU time are printed, and ``results/reproduce-<kind>.json`` (kind: quick, full or tables)
+records them for the report. A failed step is reported and the others still run; the exit code
+is then 1.
 """
 
 from __future__ import annotations
