@@ -1089,7 +1089,7 @@ def udu_factors(model: Model, q, *, ws: Workspace | None = None) -> UDU:
     ws = _ws(model, ws)
     c = model
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
-    rge_a_backward(ws.tree, ws.table_a1, ws.zeros)
+    rge_a_backward(ws.tree, ws.table_a1, ws.zeros_ro)
     U = np.zeros((c.n_v, c.n_v))
     D = np.zeros((c.n_v, c.n_v))
     udu_assemble(ws.tree, ws.s, U, D)

@@ -174,6 +174,10 @@ class Workspace:
         # views of the packed data that the other functions take too: no kernel writes them
         f = self.kernel_f
         self.zeros = f[header[SLOT["zeros"]]:header[SLOT["zeros"]] + n]  # (n,) of zeros
+        # the same, read-only: a pass that the forward-dynamics entry also calls, given it, runs
+        # the entry's compiled code (read-only is another numba type: another compile, ~7 s)
+        self.zeros_ro = self.zeros.view()
+        self.zeros_ro.flags.writeable = False
         self.zeros6 = np.zeros((nb, 6))
         self.base_accel = f[header[SLOT["base_accel"]]:header[SLOT["base_accel"]] + 3]  # -g
         self.gravity = f[header[SLOT["gravity"]]:header[SLOT["gravity"]] + 3]
