@@ -149,15 +149,21 @@ class Reproduction:
                 [sys.executable, "-c",
                  "from redysim.reports.reproduce import warm_stepping; warm_stepping()"],
                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        for chain in chains:
-            q = np.full(chain.n_dof, 0.1)
-            for method in ("ge-n", "rge-n"):
-                forward_dynamics(chain, q, q, method=method)
-            forward_dynamics(chain, q, q, planar=False)
-            inverse_dynamics(chain, q, q, q)
-            tip(chain, q, q, q)
-            mass_matrix(chain, q)
-            udu_factors(chain, q)
+        try:
+            for chain in chains:
+                q = np.full(chain.n_dof, 0.1)
+                for method in ("ge-n", "rge-n"):
+                    forward_dynamics(chain, q, q, method=method)
+                forward_dynamics(chain, q, q, planar=False)
+                inverse_dynamics(chain, q, q, q)
+                tip(chain, q, q, q)
+                mass_matrix(chain, q)
+                udu_factors(chain, q)
+        except BaseException:  # (Ctrl-C too) leave no compiling process behind
+            if side is not None:
+                side.kill()
+                side.communicate()
+            raise
         if side is not None:
             output = side.communicate()[0]
             if side.returncode == 0:
