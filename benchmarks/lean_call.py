@@ -5,8 +5,10 @@
 
 Models: a U chain of 20 DOF (``Chain.uniform(10, "U", ...)``: 10 links, two axes a joint; the RE-U
 steel rod of ``benchmarks/test_bench_engines.py``), the UR5 of example-robot-data (its URDF read
-by ``redysim.load_model``, Pinocchio's model built from the same file) and the U chain of 200 DOF.
-Pinocchio's chain is ``redysim.references``' (``JointModelUniversal`` joints). Per model, timed
+by ``redysim.load_model``, Pinocchio's model built from the same file), the U chain of 200 DOF,
+and the talk's PUMA 560 and Stanford arm (``cases/robots/``: DH tables, so that the core runs its
+DH kernels on them). Pinocchio's chains and DH robots are ``redysim.references``' (built from our
+model: ``JointModelUniversal`` joints, or each joint's DH placement). Per model, timed
 side by side in one process, the calls alternating within each round (the order reversed every
 other round) so that a neighbour's load falls on all of them; each round a ``timeit`` loop of
 ~``--round-ms``; printed: the median per call over the rounds, the fastest round, and
@@ -20,6 +22,8 @@ other round) so that a neighbour's load falls on all of them; each round a ``tim
     floor: compiled call     the evaluator's compiled function called from Python without its
                              wrapper (its arguments ready, no checks in Python)
     floor: kernel            the same function called 1,000 times from compiled code, per call
+    evaluator, dh=False      (DH robots) fd(q, v) of ``redysim.evaluator(model, dh=False)``: the
+                             general kernels on the same robot
     pin.rnea                 pin.rnea(model, data, q, v, qdd): inverse dynamics
     id default               inverse_dynamics(model, q, v, qdd)
     id evaluator             id(q, v, qdd), id = redysim.evaluator(model, "inverse_dynamics")
@@ -92,7 +96,8 @@ def calls(label: str, model) -> dict:
     assert (pm.nq, pm.nv) == (model.n_q, model.n_v)  # (the same coordinates, in our order)
     pq, pv, ptau = q.copy(), v.copy(), np.zeros(pm.nv)
     aba = pin.aba
-    entry = (lean.FORWARD_CHAIN if ws.tree.serial else lean.FORWARD_TREE).compiled
+    entry = (lean.FORWARD_DH if ws.dh else lean.FORWARD_CHAIN if ws.tree.serial
+             else lean.FORWARD_TREE).compiled
     raw = unchecked_call(entry)
     loop = loop_of(entry)
     f, i, s, z = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros
@@ -101,6 +106,12 @@ def calls(label: str, model) -> dict:
     a = fd(q, v)
     assert inv(q, v, a).tobytes() == inverse_dynamics(model, q, v, a).tobytes()
     rnea, pa = pin.rnea, a.copy()
+    general = {}
+    if ws.dh:
+        fd0, inv0 = redysim.evaluator(model, dh=False), redysim.evaluator(model, "inverse_dynamics",
+                                                                          dh=False)
+        general = {"evaluator, dh=False": lambda: fd0(q, v),
+                   "id evaluator, dh=False": lambda: inv0(q, v, a)}
     return {
         "pin.aba": lambda: aba(pm, data, pq, pv, ptau),
         "fd(ws=, out=)": lambda: forward_dynamics(model, q, v, ws=ws, out=out),
@@ -112,6 +123,7 @@ def calls(label: str, model) -> dict:
         "pin.rnea": lambda: rnea(pm, data, pq, pv, pa),
         "id default": lambda: inverse_dynamics(model, q, v, a),
         "id evaluator": lambda: inv(q, v, a),
+        **general,
     }
 
 
@@ -125,7 +137,9 @@ def main(argv=None) -> int:
 
     info = {**machine(), "pinocchio": pin.__version__}
     models = {"U chain, 20 DOF": u_chain(20), "UR5": redysim.load_model(robot_path(UR5)),
-              "U chain, 200 DOF": u_chain(200)}
+              "U chain, 200 DOF": u_chain(200),
+              "PUMA 560 (DH)": redysim.load_model("cases/robots/puma560.toml"),
+              "Stanford arm (DH)": redysim.load_model("cases/robots/stanford_arm.toml")}
     load0 = os.getloadavg()
     print("one call from Python: median of rounds [fastest round]; pin.aba's (pin.rnea's) median "
           "over the call's")

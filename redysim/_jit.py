@@ -42,6 +42,15 @@ jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 # (more than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
 BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
 jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
+# Borrowed, and IEEE as written whoever calls it: fastmath set (to False), not left unset,
+# since numba compiles a callee whose fastmath is unset with its caller's (numba.core.cpu's
+# CPUTargetOptions: inherit_if_not_set("fastmath")). Left unset, a kernel compiled first inside
+# a caller with contraction fused its multiply-adds, one compiled first on its own did not, and
+# which one a later caller linked to depended on the order of first calls (the DH kernels' qdd
+# came out 1e-15 apart between the evaluator and forward_dynamics). For kernels whose every
+# caller must get the same bits: redysim.algorithms._kernels.dh.
+EXACT_BORROWED_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, fastmath=False)
+jit_exact: _JITWrapper = numba.njit(**EXACT_BORROWED_OPTIONS)
 
 # The SIMD tile kernels (redysim.algorithms._kernels.tiles) also declare their array arguments free
 # of overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap

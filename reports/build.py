@@ -593,7 +593,8 @@ def robots_section(res: Results) -> Section:
     agree = Table("robots-agreement", "Agreement with the engines: worst relative difference "
                   "over seeded random states", ["robot", "engine", *STAGES, "verdict"])
     percall = Table("robots-percall", "qdd per call from Python: the core and pin.aba, side by "
-                    "side", ["robot", "DOF", "core", "pin.aba", "pin.aba / core"])
+                    "side", ["robot", "DOF", "core", "core, general kernels", "pin.aba",
+                             "pin.aba / core"])
     falls = Table("robots-falls", "Passive falls, 1 s (ode45, rtol 1e-8, atol 1e-10)",
                   ["robot", "DOF", "steps", "CPU", "max |delta_M| [J/kg]",
                    "COM off its parabola [m]"])
@@ -626,12 +627,19 @@ def robots_section(res: Results) -> Section:
                        "builds them as Pinocchio's mimic joints, MuJoCo as joint equalities; "
                        "the other engines refuse them by name.")
     for r in doc["per_call"]:
-        percall.rows.append(Row([r["robot"], integer(r["n_v"]), seconds(r["core_s"]),
+        general = r.get("general_s", math.nan)
+        percall.rows.append(Row([r["robot"], integer(r["n_v"]),
+                                 seconds(r["core_s"]) + (" (DH kernels)" if r.get("dh") else ""),
+                                 "" if not finite(general) else seconds(general),
                                  seconds(r["pin_aba_s"]), num(r["ratio"], 3)]))
     percall.notes.append("The fastest of 9 rounds of 2,000 calls each, alternating; the core "
                          "with a reused Workspace, pin.aba on Pinocchio's own model of the same "
-                         "URDF (tests/test_trees.py: the two agree to 1e-13). make "
-                         "bench-engines measures the same with pytest-benchmark.")
+                         "URDF (tests/test_trees.py: the two agree to 1e-13), or for the DH "
+                         "robots of cases/robots on the model redysim.references builds from "
+                         "the core's (the robots' agreement rows above). On a robot in DH form "
+                         "the core runs its DH kernels; 'core, general kernels' is the same call "
+                         "with dh=False. make bench-engines measures the same with "
+                         "pytest-benchmark; benchmarks/lean_call.py the evaluator's calls.")
     for r in doc["falls"]:
         falls.rows.append(Row([r["robot"], integer(r["n_v"]), integer(r["steps"]),
                                seconds(r["cpu_s"]), sci(r["max_abs_delta_M"], 2),
@@ -661,24 +669,34 @@ def robot_opcount_table(res: Results) -> Table:
     if oc is None or "robots" not in oc:
         t.not_run = "not run: make table7 (reports/opcount.py)"
         return t
-    for f in oc["robots"]["fits"]:
-        (tm, tm0), (ta, ta0) = TALK_COUNTS[f["algorithm"]]
+    fits = oc["robots"]["fits"]
+    if any("kind" not in f for f in fits):  # counted before the DH kernels
+        t.not_run = "stale: counted before the DH kernels existed; run make table7"
+        return t
+    for kind in ("forward", "inverse"):
+        (tm, tm0), (ta, ta0) = TALK_COUNTS[kind]
         talk = (tm * TALK_N + tm0) + (ta * TALK_N + ta0)
-        ours = sum(np.polyval(f[c], TALK_N) for c in ("mult_coef", "add_coef"))
-        label = f"talk (DeNOC): {f['algorithm'].split(' (')[0]}"
-        t.rows.append(Row([label, f"{tm}n - {-tm0}", f"{ta}n - {-ta0}",
-                           f"{tm * TALK_N + tm0}M {ta * TALK_N + ta0}A", ""], INFO))
-        t.rows.append(Row([f"ours: {f['algorithm']}", f["mult"], f["add"],
-                           f"{np.polyval(f['mult_coef'], TALK_N):.0f}M "
-                           f"{np.polyval(f['add_coef'], TALK_N):.0f}A", f"{ours / talk:.2f}"],
+        t.rows.append(Row([f"talk (DeNOC): {kind} dynamics", f"{tm}n - {-tm0}",
+                           f"{ta}n - {-ta0}", f"{tm * TALK_N + tm0}M {ta * TALK_N + ta0}A", ""],
                           INFO))
+        for f in fits:
+            if f["kind"] != kind:
+                continue
+            ours = sum(np.polyval(f[c], TALK_N) for c in ("mult_coef", "add_coef"))
+            t.rows.append(Row([f"ours: {f['algorithm']}", f["mult"], f["add"],
+                               f"{np.polyval(f['mult_coef'], TALK_N):.0f}M "
+                               f"{np.polyval(f['add_coef'], TALK_N):.0f}A",
+                               f"{ours / talk:.2f}"], INFO))
     t.notes.append("Ours counted in the kernels' own Python source on numbers that tally every "
-                   "*, /, + and - (reports/opcount.py), on a serial robot whose joints are placed "
-                   "by general DH transforms (the tree kernels' general path: a full rotation "
-                   "and shift per joint, general inertias); fitted on 4 and 8 joints, checked "
-                   "on 13. The talk's counts are for code specialised to DH frames and revolute "
-                   "joints (Saha's recursive DeNOC algorithms); ours are not specialised, hence "
-                   "the factor. cos/sin not counted.")
+                   "*, /, + and - (reports/opcount.py), on serial robots of revolute joints "
+                   "built from DH tables with seeded values (none zero, none a right angle); "
+                   "fitted on 4 and 8 joints, checked on 13. The DH kernels are what "
+                   "forward_dynamics and inverse_dynamics run on a robot in DH form; the general "
+                   "ones (dh=False) take any joint placement (a full rotation and shift per "
+                   "joint). The talk's counts are for Saha's recursive DeNOC algorithms "
+                   "specialised to DH frames. cos/sin and the checks for non-finite results "
+                   "not counted; 'x talk' is the ratio of totals (multiplications + additions) "
+                   "at n = 6.")
     t.provenance = provenance_line(oc.get("provenance"), what="results/opcount/opcount.json")
     return t
 

@@ -19,12 +19,16 @@ What is counted, per row:
     GE-N elimination  ``ge_n`` on a given GIM and phi: the sweep-out and back substitution only
                    (the GIM's O(n^2) assembly and phi are not counted).
 And, under ``robots`` (the talk's serial robots, beside its counts in the report's "Robots and
-trees" section), on serial robots of R joints about z placed by DH transforms (a general rotation
-and shift per joint, the tree kernels' PLACED path):
-    forward dynamics   ``rge_a_forward_dynamics``, as above;
-    inverse dynamics   the kinematics pass (with qdd) and ``rnea_backward`` (Newton-Euler).
-Our kernels are written for any joint axis and any link frame (full 3 x 3 rotations, general
-inertias), so they do more arithmetic than a count specialised to the paper's joints.
+trees" section), on serial robots of R joints about z placed by DH transforms:
+    forward dynamics, DH kernel   ``dh_forward_dynamics`` (what ``forward_dynamics`` runs on a
+                   robot in DH form: the articulated-body recursion in the DH frames);
+    forward dynamics, general     ``rge_a_forward_dynamics``, as above (a general rotation and
+                   shift per joint, the tree kernels' PLACED path; ``dh=False``);
+    inverse dynamics, DH kernel   ``dh_inverse_dynamics`` (Newton-Euler in the DH frames);
+    inverse dynamics, general     the kinematics pass (with qdd) and ``rnea_backward``.
+The general kernels are written for any joint axis and any link frame (full 3 x 3 rotations),
+the DH kernels for the four axis-aligned steps of a DH transform (docs/design.md, "DH robots").
+Neither counts the check of its result for non-finite numbers (the entries do that).
 
 Output: ``opcount.json`` (the raw counts per size, the fitted polynomials, provenance).
 """
@@ -39,8 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Chain, mass_matrix, phi
+from redysim.algorithms.dh_form import dh_constants
 from redysim.algorithms.precision import kernel_source
-from redysim.algorithms.workspace import bundles_in
+from redysim.algorithms.workspace import DH_SCRATCH, bundles_in
 from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
 
@@ -249,25 +254,24 @@ def polynomial_text(coef: list[Fraction]) -> str:
     return text.replace("+ -", "- ").replace("+ (-", "- (")
 
 
-def dh_robot(n: int):
-    """A serial robot of n R joints about z, each placed by a DH transform Rx(alpha) and a shift
-    (a, 0, d) with seeded values (only the shapes matter to the counts; none is a coordinate
-    axis or zero, so no work is skipped)."""
-    from redysim import Body, Model, TreeJoint
+def dh_robot(n: int, joints: str | None = None):
+    """A serial robot of n joints (R unless ``joints`` gives each: "RRPRRR") from a modified DH
+    table with seeded values (:func:`redysim.io.dh.dh_model`): every joint placed by Rx(alpha)
+    Tx(a) Rz(theta) Tz(d), so that the general kernels run their PLACED path (a general rotation
+    and shift) and the model has the DH form. Only the shapes matter to the counts; no value is
+    zero or a right angle, so no work is skipped."""
+    from redysim.io.dh import DHLink, dh_model
 
     rng = np.random.default_rng(SEED)
-    bodies, joints = [], []
+    links = []
     for k in range(n):
-        alpha = rng.uniform(-1.5, 1.5)
-        c, s = np.cos(alpha), np.sin(alpha)
-        R = ((1.0, 0.0, 0.0), (0.0, c, -s), (0.0, s, c))
         m = rng.uniform(1.0, 5.0)
-        bodies.append(Body(f"link{k + 1}", m, tuple(rng.uniform(-0.1, 0.1, 3)),
-                           ((0.1 * m, 0.0, 0.0), (0.0, 0.12 * m, 0.0), (0.0, 0.0, 0.08 * m))))
-        joints.append(TreeJoint(f"joint{k + 1}", "R", "z", R if k else None,
-                                tuple(rng.uniform(0.05, 0.5, 3)) if k else (0.0, 0.0, 0.0)))
-    return Model.build(bodies, joints, list(range(-1, n - 1)), gravity=(0.0, 0.0, -9.81),
-                       name=f"DH{n}")
+        links.append(DHLink(a=rng.uniform(0.05, 0.5), alpha=rng.uniform(-1.5, 1.5),
+                            d=rng.uniform(0.05, 0.5), theta=rng.uniform(-1.5, 1.5),
+                            joint=joints[k] if joints else "R", mass=m,
+                            com=tuple(rng.uniform(-0.1, 0.1, 3)),
+                            inertia=(0.1 * m, 0.12 * m, 0.08 * m)))
+    return dh_model(links, convention="modified", name=f"DH{n}")
 
 
 def count_inverse_dynamics(system) -> tuple[int, int]:
@@ -284,9 +288,23 @@ def count_inverse_dynamics(system) -> tuple[int, int]:
     return tally(run)
 
 
-ROBOT_ROWS = (  # (row label, counter): on dh_robot(n), R joints
-    ("forward dynamics (RGE-A)", count_rge_a_spatial),
-    ("inverse dynamics (Newton-Euler)", count_inverse_dynamics),
+def count_dh(name: str):
+    """A counter of the DH kernel ``name`` ("dh-forward" or "dh-inverse", tau or qdd zero)."""
+    def counter(system) -> tuple[int, int]:
+        n = system.n_dof
+        q, qd = state(system)
+        fn = kernel_source(name, Count)
+        args = (counts(dh_constants(system)), counts(q), counts(qd), empty(n),
+                counts(-np.asarray(system.gravity)), empty(n), empty(n, DH_SCRATCH))
+        return tally(lambda: fn(*args))
+    return counter
+
+
+ROBOT_ROWS = (  # (row label, what it computes, counter): on dh_robot(n), R joints
+    ("DH kernel", "forward", count_dh("dh-forward")),
+    ("general (RGE-A)", "forward", count_rge_a_spatial),
+    ("DH kernel", "inverse", count_dh("dh-inverse")),
+    ("general (Newton-Euler)", "inverse", count_inverse_dynamics),
 )
 
 
@@ -294,17 +312,19 @@ def measure_robots() -> dict:
     """The counts of :data:`ROBOT_ROWS` on DH robots of LINEAR_SIZES joints, fitted a*n + b on
     two sizes and checked on the third."""
     rows, fits = [], []
-    for label, counter in ROBOT_ROWS:
+    for label, kind, counter in ROBOT_ROWS:
+        label = f"{kind} dynamics, {label}"
         ns, mults, adds = [], [], []
         for n in LINEAR_SIZES:
             m, a = counter(dh_robot(n))
             ns.append(n)
             mults.append(m)
             adds.append(a)
-            rows.append({"algorithm": label, "n_dof": n, "mult": m, "add": a})
+            rows.append({"algorithm": label, "kind": kind, "n_dof": n, "mult": m, "add": a})
         cm, ca = fit(ns, mults, 1), fit(ns, adds, 1)
         exact = evaluate(cm, ns[2]) == mults[2] and evaluate(ca, ns[2]) == adds[2]
-        fits.append({"algorithm": label, "mult": polynomial_text(cm), "add": polynomial_text(ca),
+        fits.append({"algorithm": label, "kind": kind,
+                     "mult": polynomial_text(cm), "add": polynomial_text(ca),
                      "mult_coef": [float(c) for c in cm], "add_coef": [float(c) for c in ca],
                      "checked_at_dof": ns[2:], "exact": bool(exact)})
     return {"rows": rows, "fits": fits}

@@ -57,9 +57,9 @@ FALL = dict(t_end=1.0, rtol=1e-8, atol=1e-10)
 STAGES = ("qdd", "GIM", "bias", "energy")
 # The talk's operation counts for a serial robot of n revolute joints (the seed talk, "Comparison"
 # slides; its OCR is garbled, e.g. "187 — 325" and "TIT7A": these are the formulas the issue reads
-# from it, and at n = 6 they give the slide's printed totals, 862M 797A and 676M 527A).
-TALK_COUNTS = {"forward dynamics (RGE-A)": ((191, -284), (187, -325)),
-               "inverse dynamics (Newton-Euler)": ((120, -44), (97, -55))}
+# from it, and at n = 6 they give the slide's printed totals, 862M 797A and 676M 527A), by what
+# they compute
+TALK_COUNTS = {"forward": ((191, -284), (187, -325)), "inverse": ((120, -44), (97, -55))}
 TALK_N = 6
 
 
@@ -157,7 +157,9 @@ def _fastest(fn, calls: int, rounds: int) -> float:
 
 
 def per_call(label, model, path) -> dict | None:
-    """qdd per call: the core and pin.aba, side by side (module docstring)."""
+    """qdd per call: the core and pin.aba, side by side (module docstring); for a robot in DH
+    form (``path`` None: a DH table of cases/robots) also the core's general kernels
+    (``dh=False``), and Pinocchio's model built from the core's (redysim.references)."""
     try:
         import pinocchio as pin
     except ImportError:
@@ -169,19 +171,28 @@ def per_call(label, model, path) -> dict | None:
     ws = Workspace(model)
     forward_dynamics(model, q, v, ws=ws)  # JIT compile or cache load, not timed
     floating = bool(model.quaternions.size)
-    pm = (pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer()) if floating
-          else pin.buildModelFromUrdf(path))
+    if path is None:
+        from redysim.references.pinocchio_engine import PinocchioABA
+
+        pm = PinocchioABA(model).pm
+    else:
+        pm = (pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer()) if floating
+              else pin.buildModelFromUrdf(path))
     data = pm.createData()
     pq = pin.neutral(pm)
     pq[7 if floating else 0:] += rng.uniform(-0.3, 0.3, pm.nq - (7 if floating else 0))
     pv, ptau = rng.uniform(-0.3, 0.3, pm.nv), np.zeros(pm.nv)
-    core = lambda: forward_dynamics(model, q, v, ws=ws)  # noqa: E731
-    aba = lambda: pin.aba(pm, data, pq, pv, ptau)  # noqa: E731
-    best = {"core": math.inf, "pin.aba": math.inf}
-    for _ in range(3):  # alternate, so that a slow spell of the machine hits both
-        best["core"] = min(best["core"], _fastest(core, 2000, 3))
-        best["pin.aba"] = min(best["pin.aba"], _fastest(aba, 2000, 3))
+    calls = {"core": lambda: forward_dynamics(model, q, v, ws=ws),
+             "pin.aba": lambda: pin.aba(pm, data, pq, pv, ptau)}
+    if ws.dh:  # the same robot by the general kernels
+        forward_dynamics(model, q, v, ws=ws, dh=False)
+        calls["general"] = lambda: forward_dynamics(model, q, v, ws=ws, dh=False)
+    best = dict.fromkeys(calls, math.inf)
+    for _ in range(3):  # alternate, so that a slow spell of the machine hits them all
+        for name, fn in calls.items():
+            best[name] = min(best[name], _fastest(fn, 2000, 3))
     return {"robot": label, "n_v": model.n_v, "core_s": best["core"],
+            "general_s": best.get("general", math.nan), "dh": bool(ws.dh),
             "pin_aba_s": best["pin.aba"], "ratio": best["pin.aba"] / best["core"],
             "pinocchio": pin.__version__}
 
@@ -216,7 +227,7 @@ def run(out: Path, log=print) -> dict:
     for label, model, path in models():
         log(f"robots: {label} ({model.n_v} DOF)")
         doc["agreement"] += agreement(label, model)
-        if label in TIMED and path is not None and (pc := per_call(label, model, path)):
+        if (label in TIMED or path is None) and (pc := per_call(label, model, path)):
             doc["per_call"].append(pc)
         doc["falls"].append(fall(label, model))
         if path is None and model.n_v == 6:  # a DH arm of cases/robots: the talk's free fall

@@ -29,6 +29,8 @@ from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms._kernels import tiles as _tiles
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
 from redysim.algorithms._kernels.energy import energy as _energy
+from redysim.algorithms._kernels.entry import DH as _DH
+from redysim.algorithms._kernels.entry import DH_INVERSE as _DH_INVERSE
 from redysim.algorithms._kernels.entry import PLANAR as _PLANAR
 from redysim.algorithms._kernels.entry import RGE_A as _RGE_A
 from redysim.algorithms._kernels.entry import SIZE_MISMATCH
@@ -37,6 +39,7 @@ from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
 from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
+from redysim.algorithms.dh_form import dh_problem
 from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
 from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace, model_workspace
@@ -238,6 +241,19 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     return out
 
 
+def use_dh_kernels(model: Model, ws: Workspace | None, dh, planar: bool) -> bool:
+    """Whether forward or inverse dynamics run the DH kernels: ``dh`` None (when the model has
+    the DH form and the planar kernel does not run), True (the form required) or False."""
+    if dh is None or dh is False:
+        return dh is None and not planar and _ws(model, ws).dh
+    if dh is not True:
+        raise FieldError("dynamics", "dh", dh, "must be None, True or False")
+    if planar or not _ws(model, ws).dh:
+        why = "the planar kernel runs it" if planar else dh_problem(model)
+        raise ValueError(f"dh=True but model {model.name!r} is not a robot in DH form: {why}")
+    return True
+
+
 def closed_error(model: Model, what: str) -> CaseError:
     """The refusal of ``what`` on a model with cut joints, whose tree's answer would ignore
     them silently."""
@@ -249,7 +265,7 @@ def closed_error(model: Model, what: str) -> CaseError:
 
 # --------------------------------------------------------------------------- inverse dynamics
 def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
-                     threads: int | None = None) -> np.ndarray:
+                     threads: int | None = None, dh: bool | None = None) -> np.ndarray:
     """tau = I(q) qdd + C(q, v) v + gravity terms, by the recursive Newton-Euler pass (Eq. 9).
 
     A batch: q (B, n_q), v and qdd (B, n_v) give tau (B, n_v), each row the single call's, the
@@ -259,23 +275,29 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     tau is the tree's (each joint's torque for that motion, with no coupling force), which
     :func:`forward_dynamics` maps back to qdd.
 
+    dh: a robot in Denavit-Hartenberg form (:mod:`redysim.algorithms.dh_form`) runs the
+    DH-specialised Newton-Euler pass (:mod:`redysim.algorithms._kernels.dh`; the same torques
+    to rounding) unless ``dh=False``; ``dh=True`` requires the form (ValueError saying why not).
+
     Contiguous float64 vectors of a model of at most LEAN_INVERSE_MAX_DOF DOF go to one compiled
     function as they are (:func:`redysim.evaluator`'s inverse entry, the same passes and bits);
     anything else is checked and converted first.
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
+    use_dh = use_dh_kernels(model, ws, dh, False)
     if _is_batch(q):
         if model.couplings:
-            return np.array([inverse_dynamics(model, *row, ws=ws)
+            return np.array([inverse_dynamics(model, *row, ws=ws, dh=dh)
                              for row in zip(*(check_batch(model, name, x, None)
                                               for name, x in (("q", q), ("v", v),
                                                               ("qdd", qdd))), strict=True)])
-        return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads)
+        return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads, use_dh)
     if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
             and not model.couplings and JIT_ENABLED and model.n_v <= LEAN_INVERSE_MAX_DOF:
         ws = _ws(model, ws)
-        entry = (_lean.INVERSE_CHAIN if ws.tree.serial else _lean.INVERSE_TREE).compiled
+        entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if ws.tree.serial
+                 else _lean.INVERSE_TREE).compiled
         try:  # the hot path, the evaluator's entry: it checks lengths, strides and the result
             return entry(q, v, qdd, np.empty(model.n_v), ws.kernel_f, ws.kernel_i, ws.scratch)
         except (TypeError, _lean.Refused):  # not contiguous float64, a length, not finite:
@@ -288,9 +310,12 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
             check_coupled(model, name, x)
     ws = _ws(model, ws)
     c = model
-    _run_kinematics(c, ws, q, v, qdd, ws.base_accel)
     tau = np.empty(c.n_v)
-    rnea_backward(ws.tree, ws.s, tau)
+    if use_dh:
+        _DH_INVERSE.compiled(ws.kernel_f, ws.kernel_i, q, v, qdd, ws.scratch, tau)
+    else:
+        _run_kinematics(c, ws, q, v, qdd, ws.base_accel)
+        rnea_backward(ws.tree, ws.s, tau)
     if not np.isfinite(tau).all():
         raise overflow_error("tau", q=q, v=v, qdd=qdd)
     return tau
@@ -311,7 +336,7 @@ def phi(model: Model, q, v, tau=None, *, ws: Workspace | None = None) -> np.ndar
 def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                      planar: bool | None = None, ws: Workspace | None = None,
                      out: np.ndarray | None = None, threads: int | None = None,
-                     simd: bool = True) -> np.ndarray:
+                     simd: bool = True, dh: bool | None = None) -> np.ndarray:
     """qdd from I(q) qdd = phi(q, v, tau).
 
     method:
@@ -321,6 +346,12 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     planar: for ``"rge-a"``, use the planar specialisation (default: when ``chain.is_planar``,
         a Chain's property: a Model always takes the spatial recursion);
         ``False`` forces the spatial recursion.
+    dh: for ``"rge-a"``, a robot in Denavit-Hartenberg form (:mod:`redysim.algorithms.dh_form`:
+        a serial chain of R and P joints along z, each placed by Rx Tx Rz Tz) runs the
+        DH-specialised articulated-body recursion (:mod:`redysim.algorithms._kernels.dh`; the
+        same qdd to rounding, fewer operations) unless ``dh=False``; ``dh=True`` requires the
+        form (ValueError saying why not). Batches run it too with ``simd=False``; in SIMD tiles
+        they run the general recursion.
     tau: joint forces (default zero). ``out``: an (n,) array to write qdd into.
 
     A batch: q (B, n_q) and v (B, n_v) give qdd (B, n_v), row i the single call's for row i; tau (B,
@@ -377,14 +408,15 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     elif planar and not is_planar:
         raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
+    use_dh = use_dh_kernels(model, ws, dh, planar)
     if method == "rge-a":
-        entry = _PLANAR.compiled if planar else _RGE_A.compiled
+        entry = (_PLANAR if planar else _DH if use_dh else _RGE_A).compiled
         qdd = np.empty(model.n_v) if out is None else out
         t = ws.zeros if tau is None else tau
         if type(q) is ndarray and type(v) is ndarray and type(t) is ndarray \
                 and type(qdd) is ndarray:
             if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
-                return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
+                return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd, use_dh)
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch, qdd)
             except TypeError:  # not all contiguous float64 (qdd writeable): check, convert
@@ -392,14 +424,14 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
             if flag == 0.0:
                 return qdd
             if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
-                raise _nonfinite_qdd(model, ws, planar, q, v, tau)
+                raise _nonfinite_qdd(model, ws, planar, q, v, tau, use_dh=use_dh)
     elif method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if _is_batch(q):
         if method != "rge-a":
             raise ValueError(f"method = {method!r} with a batch of states: batches run "
                              "'rge-a' only")
-        return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd)
+        return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd, use_dh)
     q = check_state(model, "q", q, finite=False)
     v = check_state(model, "v", v, finite=False)
     tau = check_state(model, "tau", tau, optional=True, finite=False)
@@ -417,7 +449,8 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
         nonfinite = float(np.sum(out * 0.0))
     if nonfinite != 0.0:
         raise _nonfinite_qdd(model, ws, method == "rge-a" and planar, q, v, tau,
-                             gim=None if method == "rge-a" else A, first=method == "ge-n")
+                             gim=None if method == "rge-a" else A, first=method == "ge-n",
+                             use_dh=method == "rge-a" and use_dh)
     return out
 
 
@@ -981,7 +1014,8 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     return min(failed) if failed else -1
 
 
-def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True) -> np.ndarray:
+def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True,
+                   use_dh=False) -> np.ndarray:
     Q = check_batch(model, "q", q, None)
     B = Q.shape[0]
     V = check_batch(model, "v", v, B)
@@ -1006,19 +1040,19 @@ def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True) -> np.
             and np.abs(Q).max() <= TILE_MAX_Q:  # (NaN compares False: the rows say why)
         bad = _forward_tiled(ws, Q, V, TAU, out, threads)
     else:
-        rows = _batch.planar_rows if planar else _batch.forward_rows
+        rows = _batch.planar_rows if planar else _batch.dh_rows if use_dh else _batch.forward_rows
         bad = _run_rows(Q, model.n_v, threads, ws, rows, out, V, TAU)
     if bad >= 0:  # the single call of that row says why
         t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
         try:
-            forward_dynamics(model, Q[bad], V[bad], t, planar=planar, ws=ws)
+            forward_dynamics(model, Q[bad], V[bad], t, planar=planar, ws=ws, dh=use_dh)
         except StateError as exc:
             raise StateError(f"state {bad} of the batch (row {bad} of q and v): {exc}") from None
         raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)
     return out
 
 
-def _inverse_batch(model, ws, q, v, qdd, threads) -> np.ndarray:
+def _inverse_batch(model, ws, q, v, qdd, threads, use_dh=False) -> np.ndarray:
     Q = check_batch(model, "q", q, None)
     B = Q.shape[0]
     V, QDD = check_batch(model, "v", v, B), check_batch(model, "qdd", qdd, B)
@@ -1028,14 +1062,16 @@ def _inverse_batch(model, ws, q, v, qdd, threads) -> np.ndarray:
             raise StateError(f"{name}[{row}, {col}] = {float(arr[row, col])!r}: not finite (state "
                              f"{row} of the batch)")
     out = np.empty((B, model.n_v))
-    bad = _run_rows(Q, model.n_v, threads, ws, _batch.inverse_rows, out, V, QDD)
+    bad = _run_rows(Q, model.n_v, threads, ws,
+                    _batch.dh_inverse_rows if use_dh else _batch.inverse_rows, out, V, QDD)
     if bad >= 0:
         raise StateError(f"state {bad} of the batch: " + str(overflow_error(
             "tau", q=Q[bad], v=V[bad], qdd=QDD[bad])))
     return out
 
 
-def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False) -> StateError:
+def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False,
+                   use_dh=False) -> StateError:
     """The error for a qdd that is NaN or +-inf: the input that is not finite, named; else a
     singular GIM (an elimination pivot that is 0: RGE-A's articulated inertia Ihat, or the
     numerical GIM's factor after GE-N or RGE-N), naming the DOF where the elimination met it
@@ -1045,7 +1081,8 @@ def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False) -> State
         if x is not None:
             require_finite(name, np.asarray(x, dtype=float))
     if gim is None:
-        pivots = ws.planar[:, 8] if planar else ws.Ihat  # Ihat: the planar kernel's column 8
+        # Ihat: the planar kernel's column 8, the DH kernel's last column
+        pivots = ws.planar[:, 8] if planar else ws.dh_scratch[:, -1] if use_dh else ws.Ihat
     else:
         pivots = np.diag(gim)
     j = first_bad_pivot(pivots, from_base=first, positive=True)

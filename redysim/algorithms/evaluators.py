@@ -32,7 +32,13 @@ from numpy import ndarray
 
 from redysim._jit import unchecked_call
 from redysim.algorithms._kernels import lean as _lean
-from redysim.algorithms.dynamics import check_out, closed_error, forward_dynamics, inverse_dynamics
+from redysim.algorithms.dynamics import (
+    check_out,
+    closed_error,
+    forward_dynamics,
+    inverse_dynamics,
+    use_dh_kernels,
+)
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import FieldError
 from redysim.model.tree import Model
@@ -41,12 +47,15 @@ KINDS = ("forward_dynamics", "inverse_dynamics")
 FLOAT64 = np.dtype(np.float64)
 
 
-def evaluator(model: Model, kind: str = "forward_dynamics") -> Callable[..., np.ndarray]:
+def evaluator(model: Model, kind: str = "forward_dynamics", *,
+              dh: bool | None = None) -> Callable[..., np.ndarray]:
     """A function computing ``kind`` on ``model`` as fast as a call from Python can (module
-    docstring): ``fd(q, v, tau=None, out=None) -> qdd`` for ``"forward_dynamics"`` (RGE-A, or
-    the planar kernel for a planar chain, as :func:`redysim.forward_dynamics` chooses), or
+    docstring): ``fd(q, v, tau=None, out=None) -> qdd`` for ``"forward_dynamics"`` (RGE-A, the
+    planar kernel for a planar chain or the DH kernels for a robot in DH form, as
+    :func:`redysim.forward_dynamics` chooses), or
     ``id(q, v, qdd, out=None) -> tau`` for ``"inverse_dynamics"``. The result is ``out`` when
-    given, else a new array; the same bits as the public function's.
+    given, else a new array; the same bits as the public function's. ``dh``: as the public
+    functions take it (False: the general kernels on a robot in DH form).
 
     Refuses (FieldError) something that is not a Model and an unknown ``kind``, and (CaseError)
     a model with cut joints, as the public functions refuse it. Building one compiles its
@@ -68,19 +77,22 @@ def evaluator(model: Model, kind: str = "forward_dynamics") -> Callable[..., np.
                          "inverse_dynamics, which keep the couplings")
     ws = Workspace(model)
     serial = bool(ws.tree.serial)
+    use_dh = use_dh_kernels(model, ws, dh, model.is_planar)
     if kind == "forward_dynamics":
-        entry = (_lean.FORWARD_PLANAR if model.is_planar else
+        entry = (_lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
                  _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
-        return _forward(model, ws, unchecked_call(entry.compiled))
-    entry = _lean.INVERSE_CHAIN if serial else _lean.INVERSE_TREE
-    return _inverse(model, ws, unchecked_call(entry.compiled))
+        return _forward(model, ws, unchecked_call(entry.compiled), use_dh)
+    entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if serial
+             else _lean.INVERSE_TREE)
+    return _inverse(model, ws, unchecked_call(entry.compiled), use_dh)
 
 
-def _forward(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
+def _forward(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
     f, i, s, zeros, n = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, model.n_v
     empty, F, Refused = np.empty, FLOAT64, _lean.Refused
     if call is None:  # numba disabled: the checked path only
-        return _named(lambda q, v, tau=None, out=None: forward_dynamics(model, q, v, tau, out=out),
+        return _named(lambda q, v, tau=None, out=None: forward_dynamics(model, q, v, tau, out=out,
+                                                                        dh=dh),
                       model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
 
     def fd(q, v, tau=None, out=None):
@@ -95,7 +107,7 @@ def _forward(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
             elif type(tau) is ndarray and tau.dtype is F and tau.ndim == 1:
                 t = tau
             else:
-                return forward_dynamics(model, q, v, tau, out=out)
+                return forward_dynamics(model, q, v, tau, out=out, dh=dh)
             try:
                 if out is None:
                     return call(q, v, t, empty(n), f, i, s)
@@ -104,17 +116,17 @@ def _forward(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
                     return call(q, v, t, out, f, i, s)
             except Refused:
                 pass
-        return forward_dynamics(model, q, v, tau, out=out)
+        return forward_dynamics(model, q, v, tau, out=out, dh=dh)
 
     return _named(fd, model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
 
 
-def _inverse(model: Model, ws: Workspace, call) -> Callable[..., np.ndarray]:
+def _inverse(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
     f, i, s, n = ws.kernel_f, ws.kernel_i, ws.scratch, model.n_v
     empty, F, Refused = np.empty, FLOAT64, _lean.Refused
 
     def checked(q, v, qdd, out=None):
-        tau = inverse_dynamics(model, q, v, qdd)
+        tau = inverse_dynamics(model, q, v, qdd, dh=dh)
         if out is None:
             return tau
         out = check_out(model, out)  # (StateError for an out of another shape: a batch's too)

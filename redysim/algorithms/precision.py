@@ -74,6 +74,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from redysim.algorithms._kernels import sources_digest
+from redysim.algorithms._kernels.dh import dh_forward_dynamics, dh_inverse_dynamics
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
 from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
 from redysim.algorithms._kernels.kinematics import kinematics
@@ -237,6 +238,12 @@ _PASSES: dict[str, tuple[Callable, str]] = {
     "udu": (udu_assemble, "(tree, s, U, D): I = U D U^T, dense, after the backward pass"),
     "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, gravity, q, v, tau, "
                                         "qdd, scratch): RGE-A on a planar chain, scratch (nl, 12)"),
+    "dh-forward": (dh_forward_dynamics, "(dh, q, v, tau, base_accel, qdd, scratch): the "
+                                        "articulated-body recursion of a robot in DH form, dh "
+                                        "its constants (redysim.algorithms.dh_form), scratch "
+                                        "(nb, DH_SCRATCH)"),
+    "dh-inverse": (dh_inverse_dynamics, "(dh, q, v, qdd, base_accel, tau, scratch): "
+                                        "Newton-Euler on a robot in DH form, tau out"),
     "ge-n": (ge_n, "(A, b, mult, x): GE-N, A swept to U, mult = L, b to phihat, x = qdd"),
     "rge-n": (rge_n, "(A, b, mult, x): RGE-N, A swept to L', mult = U', b to phihat, x = qdd"),
 }

@@ -14,6 +14,7 @@ import numpy as np
 
 from redysim.algorithms._kernels import entry as E
 from redysim.algorithms._kernels.bundles import (
+    DH_SCRATCH,
     FIELDS,
     H_NB,
     H_NG,
@@ -29,6 +30,7 @@ from redysim.algorithms._kernels.bundles import (
     sizes_of,
 )
 from redysim.algorithms._kernels.joints import BALL
+from redysim.algorithms.dh_form import dh_constants
 from redysim.errors import FieldError
 from redysim.model.tree import FREE, THREAD_WORKSPACES, Model
 
@@ -142,6 +144,8 @@ class Workspace:
         nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
         ng = int((t["gather"] >= 0).sum())
         planar = system.is_planar
+        dh_table = None if planar else dh_constants(system)
+        dh = dh_table is not None
         self.chain = system  # the chain or model it was made for
         gravity = np.asarray(system.gravity, dtype=float)
         header = np.zeros(HEADER, dtype=np.int64)
@@ -151,15 +155,18 @@ class Workspace:
             c = system
             arrays.update(length=c.length, izz_O=c.inertia_O[:, 2, 2], mc_x=c.mass_com[:, 0],
                           mc_y=c.mass_com[:, 1])
+        if dh:
+            arrays["dh"] = dh_table
         # the packed arrays, as the layout table lays them out (redysim.algorithms._kernels.bundles)
         sizes = sizes_of(nb, n, ng, bool(t["serial"]))
-        self.kernel_f = _pack({f: arrays[f] for f in segment_sizes("tree_f", sizes, planar)},
+        self.kernel_f = _pack({f: arrays[f]
+                               for f in segment_sizes("tree_f", sizes, planar, dh)},
                               np.float64, header)
-        ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar)},
+        ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar, dh)},
                             np.int64, header, start=HEADER)  # after the header
-        self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar), header))
+        self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar, dh), header))
         # a thread's row of the SIMD tiles' buffer (tile_buffer), laid out as the others
-        self._tile_items = _layout(segment_sizes("tiles", sizes, planar), header)
+        self._tile_items = _layout(segment_sizes("tiles", sizes, planar, dh), header)
         self.kernel_i = np.concatenate((header, ints_packed))
         bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
         self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
@@ -170,6 +177,13 @@ class Workspace:
         slot = SLOT["planar"]
         self.planar = (self.scratch[header[slot]:header[slot] + 12 * nb].reshape((nb, 12))
                        if planar else None)
+        # a robot in DH form (redysim.algorithms.dh_form): forward and inverse dynamics run the
+        # DH kernels (redysim.algorithms._kernels.dh) on these
+        self.dh = dh
+        self.dh_table = dh_table
+        slot = SLOT["dh_scratch"]
+        self.dh_scratch = (self.scratch[header[slot]:header[slot] + DH_SCRATCH * nb]
+                           .reshape((nb, DH_SCRATCH)) if dh else None)
         self.phi = np.empty(n)
         # views of the packed data that the other functions take too: no kernel writes them
         f = self.kernel_f

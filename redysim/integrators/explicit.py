@@ -487,7 +487,9 @@ class CompiledSolver(Solver):
     (``quaternion_worst`` [0]: the largest | |q| - 1 | met before a projection in compiled code).
 
     ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
-    kernel; ``tip_force``: a constant world force (3,) at a planar chain's tip (None: none).
+    kernel (else the DH kernels for a robot in DH form, as :func:`redysim.forward_dynamics`
+    chooses, or RGE-A); ``tip_force``: a constant world force (3,) at a planar chain's tip
+    (None: none).
     The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
     :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
     reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
@@ -516,7 +518,8 @@ class CompiledSolver(Solver):
         self.quaternion_worst = np.zeros(1)  # the largest | |q| - 1 | before a projection
         if tip_force is not None and not planar:
             raise ValueError("a tip force steps in compiled code on a planar chain only")
-        self._motion = rk_run.Motion(rk_run.PLANAR if planar else rk_run.RGE_A, ws.kernel_f,
+        kind = rk_run.PLANAR if planar else rk_run.DH if ws.dh else rk_run.RGE_A  # as qdd's
+        self._motion = rk_run.Motion(kind, ws.kernel_f,
                                      ws.kernel_i, ws.scratch, ws.zeros, nq, float(damping),
                                      np.zeros(nv), plain_q, plain_v, free_q, free_v,
                                      self.quaternion_worst,

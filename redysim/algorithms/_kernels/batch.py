@@ -27,12 +27,22 @@ from numba import types
 
 from redysim._jit import jit, jit_borrowed
 
-from .entry import F_BASE_ACCEL, H_NV, bundles, planar_entry, rge_a_entry
+from .entry import (
+    F_BASE_ACCEL,
+    H_NV,
+    bundles,
+    dh_entry,
+    dh_inverse_entry,
+    planar_entry,
+    rge_a_entry,
+)
 from .inverse_dynamics import rnea_backward
 from .kinematics import kinematics
 
 rge_a_call = jit_borrowed(rge_a_entry)
 planar_call = jit_borrowed(planar_entry)
+dh_call = jit_borrowed(dh_entry)
+dh_inverse_call = jit_borrowed(dh_inverse_entry)
 
 
 @jit_borrowed
@@ -57,6 +67,27 @@ def planar_rows(fdata, idata, Q, QD, TAU, scratch, QDD, first, last):
     for i in range(first, last):
         if planar_call(fdata, idata, Q[i], QD[i], TAU[i] if every else TAU[0], scratch,
                        QDD[i]) != 0.0:
+            return i
+    return -1
+
+
+@jit_borrowed
+def dh_rows(fdata, idata, Q, QD, TAU, scratch, QDD, first, last):
+    """:func:`forward_rows` by the DH kernel (a robot in DH form; a function of its own, as
+    :func:`planar_rows` is)."""
+    every = TAU.shape[0] > 1
+    for i in range(first, last):
+        if dh_call(fdata, idata, Q[i], QD[i], TAU[i] if every else TAU[0], scratch,
+                   QDD[i]) != 0.0:
+            return i
+    return -1
+
+
+@jit_borrowed
+def dh_inverse_rows(fdata, idata, Q, QD, QDD, scratch, TAU, first, last):
+    """:func:`inverse_rows` by the DH kernel (a robot in DH form)."""
+    for i in range(first, last):
+        if dh_inverse_call(fdata, idata, Q[i], QD[i], QDD[i], scratch, TAU[i]) != 0.0:
             return i
     return -1
 

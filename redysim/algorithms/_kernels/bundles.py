@@ -49,6 +49,16 @@ LANES = 16
 KIN_ROWS = 30  # frame (9), origin, angular velocity, s, om, dv, da, db (3 each)
 BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 
+# A DH robot's constants (redysim.algorithms.dh_form), one row per joint, the DH kernels'
+# table (.dh): kind (0 R, 1 P); ca, sa = cos, sin alpha; c2, s2, cs = ca^2, sa^2, ca sa;
+# cs2 = 2 ca sa; cms = ca^2 - sa^2; a, d, theta (q adds to theta, R, or to d, P); m; h = m c (3);
+# J about O_k (xx, xy, xz, yy, yz, zz), all in the body's own frame
+DH_COLUMNS = ("kind", "ca", "sa", "c2", "s2", "cs", "cs2", "cms", "a", "d", "theta",
+              "m", "hx", "hy", "hz", "jxx", "jxy", "jxz", "jyy", "jyz", "jzz")
+(DH_KIND, DH_CA, DH_SA, DH_C2, DH_S2, DH_CS, DH_CS2, DH_CMS, DH_A, DH_D, DH_TH, DH_M, DH_HX,
+ DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ) = range(len(DH_COLUMNS))
+DH_SCRATCH = 48  # the DH forward kernel's scratch columns per body (.dh)
+
 # the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)
 HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial")
 H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(len(HEADER_FIELDS))
@@ -59,7 +69,8 @@ class Field(NamedTuple):
     integers; ``array`` the packed array holding it; ``bundle`` "Tree", "Scratch", "Tiles" or
     None (a segment only the workspace and the entries read); ``planar``: present only for a
     planar chain (the planar kernel's); ``flat``: the kernels take it as a 1-D view of its items
-    (the tiles'); ``doc``: what it is."""
+    (the tiles'); ``dh``: present only for a robot in DH form (the DH kernels'); ``doc``: what it
+    is."""
 
     name: str
     dtype: type
@@ -69,6 +80,7 @@ class Field(NamedTuple):
     doc: str
     planar: bool = False
     flat: bool = False
+    dh: bool = False
 
 
 F, I = np.float64, np.int64
@@ -105,6 +117,8 @@ LAYOUT: tuple[Field, ...] = (
     Field("izz_O", F, ("nb",), "tree_f", None, "its inertias about z at O_k", True),
     Field("mc_x", F, ("nb",), "tree_f", None, "its m c_x", True),
     Field("mc_y", F, ("nb",), "tree_f", None, "its m c_y", True),
+    Field("dh", F, ("nb", len(DH_COLUMNS)), "tree_f", None,
+          "a DH robot's constants, a row per joint (DH_COLUMNS)", dh=True),
     # the scratch (all world frame)
     Field("oR", F, ("nb", 3, 3), "scratch", "Scratch", "body rotations"),
     Field("oO", F, ("nb", 3), "scratch", "Scratch", "body origins (joint positions)"),
@@ -121,6 +135,8 @@ LAYOUT: tuple[Field, ...] = (
     Field("gather_wrench", F, ("ng", 6), "scratch", "Scratch", "their biases"),
     Field("gather_twist", F, ("ng", 6), "scratch", "Scratch", "their forward carry-over"),
     Field("planar", F, ("nb", 12), "scratch", None, "the planar kernel's scratch", True),
+    Field("dh_scratch", F, ("nb", DH_SCRATCH), "scratch", None, "the DH kernels' scratch",
+          dh=True),
     # one thread's SIMD tiles (.tiles; flat, LANES states the last axis; a serial chain of R and P
     # axes, so n_q = nv), in its row of the workspace's tile buffer
     Field("tile_oR", F, ("nb", 9, LANES), "tiles", "Tiles", "body rotations", flat=True),
@@ -189,10 +205,12 @@ def shape_of(field: Field, sizes: dict[str, int]) -> tuple[int, ...]:
     return tuple(sizes[d] if isinstance(d, str) else d for d in field.shape)
 
 
-def segment_sizes(array: str, sizes: dict[str, int], planar: bool) -> dict[str, int]:
-    """Field name -> number of items of each segment of one packed array, in layout order."""
+def segment_sizes(array: str, sizes: dict[str, int], planar: bool,
+                  dh: bool = False) -> dict[str, int]:
+    """Field name -> number of items of each segment of one packed array, in layout order (the
+    planar kernel's segments for a planar chain, the DH kernels' for a robot in DH form)."""
     return {f.name: math.prod(shape_of(f, sizes)) for f in LAYOUT
-            if f.array == array and (planar or not f.planar)}
+            if f.array == array and (planar or not f.planar) and (dh or not f.dh)}
 
 
 # the argument of a generated slicer holding each packed array, and the size names' expressions

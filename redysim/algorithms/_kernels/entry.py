@@ -24,9 +24,21 @@ from __future__ import annotations
 
 from numba import types
 
-from redysim._jit import EntryPoint, inline_generated
+from redysim._jit import EntryPoint, inline, inline_generated
 
-from .bundles import H_NB, H_NQ, H_NV, SLOT, Scratch, Tree, bundles_source, numba_types
+from .bundles import (
+    DH_COLUMNS,
+    DH_SCRATCH,
+    H_NB,
+    H_NQ,
+    H_NV,
+    SLOT,
+    Scratch,
+    Tree,
+    bundles_source,
+    numba_types,
+)
+from .dh import dh_forward_dynamics, dh_inverse_dynamics
 from .kinematics import kinematics
 from .planar import planar_forward_dynamics
 from .rge_a import rge_a_backward, rge_a_forward
@@ -38,6 +50,8 @@ F_BASE_ACCEL, F_GRAVITY, F_ZEROS, F_MASS = (SLOT[k] for k in ("base_accel", "gra
                                                                "mass"))
 F_LENGTH, F_IZZ_O, F_MC_X, F_MC_Y, S_PLANAR = (SLOT[k] for k in ("length", "izz_O", "mc_x",
                                                                   "mc_y", "planar"))
+F_DH, S_DH = SLOT["dh"], SLOT["dh_scratch"]
+DHC = len(DH_COLUMNS)
 
 _F1, _F2 = (types.Array(types.float64, d, "C") for d in (1, 2))
 _RO = types.Array(types.float64, 1, "C", readonly=True)
@@ -52,6 +66,8 @@ RGE_A_CALLEES = (
     (rge_a_forward, (TREE, SCRATCH, _F1, _F1)))
 PLANAR_CALLEES = (
     (planar_forward_dynamics, (_F1, _F1, _F1, _F1, _F1, _F1, _RO, _RO, _RO, _F1, _F2)),)
+DH_CALLEES = ((dh_forward_dynamics, (_F2, _RO, _RO, _RO, _F1, _F1, _F2)),)
+DH_INVERSE_CALLEES = ((dh_inverse_dynamics, (_F2, _RO, _RO, _RO, _F1, _F1, _F2)),)
 
 # The Tree and Scratch bundles as views of a workspace's packed arrays, generated from the
 # layout table (.bundles.bundles_source; its Python form also runs in the workspace itself).
@@ -87,5 +103,43 @@ def planar_entry(fdata, idata, q, qd, tau, scratch, qdd):
         scratch[h[S_PLANAR]:h[S_PLANAR] + 12 * nl].reshape((nl, 12)))
 
 
+@inline
+def _finite(x):
+    """0.0 when every x is finite, else NaN."""
+    bad = 0.0
+    for k in range(x.shape[0]):
+        bad += x[k] * 0.0
+    return bad
+
+
+def dh_entry(fdata, idata, q, qd, tau, scratch, qdd):
+    """:func:`.dh.dh_forward_dynamics` on a DH robot's packed arrays (module docstring)."""
+    h = idata
+    nb, n = h[H_NB], h[H_NV]
+    if q.shape[0] != n or qd.shape[0] != n or tau.shape[0] != n or qdd.shape[0] != n:
+        return SIZE_MISMATCH
+    dh_forward_dynamics(
+        fdata[h[F_DH]:h[F_DH] + DHC * nb].reshape((nb, DHC)), q, qd, tau,
+        fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3], qdd,
+        scratch[h[S_DH]:h[S_DH] + DH_SCRATCH * nb].reshape((nb, DH_SCRATCH)))
+    return _finite(qdd)
+
+
+def dh_inverse_entry(fdata, idata, q, qd, qdd, scratch, tau):
+    """:func:`.dh.dh_inverse_dynamics` on a DH robot's packed arrays: tau into ``tau``
+    (module docstring; NaN when some tau is not finite)."""
+    h = idata
+    nb, n = h[H_NB], h[H_NV]
+    if q.shape[0] != n or qd.shape[0] != n or qdd.shape[0] != n or tau.shape[0] != n:
+        return SIZE_MISMATCH
+    dh_inverse_dynamics(
+        fdata[h[F_DH]:h[F_DH] + DHC * nb].reshape((nb, DHC)), q, qd, qdd,
+        fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3], tau,
+        scratch[h[S_DH]:h[S_DH] + DH_SCRATCH * nb].reshape((nb, DH_SCRATCH)))
+    return _finite(tau)
+
+
 RGE_A = EntryPoint(rge_a_entry, SIGNATURE, RGE_A_CALLEES)
 PLANAR = EntryPoint(planar_entry, SIGNATURE, PLANAR_CALLEES)
+DH = EntryPoint(dh_entry, SIGNATURE, DH_CALLEES)
+DH_INVERSE = EntryPoint(dh_inverse_entry, SIGNATURE, DH_INVERSE_CALLEES)

@@ -37,7 +37,8 @@ from numba.np.arrayobj import make_array, populate_array
 from redysim._jit import LEAN_OPTIONS, EntryPoint, inline, inline_generated
 
 from . import entry as E
-from .bundles import H_NQ, H_NV, Scratch, Tree, bundles_source
+from .bundles import DH_SCRATCH, H_NB, H_NQ, H_NV, Scratch, Tree, bundles_source
+from .dh import dh_forward_dynamics, dh_inverse_dynamics
 from .inverse_dynamics import rnea_backward
 from .kinematics import _kinematics
 from .rge_a import _rge_a_backward, _rge_a_forward
@@ -123,6 +124,44 @@ def forward_planar(q, v, tau, out, fdata, idata, scratch):
     return out
 
 
+@inline
+def _dh_views(fdata, idata, scratch):
+    """A DH robot's constants (nb, DHC), -g and the DH kernels' scratch, as views (.entry's
+    dh_entry's, their strides computed here: :func:`c_view`)."""
+    h = idata
+    nb = h[H_NB]
+    return (c_view(fdata[h[E.F_DH]:h[E.F_DH] + E.DHC * nb], (nb, E.DHC)),
+            fdata[h[E.F_BASE_ACCEL]:h[E.F_BASE_ACCEL] + 3],
+            c_view(scratch[h[E.S_DH]:h[E.S_DH] + DH_SCRATCH * nb], (nb, DH_SCRATCH)))
+
+
+def forward_dh(q, v, tau, out, fdata, idata, scratch):
+    """qdd into ``out`` by the DH kernel, a robot in DH form (module docstring): .entry's DH
+    entry, strides checked."""
+    n = idata[H_NV]
+    if not (_plain(q, n) and _plain(v, n) and _plain(tau, n) and _plain(out, n)):
+        raise Refused()
+    table, base_accel, scr = _dh_views(fdata, idata, scratch)
+    # the kernel's compiled code, called: IEEE as written (redysim._jit.jit_exact), the bits of
+    # every other caller; inlining its source here would compile it with this entry's FMA fusion
+    dh_forward_dynamics(table, q, v, tau, base_accel, out, scr)
+    if E._finite(out) != 0.0:
+        raise Refused()  # some qdd is not finite
+    return out
+
+
+def inverse_dh(q, v, qdd, out, fdata, idata, scratch):
+    """tau into ``out`` by the DH kernel, a robot in DH form (module docstring)."""
+    n = idata[H_NV]
+    if not (_plain(q, n) and _plain(v, n) and _plain(qdd, n) and _plain(out, n)):
+        raise Refused()
+    table, base_accel, scr = _dh_views(fdata, idata, scratch)
+    dh_inverse_dynamics(table, q, v, qdd, base_accel, out, scr)
+    if E._finite(out) != 0.0:
+        raise Refused()  # some tau is not finite
+    return out
+
+
 _rnea_backward = inline(getattr(rnea_backward, "py_func", rnea_backward))
 
 
@@ -165,3 +204,5 @@ FORWARD_TREE = EntryPoint(forward_tree, SIGNATURE, options=LEAN_OPTIONS)
 FORWARD_PLANAR = EntryPoint(forward_planar, SIGNATURE, E.PLANAR_CALLEES, options=LEAN_OPTIONS)
 INVERSE_CHAIN = EntryPoint(inverse_chain, SIGNATURE, options=LEAN_OPTIONS)
 INVERSE_TREE = EntryPoint(inverse_tree, SIGNATURE, options=LEAN_OPTIONS)
+FORWARD_DH = EntryPoint(forward_dh, SIGNATURE, E.DH_CALLEES, options=LEAN_OPTIONS)
+INVERSE_DH = EntryPoint(inverse_dh, SIGNATURE, E.DH_INVERSE_CALLEES, options=LEAN_OPTIONS)

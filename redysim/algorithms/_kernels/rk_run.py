@@ -31,18 +31,19 @@ import numpy as np
 
 from redysim._jit import jit_borrowed
 
+from .batch import dh_call as _dh
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
 from .planar import planar_tip_torques
 from .rk import combine, error_norm
 
 ERR_NONFINITE, ERR_HMIN, ERR_QDD = -1, -2, -3
-RGE_A, PLANAR = 0, 1  # which entry computes qdd
+RGE_A, PLANAR, DH = 0, 1, 2  # which entry computes qdd
 
 
 class Motion(NamedTuple):
-    """dy/dt = (dq/dt, qdd(q, v)), y = (q, v): ``kind`` the entry computing qdd (RGE_A or PLANAR)
-    on a workspace's packed arrays ``fdata``, ``idata``, ``scratch``; ``zeros`` (n_v,) its tau
+    """dy/dt = (dq/dt, qdd(q, v)), y = (q, v): ``kind`` the entry computing qdd (RGE_A, PLANAR or
+    DH) on a workspace's packed arrays ``fdata``, ``idata``, ``scratch``; ``zeros`` (n_v,) its tau
     without damping. ``nq``: the length of q; ``damping``: a viscous torque -damping * v at every
     joint (0: none), built in ``tau`` (n_v,). A free joint (its q slot of x in ``free_q``, its v
     slot of the linear velocity in ``free_v``) moves as dq/dt = (v_world, q (x) [0; w] / 2), every
@@ -148,9 +149,11 @@ def _rhs(motion, y, out):
     if motion.kind == RGE_A:
         flag = _rge_a(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
                       out[nq:])
-    else:
+    elif motion.kind == PLANAR:
         flag = _planar(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
                        out[nq:])
+    else:
+        flag = _dh(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch, out[nq:])
     if motion.free_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]

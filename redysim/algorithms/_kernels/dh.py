@@ -1,0 +1,568 @@
+"""Inverse and forward dynamics specialised to serial robots in Denavit-Hartenberg form.
+
+A DH robot (:mod:`redysim.algorithms.dh_form`) places joint k in body k - 1 by Rx(alpha) Tx(a)
+Rz(theta) Tz(d) and turns (slides) it about (along) its own z. Every quantity of body k is kept in
+its own frame F_k, about its origin O_k on the joint's axis, and is moved between frames by those
+four elementary steps instead of a general rotation and shift: a rotation about x or z mixes two
+components of a vector (4 multiplications, 2 additions instead of 9 and 6), and a shift along x or
+z touches two (docs/design.md, "DH robots"). Angular quantities come first; accelerations are the
+classical ones (omega-dot, and the acceleration of O_k), gravity enters as the base's acceleration
+-g, so a body's Newton-Euler wrench about O_k is
+
+    f = m a + omega-dot x h + omega x (omega x h),   n = J omega-dot + omega x J omega + h x a,
+
+h = m c its first moment and J its inertia about O_k, i.e. a 6 x 6 inertia [[J, h~], [h~^T, m 1]]
+and a velocity bias (omega x J omega, omega x (omega x h)).
+
+``dh_inverse_dynamics``: Newton-Euler in these frames (the forward pass moves omega, omega-dot
+and a by the four steps; a shift of an acceleration by r is W r with W = omega-dot~ + omega~
+omega~, whose first column the parent's wrench already computed).
+
+``dh_forward_dynamics``: the articulated-body recursion (Featherstone's; Agarwal et al.'s RGE-A
+written in these frames): an articulated inertia projected for a revolute about z has a zero
+angular-z row and column, which shifting along z and turning about z keep, so that its moves to
+the parent's frame work on 15 numbers where they can. A prismatic joint's projection zeroes the
+linear-z row and column, and its moves work on all 21.
+
+Both are equal to the general kernels (:mod:`.kinematics`, :mod:`.inverse_dynamics`,
+:mod:`.rge_a`) to rounding. Their Python source is what ``redysim.reports.opcount`` counts.
+"""
+
+from __future__ import annotations
+
+import math
+
+from redysim._jit import inline, jit_exact
+
+from .bundles import DH_A as A
+from .bundles import DH_C2 as C2
+from .bundles import DH_CA as CA
+from .bundles import DH_CMS as CMS
+from .bundles import DH_CS as CS
+from .bundles import DH_CS2 as CS2
+from .bundles import DH_D as D
+from .bundles import DH_HX as HX
+from .bundles import DH_HY as HY
+from .bundles import DH_HZ as HZ
+from .bundles import DH_JXX as JXX
+from .bundles import DH_JXY as JXY
+from .bundles import DH_JXZ as JXZ
+from .bundles import DH_JYY as JYY
+from .bundles import DH_JYZ as JYZ
+from .bundles import DH_JZZ as JZZ
+from .bundles import DH_KIND as KIND
+from .bundles import DH_M as M
+from .bundles import DH_S2 as S2
+from .bundles import DH_SA as SA
+from .bundles import DH_SCRATCH
+from .bundles import DH_TH as TH
+
+# the forward kernel's scratch columns, per body
+(S_C, S_S, S_C0, S_C1, S_C3, S_C4, S_C5, S_P, S_CHILD_I, S_CHILD_P, S_UD, S_UDIV, S_PIVOT) = (
+    0, 1, 2, 3, 4, 5, 6, 7, 13, 34, 40, 46, 47)
+SCRATCH_COLUMNS = DH_SCRATCH  # c, s; c_k (5); own bias (6); the child's inertia (21) and
+# bias (6); U/D (6); u/D; the pivot D (the articulated inertia about or along the joint's axis)
+IA = 21  # an inertia's numbers: A (6: xx xy xz yy yz zz), B (9, row major), M (6)
+
+
+@jit_exact
+def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
+    """tau for (q, qd, qdd) of a DH robot (module docstring): ``dh`` its constants
+    (:data:`redysim.algorithms.dh_form.COLUMNS`), ``base_accel`` -g in the base frame, ``scr``
+    (nb, >= 8) scratch: each body's wrench (f, n) and cos, sin of its theta."""
+    n = q.shape[0]
+    w0 = w1 = w2 = 0.0      # the parent's angular velocity, acceleration and the acceleration
+    e0 = e1 = e2 = 0.0      # of its origin, in its frame; then body k's in F_k
+    a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
+    x0 = x1 = x2 = 0.0      # the parent's W's first column (W = e~ + w~ w~)
+    for k in range(n):
+        ca, sa, la, ld = dh[k, CA], dh[k, SA], dh[k, A], dh[k, D]
+        prismatic = dh[k, KIND] != 0.0
+        if prismatic:
+            th = dh[k, TH]
+            ld = ld + q[k]
+        else:
+            th = dh[k, TH] + q[k]
+        c = math.cos(th)
+        s = math.sin(th)
+        scr[k, 6] = c
+        scr[k, 7] = s
+        if k == 0:  # the base is at rest: only its acceleration -g turns into F_1
+            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+            if prismatic:
+                a2 = a2 + qdd[k]
+            else:
+                w2 = qd[k]
+                e2 = qdd[k]
+        else:
+            # Tx(a): the acceleration of the point a x of the parent: a + W (a x)
+            a0 = a0 + la * x0
+            a1 = a1 + la * x1
+            a2 = a2 + la * x2
+            # Rx(alpha)^T
+            w1, w2 = ca * w1 + sa * w2, ca * w2 - sa * w1
+            e1, e2 = ca * e1 + sa * e2, ca * e2 - sa * e1
+            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            # Tz(d): + W' (d z), W' the parent's W in this frame
+            a0 = a0 + ld * (w0 * w2 + e1)
+            a1 = a1 + ld * (w1 * w2 - e0)
+            a2 = a2 - ld * (w0 * w0 + w1 * w1)
+            # Rz(theta)^T
+            w0, w1 = c * w0 + s * w1, c * w1 - s * w0
+            e0, e1 = c * e0 + s * e1, c * e1 - s * e0
+            a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+            if prismatic:  # + 2 w x (qd z) + qdd z
+                t = qd[k] + qd[k]
+                a0 = a0 + t * w1
+                a1 = a1 - t * w0
+                a2 = a2 + qdd[k]
+            else:  # w + qd z, e + w x (qd z) + qdd z
+                e0 = e0 + w1 * qd[k]
+                e1 = e1 - w0 * qd[k]
+                e2 = e2 + qdd[k]
+                w2 = w2 + qd[k]
+        # body k's wrench about O_k
+        m = dh[k, M]
+        hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
+        jxx, jxy, jxz, jyy, jyz, jzz = dh[k, JXX], dh[k, JXY], dh[k, JXZ], dh[k, JYY], \
+            dh[k, JYZ], dh[k, JZZ]
+        xx = w0 * w0
+        yy = w1 * w1
+        zz = w2 * w2
+        xy = w0 * w1
+        xz = w0 * w2
+        yz = w1 * w2
+        x0 = -(yy + zz)
+        x1 = xy + e2
+        x2 = xz - e1
+        W01 = xy - e2
+        W11 = -(xx + zz)
+        W21 = yz + e0
+        W02 = xz + e1
+        W12 = yz - e0
+        W22 = -(xx + yy)
+        scr[k, 0] = m * a0 + (x0 * hx + W01 * hy + W02 * hz)
+        scr[k, 1] = m * a1 + (x1 * hx + W11 * hy + W12 * hz)
+        scr[k, 2] = m * a2 + (x2 * hx + W21 * hy + W22 * hz)
+        g0 = jxx * w0 + jxy * w1 + jxz * w2
+        g1 = jxy * w0 + jyy * w1 + jyz * w2
+        g2 = jxz * w0 + jyz * w1 + jzz * w2
+        scr[k, 3] = (jxx * e0 + jxy * e1 + jxz * e2) + (w1 * g2 - w2 * g1) + (hy * a2 - hz * a1)
+        scr[k, 4] = (jxy * e0 + jyy * e1 + jyz * e2) + (w2 * g0 - w0 * g2) + (hz * a0 - hx * a2)
+        scr[k, 5] = (jxz * e0 + jyz * e1 + jzz * e2) + (w0 * g1 - w1 * g0) + (hx * a1 - hy * a0)
+    # backward: each body's resultant wrench, its joint's force, the wrench moved to the parent
+    for k in range(n - 1, -1, -1):
+        f0, f1, f2 = scr[k, 0], scr[k, 1], scr[k, 2]
+        n0, n1, n2 = scr[k, 3], scr[k, 4], scr[k, 5]
+        tau[k] = f2 if dh[k, KIND] != 0.0 else n2
+        if k == 0:
+            break
+        c, s = scr[k, 6], scr[k, 7]
+        ca, sa, la, ld = dh[k, CA], dh[k, SA], dh[k, A], dh[k, D]
+        if dh[k, KIND] != 0.0:
+            ld = ld + q[k]
+        # Tz(d): about O' = O_k - d z: n + d z x f
+        n0 = n0 - ld * f1
+        n1 = n1 + ld * f0
+        # Rz(theta)
+        f0, f1 = c * f0 - s * f1, s * f0 + c * f1
+        n0, n1 = c * n0 - s * n1, s * n0 + c * n1
+        # Tx(a): about O_{k-1}: n + a x x f
+        n1 = n1 - la * f2
+        n2 = n2 + la * f1
+        # Rx(alpha), added to the parent's own
+        scr[k - 1, 0] += f0
+        scr[k - 1, 1] += ca * f1 - sa * f2
+        scr[k - 1, 2] += sa * f1 + ca * f2
+        scr[k - 1, 3] += n0
+        scr[k - 1, 4] += ca * n1 - sa * n2
+        scr[k - 1, 5] += sa * n1 + ca * n2
+
+
+@inline
+def _tz(I, d):
+    """A full inertia I (IA numbers, about O_k) moved to O_k - d z (same axes)."""
+    b0, b1, b2, b3, b4, b5 = I[6], I[7], I[8], I[9], I[10], I[11]
+    # B' = B + d z~ M: rows x, y
+    I[6] = b0 - d * I[16]
+    I[7] = b1 - d * I[18]
+    I[8] = b2 - d * I[19]
+    I[9] = b3 + d * I[15]
+    I[10] = b4 + d * I[16]
+    I[11] = b5 + d * I[17]
+    # A' = A + Z, Z = r~ B'^T - B r~
+    I[0] = I[0] - d * (I[7] + b1)
+    I[3] = I[3] + d * (I[9] + b3)
+    I[1] = I[1] + d * (b0 - I[10])
+    I[2] = I[2] - d * I[13]
+    I[4] = I[4] + d * I[12]
+
+
+@inline
+def _tx(I, a):
+    """A full inertia I moved to O - a x (same axes)."""
+    b1, b2, b4, b5, b7 = I[7], I[8], I[10], I[11], I[13]
+    I[9] = I[9] - a * I[17]
+    I[10] = b4 - a * I[19]
+    I[11] = b5 - a * I[20]
+    I[12] = I[12] + a * I[16]
+    I[13] = b7 + a * I[18]
+    I[14] = I[14] + a * I[19]
+    I[1] = I[1] - a * b2
+    I[2] = I[2] + a * b1
+    I[3] = I[3] - a * (I[11] + b5)
+    I[5] = I[5] + a * (I[13] + b7)
+    I[4] = I[4] + a * (b4 - I[14])
+
+
+@inline
+def _sym_turn(p, r, t, ss, cs, cs2, cms):
+    """The symmetric 2 x 2 [[p, r], [r, t]] turned by R = [[c, -s], [s, c]]: R X R^T, from
+    ss = s^2, cs = c s, cs2 = 2 c s and cms = c^2 - s^2."""
+    dl = t - p
+    u = ss * dl - cs2 * r
+    return p + u, cms * r - cs * dl, t - u
+
+
+@inline
+def _gen_turn(g00, g01, g10, g11, ss, cs):
+    """A general 2 x 2 turned by R = [[c, -s], [s, c]]: R G R^T (returns g00, g01, g10, g11)."""
+    dl = g11 - g00
+    sg = g01 + g10
+    u = ss * dl - cs * sg
+    v = -(cs * dl + ss * sg)
+    return g00 + u, g01 + v, g10 + v, g11 - u
+
+
+@inline
+def _rz(I, c, s, ss, cs, cs2, cms):
+    """A full inertia I's axes turned by Rz(theta) (about the same point): R I R^T blockwise."""
+    I[0], I[1], I[3] = _sym_turn(I[0], I[1], I[3], ss, cs, cs2, cms)
+    I[2], I[4] = c * I[2] - s * I[4], s * I[2] + c * I[4]
+    I[15], I[16], I[18] = _sym_turn(I[15], I[16], I[18], ss, cs, cs2, cms)
+    I[17], I[19] = c * I[17] - s * I[19], s * I[17] + c * I[19]
+    I[6], I[7], I[9], I[10] = _gen_turn(I[6], I[7], I[9], I[10], ss, cs)
+    I[8], I[11] = c * I[8] - s * I[11], s * I[8] + c * I[11]      # column z
+    I[12], I[13] = c * I[12] - s * I[13], s * I[12] + c * I[13]   # row z
+
+
+@inline
+def _rx(I, ca, sa, s2, cs, cs2, cms):
+    """A full inertia I's axes turned by Rx(alpha): R I R^T blockwise (turns y and z)."""
+    I[3], I[4], I[5] = _sym_turn(I[3], I[4], I[5], s2, cs, cs2, cms)
+    I[1], I[2] = ca * I[1] - sa * I[2], sa * I[1] + ca * I[2]
+    I[18], I[19], I[20] = _sym_turn(I[18], I[19], I[20], s2, cs, cs2, cms)
+    I[16], I[17] = ca * I[16] - sa * I[17], sa * I[16] + ca * I[17]
+    I[10], I[11], I[13], I[14] = _gen_turn(I[10], I[11], I[13], I[14], s2, cs)
+    I[9], I[12] = ca * I[9] - sa * I[12], sa * I[9] + ca * I[12]   # column x
+    I[7], I[8] = ca * I[7] - sa * I[8], sa * I[7] + ca * I[8]      # row x
+
+
+@jit_exact
+def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
+    """qdd of a DH robot by the articulated-body recursion (module docstring). ``dh``: its
+    constants; ``base_accel``: -g in the base frame; ``scr`` (nb, SCRATCH_COLUMNS) scratch.
+    (No check of the result: the entries (:mod:`.entry`) check it, and the operation counts are
+    the dynamics' alone.)"""
+    n = q.shape[0]
+    # pass 1, base to tip: angular velocities, the velocity-product accelerations c_k and the
+    # bodies' velocity biases
+    w0 = w1 = w2 = 0.0
+    for k in range(n):
+        la, ld = dh[k, A], dh[k, D]
+        prismatic = dh[k, KIND] != 0.0
+        if prismatic:
+            th = dh[k, TH]
+            ld = ld + q[k]
+        else:
+            th = dh[k, TH] + q[k]
+        c = math.cos(th)
+        s = math.sin(th)
+        scr[k, S_C] = c
+        scr[k, S_S] = s
+        c0 = c1 = c3 = c4 = c5 = 0.0
+        if k == 0:
+            w0 = w1 = 0.0
+            w2 = 0.0 if prismatic else qd[k]
+        else:
+            ca, sa = dh[k, CA], dh[k, SA]
+            w1, w2 = ca * w1 + sa * w2, ca * w2 - sa * w1        # in F'
+            # the acceleration of O_k as a point of the parent: w x (w x r), r = (a, 0, d)
+            u0 = w1 * ld
+            u1 = w2 * la - w0 * ld
+            u2 = -(w1 * la)
+            v0 = w1 * u2 - w2 * u1
+            v1 = w2 * u0 - w0 * u2
+            v2 = w0 * u1 - w1 * u0
+            w0, w1 = c * w0 + s * w1, c * w1 - s * w0            # in F_k
+            c3 = c * v0 + s * v1
+            c4 = c * v1 - s * v0
+            c5 = v2
+            if prismatic:  # + 2 w x (qd z)
+                t = qd[k] + qd[k]
+                c3 = c3 + t * w1
+                c4 = c4 - t * w0
+            else:  # w x (qd z)
+                c0 = w1 * qd[k]
+                c1 = -(w0 * qd[k])
+                w2 = w2 + qd[k]
+        scr[k, S_C0] = c0
+        scr[k, S_C1] = c1
+        scr[k, S_C3] = c3
+        scr[k, S_C4] = c4
+        scr[k, S_C5] = c5
+        # the body's bias (w x J w, w x (w x h))
+        hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
+        g0 = dh[k, JXX] * w0 + dh[k, JXY] * w1 + dh[k, JXZ] * w2
+        g1 = dh[k, JXY] * w0 + dh[k, JYY] * w1 + dh[k, JYZ] * w2
+        g2 = dh[k, JXZ] * w0 + dh[k, JYZ] * w1 + dh[k, JZZ] * w2
+        scr[k, S_P] = w1 * g2 - w2 * g1
+        scr[k, S_P + 1] = w2 * g0 - w0 * g2
+        scr[k, S_P + 2] = w0 * g1 - w1 * g0
+        y0 = w1 * hz - w2 * hy
+        y1 = w2 * hx - w0 * hz
+        y2 = w0 * hy - w1 * hx
+        scr[k, S_P + 3] = w1 * y2 - w2 * y1
+        scr[k, S_P + 4] = w2 * y0 - w0 * y2
+        scr[k, S_P + 5] = w0 * y1 - w1 * y0
+    # pass 2, tip to base: articulated inertias and biases, projected and moved to the parent
+    for k in range(n - 1, -1, -1):
+        m = dh[k, M]
+        hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
+        I = scr[k, S_CHILD_I:S_CHILD_I + IA]
+        P = scr[k, S_CHILD_P:S_CHILD_P + 6]
+        if k == n - 1:  # no child
+            for i in range(IA):
+                I[i] = 0.0
+            for i in range(6):
+                P[i] = 0.0
+        # the body's own: A += J, B += h~, M += m 1
+        I[0] = I[0] + dh[k, JXX]
+        I[1] = I[1] + dh[k, JXY]
+        I[2] = I[2] + dh[k, JXZ]
+        I[3] = I[3] + dh[k, JYY]
+        I[4] = I[4] + dh[k, JYZ]
+        I[5] = I[5] + dh[k, JZZ]
+        I[7] = I[7] - hz
+        I[8] = I[8] + hy
+        I[9] = I[9] + hz
+        I[11] = I[11] - hx
+        I[12] = I[12] - hy
+        I[13] = I[13] + hx
+        I[15] = I[15] + m
+        I[18] = I[18] + m
+        I[20] = I[20] + m
+        p0 = P[0] + scr[k, S_P]
+        p1 = P[1] + scr[k, S_P + 1]
+        p2 = P[2] + scr[k, S_P + 2]
+        p3 = P[3] + scr[k, S_P + 3]
+        p4 = P[4] + scr[k, S_P + 4]
+        p5 = P[5] + scr[k, S_P + 5]
+        c0, c1, c3, c4, c5 = scr[k, S_C0], scr[k, S_C1], scr[k, S_C3], scr[k, S_C4], \
+            scr[k, S_C5]
+        if dh[k, KIND] == 0.0:
+            # revolute about z: U = I[:, angular z], D = A_zz
+            scr[k, S_PIVOT] = I[5]
+            inv = 1.0 / I[5]
+            d0 = I[2] * inv
+            d1 = I[4] * inv
+            d3 = I[12] * inv
+            d4 = I[13] * inv
+            d5 = I[14] * inv
+            u = tau[k] - p2
+            scr[k, S_UD] = d0
+            scr[k, S_UD + 1] = d1
+            scr[k, S_UD + 2] = 1.0
+            scr[k, S_UD + 3] = d3
+            scr[k, S_UD + 4] = d4
+            scr[k, S_UD + 5] = d5
+            scr[k, S_UDIV] = u * inv
+            if k == 0:
+                break
+            # projected: I - (U/D) U^T; its angular-z row and column are zero
+            a00 = I[0] - d0 * I[2]
+            a01 = I[1] - d0 * I[4]
+            a11 = I[3] - d1 * I[4]
+            b00 = I[6] - d0 * I[12]
+            b01 = I[7] - d0 * I[13]
+            b02 = I[8] - d0 * I[14]
+            b10 = I[9] - d1 * I[12]
+            b11 = I[10] - d1 * I[13]
+            b12 = I[11] - d1 * I[14]
+            m00 = I[15] - d3 * I[12]
+            m01 = I[16] - d3 * I[13]
+            m02 = I[17] - d3 * I[14]
+            m11 = I[18] - d4 * I[13]
+            m12 = I[19] - d4 * I[14]
+            m22 = I[20] - d5 * I[14]
+            # bias: p + I^a c + (U/D) u; its angular z is tau
+            p0 = p0 + (a00 * c0 + a01 * c1 + b00 * c3 + b01 * c4 + b02 * c5) + d0 * u
+            p1 = p1 + (a01 * c0 + a11 * c1 + b10 * c3 + b11 * c4 + b12 * c5) + d1 * u
+            p2 = tau[k]
+            p3 = p3 + (b00 * c0 + b10 * c1 + m00 * c3 + m01 * c4 + m02 * c5) + d3 * u
+            p4 = p4 + (b01 * c0 + b11 * c1 + m01 * c3 + m11 * c4 + m12 * c5) + d4 * u
+            p5 = p5 + (b02 * c0 + b12 * c1 + m02 * c3 + m12 * c4 + m22 * c5) + d5 * u
+            c, s = scr[k, S_C], scr[k, S_S]
+            ld, la = dh[k, D], dh[k, A]
+            # Tz(d), on the zero-structured inertia: B rows x, y; A's xx, xy, yy
+            nb00 = b00 - ld * m01
+            nb01 = b01 - ld * m11
+            nb02 = b02 - ld * m12
+            nb10 = b10 + ld * m00
+            nb11 = b11 + ld * m01
+            nb12 = b12 + ld * m02
+            a00 = a00 - ld * (nb01 + b01)
+            a11 = a11 + ld * (nb10 + b10)
+            a01 = a01 + ld * (b00 - nb11)
+            # Rz(theta)
+            ss = s * s
+            cs = c * s
+            cs2 = cs + cs
+            cms = 1.0 - (ss + ss)
+            a00, a01, a11 = _sym_turn(a00, a01, a11, ss, cs, cs2, cms)
+            m00, m01, m11 = _sym_turn(m00, m01, m11, ss, cs, cs2, cms)
+            m02, m12 = c * m02 - s * m12, s * m02 + c * m12
+            b00, b01, b10, b11 = _gen_turn(nb00, nb01, nb10, nb11, ss, cs)
+            b02, b12 = c * nb02 - s * nb12, s * nb02 + c * nb12
+            # Rx(alpha): A and B have no z row yet
+            ca, sa = dh[k, CA], dh[k, SA]
+            s2, csa, cs2a, cmsa = dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS]
+            x1 = ca * b01 - sa * b02    # B Rx^T, rows x and y
+            x2 = sa * b01 + ca * b02
+            y1 = ca * b11 - sa * b12
+            y2 = sa * b11 + ca * b12
+            J = scr[k - 1, S_CHILD_I:S_CHILD_I + IA]
+            J[0] = a00
+            J[1] = ca * a01
+            J[2] = sa * a01
+            J[3] = dh[k, C2] * a11
+            J[4] = csa * a11
+            J[5] = s2 * a11
+            J[6] = b00
+            J[7] = x1
+            J[8] = x2
+            J[9] = ca * b10
+            J[10] = ca * y1
+            J[11] = ca * y2
+            J[12] = sa * b10
+            J[13] = sa * y1
+            J[14] = sa * y2
+            J[15] = m00
+            J[16], J[17] = ca * m01 - sa * m02, sa * m01 + ca * m02
+            J[18], J[19], J[20] = _sym_turn(m11, m12, m22, s2, csa, cs2a, cmsa)
+            _tx(J, la)
+        else:
+            # prismatic along z: U = I[:, linear z], D = M_zz
+            scr[k, S_PIVOT] = I[20]
+            inv = 1.0 / I[20]
+            d0 = I[8] * inv
+            d1 = I[11] * inv
+            d2 = I[14] * inv
+            d3 = I[17] * inv
+            d4 = I[19] * inv
+            u = tau[k] - p5
+            scr[k, S_UD] = d0
+            scr[k, S_UD + 1] = d1
+            scr[k, S_UD + 2] = d2
+            scr[k, S_UD + 3] = d3
+            scr[k, S_UD + 4] = d4
+            scr[k, S_UD + 5] = 1.0
+            scr[k, S_UDIV] = u * inv
+            if k == 0:
+                break
+            J = scr[k - 1, S_CHILD_I:S_CHILD_I + IA]
+            # projected (every number but the linear-z row and column), then the bias
+            u0, u1, u2, u3, u4 = I[8], I[11], I[14], I[17], I[19]
+            J[0] = I[0] - d0 * u0
+            J[1] = I[1] - d0 * u1
+            J[2] = I[2] - d0 * u2
+            J[3] = I[3] - d1 * u1
+            J[4] = I[4] - d1 * u2
+            J[5] = I[5] - d2 * u2
+            J[6] = I[6] - d0 * u3
+            J[7] = I[7] - d0 * u4
+            J[8] = 0.0
+            J[9] = I[9] - d1 * u3
+            J[10] = I[10] - d1 * u4
+            J[11] = 0.0
+            J[12] = I[12] - d2 * u3
+            J[13] = I[13] - d2 * u4
+            J[14] = 0.0
+            J[15] = I[15] - d3 * u3
+            J[16] = I[16] - d3 * u4
+            J[17] = 0.0
+            J[18] = I[18] - d4 * u4
+            J[19] = 0.0
+            J[20] = 0.0
+            p0 = p0 + (J[0] * c0 + J[1] * c1 + J[6] * c3 + J[7] * c4) + d0 * u
+            p1 = p1 + (J[1] * c0 + J[3] * c1 + J[9] * c3 + J[10] * c4) + d1 * u
+            p2 = p2 + (J[2] * c0 + J[4] * c1 + J[12] * c3 + J[13] * c4) + d2 * u
+            p3 = p3 + (J[6] * c0 + J[9] * c1 + J[15] * c3 + J[16] * c4) + d3 * u
+            p4 = p4 + (J[7] * c0 + J[10] * c1 + J[16] * c3 + J[18] * c4) + d4 * u
+            p5 = tau[k]
+            c, s = scr[k, S_C], scr[k, S_S]
+            ld = dh[k, D] + q[k]
+            ss = s * s
+            cs = c * s
+            cs2 = cs + cs
+            cms = 1.0 - (ss + ss)
+            _tz(J, ld)
+            _rz(J, c, s, ss, cs, cs2, cms)
+            _rx(J, dh[k, CA], dh[k, SA], dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS])
+            _tx(J, dh[k, A])
+        # the bias moved to the parent, as the inverse dynamics moves a wrench
+        if dh[k, KIND] != 0.0:
+            ld = dh[k, D] + q[k]
+        else:
+            ld = dh[k, D]
+        c, s = scr[k, S_C], scr[k, S_S]
+        ca, sa, la = dh[k, CA], dh[k, SA], dh[k, A]
+        p0 = p0 - ld * p4
+        p1 = p1 + ld * p3
+        p3, p4 = c * p3 - s * p4, s * p3 + c * p4
+        p0, p1 = c * p0 - s * p1, s * p0 + c * p1
+        p1 = p1 - la * p5
+        p2 = p2 + la * p4
+        Q = scr[k - 1, S_CHILD_P:S_CHILD_P + 6]
+        Q[0] = p0
+        Q[1] = ca * p1 - sa * p2
+        Q[2] = sa * p1 + ca * p2
+        Q[3] = p3
+        Q[4] = ca * p4 - sa * p5
+        Q[5] = sa * p4 + ca * p5
+    # pass 3, base to tip: accelerations and qdd
+    e0 = e1 = e2 = 0.0
+    a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
+    for k in range(n):
+        c, s = scr[k, S_C], scr[k, S_S]
+        ca, sa = dh[k, CA], dh[k, SA]
+        if k == 0:
+            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+        else:
+            la = dh[k, A]
+            ld = dh[k, D] + q[k] if dh[k, KIND] != 0.0 else dh[k, D]
+            a1 = a1 + la * e2
+            a2 = a2 - la * e1
+            e1, e2 = ca * e1 + sa * e2, ca * e2 - sa * e1
+            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            a0 = a0 + ld * e1
+            a1 = a1 - ld * e0
+            e0, e1 = c * e0 + s * e1, c * e1 - s * e0
+            a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+            e0 = e0 + scr[k, S_C0]
+            e1 = e1 + scr[k, S_C1]
+            a0 = a0 + scr[k, S_C3]
+            a1 = a1 + scr[k, S_C4]
+            a2 = a2 + scr[k, S_C5]
+        ud = scr[k, S_UD:S_UD + 6]
+        if dh[k, KIND] == 0.0:
+            x = scr[k, S_UDIV] - (ud[0] * e0 + ud[1] * e1 + e2 + ud[3] * a0 + ud[4] * a1
+                                  + ud[5] * a2)
+            e2 = e2 + x
+        else:
+            x = scr[k, S_UDIV] - (ud[0] * e0 + ud[1] * e1 + ud[2] * e2 + ud[3] * a0
+                                  + ud[4] * a1 + a2)
+            a2 = a2 + x
+        qdd[k] = x
