@@ -689,14 +689,17 @@ def robot_opcount_table(res: Results) -> Table:
                                f"{ours / talk:.2f}"], INFO))
     t.notes.append("Ours counted in the kernels' own Python source on numbers that tally every "
                    "*, /, + and - (reports/opcount.py), on serial robots of revolute joints "
-                   "built from DH tables with seeded values (none zero, none a right angle); "
+                   "built from DH tables with seeded values (no length or offset zero); "
                    "fitted on 4 and 8 joints, checked on 13. The DH kernels are what "
-                   "forward_dynamics and inverse_dynamics run on a robot in DH form; the general "
-                   "ones (dh=False) take any joint placement (a full rotation and shift per "
-                   "joint). The talk's counts are for Saha's recursive DeNOC algorithms "
-                   "specialised to DH frames. cos/sin and the checks for non-finite results "
-                   "not counted; 'x talk' is the ratio of totals (multiplications + additions) "
-                   "at n = 6.")
+                   "forward_dynamics and inverse_dynamics run on a robot in DH form: on "
+                   "twists that are right angles' multiples (0, +-90, 180 degrees: the PUMA "
+                   "560's and the Stanford arm's, and most industrial arms') they turn vectors "
+                   "and inertias about x without arithmetic; 'any twists' is their count on "
+                   "twists that are not. The general kernels (dh=False) take any joint "
+                   "placement (a full rotation and shift per joint). The talk's counts are for "
+                   "Saha's recursive DeNOC algorithms specialised to DH frames. cos/sin and "
+                   "the checks for non-finite results not counted; 'x talk' is the ratio of "
+                   "totals (multiplications + additions) at n = 6.")
     t.provenance = provenance_line(oc.get("provenance"), what="results/opcount/opcount.json")
     return t
 

@@ -21,10 +21,14 @@ What is counted, per row:
 And, under ``robots`` (the talk's serial robots, beside its counts in the report's "Robots and
 trees" section), on serial robots of R joints about z placed by DH transforms:
     forward dynamics, DH kernel   ``dh_forward_dynamics`` (what ``forward_dynamics`` runs on a
-                   robot in DH form: the articulated-body recursion in the DH frames);
+                   robot in DH form: the articulated-body recursion in the DH frames), on robots
+                   whose twists are right angles' multiples (0, 90, -90, 180 degrees in turn:
+                   the PUMA 560's and the Stanford arm's kind, whose turns about x cost no
+                   arithmetic) and on robots of any twists;
     forward dynamics, general     ``rge_a_forward_dynamics``, as above (a general rotation and
                    shift per joint, the tree kernels' PLACED path; ``dh=False``);
-    inverse dynamics, DH kernel   ``dh_inverse_dynamics`` (Newton-Euler in the DH frames);
+    inverse dynamics, DH kernel   ``dh_inverse_dynamics`` (Newton-Euler in the DH frames), the
+                   same two kinds of robot;
     inverse dynamics, general     the kinematics pass (with qdd) and ``rnea_backward``.
 The general kernels are written for any joint axis and any link frame (full 3 x 3 rotations),
 the DH kernels for the four axis-aligned steps of a DH transform (docs/design.md, "DH robots").
@@ -36,6 +40,7 @@ Output: ``opcount.json`` (the raw counts per size, the fitted polynomials, prove
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from fractions import Fraction
 from pathlib import Path
@@ -254,19 +259,23 @@ def polynomial_text(coef: list[Fraction]) -> str:
     return text.replace("+ -", "- ").replace("+ (-", "- (")
 
 
-def dh_robot(n: int, joints: str | None = None):
+def dh_robot(n: int, joints: str | None = None, right_angles: bool = False):
     """A serial robot of n joints (R unless ``joints`` gives each: "RRPRRR") from a modified DH
     table with seeded values (:func:`redysim.io.dh.dh_model`): every joint placed by Rx(alpha)
     Tx(a) Rz(theta) Tz(d), so that the general kernels run their PLACED path (a general rotation
-    and shift) and the model has the DH form. Only the shapes matter to the counts; no value is
-    zero or a right angle, so no work is skipped."""
+    and shift) and the model has the DH form. Only the shapes matter to the counts, and which
+    twists are right angles' multiples (``right_angles``: 90, -90, 0, 180 degrees in turn, else
+    none is); no length, offset or angle is zero, so no other work is skipped."""
     from redysim.io.dh import DHLink, dh_model
 
     rng = np.random.default_rng(SEED)
     links = []
     for k in range(n):
         m = rng.uniform(1.0, 5.0)
-        links.append(DHLink(a=rng.uniform(0.05, 0.5), alpha=rng.uniform(-1.5, 1.5),
+        alpha = rng.uniform(-1.5, 1.5)
+        if right_angles:  # 90, -90, 0 or 180 degrees, in turn
+            alpha = (math.pi / 2, -math.pi / 2, 0.0, math.pi)[k % 4]
+        links.append(DHLink(a=rng.uniform(0.05, 0.5), alpha=alpha,
                             d=rng.uniform(0.05, 0.5), theta=rng.uniform(-1.5, 1.5),
                             joint=joints[k] if joints else "R", mass=m,
                             com=tuple(rng.uniform(-0.1, 0.1, 3)),
@@ -300,11 +309,13 @@ def count_dh(name: str):
     return counter
 
 
-ROBOT_ROWS = (  # (row label, what it computes, counter): on dh_robot(n), R joints
-    ("DH kernel", "forward", count_dh("dh-forward")),
-    ("general (RGE-A)", "forward", count_rge_a_spatial),
-    ("DH kernel", "inverse", count_dh("dh-inverse")),
-    ("general (Newton-Euler)", "inverse", count_inverse_dynamics),
+ROBOT_ROWS = (  # (row label, what it computes, counter, twists right angles): dh_robot(n), R joints
+    ("DH kernel, right-angle twists", "forward", count_dh("dh-forward"), True),
+    ("DH kernel, any twists", "forward", count_dh("dh-forward"), False),
+    ("general (RGE-A)", "forward", count_rge_a_spatial, False),
+    ("DH kernel, right-angle twists", "inverse", count_dh("dh-inverse"), True),
+    ("DH kernel, any twists", "inverse", count_dh("dh-inverse"), False),
+    ("general (Newton-Euler)", "inverse", count_inverse_dynamics, False),
 )
 
 
@@ -312,11 +323,11 @@ def measure_robots() -> dict:
     """The counts of :data:`ROBOT_ROWS` on DH robots of LINEAR_SIZES joints, fitted a*n + b on
     two sizes and checked on the third."""
     rows, fits = [], []
-    for label, kind, counter in ROBOT_ROWS:
+    for label, kind, counter, right in ROBOT_ROWS:
         label = f"{kind} dynamics, {label}"
         ns, mults, adds = [], [], []
         for n in LINEAR_SIZES:
-            m, a = counter(dh_robot(n))
+            m, a = counter(dh_robot(n, right_angles=right))
             ns.append(n)
             mults.append(m)
             adds.append(a)

@@ -26,16 +26,19 @@ from redysim.io.dh import DHLink, dh_model
 PUMA, STANFORD = "cases/robots/puma560.toml", "cases/robots/stanford_arm.toml"
 
 
-def random_robot(joints: str, convention: str = "modified", seed: str = "dh") -> redysim.Model:
+def random_robot(joints: str, convention: str = "modified", seed: str = "dh",
+                 twists=None) -> redysim.Model:
     """A DH table with seeded values (any twist, length, offset and angle; COMs off the axes;
-    full inertias about the COM), one joint per letter of ``joints`` (R or P)."""
+    full inertias about the COM), one joint per letter of ``joints`` (R or P); ``twists``: each
+    joint's alpha in degrees instead."""
     rng = np.random.default_rng(stable_seed(seed, joints, convention))
     links = []
-    for j in joints:
+    for k, j in enumerate(joints):
         m = rng.uniform(0.5, 4.0)
         A = rng.normal(size=(3, 3))
         inertia = 0.05 * m * (A @ A.T + np.eye(3))
-        links.append(DHLink(a=rng.uniform(-0.4, 0.4), alpha=rng.uniform(-math.pi, math.pi),
+        alpha = rng.uniform(-math.pi, math.pi) if twists is None else math.radians(twists[k])
+        links.append(DHLink(a=rng.uniform(-0.4, 0.4), alpha=alpha,
                             d=rng.uniform(-0.3, 0.3), theta=rng.uniform(-math.pi, math.pi),
                             joint=j, mass=m, com=tuple(rng.uniform(-0.2, 0.2, 3)),
                             inertia=inertia, physical=False))
@@ -49,6 +52,7 @@ ROBOTS = {
     "RPRRPR standard": lambda: random_robot("RPRRPR", "standard"),
     "P at the base": lambda: random_robot("PRRP"),
     "one joint": lambda: random_robot("R"),
+    "right-angle twists": lambda: random_robot("RRPRR", twists=(90, -90, 0, 180, 90)),
 }
 
 
@@ -83,6 +87,18 @@ def test_dh_robots_run_the_dh_kernels_equal_to_the_general_ones(name):
         bias = inverse_dynamics(model, q, v, np.zeros(model.n_v))
         size = max(np.abs(tau).max(), np.abs(bias).max())
         assert np.abs(back - tau).max() <= 50 * np.finfo(float).eps * cond * size
+
+
+def test_right_angle_twists_are_recognised_to_rounding():
+    """Twists of 0, 90, -90 and 180 degrees (radians(90) has a cosine of 6e-17, not 0) are
+    coded as right angles, their cos and sin exact; any other twist is not."""
+    table = dh_constants(random_robot("RRRRR", twists=(90, -90, 0, 180, 45)))
+    twist = redysim.algorithms.dh_form.COLUMNS.index("twist")
+    ca, sa = (redysim.algorithms.dh_form.COLUMNS.index(c) for c in ("ca", "sa"))
+    assert table[:, twist].tolist() == [2.0, 3.0, 1.0, 4.0, 0.0]
+    assert table[:4, [ca, sa]].tolist() == [[0.0, 1.0], [0.0, -1.0], [1.0, 0.0], [-1.0, 0.0]]
+    puma = dh_constants(load_model(PUMA))
+    assert (puma[:, twist] != 0).all()
 
 
 def test_the_form_is_recognised_and_refused_by_name():
@@ -160,24 +176,36 @@ def test_a_singular_robot_is_named_as_the_general_path_names_it():
     assert "singular at DOF 1" in str(special.value)
 
 
-def test_the_dh_kernels_count_fewer_operations_than_the_general_and_the_talks_inverse():
+def test_the_dh_kernels_count_fewer_operations_than_the_general_and_the_talks():
     """The counts in the kernels' own source (reports/opcount.py): the DH kernels below the
-    general ones; the inverse dynamics at or below the talk's 120n - 44 and 97n - 55 (seed 001's
-    comparison table) at the talk's n = 6 and for any n > 1."""
+    general ones; on right-angle twists (the PUMA 560's kind) the inverse dynamics at or below
+    the talk's 120n - 44 multiplications and 97n - 55 additions for every n > 1, the forward
+    dynamics' multiplications at or below its 191n - 284 at the talk's n = 6, both slopes
+    below the talk's, and its additions at or below 187n - 325 from n = 10 (seed 001's
+    comparison tables; at n = 6 the talk's additions are fewer than ours)."""
     from redysim.reports import opcount
 
     res = opcount.measure_robots()
     fits = {f["algorithm"]: f for f in res["fits"]}
     assert all(f["exact"] for f in fits.values())
+
+    def at(fit, what, n):
+        return np.polyval(fit[f"{what}_coef"], n)
+
     for kind in ("forward", "inverse"):
-        dh = fits[f"{kind} dynamics, DH kernel"]
+        right = fits[f"{kind} dynamics, DH kernel, right-angle twists"]
+        any_ = fits[f"{kind} dynamics, DH kernel, any twists"]
         general = next(f for a, f in fits.items() if a.startswith(kind) and "general" in a)
-        assert dh["mult_coef"][0] < general["mult_coef"][0]
-        assert dh["add_coef"][0] < general["add_coef"][0]
-    inv = fits["inverse dynamics, DH kernel"]
+        for what in ("mult", "add"):
+            assert right[f"{what}_coef"][0] < any_[f"{what}_coef"][0] \
+                < general[f"{what}_coef"][0]
+    inv = fits["inverse dynamics, DH kernel, right-angle twists"]
+    fwd = fits["forward dynamics, DH kernel, right-angle twists"]
     for n in (2, 6, 100):
-        assert np.polyval(inv["mult_coef"], n) <= 120 * n - 44
-        assert np.polyval(inv["add_coef"], n) <= 97 * n - 55
+        assert at(inv, "mult", n) <= 120 * n - 44 and at(inv, "add", n) <= 97 * n - 55
+    assert at(fwd, "mult", 6) <= 191 * 6 - 284
+    assert fwd["mult_coef"][0] < 191 and fwd["add_coef"][0] < 187
+    assert all(at(fwd, "add", n) <= 187 * n - 325 for n in (10, 100))
 
 
 @pytest.mark.parametrize("damping", [0.0, 0.2])

@@ -18,8 +18,11 @@ say) is not DH, and the general kernels run it.
 
 Per joint, the constants (:data:`COLUMNS`, one row each): the joint type (0 R, 1 P), cos and sin
 of alpha with their squares and product (the kernels rotate symmetric blocks about x with them),
-a, d, theta, and the body's mass, first moment m c and inertia about its origin (the joint's
-axis point O_k), in its own frame: the numbers the kernels read, arithmetic done once here.
+a, d, theta, the body's mass, first moment m c and inertia about its origin (the joint's axis
+point O_k), in its own frame, and whether alpha is a right angle's multiple (0, 90, -90 or 180
+degrees to rounding: most industrial arms' twists, the PUMA 560's and the Stanford arm's among
+them), whose turns about x the kernels do without arithmetic: the numbers the kernels read,
+arithmetic done once here.
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ COLUMNS = DH_COLUMNS
 """The constants' columns (:data:`redysim.algorithms._kernels.bundles.DH_COLUMNS`, the kernels'
 layout table)."""
 PLACEMENT_TOL = 8 * np.finfo(float).eps  # relative to the placement's largest number (and 1)
+# twists that are right angles' multiples: the twist column's code -> (cos, sin) alpha; their
+# turns about x are signed permutations (redysim.algorithms._kernels.dh)
+RIGHT_ANGLES = {1.0: (1.0, 0.0), 2.0: (0.0, 1.0), 3.0: (0.0, -1.0), 4.0: (-1.0, 0.0)}
 
 
 def dh_constants(model: Model) -> np.ndarray | None:
@@ -89,9 +95,14 @@ def _constants(model: Model) -> np.ndarray:
         assert decomposed is not None  # dh_problem said so
         alpha, a, theta, d = decomposed
         ca, sa = math.cos(alpha), math.sin(alpha)
+        twist = 0.0
+        for code, (c, s) in RIGHT_ANGLES.items():  # within rounding of a right angle's multiple
+            if abs(ca - c) <= PLACEMENT_TOL and abs(sa - s) <= PLACEMENT_TOL:
+                twist, ca, sa = code, c, s
         J = model.inertia_O[k]
         out[k] = (0.0 if model.joint_types[k] == "R" else 1.0, ca, sa, ca * ca, sa * sa,
                   ca * sa, 2.0 * ca * sa, ca * ca - sa * sa, a, d, theta, model.mass[k],
-                  *model.mass_com[k], J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2])
+                  *model.mass_com[k], J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2],
+                  twist)
     out.flags.writeable = False
     return out

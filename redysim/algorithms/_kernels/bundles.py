@@ -52,11 +52,12 @@ BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 # A DH robot's constants (redysim.algorithms.dh_form), one row per joint, the DH kernels'
 # table (.dh): kind (0 R, 1 P); ca, sa = cos, sin alpha; c2, s2, cs = ca^2, sa^2, ca sa;
 # cs2 = 2 ca sa; cms = ca^2 - sa^2; a, d, theta (q adds to theta, R, or to d, P); m; h = m c (3);
-# J about O_k (xx, xy, xz, yy, yz, zz), all in the body's own frame
+# J about O_k (xx, xy, xz, yy, yz, zz), all in the body's own frame; twist: 0 any alpha, 1, 2, 3, 4
+# alpha = 0, 90, -90, 180 degrees (.dh turns y and z into each other then, without arithmetic)
 DH_COLUMNS = ("kind", "ca", "sa", "c2", "s2", "cs", "cs2", "cms", "a", "d", "theta",
-              "m", "hx", "hy", "hz", "jxx", "jxy", "jxz", "jyy", "jyz", "jzz")
+              "m", "hx", "hy", "hz", "jxx", "jxy", "jxz", "jyy", "jyz", "jzz", "twist")
 (DH_KIND, DH_CA, DH_SA, DH_C2, DH_S2, DH_CS, DH_CS2, DH_CMS, DH_A, DH_D, DH_TH, DH_M, DH_HX,
- DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ) = range(len(DH_COLUMNS))
+ DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ, DH_TW) = range(len(DH_COLUMNS))
 DH_SCRATCH = 48  # the DH forward kernel's scratch columns per body (.dh)
 
 # the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)

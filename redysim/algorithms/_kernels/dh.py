@@ -56,6 +56,7 @@ from .bundles import DH_S2 as S2
 from .bundles import DH_SA as SA
 from .bundles import DH_SCRATCH
 from .bundles import DH_TH as TH
+from .bundles import DH_TW as TW
 
 # the forward kernel's scratch columns, per body
 (S_C, S_S, S_C0, S_C1, S_C3, S_C4, S_C5, S_P, S_CHILD_I, S_CHILD_P, S_UD, S_UDIV, S_PIVOT) = (
@@ -63,6 +64,53 @@ from .bundles import DH_TH as TH
 SCRATCH_COLUMNS = DH_SCRATCH  # c, s; c_k (5); own bias (6); the child's inertia (21) and
 # bias (6); U/D (6); u/D; the pivot D (the articulated inertia about or along the joint's axis)
 IA = 21  # an inertia's numbers: A (6: xx xy xz yy yz zz), B (9, row major), M (6)
+# a joint's twist (the DH constants' "twist" column): any, or a right angle's multiple, which
+# turns a vector's y and z components into each other (a signed permutation: no arithmetic)
+ANY_TWIST, TWIST_0, TWIST_90, TWIST_M90, TWIST_180 = 0, 1, 2, 3, 4
+
+
+@inline
+def _xt(y, z, tw, ca, sa):
+    """The y and z components of Rx(alpha)^T v (from the parent's frame into F')."""
+    if tw == ANY_TWIST:
+        return ca * y + sa * z, ca * z - sa * y
+    if tw == TWIST_0:
+        return y, z
+    if tw == TWIST_90:
+        return z, -y
+    if tw == TWIST_M90:
+        return -z, y
+    return -y, -z
+
+
+@inline
+def _x(y, z, tw, ca, sa):
+    """The y and z components of Rx(alpha) v (from F' into the parent's frame)."""
+    if tw == ANY_TWIST:
+        return ca * y - sa * z, sa * y + ca * z
+    if tw == TWIST_0:
+        return y, z
+    if tw == TWIST_90:
+        return -z, y
+    if tw == TWIST_M90:
+        return z, -y
+    return -y, -z
+
+
+@inline
+def _sym_x(p, r, t, tw):
+    """The symmetric [[p, r], [r, t]] (y and z) turned by a right-angle Rx: R X R^T."""
+    if tw == TWIST_90 or tw == TWIST_M90:
+        return t, -r, p
+    return p, r, t
+
+
+@inline
+def _gen_x(g00, g01, g10, g11, tw):
+    """A general 2 x 2 (y and z) turned by a right-angle Rx: R G R^T."""
+    if tw == TWIST_90 or tw == TWIST_M90:
+        return g11, -g10, -g01, g00
+    return g00, g01, g10, g11
 
 
 @jit_exact
@@ -87,8 +135,9 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
         s = math.sin(th)
         scr[k, 6] = c
         scr[k, 7] = s
+        tw = dh[k, TW]
         if k == 0:  # the base is at rest: only its acceleration -g turns into F_1
-            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            a1, a2 = _xt(a1, a2, tw, ca, sa)
             a0, a1 = c * a0 + s * a1, c * a1 - s * a0
             if prismatic:
                 a2 = a2 + qdd[k]
@@ -101,9 +150,9 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
             a1 = a1 + la * x1
             a2 = a2 + la * x2
             # Rx(alpha)^T
-            w1, w2 = ca * w1 + sa * w2, ca * w2 - sa * w1
-            e1, e2 = ca * e1 + sa * e2, ca * e2 - sa * e1
-            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            w1, w2 = _xt(w1, w2, tw, ca, sa)
+            e1, e2 = _xt(e1, e2, tw, ca, sa)
+            a1, a2 = _xt(a1, a2, tw, ca, sa)
             # Tz(d): + W' (d z), W' the parent's W in this frame
             a0 = a0 + ld * (w0 * w2 + e1)
             a1 = a1 + ld * (w1 * w2 - e0)
@@ -172,12 +221,15 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
         n1 = n1 - la * f2
         n2 = n2 + la * f1
         # Rx(alpha), added to the parent's own
+        tw = dh[k, TW]
+        f1, f2 = _x(f1, f2, tw, ca, sa)
+        n1, n2 = _x(n1, n2, tw, ca, sa)
         scr[k - 1, 0] += f0
-        scr[k - 1, 1] += ca * f1 - sa * f2
-        scr[k - 1, 2] += sa * f1 + ca * f2
+        scr[k - 1, 1] += f1
+        scr[k - 1, 2] += f2
         scr[k - 1, 3] += n0
-        scr[k - 1, 4] += ca * n1 - sa * n2
-        scr[k - 1, 5] += sa * n1 + ca * n2
+        scr[k - 1, 4] += n1
+        scr[k - 1, 5] += n2
 
 
 @inline
@@ -259,6 +311,18 @@ def _rx(I, ca, sa, s2, cs, cs2, cms):
     I[7], I[8] = ca * I[7] - sa * I[8], sa * I[7] + ca * I[8]      # row x
 
 
+@inline
+def _rx_right(I, tw):
+    """:func:`_rx` for a right angle's multiple (a signed permutation of y and z)."""
+    I[3], I[4], I[5] = _sym_x(I[3], I[4], I[5], tw)
+    I[1], I[2] = _x(I[1], I[2], tw, 0.0, 0.0)
+    I[18], I[19], I[20] = _sym_x(I[18], I[19], I[20], tw)
+    I[16], I[17] = _x(I[16], I[17], tw, 0.0, 0.0)
+    I[10], I[11], I[13], I[14] = _gen_x(I[10], I[11], I[13], I[14], tw)
+    I[9], I[12] = _x(I[9], I[12], tw, 0.0, 0.0)
+    I[7], I[8] = _x(I[7], I[8], tw, 0.0, 0.0)
+
+
 @jit_exact
 def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
     """qdd of a DH robot by the articulated-body recursion (module docstring). ``dh``: its
@@ -282,12 +346,39 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
         scr[k, S_C] = c
         scr[k, S_S] = s
         c0 = c1 = c3 = c4 = c5 = 0.0
-        if k == 0:
-            w0 = w1 = 0.0
-            w2 = 0.0 if prismatic else qd[k]
+        hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
+        if k == 0:  # the base is at rest: w = (0, 0, qd) or 0, and so the body's bias
+            w0 = w1 = w2 = 0.0
+            for i in range(6):
+                scr[k, S_P + i] = 0.0
+            if not prismatic:
+                w2 = qd[k]
+                g0 = dh[k, JXZ] * w2
+                g1 = dh[k, JYZ] * w2
+                scr[k, S_P] = -(w2 * g1)
+                scr[k, S_P + 1] = w2 * g0
+                y0 = -(w2 * hy)
+                y1 = w2 * hx
+                scr[k, S_P + 3] = -(w2 * y1)
+                scr[k, S_P + 4] = w2 * y0
+            for i in range(S_C0, S_C5 + 1):
+                scr[k, i] = 0.0
+            continue
+        ca, sa, tw = dh[k, CA], dh[k, SA], dh[k, TW]
+        if k == 1 and dh[0, KIND] == 0.0:  # the parent turns about its z alone: w0 = w1 = 0
+            if tw == ANY_TWIST:
+                w1, w2 = sa * w2, ca * w2                       # in F'
+            else:
+                w1, w2 = _xt(0.0, w2, tw, ca, sa)
+            u0 = w1 * ld
+            u1 = w2 * la
+            u2 = -(w1 * la)
+            v0 = w1 * u2 - w2 * u1
+            v1 = w2 * u0
+            v2 = -(w1 * u0)
+            w0, w1 = s * w1, c * w1                              # in F_k
         else:
-            ca, sa = dh[k, CA], dh[k, SA]
-            w1, w2 = ca * w1 + sa * w2, ca * w2 - sa * w1        # in F'
+            w1, w2 = _xt(w1, w2, tw, ca, sa)                     # in F'
             # the acceleration of O_k as a point of the parent: w x (w x r), r = (a, 0, d)
             u0 = w1 * ld
             u1 = w2 * la - w0 * ld
@@ -296,24 +387,23 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             v1 = w2 * u0 - w0 * u2
             v2 = w0 * u1 - w1 * u0
             w0, w1 = c * w0 + s * w1, c * w1 - s * w0            # in F_k
-            c3 = c * v0 + s * v1
-            c4 = c * v1 - s * v0
-            c5 = v2
-            if prismatic:  # + 2 w x (qd z)
-                t = qd[k] + qd[k]
-                c3 = c3 + t * w1
-                c4 = c4 - t * w0
-            else:  # w x (qd z)
-                c0 = w1 * qd[k]
-                c1 = -(w0 * qd[k])
-                w2 = w2 + qd[k]
+        c3 = c * v0 + s * v1
+        c4 = c * v1 - s * v0
+        c5 = v2
+        if prismatic:  # + 2 w x (qd z)
+            t = qd[k] + qd[k]
+            c3 = c3 + t * w1
+            c4 = c4 - t * w0
+        else:  # w x (qd z)
+            c0 = w1 * qd[k]
+            c1 = -(w0 * qd[k])
+            w2 = w2 + qd[k]
         scr[k, S_C0] = c0
         scr[k, S_C1] = c1
         scr[k, S_C3] = c3
         scr[k, S_C4] = c4
         scr[k, S_C5] = c5
         # the body's bias (w x J w, w x (w x h))
-        hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
         g0 = dh[k, JXX] * w0 + dh[k, JXY] * w1 + dh[k, JXZ] * w2
         g1 = dh[k, JXY] * w0 + dh[k, JYY] * w1 + dh[k, JYZ] * w2
         g2 = dh[k, JXZ] * w0 + dh[k, JYZ] * w1 + dh[k, JZZ] * w2
@@ -332,54 +422,58 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
         hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
         I = scr[k, S_CHILD_I:S_CHILD_I + IA]
         P = scr[k, S_CHILD_P:S_CHILD_P + 6]
-        if k == n - 1:  # no child
-            for i in range(IA):
-                I[i] = 0.0
-            for i in range(6):
-                P[i] = 0.0
-        # the body's own: A += J, B += h~, M += m 1
-        I[0] = I[0] + dh[k, JXX]
-        I[1] = I[1] + dh[k, JXY]
-        I[2] = I[2] + dh[k, JXZ]
-        I[3] = I[3] + dh[k, JYY]
-        I[4] = I[4] + dh[k, JYZ]
-        I[5] = I[5] + dh[k, JZZ]
-        I[7] = I[7] - hz
-        I[8] = I[8] + hy
-        I[9] = I[9] + hz
-        I[11] = I[11] - hx
-        I[12] = I[12] - hy
-        I[13] = I[13] + hx
-        I[15] = I[15] + m
-        I[18] = I[18] + m
-        I[20] = I[20] + m
-        p0 = P[0] + scr[k, S_P]
-        p1 = P[1] + scr[k, S_P + 1]
-        p2 = P[2] + scr[k, S_P + 2]
-        p3 = P[3] + scr[k, S_P + 3]
-        p4 = P[4] + scr[k, S_P + 4]
-        p5 = P[5] + scr[k, S_P + 5]
+        if k == n - 1:  # no child: the body's own inertia [[J, h~], [h~^T, m 1]] and bias
+            I[0], I[1], I[2], I[3], I[4], I[5] = dh[k, JXX], dh[k, JXY], dh[k, JXZ], \
+                dh[k, JYY], dh[k, JYZ], dh[k, JZZ]
+            I[6], I[7], I[8], I[9], I[10], I[11] = 0.0, -hz, hy, hz, 0.0, -hx
+            I[12], I[13], I[14] = -hy, hx, 0.0
+            I[15], I[16], I[17], I[18], I[19], I[20] = m, 0.0, 0.0, m, 0.0, m
+            p0, p1, p2 = scr[k, S_P], scr[k, S_P + 1], scr[k, S_P + 2]
+            p3, p4, p5 = scr[k, S_P + 3], scr[k, S_P + 4], scr[k, S_P + 5]
+        else:  # the body's own added to its child's: A += J, B += h~, M += m 1
+            I[0] = I[0] + dh[k, JXX]
+            I[1] = I[1] + dh[k, JXY]
+            I[2] = I[2] + dh[k, JXZ]
+            I[3] = I[3] + dh[k, JYY]
+            I[4] = I[4] + dh[k, JYZ]
+            I[5] = I[5] + dh[k, JZZ]
+            I[7] = I[7] - hz
+            I[8] = I[8] + hy
+            I[9] = I[9] + hz
+            I[11] = I[11] - hx
+            I[12] = I[12] - hy
+            I[13] = I[13] + hx
+            I[15] = I[15] + m
+            I[18] = I[18] + m
+            I[20] = I[20] + m
+            p0 = P[0] + scr[k, S_P]
+            p1 = P[1] + scr[k, S_P + 1]
+            p2 = P[2] + scr[k, S_P + 2]
+            p3 = P[3] + scr[k, S_P + 3]
+            p4 = P[4] + scr[k, S_P + 4]
+            p5 = P[5] + scr[k, S_P + 5]
         c0, c1, c3, c4, c5 = scr[k, S_C0], scr[k, S_C1], scr[k, S_C3], scr[k, S_C4], \
             scr[k, S_C5]
         if dh[k, KIND] == 0.0:
             # revolute about z: U = I[:, angular z], D = A_zz
             scr[k, S_PIVOT] = I[5]
             inv = 1.0 / I[5]
-            d0 = I[2] * inv
-            d1 = I[4] * inv
             d3 = I[12] * inv
             d4 = I[13] * inv
             d5 = I[14] * inv
             u = tau[k] - p2
-            scr[k, S_UD] = d0
-            scr[k, S_UD + 1] = d1
             scr[k, S_UD + 2] = 1.0
             scr[k, S_UD + 3] = d3
             scr[k, S_UD + 4] = d4
             scr[k, S_UD + 5] = d5
             scr[k, S_UDIV] = u * inv
-            if k == 0:
+            if k == 0:  # the base's body: pass 3 needs no more (its parent does not turn)
+                scr[k, S_UD] = scr[k, S_UD + 1] = 0.0
                 break
+            d0 = I[2] * inv
+            d1 = I[4] * inv
+            scr[k, S_UD] = d0
+            scr[k, S_UD + 1] = d1
             # projected: I - (U/D) U^T; its angular-z row and column are zero
             a00 = I[0] - d0 * I[2]
             a01 = I[1] - d0 * I[4]
@@ -426,51 +520,58 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             b00, b01, b10, b11 = _gen_turn(nb00, nb01, nb10, nb11, ss, cs)
             b02, b12 = c * nb02 - s * nb12, s * nb02 + c * nb12
             # Rx(alpha): A and B have no z row yet
-            ca, sa = dh[k, CA], dh[k, SA]
-            s2, csa, cs2a, cmsa = dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS]
-            x1 = ca * b01 - sa * b02    # B Rx^T, rows x and y
-            x2 = sa * b01 + ca * b02
-            y1 = ca * b11 - sa * b12
-            y2 = sa * b11 + ca * b12
+            ca, sa, tw = dh[k, CA], dh[k, SA], dh[k, TW]
             J = scr[k - 1, S_CHILD_I:S_CHILD_I + IA]
             J[0] = a00
-            J[1] = ca * a01
-            J[2] = sa * a01
-            J[3] = dh[k, C2] * a11
-            J[4] = csa * a11
-            J[5] = s2 * a11
             J[6] = b00
+            J[15] = m00
+            x1, x2 = _x(b01, b02, tw, ca, sa)    # B Rx^T, rows x and y
+            y1, y2 = _x(b11, b12, tw, ca, sa)
             J[7] = x1
             J[8] = x2
-            J[9] = ca * b10
-            J[10] = ca * y1
-            J[11] = ca * y2
-            J[12] = sa * b10
-            J[13] = sa * y1
-            J[14] = sa * y2
-            J[15] = m00
-            J[16], J[17] = ca * m01 - sa * m02, sa * m01 + ca * m02
-            J[18], J[19], J[20] = _sym_turn(m11, m12, m22, s2, csa, cs2a, cmsa)
+            J[16], J[17] = _x(m01, m02, tw, ca, sa)
+            if tw == ANY_TWIST:
+                s2, csa, cs2a, cmsa = dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS]
+                J[1] = ca * a01
+                J[2] = sa * a01
+                J[3] = dh[k, C2] * a11
+                J[4] = csa * a11
+                J[5] = s2 * a11
+                J[9] = ca * b10
+                J[10] = ca * y1
+                J[11] = ca * y2
+                J[12] = sa * b10
+                J[13] = sa * y1
+                J[14] = sa * y2
+                J[18], J[19], J[20] = _sym_turn(m11, m12, m22, s2, csa, cs2a, cmsa)
+            else:  # a signed permutation of y and z
+                J[1], J[2] = _x(a01, 0.0, tw, ca, sa)
+                J[3], J[4], J[5] = _sym_x(a11, 0.0, 0.0, tw)
+                J[9], J[12] = _x(b10, 0.0, tw, ca, sa)
+                J[10], J[13] = _x(y1, 0.0, tw, ca, sa)
+                J[11], J[14] = _x(y2, 0.0, tw, ca, sa)
+                J[18], J[19], J[20] = _sym_x(m11, m12, m22, tw)
             _tx(J, la)
         else:
             # prismatic along z: U = I[:, linear z], D = M_zz
             scr[k, S_PIVOT] = I[20]
             inv = 1.0 / I[20]
-            d0 = I[8] * inv
-            d1 = I[11] * inv
-            d2 = I[14] * inv
             d3 = I[17] * inv
             d4 = I[19] * inv
             u = tau[k] - p5
-            scr[k, S_UD] = d0
-            scr[k, S_UD + 1] = d1
-            scr[k, S_UD + 2] = d2
             scr[k, S_UD + 3] = d3
             scr[k, S_UD + 4] = d4
             scr[k, S_UD + 5] = 1.0
             scr[k, S_UDIV] = u * inv
-            if k == 0:
+            if k == 0:  # (as for a revolute)
+                scr[k, S_UD] = scr[k, S_UD + 1] = scr[k, S_UD + 2] = 0.0
                 break
+            d0 = I[8] * inv
+            d1 = I[11] * inv
+            d2 = I[14] * inv
+            scr[k, S_UD] = d0
+            scr[k, S_UD + 1] = d1
+            scr[k, S_UD + 2] = d2
             J = scr[k - 1, S_CHILD_I:S_CHILD_I + IA]
             # projected (every number but the linear-z row and column), then the bias
             u0, u1, u2, u3, u4 = I[8], I[11], I[14], I[17], I[19]
@@ -509,7 +610,10 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             cms = 1.0 - (ss + ss)
             _tz(J, ld)
             _rz(J, c, s, ss, cs, cs2, cms)
-            _rx(J, dh[k, CA], dh[k, SA], dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS])
+            if dh[k, TW] == ANY_TWIST:
+                _rx(J, dh[k, CA], dh[k, SA], dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS])
+            else:
+                _rx_right(J, dh[k, TW])
             _tx(J, dh[k, A])
         # the bias moved to the parent, as the inverse dynamics moves a wrench
         if dh[k, KIND] != 0.0:
@@ -525,39 +629,57 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
         p1 = p1 - la * p5
         p2 = p2 + la * p4
         Q = scr[k - 1, S_CHILD_P:S_CHILD_P + 6]
+        tw = dh[k, TW]
         Q[0] = p0
-        Q[1] = ca * p1 - sa * p2
-        Q[2] = sa * p1 + ca * p2
+        Q[1], Q[2] = _x(p1, p2, tw, ca, sa)
         Q[3] = p3
-        Q[4] = ca * p4 - sa * p5
-        Q[5] = sa * p4 + ca * p5
+        Q[4], Q[5] = _x(p4, p5, tw, ca, sa)
     # pass 3, base to tip: accelerations and qdd
     e0 = e1 = e2 = 0.0
     a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
     for k in range(n):
         c, s = scr[k, S_C], scr[k, S_S]
         ca, sa = dh[k, CA], dh[k, SA]
-        if k == 0:
-            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+        tw = dh[k, TW]
+        ud = scr[k, S_UD:S_UD + 6]
+        revolute = dh[k, KIND] == 0.0
+        if k == 0:  # the base is at rest: e = 0, a = -g in F_1
+            a1, a2 = _xt(a1, a2, tw, ca, sa)
             a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+            if revolute:
+                x = scr[k, S_UDIV] - (ud[3] * a0 + ud[4] * a1 + ud[5] * a2)
+                e2 = x
+            else:
+                x = scr[k, S_UDIV] - (ud[3] * a0 + ud[4] * a1 + a2)
+                a2 = a2 + x
+            qdd[k] = x
+            continue
+        la = dh[k, A]
+        ld = dh[k, D] if revolute else dh[k, D] + q[k]
+        if k == 1 and dh[0, KIND] == 0.0:  # the parent's e = (0, 0, e2)
+            a1 = a1 + la * e2
+            if tw == ANY_TWIST:
+                e1, e2 = sa * e2, ca * e2
+            else:
+                e1, e2 = _xt(0.0, e2, tw, ca, sa)
+            a1, a2 = _xt(a1, a2, tw, ca, sa)
+            a0 = a0 + ld * e1
+            e0, e1 = s * e1, c * e1
         else:
-            la = dh[k, A]
-            ld = dh[k, D] + q[k] if dh[k, KIND] != 0.0 else dh[k, D]
             a1 = a1 + la * e2
             a2 = a2 - la * e1
-            e1, e2 = ca * e1 + sa * e2, ca * e2 - sa * e1
-            a1, a2 = ca * a1 + sa * a2, ca * a2 - sa * a1
+            e1, e2 = _xt(e1, e2, tw, ca, sa)
+            a1, a2 = _xt(a1, a2, tw, ca, sa)
             a0 = a0 + ld * e1
             a1 = a1 - ld * e0
             e0, e1 = c * e0 + s * e1, c * e1 - s * e0
-            a0, a1 = c * a0 + s * a1, c * a1 - s * a0
-            e0 = e0 + scr[k, S_C0]
-            e1 = e1 + scr[k, S_C1]
-            a0 = a0 + scr[k, S_C3]
-            a1 = a1 + scr[k, S_C4]
-            a2 = a2 + scr[k, S_C5]
-        ud = scr[k, S_UD:S_UD + 6]
-        if dh[k, KIND] == 0.0:
+        a0, a1 = c * a0 + s * a1, c * a1 - s * a0
+        e0 = e0 + scr[k, S_C0]
+        e1 = e1 + scr[k, S_C1]
+        a0 = a0 + scr[k, S_C3]
+        a1 = a1 + scr[k, S_C4]
+        a2 = a2 + scr[k, S_C5]
+        if revolute:
             x = scr[k, S_UDIV] - (ud[0] * e0 + ud[1] * e1 + e2 + ud[3] * a0 + ud[4] * a1
                                   + ud[5] * a2)
             e2 = e2 + x
