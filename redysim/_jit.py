@@ -31,7 +31,13 @@ jit: _JITWrapper = numba.njit(**OPTIONS)
 # IEEE arithmetic as written: no FMA fusion either, so that every result is the same on every
 # x86-64 CPU (with or without FMA units, whatever its SIMD width). For what must be reproducible
 # bit for bit: the integrators' stage sums, whose last bits steer the step-size control.
-STRICT_OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy")
+# fastmath is set (to False), not left unset: numba compiles a callee whose fastmath is unset
+# with its caller's (numba.core.cpu's CPUTargetOptions: inherit_if_not_set("fastmath")), so that
+# such a kernel compiled first inside a caller with contraction would fuse its multiply-adds,
+# one compiled first on its own would not, and which one a later caller linked to would depend
+# on the order of first calls (found on the DH kernels, whose qdd came out 1e-15 apart between
+# a batch and forward_dynamics before their fastmath was set).
+STRICT_OPTIONS: dict[str, Any] = dict(cache=True, nogil=True, error_model="numpy", fastmath=False)
 jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 
 
@@ -42,14 +48,10 @@ jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 # (more than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
 BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
 jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
-# Borrowed, and IEEE as written whoever calls it: fastmath set (to False), not left unset,
-# since numba compiles a callee whose fastmath is unset with its caller's (numba.core.cpu's
-# CPUTargetOptions: inherit_if_not_set("fastmath")). Left unset, a kernel compiled first inside
-# a caller with contraction fused its multiply-adds, one compiled first on its own did not, and
-# which one a later caller linked to depended on the order of first calls (the DH kernels' qdd
-# came out 1e-15 apart between the evaluator and forward_dynamics). For kernels whose every
-# caller must get the same bits: redysim.algorithms._kernels.dh.
-EXACT_BORROWED_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, fastmath=False)
+# Borrowed and strict: for kernels whose every caller must get the same bits whether it calls
+# their compiled code or LLVM inlines a copy (redysim.algorithms._kernels.dh: the public
+# functions, the evaluator, batches and the compiled stepping all call them)
+EXACT_BORROWED_OPTIONS: dict[str, Any] = dict(STRICT_OPTIONS, _nrt=False)
 jit_exact: _JITWrapper = numba.njit(**EXACT_BORROWED_OPTIONS)
 
 # The SIMD tile kernels (redysim.algorithms._kernels.tiles) also declare their array arguments free
