@@ -24,6 +24,9 @@ other round) so that a neighbour's load falls on all of them; each round a ``tim
     floor: kernel            the same function called 1,000 times from compiled code, per call
     evaluator, dh=False      (DH robots) fd(q, v) of ``redysim.evaluator(model, dh=False)``: the
                              general kernels on the same robot
+    floor: kernel, dh=False  (DH robots) the general kernels' function, 1,000 calls from compiled
+                             code, per call
+    id evaluator, dh=False   (DH robots) the inverse's evaluator on the general kernels
     pin.rnea                 pin.rnea(model, data, q, v, qdd): inverse dynamics
     id default               inverse_dynamics(model, q, v, qdd)
     id evaluator             id(q, v, qdd), id = redysim.evaluator(model, "inverse_dynamics")
@@ -110,7 +113,10 @@ def calls(label: str, model) -> dict:
     if ws.dh:
         fd0, inv0 = redysim.evaluator(model, dh=False), redysim.evaluator(model, "inverse_dynamics",
                                                                           dh=False)
+        loop0 = loop_of(lean.FORWARD_TREE.compiled)
+        loop0(q, v, z, out, f, i, s, 1)
         general = {"evaluator, dh=False": lambda: fd0(q, v),
+                   "floor: kernel, dh=False": lambda: loop0(q, v, z, out, f, i, s, LOOP),
                    "id evaluator, dh=False": lambda: inv0(q, v, a)}
     return {
         "pin.aba": lambda: aba(pm, data, pq, pv, ptau),
@@ -150,7 +156,7 @@ def main(argv=None) -> int:
     print(f"{'model':18s} {'call':22s} {'us':>16s} {'pin / call':>11s}")
     for label, model in models.items():
         res = side_by_side(calls(label, model), args.rounds, args.round_ms / 1e3,
-                           per={"floor: kernel": LOOP})
+                           per={"floor: kernel": LOOP, "floor: kernel, dh=False": LOOP})
         for name, r in res.items():
             base = res["pin.rnea" if name.startswith(("pin.rnea", "id ")) else "pin.aba"]
             ratio = base["median_s"] / r["median_s"]

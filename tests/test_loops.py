@@ -51,7 +51,13 @@ def test_a_pinned_chain_settles_on_the_discrete_catenary():
                    atol=1e-11, sample=1.0)
     assert sim.status == 0, sim.message
     assert np.abs(sim.q[-1] - rest).max() < 1e-6
-    assert np.all(np.diff(sim.energy) < 0)  # the damping only takes energy out
+    # the damping only takes energy out: the energy never rises by more than its own rounding
+    # (at rest, from t = 3 s, what the damping takes, ~2e-13 J a second, is near that noise: a
+    # strict '< 0' held or failed on the last bits of qdd, and failed, +8.9e-16, once the open
+    # tree, a chain in DH form, ran the DH kernels instead of RGE-A)
+    rounding = 4 * np.finfo(float).eps * np.abs(sim.energy[:-1])
+    assert np.all(np.diff(sim.energy) <= rounding)
+    assert sim.energy[-1] < sim.energy[0] - 1e-7
 
 
 def spatial_loop() -> tuple[ClosedLoops, np.ndarray]:

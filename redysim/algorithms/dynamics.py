@@ -241,14 +241,15 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     return out
 
 
-def use_dh_kernels(model: Model, ws: Workspace | None, dh, planar: bool) -> bool:
+def use_dh_kernels(model: Model, has_form: bool, dh, planar: bool) -> bool:
     """Whether forward or inverse dynamics run the DH kernels: ``dh`` None (when the model has
-    the DH form and the planar kernel does not run), True (the form required) or False."""
+    the DH form, ``has_form``: its workspace's ``dh``, and the planar kernel does not run), True
+    (the form required) or False."""
     if dh is None or dh is False:
-        return dh is None and not planar and _ws(model, ws).dh
+        return dh is None and not planar and has_form
     if dh is not True:
         raise FieldError("dynamics", "dh", dh, "must be None, True or False")
-    if planar or not _ws(model, ws).dh:
+    if planar or not has_form:
         why = "the planar kernel runs it" if planar else dh_problem(model)
         raise ValueError(f"dh=True but model {model.name!r} is not a robot in DH form: {why}")
     return True
@@ -285,7 +286,7 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
-    use_dh = use_dh_kernels(model, ws, dh, False)
+    use_dh = use_dh_kernels(model, _ws(model, ws).dh, dh, False)
     if _is_batch(q):
         if model.couplings:
             return np.array([inverse_dynamics(model, *row, ws=ws, dh=dh)
@@ -408,7 +409,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     elif planar and not is_planar:
         raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
-    use_dh = use_dh_kernels(model, ws, dh, planar)
+    use_dh = use_dh_kernels(model, ws.dh, dh, planar)
     if method == "rge-a":
         entry = (_PLANAR if planar else _DH if use_dh else _RGE_A).compiled
         qdd = np.empty(model.n_v) if out is None else out

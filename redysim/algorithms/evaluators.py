@@ -77,7 +77,7 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
                          "inverse_dynamics, which keep the couplings")
     ws = Workspace(model)
     serial = bool(ws.tree.serial)
-    use_dh = use_dh_kernels(model, ws, dh, model.is_planar)
+    use_dh = use_dh_kernels(model, ws.dh, dh, model.is_planar)
     if kind == "forward_dynamics":
         entry = (_lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
                  _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
