@@ -286,17 +286,17 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     """
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
-    use_dh = use_dh_kernels(model, _ws(model, ws).dh, dh, False)
+    ws = _ws(model, ws)
+    use_dh = ws.dh if dh is None else use_dh_kernels(model, ws.dh, dh, False)
     if _is_batch(q):
         if model.couplings:
             return np.array([inverse_dynamics(model, *row, ws=ws, dh=dh)
                              for row in zip(*(check_batch(model, name, x, None)
                                               for name, x in (("q", q), ("v", v),
                                                               ("qdd", qdd))), strict=True)])
-        return _inverse_batch(model, _ws(model, ws), q, v, qdd, threads, use_dh)
+        return _inverse_batch(model, ws, q, v, qdd, threads, use_dh)
     if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
             and not model.couplings and JIT_ENABLED and model.n_v <= LEAN_INVERSE_MAX_DOF:
-        ws = _ws(model, ws)
         entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if ws.tree.serial
                  else _lean.INVERSE_TREE).compiled
         try:  # the hot path, the evaluator's entry: it checks lengths, strides and the result
@@ -309,7 +309,6 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     if model.couplings:  # the tree's torques: the coupled motion's, with no coupling force
         for name, x in (("q", q), ("v", v), ("qdd", qdd)):
             check_coupled(model, name, x)
-    ws = _ws(model, ws)
     c = model
     tau = np.empty(c.n_v)
     if use_dh:
@@ -409,7 +408,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     elif planar and not is_planar:
         raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
                          "a single revolute about its frame's z axis)")
-    use_dh = use_dh_kernels(model, ws.dh, dh, planar)
+    use_dh = (ws.dh and not planar) if dh is None else use_dh_kernels(model, ws.dh, dh, planar)
     if method == "rge-a":
         entry = (_PLANAR if planar else _DH if use_dh else _RGE_A).compiled
         qdd = np.empty(model.n_v) if out is None else out

@@ -132,7 +132,9 @@ class Workspace:
     (nb,3) joint positions, ``oP`` (n,6) motion subspaces, ``t`` and ``td`` (nb,6) twists and
     twist-rates, ``Ihat`` (n,) and ``Psihat`` (n,6) of RGE-A, ``phitil``/``phihat`` (n,), ``W``
     (nb,6) resultant wrenches, ``planar`` (nb,12) for the planar kernel. Besides: ``phi`` (n,), and
-    ``zeros`` (n,), ``zeros6`` (nb,6) that no kernel writes.
+    ``zeros`` (n,), ``zeros6`` (nb,6) that no kernel writes. ``dh``: True for a robot in DH form
+    (:mod:`redysim.algorithms.dh_form`), whose kernels take its constants ``dh_table`` and scratch
+    ``dh_scratch`` (nb, DH_SCRATCH); None both otherwise.
     """
 
     def __init__(self, system: Model):
