@@ -24,6 +24,12 @@ angular-z row and column, which shifting along z and turning about z keep, so th
 the parent's frame work on 15 numbers where they can. A prismatic joint's projection zeroes the
 linear-z row and column, and its moves work on all 21.
 
+A twist that is a right angle's multiple (the constants' twist code) turns vectors and inertias
+about x by a signed permutation of their y and z parts, without arithmetic; the base's body (its
+parent at rest) and its child skip the products of the zeros they are known to hold, and the
+last body takes its own inertia without adding a child's. Both kernels are IEEE as written
+(``redysim._jit.jit_exact``), so every caller gets the same bits.
+
 Both are equal to the general kernels (:mod:`.kinematics`, :mod:`.inverse_dynamics`,
 :mod:`.rge_a`) to rounding. Their Python source is what ``redysim.reports.opcount`` counts.
 """
