@@ -136,8 +136,8 @@ def _dh_views(fdata, idata, scratch):
 
 
 def forward_dh(q, v, tau, out, fdata, idata, scratch):
-    """qdd into ``out`` by the DH kernel, a robot in DH form (module docstring): .entry's DH
-    entry, strides checked."""
+    """qdd into ``out`` by the DH kernel, a robot in DH form (module docstring): the kernel on
+    the views .entry's dh_entry cuts, strides checked."""
     n = idata[H_NV]
     if not (_plain(q, n) and _plain(v, n) and _plain(tau, n) and _plain(out, n)):
         raise Refused()
