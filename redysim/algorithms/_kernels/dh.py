@@ -119,6 +119,20 @@ def _gen_x(g00, g01, g10, g11, tw):
     return g00, g01, g10, g11
 
 
+@inline
+def _joint(dh, q, k):
+    """Joint k at q: (prismatic, its offset d along z (d + q for a prismatic), cos and sin of its
+    angle (theta + q for a revolute))."""
+    prismatic = dh[k, KIND] != 0.0
+    ld = dh[k, D]
+    if prismatic:
+        th = dh[k, TH]
+        ld = ld + q[k]
+    else:
+        th = dh[k, TH] + q[k]
+    return prismatic, ld, math.cos(th), math.sin(th)
+
+
 @jit_exact
 def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
     """tau for (q, qd, qdd) of a DH robot (module docstring): ``dh`` its constants
@@ -130,15 +144,8 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
     a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
     x0 = x1 = x2 = 0.0      # the parent's W's first column (W = e~ + w~ w~)
     for k in range(n):
-        ca, sa, la, ld = dh[k, CA], dh[k, SA], dh[k, A], dh[k, D]
-        prismatic = dh[k, KIND] != 0.0
-        if prismatic:
-            th = dh[k, TH]
-            ld = ld + q[k]
-        else:
-            th = dh[k, TH] + q[k]
-        c = math.cos(th)
-        s = math.sin(th)
+        ca, sa, la = dh[k, CA], dh[k, SA], dh[k, A]
+        prismatic, ld, c, s = _joint(dh, q, k)
         scr[k, 6] = c
         scr[k, 7] = s
         tw = dh[k, TW]
@@ -293,33 +300,30 @@ def _gen_turn(g00, g01, g10, g11, ss, cs):
     return g00 + u, g01 + v, g10 + v, g11 - u
 
 
-@inline
-def _rz(I, c, s, ss, cs, cs2, cms):
-    """A full inertia I's axes turned by Rz(theta) (about the same point): R I R^T blockwise."""
-    I[0], I[1], I[3] = _sym_turn(I[0], I[1], I[3], ss, cs, cs2, cms)
-    I[2], I[4] = c * I[2] - s * I[4], s * I[2] + c * I[4]
-    I[15], I[16], I[18] = _sym_turn(I[15], I[16], I[18], ss, cs, cs2, cms)
-    I[17], I[19] = c * I[17] - s * I[19], s * I[17] + c * I[19]
-    I[6], I[7], I[9], I[10] = _gen_turn(I[6], I[7], I[9], I[10], ss, cs)
-    I[8], I[11] = c * I[8] - s * I[11], s * I[8] + c * I[11]      # column z
-    I[12], I[13] = c * I[12] - s * I[13], s * I[12] + c * I[13]   # row z
+# a full inertia's numbers that a turn about z (about x) mixes: A's symmetric 2 x 2 block and the
+# pair beside it, M's likewise, B's general 2 x 2 block, its column and its row along the axis
+Z_TURN = (0, 1, 3, 2, 4, 15, 16, 18, 17, 19, 6, 7, 9, 10, 8, 11, 12, 13)
+X_TURN = (3, 4, 5, 1, 2, 18, 19, 20, 16, 17, 10, 11, 13, 14, 9, 12, 7, 8)
 
 
 @inline
-def _rx(I, ca, sa, s2, cs, cs2, cms):
-    """A full inertia I's axes turned by Rx(alpha): R I R^T blockwise (turns y and z)."""
-    I[3], I[4], I[5] = _sym_turn(I[3], I[4], I[5], s2, cs, cs2, cms)
-    I[1], I[2] = ca * I[1] - sa * I[2], sa * I[1] + ca * I[2]
-    I[18], I[19], I[20] = _sym_turn(I[18], I[19], I[20], s2, cs, cs2, cms)
-    I[16], I[17] = ca * I[16] - sa * I[17], sa * I[16] + ca * I[17]
-    I[10], I[11], I[13], I[14] = _gen_turn(I[10], I[11], I[13], I[14], s2, cs)
-    I[9], I[12] = ca * I[9] - sa * I[12], sa * I[9] + ca * I[12]   # column x
-    I[7], I[8] = ca * I[7] - sa * I[8], sa * I[7] + ca * I[8]      # row x
+def _turn(I, t, c, s, ss, cs, cs2, cms):
+    """A full inertia I's axes turned about z (``t`` Z_TURN) or x (X_TURN) by the angle whose
+    cos and sin are c, s (ss = s^2, cs = c s, cs2 = 2 c s, cms = c^2 - s^2): R I R^T blockwise,
+    about the same point."""
+    I[t[0]], I[t[1]], I[t[2]] = _sym_turn(I[t[0]], I[t[1]], I[t[2]], ss, cs, cs2, cms)
+    I[t[3]], I[t[4]] = c * I[t[3]] - s * I[t[4]], s * I[t[3]] + c * I[t[4]]
+    I[t[5]], I[t[6]], I[t[7]] = _sym_turn(I[t[5]], I[t[6]], I[t[7]], ss, cs, cs2, cms)
+    I[t[8]], I[t[9]] = c * I[t[8]] - s * I[t[9]], s * I[t[8]] + c * I[t[9]]
+    I[t[10]], I[t[11]], I[t[12]], I[t[13]] = _gen_turn(I[t[10]], I[t[11]], I[t[12]], I[t[13]],
+                                                       ss, cs)
+    I[t[14]], I[t[15]] = c * I[t[14]] - s * I[t[15]], s * I[t[14]] + c * I[t[15]]  # B's column
+    I[t[16]], I[t[17]] = c * I[t[16]] - s * I[t[17]], s * I[t[16]] + c * I[t[17]]  # B's row
 
 
 @inline
 def _rx_right(I, tw):
-    """:func:`_rx` for a right angle's multiple (a signed permutation of y and z)."""
+    """:func:`_turn` about x for a right angle's multiple (a signed permutation of y and z)."""
     I[3], I[4], I[5] = _sym_x(I[3], I[4], I[5], tw)
     I[1], I[2] = _x(I[1], I[2], tw, 0.0, 0.0)
     I[18], I[19], I[20] = _sym_x(I[18], I[19], I[20], tw)
@@ -340,15 +344,8 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
     # bodies' velocity biases
     w0 = w1 = w2 = 0.0
     for k in range(n):
-        la, ld = dh[k, A], dh[k, D]
-        prismatic = dh[k, KIND] != 0.0
-        if prismatic:
-            th = dh[k, TH]
-            ld = ld + q[k]
-        else:
-            th = dh[k, TH] + q[k]
-        c = math.cos(th)
-        s = math.sin(th)
+        la = dh[k, A]
+        prismatic, ld, c, s = _joint(dh, q, k)
         scr[k, S_C] = c
         scr[k, S_S] = s
         c0 = c1 = c3 = c4 = c5 = 0.0
@@ -615,9 +612,10 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             cs2 = cs + cs
             cms = 1.0 - (ss + ss)
             _tz(J, ld)
-            _rz(J, c, s, ss, cs, cs2, cms)
+            _turn(J, Z_TURN, c, s, ss, cs, cs2, cms)
             if dh[k, TW] == ANY_TWIST:
-                _rx(J, dh[k, CA], dh[k, SA], dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS])
+                _turn(J, X_TURN, dh[k, CA], dh[k, SA], dh[k, S2], dh[k, CS], dh[k, CS2],
+                      dh[k, CMS])
             else:
                 _rx_right(J, dh[k, TW])
             _tx(J, dh[k, A])

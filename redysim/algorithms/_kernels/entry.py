@@ -112,30 +112,35 @@ def _finite(x):
     return bad
 
 
+@inline
+def _dh_views(fdata, idata, scratch):
+    """A DH robot's constants (nb, DHC), -g and the DH kernels' scratch (nb, DH_SCRATCH), as
+    views of a workspace's packed arrays."""
+    h = idata
+    nb = h[H_NB]
+    return (fdata[h[F_DH]:h[F_DH] + DHC * nb].reshape((nb, DHC)),
+            fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3],
+            scratch[h[S_DH]:h[S_DH] + DH_SCRATCH * nb].reshape((nb, DH_SCRATCH)))
+
+
 def dh_entry(fdata, idata, q, qd, tau, scratch, qdd):
     """:func:`.dh.dh_forward_dynamics` on a DH robot's packed arrays (module docstring)."""
-    h = idata
-    nb, n = h[H_NB], h[H_NV]
+    n = idata[H_NV]
     if q.shape[0] != n or qd.shape[0] != n or tau.shape[0] != n or qdd.shape[0] != n:
         return SIZE_MISMATCH
-    dh_forward_dynamics(
-        fdata[h[F_DH]:h[F_DH] + DHC * nb].reshape((nb, DHC)), q, qd, tau,
-        fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3], qdd,
-        scratch[h[S_DH]:h[S_DH] + DH_SCRATCH * nb].reshape((nb, DH_SCRATCH)))
+    table, base_accel, scr = _dh_views(fdata, idata, scratch)
+    dh_forward_dynamics(table, q, qd, tau, base_accel, qdd, scr)
     return _finite(qdd)
 
 
 def dh_inverse_entry(fdata, idata, q, qd, qdd, scratch, tau):
     """:func:`.dh.dh_inverse_dynamics` on a DH robot's packed arrays: tau into ``tau``
     (module docstring; NaN when some tau is not finite)."""
-    h = idata
-    nb, n = h[H_NB], h[H_NV]
+    n = idata[H_NV]
     if q.shape[0] != n or qd.shape[0] != n or qdd.shape[0] != n or tau.shape[0] != n:
         return SIZE_MISMATCH
-    dh_inverse_dynamics(
-        fdata[h[F_DH]:h[F_DH] + DHC * nb].reshape((nb, DHC)), q, qd, qdd,
-        fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3], tau,
-        scratch[h[S_DH]:h[S_DH] + DH_SCRATCH * nb].reshape((nb, DH_SCRATCH)))
+    table, base_accel, scr = _dh_views(fdata, idata, scratch)
+    dh_inverse_dynamics(table, q, qd, qdd, base_accel, tau, scr)
     return _finite(tau)
 
 
