@@ -133,6 +133,27 @@ def _joint(dh, q, k):
     return prismatic, ld, math.cos(th), math.sin(th)
 
 
+@inline
+def _to_parent(dh, q, k, c, s, f0, f1, f2, n0, n1, n2):
+    """A wrench (force f, moment n about O_k, in F_k) moved to the parent's frame, about its
+    origin: Tz(d), Rz(theta), Tx(a), Rx(alpha) of joint k (cos, sin of its angle c, s)."""
+    ld = dh[k, D] + q[k] if dh[k, KIND] != 0.0 else dh[k, D]
+    ca, sa, la, tw = dh[k, CA], dh[k, SA], dh[k, A], dh[k, TW]
+    # Tz(d): about O' = O_k - d z: n + d z x f
+    n0 = n0 - ld * f1
+    n1 = n1 + ld * f0
+    # Rz(theta)
+    f0, f1 = c * f0 - s * f1, s * f0 + c * f1
+    n0, n1 = c * n0 - s * n1, s * n0 + c * n1
+    # Tx(a): about O_{k-1}: n + a x x f
+    n1 = n1 - la * f2
+    n2 = n2 + la * f1
+    # Rx(alpha)
+    f1, f2 = _x(f1, f2, tw, ca, sa)
+    n1, n2 = _x(n1, n2, tw, ca, sa)
+    return f0, f1, f2, n0, n1, n2
+
+
 @jit_exact
 def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
     """tau for (q, qd, qdd) of a DH robot (module docstring): ``dh`` its constants
@@ -220,23 +241,9 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
         tau[k] = f2 if dh[k, KIND] != 0.0 else n2
         if k == 0:
             break
-        c, s = scr[k, 6], scr[k, 7]
-        ca, sa, la, ld = dh[k, CA], dh[k, SA], dh[k, A], dh[k, D]
-        if dh[k, KIND] != 0.0:
-            ld = ld + q[k]
-        # Tz(d): about O' = O_k - d z: n + d z x f
-        n0 = n0 - ld * f1
-        n1 = n1 + ld * f0
-        # Rz(theta)
-        f0, f1 = c * f0 - s * f1, s * f0 + c * f1
-        n0, n1 = c * n0 - s * n1, s * n0 + c * n1
-        # Tx(a): about O_{k-1}: n + a x x f
-        n1 = n1 - la * f2
-        n2 = n2 + la * f1
-        # Rx(alpha), added to the parent's own
-        tw = dh[k, TW]
-        f1, f2 = _x(f1, f2, tw, ca, sa)
-        n1, n2 = _x(n1, n2, tw, ca, sa)
+        # moved to the parent's frame, added to the parent's own
+        f0, f1, f2, n0, n1, n2 = _to_parent(dh, q, k, scr[k, 6], scr[k, 7], f0, f1, f2, n0, n1,
+                                            n2)
         scr[k - 1, 0] += f0
         scr[k - 1, 1] += f1
         scr[k - 1, 2] += f2
@@ -620,24 +627,9 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
                 _rx_right(J, dh[k, TW])
             _tx(J, dh[k, A])
         # the bias moved to the parent, as the inverse dynamics moves a wrench
-        if dh[k, KIND] != 0.0:
-            ld = dh[k, D] + q[k]
-        else:
-            ld = dh[k, D]
-        c, s = scr[k, S_C], scr[k, S_S]
-        ca, sa, la = dh[k, CA], dh[k, SA], dh[k, A]
-        p0 = p0 - ld * p4
-        p1 = p1 + ld * p3
-        p3, p4 = c * p3 - s * p4, s * p3 + c * p4
-        p0, p1 = c * p0 - s * p1, s * p0 + c * p1
-        p1 = p1 - la * p5
-        p2 = p2 + la * p4
         Q = scr[k - 1, S_CHILD_P:S_CHILD_P + 6]
-        tw = dh[k, TW]
-        Q[0] = p0
-        Q[1], Q[2] = _x(p1, p2, tw, ca, sa)
-        Q[3] = p3
-        Q[4], Q[5] = _x(p4, p5, tw, ca, sa)
+        Q[3], Q[4], Q[5], Q[0], Q[1], Q[2] = _to_parent(dh, q, k, scr[k, S_C], scr[k, S_S], p3,
+                                                        p4, p5, p0, p1, p2)
     # pass 3, base to tip: accelerations and qdd
     e0 = e1 = e2 = 0.0
     a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
