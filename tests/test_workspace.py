@@ -75,7 +75,11 @@ def calls(system, q, qd, x, Q, QD):
         "frame_motion": lambda **kw: redysim.frame_motion(system, q, qd, x, frame=f, **kw),
         "joint_positions": lambda **kw: redysim.joint_positions(system, q, **kw),
         "momentum": lambda **kw: redysim.momentum(system, q, qd, **kw),
+        "generalized_momentum": lambda **kw: redysim.generalized_momentum(system, q, qd, **kw),
     }
+    if "free" not in system.joint_types:  # (a quaternion's gradient is refused)
+        out["generalized_momentum, gradient"] = lambda **kw: redysim.generalized_momentum(
+            system, q, qd, gradient=True, **kw)
     if "tip" in system.frames:
         out["tip"] = lambda **kw: redysim.tip(system, q, qd, x, **kw)
     if system.is_planar:

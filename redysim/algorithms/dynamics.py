@@ -37,6 +37,7 @@ from redysim.algorithms._kernels.entry import SIZE_MISMATCH
 from redysim.algorithms._kernels.gim import gim_composite
 from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
 from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
+from redysim.algorithms._kernels.momentum import momentum_gradient
 from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.dh_form import dh_problem
@@ -45,6 +46,7 @@ from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace, model_workspace
 from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
+from redysim.model.tree import FREE as FREE_JOINT
 from redysim.model.tree import Model
 
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
@@ -1227,6 +1229,49 @@ def momentum(model: Model, q, v, *, ws: Workspace | None = None) -> Momentum:
     if not (np.isfinite(linear).all() and np.isfinite(angular).all()):
         raise overflow_error("the momentum", q=q, v=v)
     return Momentum(linear, angular, G)
+
+
+def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
+                         gradient: bool = False):
+    """p = I(q) v, the generalized momentum (dT/dv), by one kinematics pass and one backward
+    pass (:mod:`redysim.algorithms._kernels.momentum`); with ``gradient``, (p, dL/dq): the
+    Lagrangian's gradient in q at fixed v, dT/dq - dV/dq, so that along a motion under the
+    generalized forces tau, dp/dt = dL/dq + tau. O(n) both, no matrix formed. (A free
+    joint's q is a quaternion, not what its rates integrate to: its gradient is refused.)"""
+    if model.cuts:
+        raise closed_error(model, "generalized_momentum")
+    if gradient and FREE_JOINT in getattr(model, "joint_types", ()):
+        raise FieldError(f"model {model.name!r}", "gradient", True, "dL/dq is taken in the "
+                         "joint coordinates the rates integrate to; a free joint's quaternion "
+                         "is not one")
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    ws = _ws(model, ws)
+    nb = ws.t.shape[0]
+    p = np.empty(model.n_v)
+    grad = np.empty(model.n_v) if gradient else None
+    _momentum_passes(ws, q, v, p, grad, np.zeros((nb, 6)), np.empty((nb, 6)),
+                     np.empty(model.n_v))
+    if not (np.isfinite(p).all() and (grad is None or np.isfinite(grad).all())):
+        raise overflow_error("the generalized momentum", q=q, v=v)
+    return p if grad is None else (p, grad)
+
+
+def _momentum_passes(ws: Workspace, q, v, p, grad, zero_twists, gravity_rates, work) -> None:
+    """:func:`generalized_momentum` into ``p`` and (unless None) ``grad``, unchecked, with the
+    caller's arrays: ``zero_twists`` (nb, 6) zeros, ``gravity_rates`` (nb, 6) and ``work``
+    (n,) scratch."""
+    tree, s = ws.tree, ws.s
+    _kinematics(tree, q, v, ws.zeros, ws.no_accel, s)
+    # body momenta M_k t_k summed outboard: inverse dynamics with t := 0, td := t
+    rnea_backward(tree, s._replace(t=zero_twists, td=s.t), p)
+    if grad is None:
+        return
+    momentum_gradient(tree, s, v, s.W, grad)
+    gravity_rates[:, :3] = 0.0
+    gravity_rates[:, 3:] = ws.base_accel  # [0; -g] at every body, at rest
+    rnea_backward(tree, s._replace(t=zero_twists, td=gravity_rates), work)
+    grad -= work
 
 
 class Tip(NamedTuple):
