@@ -64,13 +64,23 @@ MAX_NEWTON = 20
 # Newton fails when |P^-1 R| grows more than this in one iteration: at 2 it refused RE-U750-L6
 # steps of 1e-2 s that converge (540 qdd calls over 0.3 s); adaptive runs took the same steps
 DIVERGENCE = 10.0
-NEWTON_TOL = 1e-6  # |P^-1 R| <= NEWTON_TOL |w| (fixed steps; adaptive: min(., NEWTON_RTOL rtol))
+# |P^-1 R| <= newton_tol |w|: at fixed steps FIXED_NEWTON_TOL, under error control
+# min(NEWTON_TOL, NEWTON_RTOL rtol).
 # (|P^-1 R| ~ the error left in w, which moves v1 by twice as much, and a 2-norm over |w|: under
 # error control Newton must leave far less than rtol. At rtol / 100 the tip error of RE-U250-L2
 # over 0.2 s stopped falling with rtol (1.7e-8, 2.0e-8, 1.5e-8 m from DOP853 at rtol 1e-4,
 # 1e-5, 1e-6); at 1e-4 rtol it falls all the way (1.7e-8, 3.7e-9, 8.3e-10, 1.7e-10, 3.7e-11 m
-# at rtol 1e-4 .. 1e-8: the truncation error's; 1e-5 rtol gives the same) for 1.0-1.1x the CPU)
-NEWTON_RTOL = 1e-4
+# at rtol 1e-4 .. 1e-8: the truncation error's). The energy asks for more: what Newton leaves
+# in w's smooth components, where the momentum M v is large, moves the energy by 2 p . dw, and
+# on RE-U50000-L1000 that, not the scheme, made delta_M: to 5 s at rtol 1e-4 (the same 90
+# steps) max |delta_M| 0.43 J/kg at rtol / 100, 3.6e-2 at 1e-4 rtol, 2.2e-3 at 1e-6 rtol, where
+# Newton also made to wait until the next correction would move the kinetic energy by under
+# 1e-11 of it (an experiment, p by redysim.generalized_momentum) stops at the same 2.2e-3: the
+# scheme's own. At fixed steps of 5e-2 s, 3.9e-2, 6.0e-4 and 1.8e-4 J/kg at 1e-6,
+# 1e-8 and 1e-9; docs/design.md, "The implicit integrator")
+NEWTON_TOL = 1e-6
+NEWTON_RTOL = 1e-6
+FIXED_NEWTON_TOL = 1e-8
 # Newton also stops when |P^-1 R| stalls (falls by less than 10 % in an iteration) below
 # FLOOR_TOL |w|: the round-off floor of qdd. On RE-U50000-L1000 at h = 5e-4 it rises from 4e-8 at
 # the start to 1.0e-6 at t = 0.31 s, where a tolerance of 1e-6 alone stalled Newton for 20
@@ -204,7 +214,7 @@ class MidpointSolver(OdeSolver):
                 raise ValueError(f"a fixed step needs h > 0, got h={h!r}")
             self.rtol = self.atol = math.nan
             self.hmax = float(h)
-            self.newton_tol = newton_tol or NEWTON_TOL
+            self.newton_tol = newton_tol or FIXED_NEWTON_TOL
         self.pre = preconditioner if preconditioner is not None else _Identity()
         self.newton = self.krylov = 0
         self._y = np.empty(2 * self.n)
