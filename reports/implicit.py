@@ -16,6 +16,8 @@ delta_M against time) with both runs, and the tip distance between them.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 
@@ -27,17 +29,17 @@ from .results import LONGRUN_DIR, Results
 from .text import integer, provenance_line, sci, seconds
 
 CASE = "RE-U50000-L1000"
-HOW = ("not run: make reproduce (python -m redysim.harness.longrun RE-U50000-L1000 "
-       "--integrator implicit --t-end 5 --sample 0.01)")
+MEGA = "RE-U500000-L10000"  # 1,000,000 DOF: the same rod ten times as long
+MEGA_FILE = f"huge/{MEGA}.toml"  # under cases/
 TIP = ["tip_x", "tip_y", "tip_z"]
 MATCH_T = 1e-9  # s: samples at the same time
 
 
-def _runs(res: Results) -> pd.DataFrame:
+def _runs(res: Results, case: str = CASE) -> pd.DataFrame:
     runs = res.runs
     if runs.empty or "sweep" not in runs:
         return runs.iloc[:0]
-    return runs[(runs["sweep"] == LONGRUN_DIR) & (runs["case"] == CASE)]
+    return runs[(runs["sweep"] == LONGRUN_DIR) & (runs["case"] == case)]
 
 
 def tip_distance(a: pd.DataFrame, b: pd.DataFrame) -> pd.DataFrame:
@@ -55,7 +57,8 @@ def _settings(r) -> str:
 
 
 def implicit_section(res: Results) -> Section:
-    sec = Section("implicit", f"The implicit integrator: {CASE} (100,000 DOF) to 5 s")
+    sec = Section("implicit", f"The implicit integrator: {CASE} (100,000 DOF) to 5 s, and "
+                  f"{MEGA} (1,000,000 DOF)")
     sec.intro.append(
         "The explicit integrators' steps on this chain are bound by the transverse waves the "
         "centrifugal tension carries (a 2 cm link crossed in ~3e-5 s: ode45 steps ~1e-5 s, ~35 "
@@ -64,24 +67,42 @@ def implicit_section(res: Results) -> Section:
         "preconditioned by the chain's tension stiffness, with an error estimate filtered so "
         "that a wave the step does not resolve counts by its amplitude. Below, its run to 5 s "
         "beside the explicit ode45 run where both exist, at the case's tolerances (rtol 1e-4, "
-        "atol 1e-6); docs/design.md, 'The implicit integrator', discusses what the error means.")
-    runs = _runs(res)
-    table = Table("implicit-runs", f"Long runs of {CASE}",
+        "atol 1e-6); then the same rod ten times as long, cut into the same 20 mm links "
+        f"({MEGA}: 500,000 U joints, 1,000,000 DOF), and the CPU and memory of one step against "
+        "DOF from 1,000 to 1,000,000. docs/design.md, 'The implicit integrator', discusses what "
+        "the error means.")
+    sec.items += _case_items(res, CASE, "implicit-huge", f"{CASE}: implicit midpoint beside "
+                             "ode45 (Figs. 15, 17b)", "--t-end 5 --sample 0.01",
+                             "--t-end 0.48 --sample 0.01")
+    sec.items += _case_items(res, MEGA, "implicit-mega", f"{MEGA} (1,000,000 DOF): implicit "
+                             "midpoint beside ode45", "--t-end 1 --sample 0.001",
+                             "--t-end 0.01 --sample 0.001")
+    sec.items += _scaling_items(res)
+    return sec
+
+
+def _case_items(res: Results, case: str, fig_id: str, title: str, run_flags: str,
+                ref_flags: str) -> list:
+    """The table of ``case``'s long runs and the figure of its run at the case's tolerances
+    (folder ``<case>-midpoint``) beside its longest ode45 run (``run_flags``, ``ref_flags``:
+    the long run's flags that make each)."""
+    source = f"cases/{MEGA_FILE}" if case == MEGA else case
+    how = (f"not run: make reproduce (python -m redysim.harness.longrun {source} "
+           f"--integrator implicit {run_flags})")
+    runs = _runs(res, case)
+    table = Table(f"{fig_id}-runs", f"Long runs of {case}",
                   ["run", "integrator", "t reached [s]", "steps (rejected)", "qdd calls",
                    "Newton / GMRES", "CPU", "wall", "peak RSS [MiB]", "max |delta_M| [J/kg]",
                    "max tip distance from ode45 [m]"])
-    fig_id, title = "implicit-huge", f"{CASE}: implicit midpoint beside ode45 (Figs. 15, 17b)"
-    caption = ("(a)-(c) tip X, Y, Z against time (the paper's Fig. 15, which stops at 0.75 s); "
-               "(d) the distance between the two runs' tips at the times both sampled; (e) "
-               "|delta_M(t)|, the change of energy per unit mass (Fig. 17b). Solid: implicit "
-               "midpoint at the case's tolerances; dashed: ode45 (to the horizon its run "
-               "reached). (f) every implicit run in the table: CPU to 5 s against its largest "
-               "tip distance from the ode45 run.")
+    caption = ("(a)-(c) tip X, Y, Z against time; (d) the distance between the two runs' tips "
+               "at the times both sampled; (e) |delta_M(t)|, the change of energy per unit mass "
+               "(Fig. 17b). Solid: implicit midpoint at the case's tolerances; dashed: ode45 (to "
+               "the horizon its run reached). (f) every implicit run in the table: its CPU "
+               "against its largest tip distance from the ode45 run.")
     implicit = runs[runs["integrator"].isin(IMPLICIT)] if len(runs) else runs
     if implicit.empty:
-        table.not_run = HOW
-        sec.items += [table, missing(fig_id, "tip-path", title, caption, HOW)]
-        return sec
+        table.not_run = how
+        return [table, missing(fig_id, "tip-path", title, caption, how)]
     explicit = runs[runs["integrator"] == "ode45"].sort_values("t_reached")
     ref = explicit.iloc[-1] if len(explicit) else None
     ref_s = res.samples(ref["run_id"]) if ref is not None else None
@@ -107,14 +128,68 @@ def implicit_section(res: Results) -> Section:
                        "(a resumed run restarts them).")
     if ref is None:
         table.notes.append("No ode45 long run of this case: python -m redysim.harness.longrun "
-                           f"{CASE} --t-end 0.48 --sample 0.01 makes one (~35 min of CPU).")
+                           f"{source} {ref_flags} makes one (make reproduce-full).")
     table.provenance = provenance_line(runs, what="results/longrun")
-    # the figure: the run at the case's tolerances (folder <case>-midpoint) when there is one
-    main = implicit[implicit["run_id"] == f"{LONGRUN_DIR}:{CASE}-midpoint"]
-    main = main.iloc[0] if len(main) else implicit.iloc[0]
-    sec.items += [table, _figure_of(res, main, implicit, ref_s, fig_id, title, caption,
-                                    ref=ref)]
-    return sec
+    # the figure's run: at the case's tolerances (folder <case>-midpoint), else the longest
+    main = implicit[implicit["run_id"] == f"{LONGRUN_DIR}:{case}-midpoint"]
+    main = main.iloc[0] if len(main) else \
+        implicit.sort_values("t_reached", kind="stable").iloc[-1]
+    return [table, _figure_of(res, main, implicit, ref_s, fig_id, title, caption, ref=ref)]
+
+
+def _scaling_items(res: Results) -> list:
+    """The table and figure of :mod:`.implicit_scaling`'s document, when it has run."""
+    from .implicit_scaling import RESULT_FILE
+
+    fig_id, title = "implicit-scaling", "One implicit step against DOF: CPU and memory"
+    caption = ("(a) CPU per step and per qdd call (the step's CPU over its qdd calls) against "
+               "DOF; (b) peak RSS above the process's before the chain was built. Dotted: "
+               "slope 1 (O(n)).")
+    table = Table("implicit-scaling-table", "Implicit steps against DOF (midpoint-fixed, "
+                  "h = 1e-3 s, from the straight spinning rod)",
+                  ["DOF", "steps", "qdd calls", "Newton / GMRES", "CPU per step",
+                   "CPU per qdd call", "peak RSS [MiB]", "RSS before the chain [MiB]"])
+    path = res.root / RESULT_FILE
+    how = "not run: make reproduce (python -m redysim.reports.implicit_scaling)"
+    if not path.is_file():
+        table.not_run = how
+        return [table, missing(fig_id, "scaling", title, caption, how)]
+    doc = json.loads(path.read_text())
+    rows = doc["rows"]
+    for r in rows:
+        table.rows.append(Row([integer(r["n_dof"]), integer(r["steps"]),
+                               integer(r["qdd_calls"]),
+                               f"{integer(r['newton'])} / {integer(r['krylov'])}",
+                               seconds(r["cpu_per_step_s"]),
+                               f"{r['cpu_per_call_ms']:.3g} ms",
+                               f"{r['rss_peak_mib']:,.0f}", f"{r['rss_before_mib']:,.0f}"],
+                              INFO))
+    if doc.get("slopes"):
+        sl = {k: "n/a" if v is None or not np.isfinite(v) else f"{v:.2f}"
+              for k, v in doc["slopes"].items()}
+        table.notes.append(
+            "Log-log slopes against DOF (1: O(n)): CPU per qdd call "
+            f"{sl['cpu_per_call_ms']}, per step {sl['cpu_per_step_s']} (the Newton and GMRES "
+            f"counts vary with the chain), memory added {sl['rss_added_mib']}. Each size in a "
+            "fresh process; CPU is the process's own (time.process_time), so a busy machine "
+            "changes the wall time, not these.")
+    table.provenance = provenance_line(doc, what=RESULT_FILE)
+    dof = np.array([r["n_dof"] for r in rows], dtype=float)
+    fig, axes = new_figure(1, 2, footer=table.provenance)
+    per_step = np.array([r["cpu_per_step_s"] for r in rows])
+    per_call = np.array([r["cpu_per_call_ms"] for r in rows]) / 1e3
+    added = np.array([r["rss_peak_mib"] - r["rss_before_mib"] for r in rows])
+    axes[0].loglog(dof, per_step, "o-", label="CPU per step")
+    axes[0].loglog(dof, per_call, "s-", label="CPU per qdd call")
+    axes[0].loglog(dof, per_step[-1] * dof / dof[-1], ":", color="grey", label="slope 1")
+    axes[0].set(xlabel="DOF", ylabel="CPU [s]", title="(a) CPU")
+    axes[0].legend()
+    shown = added > 0  # a small chain may add nothing to the imports' high-water mark
+    if shown.any():
+        axes[1].loglog(dof[shown], added[shown], "o-")
+        axes[1].loglog(dof, added[shown][-1] * dof / dof[shown][-1], ":", color="grey")
+    axes[1].set(xlabel="DOF", ylabel="peak RSS added [MiB]", title="(b) memory")
+    return [table, _figure(fig_id, "scaling", title, caption, fig)]
 
 
 def _figure_of(res, imp, implicit, ref_s, fig_id, title, caption, *, ref) -> Figure:
@@ -150,7 +225,7 @@ def _figure_of(res, imp, implicit, ref_s, fig_id, title, caption, *, ref) -> Fig
                              (float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16)),
                              fontsize=7, xytext=(3, 3), textcoords="offset points")
     if ref is not None:
-        axes[5].set(xlabel="CPU to 5 s [s]",
+        axes[5].set(xlabel="CPU to the run's end [s]",
                     ylabel=f"max |tip - tip_ode45| to {float(ref['t_reached']):.3g} s [m]",
                     title="(f) implicit runs: work against error")
     else:

@@ -24,12 +24,15 @@ the quick budget (:mod:`redysim.reports.scaling`); robots and trees in the core 
 (:mod:`redysim.reports.robots`); closed loops (:mod:`redysim.reports.loops`); model size against
 accuracy, the refinement studies of ``sweeps/refine-*.toml`` with their advice checked
 (:mod:`redysim.harness.refine`); the implicit integrator on RE-U50000-L1000 to 5 s beside ode45
-to 0.05 s (:mod:`redysim.reports.implicit`); then the report (:mod:`redysim.reports.build`).
+to 0.02 s, on the 1,000,000-DOF ``cases/huge/RE-U500000-L10000.toml`` to 0.05 s, and one of its
+steps against DOF from 1,000 to 1,000,000 (:mod:`redysim.reports.implicit`,
+:mod:`redysim.reports.implicit_scaling`); then the report (:mod:`redysim.reports.build`).
 
 Full mode: ``sweeps/table1.toml`` .. ``table4.toml``, ``table6.toml``,
 ``drift-ensemble.toml``, ``work-precision-RE-U125-L1.toml`` and
 ``work-precision-RE-U750-L6.toml`` (Table 6's GE-N on the larger chains takes hours), the
-implicit integrator's ode45 reference to 0.48 s, Table 5's huge chains as checkpointed long
+implicit integrator's ode45 reference to 0.48 s, the 1,000,000-DOF chain to 1 s beside ode45 to
+0.01 s (~1 h of CPU), Table 5's huge chains as checkpointed long
 runs (:mod:`redysim.harness.longrun`: hours each, resumed from the last checkpoint when stopped),
 everything above at full size.
 
@@ -78,6 +81,13 @@ REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
 # (quick: 0.02 s, two samples, about 70 s of the ten-minute budget; 0.05 s took 170 s)
 IMPLICIT_REF_T = {QUICK: 0.02, FULL: 0.48}
 IMPLICIT_SAMPLE = 0.01  # s
+# the 1,000,000-DOF chain (redysim.reports.implicit.MEGA): its implicit run's horizon [s] (24
+# steps, ~65 s of CPU and 1.8 GiB to 1 s), and the full mode's ode45 reference horizon [s]
+MEGA_T = {QUICK: 0.05, FULL: 1.0}
+MEGA_REF_T = 0.01
+# one implicit step against DOF (redysim.reports.implicit_scaling): links of the sizes run
+SCALING_LINKS = {QUICK: (500, 5_000, 50_000, 500_000),
+                 FULL: (500, 1_500, 5_000, 15_000, 50_000, 150_000, 500_000)}
 LOG_DIR = "logs"
 
 
@@ -225,25 +235,43 @@ class Reproduction:
     def implicit(self) -> str:
         """The implicit midpoint on RE-U50000-L1000 to 5 s (about a minute), and the explicit
         ode45 run it is measured against, to IMPLICIT_REF_T[mode] (35 ms a step at ~1e-5 s: 0.02
-        s is ~70 s, 0.48 s ~35 min): both checkpointed long runs sampled every 0.01 s, run side
-        by side."""
+        s is ~70 s, 0.48 s ~35 min); the 1,000,000-DOF chain's implicit run to MEGA_T[mode]
+        (and, full, its ode45 run to MEGA_REF_T); all checkpointed long runs sampled every 0.01
+        s (the million-DOF pair every 1e-3 s), two at a time; then one implicit step against
+        DOF (:mod:`.implicit_scaling`)."""
         from redysim.harness import longrun
+        from redysim.io.cases import CASES_DIR
 
-        from .implicit import CASE
+        from . import implicit_scaling
+        from .implicit import CASE, MEGA, MEGA_FILE
 
-        t_ref = IMPLICIT_REF_T[self.mode]
-        runs = [(dict(integrator="midpoint", t_end=5.0), f"{CASE}-midpoint"),
-                (dict(t_end=t_ref), f"{CASE}-ode45-{t_ref:g}")]
+        t_ref, t_mega = IMPLICIT_REF_T[self.mode], MEGA_T[self.mode]
+        mega = str(Path(CASES_DIR) / MEGA_FILE)  # not a paper case: in a folder of its own
+        runs = [(CASE, dict(integrator="midpoint", t_end=5.0, sample=IMPLICIT_SAMPLE),
+                 f"{CASE}-midpoint"),
+                (CASE, dict(t_end=t_ref, sample=IMPLICIT_SAMPLE), f"{CASE}-ode45-{t_ref:g}"),
+                (mega, dict(integrator="midpoint", t_end=t_mega, sample=1e-3),
+                 f"{MEGA}-midpoint-{t_mega:g}")]
+        if self.mode == FULL:
+            runs.append((mega, dict(integrator="ode45", t_end=MEGA_REF_T, sample=1e-3),
+                         f"{MEGA}-ode45-{MEGA_REF_T:g}"))
 
-        def one(kw, folder):
+        def one(case, kw, folder):
             return longrun.summary(self._longrun(
-                CASE, out=self.results / "longrun" / folder, tag=f"[{folder}] ",
-                sample=IMPLICIT_SAMPLE, every=60.0, **kw))
+                case, out=self.results / "longrun" / folder, tag=f"[{folder}] ", every=60.0,
+                **kw))
 
-        # the two runs are independent processes: side by side where there are two cores (each
-        # records its own CPU time and peak RSS); one after the other with --workers 1
+        def scaling():
+            doc = implicit_scaling.run(self.results / implicit_scaling.RESULT_FILE,
+                                       SCALING_LINKS[self.mode],
+                                       say=lambda m: self.say(f"  [scaling] {m}"))
+            return f"scaling: CPU per qdd call ~ DOF^{doc['slopes']['cpu_per_call_ms']:.2f}"
+
+        # independent processes: side by side where there are two cores (each records its own
+        # CPU time and peak RSS); one after the other with --workers 1
+        tasks = [lambda r=r: one(*r) for r in runs] + [scaling]
         with ThreadPoolExecutor(max_workers=min(2, self.workers or os.cpu_count() or 1)) as ex:
-            done = list(ex.map(lambda r: one(*r), runs))
+            done = list(ex.map(lambda task: task(), tasks))
         return " | ".join(done)
 
     def precision(self, names: tuple[str, ...], sensitivity: bool) -> str:
@@ -377,7 +405,7 @@ class Reproduction:
             p.add("closed loops", self.loops)
             p.add("protein backbones", self.proteins)
             p.add("model size (refinement studies)", self.refine)
-            p.add("implicit integrator, 100,000 DOF", self.implicit)
+            p.add("implicit integrator, 100,000 and 1,000,000 DOF", self.implicit)
         else:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
@@ -392,7 +420,7 @@ class Reproduction:
             p.add("closed loops", lambda: self.loops(full=True))
             p.add("protein backbones", lambda: self.proteins(full=True))
             p.add("model size (refinement studies)", self.refine)
-            p.add("implicit integrator, 100,000 DOF", self.implicit)
+            p.add("implicit integrator, 100,000 and 1,000,000 DOF", self.implicit)
         p.add("report", self.build)
         return p
 

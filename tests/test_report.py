@@ -23,7 +23,7 @@ from redysim.harness.spec import RunSpec
 from redysim.harness.store import write_parquet_atomic
 from redysim.harness.sweep import run_sweep
 from redysim.reports import figures as F
-from redysim.reports import gim_study, opcount, scaling
+from redysim.reports import gim_study, implicit_scaling, opcount, scaling
 from redysim.reports import precision_tables as pt
 from redysim.reports.build import (
     build_report,
@@ -91,6 +91,8 @@ def results(tmp_path_factory):
     gim_study.run(root / "gim_study", SMALL_LINKS)
     opcount.run(root / "opcount")
     scaling.run(root / "scaling", "quick", SCALING_MAX_DOF, log=lambda _msg: None)
+    implicit_scaling.run(root / implicit_scaling.RESULT_FILE, (5, 10), steps=2,
+                         say=lambda _msg: None)
     write_parquet_atomic(synthetic_error_study(), root / "error_study" / "error_study.parquet")
     return root
 
@@ -201,6 +203,24 @@ def test_render_is_deterministic_given_the_model(report):
     a, b = render_html(report), render_html(report)
     assert a == b
     assert re.search(r"<h1>redysim: paper vs ours</h1>", a)
+
+
+def test_the_implicit_section_shows_one_step_against_dof(report, results):
+    """implicit_scaling.json (each size in its own process) -> a row per size with its CPU and
+    memory, the log-log slopes, and the figure; the long-run tables say how to get them."""
+    import json
+
+    doc = json.loads((results / implicit_scaling.RESULT_FILE).read_text())
+    assert [r["n_dof"] for r in doc["rows"]] == [10, 20]
+    assert all(r["steps"] == 2 and r["qdd_calls"] > 0 and r["cpu_s"] > 0
+               and r["rss_peak_mib"] >= r["rss_before_mib"] > 0 for r in doc["rows"])
+    tables = {t.id: t for t in report.tables()}
+    scaling_table = tables["implicit-scaling-table"]
+    assert [r.cells[0] for r in scaling_table.rows] == ["10", "20"]
+    assert "slopes" in scaling_table.notes[0] and scaling_table.provenance
+    assert any(f.id == "implicit-scaling" and f.png is not None for f in report.figures())
+    assert "huge/RE-U500000-L10000.toml --integrator implicit --t-end 1 --sample 0.001" in \
+        tables["implicit-mega-runs"].not_run
 
 
 def test_the_robots_section_judges_each_engine_and_says_what_did_not_run(tmp_path):

@@ -1,0 +1,128 @@
+"""CPU and memory of an implicit step against DOF, 1,000 to 1,000,000: is each step O(n)?
+
+    python -m redysim.reports.implicit_scaling [--links 500 1500 ... 500000] [--steps 5]
+        [--h 1e-3] [--out results/implicit_scaling.json]
+
+(``make reproduce`` runs it; the report's implicit section shows its table and figure.)
+
+Each size runs in a fresh process (so that its peak RSS is its own): a rope of U links 20 mm long
+cut from the RE-U series' steel rod (61.6538 kg/m, rod inertia, spinning at 1 rad/s about the
+vertical, as ``cases/RE-U50000-L1000.toml``), ``midpoint-fixed`` at ``--h`` for ``--steps``
+steps from the straight start, the case's tension preconditioner. Per size: CPU per step and per
+qdd call (the step's own work: Newton and GMRES iterations, which a fixed h need not keep
+constant as the chain lengthens, are listed beside it), the process's peak RSS and its RSS
+before the chain was built (imports and compiled kernels). CPU counts the process's own time
+(``time.process_time``), so a busy machine changes the wall time, not the figures. Writes one
+JSON document (rows and provenance) to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+DENSITY = 61.6538  # kg/m: 7850 kg/m^3 steel, 0.05 m radius (the RE-U cases' rod)
+LINK = 0.02  # m
+DEFAULT_LINKS = (500, 1_500, 5_000, 15_000, 50_000, 150_000, 500_000)
+RESULT_FILE = "implicit_scaling.json"
+
+
+def rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def one(links: int, steps: int, h: float) -> dict:
+    """One size, in this process."""
+    from redysim import Chain
+    from redysim.simulation import Simulator
+
+    base = rss_mib()
+    chain = Chain.uniform(links, "U", length=LINK, linear_density=DENSITY, radius=0.05,
+                          inertia="rod")
+    v0 = np.zeros(chain.n_dof)
+    v0[0] = 1.0  # joint 1's first (y) axis: the whole rod spins about the vertical
+    sim = Simulator(chain, steps * h, v0=v0, integrator="midpoint-fixed", h=h,
+                    sample=steps * h, keep_states=False)
+    built = rss_mib()
+    cpu = time.process_time()
+    res = sim.run()
+    cpu = time.process_time() - cpu
+    if res.status != 0:
+        raise SystemExit(f"{links} links: {res.message}")
+    solver = sim.solver
+    return {"links": links, "n_dof": chain.n_dof, "h": h, "steps": res.steps,
+            "qdd_calls": res.nfev, "newton": solver.newton, "krylov": solver.krylov,
+            "cpu_s": cpu, "cpu_per_step_s": cpu / res.steps, "cpu_per_call_ms":
+            1e3 * cpu / res.nfev, "rss_before_mib": base, "rss_built_mib": built,
+            "rss_peak_mib": rss_mib(), "jit_s": res.jit_s,
+            "max_abs_delta_M": float(np.abs(res.delta_M).max())}
+
+
+def slopes(rows: list[dict]) -> dict[str, float]:
+    """The log-log slopes against DOF of the CPU per call, per step and the peak RSS above the
+    process's before the chain (1: O(n))."""
+    dof = np.log([r["n_dof"] for r in rows])
+    keys = {"cpu_per_call_ms": [r["cpu_per_call_ms"] for r in rows],
+            "cpu_per_step_s": [r["cpu_per_step_s"] for r in rows],
+            "rss_added_mib": [r["rss_peak_mib"] - r["rss_before_mib"] for r in rows]}
+    # (a small chain may add nothing to the high-water mark the imports left: no slope then)
+    return {k: float(np.polyfit(dof, np.log(v), 1)[0]) if min(v) > 0 else math.nan
+            for k, v in keys.items()}
+
+
+def run(out: Path, links=DEFAULT_LINKS, steps: int = 5, h: float = 1e-3, say=print) -> dict:
+    """Every size in a fresh process; the document written to ``out`` (atomically) and
+    returned."""
+    from redysim.harness.provenance import provenance
+    from redysim.harness.store import write_json_atomic
+
+    rows = []
+    for n in links:  # a fresh process each: its peak RSS is this size's
+        done = subprocess.run([sys.executable, "-m", __spec__.name if __spec__ else __name__,
+                               "--one", "--links", str(n), "--steps", str(steps), "--h", str(h)],
+                              capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise RuntimeError(f"{n} links: {done.stderr.strip()[-2000:]}")
+        row = json.loads(done.stdout.strip().splitlines()[-1])
+        rows.append(row)
+        say(f"{row['n_dof']:>9,} DOF: {row['steps']} steps, {row['qdd_calls']} qdd calls "
+            f"({row['newton']} Newton, {row['krylov']} GMRES), "
+            f"{row['cpu_per_step_s']:.3f} s a step, {row['cpu_per_call_ms']:.2f} ms a call, "
+            f"peak RSS {row['rss_peak_mib']:,.0f} MiB ({row['rss_before_mib']:,.0f} before "
+            f"the chain)")
+    doc = {"rows": rows, "slopes": slopes(rows) if len(rows) > 1 else {},
+           "machine": platform.processor() or platform.machine(), **provenance()}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(doc, out)
+    return doc
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--links", type=int, nargs="+", default=list(DEFAULT_LINKS))
+    ap.add_argument("--steps", type=int, default=5)
+    ap.add_argument("--h", type=float, default=1e-3)
+    ap.add_argument("--one", action="store_true", help="run the one size given, print JSON")
+    ap.add_argument("--out", type=Path, default=Path("results") / RESULT_FILE)
+    args = ap.parse_args(argv)
+    if args.one:
+        print(json.dumps(one(args.links[0], args.steps, args.h)))
+        return 0
+    doc = run(args.out, args.links, args.steps, args.h)
+    for key, slope in doc["slopes"].items():
+        print(f"log-log slope of {key} against DOF: {slope:.3f}")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
