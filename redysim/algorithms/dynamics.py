@@ -1247,31 +1247,24 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     ws = _ws(model, ws)
-    nb = ws.t.shape[0]
+    tree, s = ws.tree, ws.s
+    zero_twists = np.zeros_like(s.t)
+    _kinematics(tree, q, v, ws.zeros, ws.no_accel, s)
     p = np.empty(model.n_v)
-    grad = np.empty(model.n_v) if gradient else None
-    _momentum_passes(ws, q, v, p, grad, np.zeros((nb, 6)), np.empty((nb, 6)),
-                     np.empty(model.n_v))
+    # the body momenta M_k t_k summed outboard: inverse dynamics with t := 0, td := t
+    rnea_backward(tree, s._replace(t=zero_twists, td=s.t), p)
+    grad = None
+    if gradient:
+        grad = np.empty(model.n_v)
+        momentum_gradient(tree, s, v, s.W, grad)  # dT/dq, from the momenta H = s.W
+        at_rest = np.zeros_like(s.t)
+        at_rest[:, 3:] = ws.base_accel  # [0; -g] at every body: the gravity terms dV/dq
+        gravity = np.empty(model.n_v)
+        rnea_backward(tree, s._replace(t=zero_twists, td=at_rest), gravity)
+        grad -= gravity
     if not (np.isfinite(p).all() and (grad is None or np.isfinite(grad).all())):
         raise overflow_error("the generalized momentum", q=q, v=v)
     return p if grad is None else (p, grad)
-
-
-def _momentum_passes(ws: Workspace, q, v, p, grad, zero_twists, gravity_rates, work) -> None:
-    """:func:`generalized_momentum` into ``p`` and (unless None) ``grad``, unchecked, with the
-    caller's arrays: ``zero_twists`` (nb, 6) zeros, ``gravity_rates`` (nb, 6) and ``work``
-    (n,) scratch."""
-    tree, s = ws.tree, ws.s
-    _kinematics(tree, q, v, ws.zeros, ws.no_accel, s)
-    # body momenta M_k t_k summed outboard: inverse dynamics with t := 0, td := t
-    rnea_backward(tree, s._replace(t=zero_twists, td=s.t), p)
-    if grad is None:
-        return
-    momentum_gradient(tree, s, v, s.W, grad)
-    gravity_rates[:, :3] = 0.0
-    gravity_rates[:, 3:] = ws.base_accel  # [0; -g] at every body, at rest
-    rnea_backward(tree, s._replace(t=zero_twists, td=gravity_rates), work)
-    grad -= work
 
 
 class Tip(NamedTuple):
