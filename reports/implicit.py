@@ -1,17 +1,22 @@
-"""The implicit integrator on the 100,000-DOF chain: its long run beside the explicit one.
+"""The implicit integrator on the 100,000- and 1,000,000-DOF chains: long runs beside the
+explicit ones, and one step's cost against DOF.
 
-Reads the checkpointed long runs of :data:`CASE` (``results/longrun/<folder>/checkpoint.npz``,
-:mod:`redysim.harness.longrun`): the implicit midpoint's (folder ``<case>-midpoint``) and every
-ode45 run of the same case (the explicit reference, to a shorter horizon: ~35 ms a step at ~1e-5 s).
-The table gives each run's steps, calls, Newton and GMRES iterations, CPU, wall, peak memory, energy
-drift and, for the implicit runs, the largest tip distance from the explicit run over the times
-both sampled; the figure redraws the paper's Figs. 15 and 17(b) for this case (tip X, Y, Z and
-delta_M against time) with both runs, and the tip distance between them.
+Reads the checkpointed long runs of :data:`CASE` and :data:`MEGA`
+(``results/longrun/<folder>/checkpoint.npz``, :mod:`redysim.harness.longrun`): the implicit
+midpoint's and every ode45 run of the same case (the explicit reference, to a shorter horizon:
+~35 ms a step at ~1e-5 s on CASE, ~0.4 s at ~1e-6 s on MEGA). Each case's table gives each run's
+steps, calls, Newton and GMRES iterations, CPU, wall, peak memory, energy drift and, for the
+implicit runs, the largest tip distance from the explicit run over the times both sampled; its
+figure redraws the paper's Figs. 15 and 17(b) (tip X, Y, Z and delta_M against time) with both
+runs, and the tip distance between them. Then :mod:`.implicit_scaling`'s table and figure (its
+``results/implicit_scaling.json``).
 
     python -m redysim.harness.longrun RE-U50000-L1000 --integrator implicit --t-end 5 \
         --sample 0.01                                  # ~1 min
     python -m redysim.harness.longrun RE-U50000-L1000 --t-end 0.48 --sample 0.01 \
         --out results/longrun/RE-U50000-L1000-ode45-0.48   # ~35 min of CPU
+    python -m redysim.harness.longrun cases/huge/RE-U500000-L10000.toml --sample 0.001 \
+        --out results/longrun/RE-U500000-L10000-midpoint-1   # ~1 min, 1.8 GiB
 """
 
 from __future__ import annotations
@@ -145,9 +150,9 @@ def _scaling_items(res: Results) -> list:
     caption = ("(a) CPU per step and per qdd call (the step's CPU over its qdd calls) against "
                "DOF; (b) peak RSS above the process's before the chain was built. Dotted: "
                "slope 1 (O(n)).")
-    table = Table("implicit-scaling-table", "Implicit steps against DOF (midpoint-fixed, "
-                  "h = 1e-3 s, from the straight spinning rod)",
-                  ["DOF", "steps", "qdd calls", "Newton / GMRES", "CPU per step",
+    table = Table("implicit-scaling-table", "Implicit steps against DOF (midpoint-fixed from "
+                  "the straight spinning rod)",
+                  ["DOF", "h [s]", "steps", "qdd calls", "Newton / GMRES", "CPU per step",
                    "CPU per qdd call", "peak RSS [MiB]", "RSS before the chain [MiB]"])
     path = res.root / RESULT_FILE
     how = "not run: make reproduce (python -m redysim.reports.implicit_scaling)"
@@ -157,7 +162,7 @@ def _scaling_items(res: Results) -> list:
     doc = json.loads(path.read_text())
     rows = doc["rows"]
     for r in rows:
-        table.rows.append(Row([integer(r["n_dof"]), integer(r["steps"]),
+        table.rows.append(Row([integer(r["n_dof"]), f"{r['h']:g}", integer(r["steps"]),
                                integer(r["qdd_calls"]),
                                f"{integer(r['newton'])} / {integer(r['krylov'])}",
                                seconds(r["cpu_per_step_s"]),
