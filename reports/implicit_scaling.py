@@ -11,7 +11,8 @@ vertical, as ``cases/RE-U50000-L1000.toml``), ``midpoint-fixed`` at ``--h`` for 
 steps from the straight start, the case's tension preconditioner. Per size: CPU per step and per
 qdd call (the step's own work: Newton and GMRES iterations, which a fixed h need not keep
 constant as the chain lengthens, are listed beside it), the process's peak RSS and its RSS
-before the chain was built (imports and compiled kernels). CPU counts the process's own time
+before the chain was built (the imports: the compiled kernels load after it, ~70 MiB at any
+size, so the smallest sizes show that, not the chain). CPU counts the process's own time
 (``time.process_time``), so a busy machine changes the wall time, not the figures. Writes one
 JSON document (rows and provenance) to ``--out``.
 """
