@@ -23,7 +23,6 @@ import argparse
 import json
 import math
 import platform
-import resource
 import subprocess
 import sys
 import time
@@ -37,13 +36,10 @@ DEFAULT_LINKS = (500, 1_500, 5_000, 15_000, 50_000, 150_000, 500_000)
 RESULT_FILE = "implicit_scaling.json"
 
 
-def rss_mib() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
 def one(links: int, steps: int, h: float) -> dict:
     """One size, in this process."""
     from redysim import Chain
+    from redysim.harness.provenance import peak_rss_mib as rss_mib  # VmHWM: this program's own
     from redysim.simulation import Simulator
 
     base = rss_mib()
