@@ -175,9 +175,10 @@ def _scaling_items(res: Results) -> list:
         table.notes.append(
             "Log-log slopes against DOF (1: O(n)): CPU per qdd call "
             f"{sl['cpu_per_call_ms']}, per step {sl['cpu_per_step_s']} (the Newton and GMRES "
-            f"counts vary with the chain), memory added {sl['rss_added_mib']}. Each size in a "
-            "fresh process; CPU is the process's own (time.process_time), so a busy machine "
-            "changes the wall time, not these.")
+            f"counts vary with the chain), memory added {sl['rss_added_mib']}; the fixed costs "
+            "(Python around the kernels, the kernels' own memory) weigh at the small sizes."
+            + _last_two(rows) + " Each size in a fresh process; CPU is the process's own "
+            "(time.process_time), so a busy machine changes the wall time, not these.")
     table.provenance = provenance_line(doc, what=RESULT_FILE)
     dof = np.array([r["n_dof"] for r in rows], dtype=float)
     fig, axes = new_figure(1, 2, footer=table.provenance)
@@ -195,6 +196,19 @@ def _scaling_items(res: Results) -> list:
         axes[1].loglog(dof, added[shown][-1] * dof / dof[shown][-1], ":", color="grey")
     axes[1].set(xlabel="DOF", ylabel="peak RSS added [MiB]", title="(b) memory")
     return [table, _figure(fig_id, "scaling", title, caption, fig)]
+
+
+def _last_two(rows: list[dict]) -> str:
+    """The growth between the two largest sizes, where the fixed costs weigh least."""
+    if len(rows) < 2:
+        return ""
+    a, b = rows[-2], rows[-1]
+    f = b["n_dof"] / a["n_dof"]
+    added = [r["rss_peak_mib"] - r["rss_before_mib"] for r in (a, b)]
+    mem = f", memory added {added[1] / added[0]:.1f}x" if added[0] > 0 else ""
+    return (f" From {integer(a['n_dof'])} to {integer(b['n_dof'])} DOF ({f:.3g}x): CPU per "
+            f"qdd call {b['cpu_per_call_ms'] / a['cpu_per_call_ms']:.1f}x, per step "
+            f"{b['cpu_per_step_s'] / a['cpu_per_step_s']:.1f}x{mem}.")
 
 
 def _figure_of(res, imp, implicit, ref_s, fig_id, title, caption, *, ref) -> Figure:
