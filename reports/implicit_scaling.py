@@ -5,10 +5,10 @@
 
 (``make reproduce`` runs it; the report's implicit section shows its table and figure.)
 
-Each size runs in a fresh process (so that its peak RSS is its own): a rope of U links 20 mm long
-cut from the RE-U series' steel rod (61.6538 kg/m, rod inertia, spinning at 1 rad/s about the
-vertical, as ``cases/RE-U50000-L1000.toml``), ``midpoint-fixed`` at ``--h`` for ``--steps``
-steps from the straight start, the case's tension preconditioner. Per size: CPU per step and per
+Each size runs in a fresh process (so that its peak RSS is its own): ``cases/RE-U50000-L1000.toml``
+with its link count changed and its length with it (the same steel rod in 20 mm U links, spinning
+at 1 rad/s about the vertical: :func:`rod`), ``midpoint-fixed`` at ``--h`` for ``--steps`` steps
+from the straight start, the chain's tension preconditioner. Per size: CPU per step and per
 qdd call (the step's own work: Newton and GMRES iterations, which a fixed h need not keep
 constant as the chain lengthens, are listed beside it), the process's peak RSS and its RSS
 before the chain was built (the imports: the compiled kernels load after it, ~70 MiB at any
@@ -30,25 +30,36 @@ from pathlib import Path
 
 import numpy as np
 
-DENSITY = 61.6538  # kg/m: 7850 kg/m^3 steel, 0.05 m radius (the RE-U cases' rod)
-LINK = 0.02  # m
+ROD = "RE-U50000-L1000"  # the case file whose rod, link length and initial spin every size takes
 DEFAULT_LINKS = (500, 1_500, 5_000, 15_000, 50_000, 150_000, 500_000)
 RESULT_FILE = "implicit_scaling.json"
 
 
+def rod(links: int):
+    """:data:`ROD`'s case with ``links`` links of its own length (so ``links`` x 2 cm long): its
+    file read with ``[chain] links`` and ``total_length`` set (the file itself unchanged)."""
+    from redysim.io.cases import case_from_dict, case_path, read_toml
+
+    path = case_path(ROD)
+    doc = json.loads(json.dumps(read_toml(path)[0]))  # a deep copy
+    chain = doc["chain"]
+    chain["total_length"] = links * chain["total_length"] / chain["links"]
+    chain["links"] = links
+    doc["case"]["name"] = f"{ROD}@{links}"
+    return case_from_dict(doc, source=f"{path} ({links} links of its length)", path=path)
+
+
 def one(links: int, steps: int, h: float) -> dict:
     """One size, in this process."""
-    from redysim import Chain
+    import redysim.io.cases  # noqa: F401  (the imports before the baseline, as documented)
+    import redysim.simulation  # noqa: F401
     from redysim.harness.provenance import peak_rss_mib as rss_mib  # VmHWM: this program's own
-    from redysim.simulation import Simulator
 
     base = rss_mib()
-    chain = Chain.uniform(links, "U", length=LINK, linear_density=DENSITY, radius=0.05,
-                          inertia="rod")
-    v0 = np.zeros(chain.n_dof)
-    v0[0] = 1.0  # joint 1's first (y) axis: the whole rod spins about the vertical
-    sim = Simulator(chain, steps * h, v0=v0, integrator="midpoint-fixed", h=h,
-                    sample=steps * h, keep_states=False)
+    case = rod(links)
+    chain = case.chain
+    sim = case.simulator(steps * h, integrator="midpoint-fixed", h=h, sample=steps * h,
+                         keep_states=False)
     built = rss_mib()
     cpu = time.process_time()
     res = sim.run()

@@ -1240,7 +1240,7 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     joint's q is a quaternion, not what its rates integrate to: its gradient is refused.)"""
     if model.cuts:
         raise closed_error(model, "generalized_momentum")
-    if gradient and FREE_JOINT in getattr(model, "joint_types", ()):
+    if gradient and FREE_JOINT in model.joint_types:
         raise FieldError(f"model {model.name!r}", "gradient", True, "dL/dq is taken in the "
                          "joint coordinates the rates integrate to; a free joint's quaternion "
                          "is not one")

@@ -64,7 +64,7 @@ MAX_NEWTON = 20
 # Newton fails when |P^-1 R| grows more than this in one iteration: at 2 it refused RE-U750-L6
 # steps of 1e-2 s that converge (540 qdd calls over 0.3 s); adaptive runs took the same steps
 DIVERGENCE = 10.0
-# |P^-1 R| <= newton_tol |w|: at fixed steps FIXED_NEWTON_TOL, under error control
+# |P^-1 R| <= newton_tol |w|: at fixed steps NEWTON_TOL, under error control
 # min(NEWTON_TOL, NEWTON_RTOL rtol).
 # (|P^-1 R| ~ the error left in w, which moves v1 by twice as much, and a 2-norm over |w|: under
 # error control Newton must leave far less than rtol. At rtol / 100 the tip error of RE-U250-L2
@@ -83,7 +83,6 @@ DIVERGENCE = 10.0
 # integrator")
 NEWTON_TOL = 1e-6
 NEWTON_RTOL = 1e-6
-FIXED_NEWTON_TOL = 1e-6
 # Newton also stops when |P^-1 R| stalls (falls by less than 10 % in an iteration) below
 # FLOOR_TOL |w|: the round-off floor of qdd. On RE-U50000-L1000 at h = 5e-4 it rises from 4e-8 at
 # the start to 1.0e-6 at t = 0.31 s, where a tolerance of 1e-6 alone stalled Newton for 20
@@ -217,7 +216,7 @@ class MidpointSolver(OdeSolver):
                 raise ValueError(f"a fixed step needs h > 0, got h={h!r}")
             self.rtol = self.atol = math.nan
             self.hmax = float(h)
-            self.newton_tol = newton_tol or FIXED_NEWTON_TOL
+            self.newton_tol = newton_tol or NEWTON_TOL
         self.pre = preconditioner if preconditioner is not None else _Identity()
         self.newton = self.krylov = 0
         self._y = np.empty(2 * self.n)
