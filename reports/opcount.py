@@ -32,7 +32,10 @@ trees" section), on serial robots of R joints about z placed by DH transforms:
     inverse dynamics, general     the kinematics pass (with qdd) and ``rnea_backward``.
 The general kernels are written for any joint axis and any link frame (full 3 x 3 rotations),
 the DH kernels for the four axis-aligned steps of a DH transform (docs/design.md, "DH robots").
-Neither counts the check of its result for non-finite numbers (the entries do that).
+Neither counts the check of its result for non-finite numbers (the entries do that), nor the
+constants computed once per model that it reads (the general kernels' inertias about the joints;
+the DH kernels' table, :func:`redysim.algorithms.dh_form.dh_constants`, whose last row holds
+the last body's projected inertia when its joint is revolute: that body's own, a constant).
 
 Output: ``opcount.json`` (the raw counts per size, the fitted polynomials, provenance).
 """

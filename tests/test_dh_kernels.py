@@ -53,6 +53,12 @@ ROBOTS = {
     "P at the base": lambda: random_robot("PRRP"),
     "one joint": lambda: random_robot("R"),
     "right-angle twists": lambda: random_robot("RRPRR", twists=(90, -90, 0, 180, 90)),
+    # the forward kernel's special bodies (the base's, its child's, the last's; the second body
+    # the last) under each kind of twist
+    "two joints": lambda: random_robot("RR"),
+    "two joints, right angles": lambda: random_robot("RR", twists=(90, 0)),
+    "RP": lambda: random_robot("RP", twists=(0, -90)),
+    "right angles, 180 second": lambda: random_robot("RRRR", twists=(0, 180, 90, -90)),
 }
 
 

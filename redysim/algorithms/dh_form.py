@@ -21,8 +21,10 @@ of alpha with their squares and product (the kernels rotate symmetric blocks abo
 a, d, theta, the body's mass, first moment m c and inertia about its origin (the joint's axis
 point O_k), in its own frame, and whether alpha is a right angle's multiple (0, 90, -90 or 180
 degrees to rounding: most industrial arms' twists, the PUMA 560's and the Stanford arm's among
-them), whose turns about x the kernels do without arithmetic: the numbers the kernels read,
-arithmetic done once here.
+them), whose turns about x the kernels do without arithmetic; and, on the last row when the last joint
+is revolute, that body's articulated inertia projected for its joint (:func:`tip_columns`: the
+body's own, so a constant in its frame): the numbers the kernels read, arithmetic done once
+here.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from redysim.algorithms._kernels.bundles import DH_COLUMNS
+from redysim.algorithms._kernels.bundles import DH_COLUMNS, DH_TIP
 
 if TYPE_CHECKING:
     from redysim.model.tree import Model
@@ -100,9 +102,38 @@ def _constants(model: Model) -> np.ndarray:
             if abs(ca - c) <= PLACEMENT_TOL and abs(sa - s) <= PLACEMENT_TOL:
                 twist, ca, sa = code, c, s
         J = model.inertia_O[k]
-        out[k] = (0.0 if model.joint_types[k] == "R" else 1.0, ca, sa, ca * ca, sa * sa,
-                  ca * sa, 2.0 * ca * sa, ca * ca - sa * sa, a, d, theta, model.mass[k],
-                  *model.mass_com[k], J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2],
-                  twist)
+        out[k, :DH_TIP] = (0.0 if model.joint_types[k] == "R" else 1.0, ca, sa, ca * ca,
+                           sa * sa, ca * sa, 2.0 * ca * sa, ca * ca - sa * sa, a, d, theta,
+                           model.mass[k], *model.mass_com[k], J[0, 0], J[0, 1], J[0, 2],
+                           J[1, 1], J[1, 2], J[2, 2], twist)
+    if model.joint_types[-1] == "R":
+        out[-1, DH_TIP:] = tip_columns(out[-1])
     out.flags.writeable = False
     return out
+
+
+def tip_columns(row):
+    """The tip_* columns of a last row (:data:`COLUMNS`) whose joint is revolute: that body's
+    articulated inertia, projected for its joint and moved by Tz(d), in its own frame. It is the
+    body's own inertia [[J, h~], [h~^T, m 1]], so these are constants, computed here as the
+    forward kernel computes a body's (the same operations in the same order, the products with
+    the own inertia's zeros left out: B's diagonal, M's off-diagonal). In the row's own
+    arithmetic: a table in another number type (:mod:`redysim.algorithms.precision`) recomputes
+    them from its row, as the kernels read them as given."""
+    jxx, jxy, jxz, jyy, jyz, jzz, m, hx, hy, hz, ld = (row[DH_COLUMNS.index(n)] for n in (
+        "jxx", "jxy", "jxz", "jyy", "jyz", "jzz", "m", "hx", "hy", "hz", "d"))
+    with np.errstate(all="ignore"):  # J_zz = 0: a singular robot, which its pivot names
+        inv = 1.0 / jzz
+        d0, d1, d3, d4 = jxz * inv, jyz * inv, -hy * inv, hx * inv
+        # projected: I - (U / D) U^T, U = I's angular-z column (jxz, jyz, jzz, -hy, hx, 0)
+        a00, a01, a11 = jxx - d0 * jxz, jxy - d0 * jyz, jyy - d1 * jyz
+        b00, b01, b10, b11 = -(d0 * -hy), -hz - d0 * hx, hz - d1 * -hy, -(d1 * hx)
+        m00, m01, m11 = m - d3 * -hy, -(d3 * hx), m - d4 * hx
+        # Tz(d): B's rows x, y (its z column keeps hy, -hx: M's xz, yz are zero), then A
+        nb00, nb01 = b00 - ld * m01, b01 - ld * m11
+        nb10, nb11 = b10 + ld * m00, b11 + ld * m01
+        za00 = a00 - ld * (nb01 + b01)
+        za11 = a11 + ld * (nb10 + b10)
+        za01 = a01 + ld * (b00 - nb11)
+        return (inv, d0, d1, d3, d4, a00, a01, a11, b00, b01, b10, b11, m00, m01, m11,
+                za00, za01, za11, nb00, nb01, nb10, nb11)

@@ -26,8 +26,12 @@ linear-z row and column, and its moves work on all 21.
 
 A twist that is a right angle's multiple (the constants' twist code) turns vectors and inertias
 about x by a signed permutation of their y and z parts, without arithmetic; the base's body (its
-parent at rest) and its child skip the products of the zeros they are known to hold, and the
-last body takes its own inertia without adding a child's. Both kernels are IEEE as written
+parent at rest) and its child skip the products of the zeros they are known to hold. In the
+forward kernel, the base's body, if revolute, needs only its articulated inertia's angular-z
+column and its bias's moment about z (its parent does not move), so its child moves only those
+to it; and the last body's articulated inertia is its own, so for a revolute joint its
+projection (and shift along z) is a constant of the robot, read from the DH table
+(:func:`redysim.algorithms.dh_form.tip_columns`). Both kernels are IEEE as written
 (``redysim._jit.jit_exact``), so every caller gets the same bits.
 
 Both are equal to the general kernels (:mod:`.kinematics`, :mod:`.inverse_dynamics`,
@@ -62,6 +66,28 @@ from .bundles import DH_S2 as S2
 from .bundles import DH_SA as SA
 from .bundles import DH_SCRATCH
 from .bundles import DH_TH as TH
+from .bundles import DH_TIP_A00 as TIP_A00
+from .bundles import DH_TIP_A01 as TIP_A01
+from .bundles import DH_TIP_A11 as TIP_A11
+from .bundles import DH_TIP_B00 as TIP_B00
+from .bundles import DH_TIP_B01 as TIP_B01
+from .bundles import DH_TIP_B10 as TIP_B10
+from .bundles import DH_TIP_B11 as TIP_B11
+from .bundles import DH_TIP_D0 as TIP_D0
+from .bundles import DH_TIP_D1 as TIP_D1
+from .bundles import DH_TIP_D3 as TIP_D3
+from .bundles import DH_TIP_D4 as TIP_D4
+from .bundles import DH_TIP_INV as TIP_INV
+from .bundles import DH_TIP_M00 as TIP_M00
+from .bundles import DH_TIP_M01 as TIP_M01
+from .bundles import DH_TIP_M11 as TIP_M11
+from .bundles import DH_TIP_ZA00 as TIP_ZA00
+from .bundles import DH_TIP_ZA01 as TIP_ZA01
+from .bundles import DH_TIP_ZA11 as TIP_ZA11
+from .bundles import DH_TIP_ZB00 as TIP_ZB00
+from .bundles import DH_TIP_ZB01 as TIP_ZB01
+from .bundles import DH_TIP_ZB10 as TIP_ZB10
+from .bundles import DH_TIP_ZB11 as TIP_ZB11
 from .bundles import DH_TW as TW
 
 # the forward kernel's scratch columns, per body
@@ -152,6 +178,21 @@ def _to_parent(dh, q, k, c, s, f0, f1, f2, n0, n1, n2):
     f1, f2 = _x(f1, f2, tw, ca, sa)
     n1, n2 = _x(n1, n2, tw, ca, sa)
     return f0, f1, f2, n0, n1, n2
+
+
+@inline
+def _to_parent_nz(dh, q, k, c, s, f0, f1, f2, n0, n1, n2):
+    """:func:`_to_parent`'s moment about the parent's z alone (the same operations)."""
+    ld = dh[k, D] + q[k] if dh[k, KIND] != 0.0 else dh[k, D]
+    ca, sa, la, tw = dh[k, CA], dh[k, SA], dh[k, A], dh[k, TW]
+    n0 = n0 - ld * f1
+    n1 = n1 + ld * f0
+    f1 = s * f0 + c * f1
+    n1 = s * n0 + c * n1
+    n1 = n1 - la * f2
+    n2 = n2 + la * f1
+    _, n2 = _x(n1, n2, tw, ca, sa)
+    return n2
 
 
 @jit_exact
@@ -357,21 +398,13 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
         scr[k, S_S] = s
         c0 = c1 = c3 = c4 = c5 = 0.0
         hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
-        if k == 0:  # the base is at rest: w = (0, 0, qd) or 0, and so the body's bias
+        if k == 0:  # the base is at rest: w = (0, 0, qd) or 0; the body's bias (zero, or
+            # (-qd^2 (J_yz, -J_xz), 0; -qd^2 (h_x, h_y), 0)) has no part along its joint's axis,
+            # the one part of the base's body that pass 2 uses
             w0 = w1 = w2 = 0.0
-            for i in range(6):
-                scr[k, S_P + i] = 0.0
             if not prismatic:
                 w2 = qd[k]
-                g0 = dh[k, JXZ] * w2
-                g1 = dh[k, JYZ] * w2
-                scr[k, S_P] = -(w2 * g1)
-                scr[k, S_P + 1] = w2 * g0
-                y0 = -(w2 * hy)
-                y1 = w2 * hx
-                scr[k, S_P + 3] = -(w2 * y1)
-                scr[k, S_P + 4] = w2 * y0
-            for i in range(S_C0, S_C5 + 1):
+            for i in range(S_C0, S_P + 6):
                 scr[k, i] = 0.0
             continue
         ca, sa, tw = dh[k, CA], dh[k, SA], dh[k, TW]
@@ -427,19 +460,38 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
         scr[k, S_P + 4] = w2 * y0 - w0 * y2
         scr[k, S_P + 5] = w0 * y1 - w1 * y0
     # pass 2, tip to base: articulated inertias and biases, projected and moved to the parent
+    base_turns = dh[0, KIND] == 0.0
     for k in range(n - 1, -1, -1):
         m = dh[k, M]
         hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
         I = scr[k, S_CHILD_I:S_CHILD_I + IA]
         P = scr[k, S_CHILD_P:S_CHILD_P + 6]
-        if k == n - 1:  # no child: the body's own inertia [[J, h~], [h~^T, m 1]] and bias
-            I[0], I[1], I[2], I[3], I[4], I[5] = dh[k, JXX], dh[k, JXY], dh[k, JXZ], \
-                dh[k, JYY], dh[k, JYZ], dh[k, JZZ]
-            I[6], I[7], I[8], I[9], I[10], I[11] = 0.0, -hz, hy, hz, 0.0, -hx
-            I[12], I[13], I[14] = -hy, hx, 0.0
-            I[15], I[16], I[17], I[18], I[19], I[20] = m, 0.0, 0.0, m, 0.0, m
+        revolute = dh[k, KIND] == 0.0
+        tip = k == n - 1
+        if revolute and k == 0 and not tip:
+            # the base's body turns about z: only its articulated inertia's angular-z column
+            # (A_zz and B's z row, the body's own added to what its child moved here) and its
+            # bias's moment about z (its own is zero) are needed (pass 3 has nothing to move to
+            # a base at rest)
+            pivot = I[5] + dh[k, JZZ]
+            inv = 1.0 / pivot
+            scr[k, S_PIVOT] = pivot
+            scr[k, S_UD] = scr[k, S_UD + 1] = 0.0
+            scr[k, S_UD + 2] = 1.0
+            scr[k, S_UD + 3] = (I[12] - hy) * inv
+            scr[k, S_UD + 4] = (I[13] + hx) * inv
+            scr[k, S_UD + 5] = I[14] * inv
+            scr[k, S_UDIV] = (tau[k] - P[2]) * inv
+            break
+        if tip:  # no child: the body's own bias
             p0, p1, p2 = scr[k, S_P], scr[k, S_P + 1], scr[k, S_P + 2]
             p3, p4, p5 = scr[k, S_P + 3], scr[k, S_P + 4], scr[k, S_P + 5]
+            if not revolute:  # its own inertia [[J, h~], [h~^T, m 1]]
+                I[0], I[1], I[2], I[3], I[4], I[5] = dh[k, JXX], dh[k, JXY], dh[k, JXZ], \
+                    dh[k, JYY], dh[k, JYZ], dh[k, JZZ]
+                I[6], I[7], I[8], I[9], I[10], I[11] = 0.0, -hz, hy, hz, 0.0, -hx
+                I[12], I[13], I[14] = -hy, hx, 0.0
+                I[15], I[16], I[17], I[18], I[19], I[20] = m, 0.0, 0.0, m, 0.0, m
         else:  # the body's own added to its child's: A += J, B += h~, M += m 1
             I[0] = I[0] + dh[k, JXX]
             I[1] = I[1] + dh[k, JXY]
@@ -464,7 +516,44 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             p5 = P[5] + scr[k, S_P + 5]
         c0, c1, c3, c4, c5 = scr[k, S_C0], scr[k, S_C1], scr[k, S_C3], scr[k, S_C4], \
             scr[k, S_C5]
-        if dh[k, KIND] == 0.0:
+        if revolute and tip:
+            # revolute about z, the last body: its projected inertia and U/D are constants
+            # (dh_form's tip_* columns); of U, B's zz and M's xz, yz are zero, so U/D's linear
+            # z, and the projection leaves M's xz, yz zero, M_zz = m and B's z column (hy, -hx)
+            scr[k, S_PIVOT] = dh[k, JZZ]
+            inv = dh[k, TIP_INV]
+            d3 = dh[k, TIP_D3]
+            d4 = dh[k, TIP_D4]
+            u = tau[k] - p2
+            scr[k, S_UD + 2] = 1.0
+            scr[k, S_UD + 3] = d3
+            scr[k, S_UD + 4] = d4
+            scr[k, S_UD + 5] = 0.0
+            scr[k, S_UDIV] = u * inv
+            if k == 0:  # the base's body (as below)
+                scr[k, S_UD] = scr[k, S_UD + 1] = 0.0
+                break
+            d0 = dh[k, TIP_D0]
+            d1 = dh[k, TIP_D1]
+            scr[k, S_UD] = d0
+            scr[k, S_UD + 1] = d1
+            a00, a01, a11 = dh[k, TIP_A00], dh[k, TIP_A01], dh[k, TIP_A11]
+            b00, b01, b10, b11 = dh[k, TIP_B00], dh[k, TIP_B01], dh[k, TIP_B10], dh[k, TIP_B11]
+            m00, m01, m11 = dh[k, TIP_M00], dh[k, TIP_M01], dh[k, TIP_M11]
+            p0 = p0 + (a00 * c0 + a01 * c1 + b00 * c3 + b01 * c4 + hy * c5) + d0 * u
+            p1 = p1 + (a01 * c0 + a11 * c1 + b10 * c3 + b11 * c4 - hx * c5) + d1 * u
+            p2 = tau[k]
+            p3 = p3 + (b00 * c0 + b10 * c1 + m00 * c3 + m01 * c4) + d3 * u
+            p4 = p4 + (b01 * c0 + b11 * c1 + m01 * c3 + m11 * c4) + d4 * u
+            p5 = p5 + (hy * c0 - hx * c1 + m * c5)
+            # moved by Tz(d): constants too
+            a00, a01, a11 = dh[k, TIP_ZA00], dh[k, TIP_ZA01], dh[k, TIP_ZA11]
+            nb00, nb01 = dh[k, TIP_ZB00], dh[k, TIP_ZB01]
+            nb10, nb11 = dh[k, TIP_ZB10], dh[k, TIP_ZB11]
+            nb02, nb12 = hy, -hx
+            m02 = m12 = 0.0
+            m22 = m
+        elif revolute:
             # revolute about z: U = I[:, angular z], D = A_zz
             scr[k, S_PIVOT] = I[5]
             inv = 1.0 / I[5]
@@ -477,9 +566,6 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             scr[k, S_UD + 4] = d4
             scr[k, S_UD + 5] = d5
             scr[k, S_UDIV] = u * inv
-            if k == 0:  # the base's body: pass 3 needs no more (its parent does not turn)
-                scr[k, S_UD] = scr[k, S_UD + 1] = 0.0
-                break
             d0 = I[2] * inv
             d1 = I[4] * inv
             scr[k, S_UD] = d0
@@ -507,8 +593,7 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             p3 = p3 + (b00 * c0 + b10 * c1 + m00 * c3 + m01 * c4 + m02 * c5) + d3 * u
             p4 = p4 + (b01 * c0 + b11 * c1 + m01 * c3 + m11 * c4 + m12 * c5) + d4 * u
             p5 = p5 + (b02 * c0 + b12 * c1 + m02 * c3 + m12 * c4 + m22 * c5) + d5 * u
-            c, s = scr[k, S_C], scr[k, S_S]
-            ld, la = dh[k, D], dh[k, A]
+            ld = dh[k, D]
             # Tz(d), on the zero-structured inertia: B rows x, y; A's xx, xy, yy
             nb00 = b00 - ld * m01
             nb01 = b01 - ld * m11
@@ -519,6 +604,9 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             a00 = a00 - ld * (nb01 + b01)
             a11 = a11 + ld * (nb10 + b10)
             a01 = a01 + ld * (b00 - nb11)
+        if revolute:
+            c, s = scr[k, S_C], scr[k, S_S]
+            la = dh[k, A]
             # Rz(theta)
             ss = s * s
             cs = c * s
@@ -526,42 +614,63 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             cms = 1.0 - (ss + ss)
             a00, a01, a11 = _sym_turn(a00, a01, a11, ss, cs, cs2, cms)
             m00, m01, m11 = _sym_turn(m00, m01, m11, ss, cs, cs2, cms)
-            m02, m12 = c * m02 - s * m12, s * m02 + c * m12
+            if not tip:  # (the tip's are zero)
+                m02, m12 = c * m02 - s * m12, s * m02 + c * m12
             b00, b01, b10, b11 = _gen_turn(nb00, nb01, nb10, nb11, ss, cs)
             b02, b12 = c * nb02 - s * nb12, s * nb02 + c * nb12
             # Rx(alpha): A and B have no z row yet
             ca, sa, tw = dh[k, CA], dh[k, SA], dh[k, TW]
             J = scr[k - 1, S_CHILD_I:S_CHILD_I + IA]
-            J[0] = a00
-            J[6] = b00
-            J[15] = m00
-            x1, x2 = _x(b01, b02, tw, ca, sa)    # B Rx^T, rows x and y
-            y1, y2 = _x(b11, b12, tw, ca, sa)
-            J[7] = x1
-            J[8] = x2
-            J[16], J[17] = _x(m01, m02, tw, ca, sa)
-            if tw == ANY_TWIST:
-                s2, csa, cs2a, cmsa = dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS]
-                J[1] = ca * a01
-                J[2] = sa * a01
-                J[3] = dh[k, C2] * a11
-                J[4] = csa * a11
-                J[5] = s2 * a11
-                J[9] = ca * b10
-                J[10] = ca * y1
-                J[11] = ca * y2
-                J[12] = sa * b10
-                J[13] = sa * y1
-                J[14] = sa * y2
-                J[18], J[19], J[20] = _sym_turn(m11, m12, m22, s2, csa, cs2a, cmsa)
-            else:  # a signed permutation of y and z
-                J[1], J[2] = _x(a01, 0.0, tw, ca, sa)
-                J[3], J[4], J[5] = _sym_x(a11, 0.0, 0.0, tw)
-                J[9], J[12] = _x(b10, 0.0, tw, ca, sa)
-                J[10], J[13] = _x(y1, 0.0, tw, ca, sa)
-                J[11], J[14] = _x(y2, 0.0, tw, ca, sa)
-                J[18], J[19], J[20] = _sym_x(m11, m12, m22, tw)
-            _tx(J, la)
+            y1, y2 = _x(b11, b12, tw, ca, sa)    # B Rx^T, row y
+            if k == 1 and base_turns:
+                # the base's body uses A_zz and B's z row alone (above): those four numbers
+                # of the parent's, by the steps below (Rx, then _tx's rows for them)
+                j16, _ = _x(m01, m02, tw, ca, sa)
+                if tw == ANY_TWIST:
+                    j5 = dh[k, S2] * a11
+                    j12 = sa * b10
+                    j13 = sa * y1
+                    j14 = sa * y2
+                    j18, j19, _ = _sym_turn(m11, m12, m22, dh[k, S2], dh[k, CS], dh[k, CS2],
+                                            dh[k, CMS])
+                else:
+                    _, _, j5 = _sym_x(a11, 0.0, 0.0, tw)
+                    _, j12 = _x(b10, 0.0, tw, ca, sa)
+                    _, j13 = _x(y1, 0.0, tw, ca, sa)
+                    _, j14 = _x(y2, 0.0, tw, ca, sa)
+                    j18, j19, _ = _sym_x(m11, m12, m22, tw)
+                J[12] = j12 + la * j16
+                J[13] = j13 + la * j18
+                J[14] = j14 + la * j19
+                J[5] = j5 + la * (J[13] + j13)
+            else:
+                J[0] = a00
+                J[6] = b00
+                J[15] = m00
+                J[7], J[8] = _x(b01, b02, tw, ca, sa)    # row x
+                J[16], J[17] = _x(m01, m02, tw, ca, sa)
+                if tw == ANY_TWIST:
+                    s2, csa, cs2a, cmsa = dh[k, S2], dh[k, CS], dh[k, CS2], dh[k, CMS]
+                    J[1] = ca * a01
+                    J[2] = sa * a01
+                    J[3] = dh[k, C2] * a11
+                    J[4] = csa * a11
+                    J[5] = s2 * a11
+                    J[9] = ca * b10
+                    J[10] = ca * y1
+                    J[11] = ca * y2
+                    J[12] = sa * b10
+                    J[13] = sa * y1
+                    J[14] = sa * y2
+                    J[18], J[19], J[20] = _sym_turn(m11, m12, m22, s2, csa, cs2a, cmsa)
+                else:  # a signed permutation of y and z
+                    J[1], J[2] = _x(a01, 0.0, tw, ca, sa)
+                    J[3], J[4], J[5] = _sym_x(a11, 0.0, 0.0, tw)
+                    J[9], J[12] = _x(b10, 0.0, tw, ca, sa)
+                    J[10], J[13] = _x(y1, 0.0, tw, ca, sa)
+                    J[11], J[14] = _x(y2, 0.0, tw, ca, sa)
+                    J[18], J[19], J[20] = _sym_x(m11, m12, m22, tw)
+                _tx(J, la)
         else:
             # prismatic along z: U = I[:, linear z], D = M_zz
             scr[k, S_PIVOT] = I[20]
@@ -626,10 +735,14 @@ def dh_forward_dynamics(dh, q, qd, tau, base_accel, qdd, scr):
             else:
                 _rx_right(J, dh[k, TW])
             _tx(J, dh[k, A])
-        # the bias moved to the parent, as the inverse dynamics moves a wrench
+        # the bias moved to the parent, as the inverse dynamics moves a wrench (to a base's body
+        # that turns about z, its moment about z alone)
         Q = scr[k - 1, S_CHILD_P:S_CHILD_P + 6]
-        Q[3], Q[4], Q[5], Q[0], Q[1], Q[2] = _to_parent(dh, q, k, scr[k, S_C], scr[k, S_S], p3,
-                                                        p4, p5, p0, p1, p2)
+        if k == 1 and base_turns:
+            Q[2] = _to_parent_nz(dh, q, k, scr[k, S_C], scr[k, S_S], p3, p4, p5, p0, p1, p2)
+        else:
+            Q[3], Q[4], Q[5], Q[0], Q[1], Q[2] = _to_parent(dh, q, k, scr[k, S_C], scr[k, S_S],
+                                                            p3, p4, p5, p0, p1, p2)
     # pass 3, base to tip: accelerations and qdd
     e0 = e1 = e2 = 0.0
     a0, a1, a2 = base_accel[0], base_accel[1], base_accel[2]
