@@ -66,6 +66,11 @@ class LongrunError(RedysimError):
     """A long run cannot start or resume as asked (the message says why and what to do)."""
 
 
+class OtherRunError(LongrunError):
+    """The checkpoint found was written by other code, or for another case or other settings:
+    resuming it would not continue this run."""
+
+
 def out_dir_for(case_name: str, integrator: str = "ode45") -> Path:
     """results/longrun/<case> for ode45 (the paper's), <case>-<integrator> for another."""
     name = case_name if integrator == "ode45" else f"{case_name}-{integrator}"
@@ -117,24 +122,41 @@ def load_checkpoint(path: Path, *, repair: bool = False, log=print) -> dict | No
 def _refuse_other(path: Path, ck: dict, now: dict) -> None:
     """Refuse to resume a checkpoint written for another case, code, integrator or horizon."""
     if str(ck.get("code", "")) != now["code"]:
-        raise LongrunError(f"{path}: the checkpoint was written by other code (digest "
+        raise OtherRunError(f"{path}: the checkpoint was written by other code (digest "
                            f"{str(ck.get('code', ''))[:12] or 'not recorded'}, now "
                            f"{now['code'][:12]}): resuming would not continue the same "
-                           "computation; use another --out or delete it")
+                           "computation; use another --out, delete it or --set-aside")
     then_case = (f"case {str(ck['case'])!r} ({int(ck['n_dof']):,} DOF, case file "
                  f"{str(ck.get('case_digest', 'not recorded'))[:12]})")
     now_case = (f"case {now['case']!r} ({now['n_dof']:,} DOF, case file "
                 f"{now['case_digest'][:12]})")
     if str(ck.get("case_digest", "")) != now["case_digest"] or int(ck["n_dof"]) != now["n_dof"]:
-        raise LongrunError(f"{path}: the checkpoint was written for {then_case}; this is "
+        raise OtherRunError(f"{path}: the checkpoint was written for {then_case}; this is "
                            f"{now_case}: resuming would continue one chain's state with another's "
-                           "dynamics; use another --out or delete it")
+                           "dynamics; use another --out, delete it or --set-aside")
     for key in ("t_end", "integrator", "rtol", "atol", "fixed_h", "sample"):
         then = ck.get(key)
         then = then.item() if isinstance(then, np.ndarray) else then
         if then != now[key]:
-            raise LongrunError(f"{path}: a checkpoint for {key} = {then!r} exists (now "
-                               f"{now[key]!r}); use another --out or delete it")
+            raise OtherRunError(f"{path}: a checkpoint for {key} = {then!r} exists (now "
+                               f"{now[key]!r}); use another --out, delete it or --set-aside")
+
+
+def set_aside_other(path: Path) -> Path:
+    """Rename a checkpoint of another run (and the one before it) beside it, as
+    ``checkpoint.aside-<UTC time>.npz`` (``.prev`` before ``.npz`` for the earlier one): kept,
+    never resumed. Returns the new name of the checkpoint."""
+    stamp = time.strftime("%Y%m%dT%H%M%S", time.gmtime())
+    moved = path.with_name(f"checkpoint.aside-{stamp}.npz")
+    k = 1
+    while moved.exists():  # two in one second
+        k += 1
+        moved = path.with_name(f"checkpoint.aside-{stamp}-{k}.npz")
+    prev = path.with_name(PREVIOUS)
+    if prev.exists():
+        prev.replace(moved.with_suffix(".prev.npz"))
+    path.replace(moved)
+    return moved
 
 
 def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
@@ -164,9 +186,13 @@ def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
 def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_EVERY_S,
         out: Path | None = None, integrator: str | None = None, rtol: float | None = None,
         atol: float | None = None, h: float | None = None, sample: float | None = None,
-        stop_after_s: float = math.inf, log=print, names: dict | None = None) -> dict:
+        stop_after_s: float = math.inf, log=print, names: dict | None = None,
+        set_aside: bool = False) -> dict:
     """Run (or resume) ``case_name`` to ``t_end``; return the final checkpoint. Raises
-    :class:`LongrunError` (or a case or settings error) when it cannot start or resume."""
+    :class:`LongrunError` (or a case or settings error) when it cannot start or resume; a
+    checkpoint of another run (:class:`OtherRunError`: other code, case or settings) is refused,
+    or with ``set_aside`` renamed beside it (:func:`set_aside_other`, kept, never resumed) and
+    the run starts over."""
     reset_peak_rss()  # the run's own peak, not its caller's before it
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
@@ -186,7 +212,15 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     ck = load_checkpoint(path, repair=True, log=log)
     state, samples, cpu_prev, wall_prev = None, [], 0.0, 0.0
     if ck is not None:
-        _refuse_other(path, ck, now)
+        try:
+            _refuse_other(path, ck, now)
+        except OtherRunError as exc:
+            if not set_aside:
+                raise
+            reason = str(exc).split("; use another --out")[0]
+            log(f"{reason}: set aside as {set_aside_other(path).name}; starting over")
+            ck = None
+    if ck is not None:
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
         samples = [tuple(r) for r in ck["samples"]]
@@ -292,6 +326,10 @@ def main(argv=None) -> int:
     ap.add_argument("--stop-after", type=positive, default=math.inf,
                     help="stop (with a checkpoint) after this many wall seconds")
     ap.add_argument("--status", action="store_true", help="print the checkpoint and exit")
+    ap.add_argument("--set-aside", action="store_true",
+                    help="a checkpoint written by other code or for other settings is renamed "
+                         "beside it (kept, not resumed) and the run starts over, instead of "
+                         "refused")
     args = ap.parse_args(argv)
 
     def err(msg):
@@ -308,7 +346,7 @@ def main(argv=None) -> int:
         ck = run(args.case, t_end=args.t_end, every_s=args.every, out=args.out,
                  integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
                  sample=args.sample, stop_after_s=args.stop_after,
-                 log=lambda m: print(m, flush=True), names=FLAGS)
+                 log=lambda m: print(m, flush=True), names=FLAGS, set_aside=args.set_aside)
     except (RedysimError, FileNotFoundError) as exc:
         err(f"longrun: error: {exc}")
         return EXIT_USAGE

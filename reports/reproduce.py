@@ -200,7 +200,9 @@ class Reproduction:
         from redysim import load_case
         from redysim.harness import longrun
 
-        argv = [sys.executable, "-m", "redysim.harness.longrun", case]
+        # a checkpoint of other code or settings (a reproduction after an edit) is set aside,
+        # kept beside the new one, never resumed
+        argv = [sys.executable, "-m", "redysim.harness.longrun", case, "--set-aside"]
         for key, value in flags.items():
             argv += [f"--{key.replace('_', '-')}", str(value)]
         if out is not None:

@@ -74,6 +74,28 @@ def test_a_checkpoint_written_by_other_code_is_not_resumed(tmp_path, monkeypatch
         run("STUDY-R3", t_end=0.1, every_s=1e9, out=tmp_path, log=quiet)
 
 
+def test_set_aside_keeps_the_other_codes_checkpoint_and_starts_over(tmp_path, monkeypatch):
+    """With --set-aside (what make reproduce passes) a finished checkpoint of other code is
+    renamed beside the new one, byte for byte, not resumed: the new run is a fresh run's."""
+    import redysim.harness.longrun as longrun
+    run("STUDY-R3", t_end=0.05, every_s=1e9, out=tmp_path / "fresh", log=quiet)
+    fresh = load_checkpoint(tmp_path / "fresh" / CHECKPOINT)
+    with monkeypatch.context() as m:
+        m.setattr(longrun, "code_digest", lambda: "0" * 64)
+        run("STUDY-R3", t_end=0.05, every_s=1e9, out=tmp_path, log=quiet)
+    old = (tmp_path / CHECKPOINT).read_bytes()
+    said = []
+    assert main(["STUDY-R3", "--t-end", "0.05", "--out", str(tmp_path), "--set-aside"]) == 0
+    new = run("STUDY-R3", t_end=0.05, every_s=1e9, out=tmp_path, log=said.append,
+              set_aside=True)  # now its own: resumed (finished), nothing set aside
+    aside = sorted(tmp_path.glob("checkpoint.aside-*.npz"))
+    assert [p.read_bytes() for p in aside if ".prev" not in p.name] == [old]
+    assert not any("set aside" in m for m in said)
+    for key in ("y", "samples", "code"):
+        assert np.array_equal(new[key], fresh[key])
+    assert int(new["steps"]) == int(fresh["steps"])
+
+
 @pytest.mark.parametrize("edit, what", [("density = 7025.0", "same DOF, other density"),
                                         ("links = 4", "another DOF")])
 def test_a_checkpoint_of_a_case_with_the_same_name_is_not_resumed(tmp_path, edit, what):
