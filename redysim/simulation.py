@@ -4,8 +4,9 @@
 :func:`redysim.forward_dynamics` (RGE-A on the tree, or GE-N / RGE-N) and dq/dt = v, except for a
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
 trees"). Any of :data:`redysim.integrators.explicit.INTEGRATORS` steps it; ours (ode45, dop853, rk4)
-in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`; free joints and damping
-included, not loops, couplings or forces), and the implicit midpoint
+in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`; free joints, damping,
+couplings and a planar chain's tip force included, not loops or other forces), and the implicit
+midpoint
 (:mod:`redysim.integrators.implicit`) with a chain's tension
 preconditioner. A quaternion integrated so drifts off the unit sphere by the integrator's error;
 after every accepted step it is projected back (divided by its norm; so are the samples interpolated
@@ -29,8 +30,15 @@ from typing import NamedTuple, cast
 import numpy as np
 
 from redysim.algorithms._kernels.planar import planar_tip_torques
-from redysim.algorithms._kernels.rk_run import configuration_rate, project_quaternions
-from redysim.algorithms.dynamics import check_state, energy, forward_dynamics
+from redysim.algorithms._kernels.rk_run import (
+    configuration_rate,
+    coupled_qdd,
+    couplings_of,
+    no_couplings,
+    project_couplings,
+    project_quaternions,
+)
+from redysim.algorithms.dynamics import check_coupled, check_state, energy, forward_dynamics
 from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
 from redysim.algorithms.loops import NEAR_CHANGE_POINT
 from redysim.algorithms.workspace import Workspace
@@ -201,7 +209,10 @@ class _Motion:
         self.free_q = np.array([qs for qs, _ in free], dtype=np.int64)
         self.free_v = np.array([vs for _, vs in free], dtype=np.int64)
         self.mass = system.total_mass
-        self.couplings = system.coupling_index if system.couplings else None
+        # a coupled model's couplings (the compiled steps' bundle): qdd and the projection by
+        # the compiled steps' own functions, so that both paths round alike
+        self.couplings = (couplings_of(system, Workspace(system.free_tree)) if system.couplings
+                          else no_couplings())
 
     def forces(self, t, q, v):
         """The generalized forces at (t, q, v): the tip force's, tau's and the damping's (None:
@@ -234,6 +245,15 @@ class _Motion:
                 raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
                                  f"{self.system.name!r} has {self.nv} DOF, so it must return "
                                  f"shape ({self.nv},)")
+        elif self.system.couplings and self.method == "rge-a" and not self.system.is_planar:
+            a = np.empty(self.nv) if out is None else out
+            q, v = check_state(self.system, "q", q), check_state(self.system, "v", v)
+            ws = self.ws
+            if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, self.couplings, q, v,
+                           ws.zeros if tau is None else tau, a) != 0.0:
+                # not finite: the checked path says why
+                forward_dynamics(self.system, q, v, tau, self.method)
+            return a
         else:
             return forward_dynamics(self.system, q, v, tau, self.method, ws=self.ws, out=out)
         if out is None:
@@ -264,14 +284,12 @@ class _Motion:
             if record:
                 self.residual_q, self.residual_v = max(self.residual_q, rq), \
                     max(self.residual_v, rv)
-        if self.couplings is not None:  # followers back on their leaders (linear: exact)
-            fq, lq, fv, lv, m, off = self.couplings
-            nq = self.nq
-            want_q, want_v = m * y[lq] + off, m * y[nq + lv]
+        if self.system.couplings:  # followers back on their leaders (linear: exact)
+            met = np.zeros(2)  # the compiled steps' own projection
+            project_couplings(self.couplings, self.nq, y, met)
             if record:
-                self.residual_q = max(self.residual_q, float(np.abs(y[fq] - want_q).max()))
-                self.residual_v = max(self.residual_v, float(np.abs(y[nq + fv] - want_v).max()))
-            y[fq], y[nq + fv] = want_q, want_v
+                self.residual_q = max(self.residual_q, float(met[0]))
+                self.residual_v = max(self.residual_v, float(met[1]))
         if not self.free:
             return 0.0
         worst = np.zeros(1)  # the compiled steps' own projection
@@ -436,7 +454,8 @@ class Simulator:
 
     The solver is chosen here: ours in compiled code
     (:class:`~redysim.integrators.explicit.CompiledSolver`) when qdd is the core's RGE-A with no
-    forces, loops or couplings (free joints and damping included); the implicit midpoint with a
+    forces (but a planar chain's tip force) and no loops (free joints, damping and couplings
+    included); the implicit midpoint with a
     chain's tension preconditioner;
     SciPy's; the Python loop otherwise. Every solver follows one protocol
     (:class:`redysim.integrators.protocol.OdeSolver`). The first RHS and energy calls and the
@@ -526,6 +545,9 @@ class Simulator:
                                     "ClosedLoops of the model simulated (ClosedLoops(model, "
                                     "cuts))")
             loops.check_start(q0)
+        if system.couplings:  # (the steps' right-hand side takes its state as given)
+            check_coupled(system, "q", q0)
+            check_coupled(system, "v", v0)
         for k, t in enumerate(getattr(system, "joint_types", ())):
             if t == FREE:  # its quaternion, before any projection: the norm as given
                 i = int(system.joint_qoff[k]) + 3
@@ -561,13 +583,14 @@ class Simulator:
     # ----------------------------------------------------------------------- assembly
     @property
     def compiled(self) -> bool:
-        """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints and
-        damping included, a tip force on a planar chain, no other forces, no loops or couplings
-        (the same steps as the Python loop, bit for bit)."""
-        m = self.motion
+        """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints,
+        damping and couplings (on a spatial tree) included, a tip force on a planar chain, no
+        other forces, no loops (the same steps as the Python loop, bit for bit)."""
+        m, system = self.motion, self.system
         can = (m.qdd is None and m.method == "rge-a" and m.tau is None and m.loops is None
-               and not self.system.couplings and self.integrator in TABLEAU_NAMES
-               and (m.tip_force is None or self.system.is_planar))
+               and not (system.couplings and system.is_planar)
+               and self.integrator in TABLEAU_NAMES
+               and (m.tip_force is None or system.is_planar))
         return can and self._compiled is not False
 
     def _make_solver(self, state):
@@ -580,7 +603,8 @@ class Simulator:
                                   damping=self.motion.damping,
                                   free=(self.motion.free_q, self.motion.free_v,
                                         self.motion.plain_q, self.motion.plain_v),
-                                  tip_force=self.motion.tip_force, **kw)
+                                  tip_force=self.motion.tip_force,
+                                  couplings=self.motion.couplings, **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one
@@ -699,11 +723,18 @@ class Simulator:
         if loops is not None:
             loops.nearest_change_point()  # from here on
 
-        compiled_free = isinstance(self.solver, CompiledSolver) and bool(motion.free)
+        compiled = isinstance(self.solver, CompiledSolver)
+        compiled_free = compiled and bool(motion.free)
+        compiled_coupled = compiled and bool(system.couplings)
 
         def step_done(s):
-            if compiled_free:  # every step of the call but its last projected in compiled code
+            # every step of a compiled call but its last projected in compiled code
+            if compiled_free:
                 worst[0] = max(worst[0], float(s.quaternion_worst[0]))
+            if compiled_coupled:
+                met = motion.couplings.worst
+                motion.residual_q = max(motion.residual_q, float(met[0]))
+                motion.residual_v = max(motion.residual_v, float(met[1]))
             worst[0] = max(worst[0], motion.project(s.y))
             check_limits(s.t)
             if loops is not None:

@@ -700,8 +700,9 @@ def robot_opcount_table(res: Results) -> Table:
                    "Saha's recursive DeNOC algorithms specialised to DH frames. cos/sin, the "
                    "constants of the robot computed once from its table (the DH kernels' "
                    "columns, the last body's projected inertia among them: its own, so "
-                   "constant in its frame) and the checks for non-finite results not counted; 'x talk' is the ratio of "
-                   "totals (multiplications + additions) at n = 6.")
+                   "constant in its frame) and the checks for non-finite results not "
+                   "counted; 'x talk' is the ratio of totals (multiplications + additions) "
+                   "at n = 6.")
     t.provenance = provenance_line(oc.get("provenance"), what="results/opcount/opcount.json")
     return t
 

@@ -24,7 +24,7 @@ the quick budget (:mod:`redysim.reports.scaling`); robots and trees in the core 
 (:mod:`redysim.reports.robots`); closed loops (:mod:`redysim.reports.loops`); model size against
 accuracy, the refinement studies of ``sweeps/refine-*.toml`` with their advice checked
 (:mod:`redysim.harness.refine`); the implicit integrator on RE-U50000-L1000 to 5 s beside ode45
-to 0.02 s, on the 1,000,000-DOF ``cases/huge/RE-U500000-L10000.toml`` to 0.05 s, and one of its
+to 0.01 s, on the 1,000,000-DOF ``cases/huge/RE-U500000-L10000.toml`` to 0.05 s, and one of its
 steps against DOF from 1,000 to 1,000,000 (:mod:`redysim.reports.implicit`,
 :mod:`redysim.reports.implicit_scaling`); then the report (:mod:`redysim.reports.build`).
 
@@ -78,8 +78,8 @@ TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs redysim.harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
 # the implicit integrator's long run is measured against ode45 to this horizon [s]
-# (quick: 0.02 s, two samples, about 70 s of the ten-minute budget; 0.05 s took 170 s)
-IMPLICIT_REF_T = {QUICK: 0.02, FULL: 0.48}
+# (quick: 0.01 s, one sample, about 42 s of CPU of the ten-minute budget; 0.02 s took 83 s)
+IMPLICIT_REF_T = {QUICK: 0.01, FULL: 0.48}
 IMPLICIT_SAMPLE = 0.01  # s
 # the 1,000,000-DOF chain (redysim.reports.implicit.MEGA): its implicit run's horizon [s] (24
 # steps, ~65 s of CPU and 1.8 GiB to 1 s), and the full mode's ode45 reference horizon [s]

@@ -87,6 +87,50 @@ def test_a_run_keeps_the_couplings_and_the_energy():
     assert np.abs(sim.v[:, fv] - m * sim.v[:, lv]).max() < 1e-12
 
 
+@pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
+                                        ("rk4", {"h": 1e-3})])
+@pytest.mark.parametrize("free, damping", [(True, 0.0), (False, 0.2)])
+def test_a_coupled_motion_steps_in_compiled_code_in_the_same_bits(method, kw, free, damping):
+    """A coupled tree steps in compiled code (Simulator.compiled): the same steps, samples,
+    energy and coupling residuals as the Python loop, bit for bit; its qdd (the steps' own
+    Featherstone solve) is the reduced-coordinate solve's to rounding."""
+    from test_integrate import _compiled_and_python_runs
+
+    from redysim.algorithms._kernels.rk_run import coupled_qdd
+    from redysim.simulation import Simulator
+
+    model = coupled_tree(stable_seed("coupled-compiled", free), free=free)
+    q, v = state(model, np.random.default_rng(11))
+    a, b = _compiled_and_python_runs(model, 0.25, q0=q, v0=v, integrator=method,
+                                     damping=damping, **kw)
+    assert (a.residual_q, a.residual_v) == (b.residual_q, b.residual_v)
+    assert a.residual_q < 1e-12 and a.residual_v < 1e-10
+    if not damping:
+        assert np.abs(a.delta_M).max() < (1e-5 if method == "rk4" else 1e-7)
+    motion = Simulator(model, 0.1).motion
+    ws, tau, got = motion.ws, np.random.default_rng(3).normal(size=model.n_v), np.empty(model.n_v)
+    assert coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, motion.couplings, q, v, tau,
+                       got) == 0.0
+    want = reduced_solve(model, q, v, tau)
+    assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()
+
+
+@pytest.mark.parametrize("file", ["panda_description/urdf/panda.urdf", "talos_full_v2.urdf"])
+def test_robots_with_mimic_joints_step_in_compiled_code_in_the_same_bits(file):
+    """Panda (a finger mimic) and Talos full (12 gripper mimics, floating) fall in compiled code
+    as in the Python loop, bit for bit."""
+    from test_integrate import _compiled_and_python_runs
+    from test_trees import robot_urdf
+
+    model = redysim.load_model(robot_urdf(file), floating=file.startswith("talos"))
+    assert model.couplings
+    rng = np.random.default_rng(stable_seed("mimic-compiled", file))
+    q, v = model.couple(model.neutral(), 0.3 * rng.normal(size=model.n_v))
+    a, _ = _compiled_and_python_runs(model, 0.2, q0=q, v0=v, rtol=1e-7, atol=1e-9)
+    assert np.abs(a.delta_M).max() < 1e-5
+
+
 def test_a_state_off_the_couplings_is_refused_by_name():
     model = coupled_tree(stable_seed("coupled-off"), free=False)
     q, v = state(model, np.random.default_rng(1))
@@ -98,6 +142,11 @@ def test_a_state_off_the_couplings_is_refused_by_name():
         redysim.forward_dynamics(model, bad, v)
     with pytest.raises(StateError, match="model.couple"):
         redysim.inverse_dynamics(model, q, v, np.ones(model.n_v))
+    bad_v = v.copy()
+    bad_v[model.joint_voff[model.joint_names.index(c.follower)]] += 1e-3
+    for q0, v0 in ((bad, v), (q, bad_v)):  # a run's start too (its steps take it as given)
+        with pytest.raises(StateError, match=f"joint '{c.follower}', follows"):
+            redysim.simulate(model, 0.1, q0=q0, v0=v0)
     with pytest.raises(FieldError, match="a coupled model"):
         redysim.evaluator(model)
 

@@ -21,10 +21,10 @@ of alpha with their squares and product (the kernels rotate symmetric blocks abo
 a, d, theta, the body's mass, first moment m c and inertia about its origin (the joint's axis
 point O_k), in its own frame, and whether alpha is a right angle's multiple (0, 90, -90 or 180
 degrees to rounding: most industrial arms' twists, the PUMA 560's and the Stanford arm's among
-them), whose turns about x the kernels do without arithmetic; and, on the last row when the last joint
-is revolute, that body's articulated inertia projected for its joint (:func:`tip_columns`: the
-body's own, so a constant in its frame): the numbers the kernels read, arithmetic done once
-here.
+them), whose turns about x the kernels do without arithmetic; and, on the last row when the
+last joint is revolute, that body's articulated inertia projected for its joint
+(:func:`tip_columns`: the body's own, so a constant in its frame): the numbers the kernels
+read, arithmetic done once here.
 """
 
 from __future__ import annotations

@@ -489,7 +489,10 @@ class CompiledSolver(Solver):
     ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
     kernel (else the DH kernels for a robot in DH form, as :func:`redysim.forward_dynamics`
     chooses, or RGE-A); ``tip_force``: a constant world force (3,) at a planar chain's tip
-    (None: none).
+    (None: none); ``couplings``: a coupled model's
+    (:class:`redysim.algorithms._kernels.rk_run.Couplings`; qdd by Featherstone's method on its
+    tree, each accepted step's followers set from their leaders before the next, a call's last
+    left to the caller, as the quaternions; ``couplings.worst``: the largest departures met).
     The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
     :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
     reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
@@ -502,7 +505,7 @@ class CompiledSolver(Solver):
                  h: float | None = None, hmax: float | None = None,
                  state: SolverState | None = None, max_steps: int = 1000,
                  damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None,
-                 tip_force: np.ndarray | None = None):
+                 tip_force: np.ndarray | None = None, couplings=None):
         from redysim.algorithms._kernels import rk_run
 
         super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
@@ -528,7 +531,8 @@ class CompiledSolver(Solver):
                                      # a writable copy: the model's own array is read-only,
                                      # and numba would compile rk_steps once more for it
                                      np.zeros(0) if tip_force is None
-                                     else np.array(ws.chain.length, dtype=float))
+                                     else np.array(ws.chain.length, dtype=float),
+                                     rk_run.no_couplings() if couplings is None else couplings)
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)

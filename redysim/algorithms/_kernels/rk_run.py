@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from redysim._jit import jit_borrowed
+from redysim._jit import jit_borrowed, jit_exact
 
 from .batch import dh_call as _dh
 from .batch import planar_call as _planar
@@ -39,6 +39,48 @@ from .rk import combine, error_norm
 
 ERR_NONFINITE, ERR_HMIN, ERR_QDD = -1, -2, -3
 RGE_A, PLANAR, DH = 0, 1, 2  # which entry computes qdd
+
+
+class Couplings(NamedTuple):
+    """A coupled model's couplings (q_f = m q_l + offset, mimic joints), for qdd by
+    Featherstone's method on its tree (:func:`couple_qdd`) and for the projection after a step
+    (:func:`project_couplings`); every array empty for a model without couplings. ``fdata``,
+    ``idata``, ``scratch``: the tree without gravity's packed arrays (its qdd at v = 0 and tau = x
+    is M^-1 x); ``fq``, ``lq``, ``fv``, ``lv``: each coupling's follower's and leader's q and v
+    slots; ``m``, ``off``: multiplier and offset; work arrays ``zeros`` and ``row`` (n_v,), ``X``
+    (k, n_v) (M^-1 J^T's columns as rows), ``A`` (k, k); ``worst`` [max |q_f - (m q_l + off)|,
+    max |v_f - m v_l|] met before a projection in compiled code."""
+
+    fdata: np.ndarray
+    idata: np.ndarray
+    scratch: np.ndarray
+    fq: np.ndarray
+    lq: np.ndarray
+    fv: np.ndarray
+    lv: np.ndarray
+    m: np.ndarray
+    off: np.ndarray
+    zeros: np.ndarray
+    row: np.ndarray
+    X: np.ndarray
+    A: np.ndarray
+    worst: np.ndarray
+
+
+def no_couplings() -> Couplings:
+    """The empty bundle (a model without couplings)."""
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    return Couplings(f, i, f.copy(), i, i, i, i, f, f, f, f, np.zeros((0, 0)), np.zeros((0, 0)),
+                     np.zeros(2))
+
+
+def couplings_of(model, free_ws) -> Couplings:
+    """The bundle of a coupled ``model`` (:meth:`redysim.Model.with_couplings`); ``free_ws``: a
+    Workspace of its tree without gravity (``model.free_tree``)."""
+    fq, lq, fv, lv, m, off = (np.array(a) for a in model.coupling_index)  # writable copies
+    k, n = fv.shape[0], model.n_v
+    return Couplings(free_ws.kernel_f, free_ws.kernel_i, free_ws.scratch, fq, lq, fv, lv, m, off,
+                     np.zeros(n), np.zeros(n), np.zeros((k, n)), np.zeros((k, k)), np.zeros(2))
 
 
 class Motion(NamedTuple):
@@ -52,7 +94,9 @@ class Motion(NamedTuple):
     last step's of a call left to the caller, who projects after the step's samples as the Python
     loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v. ``tip``:
     a constant world force (3,) at a planar chain's tip, empty for none, its torques and the
-    damping's into ``tau`` by :func:`.planar.planar_tip_torques` (``length``: the links' (nl,))."""
+    damping's into ``tau`` by :func:`.planar.planar_tip_torques` (``length``: the links' (nl,)).
+    ``couplings``: a coupled model's (:class:`Couplings`; qdd then by :func:`couple_qdd`, the
+    followers projected onto their leaders after each accepted step as the quaternions are)."""
 
     kind: int
     fdata: np.ndarray
@@ -69,6 +113,7 @@ class Motion(NamedTuple):
     worst: np.ndarray
     tip: np.ndarray
     length: np.ndarray
+    couplings: Couplings
 
 
 class Scheme(NamedTuple):
@@ -154,6 +199,8 @@ def _rhs(motion, y, out):
                        out[nq:])
     else:
         flag = _dh(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch, out[nq:])
+    if motion.couplings.fv.shape[0] != 0 and flag == 0.0:
+        flag = couple_qdd(motion.couplings, y[:nq], out[nq:])
     if motion.free_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]
@@ -181,6 +228,88 @@ def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
         out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
         out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
         out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+
+
+@jit_borrowed
+def couple_qdd(cp, q, qdd):
+    """The tree's qdd (in place) made the coupled motion's, by Featherstone's method: X = M^-1
+    J^T (one forward-dynamics call of the tree without gravity at v = 0 per coupling, J's rows
+    e_f - m e_l), (J X) lam = -J qdd by Gaussian elimination with partial pivoting, qdd + X lam,
+    then each follower's qdd set to m times its leader's (J qdd = 0: a linear coupling has no
+    Jdot v). Returns the entry's flag (0.0: finite). The Python loop's and the compiled steps'
+    coupled qdd, so that both round alike."""
+    k, n = cp.fv.shape[0], qdd.shape[0]
+    fv, lv, m, X, A, row = cp.fv, cp.lv, cp.m, cp.X, cp.A, cp.row
+    for j in range(k):
+        for r in range(n):
+            row[r] = 0.0
+        row[fv[j]] = 1.0
+        row[lv[j]] = -m[j]
+        flag = _rge_a(cp.fdata, cp.idata, q, cp.zeros, row, cp.scratch, X[j])
+        if flag != 0.0:
+            return flag
+    lam = row  # (reused: k <= n)
+    for i in range(k):
+        for j in range(k):
+            A[i, j] = X[j, fv[i]] - m[i] * X[j, lv[i]]
+        lam[i] = -(qdd[fv[i]] - m[i] * qdd[lv[i]])
+    for c in range(k):  # elimination, the largest pivot of the column first
+        p = c
+        for r in range(c + 1, k):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if p != c:
+            for j in range(k):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            lam[c], lam[p] = lam[p], lam[c]
+        for r in range(c + 1, k):
+            f = A[r, c] / A[c, c]
+            for j in range(c + 1, k):
+                A[r, j] = A[r, j] - f * A[c, j]
+            lam[r] = lam[r] - f * lam[c]
+    for c in range(k - 1, -1, -1):
+        x = lam[c]
+        for j in range(c + 1, k):
+            x = x - A[c, j] * lam[j]
+        lam[c] = x / A[c, c]
+    for j in range(k):
+        x = lam[j]
+        for r in range(n):
+            qdd[r] = qdd[r] + X[j, r] * x
+    bad = 0.0
+    for i in range(k):
+        qdd[fv[i]] = m[i] * qdd[lv[i]]
+    for r in range(n):
+        bad += qdd[r] * 0.0
+    return bad
+
+
+@jit_borrowed
+def coupled_qdd(fdata, idata, scratch, cp, q, v, tau, qdd):
+    """qdd of a coupled model: its tree's by the entry on its packed arrays, then
+    :func:`couple_qdd` (the compiled steps' right-hand side does the same)."""
+    flag = _rge_a(fdata, idata, q, v, tau, scratch, qdd)
+    if flag == 0.0:
+        flag = couple_qdd(cp, q, qdd)
+    return flag
+
+
+@jit_exact
+def project_couplings(cp, nq, y, worst):
+    """Each follower's coordinate and velocity in y = (q, v) set from its leader's (q_f = m q_l
+    + offset, v_f = m v_l), in place, IEEE as written; the largest departures met before into
+    worst[0] (q) and worst[1] (v). The Python loop's projection is this function too."""
+    for i in range(cp.fq.shape[0]):
+        want = cp.m[i] * y[cp.lq[i]] + cp.off[i]
+        e = abs(y[cp.fq[i]] - want)
+        if e > worst[0]:
+            worst[0] = e
+        y[cp.fq[i]] = want
+        want = cp.m[i] * y[nq + cp.lv[i]]
+        e = abs(y[nq + cp.fv[i]] - want)
+        if e > worst[1]:
+            worst[1] = e
+        y[nq + cp.fv[i]] = want
 
 
 @jit_borrowed
@@ -231,8 +360,10 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
     taken = 0
     t_stop = min(t_stop, t_end)
     while taken < max_steps and ts[0] < t_end:
-        if taken > 0:  # the step before: its quaternions (the last step's are the caller's to
-            project_quaternions(motion.free_q, y, motion.worst)  # project after its samples)
+        if taken > 0:  # the step before: its couplings and quaternions (the last step's are
+            # the caller's to project after its samples), in the Python loop's order
+            project_couplings(motion.couplings, motion.nq, y, motion.couplings.worst)
+            project_quaternions(motion.free_q, y, motion.worst)
         t = ts[0]
         if adaptive:
             hmin = ctl.hmin_eps * (np.nextafter(abs(t), np.inf) - abs(t))
