@@ -584,10 +584,12 @@ class Simulator:
     @property
     def compiled(self) -> bool:
         """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints,
-        damping and couplings (on a spatial tree) included, a tip force on a planar chain, no
-        other forces, no loops (the same steps as the Python loop, bit for bit)."""
+        damping, couplings (on a spatial tree) and loops (the core's ClosedLoops, not on a
+        coupled tree) included, a tip force on a planar chain, no other forces (the same steps
+        as the Python loop, bit for bit)."""
         m, system = self.motion, self.system
-        can = (m.qdd is None and m.method == "rge-a" and m.tau is None and m.loops is None
+        can = (m.qdd is None and m.method == "rge-a" and m.tau is None
+               and (m.loops is None or getattr(m.loops, "bundle", None) is not None)
                and not (system.couplings and system.is_planar)
                and self.integrator in TABLEAU_NAMES
                and (m.tip_force is None or system.is_planar))
@@ -604,7 +606,8 @@ class Simulator:
                                   free=(self.motion.free_q, self.motion.free_v,
                                         self.motion.plain_q, self.motion.plain_v),
                                   tip_force=self.motion.tip_force,
-                                  couplings=self.motion.couplings, **kw)
+                                  couplings=self.motion.couplings, loops=self.motion.loops,
+                                  **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one
@@ -726,15 +729,19 @@ class Simulator:
         compiled = isinstance(self.solver, CompiledSolver)
         compiled_free = compiled and bool(motion.free)
         compiled_coupled = compiled and bool(system.couplings)
+        compiled_loops = compiled and loops is not None
+        if compiled_loops:  # (a ClosedLoops may serve several runs)
+            loops.bundle.worst[:] = 0.0
 
         def step_done(s):
             # every step of a compiled call but its last projected in compiled code
             if compiled_free:
                 worst[0] = max(worst[0], float(s.quaternion_worst[0]))
-            if compiled_coupled:
-                met = motion.couplings.worst
-                motion.residual_q = max(motion.residual_q, float(met[0]))
-                motion.residual_v = max(motion.residual_v, float(met[1]))
+            for on, met in ((compiled_loops, loops.bundle.worst if compiled_loops else None),
+                            (compiled_coupled, motion.couplings.worst)):
+                if on:
+                    motion.residual_q = max(motion.residual_q, float(met[0]))
+                    motion.residual_v = max(motion.residual_v, float(met[1]))
             worst[0] = max(worst[0], motion.project(s.y))
             check_limits(s.t)
             if loops is not None:

@@ -180,3 +180,46 @@ def test_simulate_refuses_loops_of_another_model():
     other = _two_links()
     with pytest.raises(SettingsError, match="ClosedLoops of the model"):
         simulate(other, 0.1, loops=loops)
+
+
+@pytest.mark.parametrize("kind", ["planar", "point", "revolute", "weld"])
+@pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
+                                        ("rk4", {"h": 1e-3})])
+def test_loops_step_in_compiled_code_in_the_same_bits(kind, method, kw):
+    """A closed mechanism steps in compiled code (Simulator.compiled): the same steps, samples,
+    energy, loop forces and residuals as the Python loop, bit for bit, for each kind of cut (the
+    crank-rocker's planar pin; the three S links' ball, revolute joint and weld); the compiled
+    cut equations (phi, J, J v, Jdot v) are ClosedLoops.evaluate's to rounding."""
+    from test_integrate import _compiled_and_python_runs
+
+    from redysim import load_linkage
+    from redysim.algorithms._kernels.constraints import loops_evaluate
+    from redysim.algorithms.rbda import kinematics
+
+    if kind == "planar":
+        model, loops, q0 = load_linkage("cases/loops/crank_rocker.toml")
+        v0 = np.zeros(model.n_v)
+    else:
+        model, q0 = _spherical_chain()
+        kin = kinematics(model, q0, np.zeros(9))
+        tip = kin.O[2] + kin.R[2] @ np.array([0.6, 0.0, 0.0])
+        turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+        frames = {} if kind == "point" else {"rot_a": turn, "rot_b": kin.R[2] @ turn}
+        loops = ClosedLoops(model, [CutJoint("tip", 2, (0.6, 0, 0), -1, tuple(tip), kind,
+                                             **frames)])
+        J = loops.evaluate(q0, np.zeros(9))[1]
+        v0 = 2.0 * np.linalg.svd(J)[2][-1]
+        v0 = v0 - np.linalg.pinv(J) @ (J @ v0)
+    rng = np.random.default_rng(4)
+    q, v = q0 + 1e-3 * rng.normal(size=model.n_v), v0 + rng.normal(size=model.n_v)
+    want = loops.evaluate(q, v)
+    lp = loops.bundle
+    loops_evaluate(lp, q, v)
+    for got, ref in zip((lp.phi, lp.J, lp.Jv, lp.Jdv), want, strict=True):
+        assert np.abs(got - ref).max() <= 1e-14 * max(1.0, np.abs(ref).max())
+    a, b = _compiled_and_python_runs(model, 0.25, q0=q0, v0=v0, loops=loops, integrator=method,
+                                     **kw)
+    assert np.array_equal(a.forces, b.forces)
+    assert (a.residual_q, a.residual_v) == (b.residual_q, b.residual_v)
+    assert a.residual_q < 1e-8

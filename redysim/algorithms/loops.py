@@ -93,6 +93,36 @@ class ClosedLoops:
                             for R in (c.rot_a, c.rot_b)) for c in cuts]
         self._zeros = np.zeros(model.n_v)
         self.size = max(1.0, float(np.abs(model.placement_p).sum()))  # for the tolerance
+        # the compiled functions' bundle; None for a coupled tree, whose qdd is its couplings'
+        # (numpy path)
+        self.bundle = None if model.couplings else self._bundle()
+
+    def _bundle(self):
+        """The compiled functions' bundle (:class:`redysim.algorithms._kernels.constraints.Loops`):
+        the trees' packed arrays, the cuts, the paths and work arrays."""
+        from redysim.algorithms._kernels import constraints as C
+
+        ws, ws0, n, m, nc = self.ws, self.ws0, self.model.n_v, self.m, len(self.cuts)
+        kind = C.PLANAR if ws.planar is not None else C.DH if ws.dh else C.RGE_A
+        row0 = np.zeros(nc + 1, dtype=np.int64)
+        row0[1:] = np.cumsum([KINDS[c.kind] for c in self.cuts])
+        sides = [path for pair in self._paths for path in pair]
+        pstart = np.zeros(2 * nc + 1, dtype=np.int64)
+        pstart[1:] = np.cumsum([axes.size for axes, _ in sides])
+        empty = np.zeros(0, dtype=np.int64)
+        paxes = np.concatenate([axes for axes, _ in sides] or [empty]).astype(np.int64)
+        powner = np.concatenate([own for _, own in sides] or [empty]).astype(np.int64)
+        return C.Loops(
+            kind, ws.kernel_f, ws.kernel_i, ws.scratch, ws0.kernel_f, ws0.kernel_i, ws0.scratch,
+            np.array([C.CUT_KINDS[c.kind] for c in self.cuts], dtype=np.int64),
+            np.array([[c.body_a, c.body_b] for c in self.cuts], dtype=np.int64),
+            np.array([[c.point_a, c.point_b] for c in self.cuts], dtype=float).reshape(nc, 2, 3),
+            np.array([list(r) for r in self._rots], dtype=float).reshape(nc, 2, 3, 3),
+            row0, pstart, paxes, powner, np.zeros(n), np.zeros(n), np.zeros(3), np.zeros(m),
+            np.zeros(m), np.zeros(m), np.zeros(m), np.zeros((m, n)), np.zeros((m, n)),
+            np.zeros((m, m)), np.zeros((m, m)),
+            np.array([PROJECTION_TOL * self.size, SINGULAR, PROJECTION_ITERATIONS]),
+            np.full(1, np.inf), np.zeros(C.WORK), np.zeros(2))
 
     def _path(self, body: int) -> tuple[np.ndarray, np.ndarray]:
         """(axes, owner body of each axis) on the path from ``body`` to the base."""
@@ -241,6 +271,9 @@ class ClosedLoops:
         """The least s_min / s_max of J M^-1 J^T met since the last call (inf: none met), and
         start afresh: how close the motion came to a change point."""
         nearest, self.nearest_singular = self.nearest_singular, math.inf
+        if self.bundle is not None:
+            met = self.bundle.nearest
+            nearest, met[0] = min(nearest, float(met[0])), math.inf
         return nearest
 
     def forward_dynamics(self, q, v, tau=None) -> np.ndarray:
@@ -249,9 +282,21 @@ class ClosedLoops:
 
     def forward_dynamics_and_forces(self, q, v, tau=None) -> tuple[np.ndarray, np.ndarray]:
         """(qdd, lambda): accelerations with the loops closed, and the loop forces (m,) (on body
-        a at its point, world frame; -lambda on body b)."""
-        from redysim.algorithms.dynamics import forward_dynamics
+        a at its point, world frame; -lambda on body b). In compiled code
+        (:func:`redysim.algorithms._kernels.constraints.loops_qdd`, what the compiled steps
+        call); where it fails (redundant loops, a non-finite state), the same method in numpy
+        says why."""
+        from redysim.algorithms._kernels.constraints import OK, loops_qdd
+        from redysim.algorithms.dynamics import check_state, forward_dynamics
 
+        q = check_state(self.tree, "q", q)
+        v = check_state(self.tree, "v", v)
+        tau = check_state(self.tree, "tau", tau, optional=True)
+        qdd = np.empty(self.model.n_v)
+        lp = self.bundle
+        if lp is not None and loops_qdd(lp, q, v, self._zeros if tau is None else tau,
+                                        qdd) == OK:
+            return qdd, lp.lam.copy()
         qdd0 = forward_dynamics(self.tree, q, v, tau, ws=self.ws)
         _, J, _, Jdv = self.evaluate(q, v)
         X = self._mobility(q, J)
@@ -279,8 +324,16 @@ class ClosedLoops:
 
     def project(self, q, v) -> tuple[np.ndarray, np.ndarray, float, float]:
         """(q, v) moved onto the loops along the mass-weighted normal (module docstring), and
-        the residuals (max |phi|, max |J v|) found before."""
+        the residuals (max |phi|, max |J v|) found before. In compiled code
+        (:func:`redysim.algorithms._kernels.constraints.loops_project`, what the compiled steps
+        call); where it fails, the same method in numpy says why."""
+        from redysim.algorithms._kernels.constraints import OK, loops_project
+
         q, v = np.array(q, dtype=float), np.array(v, dtype=float)
+        met = np.zeros(2)
+        q1, v1 = q.copy(), v.copy()
+        if self.bundle is not None and loops_project(self.bundle, q1, v1, met) == OK:
+            return q1, v1, float(met[0]), float(met[1])
         phi, J, Jv, _ = self.evaluate(q, v)
         before = (float(np.abs(phi).max()), float(np.abs(Jv).max()))
         for _ in range(PROJECTION_ITERATIONS):

@@ -492,7 +492,10 @@ class CompiledSolver(Solver):
     (None: none); ``couplings``: a coupled model's
     (:class:`redysim.algorithms._kernels.rk_run.Couplings`; qdd by Featherstone's method on its
     tree, each accepted step's followers set from their leaders before the next, a call's last
-    left to the caller, as the quaternions; ``couplings.worst``: the largest departures met).
+    left to the caller, as the quaternions; ``couplings.worst``: the largest departures met);
+    ``loops``: a closed mechanism's :class:`~redysim.algorithms.loops.ClosedLoops` (qdd with the
+    loops closed, (q, v) projected onto them after each accepted step, a call's last left to the
+    caller; ``loops.bundle.worst``: the largest residuals met before a projection).
     The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
     :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
     reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
@@ -505,12 +508,14 @@ class CompiledSolver(Solver):
                  h: float | None = None, hmax: float | None = None,
                  state: SolverState | None = None, max_steps: int = 1000,
                  damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None,
-                 tip_force: np.ndarray | None = None, couplings=None):
+                 tip_force: np.ndarray | None = None, couplings=None, loops=None):
         from redysim.algorithms._kernels import rk_run
+        from redysim.algorithms._kernels.constraints import no_loops
 
         super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
                          state=state)
         self._run = rk_run
+        self._loops = loops
         self.max_steps = int(max_steps)
         self._ws = ws
         tab = self.tab
@@ -532,7 +537,8 @@ class CompiledSolver(Solver):
                                      # and numba would compile rk_steps once more for it
                                      np.zeros(0) if tip_force is None
                                      else np.array(ws.chain.length, dtype=float),
-                                     rk_run.no_couplings() if couplings is None else couplings)
+                                     rk_run.no_couplings() if couplings is None else couplings,
+                                     no_loops() if loops is None else loops.bundle)
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
@@ -574,13 +580,15 @@ class CompiledSolver(Solver):
             hmin = self._hmin(self.t)
             raise IntegrationError(f"step size fell below hmin = {hmin:.3g} at t = "
                                    f"{self.t:.6g}: tolerances cannot be met")
-        if status == self._run.ERR_QDD:  # the checked call says why (StateError)
-            n = self.n // 2
-            from redysim.algorithms.dynamics import forward_dynamics
-
-            forward_dynamics(self._ws.chain, self.y[:n], self.y[n:], ws=self._ws)
+        if status == self._run.ERR_QDD:  # the checked right-hand side says why (StateError)
+            self.rhs(self.t, self.y)
             raise IntegrationError(f"qdd not finite in a stage of the step from t = "
                                    f"{self.t:.6g}")
+        if status == self._run.ERR_PROJECT:  # the checked projection says why (StateError)
+            nq = self.n - self._ws.zeros.shape[0]
+            self._loops.project(self.y[:nq], self.y[nq:])
+            raise IntegrationError(f"the projection onto the loops failed after the step to t "
+                                   f"= {self.t:.6g}")
 
 
 # --------------------------------------------------------------------------- SciPy solvers

@@ -18,8 +18,9 @@ The kernels take four named bundles (:class:`Motion`, :class:`Scheme`, :class:`C
 and the solver's state arrays (all the caller's, changed in place).
 
 Returns 0 (stopped: the step reached ``t_stop``, t_end or ``max_steps``), ERR_NONFINITE (an error
-estimate not finite: the state or qdd is), ERR_HMIN (the step fell below hmin), or ERR_QDD (qdd
-not finite: the caller asks the checked ``forward_dynamics`` why).
+estimate not finite: the state or qdd is), ERR_HMIN (the step fell below hmin), ERR_QDD (qdd
+not finite, or the loops redundant: the caller asks the checked Python right-hand side why) or
+ERR_PROJECT (the projection onto the loops failed: the caller asks the checked projection why).
 """
 
 from __future__ import annotations
@@ -34,10 +35,11 @@ from redysim._jit import jit_borrowed, jit_exact
 from .batch import dh_call as _dh
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
+from .constraints import Loops, loops_project, loops_qdd, solve_small
 from .planar import planar_tip_torques
 from .rk import combine, error_norm
 
-ERR_NONFINITE, ERR_HMIN, ERR_QDD = -1, -2, -3
+ERR_NONFINITE, ERR_HMIN, ERR_QDD, ERR_PROJECT = -1, -2, -3, -4
 RGE_A, PLANAR, DH = 0, 1, 2  # which entry computes qdd
 
 
@@ -96,7 +98,10 @@ class Motion(NamedTuple):
     a constant world force (3,) at a planar chain's tip, empty for none, its torques and the
     damping's into ``tau`` by :func:`.planar.planar_tip_torques` (``length``: the links' (nl,)).
     ``couplings``: a coupled model's (:class:`Couplings`; qdd then by :func:`couple_qdd`, the
-    followers projected onto their leaders after each accepted step as the quaternions are)."""
+    followers projected onto their leaders after each accepted step as the quaternions are).
+    ``loops``: a closed mechanism's (:class:`.constraints.Loops`; qdd then by
+    :func:`.constraints.loops_qdd` on its own arrays, (q, v) projected onto the loops after each
+    accepted step, before the couplings and quaternions, as the Python loop does)."""
 
     kind: int
     fdata: np.ndarray
@@ -114,6 +119,7 @@ class Motion(NamedTuple):
     tip: np.ndarray
     length: np.ndarray
     couplings: Couplings
+    loops: Loops
 
 
 class Scheme(NamedTuple):
@@ -183,6 +189,7 @@ def _rhs(motion, y, out):
     nq = motion.nq
     nv = y.shape[0] - nq
     tau = motion.zeros
+    loops = motion.loops.ckind.shape[0] != 0
     if motion.tip.shape[0] != 0:  # a tip force (a planar chain's), and the damping with it
         tau = motion.tau
         planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
@@ -191,7 +198,9 @@ def _rhs(motion, y, out):
         d = -motion.damping
         for k in range(nv):
             tau[k] = d * y[nq + k]
-    if motion.kind == RGE_A:
+    if loops:
+        flag = 0.0 if loops_qdd(motion.loops, y[:nq], y[nq:], tau, out[nq:]) == 0 else 1.0
+    elif motion.kind == RGE_A:
         flag = _rge_a(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
                       out[nq:])
     elif motion.kind == PLANAR:
@@ -253,25 +262,7 @@ def couple_qdd(cp, q, qdd):
         for j in range(k):
             A[i, j] = X[j, fv[i]] - m[i] * X[j, lv[i]]
         lam[i] = -(qdd[fv[i]] - m[i] * qdd[lv[i]])
-    for c in range(k):  # elimination, the largest pivot of the column first
-        p = c
-        for r in range(c + 1, k):
-            if abs(A[r, c]) > abs(A[p, c]):
-                p = r
-        if p != c:
-            for j in range(k):
-                A[c, j], A[p, j] = A[p, j], A[c, j]
-            lam[c], lam[p] = lam[p], lam[c]
-        for r in range(c + 1, k):
-            f = A[r, c] / A[c, c]
-            for j in range(c + 1, k):
-                A[r, j] = A[r, j] - f * A[c, j]
-            lam[r] = lam[r] - f * lam[c]
-    for c in range(k - 1, -1, -1):
-        x = lam[c]
-        for j in range(c + 1, k):
-            x = x - A[c, j] * lam[j]
-        lam[c] = x / A[c, c]
+    solve_small(A, lam, k)
     for j in range(k):
         x = lam[j]
         for r in range(n):
@@ -360,8 +351,11 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
     taken = 0
     t_stop = min(t_stop, t_end)
     while taken < max_steps and ts[0] < t_end:
-        if taken > 0:  # the step before: its couplings and quaternions (the last step's are
-            # the caller's to project after its samples), in the Python loop's order
+        if taken > 0:  # the step before: its loops, couplings and quaternions (the last
+            # step's are the caller's to project after its samples), in the Python loop's order
+            if motion.loops.ckind.shape[0] != 0 and loops_project(
+                    motion.loops, y[:motion.nq], y[motion.nq:], motion.loops.worst) != 0:
+                return ERR_PROJECT
             project_couplings(motion.couplings, motion.nq, y, motion.couplings.worst)
             project_quaternions(motion.free_q, y, motion.worst)
         t = ts[0]
