@@ -5,7 +5,7 @@
 free joint, whose quaternion moves as dq/dt = q (x) [0; w_body] / 2 (docs/design.md, "Kinematic
 trees"). Any of :data:`redysim.integrators.explicit.INTEGRATORS` steps it; ours (ode45, dop853, rk4)
 in compiled code (:class:`redysim.integrators.explicit.CompiledSolver`; free joints, damping,
-couplings and a planar chain's tip force included, not loops or other forces), and the implicit
+couplings, loops and a chain's tip force included, not other forces), and the implicit
 midpoint
 (:mod:`redysim.integrators.implicit`) with a chain's tension
 preconditioner. A quaternion integrated so drifts off the unit sphere by the integrator's error;
@@ -37,6 +37,7 @@ from redysim.algorithms._kernels.rk_run import (
     no_couplings,
     project_couplings,
     project_quaternions,
+    spatial_tip_torques,
 )
 from redysim.algorithms.dynamics import check_coupled, check_state, energy, forward_dynamics
 from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
@@ -216,17 +217,22 @@ class _Motion:
 
     def forces(self, t, q, v):
         """The generalized forces at (t, q, v): the tip force's, tau's and the damping's (None:
-        none). A planar chain's tip force and damping come from the compiled steps' own function
-        (:func:`redysim.algorithms._kernels.planar.planar_tip_torques`): both paths round
+        none). A chain's tip force and damping come from the compiled steps' own functions
+        (:func:`redysim.algorithms._kernels.planar.planar_tip_torques` on a planar chain, else
+        :func:`redysim.algorithms._kernels.rk_run.spatial_tip_torques`): both paths round
         alike."""
         if self.tip_force is not None:
+            tip = np.empty(self.nv)
             if self.system.is_planar:
-                tip = np.empty(self.nv)
                 planar_tip_torques(self.length, q, self.tip_force, -self.damping, v, tip)
             else:
-                tip = tip_force_torques(self.system, q, self.tip_force, ws=self.ws)
-                if self.damping:
-                    tip = tip - self.damping * v
+                ws = self.ws
+                spatial_tip_torques(ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, np.zeros(3),
+                                    self.length, np.ascontiguousarray(q, dtype=float),
+                                    self.tip_force, -self.damping,
+                                    np.ascontiguousarray(v, dtype=float), tip)
+                if not np.isfinite(tip).all():  # the loads module says why
+                    tip_force_torques(self.system, q, self.tip_force, ws=self.ws)
             return tip if self.tau is None else tip + np.asarray(self.tau(t, q, v), dtype=float)
         tau = None if self.tau is None else np.asarray(self.tau(t, q, v), dtype=float)
         if self.damping:
@@ -454,7 +460,7 @@ class Simulator:
 
     The solver is chosen here: ours in compiled code
     (:class:`~redysim.integrators.explicit.CompiledSolver`) when qdd is the core's RGE-A with no
-    forces (but a planar chain's tip force) and no loops (free joints, damping and couplings
+    forces but a chain's tip force (free joints, damping, couplings and the core's loops
     included); the implicit midpoint with a
     chain's tension preconditioner;
     SciPy's; the Python loop otherwise. Every solver follows one protocol
@@ -585,14 +591,13 @@ class Simulator:
     def compiled(self) -> bool:
         """Whether the steps run in compiled code: ours, on the core's RGE-A, free joints,
         damping, couplings (on a spatial tree) and loops (the core's ClosedLoops, not on a
-        coupled tree) included, a tip force on a planar chain, no other forces (the same steps
+        coupled tree) included, a chain's tip force, no other forces (the same steps
         as the Python loop, bit for bit)."""
         m, system = self.motion, self.system
         can = (m.qdd is None and m.method == "rge-a" and m.tau is None
                and (m.loops is None or getattr(m.loops, "bundle", None) is not None)
                and not (system.couplings and system.is_planar)
-               and self.integrator in TABLEAU_NAMES
-               and (m.tip_force is None or system.is_planar))
+               and self.integrator in TABLEAU_NAMES)
         return can and self._compiled is not False
 
     def _make_solver(self, state):

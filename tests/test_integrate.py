@@ -383,6 +383,38 @@ def test_a_planar_chains_tip_torques_are_the_general_loads():
 @pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
                                         ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
                                         ("rk4", {"h": 1e-3})])
+@pytest.mark.parametrize("damping", [0.0, 0.05])
+def test_a_spatial_chain_pulled_at_its_tip_steps_in_compiled_code_in_the_same_bits(method, kw,
+                                                                                 damping):
+    """A U chain (spatial: neither planar nor DH) pulled at its tip steps in compiled code: its
+    tip torques (rk_run.spatial_tip_torques, which the Python loop calls too) equal the loads
+    module's J^T F to rounding, the runs are the same bit for bit, and T + V - F . p_tip is
+    kept when undamped."""
+    from redysim import Chain, Workspace
+    from redysim.algorithms._kernels.rk_run import spatial_tip_torques
+    from redysim.algorithms.loads import tip_force_torques
+
+    chain = Chain.uniform(6, "U", length=0.3, linear_density=2.0, radius=0.02)
+    F = np.array([1.5, -0.7, 2.0])
+    rng = np.random.default_rng(9)
+    q0, v0 = rng.uniform(-0.8, 0.8, chain.n_dof), rng.normal(size=chain.n_dof)
+    ws = Workspace(chain)
+    got = np.empty(chain.n_dof)
+    spatial_tip_torques(ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, np.zeros(3),
+                        np.array(chain.length), q0, F, -damping, v0, got)
+    want = tip_force_torques(chain, q0, F) - damping * v0
+    assert np.abs(got - want).max() <= 1e-13 * np.abs(want).max()
+    a, _ = _compiled_and_python_runs(chain, 0.3, q0=q0, v0=v0, integrator=method,
+                                     damping=damping, tip_force=F, **kw)
+    if damping:
+        assert a.energy[-1] < a.energy[0]
+    else:
+        assert np.abs(a.delta_M).max() < (1e-4 if method == "rk4" else 1e-6)
+
+
+@pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
+                                        ("rk4", {"h": 1e-3})])
 @pytest.mark.parametrize("damping", [0.0, 0.02])
 def test_a_pulled_chain_steps_in_compiled_code_in_the_same_bits(method, kw, damping):
     """A planar chain pulled at its tip (the case's [load] tip_force) steps in compiled code:

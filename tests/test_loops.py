@@ -223,3 +223,19 @@ def test_loops_step_in_compiled_code_in_the_same_bits(kind, method, kw):
     assert np.array_equal(a.forces, b.forces)
     assert (a.residual_q, a.residual_v) == (b.residual_q, b.residual_v)
     assert a.residual_q < 1e-8
+
+
+def test_a_batch_of_a_linkage_runs_its_rows_as_single_runs():
+    """simulate_batch of a closed mechanism (its model's cuts: a ClosedLoops of its own per row,
+    compiled steps, threads): each row is its single run, bit for bit."""
+    from redysim import load_linkage, simulate_batch
+
+    model, loops, q0 = load_linkage("cases/loops/crank_rocker.toml")
+    rng = np.random.default_rng(8)
+    rows = [loops.project(q0, s * rng.normal(size=model.n_v))[:2] for s in (0.0, 1.0, 3.0)]
+    Q, V = np.array([q for q, _ in rows]), np.array([v for _, v in rows])
+    batch = simulate_batch(model, 0.3, q0=Q, v0=V, rtol=1e-8, atol=1e-10, threads=2)
+    for (q, v), got in zip(rows, batch, strict=True):
+        one = simulate(model, 0.3, q0=q, v0=v, rtol=1e-8, atol=1e-10)
+        assert got.status == one.status == 0 and got.steps == one.steps
+        assert np.array_equal(got.q, one.q) and np.array_equal(got.forces, one.forces)

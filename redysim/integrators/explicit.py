@@ -488,8 +488,8 @@ class CompiledSolver(Solver):
 
     ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
     kernel (else the DH kernels for a robot in DH form, as :func:`redysim.forward_dynamics`
-    chooses, or RGE-A); ``tip_force``: a constant world force (3,) at a planar chain's tip
-    (None: none); ``couplings``: a coupled model's
+    chooses, or RGE-A); ``tip_force``: a constant world force (3,) at a chain's tip (None:
+    none); ``couplings``: a coupled model's
     (:class:`redysim.algorithms._kernels.rk_run.Couplings`; qdd by Featherstone's method on its
     tree, each accepted step's followers set from their leaders before the next, a call's last
     left to the caller, as the quaternions; ``couplings.worst``: the largest departures met);
@@ -524,8 +524,6 @@ class CompiledSolver(Solver):
         none = np.zeros(0, dtype=np.int64)
         free_q, free_v, plain_q, plain_v = (none,) * 4 if free is None else free
         self.quaternion_worst = np.zeros(1)  # the largest | |q| - 1 | before a projection
-        if tip_force is not None and not planar:
-            raise ValueError("a tip force steps in compiled code on a planar chain only")
         kind = rk_run.PLANAR if planar else rk_run.DH if ws.dh else rk_run.RGE_A  # as qdd's
         self._motion = rk_run.Motion(kind, ws.kernel_f,
                                      ws.kernel_i, ws.scratch, ws.zeros, nq, float(damping),
@@ -538,7 +536,8 @@ class CompiledSolver(Solver):
                                      np.zeros(0) if tip_force is None
                                      else np.array(ws.chain.length, dtype=float),
                                      rk_run.no_couplings() if couplings is None else couplings,
-                                     no_loops() if loops is None else loops.bundle)
+                                     no_loops() if loops is None else loops.bundle,
+                                     np.zeros(3))
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)

@@ -36,6 +36,8 @@ from .batch import dh_call as _dh
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
 from .constraints import Loops, loops_project, loops_qdd, solve_small
+from .entry import bundles
+from .kinematics import kinematics
 from .planar import planar_tip_torques
 from .rk import combine, error_norm
 
@@ -95,8 +97,10 @@ class Motion(NamedTuple):
     by their norms before the next step (``worst`` [0]: the largest | |q| - 1 | met before), the
     last step's of a call left to the caller, who projects after the step's samples as the Python
     loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v. ``tip``:
-    a constant world force (3,) at a planar chain's tip, empty for none, its torques and the
-    damping's into ``tau`` by :func:`.planar.planar_tip_torques` (``length``: the links' (nl,)).
+    a constant world force (3,) at a chain's tip, empty for none, its torques and the damping's
+    into ``tau`` by :func:`.planar.planar_tip_torques` on a planar chain, else
+    :func:`spatial_tip_torques` (``length``: the links' (nl,); ``base0``: (3,) zeros, the base at
+    rest for its position pass).
     ``couplings``: a coupled model's (:class:`Couplings`; qdd then by :func:`couple_qdd`, the
     followers projected onto their leaders after each accepted step as the quaternions are).
     ``loops``: a closed mechanism's (:class:`.constraints.Loops`; qdd then by
@@ -120,6 +124,7 @@ class Motion(NamedTuple):
     length: np.ndarray
     couplings: Couplings
     loops: Loops
+    base0: np.ndarray
 
 
 class Scheme(NamedTuple):
@@ -190,9 +195,14 @@ def _rhs(motion, y, out):
     nv = y.shape[0] - nq
     tau = motion.zeros
     loops = motion.loops.ckind.shape[0] != 0
-    if motion.tip.shape[0] != 0:  # a tip force (a planar chain's), and the damping with it
+    if motion.tip.shape[0] != 0:  # a tip force, and the damping with it
         tau = motion.tau
-        planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
+        if motion.kind == PLANAR:
+            planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
+        else:
+            spatial_tip_torques(motion.fdata, motion.idata, motion.scratch, motion.zeros,
+                                motion.base0, motion.length, y[:nq], motion.tip,
+                                -motion.damping, y[nq:], tau)
     elif motion.damping != 0.0:
         tau = motion.tau
         d = -motion.damping
@@ -237,6 +247,33 @@ def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
         out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
         out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
         out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+
+
+@jit_borrowed
+def spatial_tip_torques(fdata, idata, scratch, zeros, base0, length, q, force, d, qd, out):
+    """out = J_tip(q)^T F + d * qd (n_v,) for a chain of any joints: the joint forces of a
+    constant world force ``force`` (3,) at its tip (the distal end of the last link, along its
+    x; ``length``: the links' (nl,)), each DOF's moment arm from its joint's origin, as
+    :func:`redysim.algorithms.loads.tip_force_torques`, from the position pass of the
+    kinematics on a workspace's packed arrays (its scratch overwritten; ``zeros`` (n_v,) and
+    ``base0`` (3,) zeros), with a viscous ``d * qd`` added (d = -damping; 0: none). The Python
+    loop and the compiled steps both call this function, so that they round alike."""
+    tree, s = bundles(fdata, idata, scratch)
+    kinematics(tree, q, zeros, zeros, base0, s, False)
+    oO, oR, oP, voff = s.oO, s.oR, s.oP, tree.joint_voff
+    k = length.shape[0] - 1
+    p0 = oO[k, 0] + length[k] * oR[k, 0, 0]
+    p1 = oO[k, 1] + length[k] * oR[k, 1, 0]
+    p2 = oO[k, 2] + length[k] * oR[k, 2, 0]
+    f0, f1, f2 = force[0], force[1], force[2]
+    for b in range(k + 1):
+        a0, a1, a2 = p0 - oO[b, 0], p1 - oO[b, 1], p2 - oO[b, 2]
+        c0, c1, c2 = a1 * f2 - a2 * f1, a2 * f0 - a0 * f2, a0 * f1 - a1 * f0  # arm x F
+        for i in range(voff[b], voff[b + 1]):
+            out[i] = (oP[i, 0] * c0 + oP[i, 1] * c1 + oP[i, 2] * c2) + (
+                oP[i, 3] * f0 + oP[i, 4] * f1 + oP[i, 5] * f2)
+            if d != 0.0:
+                out[i] = out[i] + d * qd[i]
 
 
 @jit_borrowed
