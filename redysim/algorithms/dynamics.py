@@ -210,6 +210,21 @@ def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
                          "followers from their leaders)")
 
 
+def _coupling_scratch(model: Model):
+    """The calling thread's workspace of a coupled ``model`` and its couplings' bundle
+    (:class:`redysim.algorithms._kernels.rk_run.Couplings`, with a workspace of the tree without
+    gravity), made on the thread's first call and kept beside its workspace."""
+    ws = _ws(model, None)
+    local = model._thread_workspaces
+    try:
+        return ws, local.couplings
+    except AttributeError:
+        from redysim.algorithms._kernels.rk_run import couplings_of
+
+        local.couplings = couplings_of(model, Workspace(model.free_tree))
+        return ws, local.couplings
+
+
 def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.ndarray:
     """qdd of a coupled model (:meth:`Model.with_couplings`), by Featherstone's method on the
     tree: qdd0 the tree's, X = M^-1 J^T by the tree's forward dynamics with no gravity and no
@@ -221,6 +236,16 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     tau = check_state(model, "tau", tau, optional=True)
     check_coupled(model, "q", q)
     check_coupled(model, "v", v)
+    if method == "rge-a" and not planar and not model.is_planar:
+        # in compiled code, as a simulation's right-hand side (the calling thread's scratch);
+        # where the result is not finite, the calls below say why
+        from redysim.algorithms._kernels.rk_run import coupled_qdd
+
+        ws, cp = _coupling_scratch(model)
+        res = np.empty(model.n_v) if out is None else out
+        if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, cp, q, v,
+                       ws.zeros if tau is None else tau, res) == 0.0:
+            return res
     tree, free = model.tree, model.free_tree
     qdd = forward_dynamics(tree, q, v, tau, method, planar=planar)
     _, _, fv, lv, m, _ = model.coupling_index
@@ -381,8 +406,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
     model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion, by Featherstone's
-    method on the tree (1 + len(couplings) tree calls, in Python: no batch kernels); q and v must
-    keep its couplings (StateError otherwise: ``model.couple(q, v)`` sets them).
+    method on the tree (1 + len(couplings) tree calls; with RGE-A on a spatial tree in compiled
+    code, as a simulation's steps, else in Python; no batch kernels); q and v must keep its
+    couplings (StateError otherwise: ``model.couple(q, v)`` sets them).
     """
     ws = _ws(model, ws)
     if model.cuts or model.couplings:
