@@ -611,8 +611,9 @@ class Simulator:
                                   free=(self.motion.free_q, self.motion.free_v,
                                         self.motion.plain_q, self.motion.plain_v),
                                   tip_force=self.motion.tip_force,
-                                  couplings=self.motion.couplings, loops=self.motion.loops,
-                                  **kw)
+                                  couplings=(self.motion.couplings if self.system.couplings
+                                             else None),
+                                  loops=self.motion.loops, **kw)
         if self.integrator in IMPLICIT:
             # a chain's tension preconditioner (redysim.integrators.implicit); a tree steps without
             # one

@@ -99,12 +99,26 @@ def _cpu_s() -> float:
 
 
 def warm_stepping() -> None:
-    """Compile the compiled stepping (rk_steps): one serves every chain and tree, planar or not
-    (its Motion bundle's types are the same)."""
-    from redysim import Chain
+    """Compile the compiled stepping (rk_steps) in its two forms: the one that serves every
+    chain and tree, planar or not (its Motion bundle's types are the same), and the one with
+    extras (couplings, closed loops, a tip force on a spatial chain: the robots' Panda, the
+    scenarios' linkages), so that no sweep worker compiles either."""
+    import numpy as np
+
+    from redysim import Body, Chain, Coupling, Model, TreeJoint
+    from redysim.algorithms.linkages import four_bar
     from redysim.simulation import Simulator
 
-    Simulator(Chain.uniform(3, "U", mass=1.0), 0.02, sample=0.01, compiled=True).run()
+    chain = Chain.uniform(3, "U", mass=1.0)
+    Simulator(chain, 0.02, sample=0.01, compiled=True).run()
+    fb = four_bar(0.3, 0.1, 0.35, 0.3)
+    Simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
+              compiled=True).run()
+    bar = Body("bar", 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
+    arm = Model.build([bar, bar], [TreeJoint("j0", "R", "z"),
+                                   TreeJoint("j1", "R", "x", translation=(0.6, 0.0, 0.0))],
+                      [-1, 0]).with_couplings([Coupling("j1", "j0", 1.0, 0.0)])
+    Simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
 
 
 @dataclass
@@ -142,7 +156,8 @@ class Reproduction:
         the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s).
         rk_steps compiles in a second process (:func:`warm_stepping`) once what it calls (the
         entries it links, the energy at its samples) is cached, beside the other kernels here,
-        where there is a second core."""
+        where there is a second core: both its forms, the second (couplings, loops) ~30 s of CPU
+        more (cold, here)."""
         import numpy as np
 
         from redysim import Chain, energy, forward_dynamics, mass_matrix, tip, udu_factors

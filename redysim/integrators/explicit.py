@@ -534,10 +534,13 @@ class CompiledSolver(Solver):
                                      # a writable copy: the model's own array is read-only,
                                      # and numba would compile rk_steps once more for it
                                      np.zeros(0) if tip_force is None
-                                     else np.array(ws.chain.length, dtype=float),
-                                     rk_run.no_couplings() if couplings is None else couplings,
-                                     no_loops() if loops is None else loops.bundle,
-                                     np.zeros(3))
+                                     else np.array(ws.chain.length, dtype=float))
+        # what only some models have: None for the others, whose steps then compile none of it
+        extended = couplings is not None or loops is not None or (tip_force is not None
+                                                                  and not planar)
+        self._extras = rk_run.Extras(
+            rk_run.no_couplings() if couplings is None else couplings,
+            no_loops() if loops is None else loops.bundle, np.zeros(3)) if extended else None
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
@@ -562,7 +565,7 @@ class CompiledSolver(Solver):
         st.ts[:] = self.t, self.t_old, self.h_next
         st.counts[:] = c.steps, c.rejected, c.nfev
         steps0, wall0 = c.steps, time.perf_counter()
-        status = self._run.rk_steps(self._motion, self._scheme, self._ctl, st,
+        status = self._run.rk_steps(self._motion, self._extras, self._scheme, self._ctl, st,
                                     self.t_end if t_stop is None else float(t_stop),
                                     self.max_steps)
         self.t, self.t_old, self.h_next = (float(x) for x in st.ts)

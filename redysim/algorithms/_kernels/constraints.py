@@ -266,7 +266,7 @@ def loops_evaluate(lp, q, v):
     """phi, J, J v and Jdot v of the cuts at (q, v) into lp's arrays (as ClosedLoops.evaluate):
     the kinematics at qdd = 0 without gravity, on the tree without gravity's scratch."""
     tree, s = bundles(lp.ff, lp.fi, lp.fs)
-    kinematics(tree, q, v, lp.zeros, lp.base0, s, False)
+    kinematics(tree, q, v, lp.zeros, lp.base0, s)  # (the energy's specialisation)
     J = lp.J
     n = J.shape[1]
     for r in range(J.shape[0]):

@@ -15,7 +15,9 @@ then costs its seven qdd calls and nothing more.
 
 The kernels take four named bundles (:class:`Motion`, :class:`Scheme`, :class:`Control`,
 :class:`StepState`): what is integrated, the tableau, the controller's settings and constants,
-and the solver's state arrays (all the caller's, changed in place).
+and the solver's state arrays (all the caller's, changed in place); and :class:`Extras` (a
+model's couplings, loops or tip force on a spatial chain) or None, for which numba prunes their
+branches.
 
 Returns 0 (stopped: the step reached ``t_stop``, t_end or ``max_steps``), ERR_NONFINITE (an error
 estimate not finite: the state or qdd is), ERR_HMIN (the step fell below hmin), ERR_QDD (qdd
@@ -98,14 +100,8 @@ class Motion(NamedTuple):
     last step's of a call left to the caller, who projects after the step's samples as the Python
     loop does. Without free joints nq = n_v and the plain arrays are empty: dq/dt = v. ``tip``:
     a constant world force (3,) at a chain's tip, empty for none, its torques and the damping's
-    into ``tau`` by :func:`.planar.planar_tip_torques` on a planar chain, else
-    :func:`spatial_tip_torques` (``length``: the links' (nl,); ``base0``: (3,) zeros, the base at
-    rest for its position pass).
-    ``couplings``: a coupled model's (:class:`Couplings`; qdd then by :func:`couple_qdd`, the
-    followers projected onto their leaders after each accepted step as the quaternions are).
-    ``loops``: a closed mechanism's (:class:`.constraints.Loops`; qdd then by
-    :func:`.constraints.loops_qdd` on its own arrays, (q, v) projected onto the loops after each
-    accepted step, before the couplings and quaternions, as the Python loop does)."""
+    into ``tau`` by :func:`.planar.planar_tip_torques` on a planar chain, else (with
+    :class:`Extras`) :func:`spatial_tip_torques` (``length``: the links' (nl,))."""
 
     kind: int
     fdata: np.ndarray
@@ -122,6 +118,20 @@ class Motion(NamedTuple):
     worst: np.ndarray
     tip: np.ndarray
     length: np.ndarray
+
+
+class Extras(NamedTuple):
+    """What only some models have, given to the stepping as an argument of its own, None for the
+    others: numba then prunes its branches before typing, so that a model without them compiles
+    none of their kernels (a first simulation of a chain or a robot compiled in 31 s instead of
+    58 s here). ``couplings``: a coupled model's (:class:`Couplings`; qdd by
+    :func:`couple_qdd`, the followers projected onto their leaders after each accepted step as
+    the quaternions are); ``loops``: a closed mechanism's (:class:`.constraints.Loops`; qdd by
+    :func:`.constraints.loops_qdd` on its own arrays, (q, v) projected onto the loops after each
+    accepted step, before the couplings and quaternions, as the Python loop does); ``base0``
+    (3,) zeros, the base at rest for :func:`spatial_tip_torques`' position pass (a tip force on
+    a chain that is not planar)."""
+
     couplings: Couplings
     loops: Loops
     base0: np.ndarray
@@ -187,29 +197,30 @@ def _copy(src, dst):
 
 
 @jit_borrowed
-def _rhs(motion, y, out):
+def _rhs(motion, extras, y, out):
     """out = (dq/dt, qdd(q, v)) for y = (q, v); False when qdd is not finite. The same arithmetic
     in the same order as redysim.simulation's Python right-hand side (tau = -damping * v; qdd;
-    then dq/dt)."""
+    then dq/dt). ``extras``: None, or the model's :class:`Extras`."""
     nq = motion.nq
     nv = y.shape[0] - nq
     tau = motion.zeros
-    loops = motion.loops.ckind.shape[0] != 0
     if motion.tip.shape[0] != 0:  # a tip force, and the damping with it
         tau = motion.tau
-        if motion.kind == PLANAR:
+        if extras is None:  # (a planar chain's)
+            planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
+        elif motion.kind == PLANAR:
             planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
         else:
             spatial_tip_torques(motion.fdata, motion.idata, motion.scratch, motion.zeros,
-                                motion.base0, motion.length, y[:nq], motion.tip,
+                                extras.base0, motion.length, y[:nq], motion.tip,
                                 -motion.damping, y[nq:], tau)
     elif motion.damping != 0.0:
         tau = motion.tau
         d = -motion.damping
         for k in range(nv):
             tau[k] = d * y[nq + k]
-    if loops:
-        flag = 0.0 if loops_qdd(motion.loops, y[:nq], y[nq:], tau, out[nq:]) == 0 else 1.0
+    if extras is not None and extras.loops.ckind.shape[0] != 0:
+        flag = 0.0 if loops_qdd(extras.loops, y[:nq], y[nq:], tau, out[nq:]) == 0 else 1.0
     elif motion.kind == RGE_A:
         flag = _rge_a(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch,
                       out[nq:])
@@ -218,8 +229,8 @@ def _rhs(motion, y, out):
                        out[nq:])
     else:
         flag = _dh(motion.fdata, motion.idata, y[:nq], y[nq:], tau, motion.scratch, out[nq:])
-    if motion.couplings.fv.shape[0] != 0 and flag == 0.0:
-        flag = couple_qdd(motion.couplings, y[:nq], out[nq:])
+    if extras is not None and extras.couplings.fv.shape[0] != 0 and flag == 0.0:
+        flag = couple_qdd(extras.couplings, y[:nq], out[nq:])
     if motion.free_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]
@@ -259,7 +270,7 @@ def spatial_tip_torques(fdata, idata, scratch, zeros, base0, length, q, force, d
     ``base0`` (3,) zeros), with a viscous ``d * qd`` added (d = -damping; 0: none). The Python
     loop and the compiled steps both call this function, so that they round alike."""
     tree, s = bundles(fdata, idata, scratch)
-    kinematics(tree, q, zeros, zeros, base0, s, False)
+    kinematics(tree, q, zeros, zeros, base0, s)  # (the energy's specialisation)
     oO, oR, oP, voff = s.oO, s.oR, s.oP, tree.joint_voff
     k = length.shape[0] - 1
     p0 = oO[k, 0] + length[k] * oR[k, 0, 0]
@@ -356,7 +367,7 @@ def project_quaternions(free_q, y, worst):
 
 
 @jit_borrowed
-def _stages(motion, scheme, y, f, h, K, tmp, y_new, counts):
+def _stages(motion, extras, scheme, y, f, h, K, tmp, y_new, counts):
     """K[0..s-1] (and K[s] = f(t + h, y_new) when ``fsal``) and y_new, as Solver._stages; False
     when a qdd is not finite."""
     A, b = scheme.A, scheme.b
@@ -365,18 +376,18 @@ def _stages(motion, scheme, y, f, h, K, tmp, y_new, counts):
     for i in range(1, s):
         combine(y, h, A[i], K, i, tmp)
         counts[2] += 1
-        if not _rhs(motion, tmp, K[i]):
+        if not _rhs(motion, extras, tmp, K[i]):
             return False
     combine(y, h, b, K, s, y_new)
     if scheme.fsal:
         counts[2] += 1
-        if not _rhs(motion, y_new, K[s]):
+        if not _rhs(motion, extras, y_new, K[s]):
             return False
     return True
 
 
 @jit_borrowed
-def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
+def rk_steps(motion, extras, scheme, ctl, st, t_stop, max_steps):
     """Steps until one ends at or past ``t_stop`` (module docstring)."""
     rtol, atol, hmax, power, t_end, adaptive = ctl.rtol, ctl.atol, ctl.hmax, ctl.power, \
         ctl.t_end, ctl.adaptive
@@ -390,10 +401,11 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
     while taken < max_steps and ts[0] < t_end:
         if taken > 0:  # the step before: its loops, couplings and quaternions (the last
             # step's are the caller's to project after its samples), in the Python loop's order
-            if motion.loops.ckind.shape[0] != 0 and loops_project(
-                    motion.loops, y[:motion.nq], y[motion.nq:], motion.loops.worst) != 0:
-                return ERR_PROJECT
-            project_couplings(motion.couplings, motion.nq, y, motion.couplings.worst)
+            if extras is not None:
+                if extras.loops.ckind.shape[0] != 0 and loops_project(
+                        extras.loops, y[:motion.nq], y[motion.nq:], extras.loops.worst) != 0:
+                    return ERR_PROJECT
+                project_couplings(extras.couplings, motion.nq, y, extras.couplings.worst)
             project_quaternions(motion.free_q, y, motion.worst)
         t = ts[0]
         if adaptive:
@@ -406,7 +418,7 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
             while True:
                 t_new = t_end if done else t + absh
                 h = t_new - t
-                if not _stages(motion, scheme, y, f, h, K, tmp, y_new, counts):
+                if not _stages(motion, extras, scheme, y, f, h, K, tmp, y_new, counts):
                     return ERR_QDD
                 e = error_norm(h, E, E3, K, E.shape[0], y, y_new, threshold, err, err3)
                 if not math.isfinite(e):
@@ -431,7 +443,7 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
             h, t_new = ts[2], t + ts[2]
             if t_stop - t_new <= ctl.sample_eps * max(1.0, abs(t_stop)):  # land on the sample
                 h, t_new = t_stop - t, t_stop
-            if not _stages(motion, scheme, y, f, h, K, tmp, y_new, counts):
+            if not _stages(motion, extras, scheme, y, f, h, K, tmp, y_new, counts):
                 return ERR_QDD
         # accept: (t_old, y_old, f_old) <- (t, y, f); (t, y, f) <- (t_new, y_new, f_new)
         _copy(y, y_old)
@@ -441,7 +453,7 @@ def rk_steps(motion, scheme, ctl, st, t_stop, max_steps):
             _copy(K[s], f)
         else:
             counts[2] += 1
-            if not _rhs(motion, y, f):
+            if not _rhs(motion, extras, y, f):
                 return ERR_QDD
         ts[1] = t
         ts[0] = t_new
