@@ -257,8 +257,8 @@ class _Motion:
             ws = self.ws
             if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, self.couplings, q, v,
                            ws.zeros if tau is None else tau, a) != 0.0:
-                # not finite: the checked path says why
-                forward_dynamics(self.system, q, v, tau, self.method)
+                # not finite: the checked path says why (or, finite there, is the answer)
+                a[:] = forward_dynamics(self.system, q, v, tau, self.method)
             return a
         else:
             return forward_dynamics(self.system, q, v, tau, self.method, ws=self.ws, out=out)
