@@ -160,7 +160,15 @@ class Reproduction:
         more (cold, here)."""
         import numpy as np
 
-        from redysim import Chain, energy, forward_dynamics, mass_matrix, tip, udu_factors
+        from redysim import (
+            Chain,
+            energy,
+            forward_dynamics,
+            load_model,
+            mass_matrix,
+            tip,
+            udu_factors,
+        )
         from redysim.algorithms.dynamics import inverse_dynamics
 
         chains = (Chain.uniform(3, "U", mass=1.0), Chain.uniform(3, "R", mass=1.0))
@@ -184,6 +192,12 @@ class Reproduction:
                 tip(chain, q, q, q)
                 mass_matrix(chain, q)
                 udu_factors(chain, q)
+            # a robot in DH form (the robots' section, its scenarios): its own kernels' entries
+            robot = load_model(str(resources.files("redysim.case_files.robots")
+                                   / "puma560.toml"))
+            q = np.zeros(robot.n_v)
+            forward_dynamics(robot, q, q)
+            inverse_dynamics(robot, q, q, q)
         except BaseException:  # (Ctrl-C too) leave no compiling process behind
             if side is not None:
                 side.kill()

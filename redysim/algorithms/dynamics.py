@@ -243,8 +243,10 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
 
         ws, cp = _coupling_scratch(model)
         res = np.empty(model.n_v) if out is None else out
-        if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, cp, q, v,
-                       ws.zeros if tau is None else tau, res) == 0.0:
+        # writable arrays: a read-only one is another numba type (one compile more, ~7 s)
+        a, b, t = (x if x.flags.writeable else x.copy()
+                   for x in (q, v, ws.zeros if tau is None else tau))
+        if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, cp, a, b, t, res) == 0.0:
             return res
     tree, free = model.tree, model.free_tree
     qdd = forward_dynamics(tree, q, v, tau, method, planar=planar)
