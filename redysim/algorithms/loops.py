@@ -118,7 +118,7 @@ class ClosedLoops:
             np.array([[c.body_a, c.body_b] for c in self.cuts], dtype=np.int64),
             np.array([[c.point_a, c.point_b] for c in self.cuts], dtype=float).reshape(nc, 2, 3),
             np.array([list(r) for r in self._rots], dtype=float).reshape(nc, 2, 3, 3),
-            row0, pstart, paxes, powner, np.zeros(n), np.zeros(n), np.zeros(3), np.zeros(m),
+            row0, pstart, paxes, powner, np.zeros(n), np.zeros(3), np.zeros(m),
             np.zeros(m), np.zeros(m), np.zeros(m), np.zeros((m, n)), np.zeros((m, n)),
             np.zeros((m, m)), np.zeros((m, m)),
             np.array([PROJECTION_TOL * self.size, SINGULAR, PROJECTION_ITERATIONS]),

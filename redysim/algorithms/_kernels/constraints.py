@@ -47,7 +47,7 @@ class Loops(NamedTuple):
     PLANAR_CUT, REVOLUTE, WELD), ``body`` (nc, 2) (-1: the world), ``point`` (nc, 2, 3) and
     ``rot`` (nc, 2, 3, 3) in the bodies' frames, ``row0`` (nc + 1) each cut's first equation;
     the path of (cut c, side s) to the base: axes ``paxes`` and their bodies ``powner`` in
-    [pstart[2c + s], pstart[2c + s + 1]). Work: ``zeros``, ``row`` (n), ``base0`` (3), ``phi``,
+    [pstart[2c + s], pstart[2c + s + 1]). Work: ``zeros`` (n), ``base0`` (3), ``phi``,
     ``Jv``, ``Jdv``, ``lam`` (m), ``J``, ``X`` (m, n), ``A``, ``W`` (m, m), ``work`` (WORK).
     ``params``: [the projection's tolerance on |phi| (m), the least eigenvalue ratio that is
     regular, the projection's iterations]; ``nearest`` [0]: the least ratio met; ``worst``: the
@@ -69,7 +69,6 @@ class Loops(NamedTuple):
     paxes: np.ndarray
     powner: np.ndarray
     zeros: np.ndarray
-    row: np.ndarray
     base0: np.ndarray
     phi: np.ndarray
     Jv: np.ndarray
@@ -93,7 +92,7 @@ def no_loops() -> Loops:
     f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
     return Loops(RGE_A, f, i, f, f, i, f, i, np.zeros((0, 2), dtype=np.int64),
                  np.zeros((0, 2, 3)), np.zeros((0, 2, 3, 3)), np.zeros(1, dtype=np.int64),
-                 np.zeros(1, dtype=np.int64), i, i, f, f, np.zeros(3), f, f, f, f,
+                 np.zeros(1, dtype=np.int64), i, i, f, np.zeros(3), f, f, f, f,
                  np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)),
                  np.zeros(3), np.full(1, np.inf), np.zeros(WORK), np.zeros(2))
 

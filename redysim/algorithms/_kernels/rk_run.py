@@ -206,14 +206,12 @@ def _rhs(motion, extras, y, out):
     tau = motion.zeros
     if motion.tip.shape[0] != 0:  # a tip force, and the damping with it
         tau = motion.tau
-        if extras is None:  # (a planar chain's)
-            planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
-        elif motion.kind == PLANAR:
-            planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
-        else:
+        if extras is not None and motion.kind != PLANAR:  # (without extras: a planar chain)
             spatial_tip_torques(motion.fdata, motion.idata, motion.scratch, motion.zeros,
                                 extras.base0, motion.length, y[:nq], motion.tip,
                                 -motion.damping, y[nq:], tau)
+        else:
+            planar_tip_torques(motion.length, y[:nq], motion.tip, -motion.damping, y[nq:], tau)
     elif motion.damping != 0.0:
         tau = motion.tau
         d = -motion.damping
