@@ -4,7 +4,7 @@
         [--calls 30] [--busy 1]
 
 A batch of ``--states`` states of a U rope (``--dof`` DOF, a list) through
-``forward_dynamics``: in SIMD tiles (the default) and row by row (``simd=False``, as trees run),
+``forward_dynamics``: in SIMD tiles (the default) and row by row (``simd=False``),
 each at the default thread count and at ``threads=1``, beside the same states as single calls in
 a Python loop. Two phases: quiet (whatever else the machine runs: its load from other processes
 is printed) and busy, with ``--busy`` competitors (``python -c 'while True: pass'``, each in a

@@ -392,13 +392,14 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     chunk a helper is late with the caller runs itself, and each workspace measures, per kind of
     batch, whether helpers pay (else it pauses them), so that a busy machine costs a batch no more
     than a few percent over ``threads=1`` (docs/design.md, "Threads under load"). Each row's bits do
-    not depend on the threads. With ``simd`` (the default), a serial chain of revolute and prismatic
-    axes in the spatial recursion runs its states 16 at a time in SIMD lanes
-    (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the throughput a core at 250 DOF): row i then
-    equals the single call to rounding (measured within 4e-15 of max |qdd| on ropes, 1.4e-13 on
-    random chains with GIM condition numbers up to 5e5), not bit for bit; ``simd=False`` gives the
-    single calls' bits. A batch's last rows, when they fill less than half a tile, chains over
-    10,000 DOF and any batch with |q| > 1e5 run row by row.
+    not depend on the threads. With ``simd`` (the default), a system in the spatial recursion (a
+    chain, or any tree: robots, free joints) runs its states 16 at a time in SIMD lanes
+    (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the throughput a core at 250 DOF, 3.4-3.9x
+    on robots): row i then equals the single call to rounding (measured within 4e-15 of max |qdd|
+    on ropes, 1.4e-13 on random chains with GIM condition numbers up to 5e5, 1.2e-14 on random
+    trees), not bit for bit; ``simd=False`` gives the single calls' bits. A batch's last rows,
+    when they fill less than half a tile, systems over 10,000 DOF, planar chains (their own
+    kernel) and any batch with |q| > 1e5 run row by row.
 
     Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
     ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
@@ -1008,9 +1009,10 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     edges += [B] if split < B and len(edges) > 2 else []  # (one chunk: one thread, as below)
     count, speed = _speed(ws, ("tiles", len(edges)), threads, len(edges) - 1)
     f, i = ws.kernel_f, ws.kernel_i
+    forward_tiles = _tiles.forward_tree_tiles if ws.tiles_tree else _tiles.forward_tiles
     t0 = time.perf_counter()
     if count == 1:
-        bad = _tiles.forward_tiles(f, i, Q, V, TAU, out, 0, split, ws.tile_buffer(1)[0])
+        bad = forward_tiles(f, i, Q, V, TAU, out, 0, split, ws.tile_buffer(1)[0])
         if bad < 0 and split < B:
             bad = _batch.forward_rows(f, i, Q, V, TAU, ws.scratch, out, split, B)
         if speed is not None:
@@ -1021,8 +1023,7 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
         if own is None:
             if first >= split:  # the rows after the last tile
                 return _batch.forward_rows(f, i, Q, V, TAU, ws.scratch, out, first, last)
-            return _tiles.forward_tiles(f, i, Q, V, TAU, out, first, last,
-                                        ws.tile_buffer(1)[0])
+            return forward_tiles(f, i, Q, V, TAU, out, first, last, ws.tile_buffer(1)[0])
         mine = np.empty((last - first, n))
         q, v = Q[first:last], V[first:last]
         tau = TAU if TAU.shape[0] == 1 else TAU[first:last]
@@ -1030,8 +1031,8 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
             bad = _batch.forward_rows(f, i, q, v, tau, own.get(ws.scratch), mine, 0,
                                       last - first)
         else:  # (first is a multiple of 16: the same tiles as on the caller)
-            bad = _tiles.forward_tiles(f, i, q, v, tau, mine, 0, last - first,
-                                       own.get(ws.tile_buffer(1)[0]))
+            bad = forward_tiles(f, i, q, v, tau, mine, 0, last - first,
+                                own.get(ws.tile_buffer(1)[0]))
         return (bad if bad < 0 else first + bad), mine
 
     def commit(first, last, mine):

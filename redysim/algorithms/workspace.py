@@ -93,7 +93,7 @@ def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
                                if FIELDS[f].dtype is np.float64 else t[f]
                                for f in Tree._fields[1:]))
     sizes = sizes_of(t["mass"].shape[0], t["dof_kind"].shape[0],
-                     int((t["gather"] >= 0).sum()), bool(t["serial"]))
+                     int((t["gather"] >= 0).sum()), bool(t["serial"]), t["n_q"])
     return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
 
 
@@ -160,7 +160,7 @@ class Workspace:
         if dh:
             arrays["dh"] = dh_table
         # the packed arrays, as the layout table lays them out (redysim.algorithms._kernels.bundles)
-        sizes = sizes_of(nb, n, ng, bool(t["serial"]))
+        sizes = sizes_of(nb, n, ng, bool(t["serial"]), t["n_q"])
         self.kernel_f = _pack({f: arrays[f]
                                for f in segment_sizes("tree_f", sizes, planar, dh)},
                               np.float64, header)
@@ -206,8 +206,9 @@ class Workspace:
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
         self._tiles_raw: np.ndarray | None = None  # (their allocation, a little larger)
         # batches of this system can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
-        # chain of revolute and prismatic axes
-        self.tiles_ok = bool(t["serial"]) and not (t["dof_kind"] == BALL).any()
+        # chain of revolute and prismatic axes, or any tree (its own passes, tiles_tree)
+        self.tiles_tree = not t["serial"]
+        self.tiles_ok = self.tiles_tree or not (t["dof_kind"] == BALL).any()
 
     @cached_property
     def table_a1(self) -> Scratch:

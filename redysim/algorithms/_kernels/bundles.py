@@ -46,7 +46,7 @@ GATHER_MASS = 21  # an articulated mass's numbers: X and Z upper triangles (6 + 
 # the SIMD tiles' sizes (.tiles): states per tile (a compile-time constant: the loops over states
 # have a constant trip count), and the rows of the kinematics' and backward pass's carries
 LANES = 16
-KIN_ROWS = 30  # frame (9), origin, angular velocity, s, om, dv, da, db (3 each)
+KIN_ROWS = 33  # frame (9), origin, angular velocity, s, om, dv, da, db, a ball's bw (3 each)
 BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 
 # A DH robot's constants (redysim.algorithms.dh_form), one row per joint, the DH kernels'
@@ -152,8 +152,8 @@ LAYOUT: tuple[Field, ...] = (
     Field("planar", F, ("nb", 12), "scratch", None, "the planar kernel's scratch", True),
     Field("dh_scratch", F, ("nb", DH_SCRATCH), "scratch", None, "the DH kernels' scratch",
           dh=True),
-    # one thread's SIMD tiles (.tiles; flat, LANES states the last axis; a serial chain of R and P
-    # axes, so n_q = nv), in its row of the workspace's tile buffer
+    # one thread's SIMD tiles (.tiles; flat, LANES states the last axis), in its row of the
+    # workspace's tile buffer
     Field("tile_oR", F, ("nb", 9, LANES), "tiles", "Tiles", "body rotations", flat=True),
     Field("tile_oO", F, ("nb", 3, LANES), "tiles", "Tiles", "body origins", flat=True),
     Field("tile_oP", F, ("nv", 6, LANES), "tiles", "Tiles", "motion subspace columns", flat=True),
@@ -167,9 +167,13 @@ LAYOUT: tuple[Field, ...] = (
     Field("tile_phitil", F, ("nv", LANES), "tiles", "Tiles", "RGE-A's phitil", flat=True),
     Field("tile_mu", F, (6, LANES), "tiles", "Tiles", "mu, carried from body to body",
           flat=True),
+    Field("tile_gm", F, ("ng", GATHER_MASS + 6, LANES), "tiles", "Tiles",
+          "a tree's gathering bodies' articulated masses and biases (Tree.gather)", flat=True),
+    Field("tile_gt", F, ("ng", 6, LANES), "tiles", "Tiles",
+          "and their forward carry-over mu", flat=True),
     Field("tile_bad", F, (LANES,), "tiles", "Tiles",
           "per state: 0 while its qdd are finite, else NaN", flat=True),
-    Field("tile_Q", F, ("nv", LANES), "tiles", "Tiles", "the tile's q", flat=True),
+    Field("tile_Q", F, ("nq", LANES), "tiles", "Tiles", "the tile's q", flat=True),
     Field("tile_QD", F, ("nv", LANES), "tiles", "Tiles", "its qd", flat=True),
     Field("tile_TAU", F, ("nv", LANES), "tiles", "Tiles", "its tau", flat=True),
     Field("tile_QDD", F, ("nv", LANES), "tiles", "Tiles", "its qdd", flat=True),
@@ -210,9 +214,11 @@ else:
                     "DOF, LANES states side by side, each array flat).")
 
 
-def sizes_of(nb: int, nv: int, ng: int, serial: bool) -> dict[str, int]:
-    """The size names of :data:`LAYOUT`'s shapes, for a system of these sizes."""
-    return dict(nb=nb, nb1=nb + 1, nv=nv, ng=ng, nt=0 if serial else nb)
+def sizes_of(nb: int, nv: int, ng: int, serial: bool, nq: int | None = None) -> dict[str, int]:
+    """The size names of :data:`LAYOUT`'s shapes, for a system of these sizes (nq: its
+    configuration coordinates, nv when not given)."""
+    return dict(nb=nb, nb1=nb + 1, nv=nv, nq=nv if nq is None else nq, ng=ng,
+                nt=0 if serial else nb)
 
 
 def shape_of(field: Field, sizes: dict[str, int]) -> tuple[int, ...]:
@@ -230,7 +236,7 @@ def segment_sizes(array: str, sizes: dict[str, int], planar: bool,
 
 # the argument of a generated slicer holding each packed array, and the size names' expressions
 PACKED = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch", "tiles": "buf"}
-_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "ng": "ng", "nt": "nt"}
+_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "nq": "nq", "ng": "ng", "nt": "nt"}
 
 
 def _view(f: Field, shaper: str | None = None) -> str:
@@ -259,7 +265,7 @@ def slicer_source(name: str, bundles: tuple[str, ...], shaper: str | None = None
     args = [a for k, a in PACKED.items() if k == "tree_i" or any(f.array == k for f in fields)]
     lines = [f"def {name}({', '.join(args)}):",
              "    h = idata",
-             f"    nb, nv, ng = h[{H_NB}], h[{H_NV}], h[{H_NG}]",
+             f"    nb, nv, nq, ng = h[{H_NB}], h[{H_NV}], h[{H_NQ}], h[{H_NG}]",
              f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty"]
     for b in bundles:
         first = f"h[{H_SERIAL}]," if b == "Tree" else ""

@@ -1,4 +1,4 @@
-"""RGE-A for many states of a serial chain at once: SIMD lanes across states.
+"""RGE-A for many states of a chain or tree at once: SIMD lanes across states.
 
 A tile is LANES states side by side: every array of the three passes is (rows, LANES), the
 states the last, contiguous axis, and every step of the passes a branch-free loop over the
@@ -29,12 +29,22 @@ bundle's arrays to a compiled function as separate pointer arguments, each decla
 the positional arrays were: LLVM vectorises the same loops into the same packed instructions, and
 a batch runs as fast (docs/design.md, "Performance notes"; ``benchmarks/ab_tiles.py``).
 
-Scope: a serial chain (``Tree.serial``) whose joints are revolute and prismatic axes (R, P, U,
-...; no ball joint), the spatial recursion. The results agree with the single calls to rounding
-(the operations are the single kernels', grouped alike, but a U joint's two axes are eliminated
-one after the other, and LLVM fuses multiply-adds where it vectorises): not bit for bit.
-:func:`redysim.forward_dynamics` runs batches here unless asked for the rows' bits
-(``simd=False``).
+Scope: any spatial tree, in two sets of passes. A serial chain (``Tree.serial``) of revolute
+and prismatic axes (R, P, U, S as three R axes) runs :func:`forward_tiles`, whose passes carry
+each body's values on to the next in ``run``, ``car`` and ``mu``; any other tree (placed joints,
+branches, free joints) runs :func:`forward_tree_tiles`, whose passes are the same lane loops with
+what a tree adds, each a branch on the body outside the loops over states: a body that does not
+follow its parent starts from the parent's values read back from the tile's arrays (the base's
+for a root), gathers its other children's articulated bodies from its row of ``tile_gm`` and
+leaves its mu in ``tile_gt`` (the rows of :class:`.bundles.Tree`'s gather, as the single
+kernels' gather arrays), a placed joint turns the parent's frame, a free joint's rotation is a
+ball's three axes from its quaternion (normalised, as :func:`.joints.jcalc`), and Q has n_q rows.
+A chain's batch compiles neither the tree's passes nor their branches (``balls`` and ``placed``
+constants). The results agree with the single calls to rounding (the operations are the single
+kernels', grouped alike, but a U joint's two axes are eliminated one after the other, a body's
+gathered children are added before its own mass, and LLVM fuses multiply-adds where it
+vectorises): not bit for bit. :func:`redysim.forward_dynamics` runs batches here unless asked
+for the rows' bits (``simd=False``).
 
 References: as :mod:`.rge_a` (Table A.1; Featherstone's ABA for the bias terms).
 """
@@ -45,8 +55,18 @@ import numpy as np
 
 from redysim._jit import inline, inline_generated, jit_borrowed, jit_tiles
 
-from .bundles import BACK_ROWS, KIN_ROWS, LANES, SLOT, Tiles, Tree, slicer_source
-from .joints import C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6
+from .bundles import (
+    ALONG_X,
+    BACK_ROWS,
+    GATHER_MASS,
+    KIN_ROWS,
+    LANES,
+    SLOT,
+    Tiles,
+    Tree,
+    slicer_source,
+)
+from .joints import BALL, C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6, turned
 from .rge_a import articulated_bias, shift_to_parent
 
 TWO_OVER_PI = 6.36619772367581382433e-01
@@ -55,11 +75,12 @@ PIO2_1, PIO2_1T = 1.57079632673412561417e+00, 6.07710050650619224932e-11
 PIO2_2, PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
 
 # rows of the kinematics carry (Tiles.tile_run, KIN_ROWS): frame r (9), origin O (3), angular
-# velocity w (3), s (3), om (3), dv (3), da (3), db (3)
-KR, KO, KW, KS, KOM, KDV, KDA, KDB = 0, 9, 12, 15, 18, 21, 24, 27
+# velocity w (3), s (3), om (3), dv (3), da (3), db (3), a ball's gathered P qd, bw (3)
+KR, KO, KW, KS, KOM, KDV, KDA, KDB, KBW = 0, 9, 12, 15, 18, 21, 24, 27, 30
 # rows of the backward carry (Tiles.tile_car, BACK_ROWS): X (6), Y (9), Z (6), n (3), f (3)
 BX, BY, BZ, BN, BF = 0, 6, 15, 21, 24
-assert KDB + 3 == KIN_ROWS and BF + 3 == BACK_ROWS  # the layout's sizes (.bundles)
+GM = GATHER_MASS + 6  # a gathering body's row of tile_gm: the carry's rows (BX..BF), in order
+assert KBW + 3 == KIN_ROWS and BF + 3 == BACK_ROWS == GM  # the layout's sizes (.bundles)
 # LANES, states per tile (.bundles): every tile array is (rows, LANES) flattened, LANES a
 # compile-time constant, so that the loops over states have a constant trip count and the rows
 # constant strides (16: as fast per state as 32 here, and half the work lost in a batch's last,
@@ -113,8 +134,7 @@ def tile_kinematics(tree, tl):
     a serial chain's states (L = LANES; every array flat, :func:`at`): reads ``tl``'s Q, QD (n,
     L); writes its oR (nb, 9, L), oO (nb, 3, L), oP (n, 6, L), W (nb, 3, L) (angular
     velocities) and C (nb, 6, L) (local twist-rates c_k), carrying ``run`` (KIN_ROWS, L)."""
-    along, joint_voff, dof_kind = tree.along, tree.joint_voff, tree.dof_kind
-    dof_axis, dof_u = tree.dof_axis, tree.dof_u
+    along = tree.along
     Q, QD, oR, oO, oP = tl.tile_Q, tl.tile_QD, tl.tile_oR, tl.tile_oO, tl.tile_oP
     W, C, run = tl.tile_W, tl.tile_C, tl.tile_run
     nb = along.shape[0]
@@ -125,39 +145,92 @@ def tile_kinematics(tree, tl):
         run[at(KR + 4, b)] = 1.0
         run[at(KR + 8, b)] = 1.0
     for k in range(nb):
-        lp = along[k]
-        for b in range(LANES):
+        _kin_begin(k, False, False, along[k], tree.placement_p, tree.placement_R, run)
+        _kin_axes(k, 0, False, tree, Q, QD, oP, run)
+        _kin_end(k, oR, oO, W, C, run)
+
+
+@inline
+def _kin_axes(k, qs, balls, tree, Q, QD, oP, run):
+    """Joint k's axes for every state (q_j in Q's row j + qs; ``balls``: a ball's axes may
+    come)."""
+    joint_voff, dof_kind, dof_axis, dof_u = (tree.joint_voff, tree.dof_kind, tree.dof_axis,
+                                             tree.dof_u)
+    for j in range(joint_voff[k], joint_voff[k + 1]):
+        kind, code = dof_kind[j], dof_axis[j]
+        u0, u1, u2 = dof_u[j, 0], dof_u[j, 1], dof_u[j, 2]
+        jq = j + qs
+        # one copy of the loop per (kind, axis code), each with its branches folded away:
+        # a branch inside a vectorised loop runs both of its sides
+        if kind == PRISMATIC:
+            if code == 0:
+                _prismatic_axis(j, jq, 0, u0, u1, u2, Q, QD, oP, run)
+            elif code == 1:
+                _prismatic_axis(j, jq, 1, u0, u1, u2, Q, QD, oP, run)
+            elif code == 2:
+                _prismatic_axis(j, jq, 2, u0, u1, u2, Q, QD, oP, run)
+            else:
+                _prismatic_axis(j, jq, 3, u0, u1, u2, Q, QD, oP, run)
+        elif balls and kind == BALL:
+            if code == 0:
+                _ball_axis(j, jq, 0, Q, QD, oP, run)
+            elif code == 1:
+                _ball_axis(j, jq, 1, Q, QD, oP, run)
+            else:
+                _ball_axis(j, jq, 2, Q, QD, oP, run)
+        elif code == 0:
+            _revolute_axis(j, jq, 0, u0, u1, u2, Q, QD, oP, run)
+        elif code == 1:
+            _revolute_axis(j, jq, 1, u0, u1, u2, Q, QD, oP, run)
+        elif code == 2:
+            _revolute_axis(j, jq, 2, u0, u1, u2, Q, QD, oP, run)
+        else:
+            _revolute_axis(j, jq, 3, u0, u1, u2, Q, QD, oP, run)
+
+
+@inline
+def _kin_begin(k, placed, balls, lp, pp, G, run):
+    """Body k's start, for every state, from its parent's frame, origin and angular velocity in
+    ``run``: s = O_k - O_p before any prismatic axis (lp along the parent's x, or, ``placed``,
+    R_p pp[k] with the frame turned to R_p G[k]), om = w_p, the local rates zero (and a ball's
+    bw, ``balls``)."""
+    last = KIN_ROWS if balls else KBW
+    p0, p1, p2 = (pp[k, 0], pp[k, 1], pp[k, 2]) if placed else (0.0, 0.0, 0.0)
+    if placed:
+        g00, g01, g02 = G[k, 0, 0], G[k, 0, 1], G[k, 0, 2]
+        g10, g11, g12 = G[k, 1, 0], G[k, 1, 1], G[k, 1, 2]
+        g20, g21, g22 = G[k, 2, 0], G[k, 2, 1], G[k, 2, 2]
+    else:
+        g00 = g01 = g02 = g10 = g11 = g12 = g20 = g21 = g22 = 0.0
+    for b in range(LANES):
+        if placed:
+            r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
+            r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
+            r20, r21, r22 = run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]
+            run[at(KS + 0, b)] = r00 * p0 + r01 * p1 + r02 * p2
+            run[at(KS + 1, b)] = r10 * p0 + r11 * p1 + r12 * p2
+            run[at(KS + 2, b)] = r20 * p0 + r21 * p1 + r22 * p2
+            (run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)],
+             run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)],
+             run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]) = turned(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                g00, g01, g02, g10, g11, g12, g20, g21, g22)
+        else:
             run[at(KS + 0, b)] = lp * run[at(KR + 0, b)]
             run[at(KS + 1, b)] = lp * run[at(KR + 3, b)]
             run[at(KS + 2, b)] = lp * run[at(KR + 6, b)]
-            run[at(KOM + 0, b)] = run[at(KW + 0, b)]
-            run[at(KOM + 1, b)] = run[at(KW + 1, b)]
-            run[at(KOM + 2, b)] = run[at(KW + 2, b)]
-            for i in range(KDV, KIN_ROWS):
-                run[at(i, b)] = 0.0
-        for j in range(joint_voff[k], joint_voff[k + 1]):
-            kind, code = dof_kind[j], dof_axis[j]
-            u0, u1, u2 = dof_u[j, 0], dof_u[j, 1], dof_u[j, 2]
-            # one copy of the loop per (kind, axis code), each with its branches folded away:
-            # a branch inside a vectorised loop runs both of its sides
-            if kind == PRISMATIC:
-                if code == 0:
-                    _prismatic_axis(j, 0, u0, u1, u2, Q, QD, oP, run)
-                elif code == 1:
-                    _prismatic_axis(j, 1, u0, u1, u2, Q, QD, oP, run)
-                elif code == 2:
-                    _prismatic_axis(j, 2, u0, u1, u2, Q, QD, oP, run)
-                else:
-                    _prismatic_axis(j, 3, u0, u1, u2, Q, QD, oP, run)
-            elif code == 0:
-                _revolute_axis(j, 0, u0, u1, u2, Q, QD, oP, run)
-            elif code == 1:
-                _revolute_axis(j, 1, u0, u1, u2, Q, QD, oP, run)
-            elif code == 2:
-                _revolute_axis(j, 2, u0, u1, u2, Q, QD, oP, run)
-            else:
-                _revolute_axis(j, 3, u0, u1, u2, Q, QD, oP, run)
-        for b in range(LANES):
+        run[at(KOM + 0, b)] = run[at(KW + 0, b)]
+        run[at(KOM + 1, b)] = run[at(KW + 1, b)]
+        run[at(KOM + 2, b)] = run[at(KW + 2, b)]
+        for i in range(KDV, last):
+            run[at(i, b)] = 0.0
+
+
+@inline
+def _kin_end(k, oR, oO, W, C, run):
+    """A body's end, for every state: its origin, frame, angular velocity and local twist-rate
+    c_k written out, and left in ``run`` for a child that follows."""
+    for b in range(LANES):
             s0, s1, s2 = run[at(KS + 0, b)], run[at(KS + 1, b)], run[at(KS + 2, b)]
             w0, w1, w2 = run[at(KW + 0, b)], run[at(KW + 1, b)], run[at(KW + 2, b)]
             O0 = run[at(KO + 0, b)] + s0
@@ -187,9 +260,10 @@ def tile_kinematics(tree, tl):
 
 
 @inline
-def _revolute_axis(j, code, u0, u1, u2, Q, QD, oP, run):
+def _revolute_axis(j, jq, code, u0, u1, u2, Q, QD, oP, run):
     """One revolute axis for every state: :func:`.joints.jcalc` and :func:`.joints.axis_rates`
-    (qdd = 0) on the carry. ``code`` is the same for every state: one branch, outside the loop."""
+    (qdd = 0) on the carry, q_j in Q's row jq. ``code`` is the same for every state: one
+    branch, outside the loop."""
     for b in range(LANES):
         r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
         r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
@@ -204,7 +278,7 @@ def _revolute_axis(j, code, u0, u1, u2, Q, QD, oP, run):
             e0 = r00 * u0 + r01 * u1 + r02 * u2
             e1 = r10 * u0 + r11 * u1 + r12 * u2
             e2 = r20 * u0 + r21 * u1 + r22 * u2
-        c, s = sincos_reduced(Q[at(j, b)])
+        c, s = sincos_reduced(Q[at(jq, b)])
         if code == 0:  # columns y, z mix
             n01, n11, n21 = c * r01 + s * r02, c * r11 + s * r12, c * r21 + s * r22
             n02, n12, n22 = c * r02 - s * r01, c * r12 - s * r11, c * r22 - s * r21
@@ -250,7 +324,7 @@ def _revolute_axis(j, code, u0, u1, u2, Q, QD, oP, run):
 
 
 @inline
-def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
+def _prismatic_axis(j, jq, code, u0, u1, u2, Q, QD, oP, run):
     """One prismatic axis for every state (:func:`_revolute_axis`'s counterpart)."""
     for b in range(LANES):
         if code == 0:
@@ -263,7 +337,7 @@ def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
             e0 = run[at(KR + 0, b)] * u0 + run[at(KR + 1, b)] * u1 + run[at(KR + 2, b)] * u2
             e1 = run[at(KR + 3, b)] * u0 + run[at(KR + 4, b)] * u1 + run[at(KR + 5, b)] * u2
             e2 = run[at(KR + 6, b)] * u0 + run[at(KR + 7, b)] * u1 + run[at(KR + 8, b)] * u2
-        qj = Q[at(j, b)]
+        qj = Q[at(jq, b)]
         run[at(KS + 0, b)] += e0 * qj
         run[at(KS + 1, b)] += e1 * qj
         run[at(KS + 2, b)] += e2 * qj
@@ -283,6 +357,98 @@ def _prismatic_axis(j, code, u0, u1, u2, Q, QD, oP, run):
         run[at(KDB + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
 
 
+@inline
+def _ball_axis(j, jq, code, Q, QD, oP, run):
+    """One of a ball's three rotational axes for every state (:func:`.joints.jcalc` and
+    :func:`.joints.axis_rates`, BALL): the first turns the frame by the unit quaternion in Q's
+    rows jq..jq + 3 (normalised, as there); each gives the turned frame's column ``code``; their
+    P qd gather in bw, added to om with the last."""
+    for b in range(LANES):
+        r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
+        r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
+        r20, r21, r22 = run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]
+        if code == 0:
+            qw, qx, qy, qz = Q[at(jq, b)], Q[at(jq + 1, b)], Q[at(jq + 2, b)], Q[at(jq + 3, b)]
+            two = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                1.0 - two * (qy * qy + qz * qz), two * (qx * qy - qw * qz),
+                two * (qx * qz + qw * qy),
+                two * (qx * qy + qw * qz), 1.0 - two * (qx * qx + qz * qz),
+                two * (qy * qz - qw * qx),
+                two * (qx * qz - qw * qy), two * (qy * qz + qw * qx),
+                1.0 - two * (qx * qx + qy * qy))
+            run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)] = r00, r01, r02
+            run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)] = r10, r11, r12
+            run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)] = r20, r21, r22
+            e0, e1, e2 = r00, r10, r20
+        elif code == 1:
+            e0, e1, e2 = r01, r11, r21
+        else:
+            e0, e1, e2 = r02, r12, r22
+        oP[at(j * 6 + 0, b)] = e0
+        oP[at(j * 6 + 1, b)] = e1
+        oP[at(j * 6 + 2, b)] = e2
+        oP[at(j * 6 + 3, b)] = 0.0
+        oP[at(j * 6 + 4, b)] = 0.0
+        oP[at(j * 6 + 5, b)] = 0.0
+        x = QD[at(j, b)]
+        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
+        run[at(KDA + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
+        run[at(KDA + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
+        run[at(KDA + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
+        bw0 = run[at(KBW + 0, b)] + e0 * x
+        bw1 = run[at(KBW + 1, b)] + e1 * x
+        bw2 = run[at(KBW + 2, b)] + e2 * x
+        run[at(KBW + 0, b)], run[at(KBW + 1, b)], run[at(KBW + 2, b)] = bw0, bw1, bw2
+        if code == 2:
+            run[at(KOM + 0, b)] = om0 + bw0
+            run[at(KOM + 1, b)] = om1 + bw1
+            run[at(KOM + 2, b)] = om2 + bw2
+
+
+@jit_tiles
+def tile_tree_kinematics(tree, tl):
+    """:func:`tile_kinematics` for any tree (R, P, U, S, ball and free joints, any placement):
+    a body that does not follow the one before it starts from its parent's frame, origin and
+    angular velocity, read back from the tile's arrays (or the base's), and Q has n_q rows (a
+    joint's q in rows j + qshift)."""
+    parent, placement_code, qshift, along = (tree.parent, tree.placement_code, tree.qshift,
+                                             tree.along)
+    placement_p, placement_R = tree.placement_p, tree.placement_R
+    Q, QD, oR, oO, oP = tl.tile_Q, tl.tile_QD, tl.tile_oR, tl.tile_oO, tl.tile_oP
+    W, C, run = tl.tile_W, tl.tile_C, tl.tile_run
+    for k in range(along.shape[0]):
+        p = parent[k]
+        if k == 0 or p != k - 1:
+            _kin_from(p, oR, oO, W, run)
+        if placement_code[k] == ALONG_X:
+            _kin_begin(k, False, True, along[k], placement_p, placement_R, run)
+        else:
+            _kin_begin(k, True, True, 0.0, placement_p, placement_R, run)
+        _kin_axes(k, qshift[k], True, tree, Q, QD, oP, run)
+        _kin_end(k, oR, oO, W, C, run)
+
+
+@inline
+def _kin_from(p, oR, oO, W, run):
+    """The carry set to body p's frame, origin and angular velocity (the base's, p < 0), for
+    every state."""
+    for b in range(LANES):
+        for i in range(KIN_ROWS):
+            run[at(i, b)] = 0.0
+        if p < 0:
+            run[at(KR + 0, b)] = 1.0
+            run[at(KR + 4, b)] = 1.0
+            run[at(KR + 8, b)] = 1.0
+        else:
+            for i in range(9):
+                run[at(KR + i, b)] = oR[at(p * 9 + i, b)]
+            for i in range(3):
+                run[at(KO + i, b)] = oO[at(p * 3 + i, b)]
+                run[at(KW + i, b)] = W[at(p * 3 + i, b)]
+
+
 @jit_tiles
 def tile_backward(tree, tl):
     """RGE-A's backward pass (:func:`.rge_a.rge_a_backward`, serial, axis by axis) for a tile:
@@ -297,23 +463,84 @@ def tile_backward(tree, tl):
         for i in range(BACK_ROWS):
             car[at(i, b)] = 0.0
     for k in range(nb - 1, -1, -1):
-        m = mass[k]
-        j00, j01, j02 = inertia_O[k, 0, 0], inertia_O[k, 0, 1], inertia_O[k, 0, 2]
-        j11, j12, j22 = inertia_O[k, 1, 1], inertia_O[k, 1, 2], inertia_O[k, 2, 2]
-        mc0, mc1, mc2 = mass_com[k, 0], mass_com[k, 1], mass_com[k, 2]
-        if j01 == 0.0 and j02 == 0.0 and j12 == 0.0:
-            _body_mass(k, True, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
-        else:
-            _body_mass(k, False, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
-        for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
-            if dof_kind[j] == PRISMATIC:
-                _eliminate(j, PRISMATIC, oP, TAU, Psihat, phitil, car)
-            else:
-                _eliminate(j, 0, oP, TAU, Psihat, phitil, car)
+        _back_body(k, mass, inertia_O, mass_com, oR, W, car)
+        _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car)
         if k > 0:
-            _bias_and_shift(k, True, oO, C, car)
+            _bias_and_shift(k, k - 1, True, oO, C, car)
         else:
-            _bias_and_shift(k, False, oO, C, car)
+            _bias_and_shift(k, 0, False, oO, C, car)
+
+
+@inline
+def _back_body(k, mass, inertia_O, mass_com, oR, W, car):
+    """Body k's own mass and velocity-product wrench into the carry (:func:`_body_mass`, its
+    inertia's kind a branch outside the loop)."""
+    m = mass[k]
+    j00, j01, j02 = inertia_O[k, 0, 0], inertia_O[k, 0, 1], inertia_O[k, 0, 2]
+    j11, j12, j22 = inertia_O[k, 1, 1], inertia_O[k, 1, 2], inertia_O[k, 2, 2]
+    mc0, mc1, mc2 = mass_com[k, 0], mass_com[k, 1], mass_com[k, 2]
+    if j01 == 0.0 and j02 == 0.0 and j12 == 0.0:
+        _body_mass(k, True, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
+    else:
+        _body_mass(k, False, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car)
+
+
+@inline
+def _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car):
+    """Joint k's axes eliminated, last first (a ball's columns are rotational: the revolute
+    loop)."""
+    for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
+        if dof_kind[j] == PRISMATIC:
+            _eliminate(j, PRISMATIC, oP, TAU, Psihat, phitil, car)
+        else:
+            _eliminate(j, 0, oP, TAU, Psihat, phitil, car)
+
+
+@jit_tiles
+def tile_tree_backward(tree, tl):
+    """:func:`tile_backward` for any tree: a body whose children do not all follow it gathers
+    theirs from its row of ``tile_gm`` (:class:`.bundles.Tree`'s gather), and a body that its
+    parent does not precede leaves its articulated mass and bias there, the carry then zero."""
+    mass, inertia_O, mass_com = tree.mass, tree.inertia_O, tree.mass_com
+    joint_voff, dof_kind, parent, gather = (tree.joint_voff, tree.dof_kind, tree.parent,
+                                            tree.gather)
+    oR, oO, oP, W, C, TAU = tl.tile_oR, tl.tile_oO, tl.tile_oP, tl.tile_W, tl.tile_C, tl.tile_TAU
+    Psihat, phitil, car, gm = tl.tile_Psihat, tl.tile_phitil, tl.tile_car, tl.tile_gm
+    for i in range(gm.shape[0]):
+        gm[i] = 0.0
+    for b in range(LANES):
+        for i in range(BACK_ROWS):
+            car[at(i, b)] = 0.0
+    for k in range(mass.shape[0] - 1, -1, -1):
+        p = parent[k]
+        if gather[k] >= 0:
+            _gathered(gather[k], gm, car, False)
+        _back_body(k, mass, inertia_O, mass_com, oR, W, car)
+        _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car)
+        if p >= 0:
+            _bias_and_shift(k, p, True, oO, C, car)
+        else:
+            _bias_and_shift(k, 0, False, oO, C, car)
+        if k > 0 and p != k - 1:
+            if p >= 0:
+                _gathered(gather[p], gm, car, True)
+            else:
+                for b in range(LANES):
+                    for i in range(BACK_ROWS):
+                        car[at(i, b)] = 0.0
+
+
+@inline
+def _gathered(g, gm, car, leave):
+    """``leave``: the carry added into gathering row g, then zero; else row g added to the carry;
+    for every state."""
+    for b in range(LANES):
+        for i in range(BACK_ROWS):
+            if leave:
+                gm[at(g * GM + i, b)] += car[at(i, b)]
+                car[at(i, b)] = 0.0
+            else:
+                car[at(i, b)] += gm[at(g * GM + i, b)]
 
 
 @inline
@@ -454,9 +681,9 @@ def _eliminate(j, kind, oP, TAU, Psihat, phitil, car):
 
 
 @inline
-def _bias_and_shift(k, shift, oO, C, car):
-    """Body k's articulated bias p += Mbar_k c_k, then Mbar and p shifted to the parent's origin
-    (A_{k,k-1}^T Mbar A and A^T p), for every state."""
+def _bias_and_shift(k, p, shift, oO, C, car):
+    """Body k's articulated bias p += Mbar_k c_k, then (``shift``) Mbar and p shifted to its
+    parent p's origin (A_{k,p}^T Mbar A and A^T p), for every state."""
     for b in range(LANES):
         x00, x01, x02 = car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)]
         x11, x12, x22 = car[at(BX + 3, b)], car[at(BX + 4, b)], car[at(BX + 5, b)]
@@ -472,9 +699,9 @@ def _bias_and_shift(k, shift, oO, C, car):
         n0, n1, n2 = car[at(BN + 0, b)] + d0, car[at(BN + 1, b)] + d1, car[at(BN + 2, b)] + d2
         f0, f1, f2 = car[at(BF + 0, b)] + d3, car[at(BF + 1, b)] + d4, car[at(BF + 2, b)] + d5
         if shift:
-            s0 = oO[at((k - 1) * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
-            s1 = oO[at((k - 1) * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
-            s2 = oO[at((k - 1) * 3 + 2, b)] - oO[at(k * 3 + 2, b)]
+            s0 = oO[at(p * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
+            s1 = oO[at(p * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
+            s2 = oO[at(p * 3 + 2, b)] - oO[at(k * 3 + 2, b)]
             n0 -= s1 * f2 - s2 * f1
             n1 -= s2 * f0 - s0 * f2
             n2 -= s0 * f1 - s1 * f0
@@ -515,13 +742,8 @@ def tile_forward(tree, tl, base_accel):
     QDD, mu, bad = tl.tile_QDD, tl.tile_mu, tl.tile_bad
     nb = joint_voff.shape[0] - 1
     for b in range(LANES):
-        mu[at(0, b)] = C[at(0 * 6 + 0, b)]
-        mu[at(1, b)] = C[at(0 * 6 + 1, b)]
-        mu[at(2, b)] = C[at(0 * 6 + 2, b)]
-        mu[at(3, b)] = base_accel[0] + C[at(0 * 6 + 3, b)]
-        mu[at(4, b)] = base_accel[1] + C[at(0 * 6 + 4, b)]
-        mu[at(5, b)] = base_accel[2] + C[at(0 * 6 + 5, b)]
         bad[b] = 0.0
+    _mu_base(0, C, base_accel, mu)
     for k in range(nb):
         jl = joint_voff[k + 1] - 1
         for j in range(joint_voff[k], jl + 1):
@@ -529,6 +751,69 @@ def tile_forward(tree, tl, base_accel):
                 _forward_axis(j, oP, Psihat, phitil, QDD, mu, bad)
             else:
                 _forward_axis_on(j, k, oO, oP, Psihat, phitil, C, QDD, mu, bad)
+
+
+@jit_tiles
+def tile_tree_forward(tree, tl, base_accel):
+    """:func:`tile_forward` for any tree: a body that does not follow its parent starts from the
+    parent's mu (its row of ``tile_gt``) or the base's, and a body with such children leaves its
+    mu there."""
+    joint_voff, parent, gather = tree.joint_voff, tree.parent, tree.gather
+    oO, oP, Psihat, phitil, C = tl.tile_oO, tl.tile_oP, tl.tile_Psihat, tl.tile_phitil, tl.tile_C
+    QDD, mu, bad, gt = tl.tile_QDD, tl.tile_mu, tl.tile_bad, tl.tile_gt
+    nb = joint_voff.shape[0] - 1
+    for b in range(LANES):
+        bad[b] = 0.0
+    for k in range(nb):
+        p = parent[k]
+        if k == 0 or p != k - 1:
+            if p < 0:
+                _mu_base(k, C, base_accel, mu)
+            else:
+                _mu_from(gather[p], p, k, oO, C, gt, mu)
+        jl = joint_voff[k + 1] - 1
+        onward = k + 1 < nb and parent[k + 1] == k
+        g = gather[k]
+        for j in range(joint_voff[k], jl + 1):
+            if j < jl or not onward or g >= 0:
+                _forward_axis(j, oP, Psihat, phitil, QDD, mu, bad)
+            else:
+                _forward_axis_on(j, k, oO, oP, Psihat, phitil, C, QDD, mu, bad)
+        if g >= 0:  # mu_k kept for the children that do not follow, and on to k + 1
+            for b in range(LANES):
+                for i in range(6):
+                    gt[at(g * 6 + i, b)] = mu[at(i, b)]
+            if onward:
+                _mu_from(g, k, k + 1, oO, C, gt, mu)
+
+
+@inline
+def _mu_base(k, C, base_accel, mu):
+    """mu = [0; base_accel] + c_k: body k hangs from the base (no shift), for every state."""
+    for b in range(LANES):
+        mu[at(0, b)] = C[at(k * 6 + 0, b)]
+        mu[at(1, b)] = C[at(k * 6 + 1, b)]
+        mu[at(2, b)] = C[at(k * 6 + 2, b)]
+        mu[at(3, b)] = base_accel[0] + C[at(k * 6 + 3, b)]
+        mu[at(4, b)] = base_accel[1] + C[at(k * 6 + 4, b)]
+        mu[at(5, b)] = base_accel[2] + C[at(k * 6 + 5, b)]
+
+
+@inline
+def _mu_from(g, p, k, oO, C, gt, mu):
+    """mu_{k,p} = A_{k,p} mu_p + c_k, mu_p in row g of ``gt``: A [w; v] = [w; v + a x w] with a
+    = O_p - O_k (:func:`.rge_a._rge_a_forward`), for every state."""
+    for b in range(LANES):
+        a0 = oO[at(p * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
+        a1 = oO[at(p * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
+        a2 = oO[at(p * 3 + 2, b)] - oO[at(k * 3 + 2, b)]
+        u0, u1, u2 = gt[at(g * 6 + 0, b)], gt[at(g * 6 + 1, b)], gt[at(g * 6 + 2, b)]
+        mu[at(3, b)] = (gt[at(g * 6 + 3, b)] + C[at(k * 6 + 3, b)]) + (a1 * u2 - a2 * u1)
+        mu[at(4, b)] = (gt[at(g * 6 + 4, b)] + C[at(k * 6 + 4, b)]) + (a2 * u0 - a0 * u2)
+        mu[at(5, b)] = (gt[at(g * 6 + 5, b)] + C[at(k * 6 + 5, b)]) + (a0 * u1 - a1 * u0)
+        mu[at(0, b)] = u0 + C[at(k * 6 + 0, b)]
+        mu[at(1, b)] = u1 + C[at(k * 6 + 1, b)]
+        mu[at(2, b)] = u2 + C[at(k * 6 + 2, b)]
 
 
 @inline
@@ -601,10 +886,25 @@ def tile_out(src, t0, count, dst):
 @jit_borrowed
 def forward_tiles(fdata, idata, Q, QD, TAU, QDD, first, last, buf):
     """QDD rows first..last - 1 by tiles of LANES states (the last one possibly partial), for
-    the system of a workspace's packed arrays ``fdata``, ``idata``, in the tile arrays of ``buf``
-    (a row of the workspace's tile buffer, laid out as its header says: the Tiles rows of
+    the serial chain of a workspace's packed arrays ``fdata``, ``idata``, in the tile arrays of
+    ``buf`` (a row of the workspace's tile buffer, laid out as its header says: the Tiles rows of
     :data:`.bundles.LAYOUT`). TAU has B rows or one (the same for every state). Returns -1, or
     the first row whose qdd is not finite."""
+    return _run_tiles(tile_kinematics, tile_backward, tile_forward, fdata, idata, Q, QD, TAU,
+                      QDD, first, last, buf)
+
+
+@jit_borrowed
+def forward_tree_tiles(fdata, idata, Q, QD, TAU, QDD, first, last, buf):
+    """:func:`forward_tiles` for any tree (the tree passes: a compiled function of its own, so
+    that a chain's first batch does not compile them)."""
+    return _run_tiles(tile_tree_kinematics, tile_tree_backward, tile_tree_forward, fdata, idata,
+                      Q, QD, TAU, QDD, first, last, buf)
+
+
+@inline
+def _run_tiles(kinematics, backward, forward, fdata, idata, Q, QD, TAU, QDD, first, last, buf):
+    """The tiles of rows first..last - 1 through the three passes given."""
     tree, tl = tile_bundles(fdata, idata, buf)
     base_accel = fdata[idata[F_BASE_ACCEL]:idata[F_BASE_ACCEL] + 3]
     Qt, QDt, Tt, QDDt, bad = tl.tile_Q, tl.tile_QD, tl.tile_TAU, tl.tile_QDD, tl.tile_bad
@@ -613,9 +913,9 @@ def forward_tiles(fdata, idata, Q, QD, TAU, QDD, first, last, buf):
         tile_in(Q, t0, count, Qt)
         tile_in(QD, t0, count, QDt)
         tile_in(TAU, t0, count, Tt)
-        tile_kinematics(tree, tl)
-        tile_backward(tree, tl)
-        tile_forward(tree, tl, base_accel)
+        kinematics(tree, tl)
+        backward(tree, tl)
+        forward(tree, tl, base_accel)
         for b in range(count):
             if bad[b] != 0.0:
                 return t0 + b
