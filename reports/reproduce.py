@@ -98,27 +98,40 @@ def _cpu_s() -> float:
     return sum(u.ru_utime + u.ru_stime for u in usage)
 
 
-def warm_stepping() -> None:
-    """Compile the compiled stepping (rk_steps) in its two forms: the one that serves every
-    chain and tree, planar or not (its Motion bundle's types are the same), and the one with
-    extras (couplings, closed loops, a tip force on a spatial chain: the robots' Panda, the
-    scenarios' linkages), so that no sweep worker compiles either."""
+STEPPING_FORMS = ("plain", "extras")
+
+
+def warm_stepping(forms: tuple[str, ...] = STEPPING_FORMS) -> None:
+    """Compile the compiled stepping (rk_steps) in its two forms: ``"plain"``, the one that
+    serves every chain and tree, planar or not (its Motion bundle's types are the same), and
+    ``"extras"``, the one with extras (couplings, closed loops, a tip force on a spatial chain:
+    the robots' Panda, the scenarios' linkages), so that no sweep worker compiles either."""
     import numpy as np
 
     from redysim import Body, Chain, Coupling, Model, TreeJoint
     from redysim.algorithms.linkages import four_bar
     from redysim.simulation import Simulator
 
-    chain = Chain.uniform(3, "U", mass=1.0)
-    Simulator(chain, 0.02, sample=0.01, compiled=True).run()
-    fb = four_bar(0.3, 0.1, 0.35, 0.3)
-    Simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
-              compiled=True).run()
-    bar = Body("bar", 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
-    arm = Model.build([bar, bar], [TreeJoint("j0", "R", "z"),
-                                   TreeJoint("j1", "R", "x", translation=(0.6, 0.0, 0.0))],
-                      [-1, 0]).with_couplings([Coupling("j1", "j0", 1.0, 0.0)])
-    Simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
+    if "plain" in forms:
+        chain = Chain.uniform(3, "U", mass=1.0)
+        Simulator(chain, 0.02, sample=0.01, compiled=True).run()
+    if "extras" in forms:
+        fb = four_bar(0.3, 0.1, 0.35, 0.3)
+        Simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
+                  compiled=True).run()
+        bar = Body("bar", 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
+        arm = Model.build([bar, bar], [TreeJoint("j0", "R", "z"),
+                                       TreeJoint("j1", "R", "x", translation=(0.6, 0.0, 0.0))],
+                          [-1, 0]).with_couplings([Coupling("j1", "j0", 1.0, 0.0)])
+        Simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
+
+
+def _stepping_process(forms: tuple[str, ...]) -> subprocess.Popen:
+    """:func:`warm_stepping` of ``forms`` in a process of its own (output piped)."""
+    return subprocess.Popen(
+        [sys.executable, "-c", "from redysim.reports.reproduce import warm_stepping; "
+                               f"warm_stepping({forms!r})"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 @dataclass
@@ -144,20 +157,25 @@ class Reproduction:
         self.workers = workers
         self.mode = mode
         self.t0 = time.perf_counter()
+        self._extras: subprocess.Popen | None = None  # warm_up's late second form of rk_steps
 
     def say(self, msg: str) -> None:
         m, s = divmod(int(time.perf_counter() - self.t0), 60)
         print(f"[{m:02d}:{s:02d}] {msg}", flush=True)
 
     # ----------------------------------------------------------------------- steps
-    def warm_up(self) -> None:
+    def warm_up(self, extras_later: bool = False) -> None:
         """Compile (or load from numba's disk cache) every kernel once, before the sweep workers
         start: they then load machine code instead of compiling it each (two workers compiling
         the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s).
         rk_steps compiles in a second process (:func:`warm_stepping`) once what it calls (the
         entries it links, the energy at its samples) is cached, beside the other kernels here,
-        where there is a second core: both its forms, the second (couplings, loops) ~30 s of CPU
-        more (cold, here)."""
+        where there is a second core. Its second form (``"extras"``: couplings, loops; ~30 s of
+        CPU, cold) with ``extras_later`` starts in a third process once both are done, to run
+        beside the next step (:meth:`join_stepping` waits for it: the quick and full plans put
+        the precision tables between, which need no stepping); else the second process compiles
+        both forms (measured cold, 2026-11-28: the main process's kernels done at 50 s, the
+        second's two forms at 88 s, 30 s of them the extras)."""
         import numpy as np
 
         from redysim import (
@@ -177,11 +195,10 @@ class Reproduction:
             forward_dynamics(chain, q, q)
             energy(chain, q, q)
         side = None
-        if (self.workers or os.cpu_count() or 1) > 1:
-            side = subprocess.Popen(
-                [sys.executable, "-c",
-                 "from redysim.reports.reproduce import warm_stepping; warm_stepping()"],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        two = (self.workers or os.cpu_count() or 1) > 1
+        forms = ("plain",) if extras_later and two else STEPPING_FORMS
+        if two:
+            side = _stepping_process(forms)
         try:
             for chain in chains:
                 q = np.full(chain.n_dof, 0.1)
@@ -205,11 +222,28 @@ class Reproduction:
             raise
         if side is not None:
             output = side.communicate()[0]
-            if side.returncode == 0:
-                return
-            self.say(f"  compiling rk_steps in a second process failed ({side.returncode}: "
-                     f"{output.strip()[-300:]}); compiling it here")
+            if side.returncode != 0:
+                self.say(f"  compiling rk_steps in a second process failed ({side.returncode}: "
+                         f"{output.strip()[-300:]}); compiling it here")
+                warm_stepping(forms)
+            if forms != STEPPING_FORMS:
+                self._extras = _stepping_process(("extras",))
+            return
         warm_stepping()
+
+    def join_stepping(self) -> str:
+        """Wait for the compiled stepping's second form (:meth:`warm_up` with ``extras_later``),
+        compiling it here if its process failed; its CPU time is this step's."""
+        side, self._extras = self._extras, None
+        if side is None:
+            return "compiled in the warm-up"
+        output = side.communicate()[0]
+        if side.returncode != 0:
+            self.say(f"  compiling rk_steps (extras) in its own process failed "
+                     f"({side.returncode}: {output.strip()[-300:]}); compiling it here")
+            warm_stepping(("extras",))
+            return "compiled here"
+        return "compiled beside the step before"
 
     def sweep(self, name: str) -> str:
         from redysim.harness.sweep import load_sweep, run_sweep
@@ -419,15 +453,21 @@ class Reproduction:
         if build_only:
             p.add("report", self.build)
             return p
-        p.add("JIT warm-up", self.warm_up)
         if tables:
+            p.add("JIT warm-up", self.warm_up)
             for t in tables:
                 self._table_steps(p, t)
-        elif self.mode == QUICK:
+            p.add("report", self.build)
+            return p
+        # the precision tables (mpmath, no simulation) run beside the compiled stepping's second
+        # form, compiled in a process of its own (warm_up, join_stepping)
+        p.add("JIT warm-up", lambda: self.warm_up(extras_later=True))
+        p.add("precision tables", lambda: self.precision(
+            ("table10", "tableA2", "table11", "ieee", "table8"), sensitivity=self.mode == FULL))
+        p.add("JIT warm-up, rk_steps with extras", self.join_stepping)
+        if self.mode == QUICK:
             for name in QUICK_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
-            p.add("precision tables", lambda: self.precision(
-                ("table10", "tableA2", "table11", "ieee", "table8"), sensitivity=False))
             p.add("Table 9, conditioning", self.gim_study)
             p.add("Table 7, operation counts", self.opcount)
             p.add("true-error study", lambda: self.error_study(QUICK_ERROR_SIZES))
@@ -441,8 +481,6 @@ class Reproduction:
             for name in FULL_SWEEPS:
                 p.add(f"sweep {name}", lambda name=name: self.sweep(name))
             p.add("Table 5, long runs", self.long_runs)
-            p.add("precision tables", lambda: self.precision(
-                ("table10", "tableA2", "table11", "ieee", "table8"), sensitivity=True))
             p.add("Table 9, conditioning", self.gim_study)
             p.add("Table 7, operation counts", self.opcount)
             p.add("CPU scaling", self.scaling)
@@ -480,6 +518,22 @@ class Reproduction:
         record = {"mode": plan.mode, "started": started, "steps": [], "provenance": provenance(),
                   "machine": provenance()["machine"]}
         failed, cpu0 = 0, _cpu_s()
+        try:
+            failed = self._run_steps(plan, record)
+        finally:  # (Ctrl-C too) leave no compiling process behind
+            if self._extras is not None:
+                self._extras.kill()
+                self._extras.communicate()
+                self._extras = None
+        total = time.perf_counter() - self.t0
+        m, s = divmod(int(round(total)), 60)
+        self.say(f"{plan.mode}: finished in {m} min {s} s, CPU {_cpu_s() - cpu0:.0f} s"
+                 + (f"; {failed} step(s) failed" if failed else ""))
+        return 1 if failed else 0
+
+    def _run_steps(self, plan: Plan, record: dict) -> int:
+        """Run the plan's steps in order, recording each (the failures counted)."""
+        failed = 0
         for name, fn in plan.steps:
             self.say(f"{name} ...")
             t0, c0 = time.perf_counter(), _cpu_s()
@@ -498,11 +552,7 @@ class Reproduction:
             record["finished"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
             if name != "report":
                 write_json_atomic(record, self.results / REPRODUCE_FILE.format(plan.kind))
-        total = time.perf_counter() - self.t0
-        m, s = divmod(int(round(total)), 60)
-        self.say(f"{plan.mode}: finished in {m} min {s} s, CPU {_cpu_s() - cpu0:.0f} s"
-                 + (f"; {failed} step(s) failed" if failed else ""))
-        return 1 if failed else 0
+        return failed
 
 
 def main(argv=None) -> int:
