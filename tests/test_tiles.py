@@ -274,3 +274,21 @@ def test_a_trees_tiles_error_is_the_single_kernels():
             forward_dynamics(model, Q[i], QD[i], TAU[i]), ref)[1])
         tiled = max(tiled, hiprec.relative_errors(got[i], ref)[1])
     assert tiled <= 2 * single, (tiled, single)
+
+
+def test_a_zero_quaternion_is_named_in_a_batch_and_a_single_call():
+    # a free joint's quaternion is normalised by the kernels: zero (or a norm whose square
+    # underflows) is no rotation, and the error says so rather than blaming an inertia
+    model = tree_case("random 0")
+    Q, QD, _ = tree_states(model, 20, 5)
+    i = int(model.quaternions[0])
+    for bad in (0.0, 1e-170):
+        Q[7, i:i + 4] = bad
+        for simd in (True, False):
+            with pytest.raises(StateError, match=rf"state 7 of the batch .*q\[{i}:{i + 4}\] = "
+                                                 r".*quaternion .* of free joint 'base'"):
+                forward_dynamics(model, Q, QD, simd=simd)
+        with pytest.raises(StateError, match=r"quaternion .* of free joint 'base' is zero"):
+            forward_dynamics(model, Q[7], QD[7])
+        with pytest.raises(StateError, match=r"quaternion .* of free joint 'base' is zero"):
+            redysim.evaluator(model)(Q[7], QD[7])
