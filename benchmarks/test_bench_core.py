@@ -1,7 +1,8 @@
 """qdd per call: the core's RGE-A on U chains of 200..100,000 DOF, pin.aba beside it where it can
 be built; a batch of 64 states at 250 DOF (the SIMD tiles on one thread and on every core; the
-performance history follows the first per DOF and state); and the planar specialisation's gain
-over the spatial recursion on R chains.
+performance history follows the first per DOF and state); batches of 64 states of the xArm7 and
+Talos (a tree's tiles, one thread; ``pin.abaInParallel`` on one thread beside them; the history
+follows Talos's); and the planar specialisation's gain over the spatial recursion on R chains.
 
 Run with ``make bench`` (pytest-benchmark). Kernels are warmed up (compiled or loaded from the
 on-disk cache) before timing; ``benchmarks/jit_times.py`` reports the compile and load times apart.
@@ -66,6 +67,74 @@ def test_rge_a_batch_u_chain(benchmark, record, threads):
     record.update(dof=dof, states=BATCH_STATES, kind="batch", engine="redysim rge-a batch",
                   threads=threads or default_threads(),
                   ns_per_dof=benchmark.stats.stats.min / (dof * BATCH_STATES) * 1e9)
+
+
+ROBOTS = {"xarm7": "XARM7-FALL", "talos": "TALOS-FALL"}  # scenarios of cases/ (ladder.py's)
+
+
+def robot_batch(name: str):
+    """The robot of scenario ROBOTS[name] and 64 seeded states near its neutral one (as
+    ``benchmarks/ladder.py``'s: joint coordinates and velocities moved by U(-0.3, 0.3), free
+    joints' quaternions left at the identity); skips without example-robot-data."""
+    from redysim.io.scenarios import load_scenario, robot_data_file
+
+    if robot_data_file("talos_reduced.urdf") is None:
+        pytest.skip("example-robot-data is not installed (the models extra installs it)")
+    model = load_scenario(ROBOTS[name]).model
+    rng = np.random.default_rng(1)
+    quaternion = [i + j for i in model.quaternions for j in range(4)]
+    plain = np.setdiff1d(np.arange(model.n_q), quaternion)
+    Q = np.tile(model.neutral(), (BATCH_STATES, 1))
+    Q[:, plain] += rng.uniform(-0.3, 0.3, (BATCH_STATES, plain.size))
+    return model, Q, rng.uniform(-0.3, 0.3, (BATCH_STATES, model.n_v))
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_rge_a_batch_robot(benchmark, record, name):
+    """qdd of 64 states of a robot in one call on one thread: a tree's SIMD tiles (free joints,
+    placements, branches). The performance history follows Talos's figure, ns per DOF and
+    state; ``test_pinocchio_aba_in_parallel_robot`` times Pinocchio's batch on the same
+    states."""
+    model, Q, V = robot_batch(name)
+    ws, out = Workspace(model), np.empty_like(V)
+    forward_dynamics(model, Q, V, ws=ws, out=out, threads=1)  # warm-up: JIT compile or cache
+    assert ws._tiles is not None  # (in tiles, not row by row)
+    benchmark.group = "qdd, batch of 64 robot states, one thread"
+    benchmark(forward_dynamics, model, Q, V, ws=ws, out=out, threads=1)
+    record.update(dof=model.n_v, states=BATCH_STATES, kind="batch",
+                  engine="redysim rge-a batch", threads=1,
+                  ns_per_dof=benchmark.stats.stats.min / (model.n_v * BATCH_STATES) * 1e9)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_pinocchio_aba_in_parallel_robot(benchmark, record, name):
+    """``pin.abaInParallel`` on one thread over the same 64 states as
+    ``test_rge_a_batch_robot`` (Pinocchio's model built from the core's by
+    ``redysim.references``, its qdd checked against the core's first)."""
+    from redysim import references
+
+    cls = references.get("pinocchio-aba")
+    if not cls.available():
+        pytest.skip("pinocchio is not installed")
+    model, Q, V = robot_batch(name)
+    eng = cls(model)
+    pin, pm = eng.lib, eng.pm
+    states = [eng._state(Q[k], V[k]) for k in range(BATCH_STATES)]
+    PQ = np.asfortranarray(np.array([s for s, _ in states]).T)
+    PV = np.asfortranarray(np.array([eng._to_engine(V[k], states[k][1])
+                                     for k in range(BATCH_STATES)]).T)
+    PT, PA = np.zeros((pm.nv, BATCH_STATES), order="F"), np.zeros((pm.nv, BATCH_STATES), order="F")
+    pool = pin.ModelPool(pm, 1)
+    pin.abaInParallel(1, pool, PQ, PV, PT, PA)
+    want = forward_dynamics(model, Q, V, threads=1)
+    got = np.array([eng._from_engine(PA[:, k], b) + (eng._c(b) if b else 0.0)  # (as qdd)
+                    for k, (_, b) in enumerate(states)])
+    assert np.abs(got - want).max() <= 1e-8 * np.abs(want).max()  # (as ladder.py checks)
+    benchmark.group = "qdd, batch of 64 robot states, one thread"
+    benchmark(pin.abaInParallel, 1, pool, PQ, PV, PT, PA)
+    record.update(dof=model.n_v, states=BATCH_STATES, kind="batch",
+                  engine=f"pinocchio {pin.__version__} abaInParallel", threads=1,
+                  ns_per_dof=benchmark.stats.stats.min / (model.n_v * BATCH_STATES) * 1e9)
 
 
 @pytest.mark.parametrize("dof", U_DOF[:2])

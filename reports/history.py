@@ -74,6 +74,7 @@ PANELS = (
     Panel("qdd per call, 100,000 DOF", "core", "test_rge_a_u_chain[100000]"),
     Panel("batch of 64 states, 250 DOF, one thread", "core",
           "test_rge_a_batch_u_chain[1-thread]"),
+    Panel("batch of 64 Talos states, one thread", "core", "test_rge_a_batch_robot[talos]"),
 )
 
 
@@ -316,7 +317,8 @@ def history_figure(path: str | os.PathLike = HISTORY_FILE) -> Figure:
     df = to_frame(runs)
     shown = _shown(path)
     caption = (f"ns per DOF of one qdd call at 200 and 100,000 DOF (U chains) and per DOF and "
-               f"state of a 64-state batch at 250 DOF on one thread, the fastest round of each "
+               f"state of a 64-state batch at 250 DOF and of Talos (38 DOF, a tree's tiles) on "
+               f"one thread, the fastest round of each "
                f"run ({FOLLOWED_STAT}), for every make bench run recorded in "
                f"{shown}; commits in the order they were made "
                f"(commit date), one marker per run, a colour per machine, hollow for a tree "
