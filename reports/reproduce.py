@@ -235,8 +235,8 @@ class Reproduction:
         """Wait for the compiled stepping's second form (:meth:`warm_up` with ``extras_later``),
         compiling it here if its process failed; its CPU time is this step's."""
         side, self._extras = self._extras, None
-        if side is None:
-            return "compiled in the warm-up"
+        if side is None:  # (one core: the warm-up compiled both forms; or the warm-up failed)
+            return "nothing to wait for"
         output = side.communicate()[0]
         if side.returncode != 0:
             self.say(f"  compiling rk_steps (extras) in its own process failed "
