@@ -73,20 +73,16 @@ ROBOTS = {"xarm7": "XARM7-FALL", "talos": "TALOS-FALL"}  # scenarios of cases/ (
 
 
 def robot_batch(name: str):
-    """The robot of scenario ROBOTS[name] and 64 seeded states near its neutral one (as
-    ``benchmarks/ladder.py``'s: joint coordinates and velocities moved by U(-0.3, 0.3), free
-    joints' quaternions left at the identity); skips without example-robot-data."""
+    """The robot of scenario ROBOTS[name] and the ladder's 64 seeded states near its neutral
+    one (``benchmarks/ladder.py``'s ``states``); skips without example-robot-data."""
+    from ladder import states
+
     from redysim.io.scenarios import load_scenario, robot_data_file
 
     if robot_data_file("talos_reduced.urdf") is None:
         pytest.skip("example-robot-data is not installed (the models extra installs it)")
     model = load_scenario(ROBOTS[name]).model
-    rng = np.random.default_rng(1)
-    quaternion = [i + j for i in model.quaternions for j in range(4)]
-    plain = np.setdiff1d(np.arange(model.n_q), quaternion)
-    Q = np.tile(model.neutral(), (BATCH_STATES, 1))
-    Q[:, plain] += rng.uniform(-0.3, 0.3, (BATCH_STATES, plain.size))
-    return model, Q, rng.uniform(-0.3, 0.3, (BATCH_STATES, model.n_v))
+    return model, *states(model, BATCH_STATES)
 
 
 @pytest.mark.parametrize("name", ROBOTS)

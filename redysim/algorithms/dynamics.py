@@ -1111,18 +1111,17 @@ def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False,
     for name, x in (("q", q), ("v", v), ("tau", tau)):
         if x is not None:
             require_finite(name, np.asarray(x, dtype=float))
-    qa = np.asarray(q, dtype=float)
-    for k, kind in enumerate(model.joint_types):
-        if kind == "free":  # its quaternion, normalised by the kernels: zero is no rotation
-            i = int(model.joint_qoff[k]) + 3
-            w = qa[i:i + 4]
-            with np.errstate(over="ignore", divide="ignore"):
-                if not np.isfinite(np.float64(2.0) / (w @ w)):
-                    return StateError(
-                        f"q[{i}:{i + 4}] = {w.tolist()}: the quaternion (w, x, y, z) of free "
-                        f"joint {model.joint_names[k]!r} is zero or too small to normalise "
-                        "(its squared norm underflows): it must be a rotation, e.g. "
-                        "[1, 0, 0, 0]")
+    # each free joint's quaternion, normalised by the kernels: zero is no rotation
+    free = [name for name, kind in zip(model.joint_names, model.joint_types, strict=True)
+            if kind == "free"]
+    for name, i in zip(free, model.quaternions.tolist(), strict=True):
+        w = np.asarray(q, dtype=float)[i:i + 4]
+        with np.errstate(over="ignore", divide="ignore"):
+            if not np.isfinite(np.float64(2.0) / (w @ w)):
+                return StateError(
+                    f"q[{i}:{i + 4}] = {w.tolist()}: the quaternion (w, x, y, z) of free joint "
+                    f"{name!r} is zero or too small to normalise (its squared norm underflows): "
+                    "it must be a rotation, e.g. [1, 0, 0, 0]")
     if gim is None:
         # Ihat: the planar kernel's column 8, the DH kernel's last column
         pivots = ws.planar[:, 8] if planar else ws.dh_scratch[:, -1] if use_dh else ws.Ihat

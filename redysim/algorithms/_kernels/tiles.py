@@ -138,12 +138,7 @@ def tile_kinematics(tree, tl):
     Q, QD, oR, oO, oP = tl.tile_Q, tl.tile_QD, tl.tile_oR, tl.tile_oO, tl.tile_oP
     W, C, run = tl.tile_W, tl.tile_C, tl.tile_run
     nb = along.shape[0]
-    for b in range(LANES):
-        for i in range(KIN_ROWS):
-            run[at(i, b)] = 0.0
-        run[at(KR + 0, b)] = 1.0
-        run[at(KR + 4, b)] = 1.0
-        run[at(KR + 8, b)] = 1.0
+    _kin_from(-1, oR, oO, W, run)
     for k in range(nb):
         _kin_begin(k, False, False, along[k], tree.placement_p, tree.placement_R, run)
         _kin_axes(k, 0, False, tree, Q, QD, oP, run)
@@ -432,16 +427,17 @@ def tile_tree_kinematics(tree, tl):
 
 @inline
 def _kin_from(p, oR, oO, W, run):
-    """The carry set to body p's frame, origin and angular velocity (the base's, p < 0), for
-    every state."""
-    for b in range(LANES):
-        for i in range(KIN_ROWS):
-            run[at(i, b)] = 0.0
-        if p < 0:
+    """The carry's frame, origin and angular velocity set to body p's (the base's, p < 0: at
+    rest at the origin), for every state; :func:`_kin_begin` sets the rest of the carry."""
+    if p < 0:
+        for b in range(LANES):
+            for i in range(KR, KW + 3):
+                run[at(i, b)] = 0.0
             run[at(KR + 0, b)] = 1.0
             run[at(KR + 4, b)] = 1.0
             run[at(KR + 8, b)] = 1.0
-        else:
+    else:
+        for b in range(LANES):
             for i in range(9):
                 run[at(KR + i, b)] = oR[at(p * 9 + i, b)]
             for i in range(3):
@@ -459,9 +455,7 @@ def tile_backward(tree, tl):
     oR, oO, oP, W, C, TAU = tl.tile_oR, tl.tile_oO, tl.tile_oP, tl.tile_W, tl.tile_C, tl.tile_TAU
     Psihat, phitil, car = tl.tile_Psihat, tl.tile_phitil, tl.tile_car
     nb = mass.shape[0]
-    for b in range(LANES):
-        for i in range(BACK_ROWS):
-            car[at(i, b)] = 0.0
+    _zero_carry(car)
     for k in range(nb - 1, -1, -1):
         _back_body(k, mass, inertia_O, mass_com, oR, W, car)
         _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car)
@@ -508,9 +502,7 @@ def tile_tree_backward(tree, tl):
     Psihat, phitil, car, gm = tl.tile_Psihat, tl.tile_phitil, tl.tile_car, tl.tile_gm
     for i in range(gm.shape[0]):
         gm[i] = 0.0
-    for b in range(LANES):
-        for i in range(BACK_ROWS):
-            car[at(i, b)] = 0.0
+    _zero_carry(car)
     for k in range(mass.shape[0] - 1, -1, -1):
         p = parent[k]
         if gather[k] >= 0:
@@ -525,9 +517,15 @@ def tile_tree_backward(tree, tl):
             if p >= 0:
                 _gathered(gather[p], gm, car, True)
             else:
-                for b in range(LANES):
-                    for i in range(BACK_ROWS):
-                        car[at(i, b)] = 0.0
+                _zero_carry(car)
+
+
+@inline
+def _zero_carry(car):
+    """The backward carry (articulated mass and bias) zero, for every state."""
+    for b in range(LANES):
+        for i in range(BACK_ROWS):
+            car[at(i, b)] = 0.0
 
 
 @inline
