@@ -118,6 +118,12 @@ class EntryPoint:
                 kernel.compile(signature)
         return numba.njit(self.signature, **self.options)(self.func)
 
+    @cached_property
+    def call(self):
+        """:attr:`compiled`'s compiled wrapper, past numba's dispatch (:func:`unchecked_call`);
+        None with ``NUMBA_DISABLE_JIT``."""
+        return unchecked_call(self.compiled)
+
 
 # The lean entries (redysim.algorithms._kernels.lean, behind redysim.evaluator) keep the GIL: a
 # small system's call is ~0.5 us, and releasing and taking back the GIL cost ~40 ns of it here;
@@ -130,8 +136,10 @@ def unchecked_call(dispatcher):
     """The compiled wrapper of ``dispatcher``'s one signature, called without numba's dispatch:
     no typing of the arguments (~20 ns an array, ~150 ns a call with four arrays here), and no
     check that they match the signature beyond each array being an ndarray of the signature's
-    item size. The caller must pass arrays of the declared dtype and dimension (a 2-D array
-    where a 1-D one is declared is unboxed past the end of its slot). None with
+    item size: the caller must pass arrays of the declared dtype and dimension (a 2-D array
+    where a 1-D one is declared is unboxed past the end of its slot), unless the signature
+    declares types whose unboxing checks them (the lean entries' vectors:
+    ``redysim.algorithms._kernels.lean.CheckedVector``). None with
     ``NUMBA_DISABLE_JIT`` (the kernel is then a plain function) or for a dispatcher without
     exactly one compiled signature."""
     overloads = getattr(dispatcher, "overloads", None)

@@ -158,6 +158,76 @@ def test_bad_shapes_and_dtypes_are_refused_naming_the_argument(kind):
                          model, q2, np.tile(v, (2, 1)), np.tile(x, (2, 1))))
 
 
+@pytest.mark.parametrize("kind", ["forward_dynamics", "inverse_dynamics"])
+@pytest.mark.parametrize("name", MODELS)
+def test_plain_vectors_take_the_lean_entry_and_never_the_checked_path(name, kind, monkeypatch):
+    """The evaluator's speed is its entry: contiguous float64 vectors (and views of them, and a
+    subclass's) must reach it, not fall back to the public function (which gives the same bits,
+    so a broken entry would only show as a slow evaluator: an unboxing that lost the strides
+    once sent every call there)."""
+    from redysim.algorithms import evaluators
+
+    model = MODELS[name]
+    ev = redysim.evaluator(model, kind)
+    q, v, x = _state(np.random.default_rng(5), model)
+    want = (checked_forward if kind == "forward_dynamics" else checked_inverse)(model, q, v, x)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the checked path was taken")
+
+    monkeypatch.setattr(evaluators, "forward_dynamics", refuse)
+    monkeypatch.setattr(evaluators, "inverse_dynamics", refuse)
+
+    class Sub(np.ndarray):
+        pass
+
+    ro = q.copy()
+    ro.flags.writeable = False
+    wide = np.empty((2, model.n_q))
+    wide[1] = q
+    out = np.empty(model.n_v)
+    for qq in (q, ro, wide[1], q.view(Sub)):
+        assert same_bits(ev(qq, v, x), want)
+    assert ev(q, v, x, out=out) is out and same_bits(out, want)
+    if kind == "forward_dynamics":
+        assert same_bits(ev(q, v), checked_forward(model, q, v))
+
+
+def test_the_entries_unboxing_refuses_what_is_not_a_plain_float64_vector():
+    """lean.CheckedVector: a TypeError from the compiled call itself for every object whose
+    unboxing as a 1-D float64 vector would read the wrong memory or the wrong numbers; the
+    lengths and strides are the kernel's to refuse (Refused)."""
+    from redysim.algorithms._kernels import lean
+
+    assert lean.NUMPY_LAYOUT_OK  # NumPy's structs read where the unboxing reads them
+    model = MODELS["tree"]
+    ws = redysim.Workspace(model)
+    call = lean.FORWARD_TREE.call
+    q, v, x = _state(np.random.default_rng(4), model)
+    out = np.empty(model.n_v)
+    args = [q, v, x, out, ws.kernel_f, ws.kernel_i, ws.scratch]
+    assert call(*args) is out and same_bits(out, checked_forward(model, q, v, x))
+    ro = np.empty(model.n_v)
+    ro.flags.writeable = False
+    unaligned = np.zeros(8 * model.n_v + 1, np.uint8)[1:].view(np.float64)
+    assert not unaligned.flags.aligned
+    bad_inputs = {"2-D": np.tile(q, (2, 1)), "int64": q.astype(np.int64),
+                  "float32": q.astype(np.float32), "complex64": q.astype(np.complex64),
+                  "big-endian": q.astype(">f8"), "0-D": np.array(1.0), "5-D": q.reshape(
+                      (1, 1, 1, 1, -1)), "list": q.tolist(), "None": None, "unaligned": unaligned}
+    for slot in (0, 1, 2, 3):
+        for bad in bad_inputs.values():
+            with pytest.raises(TypeError, match="float64"):
+                call(*args[:slot], bad, *args[slot + 1:])
+    with pytest.raises(TypeError, match="writeable"):
+        call(q, v, x, ro, *args[4:])
+    for slot in (0, 3):
+        with pytest.raises(lean.Refused):  # a stride, a length: the kernel's checks
+            call(*args[:slot], np.repeat(args[slot], 2)[::2], *args[slot + 1:])
+        with pytest.raises(lean.Refused):
+            call(*args[:slot], args[slot][:-1].copy(), *args[slot + 1:])
+
+
 @pytest.mark.parametrize("joint", ["R", "S"])  # the planar kernel, the spatial one
 def test_a_singular_model_is_named_as_forward_dynamics_names_it(joint):
     """A point mass on the last joint's axis: the GIM is singular there."""

@@ -324,11 +324,11 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
                                               for name, x in (("q", q), ("v", v),
                                                               ("qdd", qdd))), strict=True)])
         return _inverse_batch(model, ws, q, v, qdd, threads, use_dh)
-    if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
-            and not model.couplings and JIT_ENABLED and model.n_v <= LEAN_INVERSE_MAX_DOF:
+    if not model.couplings and model.n_v <= LEAN_INVERSE_MAX_DOF and _lean.NUMPY_LAYOUT_OK \
+            and JIT_ENABLED:
         entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if ws.tree.serial
-                 else _lean.INVERSE_TREE).compiled
-        try:  # the hot path, the evaluator's entry: it checks lengths, strides and the result
+                 else _lean.INVERSE_TREE).call
+        try:  # the hot path, the evaluator's entry: it checks types, lengths, strides, result
             return entry(q, v, qdd, np.empty(model.n_v), ws.kernel_f, ws.kernel_i, ws.scratch)
         except (TypeError, _lean.Refused):  # not contiguous float64, a length, not finite:
             pass  # converted and checked below, which names what is wrong

@@ -5,9 +5,10 @@ equal bit for bit to :func:`redysim.forward_dynamics` ``(model, q, v, tau, out=o
 ``kind="inverse_dynamics"`` returns ``id(q, v, qdd, out=None) -> tau``, equal to
 :func:`redysim.inverse_dynamics`. What :func:`~redysim.forward_dynamics` does at every call
 (look up the thread's workspace, choose the kernel, numba's dispatch of seven arrays) is done
-once here: a call checks that its arrays are 1-D float64 ndarrays and hands them, with the
-evaluator's own scratch, to one compiled function of its own
-(:mod:`redysim.algorithms._kernels.lean`), which checks their lengths and strides. Anything else
+once here: a call hands its arrays, with the evaluator's own scratch, to one compiled function
+of its own (:mod:`redysim.algorithms._kernels.lean`), past numba's dispatch; that function's
+unboxing checks that each is a 1-D aligned native float64 ndarray (``out`` writeable), and its
+kernel checks their lengths and strides. Anything else
 (lists, float32, strided or read-only ``out``, a wrong length, a batch of states, a result that
 is not finite) takes the checked path, the public function itself: the same conversions, the
 same errors (StateError naming the argument and its length), the same results.
@@ -28,7 +29,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numpy import ndarray
 
 from redysim._jit import unchecked_call
 from redysim.algorithms._kernels import lean as _lean
@@ -44,7 +44,6 @@ from redysim.errors import FieldError
 from redysim.model.tree import Model
 
 KINDS = ("forward_dynamics", "inverse_dynamics")
-FLOAT64 = np.dtype(np.float64)
 
 
 def evaluator(model: Model, kind: str = "forward_dynamics", *,
@@ -81,49 +80,42 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     if kind == "forward_dynamics":
         entry = (_lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
                  _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
-        return _forward(model, ws, unchecked_call(entry.compiled), use_dh)
+        return _forward(model, ws, _lean_call(entry), use_dh)
     entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if serial
              else _lean.INVERSE_TREE)
-    return _inverse(model, ws, unchecked_call(entry.compiled), use_dh)
+    return _inverse(model, ws, _lean_call(entry), use_dh)
+
+
+def _lean_call(entry):
+    """The entry's compiled wrapper, past numba's dispatch (module docstring); None with
+    numba disabled, or where NumPy's structs are not as its unboxing reads them."""
+    return unchecked_call(entry.compiled) if _lean.NUMPY_LAYOUT_OK else None
 
 
 def _forward(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
     f, i, s, zeros, n = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, model.n_v
-    empty, F, Refused = np.empty, FLOAT64, _lean.Refused
-    if call is None:  # numba disabled: the checked path only
+    empty, Refused = np.empty, _lean.Refused
+    if call is None:  # numba disabled, or NumPy's structs not as the entries read them
         return _named(lambda q, v, tau=None, out=None: forward_dynamics(model, q, v, tau, out=out,
                                                                         dh=dh),
                       model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
 
     def fd(q, v, tau=None, out=None):
-        # The compiled call unboxes without typing (redysim._jit.unchecked_call): each array
-        # must be a plain ndarray of one dimension and float64, out writeable (checked here,
-        # the ndarray's own attributes: a subclass could override them); lengths and strides
-        # are the kernel's to check.
-        if type(q) is ndarray and type(v) is ndarray and q.dtype is F and v.dtype is F \
-                and q.ndim == 1 and v.ndim == 1:
-            if tau is None:
-                t = zeros
-            elif type(tau) is ndarray and tau.dtype is F and tau.ndim == 1:
-                t = tau
-            else:
-                return forward_dynamics(model, q, v, tau, out=out, dh=dh)
-            try:
-                if out is None:
-                    return call(q, v, t, empty(n), f, i, s)
-                if type(out) is ndarray and out.dtype is F and out.ndim == 1 \
-                        and out.flags.writeable:
-                    return call(q, v, t, out, f, i, s)
-            except Refused:
-                pass
-        return forward_dynamics(model, q, v, tau, out=out, dh=dh)
+        # The compiled call's own unboxing refuses (TypeError) what is not a 1-D aligned native
+        # float64 ndarray, or a read-only out (lean.CheckedVector); its kernel refuses
+        # (Refused) a length, a stride or a result that is not finite
+        try:
+            return call(q, v, zeros if tau is None else tau, empty(n) if out is None else out,
+                        f, i, s)
+        except (TypeError, Refused):
+            return forward_dynamics(model, q, v, tau, out=out, dh=dh)
 
     return _named(fd, model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
 
 
 def _inverse(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
     f, i, s, n = ws.kernel_f, ws.kernel_i, ws.scratch, model.n_v
-    empty, F, Refused = np.empty, FLOAT64, _lean.Refused
+    empty, Refused = np.empty, _lean.Refused
 
     def checked(q, v, qdd, out=None):
         tau = inverse_dynamics(model, q, v, qdd, dh=dh)
@@ -133,22 +125,14 @@ def _inverse(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.nd
         out[:] = tau
         return out
 
-    if call is None:  # numba disabled
+    if call is None:  # numba disabled, or NumPy's structs not as the entries read them
         return _named(checked, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
 
     def id_(q, v, qdd, out=None):
-        if type(q) is ndarray and type(v) is ndarray and type(qdd) is ndarray \
-                and q.dtype is F and v.dtype is F and qdd.dtype is F \
-                and q.ndim == 1 and v.ndim == 1 and qdd.ndim == 1:  # (as fd's, _forward)
-            try:
-                if out is None:
-                    return call(q, v, qdd, empty(n), f, i, s)
-                if type(out) is ndarray and out.dtype is F and out.ndim == 1 \
-                        and out.flags.writeable:
-                    return call(q, v, qdd, out, f, i, s)
-            except Refused:
-                pass
-        return checked(q, v, qdd, out)
+        try:  # (as fd's, _forward)
+            return call(q, v, qdd, empty(n) if out is None else out, f, i, s)
+        except (TypeError, Refused):
+            return checked(q, v, qdd, out)
 
     return _named(id_, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
 

@@ -28,10 +28,16 @@ bit (``tests/test_evaluator.py``).
 
 from __future__ import annotations
 
+import ctypes
+
+import numpy as np
+from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.core.imputils import impl_ret_borrowed
-from numba.extending import intrinsic
+from numba.core.boxing import box_array
+from numba.core.datamodel.models import ArrayModel
+from numba.core.imputils import impl_ret_borrowed, lower_cast
+from numba.extending import NativeValue, box, intrinsic, register_model, unbox
 from numba.np.arrayobj import make_array, populate_array
 
 from redysim._jit import LEAN_OPTIONS, EntryPoint, inline, inline_generated
@@ -72,6 +78,129 @@ def c_view(typingctx, segment, shape):
     return result(segment, shape), codegen
 
 
+# ---- Vectors that check themselves: q, v, tau (or qdd) and out
+#
+# The evaluator calls an entry's compiled wrapper directly (redysim._jit.unchecked_call: numba's
+# dispatch types every argument, ~20-40 ns an array). That wrapper unboxes a declared 1-D float64
+# array from any ndarray of 8-byte items: numba's adaptor copies one shape and one stride per
+# dimension into a slot made for one (a 2-D array writes past it), and an int64 array passes as
+# float64. The four vectors are declared as a CheckedVector instead, whose unboxing (below, in
+# compiled code) refuses, with a TypeError, anything but an ndarray (or subclass) of one
+# dimension of aligned native float64, and a read-only one where the entry writes: the checks
+# that took six attribute reads in Python (~0.15 us of the UR5's ~1 us call). It reads the
+# array's fields at their offsets in NumPy's C structs (PyArrayObject_fields and PyArray_Descr of
+# numpy/ndarraytypes.h, unchanged since NumPy 1.7 for the array and in NumPy 2 for the
+# descriptor's fields read here); NUMPY_LAYOUT_OK checks them against NumPy's own answers at
+# import, and without it the entries are never called (the evaluator and inverse_dynamics take
+# their checked paths).
+ND_OFFSET, DESCR_OFFSET, FLAGS_OFFSET = 24, 56, 64  # in the array: int nd, descr*, int flags
+BYTEORDER_OFFSET, TYPE_NUM_OFFSET = 26, 28  # in the descriptor: char byteorder, int type_num
+NPY_DOUBLE, NPY_ARRAY_ALIGNED, NPY_ARRAY_WRITEABLE = 12, 0x0100, 0x0400
+NPY_MAXDIMS = 64  # (NumPy 2; 32 before): the room the adaptor may write shapes and strides in
+
+
+def _numpy_layout_ok() -> bool:
+    """True when the offsets above read what NumPy itself reports, on arrays of every case the
+    unboxing tells apart."""
+    ro = np.zeros(3)
+    ro.flags.writeable = False
+    arrays = (np.zeros(3), np.zeros((2, 3)), np.zeros(3, np.int64), np.zeros(3, ">f8"),
+              np.zeros(3, np.float32), np.zeros(6)[::2], ro, np.zeros(0), np.array(1.0))
+    try:
+        for a in arrays:
+            at, dt = id(a), id(a.dtype)
+            if (ctypes.c_int.from_address(at + ND_OFFSET).value != a.ndim
+                    or ctypes.c_void_p.from_address(at + DESCR_OFFSET).value != dt
+                    or ctypes.c_int.from_address(at + FLAGS_OFFSET).value != a.flags.num
+                    or ctypes.c_int.from_address(dt + TYPE_NUM_OFFSET).value != a.dtype.num
+                    or ctypes.c_char.from_address(dt + BYTEORDER_OFFSET).value
+                    != a.dtype.byteorder.encode()):
+                return False
+    except (ValueError, TypeError, OverflowError):  # (an address ctypes would not read)
+        return False
+    return np.dtype(np.float64).num == NPY_DOUBLE and ro.flags.num & NPY_ARRAY_WRITEABLE == 0
+
+
+NUMPY_LAYOUT_OK: bool = _numpy_layout_ok()
+
+
+class CheckedVector(types.Array):
+    """A C-contiguous 1-D float64 array argument whose unboxing checks the Python object
+    (above); inside, :func:`as_array` makes it the plain array type."""
+
+    def __init__(self, mutable: bool = False):
+        super().__init__(types.float64, 1, "C", readonly=not mutable,
+                         name=f"CheckedVector({'mutable' if mutable else 'readonly'})")
+
+
+register_model(CheckedVector)(ArrayModel)
+box(CheckedVector)(box_array)  # returned: the caller's own array, as a plain array's
+
+
+@lower_cast(types.Array, CheckedVector)
+def _array_as_checked(context, builder, fromty, toty, val):
+    """A plain vector handed to an entry from compiled code (a benchmark's loop): the same
+    struct (numba's typing converts only arrays of the same dtype, dimension and layout)."""
+    return impl_ret_borrowed(context, builder, toty, val)
+
+
+def _read(builder, address, offset: int, ty):
+    """The ``ty`` at byte ``offset`` from pointer ``address``."""
+    at = builder.add(builder.ptrtoint(address, ir.IntType(64)), ir.Constant(ir.IntType(64),
+                                                                            offset))
+    return builder.load(builder.inttoptr(at, ty.as_pointer()))
+
+
+@unbox(CheckedVector)
+def _unbox_checked(typ, obj, c):
+    b, i32 = c.builder, ir.IntType(32)
+    # numba's adaptor first (an ndarray? data, shapes, strides), into room for any dimension
+    room = c.context.make_array(types.Array(types.float64, NPY_MAXDIMS, "A"))(c.context, b)
+    adapt = c.pyapi._get_function(ir.FunctionType(i32, [c.pyapi.pyobj, c.pyapi.voidptr]),
+                                  name="numba_adapt_ndarray")
+    err = b.call(adapt, (obj, b.bitcast(room._getpointer(), c.pyapi.voidptr)))
+    vec = c.context.make_array(typ)(c.context, b)
+    ok = cgutils.alloca_once_value(b, cgutils.false_bit)
+    with b.if_then(b.icmp_signed("==", err, i32(0)), likely=True):
+        descr = _read(b, obj, DESCR_OFFSET, c.pyapi.voidptr)
+        need = NPY_ARRAY_ALIGNED | (NPY_ARRAY_WRITEABLE if typ.mutable else 0)
+        flags = _read(b, obj, FLAGS_OFFSET, i32)
+        good = b.and_(b.icmp_signed("==", _read(b, obj, ND_OFFSET, i32), i32(1)),
+                      b.icmp_signed("==", _read(b, descr, TYPE_NUM_OFFSET, i32),
+                                    i32(NPY_DOUBLE)))
+        good = b.and_(good, b.icmp_signed("!=", _read(b, descr, BYTEORDER_OFFSET, ir.IntType(8)),
+                                          ir.IntType(8)(ord(">"))))
+        b.store(b.and_(good, b.icmp_signed("==", b.and_(flags, i32(need)), i32(need))), ok)
+        vec.meminfo = cgutils.get_null_value(vec.meminfo.type)
+        vec.parent = obj
+        vec.nitems = room.nitems
+        vec.itemsize = room.itemsize
+        vec.data = room.data
+        # the adaptor writes an array's nd shapes, then its nd strides, from the first shape's
+        # place on: a vector's stride lands in the room's second shape
+        shape0, stride0 = cgutils.unpack_tuple(b, room.shape, 2)
+        vec.shape = cgutils.pack_array(b, [shape0])
+        vec.strides = cgutils.pack_array(b, [stride0])
+    failed = b.not_(b.load(ok))
+    with b.if_then(failed, likely=False):
+        c.pyapi.err_set_string("PyExc_TypeError", "not a 1-D array of aligned native float64 "
+                               "(writeable, for out)")
+    return NativeValue(vec._getvalue(), is_error=failed)
+
+
+@intrinsic
+def as_array(typingctx, vec):
+    """A CheckedVector as the plain 1-D array it is (the same struct)."""
+    if not isinstance(vec, CheckedVector):
+        return None
+    result = types.Array(types.float64, 1, "C", readonly=not vec.mutable)
+
+    def codegen(context, builder, sig, args):
+        return impl_ret_borrowed(context, builder, result, args[0])
+
+    return result(vec), codegen
+
+
 # The Tree and Scratch bundles, as .entry's bundles but every array shaped by c_view
 bundles = inline_generated(bundles_source(shaper="c_view"), "bundles",
                            dict(Tree=Tree, Scratch=Scratch, c_view=c_view))
@@ -100,13 +229,13 @@ def _forward(q, v, tau, out, fdata, idata, scratch, serial):
 
 def forward_chain(q, v, tau, out, fdata, idata, scratch):
     """qdd by RGE-A into ``out``, a serial chain (module docstring)."""
-    _forward(q, v, tau, out, fdata, idata, scratch, True)
+    _forward(as_array(q), as_array(v), as_array(tau), as_array(out), fdata, idata, scratch, True)
     return out  # (numba returns an argument only by name, unboxed: the caller's own array)
 
 
 def forward_tree(q, v, tau, out, fdata, idata, scratch):
     """qdd by RGE-A into ``out``, any tree (module docstring)."""
-    _forward(q, v, tau, out, fdata, idata, scratch, False)
+    _forward(as_array(q), as_array(v), as_array(tau), as_array(out), fdata, idata, scratch, False)
     return out
 
 
@@ -117,9 +246,10 @@ def forward_planar(q, v, tau, out, fdata, idata, scratch):
     """qdd into ``out`` by the planar kernel, a planar chain (module docstring): .entry's planar
     entry, strides checked."""
     n = idata[H_NV]
-    if not (_plain(q, n) and _plain(v, n) and _plain(tau, n) and _plain(out, n)):
+    qa, va, ta, o = as_array(q), as_array(v), as_array(tau), as_array(out)
+    if not (_plain(qa, n) and _plain(va, n) and _plain(ta, n) and _plain(o, n)):
         raise Refused()
-    if _planar_entry(fdata, idata, q, v, tau, scratch, out) != 0.0:
+    if _planar_entry(fdata, idata, qa, va, ta, scratch, o) != 0.0:
         raise Refused()
     return out
 
@@ -139,13 +269,14 @@ def forward_dh(q, v, tau, out, fdata, idata, scratch):
     """qdd into ``out`` by the DH kernel, a robot in DH form (module docstring): the kernel on
     the views .entry's dh_entry cuts, strides checked."""
     n = idata[H_NV]
-    if not (_plain(q, n) and _plain(v, n) and _plain(tau, n) and _plain(out, n)):
+    qa, va, ta, o = as_array(q), as_array(v), as_array(tau), as_array(out)
+    if not (_plain(qa, n) and _plain(va, n) and _plain(ta, n) and _plain(o, n)):
         raise Refused()
     table, base_accel, scr = _dh_views(fdata, idata, scratch)
     # the kernel's compiled code, called: IEEE as written (redysim._jit.jit_exact), the bits of
     # every other caller; inlining its source here would compile it with this entry's FMA fusion
-    dh_forward_dynamics(table, q, v, tau, base_accel, out, scr)
-    if E._finite(out) != 0.0:
+    dh_forward_dynamics(table, qa, va, ta, base_accel, o, scr)
+    if E._finite(o) != 0.0:
         raise Refused()  # some qdd is not finite
     return out
 
@@ -153,11 +284,12 @@ def forward_dh(q, v, tau, out, fdata, idata, scratch):
 def inverse_dh(q, v, qdd, out, fdata, idata, scratch):
     """tau into ``out`` by the DH kernel, a robot in DH form (module docstring)."""
     n = idata[H_NV]
-    if not (_plain(q, n) and _plain(v, n) and _plain(qdd, n) and _plain(out, n)):
+    qa, va, xa, o = as_array(q), as_array(v), as_array(qdd), as_array(out)
+    if not (_plain(qa, n) and _plain(va, n) and _plain(xa, n) and _plain(o, n)):
         raise Refused()
     table, base_accel, scr = _dh_views(fdata, idata, scratch)
-    dh_inverse_dynamics(table, q, v, qdd, base_accel, out, scr)
-    if E._finite(out) != 0.0:
+    dh_inverse_dynamics(table, qa, va, xa, base_accel, o, scr)
+    if E._finite(o) != 0.0:
         raise Refused()  # some tau is not finite
     return out
 
@@ -184,20 +316,20 @@ def _inverse(q, v, qdd, out, fdata, idata, scratch, serial):
 
 def inverse_chain(q, v, qdd, out, fdata, idata, scratch):
     """tau by Newton-Euler into ``out``, a serial chain (module docstring)."""
-    _inverse(q, v, qdd, out, fdata, idata, scratch, True)
+    _inverse(as_array(q), as_array(v), as_array(qdd), as_array(out), fdata, idata, scratch, True)
     return out
 
 
 def inverse_tree(q, v, qdd, out, fdata, idata, scratch):
     """tau by Newton-Euler into ``out``, any tree (module docstring)."""
-    _inverse(q, v, qdd, out, fdata, idata, scratch, False)
+    _inverse(as_array(q), as_array(v), as_array(qdd), as_array(out), fdata, idata, scratch, False)
     return out
 
 
 _F1 = types.Array(types.float64, 1, "C")
-_RO = types.Array(types.float64, 1, "C", readonly=True)
 _I1 = types.Array(types.int64, 1, "C")
-SIGNATURE = _F1(_RO, _RO, _RO, _F1, _F1, _I1, _F1)
+_IN, _OUT = CheckedVector(mutable=False), CheckedVector(mutable=True)
+SIGNATURE = _OUT(_IN, _IN, _IN, _OUT, _F1, _I1, _F1)
 
 FORWARD_CHAIN = EntryPoint(forward_chain, SIGNATURE, options=LEAN_OPTIONS)
 FORWARD_TREE = EntryPoint(forward_tree, SIGNATURE, options=LEAN_OPTIONS)
