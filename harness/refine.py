@@ -477,6 +477,18 @@ def _refined(case_file: str, case, factor: int = 2):
 def own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: float = 0.0,
               workers: int | None = None, progress: bool = True, check: bool = True,
               log=print) -> OwnStudy:
+    """:func:`_own_study`, its several sweeps on one pool of ``workers`` processes
+    (:func:`redysim.harness.sweep.shared_pool`)."""
+    from .sweep import shared_pool
+
+    with shared_pool(workers):
+        return _own_study(case_file, tol, out, t_end=t_end, workers=workers, progress=progress,
+                          check=check, log=log)
+
+
+def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: float = 0.0,
+               workers: int | None = None, progress: bool = True, check: bool = True,
+               log=print) -> OwnStudy:
     """A refinement study of a user's rope (a case file), run for a tip-path tolerance ``tol``
     [m] and stopped once the answer is known; the runs are cached in ``out`` (a sweep's
     folder: run again, only what changed runs).
@@ -734,7 +746,15 @@ def modes_available(levels=HANGING_LEVELS) -> int:
 def run_all(results: Path, *, workers: int = 2, scenes=tuple(SCENES), check: bool = True,
             log=print) -> dict:
     """Run (or resume) every scene's sweep, analyse it, advise at the scene's tolerances and
-    check each advice; the modes study; write ``results/refine/refine.json``."""
+    check each advice; the modes study; write ``results/refine/refine.json``. Every sweep of it
+    runs on one pool of ``workers`` processes (:func:`redysim.harness.sweep.shared_pool`)."""
+    from .sweep import shared_pool
+
+    with shared_pool(workers):
+        return _run_all(results, workers=workers, scenes=scenes, check=check, log=log)
+
+
+def _run_all(results: Path, *, workers: int, scenes, check: bool, log) -> dict:
     from .sweep import load_sweep, run_sweep
 
     out = results / "refine"
@@ -824,8 +844,6 @@ def finer_references(studies: dict, workers: int, log=print) -> dict:
     under its study's folder (keyed by the case file, the horizon and samples, the tolerance
     and the code): a resumed reproduction does not integrate them again."""
     import hashlib
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
     from .provenance import code_digest
     from .spec import case_digest
@@ -848,11 +866,10 @@ def finer_references(studies: dict, workers: int, log=print) -> dict:
     if todo:
         log(f"refine: the ropes at twice the finest's links (DOP853 {FINER_RTOL:g}): "
             f"{', '.join(todo)}")
-        from . import worker_threads
+        from .sweep import pool_lease
 
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx,
-                                 initializer=worker_threads) as pool:
+        with pool_lease(max(1, workers)) as lease:
+            pool = lease.pool or lease.renew()
             futures = {scene: pool.submit(finer_tips, *args) for scene, (args, _) in
                        todo.items()}
             for scene, fut in futures.items():

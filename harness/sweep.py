@@ -690,9 +690,125 @@ def _watch_parent(parent: int) -> None:
     threading.Thread(target=watch, name="redysim-parent-watch", daemon=True).start()
 
 
+class _Lease:
+    """A local process pool lent to one sweep (:func:`pool_lease`): the kept one of a
+    :func:`shared_pool` block, or a fresh one of its own."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.kept = False
+        self.pool: ProcessPoolExecutor | None = None
+
+    def renew(self) -> ProcessPoolExecutor:
+        """A working pool: this lease's, or a new one after a worker died (which breaks a pool
+        for good); a kept pool's replacement is kept in its place."""
+        if self.pool is not None:
+            self.pool.shutdown(wait=True)
+        self.pool = _new_pool(self.workers)
+        if self.kept:
+            with _KEPT.lock:
+                _KEPT.pool = self.pool
+        return self.pool
+
+
+class _Kept:
+    """The pool a :func:`shared_pool` block keeps, and whether a sweep is using it."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.pool: ProcessPoolExecutor | None = None
+        self.workers = 0
+        self.depth = 0  # shared_pool blocks open (nested ones keep the outer block's pool)
+        self.busy = False
+
+
+_KEPT = _Kept()
+
+
+def _new_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context(POOL_START_METHOD),
+                               initializer=_init_worker, initargs=(os.getpid(),))
+
+
+@contextlib.contextmanager
+def shared_pool(workers: int | None = None) -> Iterator[None]:
+    """Inside the block, sweeps (:func:`run_sweep` on the local pool, and whatever takes a
+    :func:`pool_lease`) share one process pool of ``workers`` (default ``os.cpu_count()``)
+    instead of starting their own: each worker's start (a Python interpreter, NumPy, pandas,
+    numba's cached kernels, an engine's module on its first run of it: ~1.3 s of CPU here, more
+    with an engine) is paid once for the block, not once per sweep. What a worker keeps between
+    runs is what it already kept between the runs of one sweep (imported modules, compiled
+    kernels); each run's CPU time and peak RSS are its own (:func:`redysim.harness.run.execute`).
+    A sweep that starts while another holds the pool (a second thread) gets a pool of its own,
+    as outside a block. Nested blocks keep the outermost's pool. Its workers' CPU time, live:
+    :func:`shared_pool_cpu_s`."""
+    with _KEPT.lock:
+        _KEPT.depth += 1
+        outer = _KEPT.depth == 1
+        if outer:
+            _KEPT.workers = max(1, workers or os.cpu_count() or 1)
+    try:
+        yield
+    finally:
+        with _KEPT.lock:
+            _KEPT.depth -= 1
+            pool = _KEPT.pool if outer else None
+            if outer:
+                _KEPT.pool, _KEPT.busy = None, False
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def pool_lease(workers: int) -> Iterator[_Lease]:
+    """A local process pool of at least ``workers`` for one sweep: the :func:`shared_pool`
+    block's when there is one and no other sweep holds it, else a new one, shut down at the
+    end. Call ``lease.renew()`` for the pool (again after a worker died)."""
+    lease = _Lease(workers)
+    with _KEPT.lock:
+        if _KEPT.depth and not _KEPT.busy and _KEPT.workers >= workers:
+            _KEPT.busy = lease.kept = True
+            lease.workers = _KEPT.workers
+            lease.pool = _KEPT.pool
+    try:
+        yield lease
+    except BaseException:  # (Ctrl-C, a sweep closed early): runs may still be in flight
+        if lease.pool is not None:
+            if lease.kept:  # not for the next sweep, which would wait behind them
+                with _KEPT.lock:
+                    _KEPT.pool = None
+            lease.pool.shutdown(wait=False, cancel_futures=True)
+            lease.pool = None
+        raise
+    finally:
+        if lease.kept:
+            with _KEPT.lock:
+                _KEPT.busy = False
+        elif lease.pool is not None:
+            lease.pool.shutdown(wait=True)
+
+
+def shared_pool_cpu_s() -> float:
+    """CPU seconds (user and system) of the :func:`shared_pool` block's live workers, from
+    ``/proc`` (0 elsewhere, or with no pool): a worker's CPU reaches ``os.times()``'s children
+    only once it has ended and been waited for, at the block's end."""
+    pool = _KEPT.pool
+    processes = dict(getattr(pool, "_processes", None) or {})  # (the executor's own table)
+    total = 0.0
+    for pid in processes:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return total
+
+
 def _pool_results(work: _Work, workers: int,
                   task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
-    """Run ``task`` on a local process pool, yielding each run as it finishes.
+    """Run ``task`` on a local process pool (:func:`pool_lease`), yielding each run as it
+    finishes.
 
     At most ``workers`` runs are submitted at a time, so at most that many are lost to a kill.
     When a worker process dies, the pool breaks and every run in flight fails with it: a lone
@@ -701,14 +817,10 @@ def _pool_results(work: _Work, workers: int,
     """
     suspects = deque()
     running: dict = {}  # future -> spec
-    pool = None
     workers = max(1, min(workers, len(work.todo)))
-    context = multiprocessing.get_context(POOL_START_METHOD)
-    try:
+    with pool_lease(workers) as lease:
+        pool = lease.pool or lease.renew()
         while not work.empty or suspects or running:
-            if pool is None:
-                pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                           initializer=_init_worker, initargs=(os.getpid(),))
             broken = False
             while len(running) < (1 if suspects else workers):
                 spec = (suspects.popleft() if suspects
@@ -725,8 +837,7 @@ def _pool_results(work: _Work, workers: int,
             if broken or any(isinstance(fut.exception(), BrokenProcessPool) for fut in finished):
                 wait(running)  # a broken pool fails every run in flight at once
                 finished = set(running)
-                pool.shutdown(wait=True)
-                pool = None
+                pool = lease.renew()
             lost = []
             for fut in finished:
                 spec = running.pop(fut)
@@ -741,9 +852,6 @@ def _pool_results(work: _Work, workers: int,
                 yield lost[0], failed_row(lost[0], DIED), None
             else:
                 suspects.extend(lost)
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=not running, cancel_futures=True)
 
 
 def _dask_results(work: _Work, address: str,

@@ -92,10 +92,13 @@ LOG_DIR = "logs"
 
 
 def _cpu_s() -> float:
-    """CPU seconds of this process and of its children that have ended (sweep workers, long
-    runs): what a step costs when another process shares the machine, which wall time is not."""
+    """CPU seconds of this process, of its children that have ended (long runs, compiling
+    processes) and of the sweep workers it keeps (:func:`redysim.harness.sweep.shared_pool`):
+    what a step costs when another process shares the machine, which wall time is not."""
+    from redysim.harness.sweep import shared_pool_cpu_s
+
     usage = (resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN))
-    return sum(u.ru_utime + u.ru_stime for u in usage)
+    return sum(u.ru_utime + u.ru_stime for u in usage) + shared_pool_cpu_s()
 
 
 STEPPING_FORMS = ("plain", "extras")
@@ -517,9 +520,13 @@ class Reproduction:
         started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
         record = {"mode": plan.mode, "started": started, "steps": [], "provenance": provenance(),
                   "machine": provenance()["machine"]}
+        from redysim.harness.sweep import shared_pool
+
         failed, cpu0 = 0, _cpu_s()
         try:
-            failed = self._run_steps(plan, record)
+            # one pool of sweep workers for every step's sweeps: each worker starts once
+            with shared_pool(self.workers):
+                failed = self._run_steps(plan, record)
         finally:  # (Ctrl-C too) leave no compiling process behind
             if self._extras is not None:
                 self._extras.kill()

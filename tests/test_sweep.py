@@ -361,6 +361,43 @@ def test_a_worker_that_dies_or_raises_fails_only_its_own_run(tmp_path):
     assert got[specs[1].run_id][0]["transient"] and got[specs[3].run_id][0]["transient"]
 
 
+def _task_pid(spec: RunSpec):
+    """A stand-in for a worker's run that says which process ran it (rk4 kills its process)."""
+    time.sleep(0.2)
+    if spec.integrator == "rk4":
+        os._exit(3)
+    return {**failed_row(spec, str(os.getpid())), "status": "ok"}, None
+
+
+def _pids(work_specs, tmp_path, workers=2):
+    work = _Work(work_specs, Claims(tmp_path), lambda spec: False)
+    return {spec.run_id: row for spec, row, _ in _pool_results(work, workers, _task_pid)}
+
+
+@pytest.mark.slow
+def test_sweeps_in_a_shared_pool_block_reuse_its_workers(tmp_path):
+    """shared_pool: the second sweep runs in the first one's processes (no new interpreter per
+    sweep); their CPU time is counted while they live; a worker's death renews the block's pool
+    for the sweeps after it; outside a block, each sweep starts its own."""
+    from redysim.harness.sweep import shared_pool, shared_pool_cpu_s
+
+    first = [RunSpec(case="STUDY-R3", rtol=r) for r in (1e-3, 1e-4, 1e-5, 1e-6)]
+    second = [RunSpec(case="STUDY-R3", rtol=r) for r in (1e-7, 1e-8)]
+    crash = [RunSpec(case="STUDY-R3", integrator="rk4", h=0.01)]
+    with shared_pool(2):
+        a = {r["reason"] for r in _pids(first, tmp_path / "a").values()}
+        assert shared_pool_cpu_s() > 0.0
+        b = {r["reason"] for r in _pids(second, tmp_path / "b").values()}
+        assert b <= a and len(a) == 2  # the same two processes
+        assert [r["reason"] for r in _pids(crash, tmp_path / "c").values()] == [DIED]
+        c = {r["reason"] for r in _pids(second, tmp_path / "d").values()}
+        assert c and not c & a  # a new pool after the crash, kept for what follows
+        assert {r["reason"] for r in _pids(first, tmp_path / "e").values()} <= c
+    assert shared_pool_cpu_s() == 0.0  # the block's end ended its workers
+    d = {r["reason"] for r in _pids(second, tmp_path / "f").values()}
+    assert d and not d & (a | c)
+
+
 def test_collect_orders_by_plan_and_ignores_unplanned_and_partial_runs(tmp_path):
     specs = TINY[:3]
     rows = {s.run_id: failed_row(s, "x") for s in specs}
