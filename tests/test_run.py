@@ -153,6 +153,33 @@ def test_the_run_id_follows_the_case_file_s_content(tmp_path):
     assert RunSpec(case=str(path), t_end=0.2).run_id == before
 
 
+def test_a_scenario_s_sources_follow_an_edit_of_the_model_file_it_names(tmp_path):
+    """source_files is kept per version of the scenario file: pointed at another model file,
+    the scenario's sources (and its runs' ids) follow at once."""
+    import shutil
+
+    from redysim.io.scenarios import SCENARIOS_DIR, source_files
+
+    loops = tmp_path / "loops"
+    loops.mkdir()
+    for name in ("pinned_chain_10.toml", "crank_rocker.toml"):
+        shutil.copy(SCENARIOS_DIR.parent / "loops" / name, loops / name)
+    scenario = tmp_path / "scenes" / "mine.toml"
+    scenario.parent.mkdir()
+    text = (SCENARIOS_DIR / "CATENARY.toml").read_text()
+    scenario.write_text(text)
+    first = source_files(scenario)
+    assert [p.name for p in first] == ["mine.toml", "pinned_chain_10.toml"]
+    before = RunSpec(case=str(scenario)).run_id
+    scenario.write_text(text.replace("pinned_chain_10.toml", "crank_rocker.toml"))
+    assert [p.name for p in source_files(scenario)] == ["mine.toml", "crank_rocker.toml"]
+    switched = RunSpec(case=str(scenario)).run_id
+    assert switched != before
+    model = loops / "crank_rocker.toml"
+    model.write_text(model.read_text() + "\n# edited\n")  # the model file's bytes count too
+    assert RunSpec(case=str(scenario)).run_id != switched
+
+
 def test_a_run_takes_the_case_file_s_integrator_and_tolerances(tmp_path):
     """[simulation] integrator, rtol and atol are honoured where the run leaves them to the case
     (they were ignored: every run was ode45 at 1e-4), and a run's own settings win."""

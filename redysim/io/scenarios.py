@@ -246,8 +246,18 @@ def source_files(name_or_path: str | os.PathLike) -> list[Path]:
     p = scenario_path(name_or_path)
     if p is None:
         return [case_path(name_or_path)]
+    st = p.stat()
+    return list(_sources_of(str(p), st.st_size, st.st_mtime_ns, st.st_ino))
+
+
+@functools.lru_cache(maxsize=1024)
+def _sources_of(path: str, _size: int, _mtime_ns: int, _ino: int) -> tuple[Path, ...]:
+    """:func:`source_files` of an existing file, kept per version of it (its size,
+    modification time and inode): a sweep asks for every run's id several times, and finding
+    the kind of a .toml and the model file it names parses it up to five times."""
+    p = Path(path)
     if file_kind(p) != "scenario":
-        return [p]
+        return (p,)
     doc, _ = read_toml(p)
     model = doc.get("model", {})
     out = [p]
@@ -256,7 +266,7 @@ def source_files(name_or_path: str | os.PathLike) -> list[Path]:
             out.append(_model_file(str(p), p, model["file"]))
         except (CaseError, FileNotFoundError):
             pass
-    return out
+    return tuple(out)
 
 
 def digest_of(name_or_path: str | os.PathLike, options: dict | None = None) -> str:
