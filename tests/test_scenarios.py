@@ -250,3 +250,20 @@ def test_driver_v_spins_the_crank_with_the_loops_kept(name):
                                            rel=1e-14)
     assert np.abs(Jv).max() <= 1e-13 * np.abs(scn.v0).max()
     assert np.count_nonzero(scn.v0) > 1  # the others move too
+
+
+def test_a_files_kind_follows_an_edit_of_it(tmp_path):
+    """file_kind is kept per version of the file (size, modification time, inode): the same
+    path rewritten as another kind of file is that kind at once."""
+    from redysim.io.cases import CASES_DIR
+    from redysim.io.scenarios import SCENARIOS_DIR, file_kind
+
+    path = tmp_path / "mine.toml"
+    path.write_text((CASES_DIR / "STUDY-R3.toml").read_text())
+    assert file_kind(path) == "case"
+    path.write_text((SCENARIOS_DIR / "CATENARY.toml").read_text())
+    assert file_kind(path) == "scenario"
+    path.write_text((CASES_DIR / "robots" / "puma560.toml").read_text())
+    assert file_kind(path) == "dh"
+    path.unlink()
+    assert file_kind(path) == "case"  # (no file: a case name's kind, as before)

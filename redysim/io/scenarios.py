@@ -47,6 +47,7 @@ import hashlib
 import json
 import math
 import os
+import stat
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -202,19 +203,33 @@ def file_kind(path: str | os.PathLike) -> str:
         return "urdf"
     if suffix == ".xml":
         return "mjcf"
-    if suffix == ".toml" and Path(path).is_file():
-        from redysim.io.dh import is_robot_file
-        from redysim.io.linkage_files import is_linkage_file
-        from redysim.io.proteins import is_protein_file
+    if suffix == ".toml":
+        try:
+            st = os.stat(path)
+        except (OSError, ValueError):
+            return "case"
+        if stat.S_ISREG(st.st_mode):
+            return _toml_kind(os.fspath(path), st.st_size, st.st_mtime_ns, st.st_ino)
+    return "case"
 
-        if is_scenario_file(path):
-            return "scenario"
-        if is_protein_file(path):
-            return "protein"
-        if is_robot_file(path):
-            return "dh"
-        if is_linkage_file(path):
-            return "linkage"
+
+@functools.lru_cache(maxsize=1024)
+def _toml_kind(path: str, _size: int, _mtime_ns: int, _ino: int) -> str:
+    """:func:`file_kind` of an existing .toml, kept per version of the file (its size,
+    modification time and inode): each test below reads the file, and a sweep's worker asks
+    for the kinds of its run's files several times a run."""
+    from redysim.io.dh import is_robot_file
+    from redysim.io.linkage_files import is_linkage_file
+    from redysim.io.proteins import is_protein_file
+
+    if is_scenario_file(path):
+        return "scenario"
+    if is_protein_file(path):
+        return "protein"
+    if is_robot_file(path):
+        return "dh"
+    if is_linkage_file(path):
+        return "linkage"
     return "case"
 
 
