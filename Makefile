@@ -9,7 +9,7 @@ export PYTHONDONTWRITEBYTECODE := 1
 .PHONY: help venv test test-fast test-rest reproduce bench bench-core bench-engines lint constraints clean
 
 help:
-	@echo "make reproduce     venv + install + quick reproduction (~9 min on 2 quiet cores, ~13 beside a busy process): runs, then reports/out/report.{html,pdf}"
+	@echo "make reproduce     venv + install + quick reproduction (~9-10 min on 2 quiet cores, ~12-15 beside a busy process): runs, then reports/out/report.{html,pdf}"
 	@echo "make reproduce-full every table to the paper's horizons (hours; resumable), then the report"
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"

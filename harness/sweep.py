@@ -819,8 +819,10 @@ def _pool_results(work: _Work, workers: int,
     running: dict = {}  # future -> spec
     workers = max(1, min(workers, len(work.todo)))
     with pool_lease(workers) as lease:
-        pool = lease.pool or lease.renew()
+        pool = None
         while not work.empty or suspects or running:
+            if pool is None:  # (started only when there is a run to do)
+                pool = lease.pool or lease.renew()
             broken = False
             while len(running) < (1 if suspects else workers):
                 spec = (suspects.popleft() if suspects
