@@ -30,7 +30,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from redysim._jit import unchecked_call
 from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms.dynamics import (
     check_out,
@@ -89,7 +88,7 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
 def _lean_call(entry):
     """The entry's compiled wrapper, past numba's dispatch (module docstring); None with
     numba disabled, or where NumPy's structs are not as its unboxing reads them."""
-    return unchecked_call(entry.compiled) if _lean.NUMPY_LAYOUT_OK else None
+    return entry.call if _lean.NUMPY_LAYOUT_OK else None
 
 
 def _forward(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
