@@ -10,7 +10,11 @@ refused; calls from many threads on one evaluator. No timing here: ``benchmarks/
 
 from __future__ import annotations
 
+import inspect
+import sys
 import threading
+import tracemalloc
+import weakref
 
 import numpy as np
 import pytest
@@ -284,7 +288,11 @@ def test_calls_from_many_threads_on_one_evaluator_are_safe():
 def test_the_evaluator_is_a_public_name():
     assert "evaluator" in redysim.__all__
     fd = redysim.evaluator(MODELS["U chain"])
-    assert fd.model is MODELS["U chain"] and fd.kind == "forward_dynamics"
+    assert fd.__self__.model is MODELS["U chain"] and fd.__self__.kind == "forward_dynamics"
+    assert fd.__name__ == "forward_dynamics" and "redysim.forward_dynamics" in fd.__doc__
+    assert str(inspect.signature(fd)) == "(q, v, tau=None, out=None)"
+    inv = redysim.evaluator(MODELS["U chain"], "inverse_dynamics")
+    assert str(inspect.signature(inv)) == "(q, v, qdd, out=None)"
     q, v, _ = random_state(np.random.default_rng(0), MODELS["U chain"])
     assert same_bits(fd(q, v), forward_dynamics(MODELS["U chain"], q, v))
 
@@ -319,7 +327,8 @@ def test_the_evaluator_runs_with_numba_disabled():
 
     code = ("import numpy as np, redysim; c = redysim.Chain.uniform(3, 'U', length=1.0, "
             "linear_density=1.0, radius=0.1); q = np.full(6, 0.1); "
-            "print([redysim.evaluator(c)(q, q).tolist(), "
+            "fd = redysim.evaluator(c); assert fd.__self__.kind == 'forward_dynamics'; "
+            "print([fd(q, q).tolist(), "
             "redysim.evaluator(c, 'inverse_dynamics')(q, q, q).tolist()])")
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     plain = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -374,3 +383,95 @@ def test_the_default_inverse_leaves_the_workspace_as_the_checked_path_does():
     inverse_dynamics(model, q, v, qdd, ws=lean)
     inverse_dynamics(model, q.tolist(), v.tolist(), qdd.tolist(), ws=checked)
     assert same_bits(lean.s.W, checked.s.W) and same_bits(lean.oR, checked.oR)
+
+
+def test_the_builtins_arguments_are_taken_as_a_python_functions_would_take_them():
+    """The evaluator is a builtin whose C function reads its own arguments
+    (``_kernels/binding.py``): every way of passing them gives the checked path's bits, ``out``
+    is returned, and what it does not take itself (other names, a name given twice, too few or
+    too many) is the checked path's to refuse, with a Python function's TypeError."""
+    from redysim.algorithms._kernels import binding
+
+    assert binding.BINDING_OK
+    model = MODELS["tree"]
+    fd, inv = redysim.evaluator(model), redysim.evaluator(model, "inverse_dynamics")
+    assert type(fd).__name__ == "builtin_function_or_method"
+    q, v, tau = _state(np.random.default_rng(8), model)
+    want, want0 = checked_forward(model, q, v, tau), checked_forward(model, q, v)
+    out = np.empty(model.n_v)
+    for call, expected in ((lambda: fd(q, v), want0), (lambda: fd(q, v, None), want0),
+                           (lambda: fd(q, v, tau), want), (lambda: fd(q, v, tau=tau), want),
+                           (lambda: fd(q, v, tau=None, out=None), want0),
+                           (lambda: fd(q=q, v=v, tau=tau), want),
+                           (lambda: fd(q, v, **{"ta" + "u": tau}), want)):  # (not interned)
+        assert same_bits(call(), expected)
+    for call, expected in ((lambda: fd(q, v, tau, out), want), (lambda: fd(q, v, out=out), want0),
+                           (lambda: fd(q, v, out=out, tau=tau), want),
+                           (lambda: fd(q, v, None, out=out), want0)):
+        out[:] = np.nan
+        assert call() is out and same_bits(out, expected)
+    x = fd(q, v, tau)
+    tau_back = checked_inverse(model, q, v, x)
+    assert same_bits(inv(q, v, qdd=x), tau_back) and inv(q, v, x, out=out) is out
+    assert same_bits(out, tau_back)
+    for bad, message in ((lambda: fd(q), "missing 1 required positional argument: 'v'"),
+                         (lambda: fd(q, v, tau, out, out), "from 2 to 4 positional"),
+                         (lambda: fd(q, v, torque=tau), "unexpected keyword argument 'torque'"),
+                         (lambda: fd(q, v, tau, tau=tau), "multiple values for argument 'tau'"),
+                         (lambda: inv(q, v), "missing 1 required positional argument: 'qdd'"),
+                         (lambda: inv(q, v, None), "qdd")):
+        with pytest.raises((TypeError, StateError), match=message):
+            bad()
+    assert fd.__name__ == "forward_dynamics"
+
+
+def test_the_builtin_keeps_no_reference_it_should_not():
+    """Reference counts around the builtin's own allocation and the caller's arrays: a new
+    result is the caller's alone, ``out`` and the inputs are left as they were, and calls that
+    the entry refuses after allocating (a result that is not finite: the checked path then
+    computes it again) or whose vectors the builtin does not take release what they made."""
+    model = MODELS["floating tree"]
+    fd, inv = redysim.evaluator(model), redysim.evaluator(model, "inverse_dynamics")
+    q, v, tau = _state(np.random.default_rng(9), model)
+    out = np.empty(model.n_v)
+    result = fd(q, v)
+    assert sys.getrefcount(result) == 2  # the name and getrefcount's argument
+    gone = weakref.ref(result)
+    del result
+    assert gone() is None
+    before = [sys.getrefcount(a) for a in (q, v, tau, out)]
+    huge = np.full(model.n_v, 1e308)  # a torque whose qdd overflows: refused, then checked
+
+    def overflow():
+        with pytest.raises(StateError, match="not finite"):
+            fd(q, v, huge)
+
+    lists = (q.tolist(), v.tolist())
+    for _ in range(100):
+        fd(q, v)
+        fd(q, v, tau, out)
+        inv(q, v, tau)
+        inv(q, v, tau, out=out)
+        overflow()
+        fd(*lists)
+    assert [sys.getrefcount(a) for a in (q, v, tau, out)] == before
+    def refused():  # (a plain try: pytest.raises keeps what it caught)
+        try:
+            fd(q, v, huge)
+        except StateError:
+            pass
+
+    calls = (refused, lambda: fd(*lists), lambda: fd(q, v))
+    for _ in range(500):
+        for call in calls:
+            call()
+    tracemalloc.start()
+    try:
+        first = tracemalloc.get_traced_memory()[0]
+        for _ in range(10_000):
+            for call in calls:
+                call()
+        grown = tracemalloc.get_traced_memory()[0] - first
+    finally:
+        tracemalloc.stop()
+    assert grown < 10_000  # a vector leaked a call would be ~100 bytes a call or more

@@ -30,6 +30,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from redysim._jit import JIT_ENABLED
+from redysim.algorithms._kernels import binding as _binding
 from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms.dynamics import (
     check_out,
@@ -76,45 +78,38 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     ws = Workspace(model)
     serial = bool(ws.tree.serial)
     use_dh = use_dh_kernels(model, ws.dh, dh, model.is_planar)
-    if kind == "forward_dynamics":
+    forward = kind == "forward_dynamics"
+    if forward:
         entry = (_lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
                  _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
-        return _forward(model, ws, _lean_call(entry), use_dh)
-    entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if serial
-             else _lean.INVERSE_TREE)
-    return _inverse(model, ws, _lean_call(entry), use_dh)
+        checked, params, result = _checked_forward(model, use_dh), "q, v, tau=None, out=None", "qdd"
+    else:
+        entry = (_lean.INVERSE_DH if use_dh else _lean.INVERSE_CHAIN if serial
+                 else _lean.INVERSE_TREE)
+        checked, params, result = _checked_inverse(model, use_dh), "q, v, qdd, out=None", "tau"
+    doc = (f"{kind}({params})\n--\n\n{result} of {type(model).__name__.lower()} "
+           f"{model.name!r}, bit for bit redysim.{kind}'s (redysim.evaluator).")
+    checked.__name__ = checked.__qualname__ = kind  # (named in the errors it raises)
+    if _binding.BINDING_OK and JIT_ENABLED:
+        return _binding.bind(entry, forward, ws, checked, model, kind, doc)
+    # numba disabled, or NumPy's structs not as the binding reads them: the checked path, with
+    # the builtin's docstring and __self__
+    checked.__doc__ = doc.split("--\n\n", 1)[1]
+    checked.__dict__["__self__"] = _binding.Bound((None,) * 8 + (model, kind))
+    return checked
 
 
-def _lean_call(entry):
-    """The entry's compiled wrapper, past numba's dispatch (module docstring); None with
-    numba disabled, or where NumPy's structs are not as its unboxing reads them."""
-    return entry.call if _lean.NUMPY_LAYOUT_OK else None
+def _checked_forward(model: Model, dh: bool) -> Callable[..., np.ndarray]:
+    """The evaluator's checked path: the public function (looked up at each call)."""
+
+    def checked(q, v, tau=None, out=None):
+        return forward_dynamics(model, q, v, tau, out=out, dh=dh)
+
+    return checked
 
 
-def _forward(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
-    f, i, s, zeros, n = ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, model.n_v
-    empty, Refused = np.empty, _lean.Refused
-    if call is None:  # numba disabled, or NumPy's structs not as the entries read them
-        return _named(lambda q, v, tau=None, out=None: forward_dynamics(model, q, v, tau, out=out,
-                                                                        dh=dh),
-                      model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
-
-    def fd(q, v, tau=None, out=None):
-        # The compiled call's own unboxing refuses (TypeError) what is not a 1-D aligned native
-        # float64 ndarray, or a read-only out (lean.CheckedVector); its kernel refuses
-        # (Refused) a length, a stride or a result that is not finite
-        try:
-            return call(q, v, zeros if tau is None else tau, empty(n) if out is None else out,
-                        f, i, s)
-        except (TypeError, Refused):
-            return forward_dynamics(model, q, v, tau, out=out, dh=dh)
-
-    return _named(fd, model, "forward_dynamics", "(q, v, tau=None, out=None) -> qdd")
-
-
-def _inverse(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.ndarray]:
-    f, i, s, n = ws.kernel_f, ws.kernel_i, ws.scratch, model.n_v
-    empty, Refused = np.empty, _lean.Refused
+def _checked_inverse(model: Model, dh: bool) -> Callable[..., np.ndarray]:
+    """As :func:`_checked_forward`; ``out`` filled here (inverse_dynamics takes none)."""
 
     def checked(q, v, qdd, out=None):
         tau = inverse_dynamics(model, q, v, qdd, dh=dh)
@@ -124,21 +119,4 @@ def _inverse(model: Model, ws: Workspace, call, dh: bool) -> Callable[..., np.nd
         out[:] = tau
         return out
 
-    if call is None:  # numba disabled, or NumPy's structs not as the entries read them
-        return _named(checked, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
-
-    def id_(q, v, qdd, out=None):
-        try:  # (as fd's, _forward)
-            return call(q, v, qdd, empty(n) if out is None else out, f, i, s)
-        except (TypeError, Refused):
-            return checked(q, v, qdd, out)
-
-    return _named(id_, model, "inverse_dynamics", "(q, v, qdd, out=None) -> tau")
-
-
-def _named(func, model: Model, kind: str, signature: str):
-    func.__name__ = func.__qualname__ = kind
-    func.__doc__ = (f"{kind}{signature} of {type(model).__name__.lower()} {model.name!r}, "
-                    f"bit for bit redysim.{kind}'s (redysim.evaluator).")
-    func.model, func.kind = model, kind
-    return func
+    return checked
