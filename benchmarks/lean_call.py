@@ -19,8 +19,9 @@ other round) so that a neighbour's load falls on all of them; each round a ``tim
     fd default               forward_dynamics(model, q, v)
     evaluator                fd(q, v), fd = redysim.evaluator(model)
     evaluator out=           fd(q, v, out=out)
-    floor: compiled call     the evaluator's compiled function called from Python without its
-                             wrapper (its arguments ready, no checks in Python)
+    floor: compiled call     the evaluator's lean entry through numba's compiled wrapper (its 7
+                             arguments ready; what inverse_dynamics calls, and the evaluator
+                             did before it was a builtin: redysim/algorithms/_kernels/binding.py)
     floor: kernel            the same function called 1,000 times from compiled code, per call
     evaluator, dh=False      (DH robots) fd(q, v) of ``redysim.evaluator(model, dh=False)``: the
                              general kernels on the same robot

@@ -5,20 +5,23 @@ equal bit for bit to :func:`redysim.forward_dynamics` ``(model, q, v, tau, out=o
 ``kind="inverse_dynamics"`` returns ``id(q, v, qdd, out=None) -> tau``, equal to
 :func:`redysim.inverse_dynamics`. What :func:`~redysim.forward_dynamics` does at every call
 (look up the thread's workspace, choose the kernel, numba's dispatch of seven arrays) is done
-once here: a call hands its arrays, with the evaluator's own scratch, to one compiled function
-of its own (:mod:`redysim.algorithms._kernels.lean`), past numba's dispatch; that function's
-unboxing checks that each is a 1-D aligned native float64 ndarray (``out`` writeable), and its
-kernel checks their lengths and strides. Anything else
-(lists, float32, strided or read-only ``out``, a wrong length, a batch of states, a result that
-is not finite) takes the checked path, the public function itself: the same conversions, the
-same errors (StateError naming the argument and its length), the same results.
+once here. The function is a CPython builtin (:mod:`redysim.algorithms._kernels.binding`) whose
+C function, generated for the model's lean entry (:mod:`redysim.algorithms._kernels.lean`),
+takes its arguments, checks that each vector is a 1-D aligned native float64 ndarray (``out``
+writeable), makes the result vector when ``out`` is None and calls the entry with the
+evaluator's own scratch; the entry checks lengths and strides. Anything else (lists, float32,
+strided or read-only ``out``, a wrong length, a batch of states, a result that is not finite,
+other keyword names) goes to the checked path, the public function itself, called with the same
+arguments: the same conversions, the same errors (StateError naming the argument and its
+length), the same results. ``fd.__self__.model`` and ``fd.__self__.kind`` say what it computes.
 
 Thread safety: an evaluator holds one scratch, and its compiled call holds the GIL (releasing
 it costs more than it saves at this size: docs/design.md, "Performance notes"), so calls from
 several threads on one evaluator are safe and run one at a time; the checked path uses the
 model's own workspace of each calling thread. For states in parallel give
 :func:`~redysim.forward_dynamics` a batch. An evaluator cannot be pickled: make one in each
-process.
+process. With numba disabled (``NUMBA_DISABLE_JIT``), or where NumPy's structs are not as the
+builtin reads them, the evaluator is the checked path.
 
 Measured per call from Python on this project's VM (``benchmarks/lean_call.py``; docs/design.md,
 "Performance notes").

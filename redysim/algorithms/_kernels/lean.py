@@ -1,14 +1,17 @@
 """Lean entries: one compiled function per call of an evaluator, for small systems.
 
-:func:`redysim.evaluator` calls these with numba's dispatch bypassed
+:func:`redysim.evaluator` calls these from the builtin :mod:`.binding` generates for each,
+and :func:`redysim.inverse_dynamics` with numba's dispatch bypassed
 (``redysim._jit.unchecked_call``: the compiled wrapper itself, its arguments not typed), so they
 check for themselves what the dispatcher would have: every vector's length and that its elements
 are contiguous (stride 8).
-The caller checks before the call what the wrapper cannot (that each argument is a 1-D float64
-ndarray, ``out`` writeable). Anything they refuse (a length, a stride, a qdd or tau that is not
-finite) raises :class:`Refused` having written at most ``out``; the caller then takes the checked
-path (:func:`redysim.forward_dynamics`, :func:`redysim.inverse_dynamics`), which converts the
-input or says what is wrong with it. They return ``out``: numba hands back the caller's own array
+Each caller checks before the call that each vector is a 1-D aligned native float64 ndarray,
+``out`` writeable (the builtin in its own C function; numba's wrapper through
+:class:`CheckedVector`'s unboxing, below). Anything they refuse (a length, a stride, a qdd or
+tau that is not finite) raises :class:`Refused` (to the builtin: a failed status) having written
+at most ``out``; the caller then takes the checked path (:func:`redysim.forward_dynamics`,
+:func:`redysim.inverse_dynamics`), which converts the input or says what is wrong with it. They
+return ``out``: numba hands back the caller's own array
 object (nothing is boxed; compiled without reference counting).
 
 Arguments: ``q, v, x, out, fdata, idata, scratch``, with ``x`` tau (forward dynamics: zeros for
