@@ -93,8 +93,10 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     doc = (f"{kind}({params})\n--\n\n{result} of {type(model).__name__.lower()} "
            f"{model.name!r}, bit for bit redysim.{kind}'s (redysim.evaluator).")
     checked.__name__ = checked.__qualname__ = kind  # (named in the errors it raises)
-    if _binding.BINDING_OK and JIT_ENABLED:
-        return _binding.bind(entry, forward, ws, checked, model, kind, doc)
+    builtin = (_binding.bind(entry, forward, ws, checked, model, kind, doc)
+               if _binding.BINDING_OK and JIT_ENABLED else None)
+    if builtin is not None:
+        return builtin
     # numba disabled, or NumPy's structs not as the binding reads them: the checked path, with
     # the builtin's docstring and __self__
     checked.__doc__ = doc.split("--\n\n", 1)[1]

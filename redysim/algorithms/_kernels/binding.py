@@ -2,15 +2,16 @@
 
 :func:`redysim.evaluator` returns, where :data:`BINDING_OK`, the function :func:`bind` makes:
 a ``builtin_function_or_method`` (METH_FASTCALL | METH_KEYWORDS, as CPython's own builtins)
-whose C function is generated here, in LLVM IR, and linked to the entry's compiled code
-(:mod:`.lean`). A call ``fd(q, v, tau=None, out=None)`` (``id(q, v, qdd, out=None)``) then
-runs, in that one function: its arguments taken from the call (two to four positional; ``tau``
-or ``qdd`` and ``out`` also by name), ``tau`` None as the workspace's zeros, ``out`` None as a
-new vector (NumPy's ``PyArray_New``), each vector's checks (an ndarray or subclass, one
-dimension, aligned native float64, ``out`` writeable), the evaluator's workspace arrays as
-described once at binding, and the entry (which checks lengths and strides, and that the result
-is finite). Anything else, or anything the entry refuses, goes to the evaluator's checked path,
-a Python function with the same parameters, called with the same arguments (vectorcall): the
+whose C function is generated here, in LLVM IR, and calls the entry's own compiled code
+(:mod:`.lean`) by its address. A call ``fd(q, v, tau=None, out=None)`` (``id(q, v, qdd,
+out=None)``) then runs, in that one function: its arguments taken from the call (two to four
+positional; ``tau`` or ``qdd`` and ``out`` also by name), ``tau`` None as the workspace's
+zeros, ``out`` None as a new vector (NumPy's ``PyArray_New``), each vector's checks (an ndarray
+or subclass, one dimension, aligned native float64, ``out`` writeable), the evaluator's
+workspace arrays as described once at binding, and the entry (which checks lengths and strides,
+and that the result is finite). Anything else, or anything the entry refuses, goes to the
+evaluator's checked path, a Python function with the same parameters, called with the same
+arguments (vectorcall): the
 public function's conversions, errors and bits.
 
 Why: with a Python function between the call and the compiled wrapper (numba's, which takes
@@ -27,9 +28,9 @@ NumPy's own answers) and CPython's ``PyCFunction_NewEx`` and ``PyObject_Vectorca
 
 Lifetimes: the builtin's ``__self__`` is a :class:`Bound` (a tuple) holding the workspace, its
 arrays, the words that describe them, the checked path and the method definition, so nothing
-the compiled function reads is freed before the builtin is. The compiled code is made once per
-entry and process (~0.1 s with LLVM's optimisation), not cached on disk: the entry's own code
-is (numba's cache).
+the compiled function reads is freed before the builtin is. The C function is made once per
+entry and process (a few tens of ms), not cached on disk; the entry's own code is (numba's
+cache).
 """
 
 from __future__ import annotations
@@ -141,13 +142,16 @@ class Bound(tuple):
 def bind(entry, forward: bool, ws, checked, model, kind: str, doc: str):
     """The builtin calling ``entry`` (a :class:`redysim._jit.EntryPoint` of :mod:`.lean`) on
     workspace ``ws``; ``checked(q, v, x=None, out=None)``: the checked path; ``doc``: its
-    docstring (first line: its signature, as ``inspect.signature`` reads a builtin's)."""
+    docstring (first line: its signature, as ``inspect.signature`` reads a builtin's). None
+    where the entry's machine code has no address to call."""
     arrays = (ws.kernel_f, ws.kernel_i, ws.scratch)
     words = np.array([w for a in arrays for w in (a.size, a.itemsize, a.ctypes.data,
                                                   a.shape[0], a.strides[0])]
                      + [model.n_v], dtype=np.int64)
-    definition = PyMethodDef(kind.encode(), _compiled(entry, forward), METH_FASTCALL_KEYWORDS,
-                             doc.encode())
+    address = _compiled(entry, forward)
+    if not address:
+        return None
+    definition = PyMethodDef(kind.encode(), address, METH_FASTCALL_KEYWORDS, doc.encode())
     bound = Bound((*arrays, ws.zeros, checked, int(words.ctypes.data), words, ws, model, kind,
                    definition))
     return _cfunction_new(ctypes.byref(definition), bound, None)
@@ -250,9 +254,14 @@ def _build(entry, forward: bool) -> int:
         arr.shape = cgutils.pack_array(b, [w[3]])
         arr.strides = cgutils.pack_array(b, [w[4]])
         natives.append(arr._getvalue())
-    entry_fn = cgutils.get_or_insert_function(
-        module, ctx.call_conv.get_function_type(fndesc.restype, fndesc.argtypes),
-        fndesc.mangled_name)
+    # the entry's own machine code, called by its address: linking its library instead would
+    # copy the entry's IR into this module and optimise it again here (numba links a library's
+    # callees that way), a second compiled copy of the kernel
+    entry_ty = ctx.call_conv.get_function_type(fndesc.restype, fndesc.argtypes)
+    address = overload.library.get_pointer_to_function(fndesc.mangled_name)
+    if not address:  # (numba keeps it: never seen) the evaluator is then the checked path
+        return 0
+    entry_fn = b.inttoptr(I64(address), entry_ty.as_pointer())
     status, _ = ctx.call_conv.call_function(b, entry_fn, fndesc.restype, fndesc.argtypes,
                                             natives)
     with b.if_then(status.is_ok, likely=True):
@@ -270,10 +279,9 @@ def _build(entry, forward: bool) -> int:
     vectorcall = c_function(I8P, [I8P, I8P.as_pointer(), I64, I8P], "PyObject_Vectorcall")
     b.ret(b.call(vectorcall, [b.call(tuple_item, [bound, I64(4)]), argv, nargs, kwnames]))
 
-    library.add_linking_library(overload.library)
     library.add_ir_module(module)
     library.finalize()
-    _KEEP.append(library)
+    _KEEP.extend((library, overload.library))
     return library.get_pointer_to_function(name)
 
 
