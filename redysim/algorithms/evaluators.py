@@ -100,7 +100,7 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     # numba disabled, or NumPy's structs not as the binding reads them: the checked path, with
     # the builtin's docstring and __self__
     checked.__doc__ = doc.split("--\n\n", 1)[1]
-    checked.__dict__["__self__"] = _binding.Bound((None,) * 8 + (model, kind))
+    checked.__dict__["__self__"] = _binding.Bound.of_checked_path(model, kind)
     return checked
 
 

@@ -45,17 +45,7 @@ from llvmlite import ir
 from numba.core import cgutils
 from numba.core.compiler_lock import global_compiler_lock
 
-from .lean import (
-    BYTEORDER_OFFSET,
-    DESCR_OFFSET,
-    FLAGS_OFFSET,
-    ND_OFFSET,
-    NPY_ARRAY_ALIGNED,
-    NPY_ARRAY_WRITEABLE,
-    NPY_DOUBLE,
-    NUMPY_LAYOUT_OK,
-    TYPE_NUM_OFFSET,
-)
+from .lean import NPY_DOUBLE, NUMPY_LAYOUT_OK, _read, vector_fields_ok
 
 TYPE_OFFSET = 8  # in any object: PyTypeObject *ob_type
 DATA_OFFSET, DIMS_OFFSET, STRIDES_OFFSET = 16, 32, 40  # in the array: char *data, npy_intp *
@@ -127,13 +117,22 @@ def _binding_ok() -> bool:
 BINDING_OK: bool = _binding_ok()
 
 
+# positions in a Bound: what the C function reads (ZEROS, CHECKED, WORDS_AT), what it says
+ZEROS, CHECKED, WORDS_AT, MODEL_AT, KIND_AT = 3, 4, 5, 8, 9
+
+
 class Bound(tuple):
     """The builtin's ``__self__``: what its compiled function reads (by position: the
     workspace's three arrays, the zeros, the checked path, the address of the words describing
     the arrays), and what keeps them alive. ``fd.__self__.model``, ``.kind``: what it computes."""
 
-    model = property(itemgetter(8), doc="the model")
-    kind = property(itemgetter(9), doc="'forward_dynamics' or 'inverse_dynamics'")
+    model = property(itemgetter(MODEL_AT), doc="the model")
+    kind = property(itemgetter(KIND_AT), doc="'forward_dynamics' or 'inverse_dynamics'")
+
+    @classmethod
+    def of_checked_path(cls, model, kind: str) -> Bound:
+        """The ``__self__`` of an evaluator that is its checked path: what it computes only."""
+        return cls((None,) * MODEL_AT + (model, kind))
 
     def __repr__(self) -> str:
         return f"<redysim.evaluator {self.kind} of {self.model.name!r}>"
@@ -216,11 +215,11 @@ def _build(entry, forward: bool) -> int:
 
     x = b.load(slots[2])
     if forward:  # tau None: the workspace's zeros
-        x = b.select(absent(x), b.call(tuple_item, [bound, I64(3)]), x)
+        x = b.select(absent(x), b.call(tuple_item, [bound, I64(ZEROS)]), x)
     else:
         with b.if_then(absent(x), likely=False):  # no qdd: the checked path says so
             b.branch(checked_path)
-    words = b.inttoptr(b.ptrtoint(api.long_as_voidptr(b.call(tuple_item, [bound, I64(5)])),
+    words = b.inttoptr(b.ptrtoint(api.long_as_voidptr(b.call(tuple_item, [bound, I64(WORDS_AT)])),
                                   I64), I64.as_pointer())
     out = b.load(slots[3])
     own = absent(out)
@@ -277,7 +276,7 @@ def _build(entry, forward: bool) -> int:
 
     b.position_at_end(checked_path)
     vectorcall = c_function(I8P, [I8P, I8P.as_pointer(), I64, I8P], "PyObject_Vectorcall")
-    b.ret(b.call(vectorcall, [b.call(tuple_item, [bound, I64(4)]), argv, nargs, kwnames]))
+    b.ret(b.call(vectorcall, [b.call(tuple_item, [bound, I64(CHECKED)]), argv, nargs, kwnames]))
 
     library.add_ir_module(module)
     library.finalize()
@@ -296,11 +295,7 @@ def _vector(b, ctx, obj, ty, array_type_ptr, c_function):
     result = cgutils.alloca_once(b, ctx.get_value_type(ty))
     ok = cgutils.alloca_once_value(b, cgutils.false_bit)
 
-    def read(address, offset, lltype):
-        at = b.add(b.ptrtoint(address, I64), I64(offset))
-        return b.load(b.inttoptr(at, lltype.as_pointer()))
-
-    obj_type = read(obj, TYPE_OFFSET, I8P)
+    obj_type = _read(b, obj, TYPE_OFFSET, I8P)
     is_array = b.icmp_unsigned("==", obj_type, array_type_ptr)
     with b.if_then(b.not_(is_array), likely=False):
         subtype = c_function(I32, [I8P, I8P], "PyType_IsSubtype")
@@ -308,23 +303,16 @@ def _vector(b, ctx, obj, ty, array_type_ptr, c_function):
     is_array = b.or_(is_array, b.load(ok))
     b.store(cgutils.false_bit, ok)
     with b.if_then(is_array, likely=True):
-        descr = read(obj, DESCR_OFFSET, I8P)
-        need = NPY_ARRAY_ALIGNED | (NPY_ARRAY_WRITEABLE if ty.mutable else 0)
-        good = b.and_(b.icmp_signed("==", read(obj, ND_OFFSET, I32), I32(1)),
-                      b.icmp_signed("==", read(descr, TYPE_NUM_OFFSET, I32), I32(NPY_DOUBLE)))
-        good = b.and_(good, b.icmp_signed("!=", read(descr, BYTEORDER_OFFSET, ir.IntType(8)),
-                                          ir.IntType(8)(ord(">"))))
-        flags = read(obj, FLAGS_OFFSET, I32)
-        good = b.and_(good, b.icmp_signed("==", b.and_(flags, I32(need)), I32(need)))
-        b.store(good, ok)
+        b.store(vector_fields_ok(b, obj, ty.mutable), ok)
     with b.if_then(b.load(ok), likely=True):  # (a 0-D array may have no dimensions to read)
         arr = ctx.make_array(ty)(ctx, b)
-        length = b.load(read(obj, DIMS_OFFSET, I64.as_pointer()))
+        length = b.load(_read(b, obj, DIMS_OFFSET, I64.as_pointer()))
         arr.meminfo = cgutils.get_null_value(arr.meminfo.type)
         arr.parent = obj
         arr.nitems, arr.itemsize = length, I64(8)
-        arr.data = b.bitcast(read(obj, DATA_OFFSET, I8P), arr.data.type)
+        arr.data = b.bitcast(_read(b, obj, DATA_OFFSET, I8P), arr.data.type)
         arr.shape = cgutils.pack_array(b, [length])
-        arr.strides = cgutils.pack_array(b, [b.load(read(obj, STRIDES_OFFSET, I64.as_pointer()))])
+        arr.strides = cgutils.pack_array(b, [b.load(_read(b, obj, STRIDES_OFFSET,
+                                                                 I64.as_pointer()))])
         b.store(arr._getvalue(), result)
     return b.load(ok), b.load(result)

@@ -154,6 +154,20 @@ def _read(builder, address, offset: int, ty):
     return builder.load(builder.inttoptr(at, ty.as_pointer()))
 
 
+def vector_fields_ok(builder, obj, mutable: bool):
+    """The bit saying that ndarray ``obj`` (known to be one) has one dimension of aligned native
+    float64, writeable if ``mutable``: its fields read at the offsets above. Also the
+    evaluator's builtin's check (:mod:`.binding`)."""
+    b, i32, i8 = builder, ir.IntType(32), ir.IntType(8)
+    descr = _read(b, obj, DESCR_OFFSET, i8.as_pointer())
+    need = NPY_ARRAY_ALIGNED | (NPY_ARRAY_WRITEABLE if mutable else 0)
+    good = b.and_(b.icmp_signed("==", _read(b, obj, ND_OFFSET, i32), i32(1)),
+                  b.icmp_signed("==", _read(b, descr, TYPE_NUM_OFFSET, i32), i32(NPY_DOUBLE)))
+    good = b.and_(good, b.icmp_signed("!=", _read(b, descr, BYTEORDER_OFFSET, i8), i8(ord(">"))))
+    flags = _read(b, obj, FLAGS_OFFSET, i32)
+    return b.and_(good, b.icmp_signed("==", b.and_(flags, i32(need)), i32(need)))
+
+
 @unbox(CheckedVector)
 def _unbox_checked(typ, obj, c):
     b, i32 = c.builder, ir.IntType(32)
@@ -165,15 +179,7 @@ def _unbox_checked(typ, obj, c):
     vec = c.context.make_array(typ)(c.context, b)
     ok = cgutils.alloca_once_value(b, cgutils.false_bit)
     with b.if_then(b.icmp_signed("==", err, i32(0)), likely=True):
-        descr = _read(b, obj, DESCR_OFFSET, c.pyapi.voidptr)
-        need = NPY_ARRAY_ALIGNED | (NPY_ARRAY_WRITEABLE if typ.mutable else 0)
-        flags = _read(b, obj, FLAGS_OFFSET, i32)
-        good = b.and_(b.icmp_signed("==", _read(b, obj, ND_OFFSET, i32), i32(1)),
-                      b.icmp_signed("==", _read(b, descr, TYPE_NUM_OFFSET, i32),
-                                    i32(NPY_DOUBLE)))
-        good = b.and_(good, b.icmp_signed("!=", _read(b, descr, BYTEORDER_OFFSET, ir.IntType(8)),
-                                          ir.IntType(8)(ord(">"))))
-        b.store(b.and_(good, b.icmp_signed("==", b.and_(flags, i32(need)), i32(need))), ok)
+        b.store(vector_fields_ok(b, obj, typ.mutable), ok)
         vec.meminfo = cgutils.get_null_value(vec.meminfo.type)
         vec.parent = obj
         vec.nitems = room.nitems
