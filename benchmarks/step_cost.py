@@ -4,12 +4,13 @@
         [--integrator ode45] [--rounds 3]
 
 From the case's initial state, each solver takes ``--steps`` steps (after one warm-up step),
-alternating round by round in one process: :class:`redysim.integrators.explicit.Solver` (numpy stage
-sums, the core's qdd through ``forward_dynamics``) and
-:class:`redysim.integrators.explicit.CompiledSolver` (stage sums and qdd calls in compiled code,
-``redysim.algorithms._kernels.rk_run``; what ``harness.run`` and ``harness.longrun`` use). Reports
-the fastest round's wall time per step and per qdd call, and checks that both took the same steps to
-the same bits (t, h and y). Writes ``results/bench/step_cost.json``.
+alternating round by round in one process: :class:`redysim.integrators.explicit.Solver` stepping as
+Python a plain function (the core's qdd through ``forward_dynamics``), and the same Solver stepping
+the case's :class:`redysim.algorithms.system.System` in compiled code (stage sums and qdd calls in
+compiled code, ``redysim.algorithms._kernels.rk_run``; what ``harness.run`` and
+``harness.longrun`` use). Reports the fastest round's wall time per step and per qdd call, and
+checks that both took the same steps to the same bits (t, h and y). Writes
+``results/bench/step_cost.json``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from redysim import Workspace, forward_dynamics, load_case
-from redysim.integrators.explicit import CompiledSolver, Solver, compile_kernels
+from redysim.algorithms.system import System
+from redysim.integrators.explicit import Solver, compile_kernels
 
 
 def main(argv=None) -> int:
@@ -56,8 +58,7 @@ def main(argv=None) -> int:
                 for _ in range(args.steps):
                     s.step()
         else:
-            s = CompiledSolver(rhs, 0.0, y0, case.t_end, args.integrator, ws=ws,
-                               planar=chain.is_planar, **kw)
+            s = Solver(System(chain), 0.0, y0, case.t_end, args.integrator, **kw)
             s.max_steps = 1
             s.step()
 

@@ -221,9 +221,10 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
             log(f"{reason}: set aside as {set_aside_other(path).name}; starting over")
             ck = None
     if ck is not None:
-        state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
-                            Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])))
         samples = [tuple(r) for r in ck["samples"]]
+        state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
+                            Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])),
+                            sampled_until=samples[-1][0] if samples else None)
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
     def record(s):  # every sample: t, tip position, E, delta_M
         p = tip(chain, s.q, s.v, ws=s.ws).position
@@ -235,8 +236,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     # Runge-Kutta steps in compiled code (the same steps, bit for bit, as the Python loop, so a
     # checkpoint of either resumes in the other)
     sim = case.simulator(t_end, integrator=how["integrator"], sample=interval,
-                         keep_states=False, observe={"sample": record}, state=state,
-                         skip_until=samples[-1][0] if samples else None, **kw)
+                         keep_states=False, observe={"sample": record}, state=state, **kw)
     E0, solver = sim.E0, sim.solver
     if ck is not None:
         log(f"{case.name}: resuming at t = {state.t:.6g} s, {state.counters.steps:,} steps, "

@@ -118,7 +118,7 @@ class _Runner:
         if key in self.cache:
             return self.cache[key]
         from redysim.algorithms.dynamics import frame_motion
-        from redysim.simulation import Simulator
+        from redysim.simulation import simulator
 
         full, frame = self.model, self.frame
         red, keep_q, keep_v = self.reduced(locked)
@@ -130,7 +130,7 @@ class _Runner:
             return frame_motion(full, qf, vf, frame=frame).position
 
         integrator, rtol = setting
-        sim = Simulator(red, self.t_end, q0=self.q0[keep_q], v0=self.v0[keep_v],
+        sim = simulator(red, self.t_end, q0=self.q0[keep_q], v0=self.v0[keep_v],
                         integrator=integrator, rtol=rtol, atol=rtol * 1e-2, sample=self.sample,
                         observe={"frame": observe}, keep_states=False,
                         damping=self.scn.damping)
@@ -225,10 +225,10 @@ def _file_check(path: Path, advised: dict) -> float:
     from its own [observe] table) at REFERENCE: the largest distance of its path from the
     advised reduced run's."""
     from redysim.io.scenarios import load_scenario
-    from redysim.simulation import Simulator, frame_observer
+    from redysim.simulation import frame_observer, simulator
 
     scn = load_scenario(path)
-    sim = Simulator(scn.model, scn.t_end, q0=scn.q0, v0=scn.v0, integrator=REFERENCE[0],
+    sim = simulator(scn.model, scn.t_end, q0=scn.q0, v0=scn.v0, integrator=REFERENCE[0],
                     rtol=REFERENCE[1], atol=REFERENCE[1] * 1e-2, sample=scn.sample_interval,
                     observe={"frame": frame_observer(scn.model, scn.frame)}, keep_states=False,
                     damping=scn.damping)

@@ -33,13 +33,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from redysim.algorithms.system import System
+from redysim.errors import SettingsError
 from redysim.integrators.explicit import sample_times
 from redysim.io.scenarios import Scenario, load_scenario
-from redysim.simulation import Simulator, frame_observer, is_native, momentum_observer
+from redysim.simulation import Integrator, Simulator, frame_observer, momentum_observer
 
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
-from .spec import CORE, RunSpec
+from .spec import CORE, RunSpec, is_native, native_name
 
 # the observed path (tip_*), the energy, the centre of mass, and the momentum: linear (p_*,
 # kg m/s) and angular about the centre of mass (h_*, kg m^2/s), both world frame
@@ -297,16 +299,23 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
             if np.abs(per - np.round(per)).max() > 1e-6:
                 raise RunFailed(f"native stepping: sample times must be whole multiples of "
                                 f"h = {spec.h:g}")
-    sim = Simulator(chain, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=spec.integrator,
-                    rtol=spec.rtol, atol=spec.atol, h=spec.h or None, sample=spec.sample,
-                    method=dyn.method, qdd=dyn.qdd, tip_force=dyn.force,
-                    engine=dyn.engine, energy_bound=spec.energy_bound, damping=case.damping,
-                    keep_states=last.get("states") is not None,
+    source = f"run {spec.label}"
+    if native:
+        try:
+            stepper = dyn.engine.stepper(native_name(spec.integrator), h=spec.h or None,
+                                         rtol=spec.rtol, atol=spec.atol)
+        except ValueError as exc:
+            raise SettingsError(source, "integrator", spec.integrator, str(exc)) from None
+    else:
+        stepper = Integrator(spec.integrator, rtol=spec.rtol, atol=spec.atol, h=spec.h or None)
+    system = System(chain, qdd=dyn.qdd, method=dyn.method, tip_force=dyn.force,
+                    damping=case.damping, source=source)
+    sim = Simulator(system, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=stepper,
+                    sample=spec.sample, keep_states=last.get("states") is not None,
                     observe={"tip": frame_observer(chain, case.frame, acceleration=True),
-                             "momentum": momentum_observer(chain)},
-                    source=f"run {spec.label}")
+                             "momentum": momentum_observer(chain)})
     row["jit_s"], row["E0"] = sim.jit_s, sim.E0
-    row["model_mib"] = sim.motion.ws.nbytes / 2**20 if dyn.engine is None else math.nan
+    row["model_mib"] = system.ws.nbytes / 2**20 if dyn.engine is None else math.nan
     next_report = [time.perf_counter() + PROGRESS_EVERY_S]
     wall0 = time.perf_counter()
 
@@ -319,7 +328,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
 
     try:
         res = sim.run(progress=report, max_cpu_s=spec.max_cpu_s or None, max_wall_s=max_wall_s,
-                      clock="process")
+                      clock="process", energy_bound=spec.energy_bound)
     except Exception as exc:  # an engine's error mid-run: its row keeps the samples before it
         if getattr(exc, "partial", None) is not None:
             _keep(spec, exc.partial, row, samples, last)

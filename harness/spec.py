@@ -30,7 +30,6 @@ from redysim.io.scenarios import (
     digest_of,
     source_files,
 )
-from redysim.simulation import is_native, native_name
 
 CORE = "redysim"  # the engine name of our own core
 NATIVE = "native"  # integrator name: the engine's own time stepping ("native:NAME": one of them)
@@ -38,7 +37,21 @@ STEPPED = (*FIXED_STEP, NATIVE)  # integrators that take a step h, not tolerance
 # engine's fixed-step "native:NAME": :func:`stepped`)
 PRECISIONS = ("float64", "float32")  # RunSpec.precision: the arithmetic of the core's qdd
 
+
+def is_native(integrator) -> bool:
+    """Whether ``integrator`` names a reference engine's own integrator: ``"native"`` (the
+    engine's default) or ``"native:NAME"`` (one of the engine's ``integrators``)."""
+    return isinstance(integrator, str) and (integrator == NATIVE or
+                                            integrator.startswith(NATIVE + ":"))
+
+
+def native_name(integrator: str) -> str | None:
+    """The engine's integrator named by ``"native:NAME"`` (NAME), or None for ``"native"``."""
+    return integrator.split(":", 1)[1] if ":" in integrator else None
+
+
 __all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest",
+           "is_native", "native_name",
            "native_integrator", "stepped"]
 
 

@@ -86,7 +86,6 @@ from redysim.errors import FieldError, RedysimError, SettingsError
 from redysim.integrators.explicit import ALIASES, INTEGRATORS
 from redysim.io.cases import is_case_name
 from redysim.io.scenarios import list_scenarios, load_scenario
-from redysim.simulation import is_native
 
 from . import REDYSIM_THREADS, worker_threads
 from .run import execute
@@ -97,6 +96,7 @@ from .spec import (
     PRECISIONS,
     STEPPED,
     RunSpec,
+    is_native,
     native_integrator,
     stepped,
 )

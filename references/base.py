@@ -76,6 +76,9 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from redysim import Case, Chain, Model
+from redysim.errors import SettingsError
+from redysim.integrators.explicit import check_settings, sample_times
+from redysim.integrators.protocol import Counters, IntegrationError, OdeSolver
 from redysim.model.parts import KIND_CODES
 from redysim.model.tree import FREE, quaternion_matrix
 
@@ -134,6 +137,121 @@ class NativeIntegrator(NamedTuple):
     adaptive: bool
     what: str
     note: str = ""
+
+
+class NativeStepper:
+    """An engine's own integrator as a run's stepper: ``Simulator(system, t_end,
+    integrator=engine.stepper("rk4", h=1e-3))`` (:class:`redysim.simulation.Simulator` asks it
+    what it asks :class:`redysim.simulation.Integrator`: :meth:`checked`, :meth:`warm_up`,
+    :meth:`solver`). A fixed-step integrator takes its step ``h``; an adaptive one ``rtol`` and
+    ``atol`` (and ``h`` as the largest step it may take). The engine steps its own model:
+    a system that adds anything to its model (forces, damping, loops) is refused by name."""
+
+    def __init__(self, engine: Engine, name: str | None = None, *, h: float | None = None,
+                 rtol: float | None = None, atol: float | None = None):
+        self.engine, self.h, self.rtol, self.atol = engine, h, rtol, atol
+        self.info = engine.native_integrator(name)  # (ValueError naming its integrators)
+        self.name = f"native:{self.info.name}"
+
+    @property
+    def fixed(self) -> bool:
+        return not self.info.adaptive
+
+    def checked(self, source: str, t_end: float, sample: float) -> NativeStepper:
+        """Its settings checked for a run to t_end sampled every ``sample`` s: a fixed-step
+        integrator's state is known at whole steps only, so the sample times must be whole
+        multiples of h (SettingsError naming the bad setting)."""
+        if t_end is None:
+            raise SettingsError(source, "t_end", None, "missing: the horizon [s]")
+        if self.fixed:
+            if self.h is None:
+                raise SettingsError(source, "h", None, f"{self.name} is a fixed-step "
+                                    "integrator: give its step h [s]")
+            check_settings(source, h=self.h, t_end=t_end, sample=sample)
+            ts = sample_times(0.0, t_end, sample)
+            if np.abs(ts / self.h - np.round(ts / self.h)).max() > 1e-6:
+                raise SettingsError(source, "sample", sample, f"an engine's own stepper knows "
+                                    f"its state at whole steps only: the sample times must be "
+                                    f"whole multiples of h = {self.h:g}")
+        else:
+            check_settings(source, rtol=self.rtol, atol=self.atol, t_end=t_end, sample=sample)
+            if self.h is not None:  # the largest step it may take
+                check_settings(source, h=self.h, t_end=t_end)
+        return self
+
+    def warm_up(self) -> None:
+        return None
+
+    def solver(self, system, t0: float, y0, t_end: float, state=None) -> EngineStepper:
+        added = getattr(system, "additions", [])
+        if added:  # the engine steps its own model: nothing of ours reaches it
+            raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
+                                f"steps the engine's own model, which has none of "
+                                f"{', '.join(added)}: run it through redysim's integrators "
+                                "(ode45, dop853, rk4, ...)")
+        if state is not None:
+            raise SettingsError(getattr(system, "source", "simulate"), "state", "checkpoint",
+                                "an engine's own stepper cannot be resumed from a checkpoint")
+        return EngineStepper(self.engine, t0, y0, t_end, self.h, system.n_q,
+                             integrator=self.info.name, rtol=self.rtol, atol=self.atol,
+                             adaptive=self.info.adaptive)
+
+
+class EngineStepper(OdeSolver):
+    """A reference engine's own integrator behind the solver protocol
+    (:class:`redysim.integrators.protocol.OdeSolver`). A fixed-step integrator takes one step a
+    call of :meth:`step`, and its state is known at whole steps only (the sample times are whole
+    multiples of ``h``: :meth:`NativeStepper.checked`); an adaptive one (``adaptive``) lands on
+    each sample time ``t_stop`` by its own error control, one call of :meth:`step` per sample,
+    and its steps, rejections and qdd calls are the engine's own count (-1 where it gives none)."""
+
+    def __init__(self, engine, t0: float, y0, t_end: float, h: float | None, nq: int, *,
+                 integrator: str | None = None, rtol: float | None = None,
+                 atol: float | None = None, adaptive: bool = False):
+        self.engine, self.nq, self.adaptive = engine, nq, adaptive
+        self.h = float(h) if h else None
+        self.t_end = float(t_end)
+        self.counters = Counters(nfev=-1)  # the engine does not report its qdd calls
+        self.t, self.y = float(t0), np.array(y0, dtype=float)
+        self.t_old, self.y_old = self.t, self.y
+        self._start = float(t0)
+        if adaptive:
+            engine.sim_reset(self.y[:nq], self.y[nq:], self.h, integrator=integrator,
+                             rtol=rtol, atol=atol)
+        else:
+            engine.sim_reset(self.y[:nq], self.y[nq:], self.h, integrator=integrator)
+
+    def step(self, t_stop: float | None = None) -> None:
+        if self.adaptive:
+            t_new = self.t_end if t_stop is None else min(float(t_stop), self.t_end)
+            self.engine.sim_advance(t_new - self._start)
+            steps, rejected, nfev = self.engine.sim_counts()
+            self.counters.steps = max(steps, self.counters.steps + 1)
+            self.counters.rejected, self.counters.nfev = rejected, nfev
+        else:
+            assert self.h is not None  # a fixed-step native integrator's h (checked)
+            self.engine.step_once()
+            self.counters.steps += 1
+            t_new = self._start + self.counters.steps * self.h
+        q, v = self.engine.sim_state()
+        y = np.concatenate((q, v))
+        if not np.isfinite(y).all():
+            raise IntegrationError(f"non-finite state at t = {t_new:.6g}")
+        self.t_old, self.y_old = self.t, self.y
+        self.t, self.y = t_new, y
+
+    def dense(self, ts) -> np.ndarray:
+        ts = np.atleast_1d(ts)
+        if np.abs(ts - self.t).max() > 1e-9 * max(1.0, self.t):
+            raise IntegrationError("an engine's own stepper knows its state at whole steps "
+                                   "only: sample at whole multiples of h")
+        return np.tile(self.y, (ts.size, 1))
+
+    def set_deadline(self, clock, deadline: float) -> None:
+        """The CPU-time limit inside the engine's own adaptive advance, where it can stop
+        between its own steps (:meth:`Engine.set_sim_deadline`)."""
+        if self.adaptive:
+            self.engine.set_sim_deadline(clock, deadline)
 
 
 def import_engine(engine: str, package: str, module: str | None = None):
@@ -587,6 +705,13 @@ class Engine(EnginePackage):
         """World position (3,) of the frame "tip" (a chain's distal end: ``Model.from_chain``)."""
         return self.position(q, "tip")
 
+    def stepper(self, name: str | None = None, *, h: float | None = None,
+                rtol: float | None = None, atol: float | None = None) -> NativeStepper:
+        """The engine's own integrator ``name`` (None: its default) as a run's stepper
+        (:class:`NativeStepper`): ``Simulator(model, t_end, integrator=eng.stepper("rk4",
+        h=1e-3))``. Raises ValueError naming the engine's integrators when it has no such one."""
+        return NativeStepper(self, name, h=h, rtol=rtol, atol=atol)
+
     def native_integrator(self, name: str | None = None) -> NativeIntegrator:
         """The engine's own integrator ``name`` (None or "": its default, ``integrator``).
         Raises ValueError naming the engine's integrators when it has no such one (or none)."""
@@ -595,7 +720,7 @@ class Engine(EnginePackage):
             raise ValueError(
                 f"engine {self.name!r} has no time integrator of its own{why}: run it through "
                 f"redysim's integrators, its qdd in ours, e.g. `redysim simulate CASE --engine "
-                f"{self.name} --integrator ode45` (Python: Simulator(model, t_end, "
+                f"{self.name} --integrator ode45` (Python: simulator(model, t_end, "
                 f"qdd=eng.qdd, integrator='ode45'))")
         name = name or self.integrator
         if name not in self.integrators:

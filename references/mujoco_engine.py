@@ -32,7 +32,7 @@ What the model contains and why (docs/design.md, "Reference engines"):
   ``qpos0`` (and the time to 0) when a position, velocity or acceleration is NaN or above 1e10,
   with only a warning, and steps on: a diverging run then LOOKS finite (measured: the 3-link
   chain at RK4, h = 0.2 s, ended at a finite state after a silent reset). Disabled, divergence
-  shows as the NaN it is (``redysim.simulation.EngineStepper`` fails the run on it).
+  shows as the NaN it is (``redysim.references.base.EngineStepper`` fails the run on it).
 
 MuJoCo numbers bodies and DOF depth-first; the adapter maps them to the Model's order by joint
 name (a chain's order is MuJoCo's). Free joint: MuJoCo's free joint IS the core's convention

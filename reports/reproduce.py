@@ -113,20 +113,20 @@ def warm_stepping(forms: tuple[str, ...] = STEPPING_FORMS) -> None:
 
     from redysim import Body, Chain, Coupling, Model, TreeJoint
     from redysim.algorithms.linkages import four_bar
-    from redysim.simulation import Simulator
+    from redysim.simulation import simulator
 
     if "plain" in forms:
         chain = Chain.uniform(3, "U", mass=1.0)
-        Simulator(chain, 0.02, sample=0.01, compiled=True).run()
+        simulator(chain, 0.02, sample=0.01, compiled=True).run()
     if "extras" in forms:
         fb = four_bar(0.3, 0.1, 0.35, 0.3)
-        Simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
+        simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
                   compiled=True).run()
         bar = Body("bar", 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
         arm = Model.build([bar, bar], [TreeJoint("j0", "R", "z"),
                                        TreeJoint("j1", "R", "x", translation=(0.6, 0.0, 0.0))],
                           [-1, 0]).with_couplings([Coupling("j1", "j0", 1.0, 0.0)])
-        Simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
+        simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
 
 
 def _stepping_process(forms: tuple[str, ...]) -> subprocess.Popen:

@@ -97,8 +97,8 @@ def test_a_coupled_motion_steps_in_compiled_code_in_the_same_bits(method, kw, fr
     Featherstone solve) is the reduced-coordinate solve's to rounding."""
     from test_integrate import _compiled_and_python_runs
 
-    from redysim.algorithms._kernels.rk_run import coupled_qdd
-    from redysim.simulation import Simulator
+    from redysim.algorithms._kernels.system import coupled_qdd
+    from redysim.simulation import simulator
 
     model = coupled_tree(stable_seed("coupled-compiled", free), free=free)
     q, v = state(model, np.random.default_rng(11))
@@ -108,9 +108,9 @@ def test_a_coupled_motion_steps_in_compiled_code_in_the_same_bits(method, kw, fr
     assert a.residual_q < 1e-12 and a.residual_v < 1e-10
     if not damping:
         assert np.abs(a.delta_M).max() < (1e-5 if method == "rk4" else 1e-7)
-    motion = Simulator(model, 0.1).motion
-    ws, tau, got = motion.ws, np.random.default_rng(3).normal(size=model.n_v), np.empty(model.n_v)
-    assert coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, motion.couplings, q, v, tau,
+    system = simulator(model, 0.1).system
+    ws, tau, got = system.ws, np.random.default_rng(3).normal(size=model.n_v), np.empty(model.n_v)
+    assert coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, system.couplings, q, v, tau,
                        got) == 0.0
     want = reduced_solve(model, q, v, tau)
     assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()

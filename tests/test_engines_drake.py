@@ -191,8 +191,9 @@ def test_an_adaptive_run_through_the_core_simulator():
     ``native:runge_kutta3``, landing on the samples, with Drake's own counts."""
     model, q0, v0, _ = _start("box")
     eng = _engine("box")
-    sim = Simulator(model, T_END, q0=q0, v0=v0, integrator="native:runge_kutta3",
-                            rtol=1e-8, atol=1e-8, sample=0.25, engine=eng).run()
+    sim = Simulator(model, T_END, q0=q0, v0=v0,
+                    integrator=eng.stepper("runge_kutta3", rtol=1e-8, atol=1e-8),
+                    sample=0.25).run()
     assert sim.status == 0, sim.message
     assert np.allclose(sim.t, [0.0, 0.25, 0.5, 0.75, 1.0], rtol=0, atol=1e-15)
     assert _error("box", sim.q[-1], sim.v[-1]) <= 20 * 1e-8

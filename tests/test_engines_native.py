@@ -14,7 +14,7 @@ motion (``redysim.simulate``, dop853, rtol = atol = 1e-12):
 - an unknown integrator, tolerances for a fixed-step one, a fixed-step one without h and an
   adaptive one without rtol raise ValueError naming them; Pinocchio, which has no integrator,
   is refused naming the way to run it;
-- ``Simulator(..., engine=eng, integrator="native:NAME")`` runs end to end, fixed-step
+- ``Simulator(..., integrator=eng.stepper("NAME", ...))`` runs end to end, fixed-step
   (``native:implicitfast``) and adaptive (``native:dopri5``), giving the engine's own run;
 - what each module's docstring claims about its engine (MuJoCo: implicitfast is euler here and
   implicit on a free body, a blow-up is NaN not a reset; Exudyn: fixed steps are one continuous
@@ -44,7 +44,7 @@ from redysim import references
 from redysim.algorithms.rbda import quaternion_matrix
 from redysim.errors import SettingsError
 from redysim.model.tree import Body, Model, TreeJoint
-from redysim.simulation import Simulator
+from redysim.simulation import Simulator, simulator
 
 pytestmark = pytest.mark.engine
 
@@ -236,22 +236,23 @@ def test_pinocchio_has_no_integrator(name):
                  lambda: eng.sim_reset(q0, v0, 1e-3, integrator="semi-implicit-euler")):
         with pytest.raises(ValueError, match=why):
             call()
-    with pytest.raises(SettingsError, match=r"integrator = 'native'.*no time integrator"):
-        Simulator(model, 0.01, q0=q0, v0=v0, integrator="native", h=1e-3, engine=eng)
+    with pytest.raises(ValueError, match=why):
+        eng.stepper(h=1e-3)
     # what the message advises runs: Pinocchio's qdd in redysim's ode45
-    sim = Simulator(model, 0.05, q0=q0, v0=v0, integrator="ode45", rtol=1e-8, atol=1e-10,
-                    qdd=eng.qdd, engine=eng).run()
+    sim = simulator(model, 0.05, q0=q0, v0=v0, integrator="ode45", rtol=1e-8, atol=1e-10,
+                    qdd=eng.qdd).run()
     assert sim.status == 0
 
 
 # --------------------------------------------------------------------------- the Simulator
 def test_simulator_runs_a_fixed_step_native_integrator():
-    """``Simulator(..., engine=mujoco, integrator="native:implicitfast", h=...)``: the engine's
-    own run, sampled; an unknown name is refused naming the engine's integrators."""
+    """``Simulator(..., integrator=mujoco.stepper("implicitfast", h=...))``: the engine's own
+    run, sampled; an unknown name is refused naming the engine's integrators, a fixed-step one
+    without its step by name."""
     model, q0, v0, _ = model_of("box")
     eng = engine_of("mujoco", "box")
-    sim = Simulator(model, 0.1, q0=q0, v0=v0, integrator="native:implicitfast", h=1e-3,
-                    sample=0.02, engine=eng).run()
+    sim = Simulator(model, 0.1, q0=q0, v0=v0, integrator=eng.stepper("implicitfast", h=1e-3),
+                    sample=0.02).run()
     assert sim.status == 0 and sim.steps == 100 and len(sim.t) == 6
     own = eng.simulate(q0, v0, 0.1, 1e-3, integrator="implicitfast", every=20)
     # the same run, to rounding: the Simulator normalises q0's quaternion (and the samples'),
@@ -260,21 +261,21 @@ def test_simulator_runs_a_fixed_step_native_integrator():
     # (measured 4.4e-16 in q, 1.3e-15 in v of |v| 6.1)
     assert np.abs(sim.q - own.q).max() < 1e-15 and np.abs(sim.v - own.v).max() < 1e-14
     assert eng.manifest()["opt.integrator"] == "mjINT_IMPLICITFAST"
-    with pytest.raises(SettingsError, match=r"integrator = 'native:nope'.*its own: euler, "
-                                            r"implicitfast, implicit, rk4"):
-        Simulator(model, 0.1, q0=q0, v0=v0, integrator="native:nope", h=1e-3, engine=eng)
+    with pytest.raises(ValueError, match=r"no integrator 'nope'; its own: euler, "
+                                         r"implicitfast, implicit, rk4"):
+        eng.stepper("nope", h=1e-3)
     with pytest.raises(SettingsError, match="fixed-step integrator: give its step h"):
-        Simulator(model, 0.1, q0=q0, v0=v0, integrator="native:rk4", engine=eng)
+        Simulator(model, 0.1, q0=q0, v0=v0, integrator=eng.stepper("rk4"))
 
 
 @pytest.mark.parametrize("model_id", MODELS)
 def test_simulator_runs_an_adaptive_native_integrator(model_id):
-    """``Simulator(..., engine=exudyn, integrator="native:dopri5", rtol=, atol=)`` lands on
+    """``Simulator(..., integrator=exudyn.stepper("dopri5", rtol=, atol=))`` lands on
     every sample by Exudyn's own step control; its counts are the engine's."""
     model, q0, v0, ref = model_of(model_id)
     eng = engine_of("exudyn", model_id)
-    sim = Simulator(model, T_END, q0=q0, v0=v0, integrator="native:dopri5", rtol=1e-9,
-                    atol=1e-9, sample=0.05, engine=eng).run()
+    sim = Simulator(model, T_END, q0=q0, v0=v0,
+                    integrator=eng.stepper("dopri5", rtol=1e-9, atol=1e-9), sample=0.05).run()
     assert sim.status == 0 and np.allclose(sim.t, np.arange(9) * 0.05, rtol=0, atol=1e-12)
     assert (sim.steps, sim.rejected, sim.nfev) == eng.sim_counts()
     assert sim.nfev == 7 * (sim.steps + sim.rejected) + 2  # 7 stages, no FSAL; the first step
@@ -341,8 +342,8 @@ def test_mujoco_blow_up_is_nan_not_a_reset():
         warnings.simplefilter("ignore")  # MuJoCo's own "unstable" warnings
         tr = eng.simulate(q0, np.full(3, 50.0), 12.0, 0.2, integrator="rk4", every=20)
         assert np.isnan(tr.q[-1]).all()
-        run = Simulator(model, 12.0, q0=q0, v0=np.full(3, 50.0), integrator="native:rk4",
-                        h=0.2, sample=0.2, engine=eng).run()
+        run = Simulator(model, 12.0, q0=q0, v0=np.full(3, 50.0),
+                        integrator=eng.stepper("rk4", h=0.2), sample=0.2).run()
     assert run.status == -1 and "not finite" in run.message and run.t[-1] < 1.0
 
 

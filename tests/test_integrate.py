@@ -296,11 +296,12 @@ def test_compile_kernels_compiles_what_every_scheme_calls():
     ("RE-R229-L1.02-DX1.02", "ode45", 0.2, {"rtol": 1e-4, "atol": 1e-6}),
 ])
 def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, method, t_end, kw):
-    """CompiledSolver (steps in compiled code) against Solver (the Python loop) with the core's
-    qdd on the paper's cases: the same steps, rejections and qdd calls, and every sample equal
-    bit for bit."""
+    """The compiled stepping of a system against the same stepping run as Python
+    (:class:`Solver` given a plain function of the public forward dynamics) on the paper's
+    cases: the same steps, rejections and qdd calls, and every sample equal bit for bit."""
     from redysim import Workspace, forward_dynamics, load_case
-    from redysim.integrators.explicit import CompiledSolver, Solver, advance, sample_times
+    from redysim.algorithms.system import System
+    from redysim.integrators.explicit import Solver, advance, sample_times
 
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
@@ -313,12 +314,12 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
     ts = sample_times(0.0, t_end, t_end / 7)
     runs = []
     for make in (lambda: Solver(rhs, 0.0, y0, t_end, method, **kw),
-                 lambda: CompiledSolver(rhs, 0.0, y0, t_end, method, ws=ws,
-                                        planar=chain.is_planar, max_steps=50, **kw)):
+                 lambda: Solver(System(chain), 0.0, y0, t_end, method, max_steps=50, **kw)):
         solver, samples = make(), []
         assert advance(solver, ts, on_sample=lambda _t, y, s=samples: s.append(y.copy()))[0] == 0
         c = solver.counters
-        runs.append(((c.steps, c.rejected, c.nfev), np.array(samples)))
+        runs.append(((c.steps, c.rejected, c.nfev), np.array(samples), solver.compiled))
+    assert [r[2] for r in runs] == [False, True]
     assert runs[0][0] == runs[1][0] and runs[0][0][0] > 20
     assert np.array_equal(runs[0][1], runs[1][1])
 
@@ -346,11 +347,11 @@ def test_floating_and_damped_motions_step_in_compiled_code_in_the_same_bits(meth
 def _compiled_and_python_runs(model, t_end, **settings):
     """The same Simulator run stepped in compiled code and in the Python loop (each checked to
     be so): the same steps, RHS calls and every sample bit for bit; returns both."""
-    from redysim.simulation import Simulator
+    from redysim.simulation import simulator
 
     runs = []
     for compiled in (True, False):
-        sim = Simulator(model, t_end, compiled=compiled, sample=0.05, **settings)
+        sim = simulator(model, t_end, compiled=compiled, sample=0.05, **settings)
         assert sim.compiled is compiled
         runs.append(sim.run())
     a, b = runs
@@ -387,21 +388,18 @@ def test_a_planar_chains_tip_torques_are_the_general_loads():
 def test_a_spatial_chain_pulled_at_its_tip_steps_in_compiled_code_in_the_same_bits(method, kw,
                                                                                  damping):
     """A U chain (spatial: neither planar nor DH) pulled at its tip steps in compiled code: its
-    tip torques (rk_run.spatial_tip_torques, which the Python loop calls too) equal the loads
-    module's J^T F to rounding, the runs are the same bit for bit, and T + V - F . p_tip is
-    kept when undamped."""
-    from redysim import Chain, Workspace
-    from redysim.algorithms._kernels.rk_run import spatial_tip_torques
+    generalized forces (the system's, which both steppings call: the tip's J^T F and the
+    damping) equal the loads module's J^T F to rounding, the runs are the same bit for bit, and
+    T + V - F . p_tip is kept when undamped."""
+    from redysim import Chain
     from redysim.algorithms.loads import tip_force_torques
+    from redysim.algorithms.system import System
 
     chain = Chain.uniform(6, "U", length=0.3, linear_density=2.0, radius=0.02)
     F = np.array([1.5, -0.7, 2.0])
     rng = np.random.default_rng(9)
     q0, v0 = rng.uniform(-0.8, 0.8, chain.n_dof), rng.normal(size=chain.n_dof)
-    ws = Workspace(chain)
-    got = np.empty(chain.n_dof)
-    spatial_tip_torques(ws.kernel_f, ws.kernel_i, ws.scratch, ws.zeros, np.zeros(3),
-                        np.array(chain.length), q0, F, -damping, v0, got)
+    got = System(chain, tip_force=F, damping=damping).forces(0.0, q0, v0)
     want = tip_force_torques(chain, q0, F) - damping * v0
     assert np.abs(got - want).max() <= 1e-13 * np.abs(want).max()
     a, _ = _compiled_and_python_runs(chain, 0.3, q0=q0, v0=v0, integrator=method,

@@ -274,19 +274,19 @@ def test_a_bad_tip_mass_is_named(bad):
 
 
 def test_a_simulators_tip_force_adds_to_its_tau_and_potential():
-    """Simulator(tip_force=): the force's torques added to a tau given with it, its potential
+    """simulator(tip_force=): the force's torques added to a tau given with it, its potential
     to that tau's (a constant joint torque c, potential -c . q): the balance holds with both
     (the Python loop: a tau provider) and with the force alone (compiled), on a spatial chain
     and a planar one. A tree, and a force that is not 3 numbers, are refused by name."""
     from redysim.errors import SettingsError
-    from redysim.simulation import Simulator
+    from redysim.simulation import simulator
 
     F = np.array([2.0, -1.0, 0.5])
     for chain in (Chain.uniform(4, "U", length=0.3, mass=0.5, radius=0.01),
                   Chain.uniform(4, "R", length=0.3, mass=0.5, radius=0.01)):
         c = np.linspace(0.2, -0.1, chain.n_dof)
         q0 = np.linspace(-0.6, 0.4, chain.n_dof)
-        sim = Simulator(chain, 0.5, q0=q0, tip_force=F, tau=lambda _t, _q, _v, c=c: c,
+        sim = simulator(chain, 0.5, q0=q0, tip_force=F, tau=lambda _t, _q, _v, c=c: c,
                         potential=lambda q, c=c: -float(c @ q), rtol=1e-10, atol=1e-12,
                         sample=0.05)
         assert sim.compiled is False  # a tau provider: the Python loop
@@ -294,13 +294,13 @@ def test_a_simulators_tip_force_adds_to_its_tau_and_potential():
         moved = np.abs(run.q - q0).max()
         assert run.status == 0 and moved > 0.05
         assert np.abs(run.delta_M).max() < 1e-8
-        alone = Simulator(chain, 0.5, q0=q0, tip_force=F, rtol=1e-10, atol=1e-12, sample=0.05)
+        alone = simulator(chain, 0.5, q0=q0, tip_force=F, rtol=1e-10, atol=1e-12, sample=0.05)
         assert alone.compiled  # planar or spatial, the steps compiled
         assert np.abs(alone.run().delta_M).max() < 1e-8
     from test_trees import random_tree
 
     with pytest.raises(SettingsError, match="tip_force = .*is a tree"):
-        Simulator(random_tree(3, free=False), 0.1, tip_force=F)
+        simulator(random_tree(3, free=False), 0.1, tip_force=F)
     with pytest.raises(SettingsError, match="tip_force = 'north'.*3 numbers"):
-        Simulator(Chain.uniform(2, "R", length=0.3, mass=0.5, radius=0.01), 0.1,
+        simulator(Chain.uniform(2, "R", length=0.3, mass=0.5, radius=0.01), 0.1,
                   tip_force="north")

@@ -274,11 +274,11 @@ def test_a_closed_model_is_never_answered_for_as_its_tree():
 def test_a_simulator_runs_once_and_keeps_what_it_observes():
     """The one driver: observers see every sample, a second run() is refused (its solver is at
     the end), and a chain's tip observed equals redysim.tip at the sampled states."""
-    from redysim.simulation import Simulator, frame_observer
+    from redysim.simulation import frame_observer, simulator
 
     chain = Chain.uniform(4, "U", mass=1.0, length=0.5)
     q0 = np.full(chain.n_dof, 0.2)
-    sim = Simulator(chain, 0.05, q0=q0, sample=0.01,
+    sim = simulator(chain, 0.05, q0=q0, sample=0.01,
                     observe={"tip": frame_observer(chain, "tip", acceleration=True),
                              "t": lambda s: np.array([s.t])})
     res = sim.run()

@@ -9,7 +9,7 @@ import pytest
 from redysim.errors import SettingsError
 from redysim.harness import reduce
 from redysim.io.scenarios import load_scenario
-from redysim.simulation import Simulator, frame_observer
+from redysim.simulation import frame_observer, simulator
 
 pytest.importorskip("tomli_w")
 T_END = 0.3
@@ -17,7 +17,7 @@ TOL = 1e-2  # m: the flange's path; the PUMA's wrist joints have effects below i
 
 
 def path_of(model, q0, v0, frame):
-    sim = Simulator(model, T_END, q0=q0, v0=v0, integrator="dop853", rtol=1e-10, atol=1e-12,
+    sim = simulator(model, T_END, q0=q0, v0=v0, integrator="dop853", rtol=1e-10, atol=1e-12,
                     sample=0.05, observe={"f": frame_observer(model, frame)}, keep_states=False)
     return np.asarray(sim.run().observed["f"])[:, :3]
 

@@ -319,10 +319,10 @@ def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_pat
     assert math.isfinite(st.ref_error) and a.tip_err + st.ref_error <= tol
     # independently: the advised model against a 4x finer rope
     from redysim.harness.run import coarse_case
-    from redysim.simulation import Simulator, frame_observer
+    from redysim.simulation import frame_observer, simulator
 
     def tips(chain, q0, v0, integrator, rtol):
-        sim = Simulator(chain, 0.1, q0=q0, v0=v0, integrator=integrator, rtol=rtol,
+        sim = simulator(chain, 0.1, q0=q0, v0=v0, integrator=integrator, rtol=rtol,
                                 atol=rtol * 1e-2, sample=0.02,
                                 observe={"tip": frame_observer(chain, "tip")})
         return sim.run().observed["tip"][:, :3]

@@ -119,7 +119,7 @@ def test_an_engines_own_stepper_refuses_damping():
     dp = load_scenario("DOUBLE-PENDULUM")
     engine = get("mujoco")(dp.model)
     with pytest.raises(SettingsError, match="has none of damping"):
-        dp.simulator(0.1, integrator="native:rk4", h=1e-3, engine=engine, damping=0.1)
+        dp.simulator(0.1, integrator=engine.stepper("rk4", h=1e-3), damping=0.1)
 
 
 

@@ -212,14 +212,14 @@ def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
 
 def _coupling_scratch(model: Model):
     """The calling thread's workspace of a coupled ``model`` and its couplings' bundle
-    (:class:`redysim.algorithms._kernels.rk_run.Couplings`, with a workspace of the tree without
+    (:class:`redysim.algorithms._kernels.system.Couplings`, with a workspace of the tree without
     gravity), made on the thread's first call and kept beside its workspace."""
     ws = _ws(model, None)
     local = model._thread_workspaces
     try:
         return ws, local.couplings
     except AttributeError:
-        from redysim.algorithms._kernels.rk_run import couplings_of
+        from redysim.algorithms._kernels.system import couplings_of
 
         local.couplings = couplings_of(model, Workspace(model.free_tree))
         return ws, local.couplings
@@ -239,7 +239,7 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     if method == "rge-a" and not planar and not model.is_planar:
         # in compiled code, as a simulation's right-hand side (the calling thread's scratch);
         # where the result is not finite, the calls below say why
-        from redysim.algorithms._kernels.rk_run import coupled_qdd
+        from redysim.algorithms._kernels.system import coupled_qdd
 
         ws, cp = _coupling_scratch(model)
         res = np.empty(model.n_v) if out is None else out

@@ -60,6 +60,8 @@ from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping 
     IntegrationError,
     OdeSolver,
     SolverState,
+    as_dynamics,
+    as_function,
 )
 from redysim.integrators.protocol import hermite as _hermite
 
@@ -264,162 +266,152 @@ def check_settings(source: str = "integrate", names: dict[str, str] | None = Non
 
 
 # --------------------------------------------------------------------------- the solver
-class Solver(OdeSolver):
-    """One of our Runge-Kutta schemes, advanced one accepted step at a time.
+DENSE_DOUBLES = 1 << 20  # advance interpolates at most this many values (8 MiB) at a time
+CHUNK_S = 0.25  # s of wall time a compiled step() call aims at (it adapts max_steps)
+MAX_CHUNK_STEPS = 100_000
 
-    ``rhs(t, y) -> dy/dt``. After :meth:`step`, ``t_old``/``y_old`` and ``t``/``y`` bracket the
-    step and :meth:`dense` interpolates inside it. ``h`` is a fixed scheme's step; an adaptive
-    scheme chooses its own (``hmax`` defaults to 0.1 x span, as in ode45).
+
+class Solver(OdeSolver):
+    """One of our Runge-Kutta schemes (:data:`TABLEAU_NAMES`) stepping a system.
+
+    ``system``: a function ``fun(t, y) -> dy/dt``, or a system that keeps the contract of
+    :class:`redysim.integrators.protocol.Dynamics` (``derivative(t, y, out)``, and ``kernel``:
+    its compiled contract or None). The steps are :func:`redysim.algorithms._kernels.rk_run
+    .rk_steps` (one source for both ways): in compiled code, many steps a call (up to the first
+    that reaches ``t_stop``, at most ``max_steps``, which adapts so that a call takes about
+    CHUNK_S of wall time and the caller keeps its clock and progress), when the system's
+    ``kernel`` is given and ``compiled`` is not False; else the same function run as Python,
+    one accepted step a call. Both take the same steps in the same bits. In compiled code every
+    step but a call's last is projected onto the system's constraints (the caller projects the
+    last after its samples).
+
+    ``h``: a fixed scheme's step (given to an adaptive scheme, it steps that scheme at a fixed
+    step); an adaptive scheme chooses its own, at most ``hmax`` (default 0.1 x span, as ode45).
+    After :meth:`step`, ``t_old``/``y_old`` and ``t``/``y`` bracket the last step and
+    :meth:`dense` interpolates inside it.
     """
 
-    def __init__(self, rhs: Callable, t0: float, y0, t_end: float, method: str = "ode45", *,
+    y: np.ndarray
+    f: np.ndarray
+    h_next: float
+
+    def __init__(self, system, t0: float, y0, t_end: float, method: str = "ode45", *,
                  rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
-                 hmax: float | None = None, state: SolverState | None = None):
+                 hmax: float | None = None, state: SolverState | None = None,
+                 compiled: bool | None = None, max_steps: int = 1000):
+        from redysim.algorithms._kernels import rk_run
+
         if method not in TABLEAU_NAMES:
             raise ValueError(f"method = {method!r}: unknown; choose one of "
                              f"{', '.join(TABLEAU_NAMES)} (or scipy-*)")
-        self.tab = tableau(method)
-        rk = _rk()
-        self._combine, self._error_norm = rk.combine, rk.error_norm
-        self.rhs = rhs
+        self.system = as_dynamics(system)
+        self.tab = tab = tableau(method)
         self.t_end = float(t_end)
-        span = abs(self.t_end - t0)
         if self.t_end <= t0:
             raise ValueError(f"t_end = {t_end!r} must be greater than t0 = {t0!r}")
-        self.adaptive = self.tab.adaptive and h is None
+        self.adaptive = tab.adaptive and h is None
         if self.adaptive:
             if not (rtol > 0 and atol > 0):
                 raise ValueError(f"need rtol > 0 and atol > 0, got rtol={rtol!r}, atol={atol!r}")
             self.rtol, self.atol = float(rtol), float(atol)
-            self.hmax = float(hmax) if hmax else HMAX_FRACTION * span
-            self.power = 1.0 / (self.tab.error_order + 1)
+            self.hmax = float(hmax) if hmax else HMAX_FRACTION * abs(self.t_end - t0)
+            power = 1.0 / (tab.error_order + 1)
         else:
             if not (h is not None and h > 0):
                 raise ValueError(f"fixed-step method {method!r} needs h > 0, got h={h!r}")
             self.rtol = self.atol = math.nan
-            self.hmax = float(h)
-        y0 = np.array(y0, dtype=float)
-        self.n = y0.size
-        self.K = np.empty((self.tab.stages + (1 if self.tab.fsal else 0), self.n))
-        self._err = np.empty(self.n)  # the error estimates' scratch
-        self._err3 = np.empty(self.n)
+            self.hmax, power = float(h), 0.0
+        self._run = rk_run
+        kernel = self.system.kernel
+        self.compiled = kernel is not None and compiled is not False
+        self._kernel = kernel if self.compiled else (self.system, None)
+        self._steps = rk_run.rk_steps if self.compiled else _python_steps()
+        self.max_steps = int(max_steps) if self.compiled else 1
+        self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
+                                     tab.E if tab.E is not None else _NO_WEIGHTS,
+                                     tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
+        self._ctl = rk_run.Control(
+            self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
+            self.hmax, power, self.t_end, bool(self.adaptive), SAFETY, MAX_GROWTH,
+            FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS)
+        n = np.size(y0)
+        self.n = n
+        self.K = np.empty((tab.stages + (1 if tab.fsal else 0), n))
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
         if state is not None:
             state.resume(self)
+            self.y, self.f = np.array(self.y, dtype=float), np.array(self.f, dtype=float)
         else:
             self.counters = Counters()
-            self.t, self.y = float(t0), y0
+            self.t, self.y = float(t0), np.array(y0, dtype=float)
             self.f = self._call(self.t, self.y)
             self.h_next = self._initial_step() if self.adaptive else self.hmax  # (= h)
-        self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
+        self.t_old, self.y_old, self.f_old = self.t, self.y.copy(), self.f.copy()
+        self._state = rk_run.StepState(
+            np.array([self.t, self.t_old, self.h_next]), self.y, self.f, self.y_old,
+            self.f_old, self.K, np.zeros(3, dtype=np.int64), np.empty(n), np.empty(n),
+            np.empty(n), np.empty(n))
 
     # ----------------------------------------------------------------------- helpers
-    def _call(self, t, y):
+    def _call(self, t, y) -> np.ndarray:
         self.counters.nfev += 1
-        return np.asarray(self.rhs(t, y), dtype=float)
-
-    def _threshold(self):
-        return self.atol / self.rtol
+        out = np.empty(self.n)
+        self.system.derivative(t, y, out)
+        return out
 
     def _initial_step(self) -> float:
         """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call)."""
         absh = min(self.hmax, self.t_end - self.t)
-        scale = np.maximum(np.abs(self.y), self._threshold())
-        rh = np.max(np.abs(self.f) / scale) / (SAFETY * self.rtol ** self.power)
+        scale = np.maximum(np.abs(self.y), self.atol / self.rtol)
+        rh = np.max(np.abs(self.f) / scale) / (SAFETY * self.rtol ** self._ctl.power)
         if absh * rh > 1:
             absh = 1.0 / rh
-        return max(absh, self._hmin(self.t))
-
-    @staticmethod
-    def _hmin(t: float) -> float:
-        return HMIN_EPS * float(np.spacing(abs(t)))
+        return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
 
     def state(self) -> SolverState:
         """A copy of the resumable state (to save in a checkpoint)."""
         return SolverState(self.t, self.y.copy(), self.f.copy(), self.h_next,
                            Counters(**vars(self.counters)))
 
-    # ----------------------------------------------------------------------- the stepping kernel
-    def _stages(self, t, y, f, h) -> np.ndarray:
-        """K[0..s-1] (and K[s] = f(t + h, y_new) for FSAL schemes); returns y_new.
-
-        The stage sums y + h sum_j a_ij K_j are taken in a fixed order, without BLAS
-        (:mod:`redysim.algorithms._kernels.rk`): a step is the same on every CPU."""
-        tab, K = self.tab, self.K
-        K[0] = f
-        for i in range(1, tab.stages):
-            K[i] = self._call(t + tab.c[i] * h,
-                              self._combine(y, h, tab.A[i], K, i, np.empty(self.n)))
-        y_new = self._combine(y, h, tab.b, K, tab.stages, np.empty(self.n))
-        if tab.fsal:
-            K[tab.stages] = self._call(t + h, y_new)
-        return y_new
-
-    def _error(self, h, y, y_new) -> float:
-        """The max-norm error of ode45, relative to rtol's scale (accept when <= rtol); DOP853's
-        estimate is err5 |err5| / hypot(err5, 0.1 err3), componentwise."""
-        tab = self.tab
-        assert tab.E is not None  # adaptive: an embedded scheme (the only ones that call this)
-        E3 = tab.E3 if tab.E3 is not None else _NO_WEIGHTS
-        return float(self._error_norm(h, tab.E, E3, self.K, tab.E.size, y, y_new,
-                                      self._threshold(), self._err, self._err3))
-
+    # ----------------------------------------------------------------------- stepping
     def step(self, t_stop: float | None = None) -> None:
-        """Take one accepted step (retrying rejected ones); stop no later than ``t_stop``."""
-        t_stop = self.t_end if t_stop is None else min(t_stop, self.t_end)
-        if self.adaptive:
-            self._adaptive_step()
-        else:
-            self._fixed_step(t_stop)
-        self._dense_K = None
-
-    def _fixed_step(self, t_stop):
-        h, t_new = self.h_next, self.t + self.h_next
-        if t_stop - t_new <= SAMPLE_EPS * max(1.0, abs(t_stop)):  # land on the sample time
-            h, t_new = t_stop - self.t, t_stop
-        y_new = self._stages(self.t, self.y, self.f, h)
-        f_new = self.K[self.tab.stages].copy() if self.tab.fsal else self._call(t_new, y_new)
-        self._accept(t_new, y_new, f_new)
-
-    def _adaptive_step(self):
-        t, y, tab = self.t, self.y, self.tab
-        hmin = self._hmin(t)
-        absh = min(self.hmax, max(hmin, self.h_next))
-        done = False
-        if FINISH_SLACK * absh >= self.t_end - t:
-            absh, done = self.t_end - t, True
-        nofailed = True
-        while True:
-            t_new = self.t_end if done else t + absh
-            h = t_new - t
-            y_new = self._stages(t, y, self.f, h)
-            err = self._error(h, y, y_new)
-            if not math.isfinite(err):
-                raise IntegrationError(f"non-finite error estimate at t = {t:.6g} "
-                                       f"(h = {h:.3g}): the state or qdd is not finite")
-            if err <= self.rtol:
-                break
-            self.counters.rejected += 1
-            if absh <= hmin:
-                raise IntegrationError(f"step size {absh:.3g} fell below hmin = {hmin:.3g} at "
-                                       f"t = {t:.6g}: tolerances cannot be met")
-            if nofailed:
-                nofailed = False
-                absh = max(hmin, absh * max(FIRST_REJECT_MIN,
-                                            SAFETY * (self.rtol / err) ** self.power))
-            else:
-                absh = max(hmin, LATER_REJECT * absh)
-            done = False
-        if nofailed:
-            temp = (err / self.rtol) ** self.power / SAFETY
-            absh = absh / temp if temp > 1.0 / MAX_GROWTH else MAX_GROWTH * absh
-        self.h_next = absh
-        self._accept(t_new, y_new, self.K[tab.stages].copy())
-
-    def _accept(self, t_new, y_new, f_new):
-        self.t_old, self.y_old, self.f_old = self.t, self.y, self.f
-        self.t, self.y, self.f = t_new, y_new, f_new
-        self.counters.steps += 1
+        """Compiled: every step up to the first that reaches ``t_stop`` (t_end when None), at
+        most ``max_steps``; as Python: one accepted step, no later than ``t_stop``."""
+        c, st = self.counters, self._state
+        if st.y is not self.y or st.f is not self.f or st.y_old is not self.y_old \
+                or st.f_old is not self.f_old:  # reassigned from outside: step those
+            st = self._state = st._replace(y=self.y, f=self.f, y_old=self.y_old, f_old=self.f_old)
+        st.ts[:] = self.t, self.t_old, self.h_next
+        st.counts[:] = c.steps, c.rejected, c.nfev
+        steps0, wall0 = c.steps, time.perf_counter()
+        sd, extras = self._kernel
+        try:
+            status = self._steps(sd, extras, self._scheme, self._ctl, st,
+                                 self.t_end if t_stop is None else float(t_stop),
+                                 self.max_steps)
+        finally:
+            self.t, self.t_old, self.h_next = (float(x) for x in st.ts)
+            c.steps, c.rejected, c.nfev = (int(x) for x in st.counts)
+            self._dense_K = None
+        taken, wall = c.steps - steps0, time.perf_counter() - wall0
+        if taken and self.compiled:
+            self.max_steps = max(1, min(MAX_CHUNK_STEPS, int(CHUNK_S * taken / max(wall,
+                                                                                  1e-9))))
+        if status == self._run.ERR_NONFINITE:
+            raise IntegrationError(f"non-finite error estimate at t = {self.t:.6g}: the state "
+                                   "or qdd is not finite")
+        if status == self._run.ERR_HMIN:
+            hmin = float(self._run.hmin_at(self._ctl, self.t))
+            raise IntegrationError(f"step size fell below hmin = {hmin:.3g} at t = "
+                                   f"{self.t:.6g}: tolerances cannot be met")
+        if status == self._run.ERR_QDD:  # the system's checked path says why (StateError)
+            self.system.derivative(self.t, self.y, np.empty(self.n))
+            raise IntegrationError(f"qdd not finite in a stage of the step from t = "
+                                   f"{self.t:.6g}")
+        if status == self._run.ERR_PROJECT:  # likewise
+            self.system.project(self.y)
+            raise IntegrationError(f"the projection onto the loops failed after the step to t "
+                                   f"= {self.t:.6g}")
 
     # ----------------------------------------------------------------------- dense output
     def dense(self, ts) -> np.ndarray:
@@ -427,12 +419,13 @@ class Solver(OdeSolver):
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         h = self.t - self.t_old
         s = (ts - self.t_old) / h
+        combine = _rk().combine
         if self.tab is DP45:  # y_old + h sum_j (BI_j . [s, s^2, s^3, s^4]) K_j, per time
             out = np.empty((s.size, self.n))
             for i, si in enumerate(s.tolist()):
                 w = [((b[0] * si + b[1] * si ** 2) + b[2] * si ** 3) + b[3] * si ** 4
                      for b in _NTRP45_ROWS]
-                self._combine(self.y_old, h, np.array(w), self.K, len(w), out[i])
+                combine(self.y_old, h, np.array(w), self.K, len(w), out[i])
             return out
         if self.tab.name == "dop853":
             return self._dense_dop853(h, s)
@@ -441,20 +434,21 @@ class Solver(OdeSolver):
 
     def _dense_dop853(self, h, s):
         if self._dense_K is None:
+            combine = _rk().combine
             d = _dop853()[1]
             Kx = np.empty((d["C_extra"].size + self.K.shape[0], self.n))
             Kx[:self.K.shape[0]] = self.K
             for i, (a, c) in enumerate(zip(d["A_extra"], d["C_extra"], strict=True)):
                 j = self.K.shape[0] + i
                 Kx[j] = self._call(self.t_old + c * h,
-                                   self._combine(self.y_old, h, a, Kx, j, np.empty(self.n)))
+                                   combine(self.y_old, h, a, Kx, j, np.empty(self.n)))
             dy = self.y - self.y_old
             F = np.empty((7, self.n))
             F[0] = dy
             F[1] = h * Kx[0] - dy
             F[2] = 2 * dy - h * (self.f + Kx[0])
             for r, weights in enumerate(d["D"]):
-                self._combine(_NO_WEIGHTS, h, weights, Kx, Kx.shape[0], F[3 + r])
+                combine(_NO_WEIGHTS, h, weights, Kx, Kx.shape[0], F[3 + r])
             self._dense_K = F
         F = self._dense_K
         x = s[:, None]
@@ -469,128 +463,26 @@ _NO_WEIGHTS = np.empty(0)
 _NTRP45_ROWS = NTRP45_BI.tolist()
 
 
-# --------------------------------------------------------------------------- compiled stepping
-DENSE_DOUBLES = 1 << 20  # advance interpolates at most this many values (8 MiB) at a time
-CHUNK_S = 0.25  # s of wall time a CompiledSolver.step call aims at (it adapts max_steps)
-MAX_CHUNK_STEPS = 100_000
+def _python_derivative(system, _extras, t, y, out) -> bool:
+    system.derivative(t, y, out)  # (raises, saying why, where it cannot)
+    return True
 
 
-class CompiledSolver(Solver):
-    """A :class:`Solver` whose steps run in compiled code
-    (:mod:`redysim.algorithms._kernels.rk_run`), for the motion of a chain or a tree: y = (q, v),
-    dy/dt = (dq/dt, qdd), qdd with a joint ``damping`` torque -damping * v when given, and
-    ``free`` joints (the arrays (free_q, free_v, plain_q, plain_v) of
-    :class:`redysim.algorithms._kernels.rk_run.Motion`: each free joint's q slot of x and v slot
-    of its linear velocity, and the other coordinates' q and v slots) whose quaternions move
-    as q (x) [0; w] / 2 and are divided by their norms after every accepted step but a call's
-    last, which the caller projects after its samples, as the Python loop does
-    (``quaternion_worst`` [0]: the largest | |q| - 1 | met before a projection in compiled code).
+def _python_project(system, _extras, y) -> int:
+    system.project(y)
+    return 0
 
-    ``ws``: the system's :class:`~redysim.algorithms.workspace.Workspace`; ``planar``: the planar
-    kernel (else the DH kernels for a robot in DH form, as :func:`redysim.forward_dynamics`
-    chooses, or RGE-A); ``tip_force``: a constant world force (3,) at a chain's tip (None:
-    none); ``couplings``: a coupled model's
-    (:class:`redysim.algorithms._kernels.rk_run.Couplings`; qdd by Featherstone's method on its
-    tree, each accepted step's followers set from their leaders before the next, a call's last
-    left to the caller, as the quaternions; ``couplings.worst``: the largest departures met);
-    ``loops``: a closed mechanism's :class:`~redysim.algorithms.loops.ClosedLoops` (qdd with the
-    loops closed, (q, v) projected onto them after each accepted step, a call's last left to the
-    caller; ``loops.bundle.worst``: the largest residuals met before a projection).
-    The same steps as :class:`Solver` with the core's qdd as right-hand side, in the same bits;
-    :meth:`step` (``t_stop``: the next sample time) takes every step up to the first that
-    reaches it, at most ``max_steps`` (so that a caller checks its clock and reports progress
-    between calls), and :meth:`dense` interpolates in that last step as Solver does. ``rhs``
-    (Python) is still given: DOP853's dense output calls it for its extra stages.
-    """
 
-    def __init__(self, rhs: Callable, t0: float, y0, t_end: float, method: str = "ode45", *,
-                 ws, planar: bool = False, rtol: float = 1e-4, atol: float = 1e-6,
-                 h: float | None = None, hmax: float | None = None,
-                 state: SolverState | None = None, max_steps: int = 1000,
-                 damping: float = 0.0, free: tuple[np.ndarray, ...] | None = None,
-                 tip_force: np.ndarray | None = None, couplings=None, loops=None):
-        from redysim.algorithms._kernels import rk_run
-        from redysim.algorithms._kernels.constraints import no_loops
+@functools.cache
+def _python_steps():
+    """The stepping's Python form (:func:`redysim.algorithms._kernels.rk_run.python_stepping`)
+    on a system's Python methods."""
+    return _rk_run().python_stepping(_python_derivative, _python_project)
 
-        super().__init__(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
-                         state=state)
-        self._run = rk_run
-        self._loops = loops
-        self.max_steps = int(max_steps)
-        self._ws = ws
-        tab = self.tab
-        nv = ws.zeros.shape[0]
-        nq = self.n - nv
-        none = np.zeros(0, dtype=np.int64)
-        free_q, free_v, plain_q, plain_v = (none,) * 4 if free is None else free
-        self.quaternion_worst = np.zeros(1)  # the largest | |q| - 1 | before a projection
-        kind = rk_run.PLANAR if planar else rk_run.DH if ws.dh else rk_run.RGE_A  # as qdd's
-        self._motion = rk_run.Motion(kind, ws.kernel_f,
-                                     ws.kernel_i, ws.scratch, ws.zeros, nq, float(damping),
-                                     np.zeros(nv), plain_q, plain_v, free_q, free_v,
-                                     self.quaternion_worst,
-                                     np.zeros(0) if tip_force is None
-                                     else np.array(tip_force, dtype=float),
-                                     # a writable copy: the model's own array is read-only,
-                                     # and numba would compile rk_steps once more for it
-                                     np.zeros(0) if tip_force is None
-                                     else np.array(ws.chain.length, dtype=float))
-        # what only some models have: None for the others, whose steps then compile none of it
-        extended = couplings is not None or loops is not None or (tip_force is not None
-                                                                  and not planar)
-        self._extras = rk_run.Extras(
-            rk_run.no_couplings() if couplings is None else couplings,
-            no_loops() if loops is None else loops.bundle, np.zeros(3)) if extended else None
-        self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
-                                     tab.E if tab.E is not None else _NO_WEIGHTS,
-                                     tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
-        self._ctl = rk_run.Control(
-            self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
-            float(self.hmax), float(getattr(self, "power", 0.0)), float(self.t_end),
-            bool(self.adaptive), SAFETY, MAX_GROWTH, FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS,
-            FINISH_SLACK, SAMPLE_EPS)
-        self.y, self.f = self.y.copy(), self.f.copy()
-        self.y_old, self.f_old = self.y.copy(), self.f.copy()
-        self._state = rk_run.StepState(
-            np.array([self.t, self.t_old, self.h_next]), self.y, self.f, self.y_old, self.f_old,
-            self.K, np.zeros(3, dtype=np.int64), np.empty(self.n), np.empty(self.n), self._err,
-            self._err3)
 
-    def step(self, t_stop: float | None = None) -> None:
-        """Steps up to the first that reaches ``t_stop`` (t_end when None), or max_steps."""
-        c, st = self.counters, self._state
-        if st.y is not self.y or st.f is not self.f or st.y_old is not self.y_old \
-                or st.f_old is not self.f_old:  # reassigned from outside: step those
-            st = self._state = st._replace(y=self.y, f=self.f, y_old=self.y_old, f_old=self.f_old)
-        st.ts[:] = self.t, self.t_old, self.h_next
-        st.counts[:] = c.steps, c.rejected, c.nfev
-        steps0, wall0 = c.steps, time.perf_counter()
-        status = self._run.rk_steps(self._motion, self._extras, self._scheme, self._ctl, st,
-                                    self.t_end if t_stop is None else float(t_stop),
-                                    self.max_steps)
-        self.t, self.t_old, self.h_next = (float(x) for x in st.ts)
-        c.steps, c.rejected, c.nfev = (int(x) for x in st.counts)
-        taken, wall = c.steps - steps0, time.perf_counter() - wall0
-        if taken:  # about CHUNK_S of wall time a call: the caller's clock and progress run
-            self.max_steps = max(1, min(MAX_CHUNK_STEPS, int(CHUNK_S * taken / max(wall,
-                                                                                  1e-9))))
-        self._dense_K = None
-        if status == self._run.ERR_NONFINITE:
-            raise IntegrationError(f"non-finite error estimate at t = {self.t:.6g}: the state "
-                                   "or qdd is not finite")
-        if status == self._run.ERR_HMIN:
-            hmin = self._hmin(self.t)
-            raise IntegrationError(f"step size fell below hmin = {hmin:.3g} at t = "
-                                   f"{self.t:.6g}: tolerances cannot be met")
-        if status == self._run.ERR_QDD:  # the checked right-hand side says why (StateError)
-            self.rhs(self.t, self.y)
-            raise IntegrationError(f"qdd not finite in a stage of the step from t = "
-                                   f"{self.t:.6g}")
-        if status == self._run.ERR_PROJECT:  # the checked projection says why (StateError)
-            nq = self.n - self._ws.zeros.shape[0]
-            self._loops.project(self.y[:nq], self.y[nq:])
-            raise IntegrationError(f"the projection onto the loops failed after the step to t "
-                                   f"= {self.t:.6g}")
+def _rk_run():
+    from redysim.algorithms._kernels import rk_run
+    return rk_run
 
 
 # --------------------------------------------------------------------------- SciPy solvers
@@ -673,27 +565,30 @@ class Solution:
     wall_s: float
 
 
-def make_solver(rhs, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=None,
-                hmax=None, preconditioner=None, state: SolverState | None = None):
+def make_solver(system, t0, y0, t_end, method="ode45", *, rtol=1e-4, atol=1e-6, h=None,
+                hmax=None, preconditioner=None, state: SolverState | None = None,
+                compiled: bool | None = None):
     """A :class:`Solver` (ours), a :class:`redysim.integrators.implicit.MidpointSolver`
     (``"midpoint"``, ``"midpoint-fixed"``: y = (q, v) with dq/dt = v, ``preconditioner`` its
     :class:`~redysim.integrators.implicit.TensionPreconditioner` or None) or a :class:`ScipySolver`
-    (``"scipy-..."``) by name; ``state``: resume ours from a checkpoint (SciPy's cannot)."""
+    (``"scipy-..."``) by name, stepping ``system`` (a function ``fun(t, y)`` or a system:
+    :class:`~redysim.integrators.protocol.Dynamics`); ``state``: resume ours from a checkpoint
+    (SciPy's cannot); ``compiled``: as :class:`Solver`'s."""
     method = canonical(method)
     if method in IMPLICIT:
         from redysim.integrators.implicit import MidpointSolver
 
         if method == "midpoint-fixed" and h is None:
             raise ValueError("midpoint-fixed needs a step h > 0")
-        return MidpointSolver(rhs, t0, y0, t_end, rtol=rtol, atol=atol, h=h, hmax=hmax,
-                              preconditioner=preconditioner, state=state)
+        return MidpointSolver(as_function(system), t0, y0, t_end, rtol=rtol, atol=atol, h=h,
+                              hmax=hmax, preconditioner=preconditioner, state=state)
     if method.startswith("scipy-"):
         if state is not None:
             raise ValueError(f"{method}'s state cannot be resumed: SciPy's solvers keep it")
-        return ScipySolver(rhs, t0, y0, t_end, method[len("scipy-"):], rtol=rtol, atol=atol,
-                           hmax=hmax)
-    return Solver(rhs, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
-                  state=state)
+        return ScipySolver(as_function(system), t0, y0, t_end, method[len("scipy-"):],
+                           rtol=rtol, atol=atol, hmax=hmax)
+    return Solver(system, t0, y0, t_end, method, rtol=rtol, atol=atol, h=h, hmax=hmax,
+                  state=state, compiled=compiled)
 
 
 def sample_times(t0: float, t_end: float, interval: float) -> np.ndarray:
@@ -751,17 +646,14 @@ def compile_kernels() -> None:
     few ode45 steps on a 2-state problem (with samples: its dense output too): so that a timed
     integration does not include it. Every scheme calls the two kernels with the same argument
     types (``tests/test_integrate.py`` checks that DOP853 and RK4 compile nothing more), and
-    DOP853's tableau would import SciPy's integrate package, 0.2 s. And the compiled stepping
-    (:class:`CompiledSolver`), by two steps of a one-link chain: its types are every chain's."""
+    DOP853's tableau would import SciPy's integrate package, 0.2 s. And the compiled stepping,
+    by two steps of a one-link chain: its types are every plain chain's."""
     integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], "ode45", t_eval=[0.0, 1e-3, 2e-3])
-    from redysim.algorithms.workspace import Workspace
+    from redysim.algorithms.system import System
     from redysim.model.tree import Chain
 
-    chain = Chain.uniform(1, "U", mass=1.0)
-    ws = Workspace(chain)
-    y0 = np.full(2 * chain.n_dof, 0.1)
-    solver = CompiledSolver(lambda _t, y: np.zeros_like(y), 0.0, y0, 1e-3, "ode45", ws=ws,
-                            max_steps=2)
+    system = System(Chain.uniform(1, "U", mass=1.0))
+    solver = Solver(system, 0.0, np.full(system.size, 0.1), 1e-3, "ode45", max_steps=2)
     solver.step(1e-3)
 
 

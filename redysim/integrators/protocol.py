@@ -11,7 +11,9 @@ A module of its own so that :mod:`redysim.integrators.explicit` and
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -24,6 +26,65 @@ HMAX_FRACTION = 0.1     # ode45: default hmax = 0.1 * |t_end - t0|
 HMIN_EPS = 16.0         # ode45: hmin = 16 eps(t)
 FINISH_SLACK = 1.1      # ode45: stretch the last step when 1.1 h reaches t_end
 SAMPLE_EPS = 1e-12      # relative slack when matching sample times
+
+
+class Dynamics(Protocol):
+    """What a stepper sees of a system (as SciPy's solvers see ``fun``): its state derivative
+    into a buffer, the projection after a step, and, where the derivative is compiled, its
+    compiled contract. :class:`redysim.algorithms.system.System` keeps it; :func:`as_dynamics`
+    makes a plain ``fun(t, y)`` keep it.
+
+    - ``derivative(t, y, out)``: dy/dt at (t, y) into ``out``; raises (saying why) where it is
+      not defined.
+    - ``project(y)``: y moved back onto the system's constraints after a step, in place.
+    - ``kernel``: ``(data, extras)`` for :mod:`redysim.algorithms._kernels.system`'s compiled
+      contract (then the compiled stepping may run), or None.
+    """
+
+    kernel: Any
+
+    def derivative(self, t: float, y: np.ndarray, out: np.ndarray) -> None: ...
+
+    def project(self, y: np.ndarray) -> None: ...
+
+
+class _Function:
+    """A plain right-hand side ``fun(t, y) -> dy/dt`` as :class:`Dynamics` (no constraints)."""
+
+    kernel = None
+
+    def __init__(self, fun: Callable):
+        self.fun = fun
+
+    def derivative(self, t, y, out) -> None:
+        out[:] = self.fun(t, y)
+
+    def project(self, y) -> None:
+        return None
+
+
+def as_dynamics(system) -> Dynamics:
+    """``system`` itself when it keeps :class:`Dynamics`, else the plain function ``system(t, y)``
+    as one."""
+    if hasattr(system, "derivative") and hasattr(system, "kernel"):
+        return system
+    if not callable(system):
+        raise TypeError(f"a stepper takes a function fun(t, y) or a system, not "
+                        f"{type(system).__name__}")
+    return _Function(system)
+
+
+def as_function(system) -> Callable:
+    """``fun(t, y) -> dy/dt`` (a new array) of a :class:`Dynamics` or a plain function."""
+    if not (hasattr(system, "derivative") and hasattr(system, "kernel")):
+        return system
+
+    def fun(t, y):
+        out = np.empty(np.size(y))
+        system.derivative(t, y, out)
+        return out
+
+    return fun
 
 
 class IntegrationError(RuntimeError):
@@ -46,6 +107,7 @@ class SolverState:
     f: np.ndarray
     h: float
     counters: Counters = field(default_factory=Counters)
+    sampled_until: float | None = None  # the samples at or before this time were taken
 
     def resume(self, solver) -> None:
         """Set ``solver``'s time, state, derivative, next step and counters from this state."""
@@ -101,3 +163,9 @@ class OdeSolver(ABC):
     def state(self) -> SolverState:
         """A copy of the resumable state (to save in a checkpoint)."""
         raise NotImplementedError(f"{type(self).__name__}'s state cannot be saved and resumed")
+
+    def set_deadline(self, clock, deadline: float) -> None:
+        """A CPU-time limit (``clock()`` past ``deadline``) for a stepper that does many steps
+        in one :meth:`step` of its own control (an engine's adaptive advance; TimeoutError when
+        reached); ours return after each step or chunk, where the caller checks its limits."""
+        return None

@@ -133,20 +133,23 @@ class Case:
         state (or ``q0``, ``v0``), its ``[load]`` applied (the tip force's joint torques, and its
         potential counted in the energy), its ``[simulation]`` settings (integrator, rtol, atol,
         h, sample interval) and horizon unless ``t_end`` and ``settings`` give others.
-        ``settings``: the Simulator's keywords (``observe``, ``qdd``, ``keep_states``, ...)."""
-        from redysim.simulation import Simulator
+        ``settings``: the keywords of :func:`redysim.simulation.simulator` (``observe``,
+        ``qdd``, ``keep_states``, ...; an ``integrator`` given as an object, an engine's own
+        stepper, takes its own settings)."""
+        from redysim.simulation import simulator
 
         integrator = settings.pop("integrator", None) or self.integrator
         same = integrator == self.integrator
-        defaults = {"rtol": self.rtol if same else DEFAULT_RTOL,
-                    "atol": self.atol if same else DEFAULT_ATOL,
-                    "h": self.h if same else None, "sample": self.sample_interval or None}
+        defaults: dict[str, Any] = {"sample": self.sample_interval or None}
+        if not hasattr(integrator, "solver"):  # a name, not a stepper
+            defaults.update(rtol=self.rtol if same else DEFAULT_RTOL,
+                            atol=self.atol if same else DEFAULT_ATOL, h=self.h if same else None)
         for key, value in defaults.items():
             if settings.get(key) is None:
                 settings[key] = value
         if self.tip_force is not None:  # (a tau given adds to it)
             settings.setdefault("tip_force", self.tip_force)
-        return Simulator(self.chain, t_end or self.t_end,
+        return simulator(self.chain, t_end or self.t_end,
                          q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
                          integrator=integrator, source=str(self.path), **settings)
 

@@ -141,25 +141,27 @@ class Scenario:
     def simulator(self, t_end: float | None = None, *, q0=None, v0=None, **settings):
         """A :class:`redysim.simulation.Simulator` of this scenario: its model from its initial
         state (or ``q0``, ``v0``), a rope's tip force applied, its settings and horizon unless
-        ``t_end`` and ``settings`` give others (``settings``: the Simulator's keywords)."""
+        ``t_end`` and ``settings`` give others (``settings``: the keywords of
+        :func:`redysim.simulation.simulator`; an ``integrator`` given as an object, an
+        engine's own stepper, takes its own settings)."""
         if self.damping and settings.get("damping") is None:
             settings["damping"] = self.damping
         if self.case is not None:  # its tip force and settings: the case's
             return self.case.simulator(t_end, q0=self.q0 if q0 is None else q0,
                                        v0=self.v0 if v0 is None else v0, **settings)
-        from redysim.simulation import Simulator
+        from redysim.simulation import simulator
 
         integrator = settings.pop("integrator", None) or self.integrator
         same = integrator == self.integrator
         t_end = t_end or self.t_end
-        defaults = {"rtol": self.rtol if same else DEFAULT_RTOL,
-                    "atol": self.atol if same else DEFAULT_ATOL,
-                    "h": self.h if same else None,
-                    "sample": self.sample_interval or t_end / DEFAULT_SAMPLES}
+        defaults: dict[str, Any] = {"sample": self.sample_interval or t_end / DEFAULT_SAMPLES}
+        if not hasattr(integrator, "solver"):  # a name, not a stepper
+            defaults.update(rtol=self.rtol if same else DEFAULT_RTOL,
+                            atol=self.atol if same else DEFAULT_ATOL, h=self.h if same else None)
         for key, value in defaults.items():
             if settings.get(key) is None:
                 settings[key] = value
-        return Simulator(self.model, t_end,
+        return simulator(self.model, t_end,
                          q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
                          integrator=integrator, source=str(self.path or self.name), **settings)
 

@@ -1,0 +1,333 @@
+"""A run's physics in compiled code: the state derivative and the projection after a step.
+
+The contract every stepper calls (:mod:`.rk_run` in compiled code; :class:`redysim.algorithms.system
+.System` from Python, through these same functions, so that both round alike):
+
+    derivative(sd, extras, t, y, out) -> bool    dy/dt at (t, y) into out; False: not finite
+    project_step(sd, extras, y) -> int           y moved back onto the constraints after a step
+                                                 (OK, or a status the Python side explains)
+
+for y = (q, v): dq/dt = v, but a free joint's quaternion, which moves as q (x) [0; w] / 2; dv/dt =
+qdd(q, v, tau) from the tree's forward-dynamics entry (:mod:`.entry`: RGE-A, the planar or the DH
+kernel), with the loops closed (:mod:`.constraints`) and the couplings kept (Featherstone's
+method, :func:`couple_qdd`). The generalized forces tau are assembled in one place,
+:func:`generalized_forces`: a constant force at a chain's tip, viscous joint damping and joint
+springs. A new force is one term there; a new constraint one step in :func:`derivative` and
+:func:`project`.
+
+Two bundles: :class:`SystemData` (what every system has: the tree's packed arrays, the force
+terms, the free joints' slots) and :class:`Extras` (what only some have: couplings, loops, a
+spatial chain's tip force), or None, for which numba prunes their branches (a chain's or a
+robot's first compiled run then compiles none of their kernels).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from redysim._jit import jit_borrowed, jit_exact
+
+from .batch import dh_call as _dh
+from .batch import planar_call as _planar
+from .batch import rge_a_call as _rge_a
+from .constraints import OK, Loops, loops_project, loops_qdd, solve_small
+from .entry import bundles
+from .kinematics import kinematics
+from .planar import planar_tip_torques
+
+RGE_A, PLANAR, DH = 0, 1, 2  # which entry computes the tree's qdd
+QUATERNION, RESIDUAL_Q, RESIDUAL_V = 0, 1, 2  # the rows of SystemData.worst
+
+
+class SystemData(NamedTuple):
+    """What every system has (module docstring).
+
+    ``kind``: the entry computing qdd (RGE_A, PLANAR or DH) on a workspace's packed arrays
+    ``fdata``, ``idata``, ``scratch``; ``nq``: the length of q. Forces: ``zeros`` (n_v,) the tau
+    of a system without any, ``tau`` (n_v,) where they are summed; ``tip`` (3,) a constant world
+    force at a chain's tip (empty: none), ``length`` the chain's link lengths (nl,);
+    ``damping`` (n_v,) minus each DOF's viscous coefficient (empty: none); ``stiffness`` (n_v,)
+    minus each DOF's spring constant, ``spring_ref`` (n_v,) its rest position, ``spring_q`` its q
+    slot (all empty: no springs). Free joints: each one's q slot of x in ``free_q``, its v slot
+    of the linear velocity in ``free_v``; every other coordinate q[plain_q[i]] moves as
+    v[plain_v[i]] (both empty without free joints: dq/dt = v). ``worst`` (3,): the largest
+    | |quaternion| - 1 |, |loop or coupling residual in q| and |in v| met before a projection."""
+
+    kind: int
+    fdata: np.ndarray
+    idata: np.ndarray
+    scratch: np.ndarray
+    nq: int
+    zeros: np.ndarray
+    tau: np.ndarray
+    tip: np.ndarray
+    length: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    spring_ref: np.ndarray
+    spring_q: np.ndarray
+    plain_q: np.ndarray
+    plain_v: np.ndarray
+    free_q: np.ndarray
+    free_v: np.ndarray
+    worst: np.ndarray
+
+
+class Couplings(NamedTuple):
+    """A coupled model's couplings (q_f = m q_l + offset, mimic joints), for qdd by
+    Featherstone's method on its tree (:func:`couple_qdd`) and for the projection after a step
+    (:func:`project_couplings`); every array empty for a model without couplings. ``fdata``,
+    ``idata``, ``scratch``: the tree without gravity's packed arrays (its qdd at v = 0 and tau = x
+    is M^-1 x); ``fq``, ``lq``, ``fv``, ``lv``: each coupling's follower's and leader's q and v
+    slots; ``m``, ``off``: multiplier and offset; work arrays ``zeros`` and ``row`` (n_v,), ``X``
+    (k, n_v) (M^-1 J^T's columns as rows), ``A`` (k, k)."""
+
+    fdata: np.ndarray
+    idata: np.ndarray
+    scratch: np.ndarray
+    fq: np.ndarray
+    lq: np.ndarray
+    fv: np.ndarray
+    lv: np.ndarray
+    m: np.ndarray
+    off: np.ndarray
+    zeros: np.ndarray
+    row: np.ndarray
+    X: np.ndarray
+    A: np.ndarray
+
+
+def no_couplings() -> Couplings:
+    """The empty bundle (a model without couplings)."""
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    return Couplings(f, i, f.copy(), i, i, i, i, f, f, f, f, np.zeros((0, 0)), np.zeros((0, 0)))
+
+
+def couplings_of(model, free_ws) -> Couplings:
+    """The bundle of a coupled ``model`` (:meth:`redysim.Model.with_couplings`); ``free_ws``: a
+    Workspace of its tree without gravity (``model.free_tree``)."""
+    fq, lq, fv, lv, m, off = (np.array(a) for a in model.coupling_index)  # writable copies
+    k, n = fv.shape[0], model.n_v
+    return Couplings(free_ws.kernel_f, free_ws.kernel_i, free_ws.scratch, fq, lq, fv, lv, m, off,
+                     np.zeros(n), np.zeros(n), np.zeros((k, n)), np.zeros((k, k)))
+
+
+class Extras(NamedTuple):
+    """What only some systems have, an argument of its own (None for the others, whose branches
+    numba then prunes before typing): ``couplings`` (:class:`Couplings`), ``loops``
+    (:class:`.constraints.Loops`), ``base0`` (3,) zeros, the base at rest for
+    :func:`spatial_tip_torques`' position pass (a tip force on a chain that is not planar)."""
+
+    couplings: Couplings
+    loops: Loops
+    base0: np.ndarray
+
+
+# --------------------------------------------------------------------------- forces
+@jit_borrowed
+def generalized_forces(sd, extras, t, q, v, tau):
+    """The generalized forces at (t, q, v) into ``tau`` (n_v,), term after term: the tip force's
+    J^T F, the joints' damping, their springs; False (tau untouched) when the system has none.
+    The one place a force is written (module docstring)."""
+    if sd.tip.shape[0] == 0 and sd.damping.shape[0] == 0 and sd.stiffness.shape[0] == 0:
+        return False
+    first = True  # the first term assigns (so that a lone term's bits are its own)
+    if sd.tip.shape[0] != 0:
+        if extras is not None and sd.kind != PLANAR:  # (without extras: a planar chain)
+            spatial_tip_torques(sd.fdata, sd.idata, sd.scratch, sd.zeros, extras.base0,
+                                sd.length, q, sd.tip, tau)
+        else:
+            planar_tip_torques(sd.length, q, sd.tip, 0.0, v, tau)
+        first = False
+    if sd.damping.shape[0] != 0:
+        d = sd.damping
+        if first:
+            for k in range(tau.shape[0]):
+                tau[k] = d[k] * v[k]
+        else:
+            for k in range(tau.shape[0]):
+                tau[k] = tau[k] + d[k] * v[k]
+        first = False
+    if sd.stiffness.shape[0] != 0:
+        s, ref, at = sd.stiffness, sd.spring_ref, sd.spring_q
+        if first:
+            for k in range(tau.shape[0]):
+                tau[k] = s[k] * (q[at[k]] - ref[k])
+        else:
+            for k in range(tau.shape[0]):
+                tau[k] = tau[k] + s[k] * (q[at[k]] - ref[k])
+    return True
+
+
+@jit_borrowed
+def spatial_tip_torques(fdata, idata, scratch, zeros, base0, length, q, force, out):
+    """out = J_tip(q)^T F (n_v,) for a chain of any joints: the joint forces of a constant world
+    force ``force`` (3,) at its tip (the distal end of the last link, along its x; ``length``:
+    the links' (nl,)), each DOF's moment arm from its joint's origin, as
+    :func:`redysim.algorithms.loads.tip_force_torques`, from the position pass of the kinematics
+    on a workspace's packed arrays (its scratch overwritten; ``zeros`` (n_v,) and ``base0`` (3,)
+    zeros)."""
+    tree, s = bundles(fdata, idata, scratch)
+    kinematics(tree, q, zeros, zeros, base0, s)  # (the energy's specialisation)
+    oO, oR, oP, voff = s.oO, s.oR, s.oP, tree.joint_voff
+    k = length.shape[0] - 1
+    p0 = oO[k, 0] + length[k] * oR[k, 0, 0]
+    p1 = oO[k, 1] + length[k] * oR[k, 1, 0]
+    p2 = oO[k, 2] + length[k] * oR[k, 2, 0]
+    f0, f1, f2 = force[0], force[1], force[2]
+    for b in range(k + 1):
+        a0, a1, a2 = p0 - oO[b, 0], p1 - oO[b, 1], p2 - oO[b, 2]
+        c0, c1, c2 = a1 * f2 - a2 * f1, a2 * f0 - a0 * f2, a0 * f1 - a1 * f0  # arm x F
+        for i in range(voff[b], voff[b + 1]):
+            out[i] = (oP[i, 0] * c0 + oP[i, 1] * c1 + oP[i, 2] * c2) + (
+                oP[i, 3] * f0 + oP[i, 4] * f1 + oP[i, 5] * f2)
+
+
+# --------------------------------------------------------------------------- the derivative
+@jit_borrowed
+def derivative(sd, extras, t, y, out):
+    """out = (dq/dt, qdd) at (t, y), y = (q, v) (module docstring); False when qdd is not
+    finite (or the loops are redundant: the Python side says which)."""
+    nq = sd.nq
+    q, v, qdd = y[:nq], y[nq:], out[nq:]
+    tau = sd.tau if generalized_forces(sd, extras, t, q, v, sd.tau) else sd.zeros
+    if extras is not None and extras.loops.ckind.shape[0] != 0:
+        flag = 0.0 if loops_qdd(extras.loops, q, v, tau, qdd) == OK else 1.0
+    elif sd.kind == RGE_A:
+        flag = _rge_a(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
+    elif sd.kind == PLANAR:
+        flag = _planar(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
+    else:
+        flag = _dh(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
+    if extras is not None and extras.couplings.fv.shape[0] != 0 and flag == 0.0:
+        flag = couple_qdd(extras.couplings, q, qdd)
+    if sd.free_q.shape[0] == 0:
+        for k in range(nq):
+            out[k] = y[nq + k]
+    else:
+        configuration_rate(nq, sd.plain_q, sd.plain_v, sd.free_q, sd.free_v, y, out)
+    return flag == 0.0
+
+
+@jit_borrowed
+def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
+    """dq/dt into out[:nq] for y = (q, v) with free joints (``free_q``: each one's q slot of x,
+    ``free_v`` its v slot of the linear velocity): v_world and q (x) [0; w] / 2, every other
+    coordinate q[plain_q[i]] moving as v[plain_v[i]]."""
+    for i in range(plain_q.shape[0]):
+        out[plain_q[i]] = y[nq + plain_v[i]]
+    for j in range(free_q.shape[0]):
+        qs, vs = free_q[j], nq + free_v[j]
+        for k in range(3):
+            out[qs + k] = y[vs + k]
+        qw, qx, qy, qz = y[qs + 3], y[qs + 4], y[qs + 5], y[qs + 6]
+        wx, wy, wz = y[vs + 3], y[vs + 4], y[vs + 5]
+        out[qs + 3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
+        out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
+        out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
+        out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+
+
+@jit_borrowed
+def couple_qdd(cp, q, qdd):
+    """The tree's qdd (in place) made the coupled motion's, by Featherstone's method: X = M^-1
+    J^T (one forward-dynamics call of the tree without gravity at v = 0 per coupling, J's rows
+    e_f - m e_l), (J X) lam = -J qdd by Gaussian elimination with partial pivoting, qdd + X lam,
+    then each follower's qdd set to m times its leader's (J qdd = 0: a linear coupling has no
+    Jdot v). Returns the entry's flag (0.0: finite)."""
+    k, n = cp.fv.shape[0], qdd.shape[0]
+    fv, lv, m, X, A, row = cp.fv, cp.lv, cp.m, cp.X, cp.A, cp.row
+    for j in range(k):
+        for r in range(n):
+            row[r] = 0.0
+        row[fv[j]] = 1.0
+        row[lv[j]] = -m[j]
+        flag = _rge_a(cp.fdata, cp.idata, q, cp.zeros, row, cp.scratch, X[j])
+        if flag != 0.0:
+            return flag
+    lam = row  # (reused: k <= n)
+    for i in range(k):
+        for j in range(k):
+            A[i, j] = X[j, fv[i]] - m[i] * X[j, lv[i]]
+        lam[i] = -(qdd[fv[i]] - m[i] * qdd[lv[i]])
+    solve_small(A, lam, k)
+    for j in range(k):
+        x = lam[j]
+        for r in range(n):
+            qdd[r] = qdd[r] + X[j, r] * x
+    bad = 0.0
+    for i in range(k):
+        qdd[fv[i]] = m[i] * qdd[lv[i]]
+    for r in range(n):
+        bad += qdd[r] * 0.0
+    return bad
+
+
+@jit_borrowed
+def coupled_qdd(fdata, idata, scratch, cp, q, v, tau, qdd):
+    """qdd of a coupled model: its tree's by the entry on its packed arrays, then
+    :func:`couple_qdd` (what :func:`derivative` does for a coupled system)."""
+    flag = _rge_a(fdata, idata, q, v, tau, scratch, qdd)
+    if flag == 0.0:
+        flag = couple_qdd(cp, q, qdd)
+    return flag
+
+
+# --------------------------------------------------------------------------- the projection
+@jit_borrowed
+def project(sd, extras, y, worst):
+    """y = (q, v) moved back onto the system's constraints after a step, in place: the loops
+    (:func:`.constraints.loops_project`), then each coupling's follower onto its leader, then
+    each quaternion onto the unit sphere; the largest departures met into ``worst`` (as
+    :attr:`SystemData.worst`). Returns OK, or the loops' status (the Python side says why)."""
+    nq = sd.nq
+    if extras is not None and extras.loops.ckind.shape[0] != 0:
+        status = loops_project(extras.loops, y[:nq], y[nq:], worst[RESIDUAL_Q:])
+        if status != OK:
+            return status
+    if extras is not None:
+        project_couplings(extras.couplings, nq, y, worst[RESIDUAL_Q:])
+    project_quaternions(sd.free_q, y, worst)
+    return OK
+
+
+@jit_borrowed
+def project_step(sd, extras, y):
+    """:func:`project` after a step, the departures met kept in ``sd.worst``."""
+    return project(sd, extras, y, sd.worst)
+
+
+@jit_exact
+def project_couplings(cp, nq, y, worst):
+    """Each follower's coordinate and velocity in y = (q, v) set from its leader's (q_f = m q_l
+    + offset, v_f = m v_l), in place, IEEE as written; the largest departures met before into
+    worst[0] (q) and worst[1] (v)."""
+    for i in range(cp.fq.shape[0]):
+        want = cp.m[i] * y[cp.lq[i]] + cp.off[i]
+        e = abs(y[cp.fq[i]] - want)
+        if e > worst[0]:
+            worst[0] = e
+        y[cp.fq[i]] = want
+        want = cp.m[i] * y[nq + cp.lv[i]]
+        e = abs(y[nq + cp.fv[i]] - want)
+        if e > worst[1]:
+            worst[1] = e
+        y[nq + cp.fv[i]] = want
+
+
+@jit_borrowed
+def project_quaternions(free_q, y, worst):
+    """Each free joint's quaternion divided by its norm, in place; the largest | |q| - 1 | met
+    into worst[0]."""
+    for j in range(free_q.shape[0]):
+        i = free_q[j] + 3
+        norm = math.sqrt(y[i] * y[i] + y[i + 1] * y[i + 1] + y[i + 2] * y[i + 2]
+                         + y[i + 3] * y[i + 3])
+        e = abs(norm - 1.0)
+        if e > worst[0]:
+            worst[0] = e
+        for k in range(4):
+            y[i + k] = y[i + k] / norm

@@ -1,0 +1,358 @@
+"""A run's physics as one object: the model, the forces and constraints on it, what a stepper
+calls.
+
+:class:`System` keeps the contract every stepper sees
+(:class:`redysim.integrators.protocol.Dynamics`): the state derivative into a buffer, the
+projection after a step, and, when the physics is compiled, its compiled contract
+(:mod:`redysim.algorithms._kernels.system`), which the compiled stepping inlines and which the
+Python methods here call too: a force or a constraint is written once, and both steppers see it
+in the same bits.
+
+The state is y = (q, v); dq/dt = v, but a free joint's quaternion, which moves as q (x) [0;
+w_body] / 2 and is projected back onto the unit sphere after every step (the kernels read a
+quaternion's direction only, so a stage's slightly-off one is harmless). Forces: viscous joint
+damping, joint springs, a constant force at a chain's tip, and a Python function ``tau(t, q,
+v)`` of the caller's; constraints: the model's couplings (mimic joints) and closed loops. The
+accelerations come from the core's forward dynamics (RGE-A; GE-N or RGE-N by ``method``) or
+from a provider ``qdd(q, v, tau)`` (a reference engine's). Anything Python (``tau``, ``qdd``, a
+method other than RGE-A) makes the derivative Python: such a system is stepped in Python only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from redysim.algorithms._kernels import system as K
+from redysim.algorithms._kernels.constraints import no_loops
+from redysim.algorithms.dynamics import (
+    check_coupled,
+    check_state,
+    energy,
+    forward_dynamics,
+)
+from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
+from redysim.algorithms.workspace import Workspace
+from redysim.errors import SettingsError, StateError
+from redysim.model.tree import FREE, Model
+
+QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
+NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
+
+
+class System:
+    """The physics of a run of ``model`` (module docstring).
+
+    ``damping``: a viscous torque -damping * v at every joint, a number or one per velocity
+    coordinate [N m s] (0: none). ``stiffness`` (one per velocity coordinate, or a number) and
+    ``spring_ref`` (the rest positions, default zeros): joint springs, torque -stiffness (q -
+    spring_ref) [N m / rad], on joints whose coordinates are their velocities' (not a free
+    joint's). ``tip_force``: a constant world force [N] (3,) at a chain's tip (its torques J^T F;
+    its potential -F . p_tip counted in the energy). ``tau(t, q, v) -> (n_v,)``: generalized
+    forces of the caller's, with ``potential(q)`` their potential energy [J] when they have one.
+    ``loops``: a :class:`redysim.algorithms.loops.ClosedLoops` of the model (by default, a model
+    with cut joints gets its own). ``qdd(q, v, tau) -> (n_v,)``: the accelerations' provider
+    instead of the core's forward dynamics by ``method`` ("rge-a", "ge-n", "rge-n"); with loops,
+    the constrained accelerations. ``source`` names the caller in messages.
+
+    Bad settings raise :class:`~redysim.errors.SettingsError` naming them.
+    """
+
+    def __init__(self, model: Model, *, damping=0.0, stiffness=None, spring_ref=None,
+                 tip_force=None, tau=None, potential=None, loops=None, qdd=None,
+                 method: str = "rge-a", source: str = "simulate"):
+        if not isinstance(model, Model):
+            raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
+                            f"{type(model).__name__}")
+        self.model, self.source = model, source
+        self.n_q, self.n_v = model.n_q, model.n_v
+        self.size = self.n_q + self.n_v
+        self.tau, self.potential, self.provider, self.method = tau, potential, qdd, method
+        if loops is None and model.cuts:  # a closed mechanism: its loops closed
+            from redysim.algorithms.loops import ClosedLoops
+
+            loops = ClosedLoops(model, source=source)
+        if loops is not None and getattr(loops, "model", None) is not model:
+            raise SettingsError(source, "loops", type(loops).__name__, "must be the "
+                                "ClosedLoops of the model simulated (ClosedLoops(model, cuts))")
+        self.loops = loops
+        self.damping = _per_dof(source, "damping", damping, self.n_v,
+                                "the viscous torque -damping * v at every joint [N m s] (0: none)")
+        self.stiffness = _per_dof(source, "stiffness", 0.0 if stiffness is None else stiffness,
+                                  self.n_v, "a joint spring's torque -stiffness (q - spring_ref) "
+                                  "[N m / rad] (0: none)")
+        self.spring_ref = np.zeros(self.n_v) if spring_ref is None else _vector(
+            source, "spring_ref", spring_ref, self.n_v)
+        self.tip_force = _tip_force(source, model, tip_force)
+        self.ws = Workspace(model)  # the derivative's, and between steps the samples'
+        self._layout_free_joints()
+        if (self._q_of_v[self.stiffness > 0] < 0).any():
+            raise SettingsError(source, "stiffness", "free joint", "springs act on joints "
+                                "whose coordinates are their velocities', not on a free joint")
+        self.worst = np.zeros(3)  # [quaternion, residual q, residual v] met before projections
+        self.couplings = (K.couplings_of(model, Workspace(model.free_tree)) if model.couplings
+                          else K.no_couplings())
+        self.data, self.extras = self._data(), self._extras()
+        compiled = (qdd is None and method == "rge-a" and tau is None
+                    and (loops is None or getattr(loops, "bundle", None) is not None)
+                    and not (model.couplings and model.is_planar))
+        self.kernel = (self.data, self.extras) if compiled else None
+        self._nearest = [math.inf, math.nan]  # the loops' least s_min / s_max met, and its t
+
+    # ----------------------------------------------------------------------- assembly
+    def _layout_free_joints(self) -> None:
+        """Each free joint's q slot of x and v slot of its linear velocity; every other
+        coordinate's q and v slots (dq/dt = v there)."""
+        m = self.model
+        qoff, voff = m.joint_qoff, m.joint_voff
+        free = [(int(qoff[k]), int(voff[k])) for k, t in enumerate(m.joint_types) if t == FREE]
+        plain_q: list[int] = []
+        plain_v: list[int] = []
+        for k in range(qoff.shape[0] - 1):
+            if (int(qoff[k]), int(voff[k])) not in free:
+                plain_q.extend(range(qoff[k], qoff[k + 1]))
+                plain_v.extend(range(voff[k], voff[k + 1]))
+        self.free = free
+        self.free_q = np.array([qs for qs, _ in free], dtype=np.int64)
+        self.free_v = np.array([vs for _, vs in free], dtype=np.int64)
+        none = not free  # without free joints the arrays stay empty: dq/dt = v
+        self.plain_q = np.array([] if none else plain_q, dtype=np.int64)
+        self.plain_v = np.array([] if none else plain_v, dtype=np.int64)
+        # each velocity coordinate's configuration slot (for springs; -1 on a free joint)
+        self._q_of_v = np.full(self.n_v, -1, dtype=np.int64)
+        self._q_of_v[plain_v] = plain_q
+
+    def _data(self) -> K.SystemData:
+        ws, m = self.ws, self.model
+        kind = K.PLANAR if m.is_planar else K.DH if ws.dh else K.RGE_A  # as forward dynamics'
+        empty = np.zeros(0)
+        springs = bool(self.stiffness.any())
+        tip = self.tip_force is not None
+        return K.SystemData(
+            kind, ws.kernel_f, ws.kernel_i, ws.scratch, self.n_q, ws.zeros, np.zeros(self.n_v),
+            # writable copies: the model's own arrays are read-only, another numba type
+            np.array(self.tip_force, dtype=float) if tip else empty,
+            np.array(m.length, dtype=float) if tip else empty,
+            -self.damping if self.damping.any() else empty,
+            -self.stiffness if springs else empty,
+            self.spring_ref.copy() if springs else empty,
+            self._q_of_v.copy() if springs else np.zeros(0, dtype=np.int64),
+            self.plain_q, self.plain_v, self.free_q, self.free_v, self.worst)
+
+    def _extras(self) -> K.Extras | None:
+        """What only some systems have, or None (module docstring of the kernels)."""
+        if not (self.model.couplings or self.loops is not None
+                or (self.tip_force is not None and not self.model.is_planar)):
+            return None
+        bundle = None if self.loops is None else self.loops.bundle
+        return K.Extras(self.couplings, no_loops() if bundle is None else bundle, np.zeros(3))
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the derivative is compiled (a compiled stepper may step this system)."""
+        return self.kernel is not None
+
+    @property
+    def additions(self) -> list[str]:
+        """What this system adds to its model's own dynamics, by setting name (an engine's own
+        stepper, which steps the engine's model, refuses them)."""
+        return [name for name, on in (
+            ("tau", self.tau is not None), ("damping", self.damping.any()),
+            ("stiffness", self.stiffness.any()), ("tip_force", self.tip_force is not None),
+            ("loops", self.loops is not None)) if on]
+
+    # ----------------------------------------------------------------------- the contract
+    def derivative(self, t: float, y: np.ndarray, out: np.ndarray) -> None:
+        """dy/dt at (t, y) into ``out`` (n_q + n_v,). Raises StateError (from the checked path,
+        saying why) where qdd is not defined or not finite."""
+        if self.kernel is not None:
+            y = y if y.flags.c_contiguous and y.dtype == np.float64 else np.array(y, dtype=float)
+            if K.derivative(self.kernel[0], self.kernel[1], t, y, out):
+                return
+        self._python_derivative(t, y, out)
+        if self.kernel is not None and not np.isfinite(out).all():
+            raise StateError(f"{self.source}: qdd not finite at t = {t:.6g}")
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """dy/dt at (t, y), a new array."""
+        out = np.empty(self.size)
+        self.derivative(t, y, out)
+        return out
+
+    def project(self, y: np.ndarray, record: bool = True) -> None:
+        """Move y = (q, v) back onto the constraints after a step, in place (the loops, then the
+        couplings' followers onto their leaders, then each quaternion onto the unit sphere);
+        with ``record`` (a step's, not an interpolated sample's), the largest departures met
+        are kept in ``worst``."""
+        worst = self.worst if record else np.zeros(3)
+        nq = self.n_q
+        if self.loops is not None:
+            y[:nq], y[nq:], rq, rv = self.loops.project(y[:nq], y[nq:])
+            worst[1], worst[2] = max(worst[1], rq), max(worst[2], rv)
+        if self.model.couplings:
+            K.project_couplings(self.couplings, nq, y, worst[1:])
+        if self.free:
+            K.project_quaternions(self.free_q, y, worst)
+
+    # ----------------------------------------------------------------------- the pieces
+    def forces(self, t: float, q, v) -> np.ndarray | None:
+        """The generalized forces at (t, q, v) (n_v,): the system's terms (compiled:
+        :func:`redysim.algorithms._kernels.system.generalized_forces`) and ``tau``'s; None when
+        there are none."""
+        d = self.data
+        own = None
+        if d.tip.size or d.damping.size or d.stiffness.size:
+            own = np.empty(self.n_v)
+            K.generalized_forces(d, self.extras, t, np.ascontiguousarray(q, dtype=float),
+                                 np.ascontiguousarray(v, dtype=float), own)
+            if self.tip_force is not None and not np.isfinite(own).all():
+                tip_force_torques(self.model, q, self.tip_force, ws=self.ws)  # says why
+        if self.tau is None:
+            return own
+        user = np.asarray(self.tau(t, q, v), dtype=float)
+        return user if own is None else own + user
+
+    def _python_derivative(self, t, y, out) -> None:
+        """dy/dt from the checked Python path: the forces, then qdd (the provider's, the loops',
+        the coupled tree's or the core's forward dynamics), then dq/dt."""
+        nq, model = self.n_q, self.model
+        q, v = y[:nq], y[nq:]
+        tau = self.forces(t, q, v)
+        if self.provider is not None:
+            a = np.asarray(self.provider(q, v, tau), dtype=float)
+            if a.shape != (self.n_v,):
+                raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
+                                 f"{model.name!r} has {self.n_v} DOF, so it must return "
+                                 f"shape ({self.n_v},)")
+            out[nq:] = a
+        elif self.loops is not None:
+            out[nq:] = self.loops.forward_dynamics(q, v, tau)
+        elif model.couplings and self.method == "rge-a" and not model.is_planar:
+            q, v = check_state(model, "q", q), check_state(model, "v", v)
+            ws = self.ws
+            if K.coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, self.couplings, q, v,
+                             ws.zeros if tau is None else tau, out[nq:]) != 0.0:
+                # not finite: the checked path says why (or, finite there, is the answer)
+                out[nq:] = forward_dynamics(model, q, v, tau, self.method)
+        else:
+            forward_dynamics(model, q, v, tau, self.method, ws=self.ws, out=out[nq:])
+        if not self.free:
+            out[:nq] = y[nq:]
+        else:
+            K.configuration_rate(nq, self.plain_q, self.plain_v, self.free_q, self.free_v,
+                                 np.ascontiguousarray(y, dtype=float), out)
+
+    def qdd(self, t: float, q, v) -> np.ndarray:
+        """The accelerations at (t, q, v) (n_v,): the derivative's."""
+        out = np.empty(self.size)
+        self.derivative(t, np.concatenate((q, v)), out)
+        return out[self.n_q:]
+
+    def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
+        """E = T + V (the model's, and the potentials of the tip force, the springs and
+        ``potential``), and the centre of mass from the same kinematics pass."""
+        ws = self.ws
+        T, V = energy(self.model, q, v, ws=ws)
+        tree = ws.tree
+        md = np.einsum("kij,kj->ki", ws.oR, tree.mass_com)  # m_k R_k c_k
+        com = (tree.mass @ ws.oO + md.sum(axis=0)) / self.model.total_mass
+        E = T + V
+        if self.tip_force is not None:
+            E += tip_force_potential(self.model, q, self.tip_force, ws=ws)
+        if self.potential is not None:
+            E += self.potential(q)
+        if self.stiffness.any():
+            dq = np.asarray(q)[self._q_of_v] - self.spring_ref
+            E += 0.5 * float(np.sum(self.stiffness * dq * dq))
+        return E, com
+
+    # ----------------------------------------------------------------------- a run's start
+    def initial_state(self, q0=None, v0=None, *, second_order: bool = False) -> np.ndarray:
+        """y0 = (q0, v0), checked (StateError naming what is wrong) and projected onto the
+        constraints: q0 by default the model's own configuration (:meth:`Model.initial`), v0
+        zeros. A free joint's quaternion must be of unit norm within QUATERNION_TOL (then it is
+        normalised); a closed mechanism's q0 near its loops. ``second_order``: refuse a system
+        whose dq/dt is not v (a stepper for y = (q, v), dq/dt = v)."""
+        model = self.model
+        q0 = check_state(model, "q", model.initial() if q0 is None else q0)
+        v0 = check_state(model, "v", np.zeros(self.n_v) if v0 is None else v0)
+        if self.loops is not None:
+            self.loops.check_start(q0)
+        if model.couplings:  # (the steps' right-hand side takes its state as given)
+            check_coupled(model, "q", q0)
+            check_coupled(model, "v", v0)
+        for k, t in enumerate(model.joint_types):
+            if t == FREE:  # its quaternion, before any projection: the norm as given
+                i = int(model.joint_qoff[k]) + 3
+                norm = math.sqrt(float(q0[i:i + 4] @ q0[i:i + 4]))
+                if not abs(norm - 1.0) <= QUATERNION_TOL:
+                    raise StateError(f"q0[{i}:{i + 4}], the quaternion (w, x, y, z) of joint "
+                                     f"{model.joint_names[k]!r}, has norm {norm:.9g}: give a "
+                                     "unit quaternion")
+        if second_order and self.free:
+            raise SettingsError(self.source, "integrator", "implicit", "steps systems whose "
+                                "dq/dt is v; a free joint's quaternion moves otherwise: use "
+                                "ode45 or dop853")
+        y0 = np.concatenate((q0, v0))
+        self.project(y0, record=False)
+        return y0
+
+    def reset(self) -> None:
+        """Forget what earlier runs met (the projections' departures, the loops' change
+        points)."""
+        self.worst[:] = 0.0
+        self._nearest[:] = math.inf, math.nan
+        if self.loops is not None:
+            self.loops.nearest_change_point()
+
+    def after_step(self, t: float) -> None:
+        """Keep how near the motion came to a loop's change point, up to the step ending at t."""
+        if self.loops is not None:
+            ratio = self.loops.nearest_change_point()
+            if ratio < self._nearest[0]:
+                self._nearest[:] = ratio, t
+
+    @property
+    def nearest_change_point(self) -> tuple[float, float]:
+        """(the least s_min / s_max of the loops' J M^-1 J^T met, the time of its step)."""
+        return self._nearest[0], self._nearest[1]
+
+
+def _per_dof(source: str, name: str, value, n: int, meaning: str) -> np.ndarray:
+    """A number or one per velocity coordinate, each finite and >= 0, as (n,)."""
+    if isinstance(value, bool) or not isinstance(value, NUMBERS) and np.ndim(value) != 1:
+        raise SettingsError(source, name, value, f"must be a finite number >= 0: {meaning}")
+    if isinstance(value, NUMBERS):
+        if not (math.isfinite(value) and value >= 0):
+            raise SettingsError(source, name, float(value), f"must be a finite number >= 0: "
+                                f"{meaning}")
+        return np.full(n, float(value))
+    arr = _vector(source, name, value, n)
+    if not (arr >= 0).all():
+        raise SettingsError(source, name, value, f"every entry must be >= 0: {meaning}")
+    return arr
+
+
+def _vector(source: str, name: str, value, n: int) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if isinstance(value, bool) or arr is None or arr.shape != (n,) or \
+            not np.isfinite(arr).all():
+        raise SettingsError(source, name, value, f"must be a number or {n} finite numbers, one "
+                            "per velocity coordinate")
+    return arr
+
+
+def _tip_force(source: str, model: Model, tip_force):
+    if tip_force is None:
+        return None
+    if model.chain_layout is not None:
+        raise SettingsError(source, "tip_force", tip_force, f"acts at a chain's tip; "
+                            f"{model.name!r} is a tree (no single tip)")
+    try:
+        return check_force(tip_force)
+    except StateError as exc:
+        raise SettingsError(source, "tip_force", tip_force, str(exc)) from None
