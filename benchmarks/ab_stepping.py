@@ -6,11 +6,13 @@ The base revision's ``redysim/`` (the core only: these runs need nothing else) i
 git into a temporary folder; two worker processes, one importing it and one the working tree's
 (each with a numba cache of its own, both compiling afresh), build the same runs by the scenario
 API both revisions have: the RE-U125-L1 rope (250 DOF, ode45 as the paper's) and TALOS falling
-(a floating robot: a free joint's quaternion and 32 joints, dop853). Each run's compiled steps
-are timed ``--steps`` at a time from the same initial state, the two workers taking turns round
-by round (the machine's drift falls on both alike); each side is read as its fastest round, and
-the ratio base / head printed (> 1: head faster). Both sides take the same steps to the same
-bits, checked on the last round's state. JIT compile happens before any timing.
+(a floating robot: a free joint's quaternion and 32 joints, dop853), and the UR5 falling with
+its accelerations from a Python function (the stepping run as Python, as an engine's qdd is).
+Each run's steps are timed ``--steps`` at a time from the same initial state, the two workers
+taking turns round by round (the machine's drift falls on both alike); each side is read as its
+fastest round, and the ratio base / head printed (> 1: head faster). Both sides take the same
+steps to the same bits, checked on the last round's state. JIT compile happens before any
+timing.
 
 Speed changes to the stepping are claimed from this script's output, never from two runs.
 """
@@ -30,9 +32,10 @@ from io import BytesIO
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = {  # name -> (scenario, integrator, rtol, atol)
-    "rope RE-U125-L1 (250 DOF, ode45)": ("cases/RE-U125-L1.toml", "ode45", 1e-4, 1e-6),
-    "TALOS-FALL (floating, dop853)": ("TALOS-FALL", "dop853", 1e-8, 1e-10),
+RUNS = {  # name -> (scenario, integrator, rtol, atol, qdd from Python)
+    "rope RE-U125-L1 (250 DOF, ode45)": ("cases/RE-U125-L1.toml", "ode45", 1e-4, 1e-6, False),
+    "TALOS-FALL (floating, dop853)": ("TALOS-FALL", "dop853", 1e-8, 1e-10, False),
+    "UR5-FALL, qdd from Python (ode45)": ("UR5-FALL", "ode45", 1e-8, 1e-10, True),
 }
 
 WORKER = r'''
@@ -41,26 +44,35 @@ import numpy as np
 from redysim.io.scenarios import load_scenario
 from redysim.io.cases import load_case
 
+from redysim import forward_dynamics
+T_END = 1e3  # s: far beyond the steps timed
+
 def make(spec):
-    name, integrator, rtol, atol = spec
+    name, integrator, rtol, atol, python = spec
     scn = load_scenario(name) if not name.endswith(".toml") else None
     src = scn if scn is not None else load_case(name)
-    return lambda: src.simulator(1.0, integrator=integrator, rtol=rtol, atol=atol, sample=1.0,
-                                 compiled=True)
+    model = src.model if scn is not None else src.chain
+    kw = {"qdd": lambda q, v, tau: forward_dynamics(model, q, v, tau)} if python else {}
+    return lambda: src.simulator(T_END, integrator=integrator, rtol=rtol, atol=atol,
+                                 sample=T_END, compiled=True, **kw)
+
+def steps_of(solver, steps):
+    """``steps`` steps (fewer if the run ends): one call in compiled code, one call a step as
+    Python."""
+    solver.max_steps = steps
+    while solver.counters.steps < steps and not solver.done:
+        solver.step(T_END)
 
 runs = {k: make(v) for k, v in json.loads(sys.argv[1]).items()}
 steps = int(sys.argv[2])
 for make_sim in runs.values():  # compile (or load) everything first
-    s = make_sim().solver
-    s.max_steps = 2
-    s.step(1.0)
+    steps_of(make_sim().solver, 2)
 print("ready", flush=True)
 for line in sys.stdin:
     name = line.strip()
     solver = runs[name]().solver
-    solver.max_steps = steps
     t0 = time.perf_counter()
-    solver.step(1.0)
+    steps_of(solver, steps)
     wall = time.perf_counter() - t0
     print(json.dumps({"wall": wall, "steps": solver.counters.steps, "t": solver.t,
                       "y": float(np.abs(solver.y).sum())}), flush=True)

@@ -224,16 +224,28 @@ def rk_steps(sd, extras, scheme, ctl, st, t_stop, max_steps):
     return 0
 
 
+def _numpy_copy(src, dst):
+    dst[:] = src
+
+
+def _py(dispatcher):
+    """A kernel's Python source (itself under NUMBA_DISABLE_JIT)."""
+    return getattr(dispatcher, "py_func", dispatcher)
+
+
 def python_stepping(system_derivative, system_project):
     """:func:`rk_steps` as Python, its own source, with the system's contract bound to
     ``system_derivative(sd, extras, t, y, out) -> bool`` and ``system_project(sd, extras, y)
     -> int`` (Python callables: ``sd`` is then whatever the caller passes, a Python
-    system); every other function it calls (the stage sums, the error norm, the controller's
-    formulas, the copies) is the compiled one. Returns the Python ``rk_steps``."""
-    names = dict(globals(), derivative=system_derivative, project_step=system_project)
+    system); the stage sums and the error norm are the compiled ones (:mod:`.rk`), the
+    controller's scalar formulas their own Python source (the same IEEE operations: a call of
+    compiled code from Python costs more than they do), the copies numpy's. Returns the
+    Python ``rk_steps``."""
+    names = dict(globals(), derivative=system_derivative, project_step=system_project,
+                 copy=_numpy_copy, hmin_at=_py(hmin_at), grown=_py(grown), shrunk=_py(shrunk))
 
     def rebind(dispatcher):
-        fn = dispatcher.py_func
+        fn = _py(dispatcher)
         return types.FunctionType(fn.__code__, names, fn.__name__, fn.__defaults__,
                                   fn.__closure__)
 
