@@ -30,6 +30,7 @@ from redysim.integrators.explicit import (
     INTEGRATORS,
 )
 from redysim.io.cases import CASES_DIR, list_cases, load_case
+from redysim.io.kinds import KINDS, FileKind, either, kind_of
 
 PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -207,14 +208,12 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION, formatter_class=fmt)
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    sim = sub.add_parser("simulate", description=SIMULATE_HELP, formatter_class=fmt,
+    sim = sub.add_parser("simulate", description=f"{SIMULATE_HELP}\n\n{files_help()}",
+                         formatter_class=fmt,
                          help="run one scenario (a rope case, a scenario file, a robot or "
                               "linkage file) with one engine and integrator; print energy "
                               "drift and the observed path")
-    sim.add_argument("case", metavar="CASE",
-                     help="a case name (see `redysim cases`), the path of a case file, a "
-                          "robot (.urdf, MJCF .xml, cases/robots/*.toml) or a closed-loop "
-                          "linkage (cases/loops/*.toml)")
+    sim.add_argument("case", metavar="CASE", help=FILE_ARGUMENT)
     sim.add_argument("--engine", default=CORE, choices=(CORE, *references.ENGINES), metavar="E",
                      help=f"who computes qdd: {CORE} (the core) or a reference engine: "
                           f"{', '.join(references.ENGINES)} (default: {CORE})")
@@ -264,8 +263,9 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
                           "FILE.summary.parquet (or .summary.csv): Parquet or CSV by suffix")
     _model_flags(sim)
     sim.add_argument("--lock", type=_lock, action="append", default=[], metavar="JOINT=VALUE",
-                     help="a robot file: hold a joint at a coordinate (radians, metres; several "
-                          "comma-separated for a U, S or free joint); repeat for more joints")
+                     help=f"{kinds_taking('lock')}: hold a joint at a coordinate (radians, "
+                          "metres; several comma-separated for a U, S or free joint); repeat "
+                          "for more joints")
     sim.set_defaults(func=cmd_simulate)
 
     sw = sub.add_parser("sweep", description=SWEEP_HELP, formatter_class=fmt,
@@ -328,10 +328,11 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
                          help="the reference engines, their versions and their own integrators")
     eng.set_defaults(func=cmd_engines)
 
-    info = sub.add_parser("info", description=INFO_HELP, formatter_class=fmt,
+    info = sub.add_parser("info", description=f"{INFO_HELP}\n\n{files_help()}",
+                          formatter_class=fmt,
                           help="print a model's tree: bodies, joints, masses, what was dropped")
     info.add_argument("model", metavar="MODEL",
-                      help="a .urdf, an MJCF .xml, a case .toml, or a case name")
+                      help=FILE_ARGUMENT)
     _model_flags(info)
     info.set_defaults(func=cmd_info)
     for add in extra:
@@ -367,8 +368,8 @@ def _lock(text: str) -> tuple[str, list[float]]:
 
 def _model_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--floating", action="store_true",
-                        help="a URDF's or MJCF's root body gets a free joint (a legged or "
-                             "flying robot)")
+                        help=f"the root body of {kinds_taking('floating')} gets a free joint (a "
+                             "legged or flying robot)")
     parser.add_argument("--mimic", choices=("couple", "independent", "refuse"),
                         help="a URDF's mimic joints: couple them to their leaders (default), "
                              "let them move independently, or refuse them")
@@ -452,44 +453,62 @@ def _report_progress(t: float, t_end: float, steps: int, wall: float) -> None:
           file=sys.stderr, flush=True)
 
 
-KIND_NAMES = {"case": "a rope case", "urdf": "a URDF", "mjcf": "an MJCF file",
-              "dh": "a DH robot file", "linkage": "a linkage file",
-              "protein": "a protein file", "scenario": "a scenario file"}
-# the flags each kind of file has no use for: refused by name rather than ignored
-UNUSED_FLAGS = {"case": ("floating", "mimic"), "urdf": ("links", "precision"),
-                "mjcf": ("links", "precision", "mimic"), "dh": ("links", "precision", "mimic"),
-                "linkage": ("links", "precision", "mimic", "floating"),
-                "protein": ("links", "precision", "mimic"),
-                "scenario": ("links", "precision", "mimic", "floating")}
 FLAG_USES = {"links": "coarse-grains a rope case's chain",
              "precision": "sets the arithmetic of a rope case's run (robot and linkage files "
                           "run in float64)",
              "mimic": "applies to a URDF's <mimic> joints",
-             "floating": "gives the root body of a URDF, an MJCF or a protein file a free joint"}
+             "floating": "gives the root body of {floating} a free joint"}
 
 
-def file_kind(name: str) -> str:
-    """What ``redysim simulate`` or ``info`` is given (:func:`redysim.io.scenarios.file_kind`):
-    ``"urdf"``, ``"mjcf"``, ``"dh"``, ``"linkage"``, ``"protein"``, ``"scenario"`` (a scenario
-    file, or the name of a built-in one) or ``"case"`` (a rope case's name or file)."""
-    from redysim.io.scenarios import file_kind as kind_of
+def file_kind(name: str) -> FileKind:
+    """The kind of file ``redysim simulate``, ``info``, ``advise`` or ``compare`` is given
+    (:func:`redysim.io.kinds.kind_of`): a built-in scenario's name is a scenario file's, any
+    other name a rope case's."""
     from redysim.io.scenarios import scenario_path
 
     p = scenario_path(name) if not Path(name).suffix else None
     return kind_of(p if p is not None else name)
 
 
-def _refuse_unused_flags(args: argparse.Namespace, kind: str) -> None:
+# the command-line flag of each model option (redysim.io.kinds.FileKind.options)
+OPTION_FLAGS = {"floating": "--floating", "mimic": "--mimic", "lock": "--lock"}
+ROPE_FLAGS = ("--links", "--precision")  # a rope case's (FileKind.rope)
+FILE_ARGUMENT = ("a rope case's or a built-in scenario's name, or a file of any kind listed "
+                 "under files, above")
+
+
+def kinds_taking(option: str) -> str:
+    """The kinds of file that take a model option, as a phrase: "a URDF, an MJCF file or a
+    protein file"."""
+    return either(k.noun for k in KINDS if option in k.options)
+
+
+def files_help() -> str:
+    """The kinds of file the commands take (:data:`redysim.io.kinds.KINDS`, in the order they
+    are told apart), how each is told, and the model flags each takes: the end of the help of
+    simulate, info and compare."""
+    lines = ["files (the first kind that fits; the flags each takes):"]
+    for k in KINDS:
+        flags = [OPTION_FLAGS[o] for o in k.options if o in OPTION_FLAGS]
+        flags += ROPE_FLAGS if k.rope else ()
+        lines.append(f"  {k.noun:<16} {k.files:<52} {' '.join(flags)}".rstrip())
+    return "\n".join(lines)
+
+
+def _refuse_unused_flags(args: argparse.Namespace, kind: FileKind) -> None:
     """A flag that this kind of file would ignore is refused, by name; and so is a joint locked
     twice."""
     given = {"links": getattr(args, "links", None) is not None,
              "precision": getattr(args, "precision", None) not in (None, "float64"),
              "mimic": args.mimic is not None, "floating": args.floating}
-    for flag in UNUSED_FLAGS[kind]:
-        if given[flag]:
+    uses = {"links": kind.rope, "precision": kind.rope, "mimic": "mimic" in kind.options,
+            "floating": "floating" in kind.options}
+    for flag in given:
+        if given[flag] and not uses[flag]:
             value = getattr(args, flag)
+            use = FLAG_USES[flag].format(floating=kinds_taking("floating"))
             raise SettingsError(SOURCE, f"--{flag}", None if value is True else value,
-                                f"{FLAG_USES[flag]}; {KIND_NAMES[kind]} has no use for it")
+                                f"{use}; {kind.noun} has no use for it")
     seen: dict[str, list[float]] = {}
     for name, values in getattr(args, "lock", []):
         if name in seen:
@@ -500,16 +519,18 @@ def _refuse_unused_flags(args: argparse.Namespace, kind: str) -> None:
         seen[name] = values
 
 
-def _load_system(args: argparse.Namespace):
-    """(model, loops, q0) of a robot or linkage file (loops and q0 None for a robot)."""
-    from redysim.io.importers import load_model
-    from redysim.io.linkage_files import load_linkage
-
-    path = args.model if hasattr(args, "model") else args.case
-    if file_kind(path) == "linkage":
-        linkage = load_linkage(path)
-        return linkage.model, linkage.loops, linkage.q0
-    return load_model(path, floating=args.floating, mimic=args.mimic or "couple"), None, None
+def model_options(args: argparse.Namespace, kind: FileKind) -> dict:
+    """The model options the command line gives (--floating, --mimic, --lock) as the kind of
+    file takes them (:attr:`FileKind.options <redysim.io.kinds.FileKind.options>`); a flag it
+    has no use for, or a joint locked twice, refused by name."""
+    _refuse_unused_flags(args, kind)
+    lock = dict(getattr(args, "lock", []))
+    if lock and "lock" not in kind.options:
+        raise SettingsError(SOURCE, "--lock", next(iter(lock)), f"locks a joint of "
+                            f"{kinds_taking('lock')}; "
+                            f"{kind.fixed or kind.noun + ' has no use for it'}")
+    options = {"floating": args.floating or None, "mimic": args.mimic, "lock": lock or None}
+    return {k: v for k, v in options.items() if v is not None and k in kind.options}
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -520,18 +541,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from redysim.io.scenarios import load_scenario
 
     kind = file_kind(args.case)
-    _refuse_unused_flags(args, kind)
-    if args.lock and kind in ("case", "linkage", "scenario"):
-        why = {"case": "a rope case has no named joints",
-               "linkage": "a linkage file's driver and cuts set its motion",
-               "scenario": "a scenario file locks its joints in its [model] table (lock)"}[kind]
-        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
-                            f"(.urdf, .xml, cases/robots/*.toml); {why}")
-    options: dict = {}
-    if kind in ("urdf", "mjcf", "dh", "protein"):
-        options = {"floating": args.floating or None, "mimic": args.mimic,
-                   "lock": dict(args.lock) or None}
-        options = {k: v for k, v in options.items() if v is not None}
+    options = model_options(args, kind)
     scn = load_scenario(args.case, options=options)  # a bad file is bad input (exit 2)
     spec = RunSpec(case=args.case, engine=args.engine, method=args.method,
                    integrator=args.integrator or "", rtol=args.rtol or 0.0,
@@ -546,9 +556,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         _check_out(args.out)
     from redysim.harness.run import execute
 
-    if kind != "case":
+    if not kind.rope:
         print_scenario(scn, args.case)
-    states = args.out is not None and kind != "case"
+    states = args.out is not None and not kind.rope
     res = execute(spec, progress=_report_progress, max_wall_s=args.max_wall, states=states)
     print_run(res.summary, res.rows)
     if args.out is not None:
@@ -688,15 +698,13 @@ INFO_MAX_INDENT = 12  # redysim info: indentation levels shown
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    """``redysim info``: the model's tree, one line per body, children indented under parents."""
-    from redysim import Model
+    """``redysim info``: the model's tree, one line per body, children indented under parents:
+    the model ``redysim simulate`` runs, of a file of any kind (or a case's or scenario's
+    name)."""
+    from redysim.io.scenarios import load_scenario
 
-    _refuse_unused_flags(args, file_kind(args.model))
-    loops = None
-    if Path(args.model).suffix.lower() in (".urdf", ".xml", ".toml"):
-        model, loops, _ = _load_system(args)
-    else:
-        model = Model.from_chain(load_case(args.model).chain)
+    options = model_options(args, file_kind(args.model))
+    model = load_scenario(args.model, options=options).model
     print(f"{model.name}: {model.n_bodies} bodies, n_q = {model.n_q}, n_v = {model.n_v}, "
           f"mass {model.total_mass:.6g} kg, gravity {tuple(float(g) for g in model.gravity)}")
     children: dict[int, list[int]] = {}
@@ -723,7 +731,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"  coupling: {c.follower} = {c.multiplier:g} * {c.leader} + {c.offset:g}")
     for note in model.notes:
         print(f"  note: {note}")
-    for c in loops.cuts if loops is not None else ():
+    for c in model.cuts:
         where_b = "the world" if c.body_b < 0 else model.body_names[c.body_b]
         print(f"  cut joint {c.name}: {c.kind}, {model.body_names[c.body_a]} at "
               f"{tuple(float(x) for x in c.point_a)} to {where_b} at "
@@ -834,15 +842,13 @@ def _advise_own(args: argparse.Namespace) -> int:
     """``redysim advise CASE --tip-tol M``: a rope case's own study (refine.own_study)."""
     from redysim.harness import refine
     from redysim.io.cases import case_path
-    from redysim.io.scenarios import file_kind
 
     scene = args.scene
     if args.results is not None:
         raise SettingsError(SOURCE, "--results", str(args.results), "says where the studies "
                             f"of {', '.join(refine.SCENES)} are; a rope case's study goes to "
                             "--out")
-    kind = file_kind(scene)
-    if kind != "case" or _is_scenario_name(scene):
+    if not file_kind(scene).rope:  # a robot's (or linkage's, protein's) scenario
         return _advise_robot(args)
     if args.observe is not None:
         raise SettingsError(SOURCE, "--observe", args.observe, "a rope's study follows its tip; "
@@ -890,13 +896,6 @@ def _advise_own(args: argparse.Namespace) -> int:
     print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
           f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {float(ref['t_end']):g}")
     return EXIT_OK
-
-
-def _is_scenario_name(name: str) -> bool:
-    """A built-in scenario's name (``UR5-FALL``): not a rope case's."""
-    from redysim.io.scenarios import list_scenarios
-
-    return name in list_scenarios()
 
 
 def _advise_robot(args: argparse.Namespace) -> int:

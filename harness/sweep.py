@@ -85,6 +85,7 @@ from redysim import list_cases, references
 from redysim.errors import FieldError, RedysimError, SettingsError
 from redysim.integrators.explicit import ALIASES, INTEGRATORS
 from redysim.io.cases import is_case_name
+from redysim.io.kinds import by_suffix
 from redysim.io.scenarios import list_scenarios, load_scenario
 
 from . import REDYSIM_THREADS, worker_threads
@@ -311,7 +312,7 @@ class _Checker:
         relative to the sweep file's folder). A name without a folder or ``.toml`` is a
         built-in case only (:func:`redysim.io.cases.case_path`)."""
         name = self.text(field, value)
-        if is_case_name(name) and not name.lower().endswith((".urdf", ".xml")):
+        if is_case_name(name) and not by_suffix(name):  # a name, not a model file
             if name not in self.case_names:
                 self.fail(field, value, f"no such case or scenario; known: "
                                         f"{', '.join(sorted(self.case_names))} (a file is "

@@ -14,15 +14,16 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from redysim.errors import SettingsError
 from redysim.harness.cli import (
     EXIT_OK,
-    SOURCE,
+    FILE_ARGUMENT,
     _lock,
     _model_flags,
-    _refuse_unused_flags,
     _whole,
     file_kind,
+    files_help,
+    kinds_taking,
+    model_options,
     positive,
 )
 from redysim.harness.cli import main as harness_main
@@ -51,13 +52,12 @@ def add_compare(sub) -> None:
     from redysim import references
 
     fmt = argparse.RawDescriptionHelpFormatter
-    cmp_ = sub.add_parser("compare", description=COMPARE_HELP, formatter_class=fmt,
+    cmp_ = sub.add_parser("compare", description=f"{COMPARE_HELP}\n\n{files_help()}",
+                          formatter_class=fmt,
                           help="your model in every engine with every integrator against a "
                                "reference: agreement, paths, drift, work-precision, advice "
                                "(an HTML page and a PDF)")
-    cmp_.add_argument("model", metavar="MODEL",
-                      help="a .urdf, an MJCF .xml, a DH robot or linkage .toml, a scenario "
-                           "file or name (cases/scenarios/), or a rope case")
+    cmp_.add_argument("model", metavar="MODEL", help=FILE_ARGUMENT)
     cmp_.add_argument("--t-end", type=positive, metavar="T",
                       help="horizon [s] (default: the scenario's; a model file's own: 1 s)")
     cmp_.add_argument("--out", type=Path, metavar="DIR",
@@ -71,7 +71,8 @@ def add_compare(sub) -> None:
                       help="no progress bar")
     _model_flags(cmp_)
     cmp_.add_argument("--lock", type=_lock, action="append", default=[], metavar="JOINT=VALUE",
-                      help="a robot file: hold a joint at a coordinate; repeat for more")
+                      help=f"{kinds_taking('lock')}: hold a joint at a coordinate; repeat "
+                           "for more")
     cmp_.set_defaults(func=cmd_compare)
 
 
@@ -79,15 +80,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     """``redysim compare MODEL``: :func:`redysim.reports.compare.compare`."""
     from redysim.io.scenarios import load_scenario
 
-    kind = file_kind(args.model)
-    _refuse_unused_flags(args, kind)
-    if args.lock and kind not in ("urdf", "mjcf", "dh", "protein"):
-        raise SettingsError(SOURCE, "--lock", args.lock[0][0], "locks a joint of a robot file "
-                            "(.urdf, .xml, cases/robots/*.toml)")
-    options: dict = {}
-    if kind in ("urdf", "mjcf", "dh", "protein"):
-        options = {k: v for k, v in {"floating": args.floating or None, "mimic": args.mimic,
-                                     "lock": dict(args.lock) or None}.items() if v is not None}
+    options = model_options(args, file_kind(args.model))
     scn = load_scenario(args.model, options=options)  # a bad file: exit 2, before any run
     for package in ("pandas", "pyarrow", "matplotlib", "jinja2", "reportlab"):
         if importlib.util.find_spec(package) is None:

@@ -523,8 +523,3 @@ def true_error(ctx: Ctx, config: str = "stretched") -> Figure:
     fig.legend(handles.values(), handles.keys(), loc="outside right center",
                fontsize=FONT_PT - 1.5)
     return _figure(fid, "true-error", title, caption, fig)
-
-
-def figures_beyond(ctx: Ctx) -> list[Figure]:
-    return [conditioning(ctx), scaling(ctx), op_counts(ctx), *work_precision(ctx),
-            true_error(ctx)]

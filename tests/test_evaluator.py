@@ -24,7 +24,7 @@ from test_trees import random_configuration, random_tree, robot_urdf
 import redysim
 from redysim import Chain, CutJoint, Link, forward_dynamics, inverse_dynamics
 from redysim.errors import CaseError, FieldError, StateError
-from redysim.io.importers import load_model
+from redysim.io.kinds import load_model
 
 
 def _models():

@@ -21,7 +21,8 @@ from test_trees import random_configuration
 import redysim
 from redysim import forward_dynamics, inverse_dynamics, mass_matrix, rbda
 from redysim.errors import CaseError, FieldError
-from redysim.io.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_model, load_urdf
+from redysim.io.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_urdf
+from redysim.io.kinds import load_model
 from redysim.model.tree import Body, Model, TreeJoint
 
 

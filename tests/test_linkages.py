@@ -334,7 +334,8 @@ def test_the_command_line_takes_a_linkage_file(capsys):
     """`redysim info` lists the cut joints; `redysim simulate` runs with the loops closed and
     reports residuals and forces; load_model refuses a linkage (a tree would drop its cuts)."""
     from redysim.harness.cli import main
-    from redysim.io.importers import ModelFileError, load_model
+    from redysim.io.importers import ModelFileError
+    from redysim.io.kinds import load_model
 
     path = str(LOOPS / "crank_rocker.toml")
     assert main(["info", path]) == 0

@@ -15,6 +15,7 @@ import pytest
 import redysim
 from redysim.errors import CaseError
 from redysim.io.cases import CASES_DIR
+from redysim.io.kinds import kind_of
 from redysim.io.proteins import (
     ANGLE_DEG,
     BOND,
@@ -25,7 +26,6 @@ from redysim.io.proteins import (
     load_protein,
     wrap_deg,
 )
-from redysim.io.scenarios import file_kind
 
 PROTEINS = Path(CASES_DIR) / "proteins"
 
@@ -199,7 +199,7 @@ def test_the_shipped_files_load_as_their_headers_say():
     for name, n_res, floating in (("poly-ala-100", 100, False), ("poly-ala-1000", 1000, False),
                                   ("ubiquitin", 76, True)):
         path = PROTEINS / f"{name}.toml"
-        assert file_kind(path) == "protein"
+        assert kind_of(path).name == "protein"
         m = redysim.load_model(path)
         assert m.n_v == 2 * n_res + (6 if floating else 0)
         assert m.gravity.tolist() == [0.0, 0.0, 0.0]

@@ -253,17 +253,18 @@ def test_driver_v_spins_the_crank_with_the_loops_kept(name):
 
 
 def test_a_files_kind_follows_an_edit_of_it(tmp_path):
-    """file_kind is kept per version of the file (size, modification time, inode): the same
+    """A file's kind is kept per version of the file (size, modification time, inode): the same
     path rewritten as another kind of file is that kind at once."""
     from redysim.io.cases import CASES_DIR
-    from redysim.io.scenarios import SCENARIOS_DIR, file_kind
+    from redysim.io.kinds import kind_of
+    from redysim.io.scenarios import SCENARIOS_DIR
 
     path = tmp_path / "mine.toml"
     path.write_text((CASES_DIR / "STUDY-R3.toml").read_text())
-    assert file_kind(path) == "case"
+    assert kind_of(path).name == "case"
     path.write_text((SCENARIOS_DIR / "CATENARY.toml").read_text())
-    assert file_kind(path) == "scenario"
+    assert kind_of(path).name == "scenario"
     path.write_text((CASES_DIR / "robots" / "puma560.toml").read_text())
-    assert file_kind(path) == "dh"
+    assert kind_of(path).name == "dh"
     path.unlink()
-    assert file_kind(path) == "case"  # (no file: a case name's kind, as before)
+    assert kind_of(path).name == "case"  # (no file: a case name's kind, as before)

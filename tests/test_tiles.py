@@ -31,7 +31,7 @@ from redysim.algorithms._kernels.bundles import Tiles, numba_types, segment_size
 from redysim.errors import FieldError
 from redysim.harness import hiprec
 from redysim.harness.random_chains import MIX_KINDS, _mix_joint, random_chain, random_link
-from redysim.io.importers import load_model
+from redysim.io.kinds import load_model
 
 TOL = 1e-12  # of max |qdd| (module docstring)
 

@@ -28,7 +28,8 @@ from redysim import (
 )
 from redysim import energy as system_energy
 from redysim.errors import CaseError, FieldError
-from redysim.io.importers import ModelFileError, load_model, load_urdf
+from redysim.io.importers import ModelFileError, load_urdf
+from redysim.io.kinds import load_model
 from redysim.model.tree import Body, Model, TreeJoint
 
 MIXES = [("R",), ("U",), ("S",), ("P",), ("R", "U", "S", "P")]
@@ -448,7 +449,7 @@ def test_load_model_names_what_it_cannot_read(tmp_path):
         load_model(tmp_path / "none.urdf")
     other = tmp_path / "model.sdf"
     other.write_text("<sdf/>")
-    with pytest.raises(ModelFileError, match="a model file is .urdf, MJCF .xml or a case .toml"):
+    with pytest.raises(ModelFileError, match="a model file is .urdf, .xml or .toml"):
         load_model(other)
 
 

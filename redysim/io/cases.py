@@ -202,11 +202,6 @@ def case_path(name_or_path: str | os.PathLike) -> Path:
     return p
 
 
-def file_digest(path: str | os.PathLike) -> str:
-    """SHA-256 of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def has_table(path: str | os.PathLike, table: str) -> bool:
     """True for a file with a ``[table]`` line (read as text: no full parse; False when it
     cannot be read): what kind of TOML file a path is, cheaply."""

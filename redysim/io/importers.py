@@ -1,7 +1,6 @@
-"""Models from files: URDF, MJCF (read by MuJoCo's compiler), DH robot and case files.
-
-:func:`load_model` turns a ``.urdf``, an MJCF ``.xml`` or a ``.toml`` (a DH robot,
-:mod:`redysim.io.dh`, or a rope case) into a :class:`~redysim.model.tree.Model`.
+"""Models from URDF and MJCF (read by MuJoCo's compiler) files: :func:`load_urdf`,
+:func:`load_mjcf`. :func:`redysim.load_model` reads any kind of model file, these two among them
+(:mod:`redysim.io.kinds`: the file kinds).
 
 **URDF** is read here, from the XML as written: a flat list of links and joints, walked
 without recursion in time linear in their number (MuJoCo's URDF parser, which read them before,
@@ -58,8 +57,7 @@ ctrl 0 (a motor: give its force as tau).
 ``floating=True``: a URDF's root link (the link fixed to a root link named ``world``), or the
 one MJCF root body without joints, gets a free joint, its pose in the file the initial q; a
 file whose root already floats is taken as it is; an MJCF root body that already moves on other
-joints, or several jointless roots, are refused by name. A DH robot or rope case file has no
-base body to float: refused.
+joints, or several jointless roots, are refused by name.
 """
 
 from __future__ import annotations
@@ -88,7 +86,7 @@ from redysim.model.tree import (
     quaternion_matrix,
 )
 
-__all__ = ["ModelFileError", "load_model", "load_urdf", "load_mjcf", "MIMIC", "EQUALITY",
+__all__ = ["ModelFileError", "load_urdf", "load_mjcf", "MIMIC", "EQUALITY",
            "MJCF_MAX_DEPTH", "URDF_GRAVITY"]
 
 URDF_GRAVITY = (0.0, 0.0, -9.81)  # URDF has no gravity; robots are described z up
@@ -1036,50 +1034,3 @@ def _check_inertia_to_move(model: Model, src: str) -> None:
                              f"have no inertia about its axis {j - int(model.joint_voff[k])}: a "
                              "massless body at the end of a joint; give it an <inertial> or "
                              "fix the joint")
-
-
-# --------------------------------------------------------------------------- any file
-def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
-               equality: str = "refuse", strict: bool = False) -> Model:
-    """The model in ``path``: ``.urdf`` (:func:`load_urdf`: ``floating``, ``mimic``,
-    ``strict``), MJCF ``.xml`` (:func:`load_mjcf`: ``floating``, ``equality``, ``strict``), a
-    robot ``.toml`` (a DH table, :mod:`redysim.io.dh`) or a case ``.toml`` (its chain), whose base
-    is the world: ``floating=True`` is refused for them; a protein ``.toml``
-    (:mod:`redysim.io.proteins`: ``floating=True`` frees its first residue). Raises
-    FileNotFoundError, ModelFileError or CaseError."""
-    p = Path(path)
-    src = str(p)
-    _check_flags(src, floating=floating, strict=strict)
-    _check_choice(src, "mimic", mimic, MIMIC)
-    _check_choice(src, "equality", equality, EQUALITY)
-    if not p.is_file():
-        raise FileNotFoundError(f"model file {src!r} does not exist")
-    suffix = p.suffix.lower()
-    if suffix == ".urdf":
-        return load_urdf(p, floating=floating, mimic=mimic, strict=strict)
-    if suffix == ".xml":
-        return load_mjcf(p, floating=floating, equality=equality, strict=strict)
-    if suffix == ".toml":  # a robot's DH table (redysim.io.dh), else a rope case file
-        from redysim.io.dh import is_robot_file, load_robot
-        from redysim.io.linkage_files import is_linkage_file
-        from redysim.io.proteins import is_protein_file, load_protein
-        if is_protein_file(p):  # a protein backbone (redysim.io.proteins): floats if asked
-            protein = load_protein(p, floating=True if floating else None)
-            return protein.model
-        robot = is_robot_file(p)
-        if not robot and is_linkage_file(p):
-            raise ModelFileError(src, "[linkage]", None, "a closed-loop linkage: a tree alone "
-                                 "would drop its cut joints; load it with "
-                                 "redysim.load_linkage(path) -> (model, loops, q0)")
-        if floating:
-            raise ModelFileError(src, "floating", True, (
-                "a DH robot's base is its table's frame 0, fixed in the world, and the file "
-                "gives no base body (mass, inertia) to float" if robot else
-                "a rope case's first joint is fixed to the world and the file gives no base "
-                "body to float") + ": load without floating=True")
-        if robot:
-            return load_robot(p).model
-        from redysim.io.cases import load_case
-        return Model.from_chain(load_case(p).chain)
-    raise ModelFileError(src, "<file>", suffix, "a model file is .urdf, MJCF .xml or a case "
-                         ".toml")

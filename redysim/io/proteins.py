@@ -335,18 +335,6 @@ def backbone(sequence: str, *, omega: str = "fixed", floating: bool = False,
 
 
 # --------------------------------------------------------------------------- files
-def is_protein_document(doc: dict) -> bool:
-    """A TOML document is a protein file when it has a [protein] table."""
-    return isinstance(doc, dict) and "protein" in doc
-
-
-def is_protein_file(path: str | os.PathLike) -> bool:
-    """Whether ``path`` is a TOML protein file (read as text: a ``[protein]`` line)."""
-    from redysim.io.cases import has_table
-
-    return has_table(path, "protein")
-
-
 def load_protein(path: str | os.PathLike, *, floating: bool | None = None) -> Protein:
     """The backbone of a protein file (module doc); ``floating``, when given, overrides the
     file's."""

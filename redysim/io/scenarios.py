@@ -7,10 +7,11 @@ A scenario is any of:
   without a folder, ``"UR5-FALL"``, are the built-in ones there)::
 
     [scenario]   name, description
-    [model]      file: a .urdf, an MJCF .xml, a DH robot .toml, a linkage .toml or a rope case
-                 (a path relative to the scenario file, a built-in case's name, or
-                 "example-robot-data:<file>" for a URDF of that package); floating, mimic,
-                 equality (the loader's options), lock = {joint = value}, gravity = [gx, gy, gz],
+    [model]      file: a model file of any kind (:mod:`redysim.io.kinds`: a .urdf, an MJCF
+                 .xml, a DH robot, linkage or protein .toml, a rope case; a path relative to
+                 the scenario file, a built-in case's name, or "example-robot-data:<file>" for
+                 a URDF of that package); floating, mimic, equality (the loader's options, as
+                 its kind takes them), lock = {joint = value}, gravity = [gx, gy, gz],
                  damping: a viscous torque -damping * v at every joint [N m s] (0: none; applied
                  by redysim's integrators whichever engine gives qdd; an engine's own stepper
                  refuses a damped scenario rather than run it undamped)
@@ -28,10 +29,14 @@ A scenario is any of:
 
 - a **rope case** (a name of ``cases/`` or a case file; :mod:`redysim.io.cases`), whose observed
   path is its tip and whose tip force is applied;
-- a **model file** by itself (.urdf, MJCF .xml, DH robot, linkage or protein .toml): a passive
-  motion from the file's configuration at rest for 1 s (a floating base or a model without
-  gravity: with seeded random velocities, since at rest in uniform gravity it would fall as one
-  rigid piece, and without gravity not move), observing its tip frame or its last body.
+- a **model file** by itself (any kind of :mod:`redysim.io.kinds`: .urdf, MJCF .xml, DH robot,
+  linkage or protein .toml): a passive motion from the file's configuration at rest for 1 s (a
+  floating base or a model without gravity: with seeded random velocities, since at rest in
+  uniform gravity it would fall as one rigid piece, and without gravity not move), observing its
+  tip frame or its last body.
+
+What kind a file is, and how its model is read with the loader's options, is its kind's
+(:mod:`redysim.io.kinds`); this module reads scenario files and makes the scenario of the others.
 
 :func:`load_scenario` reads any of them into a :class:`Scenario`. Every bad value raises
 :class:`~redysim.errors.CaseError` naming the file, the field and the value; a model file's own
@@ -47,7 +52,6 @@ import hashlib
 import json
 import math
 import os
-import stat
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -64,7 +68,8 @@ from redysim.integrators.explicit import (
     canonical,
     check_settings,
 )
-from redysim.io.cases import CASES_DIR, Case, has_table, is_case_name, load_case, read_toml
+from redysim.io.cases import CASES_DIR, Case, is_case_name, read_toml
+from redysim.io.kinds import KINDS, Loaded, ScenarioKind, by_suffix, either, kind_of
 from redysim.model.tree import FREE, Model
 
 SCENARIOS_DIR = Path(CASES_DIR) / "scenarios"
@@ -72,8 +77,6 @@ ROBOT_DATA = "example-robot-data:"  # a model file of the example-robot-data pac
 DEFAULT_T_END = 1.0  # s: a model file's own scenario
 DEFAULT_SAMPLES = 20
 QUATERNION_TOL = 1e-6
-KINDS = ("case", "urdf", "mjcf", "dh", "linkage", "protein")
-MODEL_SUFFIXES = (".urdf", ".xml")  # a model file by itself, never a built-in name
 _FIELDS = {
     "scenario": {"name", "description"},
     "model": {"file", "floating", "mimic", "equality", "lock", "gravity", "damping"},
@@ -93,9 +96,10 @@ class Scenario:
     joints for a linkage), the initial state ``q0``, ``v0``, the horizon and run settings,
     ``observe`` (frame or body names; the first is the observed path) and ``digest``.
 
-    ``kind``: what the model came from (:data:`KINDS`); ``case``: the rope case (None for any
-    other kind), whose chain is ``model``, and which carries what only a rope has (its tip force,
-    its coarsenings, its paper rows); ``tip_force``: the case's constant tip force [N] or None.
+    ``kind``: the name of the kind of file the model came from (``"urdf"``, ``"case"``, ...:
+    :data:`redysim.io.kinds.KINDS`); ``case``: the rope case (None for any other kind), whose
+    chain is ``model``, and which carries what only a rope has (its tip force, its coarsenings,
+    its paper rows); ``tip_force``: the case's constant tip force [N] or None.
     ``options``: the model loader's options as given (floating, mimic, equality, lock)."""
 
     name: str
@@ -195,56 +199,11 @@ def robot_data_file(name: str) -> Path | None:
     return Path(str(dist.locate_file(hits[0]))) if hits else None
 
 
-def file_kind(path: str | os.PathLike) -> str:
-    """What a file is: ``"urdf"``, ``"mjcf"`` (.xml), ``"dh"`` (a DH robot .toml),
-    ``"linkage"`` (a linkage .toml), ``"protein"`` (a protein backbone .toml), ``"scenario"``
-    (a .toml with a ``[scenario]`` table) or ``"case"`` (a case name, or any other .toml: a
-    rope case file)."""
-    suffix = Path(path).suffix.lower()
-    if suffix == ".urdf":
-        return "urdf"
-    if suffix == ".xml":
-        return "mjcf"
-    if suffix == ".toml":
-        try:
-            st = os.stat(path)
-        except (OSError, ValueError):
-            return "case"
-        if stat.S_ISREG(st.st_mode):
-            return _toml_kind(os.fspath(path), st.st_size, st.st_mtime_ns, st.st_ino)
-    return "case"
-
-
-@functools.lru_cache(maxsize=1024)
-def _toml_kind(path: str, _size: int, _mtime_ns: int, _ino: int) -> str:
-    """:func:`file_kind` of an existing .toml, kept per version of the file (its size,
-    modification time and inode): each test below reads the file, and a sweep's worker asks
-    for the kinds of its run's files several times a run."""
-    from redysim.io.dh import is_robot_file
-    from redysim.io.linkage_files import is_linkage_file
-    from redysim.io.proteins import is_protein_file
-
-    if is_scenario_file(path):
-        return "scenario"
-    if is_protein_file(path):
-        return "protein"
-    if is_robot_file(path):
-        return "dh"
-    if is_linkage_file(path):
-        return "linkage"
-    return "case"
-
-
-def is_scenario_file(path: str | os.PathLike) -> bool:
-    """True for a TOML file with a ``[scenario]`` table (read as text: no full parse)."""
-    return has_table(path, "scenario")
-
-
 def scenario_path(name_or_path: str | os.PathLike) -> Path | None:
     """The file of a built-in scenario name (``cases/scenarios/NAME.toml``), or the path given
     when it is a file; None for a name that is no scenario (a rope case's, perhaps)."""
     text = os.fspath(name_or_path)
-    model_file = Path(text).suffix.lower() in MODEL_SUFFIXES
+    model_file = by_suffix(text)
     if is_case_name(text) and not model_file:
         p = SCENARIOS_DIR / f"{text}.toml"
         return p if p.is_file() else None
@@ -273,7 +232,7 @@ def _sources_of(path: str, _size: int, _mtime_ns: int, _ino: int) -> tuple[Path,
     modification time and inode): a sweep asks for every run's id several times, and finding
     the kind of a .toml and the model file it names parses it up to five times."""
     p = Path(path)
-    if file_kind(p) != "scenario":
+    if not isinstance(kind_of(p), ScenarioKind):  # only a scenario file names another file
         return (p,)
     doc, _ = read_toml(p)
     model = doc.get("model", {})
@@ -330,71 +289,33 @@ def load_scenario(name_or_path: str | os.PathLike, *,
         raise CaseError("load_scenario", "options", sorted(unknown),
                         f"unknown; known: {', '.join(MODEL_OPTIONS)}")
     p = scenario_path(name_or_path)
-    if p is None:  # a rope case by name, or a missing file: the case loader's message
-        if options:
-            raise CaseError(str(name_or_path), "options", options,
-                            "a rope case takes no model options")
-        return Scenario.from_case(load_case(name_or_path))
-    kind = file_kind(p)
-    if kind == "scenario":
-        if options:
-            raise CaseError(str(p), "options", options, "a scenario file sets its model's "
-                            "options in its [model] table")
-        return _from_file(p)
-    if kind == "case":
-        if options:
-            raise CaseError(str(p), "options", options, "a rope case takes no model options")
-        return Scenario.from_case(load_case(p))
-    model, linkage = _load_model(str(p), p, kind, options)
-    q0 = model.initial() if linkage is None else linkage.q0
+    given = name_or_path if p is None else p  # None: a rope case's name (kind_of), or a
+    # missing file: the case loader's message
+    source = str(given)
+    kind = kind_of(given)
+    if isinstance(kind, ScenarioKind):  # a scenario file: read here
+        kind.check_options(source, options)
+        return _from_file(Path(given))
+    loaded = kind.load(given, options, source=source)
+    if loaded.case is not None:  # a rope case: its own settings, tip force, digest
+        return Scenario.from_case(loaded.case)
+    path = Path(given)
+    model = loaded.model
+    q0 = model.initial() if loaded.q0 is None else loaded.q0
     v0 = np.zeros(model.n_v)
-    description = f"a passive motion of {p.name} from its file's configuration, at rest"
+    description = f"a passive motion of {path.name} from its file's configuration, at rest"
     weightless = not np.any(model.gravity)
     if model.quaternions.size or weightless:  # at rest it would fall as one piece, or stay
-        q0, v0 = _random(str(p), model, {"seed": FLOATING_SEED, "v": FLOATING_V}, q0, v0)
-        description = (f"{p.name} {'moving freely' if weightless else 'tumbling in free fall'}"
+        q0, v0 = _random(source, model, {"seed": FLOATING_SEED, "v": FLOATING_V}, q0, v0)
+        description = (f"{path.name} "
+                       f"{'moving freely' if weightless else 'tumbling in free fall'}"
                        f" from its file's configuration with seeded random velocities (uniform "
                        f"in +-{FLOATING_V:g}, seed {FLOATING_SEED}): at rest it would "
                        + ("not move (no gravity)" if weightless else "fall as one rigid piece"))
     for a in (q0, v0):
         a.flags.writeable = False
-    return _finish(str(p), p, kind, model, q0, v0, {}, options, None,
-                   name=model.name or p.stem, description=description)
-
-
-def _load_model(source: str, path: Path, kind: str, options: dict) -> tuple[Model, Any]:
-    """(model, the Linkage of a linkage file or None) of a model file with the loader's
-    options."""
-    from redysim.io.importers import load_model
-    from redysim.io.linkage_files import load_linkage
-
-    lock = options.get("lock")
-    if kind == "linkage":
-        for key in ("floating", "mimic", "equality", "lock"):
-            if options.get(key) not in (None, False, {}):
-                raise CaseError(source, f"model.{key}", options[key], "a linkage file's "
-                                "driver and cut joints set its motion: it takes no such option")
-        linkage = load_linkage(path)
-        # its named points ("coupler.P", "ghi.F") as frames a scenario can observe
-        points = {name: (int(b), tuple(float(x) for x in pt))
-                  for name, (b, pt) in linkage.points.items() if b >= 0}
-        return _with_frames(linkage.model, points), linkage
-    if kind == "case":
-        case = load_case(path)
-        return case.chain, None
-    kw = {k: options[k] for k in ("floating", "mimic", "equality") if options.get(k) is not None}
-    try:
-        model = load_model(path, **kw)
-    except TypeError as exc:  # an option this loader does not take
-        raise CaseError(source, "model", kw, str(exc)) from None
-    if lock:
-        if not isinstance(lock, dict):
-            raise CaseError(source, "model.lock", lock, "must be a table {joint = value}")
-        try:
-            model = model.locked(lock)
-        except (KeyError, ValueError) as exc:
-            raise CaseError(source, "model.lock", lock, str(exc).strip("'\"")) from None
-    return model, None
+    return _finish(source, path, kind.name, model, q0, v0, {}, options, None,
+                   name=model.name or path.stem, description=description)
 
 
 def _from_file(path: Path) -> Scenario:
@@ -413,16 +334,18 @@ def _from_file(path: Path) -> Scenario:
                                 f"unknown field; known: {', '.join(sorted(allowed))}")
     head, mdoc = doc.get("scenario", {}), doc.get("model", {})
     if "file" not in mdoc:
-        raise CaseError(source, "model.file", None, "missing: the model's file (a .urdf, an "
-                        "MJCF .xml, a DH robot or linkage .toml, a case name)")
+        models = [k.noun for k in KINDS if not isinstance(k, ScenarioKind)]
+        raise CaseError(source, "model.file", None, f"missing: the model's file ({either(models)}"
+                        "; a case by its name)")
     if not isinstance(mdoc["file"], str):
         raise CaseError(source, "model.file", mdoc["file"], "must be a string")
     mfile = _model_file(source, path, mdoc["file"])
-    kind = file_kind(mfile)
-    if kind == "scenario":
+    kind = kind_of(mfile)
+    if isinstance(kind, ScenarioKind):
         raise CaseError(source, "model.file", mdoc["file"], "is a scenario file, not a model")
     options = {k: mdoc[k] for k in MODEL_OPTIONS if k in mdoc}
-    model, linkage = _load_model(source, mfile, kind, options)
+    loaded = kind.load(mfile, options, source=source)
+    model = loaded.model
     if "gravity" in mdoc:
         g = _vector(source, "model.gravity", mdoc["gravity"], 3)
         model = _with_gravity(model, g)
@@ -436,16 +359,17 @@ def _from_file(path: Path) -> Scenario:
                         "viscous torque -damping * v at every joint [N m s] (0: none)")
     model = _points(source, model, doc.get("observe", {}))
     idoc = doc.get("initial", {})
-    q0, v0 = _initial(source, model, idoc, linkage)
+    q0, v0 = _initial(source, model, idoc, loaded)
     case = None
-    if kind == "case":  # the rope's harness (tip force, coarsening) runs this scenario's chain
+    if loaded.case is not None:  # the rope's harness (tip force, coarsening) runs this
+        # scenario's chain
         from dataclasses import replace
 
         from redysim.model.tree import Chain
 
         assert isinstance(model, Chain)  # a case's chain, its gravity perhaps replaced
-        case = replace(load_case(mfile), chain=model, q0=q0, v0=v0)
-    return _finish(source, path, kind, model, q0, v0, doc, options, case, name=name,
+        case = replace(loaded.case, chain=model, q0=q0, v0=v0)
+    return _finish(source, path, kind.name, model, q0, v0, doc, options, case, name=name,
                    description=str(head.get("description", "")), model_file=mfile,
                    damping=float(damping))
 
@@ -497,11 +421,12 @@ def _vector(source, name, value, n) -> np.ndarray:
     return a
 
 
-def _initial(source: str, model: Model, idoc: dict, linkage) -> tuple[np.ndarray, np.ndarray]:
+def _initial(source: str, model: Model, idoc: dict, loaded: Loaded
+             ) -> tuple[np.ndarray, np.ndarray]:
     """(q0, v0) from the [initial] table (module docstring), checked: lengths, finiteness,
-    unit quaternions; a linkage's q0 its file's (assembled), and its v0 given or made from
-    ``driver_v`` (:func:`_driver_velocity`)."""
-    linkage_q0 = None if linkage is None else linkage.q0
+    unit quaternions; a linkage's q0 its file's (assembled: ``loaded.q0``), and its v0 given or
+    made from ``driver_v`` (:func:`_driver_velocity`)."""
+    linkage_q0 = loaded.q0
     posture = idoc.get("posture", "file")
     if posture not in ("file", "neutral"):
         raise CaseError(source, "initial.posture", posture, "choose 'file' (the model file's "
@@ -519,7 +444,7 @@ def _initial(source: str, model: Model, idoc: dict, linkage) -> tuple[np.ndarray
         if "v" in idoc:
             raise CaseError(source, "initial.driver_v", idoc["driver_v"], "give v or driver_v, "
                             "not both")
-        v0 = _driver_velocity(source, model, linkage, q0, idoc["driver_v"])
+        v0 = _driver_velocity(source, model, loaded.driver, q0, idoc["driver_v"])
     elif isinstance(v, int | float) and not isinstance(v, bool) and v == 0:
         v0 = np.zeros(model.n_v)
     else:
@@ -556,7 +481,7 @@ def _initial(source: str, model: Model, idoc: dict, linkage) -> tuple[np.ndarray
     return q0, v0
 
 
-def _driver_velocity(source: str, model: Model, linkage, q0, w) -> np.ndarray:
+def _driver_velocity(source: str, model: Model, driver: int | None, q0, w) -> np.ndarray:
     """The velocities of a linkage's joints with its driver at ``w`` [rad/s, or m/s] and the
     loops kept (J v = 0): the least-squares solution of [J; e_driver] v = [0; w], exact for a
     mechanism the driver moves on its own (one degree of freedom); refused where the driver
@@ -564,13 +489,13 @@ def _driver_velocity(source: str, model: Model, linkage, q0, w) -> np.ndarray:
     from redysim.algorithms.loops import ClosedLoops
 
     where = "initial.driver_v"
-    if linkage is None or linkage.driver is None:
+    if driver is None:
         raise CaseError(source, where, w, "needs a linkage file with an [initial] driver")
     if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w):
         raise CaseError(source, where, w, "must be a finite number (the driver's velocity)")
     J = ClosedLoops(model, source=source).evaluate(q0, np.zeros(model.n_v))[1]
     e = np.zeros(model.n_v)
-    e[linkage.driver] = 1.0
+    e[driver] = 1.0
     A = np.vstack((J, e))
     b = np.zeros(A.shape[0])
     b[-1] = w
