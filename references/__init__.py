@@ -4,8 +4,8 @@ One adapter class per engine, registered under its name in :data:`ENGINES` (Pino
 times: ``pinocchio-aba``, ``pinocchio-aba-ryrz`` and ``pinocchio-crba``, one construction with
 two U-joint models and two algorithms), every one with the shape of
 :class:`redysim.references.base.Engine`: built from a :class:`redysim.Model` (a kinematic tree,
-fixed or floating base; a :class:`redysim.Case` or :class:`redysim.Chain` is converted at the door,
-``Model.from_chain``), it answers ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``position``
+fixed or floating base; a :class:`redysim.Chain` is one, a :class:`redysim.Case` gives its
+chain), it answers ``qdd``, ``mass_matrix``, ``bias``, ``energy``, ``position``
 (``tip``), ``simulate``, ``version`` and ``limits`` in the core's names, units and coordinates,
 a free joint's included. Every adapter builds every joint the core can express (R and P
 about/along any axis, U, S, free), from the per-body elementary axes of :func:`joint_axes`.
@@ -61,8 +61,8 @@ ENGINES: dict[str, type[Engine]] = {
 
 def get(name: str) -> type[Engine]:
     """The adapter class registered under ``name`` (see :data:`ENGINES`): build it from a
-    :class:`redysim.Model`, the one input (a Case or Chain is converted with
-    ``Model.from_chain``). Raises KeyError listing the known names."""
+    :class:`redysim.Model`, the one input (a Chain is one; a Case gives its chain). Raises
+    KeyError listing the known names."""
     try:
         return ENGINES[name]
     except KeyError:

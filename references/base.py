@@ -2,7 +2,7 @@
 
 Each engine has ONE adapter class (a subclass of :class:`Engine`), built from a
 :class:`redysim.Model`, the one input: a kinematic tree, fixed or floating base; a serial chain
-is its Model (``Model.from_chain``: the chain's numbers bit for bit). A :class:`redysim.Case`
+is a Model (a :class:`redysim.Chain` is one). A :class:`redysim.Case`
 (its chain) or a :class:`redysim.Chain` handed to an adapter, ``cls(x)`` or ``cls.limits(x)``,
 is converted at the door by :func:`as_model`, the one place that does it.
 
@@ -17,7 +17,7 @@ core runs, and it answers in the core's names, units and coordinates:
 ``bias(q, v)``             phi with tau = 0: -(C(q, v) v + gravity terms), as ``redysim.phi``
 ``energy(q, v)``           (T, V) in J; V = -sum m_k g . r_Ck (zero with every COM at the origin)
 ``position(q, frame)``     world position (3,) [m] of a frame of ``model.frames``
-``tip(q)``                 ``position(q, "tip")``: a chain's distal end (``Model.from_chain``)
+``tip(q)``                 ``position(q, "tip")``: a chain's distal end (its frame ``tip``)
 ``simulate(q0, v0, ...)``  the engine's own integrator -> :class:`Trajectory`; ``sim_reset``,
                            ``step_once``/``sim_advance``, ``sim_state``: the same, step by step;
                            ``integrators``: its integrators by name (:class:`NativeIntegrator`,
@@ -54,7 +54,7 @@ there). So an R joint about -z gives the axis (0, 0, -1), never +z; U = R about 
 the rotated z; S = the U axes, then R about the body's own x; a free joint has no axes (each
 engine has its own free joint). Every engine builds the axes one after the other, each axis's
 frame at the previous one's (see each module's docstring for how); a chain's link k hangs from
-link k - 1 at l_{k-1} along its x axis, the placement ``Model.from_chain`` gives it.
+link k - 1 at l_{k-1} along its x axis, the placement a Chain gives it.
 
 ``limits`` decides before anything is built, from the model's size and the measured limits of
 ``references/limits.toml`` (how each was measured is written there; DOF = n_v, links = bodies,
@@ -270,8 +270,8 @@ def as_model(system: Model | Case | Chain) -> Model:
         system = system.chain
     if isinstance(system, Model):  # a Chain is one
         return system
-    raise TypeError(f"expected a redysim Model (or a Case or Chain, converted by "
-                    f"Model.from_chain), got {type(system).__name__}")
+    raise TypeError(f"expected a redysim Model (a Chain is one), or a Case, got "
+                    f"{type(system).__name__}")
 
 
 # --------------------------------------------------------------------------- joints
@@ -702,7 +702,7 @@ class Engine(EnginePackage):
                         dtype=float)
 
     def tip(self, q) -> np.ndarray:
-        """World position (3,) of the frame "tip" (a chain's distal end: ``Model.from_chain``)."""
+        """World position (3,) of the frame "tip" (a chain's distal end)."""
         return self.position(q, "tip")
 
     def stepper(self, name: str | None = None, *, h: float | None = None,

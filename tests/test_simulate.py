@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_chain, random_state, stable_seed
+from conftest import stable_seed
 from test_trees import random_configuration, random_tree, robot_urdf
 
-from redysim import Model
 from redysim.errors import SettingsError, StateError
 from redysim.harness.cli import main
 from redysim.simulation import simulate
@@ -50,16 +49,6 @@ def test_a_floating_tree_falls_freely_with_every_integrator(integrator):
         and sim.quaternion_error < 1e-6
     assert _parabola_error(sim, model.gravity) < 1e-8
     assert np.abs(sim.delta_M).max() < 1e-6
-
-
-def test_a_chain_and_its_model_simulate_alike_bit_for_bit():
-    rng = np.random.default_rng(stable_seed("sim-chain"))
-    chain = random_chain(rng, 6, ("R", "U", "S"))
-    q0, v0, _ = random_state(rng, chain, "gentle")
-    a = simulate(chain, 0.2, q0=q0, v0=v0)
-    b = simulate(Model.from_chain(chain), 0.2, q0=q0, v0=v0)
-    assert a.steps == b.steps and np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v)
-    assert np.array_equal(a.energy, b.energy)
 
 
 def test_bad_settings_and_states_are_refused():

@@ -39,12 +39,11 @@ MIXES = [("R",), ("U",), ("S",), ("P",), ("R", "U", "S", "P")]
 @pytest.mark.parametrize("mix", MIXES, ids="".join)
 @pytest.mark.parametrize("n_links", [1, 2, 10, 40])
 def test_the_tree_recursions_on_a_chain_are_the_chain_kernels(mix, n_links):
-    """qdd, tau, GIM, energy and tip of Model.from_chain(chain) by the reference recursions
-    equal the chain's compiled kernels: to 1e-12 relative where cond2 < 1e3, else within
-    cond2 x 10 eps (near-singular S chains)."""
+    """qdd, tau, GIM, energy and tip of a chain by the tree's reference recursions
+    (redysim.rbda) equal the chain's compiled kernels, which it runs as a serial tree: to 1e-12
+    relative where cond2 < 1e3, else within cond2 x 10 eps (near-singular S chains)."""
     rng = np.random.default_rng(stable_seed("tree-chain", mix, n_links))
-    chain = random_chain(rng, n_links, mix)
-    model = Model.from_chain(chain)
+    chain = model = random_chain(rng, n_links, mix)
     q, qd, tau = random_state(rng, chain, "wide")
     gim = mass_matrix(chain, q)
     tol = max(1e-12, 10 * np.linalg.cond(gim) * np.finfo(float).eps)
@@ -58,6 +57,7 @@ def test_the_tree_recursions_on_a_chain_are_the_chain_kernels(mix, n_links):
     assert np.allclose(rbda.frame_position(model, q, "tip"), tip(chain, q, qd).position,
                        rtol=0, atol=1e-13)
     assert model.is_chain and model.n_q == model.n_v == chain.n_dof
+    assert Workspace(chain).tree.serial == 1  # the kernels then read no tree table
 
 
 # --------------------------------------------------------------------------- random trees
@@ -181,18 +181,6 @@ def test_a_quaternion_off_the_unit_sphere_is_normalised():
     scaled = q.copy()
     scaled[model.quaternions[0]:model.quaternions[0] + 4] *= 1.0 + 1e-6
     assert rel(forward_dynamics(model, scaled, v), forward_dynamics(model, q, v)) < 1e-13
-
-
-@pytest.mark.parametrize("mix", MIXES, ids="".join)
-def test_a_chain_as_a_model_runs_the_chains_code_bit_for_bit(mix):
-    """Model.from_chain(chain) is serial: the same compiled code, the same bits as the Chain."""
-    rng = np.random.default_rng(stable_seed("serial-model", mix))
-    chain = random_chain(rng, 12, mix)
-    model = Model.from_chain(chain)
-    q, qd, tau = random_state(rng, chain, "wide")
-    assert Workspace(model).tree.serial == 1
-    assert np.array_equal(forward_dynamics(model, q, qd, tau), forward_dynamics(chain, q, qd, tau))
-    assert np.array_equal(mass_matrix(model, q), mass_matrix(chain, q))
 
 
 def test_a_fixed_joint_is_fused_as_a_locked_one():

@@ -270,7 +270,7 @@ class CaseKind(FileKind):
             raise ModelFileError(str(path), "floating", True, "a rope case's first joint is fixed "
                                  "to the world and the file gives no base body to float: load "
                                  "without floating=True")
-        return Model.from_chain(load_case(path).chain)
+        return load_case(path).chain
 
     def load(self, path, options, *, source) -> Loaded:
         self.check_options(source, options)

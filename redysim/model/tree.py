@@ -16,9 +16,8 @@ each in the frame the axes before it leave) and two more:
   velocity in the world frame and the body's angular velocity in its own frame (n_v = 6): the
   convention of MuJoCo's free joint. dq/dt = (v_world, q (x) [0; w_body] / 2).
 
-Everything a chain is, a tree is: :meth:`Model.from_chain` gives the tree of a
-:class:`~redysim.model.tree.Chain` (parent k - 1, each joint placed at the parent's length along its
-x axis), with the same numbers.
+Everything a chain is, a tree is: a :class:`~redysim.model.tree.Chain` is a Model (parent k - 1,
+each joint placed at the parent's length along its x axis).
 
 Per-DOF tables follow the chain's (``dof_kind``, ``dof_axis``, ``dof_u``) over the n_v velocity
 coordinates, with a third kind, ``BALL`` (the three rotational DOF of a free joint, about the
@@ -169,8 +168,8 @@ def _combine(m1, c1, I1, m2, c2, I2):
 
 @dataclass(frozen=True, eq=False)
 class Model:
-    """An immutable kinematic tree. Build it with :meth:`Model.build` (or from a chain with
-    :meth:`Model.from_chain`, from a file with :func:`redysim.load_model`).
+    """An immutable kinematic tree. Build it with :meth:`Model.build` (a chain with
+    :meth:`Chain.build` or :meth:`Chain.uniform`, from a file with :func:`redysim.load_model`).
 
     Attributes (nb bodies, n_v velocity and n_q configuration coordinates):
         name:             a label.
@@ -375,17 +374,6 @@ class Model:
             inertia_O=_readonly(I_O), mass_com=_readonly(m[:, None] * c),
             gravity=_readonly(check_vector(source, "gravity", gravity, 3)),
             frames=kept_frames)
-
-    @classmethod
-    def from_chain(cls, chain: Model) -> Model:
-        """The model of a serial chain: a :class:`Chain` already is one (body k is link k,
-        hanging from link k - 1 by joint k, placed at l_{k-1} along the parent's x; the frame
-        ``tip`` is the last link's distal end), so this returns it; kept for callers that
-        spelled the conversion out."""
-        if not isinstance(chain, Model):
-            raise CaseError("Model.from_chain", "chain", type(chain).__name__,
-                            "must be a redysim.Chain (a Model)")
-        return chain
 
     def with_cuts(self, cuts: Sequence, *, source: str | None = None) -> Model:
         """The model with these cut joints (:class:`CutJoint`: each keeps a point
