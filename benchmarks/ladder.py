@@ -254,7 +254,7 @@ def second_rows(label: str, scenario: str, out: Path, tol: float, log=print) -> 
     from redysim.reports.compare import label as run_label
 
     scn = load_scenario(scenario)
-    sample = min(scn.sample_interval or T_END / 20, T_END)
+    sample = scn.sample_for(T_END)
     names = engine_names(scn.model)
     specs = plan(scenario, scn, options={}, t_end=T_END, sample=sample, engines=names)
     log(f"ladder: {label}: {len(specs)} runs over {T_END:g} s (cached in {out})")

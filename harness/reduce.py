@@ -172,7 +172,7 @@ def reductions(scenario: str, tol: float, out: str | Path, *, frame: str | None 
                             f"; bodies: {', '.join(model.body_names[:12])}"
                             + (", ..." if model.n_bodies > 12 else ""))
     horizon = float(t_end or scn.t_end)
-    sample = min(scn.sample_interval or horizon / 20, horizon)
+    sample = scn.sample_for(horizon)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runner = _Runner(scn, scenario, frame, horizon, sample, out)

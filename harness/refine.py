@@ -520,7 +520,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     if isinstance(tol, bool) or not isinstance(tol, int | float) or not (
             tol > 0 and math.isfinite(tol)):
         raise SettingsError("advise", "--tip-tol", _shown(tol), "must be a tip distance > 0 [m]")
-    from redysim.io.cases import case_path
+    from redysim.io.cases import FILE_SAMPLES, case_path
 
     path = str(case_path(case_file))
     case = load_case(path)
@@ -531,7 +531,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
                             "link lumps the same number of fine ones, so the count needs a "
                             "divisor between 2 and itself)")
     horizon = float(t_end or case.t_end)
-    sample = min(case.sample_interval or horizon / 20, horizon)
+    sample = min(case.sample_interval or horizon / FILE_SAMPLES, horizon)
     base = dict(case=path, t_end=horizon, sample=sample)
     ref_spec = RunSpec(**base, integrator=OWN_REFERENCE[0], rtol=OWN_REFERENCE[1],
                        atol=OWN_REFERENCE[1] * 1e-2)

@@ -24,7 +24,6 @@ from redysim.algorithms.methods import METHODS as CORE_METHODS
 from redysim.errors import SettingsError
 from redysim.integrators.explicit import FIXED_STEP, canonical, check_settings
 from redysim.io.scenarios import (
-    DEFAULT_SAMPLES,
     MODEL_OPTIONS,
     Scenario,
     digest_of,
@@ -204,8 +203,7 @@ class RunSpec:
                                     f"{', '.join('native:' + n for n in own) or 'none'}")
         stepped = self.stepped(integrator)
         t_end = self.t_end or scn.t_end
-        sample = self.sample or (min(scn.sample_interval, t_end) if scn.sample_interval else
-                                 t_end / DEFAULT_SAMPLES)
+        sample = self.sample or scn.sample_for(t_end)
         if stepped:
             if self.rtol or self.atol:
                 key = "rtol" if self.rtol else "atol"

@@ -340,7 +340,7 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
     options = options or {}
     scn = load_scenario(target, options=options)
     horizon = t_end or scn.t_end
-    sample = min(scn.sample_interval or horizon / 20, horizon)
+    sample = scn.sample_for(horizon)
     log(f"compare: {scn.name}: single-state agreement in every engine")
     agree = (loop_agreement(scn.name, scn.model, scn.q0) if scn.model.cuts
              else agreement(scn.name, scn.model))

@@ -113,9 +113,10 @@ def momentum_drift(samples: pd.DataFrame | None) -> float:
 
 
 def case_sample_interval(case: str) -> float:
-    """A case's own sample interval [s] (its file's, else t_end / 20, as a run takes it)."""
+    """A case's own sample interval [s] (its file's, else t_end / FILE_SAMPLES, as a run takes
+    it)."""
     scn = _case(case)
-    return scn.sample_interval or scn.t_end / 20
+    return scn.sample_for(scn.t_end)
 
 
 class Results:

@@ -44,7 +44,9 @@ from redysim.model.tree import Chain
 CASES_DIR = Path(os.environ.get("REDYSIM_CASES") or str(resources.files("redysim.case_files")))
 PUBLISHED = Path(str(resources.files("redysim.paper"))) / "published.toml"
 MAX_LINKS = 2_000_000  # 100,000-DOF cases are 50,000 links; 2e6 links is ~2 GB of workspace
-DEFAULT_SAMPLES = 20  # samples over the horizon when the case gives no sample_interval
+# samples over a file's horizon when it gives no sample_interval (a run of redysim.simulate,
+# with no file: redysim.simulation.DEFAULT_SAMPLES)
+FILE_SAMPLES = 20
 # A revolute joint's angle [rad] beyond which float64 resolves it no better than ~1e-10 rad
 # (spacing(1e6) = 1.2e-10): larger initial angles are a unit slip, and at 1e16 an angle no
 # longer moves under a step (the run then ends "ok" with the chain frozen).
@@ -680,7 +682,7 @@ def case_from_dict(doc: dict, *, source: str = "<dict>", path: Path | None = Non
                 rtol=float(sim.get("rtol", DEFAULT_RTOL)),
                 atol=float(sim.get("atol", DEFAULT_ATOL)),
                 h=float(sim["h"]) if "h" in sim else None,
-                sample_interval=min(float(sim.get("sample_interval", t_end / DEFAULT_SAMPLES)),
+                sample_interval=min(float(sim.get("sample_interval", t_end / FILE_SAMPLES)),
                                     t_end),
                 digest=digest, tip_force=tip_force)
 

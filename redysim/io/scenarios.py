@@ -68,14 +68,13 @@ from redysim.integrators.explicit import (
     canonical,
     check_settings,
 )
-from redysim.io.cases import CASES_DIR, Case, is_case_name, read_toml
+from redysim.io.cases import CASES_DIR, FILE_SAMPLES, Case, is_case_name, read_toml
 from redysim.io.kinds import KINDS, Loaded, ScenarioKind, by_suffix, either, kind_of
 from redysim.model.tree import FREE, Model
 
 SCENARIOS_DIR = Path(CASES_DIR) / "scenarios"
 ROBOT_DATA = "example-robot-data:"  # a model file of the example-robot-data package
 DEFAULT_T_END = 1.0  # s: a model file's own scenario
-DEFAULT_SAMPLES = 20
 QUATERNION_TOL = 1e-6
 _FIELDS = {
     "scenario": {"name", "description"},
@@ -114,7 +113,7 @@ class Scenario:
     rtol: float = DEFAULT_RTOL
     atol: float = DEFAULT_ATOL
     h: float | None = None
-    sample_interval: float = 0.0  # 0: the run's horizon / DEFAULT_SAMPLES
+    sample_interval: float = 0.0  # 0: the run's horizon / FILE_SAMPLES (sample_for)
     description: str = ""
     digest: str = ""
     case: Case | None = None
@@ -158,7 +157,7 @@ class Scenario:
         integrator = settings.pop("integrator", None) or self.integrator
         same = integrator == self.integrator
         t_end = t_end or self.t_end
-        defaults: dict[str, Any] = {"sample": self.sample_interval or t_end / DEFAULT_SAMPLES}
+        defaults: dict[str, Any] = {"sample": self.sample_for(t_end)}
         if not hasattr(integrator, "solver"):  # a name, not a stepper
             defaults.update(rtol=self.rtol if same else DEFAULT_RTOL,
                             atol=self.atol if same else DEFAULT_ATOL, h=self.h if same else None)
@@ -168,6 +167,11 @@ class Scenario:
         return simulator(self.model, t_end,
                          q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
                          integrator=integrator, source=str(self.path or self.name), **settings)
+
+    def sample_for(self, horizon: float) -> float:
+        """The sample interval [s] of a run of this scenario to ``horizon``: its file's, else
+        horizon / FILE_SAMPLES, at most the horizon."""
+        return min(self.sample_interval or horizon / FILE_SAMPLES, horizon)
 
     @classmethod
     def from_case(cls, case: Case) -> Scenario:
