@@ -37,7 +37,7 @@ from redysim.integrators.explicit import (
 )
 from redysim.model.parts import Joint, Link, check_inertia, check_positive, check_vector
 from redysim.model.shapes import catenary_angles
-from redysim.model.tree import Chain
+from redysim.model.tree import Chain, Model
 
 # The case files and the paper's numbers ship as package data (the repository's cases/ and paper/
 # folders, installed as redysim.case_files and redysim.paper); REDYSIM_CASES points elsewhere.
@@ -138,25 +138,37 @@ class Case:
         ``settings``: the keywords of :func:`redysim.simulation.simulator` (``observe``,
         ``qdd``, ``keep_states``, ...; an ``integrator`` given as an object, an engine's own
         stepper, takes its own settings)."""
-        from redysim.simulation import simulator
-
-        integrator = settings.pop("integrator", None) or self.integrator
-        same = integrator == self.integrator
-        defaults: dict[str, Any] = {"sample": self.sample_interval or None}
-        if not hasattr(integrator, "solver"):  # a name, not a stepper
-            defaults.update(rtol=self.rtol if same else DEFAULT_RTOL,
-                            atol=self.atol if same else DEFAULT_ATOL, h=self.h if same else None)
-        for key, value in defaults.items():
-            if settings.get(key) is None:
-                settings[key] = value
         if self.tip_force is not None:  # (a tau given adds to it)
             settings.setdefault("tip_force", self.tip_force)
-        return simulator(self.chain, t_end or self.t_end,
-                         q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
-                         integrator=integrator, source=str(self.path), **settings)
+        return file_simulator(self, self.chain, t_end or self.t_end, self.sample_interval or None,
+                              q0=self.q0 if q0 is None else q0,
+                              v0=self.v0 if v0 is None else v0, source=str(self.path),
+                              settings=settings)
 
     def __repr__(self) -> str:
         return f"Case({self.name!r}, {self.chain!r}, t_end={self.t_end})"
+
+
+def file_simulator(own, model: Model, t_end: float, sample: float | None, *, q0, v0,
+                   source: str, settings: dict):
+    """A :class:`redysim.simulation.Simulator` of a case or scenario file's run: ``own`` the
+    file's run settings (its ``integrator``, ``rtol``, ``atol``, ``h``), taken where
+    ``settings`` (the keywords of :func:`redysim.simulation.simulator`) give none; another
+    integrator named takes the defaults (an integrator given as an object, an engine's own
+    stepper, takes its own settings)."""
+    from redysim.simulation import simulator
+
+    integrator = settings.pop("integrator", None) or own.integrator
+    same = integrator == own.integrator
+    defaults: dict[str, Any] = {"sample": sample}
+    if not hasattr(integrator, "solver"):  # a name, not a stepper
+        defaults.update(rtol=own.rtol if same else DEFAULT_RTOL,
+                        atol=own.atol if same else DEFAULT_ATOL, h=own.h if same else None)
+    for key, value in defaults.items():
+        if settings.get(key) is None:
+            settings[key] = value
+    return simulator(model, t_end, q0=q0, v0=v0, integrator=integrator, source=source,
+                     **settings)
 
 
 def load_published(path: Path = PUBLISHED) -> dict[str, Any]:

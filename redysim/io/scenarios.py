@@ -68,7 +68,14 @@ from redysim.integrators.explicit import (
     canonical,
     check_settings,
 )
-from redysim.io.cases import CASES_DIR, FILE_SAMPLES, Case, is_case_name, read_toml
+from redysim.io.cases import (
+    CASES_DIR,
+    FILE_SAMPLES,
+    Case,
+    file_simulator,
+    is_case_name,
+    read_toml,
+)
 from redysim.io.kinds import KINDS, Loaded, ScenarioKind, by_suffix, either, kind_of
 from redysim.model.tree import FREE, Model
 
@@ -152,21 +159,11 @@ class Scenario:
         if self.case is not None:  # its tip force and settings: the case's
             return self.case.simulator(t_end, q0=self.q0 if q0 is None else q0,
                                        v0=self.v0 if v0 is None else v0, **settings)
-        from redysim.simulation import simulator
-
-        integrator = settings.pop("integrator", None) or self.integrator
-        same = integrator == self.integrator
         t_end = t_end or self.t_end
-        defaults: dict[str, Any] = {"sample": self.sample_for(t_end)}
-        if not hasattr(integrator, "solver"):  # a name, not a stepper
-            defaults.update(rtol=self.rtol if same else DEFAULT_RTOL,
-                            atol=self.atol if same else DEFAULT_ATOL, h=self.h if same else None)
-        for key, value in defaults.items():
-            if settings.get(key) is None:
-                settings[key] = value
-        return simulator(self.model, t_end,
-                         q0=self.q0 if q0 is None else q0, v0=self.v0 if v0 is None else v0,
-                         integrator=integrator, source=str(self.path or self.name), **settings)
+        return file_simulator(self, self.model, t_end, self.sample_for(t_end),
+                              q0=self.q0 if q0 is None else q0,
+                              v0=self.v0 if v0 is None else v0,
+                              source=str(self.path or self.name), settings=settings)
 
     def sample_for(self, horizon: float) -> float:
         """The sample interval [s] of a run of this scenario to ``horizon``: its file's, else
