@@ -52,8 +52,8 @@ DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
 NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
 BATCH_SETTINGS = ("integrator", "rtol", "atol", "h", "sample", "damping", "max_cpu_s")
 # simulator()'s keywords, by what takes them
-SYSTEM_SETTINGS = ("damping", "stiffness", "spring_ref", "tip_force", "tau", "potential", "loops",
-                   "qdd", "method")
+SYSTEM_SETTINGS = ("damping", "stiffness", "spring_ref", "tip_force", "body_forces", "gravcomp",
+                   "tau", "potential", "loops", "qdd", "method")
 INTEGRATOR_SETTINGS = ("rtol", "atol", "h", "compiled")
 
 
@@ -504,7 +504,8 @@ def simulator(model: Model, t_end: float, *, q0=None, v0=None,
               **settings) -> Simulator:
     """A :class:`Simulator` from plain keywords, as case and scenario files and the harness give
     them: :class:`~redysim.algorithms.system.System`'s (``damping``, ``stiffness``,
-    ``spring_ref``, ``tip_force``, ``tau``, ``potential``, ``loops``, ``qdd``, ``method``),
+    ``spring_ref``, ``tip_force``, ``body_forces``, ``gravcomp``, ``tau``, ``potential``,
+    ``loops``, ``qdd``, ``method``),
     :class:`Integrator`'s (``rtol``, ``atol``, ``h``, ``compiled``, with ``integrator`` its
     name) and the Simulator's own. An integrator given as an object takes none of rtol, atol, h
     and compiled. Unknown keywords raise TypeError naming them."""

@@ -85,3 +85,63 @@ def test_a_systems_bad_settings_are_named():
         System(floating, stiffness=1.0)
     with pytest.raises(SettingsError, match="tip_force = .*is a tree"):
         System(random_tree(3, free=False), tip_force=[1.0, 0.0, 0.0])
+
+
+def test_gravity_compensation_holds_up_the_weight_it_is_given():
+    """gravcomp = 1 on every body of a floating robot cancels gravity: at rest it stays at rest;
+    gravcomp = 0.5 gives the accelerations of the same robot under half gravity (an independent
+    model: its gravity halved), on a fixed-base tree too."""
+    for free in (True, False):
+        model = random_tree(stable_seed("gravcomp", free), n_bodies=7, free=free, fixed=1)
+        rng = np.random.default_rng(23)
+        q = random_configuration(rng, model)
+        rest = np.zeros(model.n_v)
+        held = System(model, gravcomp=1.0).qdd(0.0, q, rest)
+        assert np.abs(held).max() < 1e-12 * max(1.0, np.abs(System(model).qdd(0.0, q, rest)).max())
+        half = dataclasses.replace(model, gravity=0.5 * np.asarray(model.gravity))
+        v = rng.normal(size=model.n_v)
+        want = System(half).qdd(0.0, q, v)
+        got = System(model, gravcomp=0.5).qdd(0.0, q, v)
+        assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+
+
+def test_a_body_force_is_its_points_jacobian_transposed():
+    """Constant world forces at points of bodies: tau = sum_i J_i^T f_i, J_i the point's
+    Jacobian by central differences of its world position (a fixed-base tree: v is dq/dt); the
+    energy counts -f . p, so a run keeps E (compiled and Python stepping in the same bits)."""
+    model = random_tree(stable_seed("body-forces"), n_bodies=6, free=False, fixed=1)
+    rng = np.random.default_rng(29)
+    q = random_configuration(rng, model)
+    names = list(model.body_names)
+    forces = [(names[2], rng.normal(size=3), rng.normal(size=3) * 0.2),
+              (names[-1], rng.normal(size=3), np.zeros(3)),
+              (names[-1], rng.normal(size=3), rng.normal(size=3) * 0.1)]
+    system = System(model, body_forces=forces)
+    ws = system.ws
+
+    def position(qq, body, point):
+        from redysim import energy
+
+        energy(model, qq, np.zeros(model.n_v), ws=ws)  # (its kinematics pass)
+        return ws.oO[body] + ws.oR[body] @ point
+
+    want = np.zeros(model.n_v)
+    for name, f, x in forces:
+        b = names.index(name)
+        J = np.empty((3, model.n_v))
+        for j in range(model.n_v):
+            d = np.zeros(model.n_q)
+            d[j] = 1e-6
+            J[:, j] = (position(q + d, b, x) - position(q - d, b, x)) / 2e-6
+        want += J.T @ f
+    got = system.forces(0.0, q, np.zeros(model.n_v))
+    assert np.abs(got - want).max() < 1e-8 * np.abs(want).max()
+    a, _ = _compiled_and_python_runs(model, 0.3, q0=q, integrator="dop853", rtol=1e-10,
+                                     atol=1e-12, body_forces=forces)
+    assert np.abs(a.delta_M).max() < 1e-8
+    with pytest.raises(SettingsError, match=r"body_forces\[0\] = 'nowhere': no such body"):
+        System(model, body_forces=[("nowhere", [0, 0, 1], [0, 0, 0])])
+    with pytest.raises(SettingsError, match=r"body_forces\[0\].force = .*3 finite numbers"):
+        System(model, body_forces=[(names[1], [0, 1], [0, 0, 0])])
+    with pytest.raises(SettingsError, match=r"gravcomp = 'arm': no such body"):
+        System(model, gravcomp={"arm": 1.0})

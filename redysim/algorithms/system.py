@@ -49,8 +49,13 @@ class System:
     ``spring_ref`` (the rest positions, default zeros): joint springs, torque -stiffness (q -
     spring_ref) [N m / rad], on joints whose coordinates are their velocities' (not a free
     joint's). ``tip_force``: a constant world force [N] (3,) at a chain's tip (its torques J^T F;
-    its potential -F . p_tip counted in the energy). ``tau(t, q, v) -> (n_v,)``: generalized
-    forces of the caller's, with ``potential(q)`` their potential energy [J] when they have one.
+    its potential -F . p_tip counted in the energy). ``body_forces``: constant world forces at
+    points of bodies, each ``(body name, force (3,) [N], point (3,) [m] in the body's frame)``;
+    ``gravcomp``: gravity compensation, the fraction of each body's weight held up at its centre
+    of mass (a number, one per body, or body name -> fraction; MuJoCo's body ``gravcomp``): both
+    are constant forces, their potentials counted in the energy. ``tau(t, q, v) -> (n_v,)``:
+    generalized forces of the caller's, with ``potential(q)`` their potential energy [J] when
+    they have one.
     ``loops``: a :class:`redysim.algorithms.loops.ClosedLoops` of the model (by default, a model
     with cut joints gets its own). ``qdd(q, v, tau) -> (n_v,)``: the accelerations' provider
     instead of the core's forward dynamics by ``method`` ("rge-a", "ge-n", "rge-n"); with loops,
@@ -60,8 +65,8 @@ class System:
     """
 
     def __init__(self, model: Model, *, damping=0.0, stiffness=None, spring_ref=None,
-                 tip_force=None, tau=None, potential=None, loops=None, qdd=None,
-                 method: str = "rge-a", source: str = "simulate"):
+                 tip_force=None, body_forces=(), gravcomp=None, tau=None, potential=None,
+                 loops=None, qdd=None, method: str = "rge-a", source: str = "simulate"):
         if not isinstance(model, Model):
             raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
                             f"{type(model).__name__}")
@@ -85,6 +90,7 @@ class System:
         self.spring_ref = np.zeros(self.n_v) if spring_ref is None else _vector(
             source, "spring_ref", spring_ref, self.n_v)
         self.tip_force = _tip_force(source, model, tip_force)
+        self.body, self.force, self.point = _body_forces(source, model, body_forces, gravcomp)
         self.ws = Workspace(model)  # the derivative's, and between steps the samples'
         self._layout_free_joints()
         if (self._q_of_v[self.stiffness > 0] < 0).any():
@@ -138,6 +144,8 @@ class System:
             -self.stiffness if springs else empty,
             self.spring_ref.copy() if springs else empty,
             self._q_of_v.copy() if springs else np.zeros(0, dtype=np.int64),
+            self.body, self.force, self.point,
+            np.zeros((m.n_bodies if self.body.size else 0, 6)), np.zeros(3),
             self.plain_q, self.plain_v, self.free_q, self.free_v, self.worst)
 
     def _extras(self) -> K.Extras | None:
@@ -160,7 +168,7 @@ class System:
         return [name for name, on in (
             ("tau", self.tau is not None), ("damping", self.damping.any()),
             ("stiffness", self.stiffness.any()), ("tip_force", self.tip_force is not None),
-            ("loops", self.loops is not None)) if on]
+            ("body_forces", self.body.size > 0), ("loops", self.loops is not None)) if on]
 
     # ----------------------------------------------------------------------- the contract
     def derivative(self, t: float, y: np.ndarray, out: np.ndarray) -> None:
@@ -202,7 +210,7 @@ class System:
         there are none."""
         d = self.data
         own = None
-        if d.tip.size or d.damping.size or d.stiffness.size:
+        if d.tip.size or d.damping.size or d.stiffness.size or d.body.size:
             own = np.empty(self.n_v)
             K.generalized_forces(d, self.extras, t, np.ascontiguousarray(q, dtype=float),
                                  np.ascontiguousarray(v, dtype=float), own)
@@ -262,6 +270,9 @@ class System:
             E += tip_force_potential(self.model, q, self.tip_force, ws=ws)
         if self.potential is not None:
             E += self.potential(q)
+        if self.body.size:  # -f . p of each constant force, p from the same kinematics pass
+            p = ws.oO[self.body] + np.einsum("kij,kj->ki", ws.oR[self.body], self.point)
+            E -= float(np.sum(self.force * p))
         if self.stiffness.any():
             dq = np.asarray(q)[self._q_of_v] - self.spring_ref
             E += 0.5 * float(np.sum(self.stiffness * dq * dq))
@@ -319,8 +330,9 @@ class System:
         return self._nearest[0], self._nearest[1]
 
 
-def _per_dof(source: str, name: str, value, n: int, meaning: str) -> np.ndarray:
-    """A number or one per velocity coordinate, each finite and >= 0, as (n,)."""
+def _per_dof(source: str, name: str, value, n: int, meaning: str,
+             per: str = "velocity coordinate") -> np.ndarray:
+    """A number or one per ``per`` (velocity coordinate), each finite and >= 0, as (n,)."""
     if isinstance(value, bool) or not isinstance(value, NUMBERS) and np.ndim(value) != 1:
         raise SettingsError(source, name, value, f"must be a finite number >= 0: {meaning}")
     if isinstance(value, NUMBERS):
@@ -328,13 +340,14 @@ def _per_dof(source: str, name: str, value, n: int, meaning: str) -> np.ndarray:
             raise SettingsError(source, name, float(value), f"must be a finite number >= 0: "
                                 f"{meaning}")
         return np.full(n, float(value))
-    arr = _vector(source, name, value, n)
+    arr = _vector(source, name, value, n, per)
     if not (arr >= 0).all():
         raise SettingsError(source, name, value, f"every entry must be >= 0: {meaning}")
     return arr
 
 
-def _vector(source: str, name: str, value, n: int) -> np.ndarray:
+def _vector(source: str, name: str, value, n: int, per: str = "velocity coordinate"
+            ) -> np.ndarray:
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -342,8 +355,51 @@ def _vector(source: str, name: str, value, n: int) -> np.ndarray:
     if isinstance(value, bool) or arr is None or arr.shape != (n,) or \
             not np.isfinite(arr).all():
         raise SettingsError(source, name, value, f"must be a number or {n} finite numbers, one "
-                            "per velocity coordinate")
+                            f"per {per}")
     return arr
+
+
+def _body_forces(source: str, model: Model, body_forces, gravcomp
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(bodies (m,), forces (m, 3), points (m, 3)) of the constant body forces: those given, then
+    each compensated body's -gravcomp m g at its centre of mass (SettingsError naming a bad
+    one)."""
+    names = list(model.body_names)
+    body, force, point = [], [], []
+    for i, item in enumerate(body_forces):
+        try:
+            name, f, x = item
+        except (TypeError, ValueError):
+            raise SettingsError(source, f"body_forces[{i}]", item, "must be (body name, force "
+                                "(3,) [N], point (3,) [m] in the body's frame)") from None
+        if name not in names:
+            raise SettingsError(source, f"body_forces[{i}]", name, f"no such body; "
+                                f"{model.name!r} has {', '.join(names[:12])}"
+                                + (", ..." if len(names) > 12 else ""))
+        body.append(names.index(name))
+        force.append(_vector(source, f"body_forces[{i}].force", f, 3, "axis"))
+        point.append(_vector(source, f"body_forces[{i}].point", x, 3, "axis"))
+    if gravcomp is not None:
+        if isinstance(gravcomp, dict):
+            unknown = [b for b in gravcomp if b not in names]
+            if unknown:
+                raise SettingsError(source, "gravcomp", unknown[0], f"no such body; "
+                                    f"{model.name!r} has {', '.join(names[:12])}"
+                                    + (", ..." if len(names) > 12 else ""))
+            factors = np.array([float(gravcomp.get(b, 0.0)) for b in names])
+        else:
+            factors = _per_dof(source, "gravcomp", gravcomp, model.n_bodies,
+                               "the fraction of a body's weight held up", per="body")
+        if not np.isfinite(factors).all():
+            raise SettingsError(source, "gravcomp", gravcomp, "must be finite")
+        mass = np.asarray(model.mass, dtype=float)
+        g = np.asarray(model.gravity, dtype=float)
+        for k in np.flatnonzero((factors != 0.0) & (mass > 0.0)):
+            body.append(int(k))
+            force.append(-factors[k] * mass[k] * g)
+            point.append(np.asarray(model.mass_com[k], dtype=float) / mass[k])
+    return (np.array(body, dtype=np.int64), np.array(force, dtype=float).reshape(-1, 3),
+            np.array(point, dtype=float).reshape(-1, 3))
 
 
 def _tip_force(source: str, model: Model, tip_force):

@@ -11,9 +11,9 @@ for y = (q, v): dq/dt = v, but a free joint's quaternion, which moves as q (x) [
 qdd(q, v, tau) from the tree's forward-dynamics entry (:mod:`.entry`: RGE-A, the planar or the DH
 kernel), with the loops closed (:mod:`.constraints`) and the couplings kept (Featherstone's
 method, :func:`couple_qdd`). The generalized forces tau are assembled in one place,
-:func:`generalized_forces`: a constant force at a chain's tip, viscous joint damping and joint
-springs. A new force is one term there; a new constraint one step in :func:`derivative` and
-:func:`project`.
+:func:`generalized_forces`: a constant force at a chain's tip, constant world forces at points
+of bodies (gravity compensation is one), viscous joint damping and joint springs. A new force is
+one term there; a new constraint one step in :func:`derivative` and :func:`project`.
 
 Two bundles: :class:`SystemData` (what every system has: the tree's packed arrays, the force
 terms, the free joints' slots) and :class:`Extras` (what only some have: couplings, loops, a
@@ -51,7 +51,10 @@ class SystemData(NamedTuple):
     force at a chain's tip (empty: none), ``length`` the chain's link lengths (nl,);
     ``damping`` (n_v,) minus each DOF's viscous coefficient (empty: none); ``stiffness`` (n_v,)
     minus each DOF's spring constant, ``spring_ref`` (n_v,) its rest position, ``spring_q`` its q
-    slot (all empty: no springs). Free joints: each one's q slot of x in ``free_q``, its v slot
+    slot (all empty: no springs); ``body`` (m,) the bodies that constant world forces ``force``
+    (m, 3) act on, at points ``point`` (m, 3) in the bodies' frames, ``wrench`` (nb, 6) their
+    work array (all empty: none); ``base0`` (3,) zeros, the base at rest for a position pass.
+    Free joints: each one's q slot of x in ``free_q``, its v slot
     of the linear velocity in ``free_v``; every other coordinate q[plain_q[i]] moves as
     v[plain_v[i]] (both empty without free joints: dq/dt = v). ``worst`` (3,): the largest
     | |quaternion| - 1 |, |loop or coupling residual in q| and |in v| met before a projection."""
@@ -69,6 +72,11 @@ class SystemData(NamedTuple):
     stiffness: np.ndarray
     spring_ref: np.ndarray
     spring_q: np.ndarray
+    body: np.ndarray
+    force: np.ndarray
+    point: np.ndarray
+    wrench: np.ndarray
+    base0: np.ndarray
     plain_q: np.ndarray
     plain_v: np.ndarray
     free_q: np.ndarray
@@ -130,9 +138,10 @@ class Extras(NamedTuple):
 @jit_borrowed
 def generalized_forces(sd, extras, t, q, v, tau):
     """The generalized forces at (t, q, v) into ``tau`` (n_v,), term after term: the tip force's
-    J^T F, the joints' damping, their springs; False (tau untouched) when the system has none.
-    The one place a force is written (module docstring)."""
-    if sd.tip.shape[0] == 0 and sd.damping.shape[0] == 0 and sd.stiffness.shape[0] == 0:
+    J^T F, the bodies' forces' J^T f, the joints' damping, their springs; False (tau untouched)
+    when the system has none. The one place a force is written (module docstring)."""
+    if sd.tip.shape[0] == 0 and sd.damping.shape[0] == 0 and sd.stiffness.shape[0] == 0 \
+            and sd.body.shape[0] == 0:
         return False
     first = True  # the first term assigns (so that a lone term's bits are its own)
     if sd.tip.shape[0] != 0:
@@ -141,6 +150,9 @@ def generalized_forces(sd, extras, t, q, v, tau):
                                 sd.length, q, sd.tip, tau)
         else:
             planar_tip_torques(sd.length, q, sd.tip, 0.0, v, tau)
+        first = False
+    if sd.body.shape[0] != 0:
+        body_force_torques(sd, q, tau, first)
         first = False
     if sd.damping.shape[0] != 0:
         d = sd.damping
@@ -184,6 +196,51 @@ def spatial_tip_torques(fdata, idata, scratch, zeros, base0, length, q, force, o
         for i in range(voff[b], voff[b + 1]):
             out[i] = (oP[i, 0] * c0 + oP[i, 1] * c1 + oP[i, 2] * c2) + (
                 oP[i, 3] * f0 + oP[i, 4] * f1 + oP[i, 5] * f2)
+
+
+@jit_borrowed
+def body_force_torques(sd, q, tau, first):
+    """tau (+)= sum_i J_i(q)^T f_i: constant world forces ``sd.force`` at points ``sd.point`` of
+    bodies ``sd.body``, from the position pass of the kinematics on the workspace's packed arrays
+    (its scratch overwritten): each force's wrench about its body's origin, gathered from child
+    to parent (n_p += n_k + (O_k - O_p) x f_k), each axis j of body k taking P_j . [n_k; f_k].
+    ``first``: assign (else add)."""
+    tree, s = bundles(sd.fdata, sd.idata, sd.scratch)
+    kinematics(tree, q, sd.zeros, sd.zeros, sd.base0, s)
+    oO, oR, oP, voff, parent, W = s.oO, s.oR, s.oP, tree.joint_voff, tree.parent, sd.wrench
+    nb = W.shape[0]
+    for k in range(nb):
+        for i in range(6):
+            W[k, i] = 0.0
+    for i in range(sd.body.shape[0]):
+        k = sd.body[i]
+        R, x, f = oR[k], sd.point[i], sd.force[i]
+        r0 = R[0, 0] * x[0] + R[0, 1] * x[1] + R[0, 2] * x[2]  # the point from O_k, world
+        r1 = R[1, 0] * x[0] + R[1, 1] * x[1] + R[1, 2] * x[2]
+        r2 = R[2, 0] * x[0] + R[2, 1] * x[1] + R[2, 2] * x[2]
+        W[k, 0] += r1 * f[2] - r2 * f[1]
+        W[k, 1] += r2 * f[0] - r0 * f[2]
+        W[k, 2] += r0 * f[1] - r1 * f[0]
+        W[k, 3] += f[0]
+        W[k, 4] += f[1]
+        W[k, 5] += f[2]
+    serial = tree.serial != 0
+    # backward: k = nb..1, children first
+    for k in range(nb - 1, -1, -1):
+        n0, n1, n2, f0, f1, f2 = W[k, 0], W[k, 1], W[k, 2], W[k, 3], W[k, 4], W[k, 5]
+        for j in range(voff[k], voff[k + 1]):
+            x = (oP[j, 0] * n0 + oP[j, 1] * n1 + oP[j, 2] * n2) + (
+                oP[j, 3] * f0 + oP[j, 4] * f1 + oP[j, 5] * f2)
+            tau[j] = x if first else tau[j] + x
+        p = k - 1 if serial else parent[k]
+        if p >= 0:
+            a0, a1, a2 = oO[k, 0] - oO[p, 0], oO[k, 1] - oO[p, 1], oO[k, 2] - oO[p, 2]
+            W[p, 0] += n0 + (a1 * f2 - a2 * f1)
+            W[p, 1] += n1 + (a2 * f0 - a0 * f2)
+            W[p, 2] += n2 + (a0 * f1 - a1 * f0)
+            W[p, 3] += f0
+            W[p, 4] += f1
+            W[p, 5] += f2
 
 
 # --------------------------------------------------------------------------- the derivative
