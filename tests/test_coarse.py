@@ -71,7 +71,7 @@ def test_the_coarse_chain_moves_as_the_fine_one_with_inner_joints_locked(joint):
     np.testing.assert_allclose(a.position, b.position, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(a.velocity, b.velocity, rtol=1e-12, atol=1e-13)
     # the same dynamics: the tree model of the fine chain with the inner joints locked at zero
-    model = redysim.Model.from_chain(fine)
+    model = fine
     inner = [model.joint_names[j] for j in range(fine.n_links) if j % 3]
     width = {"U": 2, "R": 1}[joint]
     locked = model.locked({name: [0.0] * width for name in inner})

@@ -16,7 +16,7 @@ states, q spread over (-pi, pi) and near straight, each stage is compared separa
 Expected values come from the core, an independent implementation (DeNOC + RGE-A in numba);
 neither side is derived from the other. Each engine has ONE tolerance for every stage
 (``engine_chains.TOLERANCE``, its ``chains`` column). The engines are the adapters every model
-goes to: a chain is built as its Model (``Model.from_chain``, converted at the adapter's door).
+goes to: a chain is built as the Model it is.
 ``test_negated_axes_mirror_the_chain`` checks each engine against itself, without the core: a
 chain with every R and P axis negated moves as the original with those coordinates negated (an
 adapter that built -z as +z, as the core once did, fails it and the R-z agreement tests).

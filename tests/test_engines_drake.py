@@ -40,7 +40,7 @@ MODELS = ("pendulum", "box")
 def _start(model_id: str):
     """(model, q0, v0, (q, v) of the core at T_END by DOP853 at 1e-12)."""
     if model_id == "pendulum":
-        model = Model.from_chain(redysim.load_case("STUDY-R3").chain)
+        model = redysim.load_case("STUDY-R3").chain
         q0, v0 = np.array([0.8, -0.5, 0.3]), np.array([0.0, 0.5, -0.2])
     else:
         inertia = ((0.04, 0.001, 0.0), (0.001, 0.05, 0.002), (0.0, 0.002, 0.07))

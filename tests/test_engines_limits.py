@@ -87,8 +87,7 @@ def test_a_joint_an_engine_cannot_build_is_refused_with_reason(monkeypatch):
     build any sequence of axes."""
     P = base.axis("P", (0.0, 0.0, 1.0))
     R = base.axis("R", (1.0, 0.0, 0.0))
-    model = redysim.Model.from_chain(redysim.Chain.uniform(3, "R", mass=1.0, radius=0.05,
-                                                           inertia="cylinder"))
+    model = redysim.Chain.uniform(3, "R", mass=1.0, radius=0.05, inertia="cylinder")
     real = base.joint_axes(model)
     odd = real[1]._replace(type="PR", axes=(P, R))
     dart = references.get("dart")

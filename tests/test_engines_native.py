@@ -99,7 +99,7 @@ def model_of(model_id: str):
     if model_id == "chain":
         chain = redysim.Chain.uniform(3, "R", length=0.5, mass=1.0, radius=0.02,
                                       inertia="cylinder")
-        model = Model.from_chain(chain)
+        model = chain
         q0, v0 = rng.uniform(-0.5, 0.5, 3), 0.5 * rng.normal(size=3)
     else:
         inertia = np.diag([0.1, 0.2, 0.3])

@@ -34,6 +34,7 @@ from conftest import rel, stable_seed
 from engine_chains import TOLERANCE as ENGINE_TOLERANCE
 from engine_chains import engine_or_skip, engine_test_chain
 from scipy.integrate import solve_ivp
+from test_model_api import body_by_body
 from test_trees import random_configuration, random_tree, robot_urdf
 
 import redysim
@@ -239,8 +240,8 @@ def test_a_massless_body_is_built_or_refused_with_the_reason(name):
 
 @functools.cache
 def _uniform_model(n_links: int, joint: str = "U") -> Model:
-    return Model.from_chain(redysim.Chain.uniform(n_links, joint, length=0.01, mass=0.1,
-                                                  radius=0.002, inertia="cylinder"))
+    return redysim.Chain.uniform(n_links, joint, length=0.01, mass=0.1, radius=0.002,
+                                 inertia="cylinder")
 
 
 @pytest.mark.parametrize("name", list(references.ENGINES))
@@ -278,14 +279,15 @@ def test_mujoco_limits_a_trees_depth_not_its_size():
 @pytest.mark.parametrize("name", list(references.ENGINES))
 def test_one_class_takes_a_model_a_chain_or_a_case(name):
     """``references.get(name)`` is the engine's one adapter class, with no ``__new__`` handing
-    out another class: a Model (the one input), a Chain and a Case (converted at the door by
-    ``Model.from_chain``) build instances of it that answer the same numbers bit for bit, and
-    its ``limits`` judge all three alike. Anything else is refused naming its type; sizes are
-    checked at the door; every answer is a new array (a later call leaves it as it was)."""
+    out another class: a Model (the one input), a Chain built body by body as a Model, a Chain
+    and a Case (its chain, taken at the door) build instances of it that answer the same
+    numbers bit for bit, and its ``limits`` judge them alike. Anything else is refused naming
+    its type; sizes are checked at the door; every answer is a new array (a later call leaves
+    it as it was)."""
     cls = engine_or_skip(name)
     assert all("__new__" not in vars(c) for c in cls.__mro__ if c is not object)
     case = redysim.load_case("STUDY-R3")
-    systems = (Model.from_chain(case.chain), case.chain, case)
+    systems = (body_by_body(case.chain), case.chain, case)
     assert [cls.limits(x) for x in systems] == [Limits(True, "")] * 3
     engines = [cls(x) for x in systems]
     assert all(type(e) is cls and e.name == name and e.model.n_v == 3 for e in engines)
@@ -365,7 +367,7 @@ def _sim_start(model_id: str):
     """(model, q0, v0, (q, v) of the core at SIM_T_END): the core's motion by DOP853 at
     rtol = atol = 1e-13 (forward_dynamics, and configuration_rate for the quaternions)."""
     if model_id == "chain-mix10":
-        model = Model.from_chain(engine_test_chain("mix", 10))
+        model = engine_test_chain("mix", 10)
     else:
         model = model_of(model_id.replace("-quarter-turn", ""))
     rng = np.random.default_rng(stable_seed("engine-simulate", model_id))

@@ -133,7 +133,7 @@ def test_coarsen_refuses_a_model_that_is_not_a_chain():
     with pytest.raises(CaseError, match=r"not a chain of links: body 'b\d' hangs from body \d+"):
         coarsen(random_tree(1, n_bodies=6, free=False, fixed=0), 2)
     chain = Chain.uniform(4, "U", mass=1.0)
-    bent = Model.build(*_parts(Model.from_chain(chain)), gravity=tuple(chain.gravity))  # no tip
+    bent = Model.build(*_parts(chain), gravity=tuple(chain.gravity))  # no tip
     with pytest.raises(CaseError, match=r"not a chain of links: it has no frame 'tip'"):
         coarsen(bent, 2)
 
@@ -197,7 +197,7 @@ def test_a_chain_is_a_model_and_every_model_function_takes_it():
 
     rng = np.random.default_rng(7)
     chain = random_chain(rng, 6)
-    assert isinstance(chain, Model) and Model.from_chain(chain) is chain
+    assert isinstance(chain, Model)
     assert chain.chain_layout is None and chain.n_links == chain.n_bodies == 6
     q, qd, _ = random_state(rng, chain)
     qdd = forward_dynamics(chain, q, qd)

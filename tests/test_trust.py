@@ -236,7 +236,7 @@ def test_simulate_on_a_model_file_prints_what_was_dropped(robot_files, capsys):
 # --------------------------------------------------------------------------- 4: tracebacks
 @pytest.fixture(scope="module")
 def small_model():
-    return Model.from_chain(load_case("STUDY-R3").chain)
+    return load_case("STUDY-R3").chain
 
 
 @pytest.mark.parametrize("kw, fragment", [

@@ -1316,7 +1316,7 @@ class Tip(NamedTuple):
     acceleration: np.ndarray | None
 
 
-TIP = "tip"  # the frame a chain's tip is (Model.from_chain names it so)
+TIP = "tip"  # the frame of a chain's tip (a Chain names it so)
 
 
 def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray]:
