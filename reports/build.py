@@ -818,7 +818,7 @@ def scenarios_section(res: Results) -> Section:
                        "DOP853 at 1e-13) over the samples. COM values are computed from the "
                        "run's sampled centre of mass (every 0.025 or 0.05 s). A loop adapter "
                        "takes assembled states only, so it is asked at each Runge-Kutta stage's "
-                       "state projected onto the loops (docs/design.md, Scenarios); DART's "
+                       "state projected onto the loops (docs/design.md, 'Scenarios'); DART's "
                        "takes v = 0 only, and says so. HANGING-MODE: the tip's largest "
                        "distance from x0 cos(omega_1 t) over its amplitude x0, omega_1 from "
                        "the linearised energies by hand; the nonlinearity alone leaves 2.16e-6 "

@@ -74,7 +74,7 @@ def implicit_section(res: Results) -> Section:
         "beside the explicit ode45 run where both exist, at the case's tolerances (rtol 1e-4, "
         "atol 1e-6); then the same rod ten times as long, cut into the same 20 mm links "
         f"({MEGA}: 500,000 U joints, 1,000,000 DOF), and the CPU and memory of one step against "
-        "DOF from 1,000 to 1,000,000. docs/design.md, 'The implicit integrator', discusses what "
+        "DOF from 1,000 to 1,000,000. docs/notes/2026-11-implicit-integrator.md discusses what "
         "the error means.")
     sec.items += _case_items(res, CASE, "implicit-huge", f"{CASE}: implicit midpoint beside "
                              "ode45 (Figs. 15, 17b)", "--t-end 5 --sample 0.01",

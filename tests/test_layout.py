@@ -326,3 +326,72 @@ def test_every_redysim_path_in_code_and_docs_names_something_that_exists():
             if not (REPO / m.group(0)).exists():
                 bad.append(f"{path.relative_to(REPO)}: {m.group(0)}: no such file")
     assert not bad, f"{len(bad)} paths to nothing:\n" + "\n".join(sorted(set(bad)))
+
+
+# --------------------------------------------------------------------------- cited sections
+# a section of a document under docs/ cited by its title: docs/design.md, "Chain conventions"
+# (also 'Chain conventions', ("Chain conventions"), section "Chain conventions"), the title
+# possibly broken across lines, comment markers or a Python string's continuation
+CITATION = re.compile(r"(?<![\w/.-])(docs/[\w/.-]+\.md)`*\)?(?:[,(]|\s|#)+(?:section )?([\"'])")
+# what a title spread over lines looks like once joined: 'measured, "\n    "not built'
+CONTINUED = re.compile(r"[\"']\s*\n\s*[\"']|\s*\n\s*(?:#\s*)?")
+FENCE = re.compile(r"^```.*?^```", re.M | re.S)
+# this file's own examples of stale citations
+CITES_ON_PURPOSE = {"tests/test_layout.py"}
+
+
+def headings(path: Path) -> set[str]:
+    """The titles a section of a Markdown file is cited by: each heading's (outside fenced
+    code), and its short form, the part before a comma, colon or parenthesis ("Benchmarks" for
+    "Benchmarks, the performance history and CI")."""
+    text = FENCE.sub("", path.read_text())
+    titles = {line.lstrip("#").strip() for line in text.splitlines() if line.startswith("#")}
+    return titles | {re.split(r",|:| \(", t)[0] for t in titles}
+
+
+def stale_citations(text: str) -> list[str]:
+    """The citations in ``text`` whose title is no heading of the cited document: the title must
+    be followed by the quote it opened with."""
+    bad = []
+    for m in CITATION.finditer(text):
+        doc = REPO / m.group(1)
+        quote, rest = m.group(2), CONTINUED.sub(" ", text[m.end():m.end() + 300])
+        rest = re.sub(r" +", " ", rest)
+        if not doc.is_file():
+            bad.append(f"{m.group(1)}: no such document")
+        elif not any(rest.startswith(title + quote) for title in headings(doc)):
+            bad.append(f"{m.group(1)}, {quote}{rest[:50]}...")
+    return bad
+
+
+def test_a_stale_citation_is_found():
+    assert stale_citations('docs/design.md, "Chain conventions"') == []
+    assert stale_citations("(docs/design.md, 'The paper's numbers')") == []
+    assert stale_citations('docs/design.md,\n    # "Chain\n    # conventions")') == []
+    assert stale_citations("docs/design.md, 'Adaptive resolution: measured, \"\n    \"not "
+                           "built'") == []
+    assert stale_citations("docs/design.md's decisions, docs/notes/README.md") == []
+    assert stale_citations('docs/design.md, "Chain rules"') == ['docs/design.md, "Chain rules"...']
+    assert stale_citations('docs/nothing.md, "Layers"') == ["docs/nothing.md: no such document"]
+
+
+def test_every_cited_section_is_a_heading_of_the_cited_document():
+    """Code, tests and documents cite a section of a document under docs/ by its title
+    (``docs/design.md, "Chain conventions"``): a section renamed, or moved to a note, would
+    leave the citation pointing at nothing."""
+    bad = [f"{path.relative_to(REPO)}: {cited}" for path in text_files()
+           if str(path.relative_to(REPO)) not in CITES_ON_PURPOSE
+           for cited in stale_citations(path.read_text())]
+    assert not bad, f"{len(bad)} citations of no section:\n" + "\n".join(sorted(set(bad)))
+
+
+DOC_PATH = re.compile(r"(?<![\w./-])docs/[\w/.-]*\w\.md\b")
+
+
+def test_every_document_a_file_names_exists():
+    """docs/design.md points to its measurements as dated notes (docs/notes/<date>-<topic>.md),
+    and code and documents point to both: a note renamed would leave the pointer dangling."""
+    bad = [f"{path.relative_to(REPO)}: {m.group(0)}" for path in text_files()
+           if str(path.relative_to(REPO)) not in CITES_ON_PURPOSE
+           for m in DOC_PATH.finditer(path.read_text()) if not (REPO / m.group(0)).is_file()]
+    assert not bad, f"{len(bad)} paths to no document:\n" + "\n".join(sorted(set(bad)))

@@ -4,7 +4,7 @@
 
 **URDF** is read here, from the XML as written: a flat list of links and joints, walked
 without recursion in time linear in their number (MuJoCo's URDF parser, which read them before,
-grows quadratically and crashes on very long chains: docs/design.md, "Kinematic trees"). The
+grows quadratically and crashes on very long chains: docs/design.md, "Files in and out"). The
 inertias are taken as the file gives them (real robot files break the triangle inequality by
 rounding; a link of mass 0 keeps its rotational inertia, as Pinocchio reads it), rotations from
 ``rpy`` as urdfdom's, Rz(yaw) Ry(pitch) Rx(roll); gravity -9.81 along z (URDF has none; robots
