@@ -12,9 +12,9 @@ every module in it would load a second time, beside the first, with classes of i
 
 Importing the package limits BLAS to one thread in this process (unless the environment sets a
 thread count), with threadpoolctl, which acts at any time, even after numpy loaded OpenBLAS. Runs
-here are one process per core: OpenBLAS's own threads on top made SciPy's Cholesky of a 250 x 250
-GIM 150x slower on a 2-core machine (0.23 s instead of 1.5 ms per call) and a 100,000-DOF long
-run burn 1.5 cores for the work of one. Without threadpoolctl (an install without the
+here are one process per core, and OpenBLAS's own threads on top of them made a small Cholesky
+many times slower and a long run burn more cores for the work of one
+(docs/notes/2026-11-costs-in-the-code.md). Without threadpoolctl (an install without the
 ``harness`` extra, which runs no process pool) only the environment is set: the processes this
 one starts take one thread; this one keeps the BLAS threads numpy started with. Likewise a pool
 worker runs redysim's batches on one thread (:func:`worker_threads`).

@@ -54,8 +54,8 @@ Output (``--out``, default results/error_study):
                           condition numbers): the slow part, computed once.
 All files are written atomically through :mod:`redysim.harness.store`.
 
-Costs here (2 shared cores): the mpmath reference ~2 ms per U-link and ~1.8 ms per R-link (the
-spatial kernel), so 100,000 links take 3-4 min; the engines' builds dominate at 1,000 links.
+Cost: the mpmath reference is O(n), minutes at 100,000 links; at 1,000 links the engines' builds
+dominate (docs/notes/2026-11-costs-in-the-code.md).
 """
 
 from __future__ import annotations

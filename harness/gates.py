@@ -62,10 +62,10 @@ REQUIRED_FIELDS = ("name", "quantity", "measure", "compare", "threshold", "reaso
 DEFAULT_WIDTH = 170  # table width when stdout is not a terminal
 MIN_REASON_WIDTH = 40  # the reason column wraps, but never narrower than this
 MAX_WHERE_WIDTH = 36  # the where column wraps beyond this
-# A gate that has used this much CPU time fails with "time limit" and the next one runs. Each
-# gate takes under a minute of CPU on this 2-core machine; a broken core can make an integration
-# crawl (a sign flipped in the velocity terms took the reference solver 590 s to give up). CPU
-# time, not wall time: a limit that decides a gate's result must not depend on the machine's load.
+# A gate that has used this much CPU time fails with "time limit" and the next one runs: each
+# gate takes a small part of it, and a broken core can make an integration crawl for far longer
+# (docs/notes/2026-11-costs-in-the-code.md). CPU time, not wall time: a limit that decides a
+# gate's result must not depend on the machine's load.
 GATE_TIME_LIMIT_S = 300
 # Wall time after which a gate is given up for the user's patience only (it waits, or the machine
 # is too busy to finish it): a SKIP row that says so, never a measurement or a FAIL.

@@ -1,12 +1,11 @@
 """A long run that survives being stopped: the core integrated with checkpoints, resumed on restart.
 
-For chains whose runs take hours (RE-U50000-L1000: 100,000 DOF, ~8 ms per qdd, steps of ~1e-5 s
-limited by waves along the chain). Every ``--every`` seconds of wall time, and at the end, the
-solver's whole state (t, y, f(t, y), the next step, the counters, the CPU and wall time so far)
-and the samples so far are written to ONE ``.npz`` file atomically (temp file, fsync,
-``os.replace``), the previous one kept beside it: a run killed at any moment, even by
-``kill -9``, loses at most the work since the last checkpoint, and resuming continues bit for
-bit the same step sequence.
+For chains whose runs take hours (RE-U50000-L1000: 100,000 DOF, steps of ~1e-5 s limited by
+waves along the chain). Every ``--every`` seconds of wall time, and at the end, the solver's
+whole state (t, y, f(t, y), the next step, the counters, the CPU and wall time so far) and the
+samples so far are written to ONE ``.npz`` file atomically (temp file, fsync, ``os.replace``),
+the previous one kept beside it: a run killed at any moment, even by ``kill -9``, loses at most
+the work since the last checkpoint, and resuming continues bit for bit the same step sequence.
 
     python -m redysim.harness.longrun RE-U50000-L1000 [--t-end 5] [--every 120] [--out DIR]
     python -m redysim.harness.longrun RE-U50000-L1000 --status  # what the checkpoint holds, ETA

@@ -50,8 +50,7 @@ def native_name(integrator: str) -> str | None:
 
 
 __all__ = ["CORE", "CORE_METHODS", "NATIVE", "PRECISIONS", "STEPPED", "RunSpec", "case_digest",
-           "is_native", "native_name",
-           "native_integrator", "stepped"]
+           "is_native", "native_integrator", "native_name", "stepped"]
 
 
 @dataclass(frozen=True)
@@ -66,28 +65,26 @@ class RunSpec:
     method:      for the core, ``"rge-a"`` (default), ``"ge-n"`` or ``"rge-n"``; ignored (``""``)
                  for an engine.
     integrator:  a name from ``redysim.integrators.explicit.INTEGRATORS`` (``"ode45"``,
-    ``"dop853"``,
-                 ``"rk4"``, ``"midpoint"`` alias ``"implicit"``, ``"midpoint-fixed"``,
+                 ``"dop853"``, ``"rk4"``, ``"midpoint"`` alias ``"implicit"``, ``"midpoint-fixed"``,
                  ``"scipy-RK45"``, ...), ``"native"`` (the engine's default integrator) or
-                 ``"native:NAME"`` (one of the engine's own, ``Engine.integrators``: a
-                 fixed-step one needs ``h``, an adaptive one tolerances); ``""``: the case's
-                 (ode45 unless its file says otherwise).
+                 ``"native:NAME"`` (one of the engine's own, ``Engine.integrators``: a fixed-step
+                 one needs ``h``, an adaptive one tolerances); ``""``: the case's (ode45 unless its
+                 file says otherwise).
     rtol, atol:  tolerances of an adaptive integrator; 0: the case's (1e-4 and 1e-6 unless its
                  file says otherwise). A fixed-step integrator takes none.
-    h:           the step of a fixed-step integrator (``rk4``, ``midpoint-fixed``,
-                 ``native``); 0: the case's. An
-                 adaptive integrator takes none: it chooses its own steps.
+    h:           the step of a fixed-step integrator (``rk4``, ``midpoint-fixed``, ``native``); 0:
+                 the case's. An adaptive integrator takes none: it chooses its own steps.
     t_end:       horizon [s]; 0: the case's ``t_end``.
     sample:      sample interval [s]; 0: the case's (``sample_interval``, else t_end / 20).
     energy_bound: a run whose |delta_M| exceeds this [J/kg] is stopped and recorded as failed.
     max_cpu_s:   a run that has used this many seconds of CPU time (its process's, over the
-                 integration; the JIT compile is timed apart) is stopped and recorded as failed
-                 (its finished samples are kept); 0 means no limit. CPU time, not wall time:
-                 a limit that decides a result must not depend on what else the machine is
-                 doing (a wall-clock limit recorded a run as failed after 9.6 s of CPU on a
-                 busy machine). It still depends on the machine's speed. A wall-clock limit
-                 is the user's patience only: ``execute(max_wall_s=...)`` and ``redysim
-                 simulate --max-wall``, whose runs are "stopped", never a result.
+                 integration; the JIT compile is timed apart) is stopped and recorded as failed (its
+                 finished samples are kept); 0 means no limit. CPU time, not wall time: a limit that
+                 decides a result must not depend on what else the machine is doing (a wall-clock
+                 limit once failed a run on a busy machine when it had used a third of it in CPU).
+                 It still depends on the machine's speed. A wall-clock limit is the user's patience
+                 only: ``execute(max_wall_s=...)`` and ``redysim simulate --max-wall``, whose runs
+                 are "stopped", never a result.
     perturb:     a rounding-level change of the initial state: every component y0_i of (q0, v0)
                  becomes y0_i + perturb * max(|y0_i|, 1), and E(0) is that state's energy. 0 (the
                  default) runs the case's own state. Ensembles of runs with perturb ~ 1e-13 show

@@ -682,7 +682,7 @@ def _init_worker(parent: int) -> None:
 
 def _watch_parent(parent: int) -> None:
     """In a pool worker: exit as soon as the sweep that started it is gone (a ``kill -9`` of the
-    sweep left its workers, ~265 MB each, running for ever)."""
+    sweep had left its workers running for ever, each holding its memory)."""
     def watch():
         while os.getppid() == parent:
             time.sleep(PARENT_POLL_S)
@@ -737,10 +737,11 @@ def shared_pool(workers: int | None = None) -> Iterator[None]:
     """Inside the block, sweeps (:func:`run_sweep` on the local pool, and whatever takes a
     :func:`pool_lease`) share one process pool of ``workers`` (default ``os.cpu_count()``)
     instead of starting their own: each worker's start (a Python interpreter, NumPy, pandas,
-    numba's cached kernels, an engine's module on its first run of it: ~1.3 s of CPU here, more
-    with an engine) is paid once for the block, not once per sweep. What a worker keeps between
-    runs is what it already kept between the runs of one sweep (imported modules, compiled
-    kernels); each run's CPU time and peak RSS are its own (:func:`redysim.harness.run.execute`).
+    numba's cached kernels, an engine's module on its first run of it: over a second of CPU,
+    docs/notes/2026-11-costs-in-the-code.md) is paid once for the block, not once per sweep.
+    What a worker keeps between runs is what it already kept between the runs of one sweep
+    (imported modules, compiled kernels); each run's CPU time and peak RSS are its own
+    (:func:`redysim.harness.run.execute`).
     A sweep that starts while another holds the pool (a second thread) gets a pool of its own,
     as outside a block. Nested blocks keep the outermost's pool. Its workers' CPU time, live:
     :func:`shared_pool_cpu_s`."""

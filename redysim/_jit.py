@@ -43,9 +43,9 @@ jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 
 # Kernels that allocate nothing and take the named bundles (redysim.algorithms._kernels.bundles)
 # compile without numba's reference counting (NRT): every array they see is borrowed from their
-# caller, which keeps it alive for the call. With it, reading a bundle's fields cost an atomic
-# increment and a decrement per array per call, ~300 ns a kernel for the 28 arrays of two bundles
-# (more than a 30-body tree's whole kinematics; docs/design.md, "Performance notes").
+# caller, which keeps it alive for the call. With it, reading a bundle's fields costs an atomic
+# increment and a decrement per array per call, more than a 30-body tree's whole kinematics for
+# the arrays of two bundles (docs/design.md, "Performance notes").
 BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
 jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 # Borrowed and strict: for kernels whose every caller must get the same bits whether it calls
@@ -56,9 +56,10 @@ jit_exact: _JITWrapper = numba.njit(**EXACT_BORROWED_OPTIONS)
 
 # The SIMD tile kernels (redysim.algorithms._kernels.tiles) also declare their array arguments free
 # of overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
-# checks of ~15 arrays and the backward pass ran 2.2x slower. numba sets this flag itself only for
-# the loops it parallelises; its njit takes it once CPUTargetOptions maps the option name (numba
-# 0.68: numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every array a tile
+# checks of ~15 arrays, which more than halved the backward pass's speed (docs/design.md,
+# "Performance notes"). numba sets this flag itself only for the loops it parallelises; its njit
+# takes it once CPUTargetOptions maps the option name (numba 0.68:
+# numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every array a tile
 # kernel is given is a distinct view of its thread's tile buffer (the Tiles bundle, its segments
 # laid out by the layout table) or a chain table it only reads; a bundle's arrays reach the compiled
 # function as pointer arguments of their own, so the flag covers them too.
@@ -94,13 +95,13 @@ class EntryPoint:
     ``callees``: the :func:`jit` kernels the entry calls, each with the exact argument types it
     calls them with; they are compiled (or loaded from disk) first, on their own. Why: numba
     links a copy of every callee into the caller's machine code, optimised a second time with
-    it, and that copy ran RGE-A ~3% slower here than the callee compiled on its own (2,000 to
-    100,000 DOF, both in one process: ``benchmarks/entry_copies.py``). A caller compiled afresh
-    calls the callees' own code, which numba compiled first and the JIT linker prefers to the
-    copies; one loaded from numba's disk cache calls its copies unless the callees' own code is
-    loaded before it (docs/design.md, "Performance notes"). Declared types that differed from the
-    entry's would load callee code the entry never calls, and the slowdown would be back:
-    ``tests/test_identities.py`` checks that they do not.
+    it, and that copy ran RGE-A slower than the callee compiled on its own
+    (``benchmarks/entry_copies.py``; docs/design.md, "Performance notes"). A caller compiled
+    afresh calls the callees' own code, which numba compiled first and the JIT linker prefers to
+    the copies; one loaded from numba's disk cache calls its copies unless the callees' own code
+    is loaded before it. Declared types that differed from the entry's would load callee code the
+    entry never calls, and the slowdown would be back: ``tests/test_identities.py`` checks that
+    they do not.
     """
 
     def __init__(self, func, signature, callees=(), options=BORROWED_OPTIONS):
@@ -125,23 +126,23 @@ class EntryPoint:
         return unchecked_call(self.compiled)
 
 
-# The lean entries (redysim.algorithms._kernels.lean, behind redysim.evaluator) keep the GIL: a
-# small system's call is ~0.5 us, and releasing and taking back the GIL cost ~40 ns of it here;
-# held, it also serialises the calls of several threads on one evaluator's scratch
-# (docs/design.md, "Performance notes").
+# The lean entries (redysim.algorithms._kernels.lean, behind redysim.evaluator) keep the GIL:
+# releasing and taking it back costs a few percent of a small system's call (docs/design.md,
+# "Performance notes"), and held, it serialises the calls of several threads on one evaluator's
+# scratch.
 LEAN_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, nogil=False)
 
 
 def unchecked_call(dispatcher):
     """The compiled wrapper of ``dispatcher``'s one signature, called without numba's dispatch:
-    no typing of the arguments (~20 ns an array, ~150 ns a call with four arrays here), and no
-    check that they match the signature beyond each array being an ndarray of the signature's
-    item size: the caller must pass arrays of the declared dtype and dimension (a 2-D array
-    where a 1-D one is declared is unboxed past the end of its slot), unless the signature
-    declares types whose unboxing checks them (the lean entries' vectors:
-    ``redysim.algorithms._kernels.lean.CheckedVector``). None with
-    ``NUMBA_DISABLE_JIT`` (the kernel is then a plain function) or for a dispatcher without
-    exactly one compiled signature."""
+    no typing of the arguments (a cost per array that matters for small systems: docs/design.md,
+    "Performance notes"), and no check that they match the signature beyond each array being an
+    ndarray of the signature's item size: the caller must pass arrays of the declared dtype and
+    dimension (a 2-D array where a 1-D one is declared is unboxed past the end of its slot),
+    unless the signature declares types whose unboxing checks them (the lean entries' vectors:
+    ``redysim.algorithms._kernels.lean.CheckedVector``). None with ``NUMBA_DISABLE_JIT`` (the
+    kernel is then a plain function) or for a dispatcher without exactly one compiled
+    signature."""
     overloads = getattr(dispatcher, "overloads", None)
     if not overloads or len(overloads) != 1:
         return None

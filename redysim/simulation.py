@@ -505,10 +505,10 @@ def simulator(model: Model, t_end: float, *, q0=None, v0=None,
     """A :class:`Simulator` from plain keywords, as case and scenario files and the harness give
     them: :class:`~redysim.algorithms.system.System`'s (``damping``, ``stiffness``,
     ``spring_ref``, ``tip_force``, ``body_forces``, ``gravcomp``, ``tau``, ``potential``,
-    ``loops``, ``qdd``, ``method``),
-    :class:`Integrator`'s (``rtol``, ``atol``, ``h``, ``compiled``, with ``integrator`` its
-    name) and the Simulator's own. An integrator given as an object takes none of rtol, atol, h
-    and compiled. Unknown keywords raise TypeError naming them."""
+    ``loops``, ``qdd``, ``method``), :class:`Integrator`'s (``rtol``, ``atol``, ``h``,
+    ``compiled``, with ``integrator`` its name) and the Simulator's own. An integrator given as an
+    object takes none of rtol, atol, h and compiled. Unknown keywords raise TypeError naming
+    them."""
     unknown = [k for k in settings if k not in SYSTEM_SETTINGS + INTEGRATOR_SETTINGS]
     if unknown:
         raise TypeError(f"simulator() got unexpected keyword arguments {unknown}; it takes "

@@ -63,9 +63,9 @@ What each engine builds (details and measurements in ``references/README.md``, "
   solvers (which the engine's adapter uses) cannot close a loop: by default they abort ("contains
   constraints that cannot be solved"), with ``explicit.eliminateConstraints = False`` they warn
   "WILL IGNORE CONSTRAINTS" and return the open tree's qdd (measured). Exudyn forms the velocity
-  term d2g/dq2 v^2 by
-  numerical differentiation (``newton.numericalDifferentiation.relativeEpsilon``, 1e-7): its
-  error at v != 0 follows that epsilon (README).
+  term d2g/dq2 v^2 by numerical differentiation
+  (``newton.numericalDifferentiation.relativeEpsilon``, 1e-7): its error at v != 0 follows that
+  epsilon (README).
 
 Planar cuts: Pinocchio, MuJoCo and DART hold a point in all three directions only, so they
 build a "planar" cut as a ball joint, which is the cut only when the world z equation is void:

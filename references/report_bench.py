@@ -5,8 +5,8 @@
 Columns: kind (qdd, batch of ``states`` states, or native step), engine, version, DOF, time per
 call, ns per DOF (per DOF and state for a batch), and the ratio to the core's qdd at the same
 DOF (to the core's batch for a batch). Times are each benchmark's fastest round (pytest-
-benchmark's min): the calls are deterministic and this shared 2-core VM only ever adds time (one
-run here: the core at 200 DOF, min 17.8 us, mean 28.9 us; pin.aba min 48.4, mean 54.2).
+benchmark's min): the calls are deterministic and a shared machine only ever adds time, far more
+to a mean than to a minimum (docs/notes/2026-11-costs-in-the-code.md).
 """
 
 from __future__ import annotations

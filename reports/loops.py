@@ -142,7 +142,7 @@ def engines_check() -> list[dict]:
 
 
 ENGINE_SIZES = (20, 100, 300)  # rods of the pinned chains the engines are timed on
-ENGINE_SIZES_FULL = (20, 100, 300, 1000)  # --full: MuJoCo and DART take ~20 s to build 1,000
+ENGINE_SIZES_FULL = (20, 100, 300, 1000)  # --full: MuJoCo's and DART's builds of 1,000 are slow
 ENGINE_CALL_CAP_S = 0.5  # an engine slower than this per call is not tried on a larger chain
 
 
@@ -304,7 +304,7 @@ def run(out: Path, full: bool = False, log=print) -> dict:
     ts = np.log([r["seconds"] for r in doc["cost"]])
     doc["slope"] = float(np.polyfit(ns[2:], ts[2:], 1)[0])  # the O(n) regime: 1,000 and up
     log(f"loops: {LONG_N:,} rods")
-    doc["long"] = long_chain(1.0 if full else 0.05)  # quick: 0.05 s (9 s of CPU; 0.2 s took 36)
+    doc["long"] = long_chain(1.0 if full else 0.05)  # quick: 0.05 s, for the quick budget
     doc["provenance"] = provenance()
     out.mkdir(parents=True, exist_ok=True)
     write_json_atomic(doc, out / "loops.json")

@@ -77,12 +77,13 @@ FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs redysim.harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables
-# the implicit integrator's long run is measured against ode45 to this horizon [s]
-# (quick: 0.01 s, one sample, about 42 s of CPU of the ten-minute budget; 0.02 s took 83 s)
+# the implicit integrator's long run is measured against ode45 to this horizon [s] (quick: 0.01 s,
+# one sample, what the ten-minute budget affords: docs/notes/2026-11-costs-in-the-code.md)
 IMPLICIT_REF_T = {QUICK: 0.01, FULL: 0.48}
 IMPLICIT_SAMPLE = 0.01  # s
-# the 1,000,000-DOF chain (redysim.reports.implicit.MEGA): its implicit run's horizon [s] (24
-# steps, ~65 s of CPU and 1.8 GiB to 1 s), and the full mode's ode45 reference horizon [s]
+# the 1,000,000-DOF chain (redysim.reports.implicit.MEGA): its implicit run's horizon [s] (about
+# a minute of CPU to 1 s: docs/notes/2026-11-million-links.md), and the full mode's ode45
+# reference horizon [s]
 MEGA_T = {QUICK: 0.05, FULL: 1.0}
 MEGA_REF_T = 0.01
 # one implicit step against DOF (redysim.reports.implicit_scaling): links of the sizes run
@@ -169,16 +170,16 @@ class Reproduction:
     # ----------------------------------------------------------------------- steps
     def warm_up(self, extras_later: bool = False) -> None:
         """Compile (or load from numba's disk cache) every kernel once, before the sweep workers
-        start: they then load machine code instead of compiling it each (two workers compiling
-        the compiled stepping, rk_steps, cost 2 x 13 s of CPU; the lean inverse entry 2 x 6 s).
-        rk_steps compiles in a second process (:func:`warm_stepping`) once what it calls (the
-        entries it links, the energy at its samples) is cached, beside the other kernels here,
-        where there is a second core. Its second form (``"extras"``: couplings, loops; ~30 s of
-        CPU, cold) with ``extras_later`` starts in a third process once both are done, to run
-        beside the next step (:meth:`join_stepping` waits for it: the quick and full plans put
-        the precision tables between, which need no stepping); else the second process compiles
-        both forms (measured cold, 2026-11-28: the main process's kernels done at 50 s, the
-        second's two forms at 88 s, 30 s of them the extras)."""
+        start: they then load machine code instead of compiling it each (every worker had
+        compiled the compiled stepping, rk_steps, and the lean inverse entry again). rk_steps
+        compiles in a second process (:func:`warm_stepping`) once what it calls (the entries it
+        links, the energy at its samples) is cached, beside the other kernels here, where there is
+        a second core. Its second form (``"extras"``: couplings, loops) with ``extras_later``
+        starts in a third process once both are done, to run beside the next step
+        (:meth:`join_stepping` waits for it: the quick and full plans put the precision tables
+        between, which need no stepping); else the second process compiles both forms, one
+        after the other, while the main process waits (the timings:
+        docs/notes/2026-11-quick-reproduction-budget.md)."""
         import numpy as np
 
         from redysim import (
@@ -302,8 +303,8 @@ class Reproduction:
 
     def implicit(self) -> str:
         """The implicit midpoint on RE-U50000-L1000 to 5 s (about a minute), and the explicit
-        ode45 run it is measured against, to IMPLICIT_REF_T[mode] (35 ms a step at ~1e-5 s: 0.02
-        s is ~70 s, 0.48 s ~35 min); the 1,000,000-DOF chain's implicit run to MEGA_T[mode]
+        ode45 run it is measured against, to IMPLICIT_REF_T[mode] (its steps of ~1e-5 s make 0.48
+        s a run of half an hour); the 1,000,000-DOF chain's implicit run to MEGA_T[mode]
         (and, full, its ode45 run to MEGA_REF_T); all checkpointed long runs sampled every 0.01
         s (the million-DOF pair every 1e-3 s), two at a time; then one implicit step against
         DOF (:mod:`.implicit_scaling`)."""

@@ -6,8 +6,7 @@ qdd call beside ``pin.aba``, and passive falls (the report's "Robots and trees" 
 Robots: URDFs of the ``example-robot-data`` package (an arm, a hand, a quadruped with a fixed
 and with a floating base, a humanoid, reduced and full), read by :func:`redysim.load_model` with
 its defaults (mimic joints coupled: the Panda's fingers, the full Talos's grippers), and the DH
-robots
-that come with redysim (the repository's ``cases/robots/``: the package data
+robots that come with redysim (the repository's ``cases/robots/``: the package data
 ``redysim.case_files.robots``, found in an installed redysim too). For each:
 
 - agreement: at three seeded random states, qdd, the GIM, the bias phi (tau = 0) and the energy
@@ -19,11 +18,10 @@ that come with redysim (the repository's ``cases/robots/``: the package data
   process, alternating, the fastest of several rounds of many calls;
 - a passive fall for 1 s (ode45, rtol 1e-8, atol 1e-10) from the file's configuration (and,
   for the DH arms, the talk's free fall: joints 1, 4, 5, 6 held at zero, joints 2 and 3 free,
-  :meth:`redysim.Model.locked`): a fixed
-  base from rest; a floating base tumbling (seeded joint and base velocities: from rest a uniform
-  gravity field moves nothing inside it): steps, CPU, the largest energy drift per unit mass,
-  and for a floating base the distance of the centre of mass from its free-fall parabola (zero
-  in exact arithmetic: only gravity acts on the robot).
+  :meth:`redysim.Model.locked`): a fixed base from rest; a floating base tumbling (seeded joint
+  and base velocities: from rest a uniform gravity field moves nothing inside it): steps, CPU,
+  the largest energy drift per unit mass, and for a floating base the distance of the centre of
+  mass from its free-fall parabola (zero in exact arithmetic: only gravity acts on the robot).
 
 Writes ``robots.json`` (tables and provenance) into ``--out``.
 """

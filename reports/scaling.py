@@ -85,10 +85,9 @@ def time_call(call) -> float:
     """Seconds per call: the fastest of :data:`BATCHES` batches of about :data:`BATCH_S` each.
 
     The fastest, not the median: the calls are deterministic and a shared machine only ever adds
-    time. On this 2-core VM, four sets of five batches of the core at 100,000 DOF, timed one after
-    another, read 72 to 110 ns/DOF per batch; the sets' medians were 75, 81, 95 and 84, their
-    fastest batches 72, 72, 84 and 76. Every algorithm is timed alike, so the ratios stay fair;
-    pytest-benchmark's tables (``make bench``) lead with the minimum too.
+    time; sets of batches timed one after another moved their medians far more than their
+    fastest batches (docs/notes/2026-11-costs-in-the-code.md). Every algorithm is timed alike, so
+    the ratios stay fair; pytest-benchmark's tables (``make bench``) lead with the minimum too.
     """
     t0 = time.perf_counter()
     call()

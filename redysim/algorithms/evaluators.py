@@ -23,8 +23,8 @@ model's own workspace of each calling thread. For states in parallel give
 process. With numba disabled (``NUMBA_DISABLE_JIT``), or where NumPy's structs are not as the
 builtin reads them, the evaluator is the checked path.
 
-Measured per call from Python on this project's VM (``benchmarks/lean_call.py``; docs/design.md,
-"Performance notes").
+What a call costs, against the public function's and Pinocchio's: ``benchmarks/lean_call.py``
+(docs/design.md, "Performance notes").
 """
 
 from __future__ import annotations

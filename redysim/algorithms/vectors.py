@@ -1,8 +1,8 @@
 """Small-vector arithmetic for the per-sample and per-call paths written in numpy.
 
-``np.cross`` spends ~20 us a call on its axis handling (measured here: 24 us on two 3-vectors
-against 1 us for :func:`cross`; 17 against 6 us on 12 rows): at a simulation's every sample the
-observers called it six times, more than the steps cost on a small model.
+``np.cross`` spends far longer on its axis handling than on the arithmetic, and at a
+simulation's every sample the observers called it six times, more than the steps cost on a small
+model (the figures: docs/notes/2026-11-costs-in-the-code.md).
 """
 
 from __future__ import annotations

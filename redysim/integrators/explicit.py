@@ -646,8 +646,9 @@ def compile_kernels() -> None:
     few ode45 steps on a 2-state problem (with samples: its dense output too): so that a timed
     integration does not include it. Every scheme calls the two kernels with the same argument
     types (``tests/test_integrate.py`` checks that DOP853 and RK4 compile nothing more), and
-    DOP853's tableau would import SciPy's integrate package, 0.2 s. And the compiled stepping,
-    by two steps of a one-link chain: its types are every plain chain's."""
+    DOP853's tableau would import SciPy's integrate package, slow enough to show in a timed run
+    (docs/notes/2026-11-costs-in-the-code.md). And the compiled stepping, by two steps of a
+    one-link chain: its types are every plain chain's."""
     integrate(lambda _t, y: -y, (0.0, 2e-3), [1.0, 0.5], "ode45", t_eval=[0.0, 1e-3, 2e-3])
     from redysim.algorithms.system import System
     from redysim.model.tree import Chain

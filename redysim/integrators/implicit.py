@@ -2,7 +2,8 @@
 
 For chains whose explicit steps are bound by waves they need not resolve (RE-U50000-L1000: the
 centrifugal tension carries transverse waves across a 2 cm link in ~3e-5 s). docs/design.md,
-"The implicit integrator", says why this scheme and measures what it trades.
+"The implicit integrator", says why this scheme; docs/notes/2026-11-implicit-integrator.md
+measures what it trades.
 
 For a second-order system y = (q, v), dq/dt = v, dv/dt = a(t, q, v), one step of size h is
 
@@ -33,11 +34,11 @@ does not resolve then counts by its amplitude (the phase the step gets wrong), n
 acceleration times h^2. The velocities' error is not controlled: for such a wave it is omega
 times its amplitude, and a per-step test on v (tried: v's local error from the Taylor predictor,
 with the jerk by one finite-difference call, and the trapezoidal rule) made RE-U50000-L1000
-resolve its link-scale waves, steps of 1.7e-6 s, where the test on q takes 1e-2 s (docs/
-design.md, "The implicit integrator"). v's local error is of the same order, h^3, as q's, so the
-global error still falls with rtol. The error is ode45's max-norm, |e_i| / max(|q0_i|, |q1_i|,
-atol / rtol) <= rtol; the next step is h min(5, max(0.2, 0.8 (rtol / err)^(1/3))). A step whose
-Newton iteration fails is retried at h / 4. ``midpoint-fixed`` steps at a fixed h (no
+resolve its link-scale waves, with steps far shorter than the test on q takes
+(docs/notes/2026-11-implicit-integrator.md). v's local error is of the same order, h^3, as q's,
+so the global error still falls with rtol. The error is ode45's max-norm, |e_i| / max(|q0_i|,
+|q1_i|, atol / rtol) <= rtol; the next step is h min(5, max(0.2, 0.8 (rtol / err)^(1/3))). A step
+whose Newton iteration fails is retried at h / 4. ``midpoint-fixed`` steps at a fixed h (no
 estimate), landing on the sample times.
 
 References: E. Hairer, C. Lubich, G. Wanner, "Geometric Numerical Integration", 2nd ed. (2006),
@@ -62,34 +63,26 @@ MIN_SHRINK = 0.2          # an accepted or rejected step's next size is at least
 NEWTON_FAIL_SHRINK = 0.25  # a step whose Newton iteration fails is retried at h / 4
 MAX_NEWTON = 20
 # Newton fails when |P^-1 R| grows more than this in one iteration: at 2 it refused RE-U750-L6
-# steps of 1e-2 s that converge (540 qdd calls over 0.3 s); adaptive runs took the same steps
+# steps of 1e-2 s that converge (docs/notes/2026-11-costs-in-the-code.md)
 DIVERGENCE = 10.0
 # |P^-1 R| <= newton_tol |w|: at fixed steps NEWTON_TOL, under error control
 # min(NEWTON_TOL, NEWTON_RTOL rtol).
 # (|P^-1 R| ~ the error left in w, which moves v1 by twice as much, and a 2-norm over |w|: under
-# error control Newton must leave far less than rtol. At rtol / 100 the tip error of RE-U250-L2
-# over 0.2 s stopped falling with rtol (1.7e-8, 2.0e-8, 1.5e-8 m from DOP853 at rtol 1e-4,
-# 1e-5, 1e-6); at 1e-4 rtol it falls all the way (1.7e-8, 3.7e-9, 8.3e-10, 1.7e-10, 3.7e-11 m
-# at rtol 1e-4 .. 1e-8: the truncation error's). The energy asks for more: what Newton leaves
-# in w's smooth components, where the momentum M v is large, moves the energy by 2 p . dw, and
-# on RE-U50000-L1000 that, not the scheme, made delta_M: to 5 s at rtol 1e-4 (the same 90
-# steps) max |delta_M| 0.43 J/kg at rtol / 100, 3.6e-2 at 1e-4 rtol, 2.2e-3 at 1e-6 rtol, where
-# Newton also made to wait until the next correction would move the kinetic energy by under
-# 1e-11 of it (an experiment, p by redysim.generalized_momentum) stops at the same 2.2e-3: the
-# scheme's own. At fixed steps of 5e-2 s, 3.9e-2, 6.0e-4 and 1.8e-4 J/kg at 1e-6, 1e-8 and
-# 1e-9; but at 1,000,000 DOF and h = 5e-4 s, 1e-8 is below qdd's round-off floor from t = 0.029 s
-# on, where Newton then crawls (~20 iterations, GMRES at its cap: 2.5 to ~120 s a step; at 1e-6,
-# 2 iterations of one GMRES step each), so fixed steps keep 1e-6; docs/design.md, "The implicit
-# integrator")
+# error control Newton must leave far less than rtol, or the global error stops falling with
+# rtol. The energy asks for more: what Newton leaves in w's smooth components, where the momentum
+# M v is large, moves the energy by 2 p . dw, and on RE-U50000-L1000 that, not the scheme, made
+# delta_M; at 1e-6 rtol delta_M is the scheme's own, which a Newton converged further does not
+# change. Fixed steps keep 1e-6: tighter is below qdd's round-off floor on the 1,000,000-DOF rod,
+# where Newton then crawls. docs/design.md, "The implicit integrator"; the runs:
+# docs/notes/2026-11-costs-in-the-code.md.)
 NEWTON_TOL = 1e-6
 NEWTON_RTOL = 1e-6
-# Newton also stops when |P^-1 R| stalls (falls by less than 10 % in an iteration) below
-# FLOOR_TOL |w|: the round-off floor of qdd. On RE-U50000-L1000 at h = 5e-4 it rises from 4e-8 at
-# the start to 1.0e-6 at t = 0.31 s, where a tolerance of 1e-6 alone stalled Newton for 20
-# iterations at 1.02e-6 to 1.07e-6. Under error control this floor is not tied to rtol: a floor of
-# rtol / 10 left the rtol 1e-5 run unable to converge at any step once qdd's round-off passed 1e-6
-# |w| (t = 4.99 s; steps of 5e-6 s, each failing), and a stall below 1e-4 |w| is no error the
-# step can remove. (A stall test of "no longer halves" stopped slow, linear convergence too.)
+# Newton also stops when |P^-1 R| stalls (falls by less than 10 % in an iteration) below FLOOR_TOL
+# |w|: the round-off floor of qdd, which rises during a long chain's run to where a tolerance alone
+# would stall Newton. Under error control this floor is not tied to rtol: a floor of rtol / 10 left
+# a run at rtol 1e-5 unable to converge at any step once qdd's round-off passed it, and a stall
+# below 1e-4 |w| is no error the step can remove (docs/notes/2026-11-costs-in-the-code.md). (A stall
+# test of "no longer halves" stopped slow, linear convergence too.)
 FLOOR_TOL = 1e-4
 STALL = 0.9
 FD_EPS = 1e-3             # e |u| = FD_EPS (1 + |w|): at 1e-7 a smooth u's product was round-off

@@ -52,11 +52,12 @@ FILE_SAMPLES = 20
 # longer moves under a step (the run then ends "ok" with the chain frozen).
 MAX_ANGLE = 1e6
 # The fastest motion a case asks for (fastest_motion), against its horizon: ode45 takes about ten
-# steps per radian of it (measured: 9.8 on a 4-link chain pulled at its tip by 1e12 N, 13 on
-# RE-U50000-L1000), and a run takes at most MAX_FIXED_STEPS (redysim.integrators.explicit's bound on
-# a fixed-step run), so a case whose fastest motion turns through more than MAX_RADIANS over t_end
-# (a tip force of 1e300 N: ~1e151 rad/s) is refused at the door instead of running for ever with its
-# time to go counting centuries. The cases shipped reach 1.3e5 rad (RE-U15000-L300).
+# steps per radian of it (measured on a pulled 4-link chain and on RE-U50000-L1000:
+# docs/notes/2026-11-costs-in-the-code.md), and a run takes at most MAX_FIXED_STEPS
+# (redysim.integrators.explicit's bound on a fixed-step run), so a case whose fastest motion turns
+# through more than MAX_RADIANS over t_end (a tip force of 1e300 N: ~1e151 rad/s) is refused at the
+# door instead of running for ever with its time to go counting centuries. The cases shipped reach
+# 1.3e5 rad (RE-U15000-L300).
 STEPS_PER_RADIAN = 10
 MAX_RADIANS = MAX_FIXED_STEPS / STEPS_PER_RADIAN
 # A tip mass this many times the lightest link's: the GIM's condition number grows in proportion

@@ -190,8 +190,8 @@ def list_scenarios(directory: Path = SCENARIOS_DIR) -> list[str]:
 def robot_data_file(name: str) -> Path | None:
     """A file of the ``example-robot-data`` package by the end of its path
     (``"ur_description/urdf/ur5_robot.urdf"``), or None when the package is not installed or
-    has no such file. Cached: reading the package's list of ~1,000 files takes ~30 ms, and a
-    run's id asks for it."""
+    has no such file. Cached: reading the package's list of files is slow next to a run's id,
+    which asks for it (docs/notes/2026-11-costs-in-the-code.md)."""
     try:
         dist = metadata.distribution("example-robot-data")
     except metadata.PackageNotFoundError:
