@@ -512,7 +512,6 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
        (RHS calls x links: the choice does not depend on the machine's load), and the advice
        run afresh."""
     from redysim.errors import SettingsError
-    from redysim.io.cases import rebuild_problem
 
     from .spec import RunSpec
     from .sweep import run_sweep
@@ -559,41 +558,10 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
                      "singular scene (a whip's tip, a bare end pulled by a force) has no "
                      "converged path for a coarser model to approach")
         return OwnStudy(path, tol, study, conv, orders, False, math.nan, "", None, None, notes)
-    last = orders[-2:]
-    if steady:
-        c = lv[-1]
-        p = last[-1]
-        ref_error = c["tip_err"] / ((nl / c["links"]) ** p - 1.0)
-        how = (f"Richardson: order {p:.2f} steady over the last levels, from {c['links']} "
-               f"links' error {c['tip_err']:.2g} m")
-    else:
-        fine, why = _refined(path, case)
-        if fine is None:
-            ref_error = math.nan
-            how = (f"unknown: the order is not steady (local orders "
-                   f"{', '.join(f'{o:.2f}' for o in orders)}) and {why}")
-        else:
-            log(f"advise: the order is not steady: the rope at {2 * nl} links "
-                f"(DOP853 {FINER_RTOL:g}) measures the reference's own error")
-            finer = finer_references({study.scene: study}, workers=1,
-                                     log=lambda *_: None)[study.scene]
-            step = float(np.linalg.norm(study.tips[study.reference["run_id"]]
-                                        - finer["tips"], axis=1).max())
-            c = lv[-1]
-            p = three_level_order(c["links"], nl, finer["links"], c["tip_err"], step)
-            if not p > 0:
-                notes.append(f"the tip path does not settle as links are added: your model "
-                             f"and the rope at {finer['links']} links differ by {step:.2g} m, "
-                             f"no less than {c['links']} links and yours ({c['tip_err']:.2g} m) "
-                             "allow for a converging sequence: a singular scene (a whip's tip, "
-                             "a bare end pulled by a force), no converged path to advise for")
-                return OwnStudy(path, tol, study, conv, orders, False, math.nan, "", None,
-                                None, notes)
-            ref_error = step / ((finer["links"] / nl) ** p - 1.0)
-            how = (f"estimated from the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}): "
-                   f"{step:.2g} m from yours, order {p:.2f} over {c['links']}, {nl} and "
-                   f"{finer['links']} links, the rest of the way by that order (the order not "
-                   f"steady over the levels: {', '.join(f'{o:.2f}' for o in orders)})")
+    ref_error, how, singular = _reference_error(path, case, study, lv, orders, steady, log)
+    if singular:
+        notes.append(singular)
+        return OwnStudy(path, tol, study, conv, orders, False, math.nan, "", None, None, notes)
     budget = tol - ref_error if math.isfinite(ref_error) else tol
     if not math.isfinite(ref_error):
         notes.append("the reference's own error is not known: the advice is within the "
@@ -608,32 +576,8 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     meeting = [d["links"] for d in lv if d["tip_err"] <= budget]
     chosen, searched = [nl], []
     if meeting:
-        finer_levels = [d["links"] for d in lv if d["links"] > meeting[0]]
-        chosen = list(dict.fromkeys([meeting[0], (finer_levels or [nl])[0], nl]))
-        coarser = [d for d in lv if d["links"] < meeting[0]]
-        why = rebuild_problem(case)
-        if coarser and meeting[0] - coarser[-1]["links"] > 1 and why:
-            notes.append(f"only link counts that divide yours were tried: {why}")
-        elif coarser and meeting[0] - coarser[-1]["links"] > 1:
-            # the counts between the failing level and the first that meets: the rope rebuilt
-            # at each (its file at that count), bisected
-            lo, hi = coarser[-1]["links"], meeting[0]
-            while hi - lo > 1:
-                mid = (lo + hi) // 2
-                specs.append(RunSpec(**base, links=mid, integrator=OWN_LEVEL[0],
-                                     rtol=OWN_LEVEL[1], atol=OWN_LEVEL[1] * 1e-2))
-                runs = run_sweep(specs, out, name=name, workers=workers, progress=False)
-                row = runs[runs["run_id"] == specs[-1].run_id].iloc[0]
-                if row["status"] != "ok":
-                    notes.append(f"the rope rebuilt at {mid} links failed ({row['reason']}): "
-                                 "the search between the levels stopped there")
-                    break
-                err = _tip_error(out, case.name, specs[-1].run_id)
-                searched.append({"links": mid, "tip_err": err})
-                log(f"advise: the rope rebuilt at {mid} links: model error {err:.3g} m")
-                lo, hi = (lo, mid) if err <= budget else (mid, hi)
-            if hi < meeting[0]:
-                chosen = list(dict.fromkeys([hi, meeting[0], nl]))
+        chosen, searched = _counts_to_try(case, lv, meeting[0], budget, specs, base, out, name,
+                                          workers, notes, log)
     log(f"advise: settings on {', '.join(map(str, chosen))} links "
         f"({len(OWN_INTEGRATORS) * len(OWN_RTOLS)} each)")
     specs += [RunSpec(**base, links=0 if n == nl else n, integrator=i, rtol=r, atol=r * 1e-2)
@@ -651,6 +595,85 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
         result.check = {"tip_err": err, "cpu_s": cpu, "steps": int(steps),
                         "bound": err + (ref_error if math.isfinite(ref_error) else 0.0)}
     return result
+
+
+def _reference_error(path: str, case, study, lv, orders, steady: bool, log
+                     ) -> tuple[float, str, str]:
+    """The user's model's own error from the converged path (:func:`_own_study`, step 2):
+    (error [m] or NaN, how it was estimated, and a note when the scene is singular, else "")."""
+    nl = case.chain.n_links
+    if steady:
+        c = lv[-1]
+        p = orders[-1]
+        return (c["tip_err"] / ((nl / c["links"]) ** p - 1.0),
+                f"Richardson: order {p:.2f} steady over the last levels, from {c['links']} "
+                f"links' error {c['tip_err']:.2g} m", "")
+    fine, why = _refined(path, case)
+    if fine is None:
+        return (math.nan, f"unknown: the order is not steady (local orders "
+                f"{', '.join(f'{o:.2f}' for o in orders)}) and {why}", "")
+    log(f"advise: the order is not steady: the rope at {2 * nl} links (DOP853 {FINER_RTOL:g}) "
+        "measures the reference's own error")
+    finer = finer_references({study.scene: study}, workers=1, log=lambda *_: None)[study.scene]
+    step = float(np.linalg.norm(study.tips[study.reference["run_id"]] - finer["tips"],
+                                axis=1).max())
+    c = lv[-1]
+    p = three_level_order(c["links"], nl, finer["links"], c["tip_err"], step)
+    if not p > 0:
+        return (math.nan, "", f"the tip path does not settle as links are added: your model "
+                f"and the rope at {finer['links']} links differ by {step:.2g} m, no less than "
+                f"{c['links']} links and yours ({c['tip_err']:.2g} m) allow for a converging "
+                "sequence: a singular scene (a whip's tip, a bare end pulled by a force), no "
+                "converged path to advise for")
+    return (step / ((finer["links"] / nl) ** p - 1.0),
+            f"estimated from the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}): "
+            f"{step:.2g} m from yours, order {p:.2f} over {c['links']}, {nl} and "
+            f"{finer['links']} links, the rest of the way by that order (the order not steady "
+            f"over the levels: {', '.join(f'{o:.2f}' for o in orders)})", "")
+
+
+def _counts_to_try(case, lv, first: int, budget: float, specs: list, base: dict, out: Path,
+                   name: str, workers, notes: list, log) -> tuple[list[int], list[dict]]:
+    """The link counts whose settings are tried (:func:`_own_study`, step 3): the coarsest
+    level within the budget (``first``) and the next finer one (the user's model when none is:
+    a finer model at a looser setting can be the cheaper) and the user's own; between ``first``
+    and the next coarser level, the rope rebuilt at each count, bisected, down to the least that
+    meets the budget. Returns (counts, the rebuilt counts' errors); ``specs`` grows with the
+    rebuilt runs, ``notes`` with why a search stopped or was not made."""
+    from redysim.io.cases import rebuild_problem
+
+    from .spec import RunSpec
+    from .sweep import run_sweep
+
+    nl = case.chain.n_links
+    finer_levels = [d["links"] for d in lv if d["links"] > first]
+    chosen = list(dict.fromkeys([first, (finer_levels or [nl])[0], nl]))
+    coarser = [d for d in lv if d["links"] < first]
+    searched: list[dict] = []
+    if not coarser or first - coarser[-1]["links"] <= 1:
+        return chosen, searched
+    why = rebuild_problem(case)
+    if why:
+        notes.append(f"only link counts that divide yours were tried: {why}")
+        return chosen, searched
+    lo, hi = coarser[-1]["links"], first
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        specs.append(RunSpec(**base, links=mid, integrator=OWN_LEVEL[0], rtol=OWN_LEVEL[1],
+                             atol=OWN_LEVEL[1] * 1e-2))
+        runs = run_sweep(specs, out, name=name, workers=workers, progress=False)
+        row = runs[runs["run_id"] == specs[-1].run_id].iloc[0]
+        if row["status"] != "ok":
+            notes.append(f"the rope rebuilt at {mid} links failed ({row['reason']}): the search "
+                         "between the levels stopped there")
+            break
+        err = _tip_error(out, case.name, specs[-1].run_id)
+        searched.append({"links": mid, "tip_err": err})
+        log(f"advise: the rope rebuilt at {mid} links: model error {err:.3g} m")
+        lo, hi = (lo, mid) if err <= budget else (mid, hi)
+    if hi < first:
+        chosen = list(dict.fromkeys([hi, first, nl]))
+    return chosen, searched
 
 
 # --------------------------------------------------------------------------- hanging modes

@@ -156,25 +156,7 @@ def refine_section(res) -> Section:
             "does not depend on the machine's load) is listed as failed.")
     hang = doc.get("hanging")
     if hang:
-        m = hang["modes"]
-        modes.columns = ["links"] + [f"mode {k + 1}" for k in range(m)]
-        for lv in hang["levels"]:
-            modes.rows.append(Row([integer(lv["links"])] + [_fmt_err(e) if finite(e) else ""
-                                                            for e in lv["rel_err"]]))
-        modes.rows.append(Row(["observed order"] + [num(p, 3) for p in hang["orders"]], INFO))
-        modes.rows.append(Row(["Richardson, 512 and 1,024"] +
-                              [_fmt_err(e) for e in hang["richardson_rel_err"]], INFO))
-        modes.notes.append(
-            "Continuum: a heavy hanging string, omega_k = (z_k / 2) sqrt(g / L), z_k the zeros "
-            "of J0: " + ", ".join(f"{w:.5f}" for w in hang["continuum"]) + " rad/s for L = "
-            f"{hang['length']:g} m. The chain (rod links, "
-            f"{hang['case']}) linearised about hanging straight down: K exact, M the core's "
-            "GIM. Orders fitted on links >= 8 per mode number.")
-        for a in hang.get("advice", []):
-            if a:
-                modes.notes.append(f"Advice: the first {a['modes']} frequencies within "
-                                   f"{a['tol']:.1%} need {a['links']} links (worst "
-                                   f"{a['max_rel_err']:.2e}).")
+        _fill_modes(modes, hang)
         figs.append(_modes_figure(hang, prov))
     else:
         modes.not_run = NOT_RAN
@@ -184,6 +166,30 @@ def refine_section(res) -> Section:
     sec.items += [*figs, conv, orders, advice, f32, float32_speed_table(res), modes, own,
                   reduced, adaptive_figure(res), adaptive_table(res)]
     return sec
+
+
+def _fill_modes(modes: Table, hang: dict) -> None:
+    """The hanging chain's frequencies table: each level's relative errors, the observed
+    orders, Richardson's, and the continuum and the advice in its notes."""
+    m = hang["modes"]
+    modes.columns = ["links"] + [f"mode {k + 1}" for k in range(m)]
+    for lv in hang["levels"]:
+        modes.rows.append(Row([integer(lv["links"])] + [_fmt_err(e) if finite(e) else ""
+                                                        for e in lv["rel_err"]]))
+    modes.rows.append(Row(["observed order"] + [num(p, 3) for p in hang["orders"]], INFO))
+    modes.rows.append(Row(["Richardson, 512 and 1,024"] +
+                          [_fmt_err(e) for e in hang["richardson_rel_err"]], INFO))
+    modes.notes.append(
+        "Continuum: a heavy hanging string, omega_k = (z_k / 2) sqrt(g / L), z_k the zeros "
+        "of J0: " + ", ".join(f"{w:.5f}" for w in hang["continuum"]) + " rad/s for L = "
+        f"{hang['length']:g} m. The chain (rod links, "
+        f"{hang['case']}) linearised about hanging straight down: K exact, M the core's "
+        "GIM. Orders fitted on links >= 8 per mode number.")
+    for a in hang.get("advice", []):
+        if a:
+            modes.notes.append(f"Advice: the first {a['modes']} frequencies within "
+                               f"{a['tol']:.1%} need {a['links']} links (worst "
+                               f"{a['max_rel_err']:.2e}).")
 
 
 ADAPTIVE_HOW = "not run: make bench (benchmarks/adaptive_rope.py)"
