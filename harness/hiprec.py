@@ -223,7 +223,8 @@ def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) ->
         q, v, tau = _state(c, arith, q, v, tau)
         qdd = arith.zeros(c.n_dof)
         fd(a["length"], a["mass"], a["inertia_O"][:, 2, 2].copy(),
-           a["mass_com"][:, 0].copy(), a["mass_com"][:, 1].copy(), arith.array(c.gravity),
+           a["mass_com"][:, 0].copy(), a["mass_com"][:, 1].copy(), arith.array(c.armature),
+           arith.array(c.gravity),
            q, v, tau, qdd, arith.zeros((c.n_links, 12)))
     return qdd
 
@@ -243,7 +244,7 @@ def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = 
         q, v, tau = _state(c, arith, q, v, tau)
         kin(tree, q, v, arith.zeros(n), arith.array(-c.gravity), s)
         bias = arith.zeros(n)
-        rnea(tree, s, bias)
+        rnea(tree, s, arith.zeros(n), bias)
         phi = tau - bias
     return s.oR, s.oO, s.oP, phi, a
 

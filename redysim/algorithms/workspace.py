@@ -79,8 +79,8 @@ def tree_tables(system: Model) -> dict:
                 qshift=(m.joint_qoff[:-1] - m.joint_voff[:-1])[:nt], along=m.placement_p[:, 0],
                 placement_R=m.placement_R[:nt], placement_p=m.placement_p[:nt],
                 joint_voff=m.joint_voff, dof_kind=m.dof_kind, dof_axis=m.dof_axis,
-                dof_u=m.dof_u, mass=m.mass, inertia_O=m.inertia_O, mass_com=m.mass_com,
-                n_q=m.n_q)
+                dof_u=m.dof_u, armature=m.armature, mass=m.mass, inertia_O=m.inertia_O,
+                mass_com=m.mass_com, n_q=m.n_q)
 
 
 def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:

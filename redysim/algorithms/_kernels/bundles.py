@@ -53,19 +53,20 @@ BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 # table (.dh): kind (0 R, 1 P); ca, sa = cos, sin alpha; c2, s2, cs = ca^2, sa^2, ca sa;
 # cs2 = 2 ca sa; cms = ca^2 - sa^2; a, d, theta (q adds to theta, R, or to d, P); m; h = m c (3);
 # J about O_k (xx, xy, xz, yy, yz, zz), all in the body's own frame; twist: 0 any alpha, 1, 2, 3, 4
-# alpha = 0, 90, -90, 180 degrees (.dh turns y and z into each other then, without arithmetic).
-# Then, on the last row of a robot whose last joint is revolute (zeros elsewhere), that body's
+# alpha = 0, 90, -90, 180 degrees (.dh turns y and z into each other then, without arithmetic);
+# the joint's armature. Then, on the last row of a robot whose last joint is revolute (zeros
+# elsewhere), that body's
 # articulated inertia, which is its own and so a constant in its frame: 1 / J_zz; U / D
 # (x, y angular; x, y linear); the projected inertia's A (xx, xy, yy), B (xx, xy, yx, yy) and M
 # (xx, xy, yy) (its other numbers are the body's own, or zero); and A and B moved by Tz(d).
 DH_COLUMNS = ("kind", "ca", "sa", "c2", "s2", "cs", "cs2", "cms", "a", "d", "theta",
               "m", "hx", "hy", "hz", "jxx", "jxy", "jxz", "jyy", "jyz", "jzz", "twist",
-              "tip_inv", "tip_d0", "tip_d1", "tip_d3", "tip_d4",
+              "armature", "tip_inv", "tip_d0", "tip_d1", "tip_d3", "tip_d4",
               "tip_a00", "tip_a01", "tip_a11", "tip_b00", "tip_b01", "tip_b10", "tip_b11",
               "tip_m00", "tip_m01", "tip_m11",
               "tip_za00", "tip_za01", "tip_za11", "tip_zb00", "tip_zb01", "tip_zb10", "tip_zb11")
 (DH_KIND, DH_CA, DH_SA, DH_C2, DH_S2, DH_CS, DH_CS2, DH_CMS, DH_A, DH_D, DH_TH, DH_M, DH_HX,
- DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ, DH_TW,
+ DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ, DH_TW, DH_ARMATURE,
  DH_TIP_INV, DH_TIP_D0, DH_TIP_D1, DH_TIP_D3, DH_TIP_D4,
  DH_TIP_A00, DH_TIP_A01, DH_TIP_A11, DH_TIP_B00, DH_TIP_B01, DH_TIP_B10, DH_TIP_B11,
  DH_TIP_M00, DH_TIP_M01, DH_TIP_M11,
@@ -120,6 +121,9 @@ LAYOUT: tuple[Field, ...] = (
     Field("dof_kind", I, ("nv",), "tree_i", "Tree", "per axis: revolute, prismatic, ball"),
     Field("dof_axis", I, ("nv",), "tree_i", "Tree", "per axis: x, y, z or general (.joints)"),
     Field("dof_u", F, ("nv", 3), "tree_f", "Tree", "per axis: its unit vector"),
+    Field("armature", F, ("nv",), "tree_f", "Tree",
+          "per axis: the joint's own inertia, added to its joint-space inertia (.joints."
+          "joint_inertia)"),
     Field("mass", F, ("nb",), "tree_f", "Tree", "per body: its mass"),
     Field("inertia_O", F, ("nb", 3, 3), "tree_f", "Tree",
           "per body: inertia about its origin O_k, in its own frame"),
