@@ -385,10 +385,10 @@ def to_mjcf(system: Model) -> str:
             quat = q0[qs + 3:qs + 7] / np.linalg.norm(q0[qs + 3:qs + 7])
             body = ET.SubElement(parent, "body", name=model.body_names[k],
                                  pos=_vec(q0[qs:qs + 3]), quat=_vec(quat))
-            a = float(model.armature[model.joint_voff[k]])
-            if a:
+            free_armature = float(model.armature[model.joint_voff[k]])
+            if free_armature:
                 ET.SubElement(body, "joint", name=model.joint_names[k], type="free",
-                              armature=_num(a))
+                              armature=_num(free_armature))
             else:
                 ET.SubElement(body, "freejoint", name=model.joint_names[k])
         else:

@@ -25,7 +25,12 @@ so their slicer cuts 1-D views and their numba types are 1-D; their shapes count
 Kernels read the fields into locals at their top, once per call, and pass helpers scalars, never
 arrays: an array handed to an inlined helper in a loop costs reference counting per call, ten
 times a rope body's work. The kernels that take the bundles compile without numba's reference
-counting altogether (``redysim._jit.jit_borrowed``).
+counting altogether (``redysim._jit.jit_borrowed``). Reading the fields at the top matters for
+another reason where a function makes the bundles itself (the lean entries, :mod:`.lean`) and
+inlines the passes: numba's dead-code elimination (0.68) keeps a write into an array only if it
+sees the array alive afterwards or drawn from an argument, and a field read inside an inlined
+helper (or an array taken out of a tuple there) is neither: its writes were dropped. Written
+through an array read before the pass's loop (alive in the next turn), they stay.
 
 A serial chain is a tree (parent k - 1, each joint at the parent's ``along`` on its x axis, no
 free joint): ``serial = 1`` tells the kernels so, and they then read none of the tree's tables

@@ -34,6 +34,13 @@ projection (and shift along z) is a constant of the robot, read from the DH tabl
 (:func:`redysim.algorithms.dh_form.tip_columns`). Both kernels are IEEE as written
 (``redysim._jit.jit_exact``), so every caller gets the same bits.
 
+A joint's armature (the DH table's ``armature`` column) enters where the joint-space inertia is
+formed (:func:`.joints.joint_inertia`; :func:`.joints.joint_force` in the inverse kernel). It
+leaves the projected inertia a row and column along the joint's axis, which the zero-structured
+steps above assume away: a joint with armature takes the general step, the elimination of
+:mod:`.articulated` (:func:`.articulated.eliminate_axis`) on all 21 numbers, then the moves on all
+21 (a prismatic joint's steps). The forward kernel is its three passes, each a function.
+
 Both are equal to the general kernels (:mod:`.kinematics`, :mod:`.inverse_dynamics`,
 :mod:`.rge_a`) to rounding. Their Python source is what ``redysim.reports.opcount`` counts.
 """

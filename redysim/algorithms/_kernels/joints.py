@@ -70,15 +70,22 @@ def _sincos_compiled(x):
     """
     def impl(x):
         if abs(x) <= PI_4:
-            z = x * x
-            r = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
-            s = x + x * z * (S1 + z * r)
-            rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
-            hz = 0.5 * z
-            w = 1.0 - hz
-            return w + (((1.0 - w) - hz) + z * rc), s
+            return fdlibm_sincos(x)
         return math.cos(x), math.sin(x)
     return impl
+
+
+@inline
+def fdlibm_sincos(x):
+    """(cos x, sin x) by fdlibm's kernels (k_cos.c, k_sin.c), for |x| <= pi/4; compiled
+    :func:`sincos` and the SIMD tiles' branch-free one (after their reduction) call it."""
+    z = x * x
+    r = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
+    s = x + x * z * (S1 + z * r)
+    rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
+    hz = 0.5 * z
+    w = 1.0 - hz
+    return w + (((1.0 - w) - hz) + z * rc), s
 
 
 @inline

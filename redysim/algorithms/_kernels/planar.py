@@ -15,6 +15,10 @@ kernel ``rge_a.py`` enters them: gravity as the base's twist-rate in the forward
 velocity terms as the local centripetal acceleration c_k = [0; -w_{k-1}^2 r] and the link's
 centripetal force, never as phi (whose entries grow with the square of the chain's length).
 
+A joint's armature a adds to its pivot, D = Ihat + a (:func:`.joints.joint_inertia`); Mbar_k's
+first row (and column) is then a Psi / D, no longer zero: such a joint's parent takes it in too
+(``_planar_backward``), and its qdd reads Psi's first entry.
+
 Model only what the scene requires: 21 + 9 numbers per link become 3 + 3; see the benchmark
 ``benchmarks/test_bench_core.py::test_planar_gain`` for the measured gain over the spatial path.
 

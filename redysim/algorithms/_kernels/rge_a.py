@@ -19,6 +19,11 @@ mu_0 = [0; -g] with mu_{k,k-1} = A_{k,k-1} mu_{k-1} + c_k.
 
 Implementation notes:
 
+- One source. Each step is a helper of :mod:`.articulated` on tuples of scalars (the body's
+  mass, the elimination of an axis or of a U joint's block, the bias, the shift), which the
+  SIMD tiles (:mod:`.tiles`) and the DH kernels' general step call too; the pivot of every
+  elimination is the axis's joint-space inertia, armature included (:func:`.joints.
+  joint_inertia`).
 - Axis by axis. A joint with z_k > 1 axes (U, S) is eliminated one axis at a time, last axis
   first, with no shift between its axes (they meet at O_k). This is Table A.1 with the z_k x z_k
   block Ihat_k factored in passing as a unit upper triangle times a diagonal: identical in exact

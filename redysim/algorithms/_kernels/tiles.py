@@ -14,10 +14,17 @@ What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set
   select that makes the address non-affine, and LLVM then gives up ("unsafe dependent memory
   operations") or gathers;
 - no branch inside a loop over states: one copy of each loop per joint kind and axis code (the
-  branches on them are outside the loops), and cos and sin by Cody-Waite reduction and fdlibm's
-  polynomials with the quadrant applied by arithmetic;
+  branches on them are outside the loops: :func:`_axis` called with them as constants), and cos
+  and sin by Cody-Waite reduction and fdlibm's polynomials with the quadrant applied by
+  arithmetic;
 - the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
   time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
+
+The steps inside the loops over states are the single-state kernels' own, called once per state:
+:func:`.joints.axis_transform` and :func:`.joints.axis_rates` (the joint's column, frame and
+rates), and :mod:`.articulated`'s elimination, body mass, bias and shift; only the loading and
+storing of a state's values from and to the tile arrays is this module's. A joint's armature
+enters through them (:func:`.joints.joint_inertia`).
 
 The kernels take named bundles (:mod:`.bundles`): the system's :class:`.bundles.Tree` and one
 thread's :class:`.bundles.Tiles`, the tile arrays, declared in the layout table beside the
@@ -79,22 +86,11 @@ from .bundles import (
 )
 from .joints import (
     BALL,
-    C1,
-    C2,
-    C3,
-    C4,
-    C5,
-    C6,
     PRISMATIC,
     REVOLUTE,
-    S1,
-    S2,
-    S3,
-    S4,
-    S5,
-    S6,
     axis_rates,
     axis_transform,
+    fdlibm_sincos,
     turned,
 )
 
@@ -138,13 +134,7 @@ def sincos_reduced(x):
     k = np.floor(x * TWO_OVER_PI + 0.5)
     r = (x - k * PIO2_1) - k * PIO2_1T
     # the tail of pio2_1t, as fdlibm's second round: negligible below |x| ~ 1e5
-    z = r * r
-    rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
-    s = r + r * z * (S1 + z * rs)
-    rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
-    hz = 0.5 * z
-    w = 1.0 - hz
-    c = w + (((1.0 - w) - hz) + z * rc)
+    c, s = fdlibm_sincos(r)
     quadrant = k - 4.0 * np.floor(k * 0.25)  # 0, 1, 2, 3
     # the quadrant's swap and signs by arithmetic, not branches (a branch in the loop kept LLVM
     # from vectorising it): 1 x s + 0 x c is s exactly
@@ -187,29 +177,25 @@ def _kin_axes(k, qs, balls, tree, Q, QD, oP, run):
         # one copy of the lane loop per (kind, axis code), each generated from _axis with its
         # branches folded away: a branch inside a vectorised loop runs both of its sides
         if kind == PRISMATIC:
-            if code == 0:
-                _axis(j, jq, PRISMATIC, 0, u0, u1, u2, Q, QD, oP, run)
-            elif code == 1:
-                _axis(j, jq, PRISMATIC, 1, u0, u1, u2, Q, QD, oP, run)
-            elif code == 2:
-                _axis(j, jq, PRISMATIC, 2, u0, u1, u2, Q, QD, oP, run)
-            else:
-                _axis(j, jq, PRISMATIC, 3, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, PRISMATIC, code, u0, u1, u2, Q, QD, oP, run)
         elif balls and kind == BALL:
-            if code == 0:
-                _axis(j, jq, BALL, 0, u0, u1, u2, Q, QD, oP, run)
-            elif code == 1:
-                _axis(j, jq, BALL, 1, u0, u1, u2, Q, QD, oP, run)
-            else:
-                _axis(j, jq, BALL, 2, u0, u1, u2, Q, QD, oP, run)
-        elif code == 0:
-            _axis(j, jq, REVOLUTE, 0, u0, u1, u2, Q, QD, oP, run)
-        elif code == 1:
-            _axis(j, jq, REVOLUTE, 1, u0, u1, u2, Q, QD, oP, run)
-        elif code == 2:
-            _axis(j, jq, REVOLUTE, 2, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, BALL, code, u0, u1, u2, Q, QD, oP, run)
         else:
-            _axis(j, jq, REVOLUTE, 3, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, REVOLUTE, code, u0, u1, u2, Q, QD, oP, run)
+
+
+@inline
+def _axis_of(j, jq, kind, code, u0, u1, u2, Q, QD, oP, run):
+    """:func:`_axis` with its axis code a constant too (``kind`` given as one): a branch on
+    ``code`` outside the loop over states."""
+    if code == 0:
+        _axis(j, jq, kind, 0, u0, u1, u2, Q, QD, oP, run)
+    elif code == 1:
+        _axis(j, jq, kind, 1, u0, u1, u2, Q, QD, oP, run)
+    elif code == 2 or kind == BALL:  # (a ball's axes are its body's x, y, z)
+        _axis(j, jq, kind, 2, u0, u1, u2, Q, QD, oP, run)
+    else:
+        _axis(j, jq, kind, 3, u0, u1, u2, Q, QD, oP, run)
 
 
 @inline
