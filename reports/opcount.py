@@ -53,7 +53,7 @@ import numpy as np
 from redysim import Chain, mass_matrix, phi
 from redysim.algorithms.dh_form import dh_constants
 from redysim.algorithms.precision import kernel_source
-from redysim.algorithms.workspace import DH_SCRATCH, bundles_in
+from redysim.algorithms.workspace import DH_SCRATCH, bundles_in, kernel_armature
 from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
 
@@ -194,7 +194,7 @@ def count_rge_a_planar(chain: Chain) -> tuple[int, int]:
     q, qd = state(c)
     fn = kernel_source("planar", Count)
     args = (counts(c.length), counts(c.mass), counts(c.inertia_O[:, 2, 2]),
-            counts(c.mass_com[:, 0]), counts(c.mass_com[:, 1]), counts(c.armature),
+            counts(c.mass_com[:, 0]), counts(c.mass_com[:, 1]), counts(kernel_armature(c)),
             counts(c.gravity), counts(q),
             counts(qd), empty(n), empty(n), empty(c.n_links, 12))
     return tally(lambda: fn(*args))

@@ -82,7 +82,7 @@ from redysim.algorithms._kernels.planar import planar_forward_dynamics
 from redysim.algorithms._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamics
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.dynamics import METHODS, check_state, mass_matrix, phi
-from redysim.algorithms.workspace import bundles_in
+from redysim.algorithms.workspace import bundles_in, kernel_armature
 from redysim.model.tree import Model
 
 ARITHMETICS = ("double", "decimal")
@@ -334,13 +334,14 @@ def _empty(shape, number) -> np.ndarray:
 
 
 def _armature(model: Model, number) -> np.ndarray:
-    """The model's armature for the kernels' source in ``number``: in an IEEE type as the other
-    inputs; for a :class:`Rounded` type the doubles themselves, which the kernels' first
-    operation with them rounds (a Rounded equals no float, so a Rounded zero would not read as
-    no armature: :func:`redysim.algorithms._kernels.joints.joint_inertia`)."""
+    """The model's armature for the kernels' source in ``number`` (empty when it has none:
+    :func:`redysim.algorithms.workspace.kernel_armature`): in an IEEE type as the other inputs;
+    for a :class:`Rounded` type the doubles themselves, which the kernels' first operation with
+    them rounds (a Rounded equals no float, so a Rounded zero would not read as zero)."""
+    armature = kernel_armature(model)
     if isinstance(number, type) and issubclass(number, Rounded):
-        return np.asarray(model.armature, dtype=float)
-    return _numbers(model.armature, number)
+        return np.asarray(armature, dtype=float)
+    return _numbers(armature, number)
 
 
 def _to_float(a) -> np.ndarray:

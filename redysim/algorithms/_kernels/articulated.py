@@ -165,10 +165,10 @@ def downdate(M, v, u):
 
 
 @inline
-def eliminate_axis(kind, p0, p1, p2, p3, p4, p5, tau_j, armature_j, M, nf):
+def eliminate_axis(kind, p0, p1, p2, p3, p4, p5, tau_j, armature, j, M, nf):
     """Axis j of Table A.1 on the articulated body (M, nf) with its column P = (p0..p5):
 
-        phihat = tau_j - P^T p,  Psi = Mhat P,  D = P^T Psi + armature_j,
+        phihat = tau_j - P^T p,  Psi = Mhat P,  D = P^T Psi + armature[j],
         Psihat = Psi / D,  phitil = phihat / D,  p <- p + Psi phitil,  Mhat <- Mhat - Psihat Psi^T.
 
     Returns (M, nf, D, phihat, phitil, Psihat (6-tuple))."""
@@ -177,7 +177,7 @@ def eliminate_axis(kind, p0, p1, p2, p3, p4, p5, tau_j, armature_j, M, nf):
     ph = tau_j - (p0 * n0 + p1 * n1 + p2 * n2 + p3 * f0 + p4 * f1 + p5 * f2)
     # Psi = Mhat P, D = P^T Psi + armature (the column's kind dispatched in column_mass)
     u0, u1, u2, u3, u4, u5, ih = column_mass(kind, p0 + p3, p1 + p4, p2 + p5, M)
-    ih = joint_inertia(ih, armature_j)
+    ih = joint_inertia(ih, armature, j)
     inv = 1.0 / ih
     v0, v1, v2, v3, v4, v5 = u0 * inv, u1 * inv, u2 * inv, u3 * inv, u4 * inv, u5 * inv
     ptil = ph * inv
@@ -189,12 +189,12 @@ def eliminate_axis(kind, p0, p1, p2, p3, p4, p5, tau_j, armature_j, M, nf):
 
 
 @inline
-def eliminate_pair(a0, a1, a2, b0, b1, b2, tau_a, tau_b, armature_a, armature_b, M, nf):
+def eliminate_pair(a0, a1, a2, b0, b1, b2, tau_a, tau_b, armature, ja, jb, M, nf):
     """Two rotational axes of one joint (a U joint), a = (a0, a1, a2) the last and b the first,
     eliminated from one 2 x 2 block: the same factors as two :func:`eliminate_axis` steps (a,
     then b), rearranged so that their two divisions are independent.
 
-    H = P^T Mhat P + diag(armature_a, armature_b) = [[ia, cab], [cab, ib]] and Psi_a, Psi_b are
+    H = P^T Mhat P + diag(armature[ja], armature[jb]) = [[ia, cab], [cab, ib]] and Psi_a, Psi_b are
     taken from Mhat before either elimination; axis b's after axis a's are then Psi_b' = Psi_b -
     Psi_a cab / ia and D_b = det H / ia, so 1 / ia and ia / det H run side by side.
     Returns (M, nf, (D_a, phihat_a, phitil_a, Psihat_a), (D_b, phihat_b, phitil_b, Psihat_b))."""
@@ -203,8 +203,8 @@ def eliminate_pair(a0, a1, a2, b0, b1, b2, tau_a, tau_b, armature_a, armature_b,
     u0, u1, u2, u3, u4, u5, ia = column_mass(REVOLUTE, a0, a1, a2, M)
     w0, w1, w2, w3, w4, w5, ib = column_mass(REVOLUTE, b0, b1, b2, M)
     # the block H and its determinant
-    ia = joint_inertia(ia, armature_a)
-    ib = joint_inertia(ib, armature_b)
+    ia = joint_inertia(ia, armature, ja)
+    ib = joint_inertia(ib, armature, jb)
     cab = (b0 * u0 + b1 * u1) + b2 * u2
     det = ia * ib - cab * cab
     inva = 1.0 / ia

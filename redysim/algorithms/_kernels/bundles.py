@@ -8,7 +8,8 @@ bundles are built once per chain or model (:mod:`redysim.algorithms.workspace`) 
 path, sliced out of a workspace's packed arrays inside compiled code (:mod:`.entry`).
 
 :data:`LAYOUT` is the one table: each array's name, dtype, shape (in the sizes nb bodies, n_v
-velocity coordinates, ng gathering bodies, and nt = nb for a tree, 0 for a serial chain) and the
+velocity coordinates, ng gathering bodies, nt = nb for a tree, 0 for a serial chain, and na = nv
+for a model with armature, 0 without) and the
 packed array that holds it (``tree_f``, ``tree_i``: the system's floats and ints; ``scratch``:
 what the kernels write; ``tiles``: one thread's row of the SIMD tiles' buffer), and whether it
 belongs to the :class:`Tree`, :class:`Scratch` or :class:`Tiles` bundle or is one of the
@@ -81,8 +82,8 @@ DH_TIP = DH_TIP_INV  # the first of the last body's columns
 DH_SCRATCH = 48  # the DH forward kernel's scratch columns per body (.dh)
 
 # the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)
-HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial")
-H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(len(HEADER_FIELDS))
+HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial", "na")
+H_NB, H_NV, H_NQ, H_NG, H_SERIAL, H_NA = range(len(HEADER_FIELDS))
 
 
 class Field(NamedTuple):
@@ -126,9 +127,10 @@ LAYOUT: tuple[Field, ...] = (
     Field("dof_kind", I, ("nv",), "tree_i", "Tree", "per axis: revolute, prismatic, ball"),
     Field("dof_axis", I, ("nv",), "tree_i", "Tree", "per axis: x, y, z or general (.joints)"),
     Field("dof_u", F, ("nv", 3), "tree_f", "Tree", "per axis: its unit vector"),
-    Field("armature", F, ("nv",), "tree_f", "Tree",
+    Field("armature", F, ("na",), "tree_f", "Tree",
           "per axis: the joint's own inertia, added to its joint-space inertia (.joints."
-          "joint_inertia)"),
+          "joint_inertia); empty (na = 0) for a model without any, whose kernels then read "
+          "none of it"),
     Field("mass", F, ("nb",), "tree_f", "Tree", "per body: its mass"),
     Field("inertia_O", F, ("nb", 3, 3), "tree_f", "Tree",
           "per body: inertia about its origin O_k, in its own frame"),
@@ -223,11 +225,12 @@ else:
                     "DOF, LANES states side by side, each array flat).")
 
 
-def sizes_of(nb: int, nv: int, ng: int, serial: bool, nq: int | None = None) -> dict[str, int]:
+def sizes_of(nb: int, nv: int, ng: int, serial: bool, nq: int | None = None,
+             na: int = 0) -> dict[str, int]:
     """The size names of :data:`LAYOUT`'s shapes, for a system of these sizes (nq: its
-    configuration coordinates, nv when not given)."""
+    configuration coordinates, nv when not given; na: nv for a model with armature, else 0)."""
     return dict(nb=nb, nb1=nb + 1, nv=nv, nq=nv if nq is None else nq, ng=ng,
-                nt=0 if serial else nb)
+                nt=0 if serial else nb, na=na)
 
 
 def shape_of(field: Field, sizes: dict[str, int]) -> tuple[int, ...]:
@@ -245,7 +248,8 @@ def segment_sizes(array: str, sizes: dict[str, int], planar: bool,
 
 # the argument of a generated slicer holding each packed array, and the size names' expressions
 PACKED = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch", "tiles": "buf"}
-_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "nq": "nq", "ng": "ng", "nt": "nt"}
+_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "nq": "nq", "ng": "ng", "nt": "nt",
+         "na": "na"}
 
 
 def _view(f: Field, shaper: str | None = None) -> str:
@@ -275,7 +279,8 @@ def slicer_source(name: str, bundles: tuple[str, ...], shaper: str | None = None
     lines = [f"def {name}({', '.join(args)}):",
              "    h = idata",
              f"    nb, nv, nq, ng = h[{H_NB}], h[{H_NV}], h[{H_NQ}], h[{H_NG}]",
-             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty"]
+             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty",
+             f"    na = h[{H_NA}]  # 0: no armature"]
     for b in bundles:
         first = f"h[{H_SERIAL}]," if b == "Tree" else ""
         lines += [f"    {b.lower()}_ = {b}({first}"]

@@ -157,6 +157,13 @@ def _gen_x(g00, g01, g10, g11, tw):
 
 
 @inline
+def _armature(dh, k):
+    """Joint k's armature as :func:`.joints.joint_inertia` takes it: a view of its one number,
+    or an empty one when it has none."""
+    return dh[k:k + 1, ARMATURE] if dh[k, ARMATURE] != 0.0 else dh[k:k, ARMATURE]
+
+
+@inline
 def _joint(dh, q, k):
     """Joint k at q: (prismatic, its offset d along z (d + q for a prismatic), cos and sin of its
     angle (theta + q for a revolute))."""
@@ -290,7 +297,7 @@ def dh_inverse_dynamics(dh, q, qd, qdd, base_accel, tau, scr):
     for k in range(n - 1, -1, -1):
         f0, f1, f2 = scr[k, 0], scr[k, 1], scr[k, 2]
         n0, n1, n2 = scr[k, 3], scr[k, 4], scr[k, 5]
-        tau[k] = joint_force(f2 if dh[k, KIND] != 0.0 else n2, dh[k, ARMATURE], qdd[k])
+        tau[k] = joint_force(f2 if dh[k, KIND] != 0.0 else n2, _armature(dh, k), 0, qdd[k])
         if k == 0:
             break
         # moved to the parent's frame, added to the parent's own
@@ -524,7 +531,7 @@ def _base_pivot(dh, tau, scr):
     (its own is zero) are needed (pass 3 has nothing to move to a base at rest)."""
     I = scr[0, S_CHILD_I:S_CHILD_I + IA]
     hx, hy = dh[0, HX], dh[0, HY]
-    pivot = joint_inertia(I[5] + dh[0, JZZ], dh[0, ARMATURE])
+    pivot = joint_inertia(I[5] + dh[0, JZZ], _armature(dh, 0), 0)
     inv = 1.0 / pivot
     scr[0, S_PIVOT] = pivot
     scr[0, S_UD] = scr[0, S_UD + 1] = 0.0
@@ -848,10 +855,10 @@ def _armature_projection(dh, tau, k, revolute, p, scr):
             I[13], I[14], I[15], I[16], I[17], I[18], I[19], I[20])
     if revolute:
         Mbar, nf, pivot, _, ptil, ud = eliminate_axis(REVOLUTE, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
-                                                      tau[k], dh[k, ARMATURE], Mhat, p)
+                                                      tau[k], _armature(dh, k), 0, Mhat, p)
     else:
         Mbar, nf, pivot, _, ptil, ud = eliminate_axis(PRISMATIC, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-                                                      tau[k], dh[k, ARMATURE], Mhat, p)
+                                                      tau[k], _armature(dh, k), 0, Mhat, p)
     scr[k, S_PIVOT] = pivot
     for i in range(6):
         scr[k, S_UD + i] = ud[i]

@@ -47,9 +47,9 @@ def energy(tree, gravity, s, qd):
         V -= gravity[0] * (m * oO[k, 0] + md0) + gravity[1] * (m * oO[k, 1] + md1) \
             + gravity[2] * (m * oO[k, 2] + md2)
     armature = tree.armature
-    Ta = 0.0  # the joints' own inertia's: 1/2 sum_j v_j (armature_j v_j)
-    for j in range(qd.shape[0]):
-        Ta += qd[j] * joint_force(0.0, armature[j], qd[j])
-    if Ta != 0.0:
+    if armature.shape[0] != 0:  # the joints' own inertia's: 1/2 sum_j v_j (armature_j v_j)
+        Ta = 0.0
+        for j in range(qd.shape[0]):
+            Ta += qd[j] * joint_force(0.0, armature, j, qd[j])
         T += 0.5 * Ta
     return T, V

@@ -29,6 +29,7 @@ from redysim._jit import EntryPoint, inline, inline_generated
 from .bundles import (
     DH_COLUMNS,
     DH_SCRATCH,
+    H_NA,
     H_NB,
     H_NQ,
     H_NV,
@@ -100,7 +101,7 @@ def planar_entry(fdata, idata, q, qd, tau, scratch, qdd):
     return planar_forward_dynamics(
         fdata[h[F_LENGTH]:h[F_LENGTH] + nl], fdata[h[F_MASS]:h[F_MASS] + nl],
         fdata[h[F_IZZ_O]:h[F_IZZ_O] + nl], fdata[h[F_MC_X]:h[F_MC_X] + nl],
-        fdata[h[F_MC_Y]:h[F_MC_Y] + nl], fdata[h[F_ARMATURE]:h[F_ARMATURE] + n],
+        fdata[h[F_MC_Y]:h[F_MC_Y] + nl], fdata[h[F_ARMATURE]:h[F_ARMATURE] + h[H_NA]],
         fdata[h[F_GRAVITY]:h[F_GRAVITY] + 3], q, qd, tau, qdd,
         scratch[h[S_PLANAR]:h[S_PLANAR] + 12 * nl].reshape((nl, 12)))
 

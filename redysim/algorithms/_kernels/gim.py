@@ -68,7 +68,7 @@ def gim_composite(tree, s, I):
                 x = (oP[jj, 0] * F[0] + oP[jj, 1] * F[1] + oP[jj, 2] * F[2]
                      + oP[jj, 3] * F[3] + oP[jj, 4] * F[4] + oP[jj, 5] * F[5])
                 if jj == j:
-                    x = joint_inertia(x, armature[j])
+                    x = joint_inertia(x, armature, j)
                 I[jj, j] = x
                 I[j, jj] = x
             # off-diagonal blocks: carry F = A^T F towards the base, over k's ancestors b

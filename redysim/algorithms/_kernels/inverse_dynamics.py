@@ -113,8 +113,10 @@ def rnea_backward(tree, s, qdd, tau):
             gw[g, 3] += f0
             gw[g, 4] += f1
             gw[g, 5] += f2
-        # tau_j = P_j^T W_k (+ armature_j qdd_j)
+        # tau_j = P_j^T W_k
         for j in range(joint_voff[k], joint_voff[k + 1]):
             p = oP[j]
-            tau[j] = joint_force(p[0] * n0 + p[1] * n1 + p[2] * n2 + p[3] * f0 + p[4] * f1
-                                 + p[5] * f2, armature[j], qdd[j])
+            tau[j] = (p[0] * n0 + p[1] * n1 + p[2] * n2 + p[3] * f0 + p[4] * f1 + p[5] * f2)
+    if armature.shape[0] != 0:  # + armature_j qdd_j (a pass of its own: none without armature)
+        for j in range(tau.shape[0]):
+            tau[j] = joint_force(tau[j], armature, j, qdd[j])

@@ -195,19 +195,28 @@ def jcalc(kind, code, u, qj, q1, q2, q3, s0, s1, s2, R):
 
 
 @inline
-def joint_inertia(ih, armature):
-    """D_j = P_j^T Mhat_j P_j + armature_j: the joint-space inertia of axis j, the pivot of its
+def joint_inertia(ih, armature, j):
+    """D_j = P_j^T Mhat_j P_j + armature[j]: the joint-space inertia of axis j, the pivot of its
     elimination (the D of I = U D U^T) and the GIM's diagonal entry. The one place where the
     joint's own inertia (a rotor's, reflected: MuJoCo's ``dof_armature``, Pinocchio's
-    ``armature``) enters every kernel; see :func:`joint_force` for inverse dynamics."""
-    return ih + armature if armature != 0.0 else ih
+    ``armature``) enters every kernel; see :func:`joint_force` for inverse dynamics.
+
+    ``armature`` is empty for a model without any (the layout's ``na``: ``bundles.LAYOUT``),
+    and nothing is read or added then: the branch is the same every call (predicted), and the
+    load inside it keeps LLVM from turning it into a select that would wait for the addition
+    on the elimination's critical path."""
+    if armature.shape[0] != 0:
+        return ih + armature[j]
+    return ih
 
 
 @inline
-def joint_force(f, armature, a):
-    """f + armature_j a_j: a joint force P_j^T W with the joint's own inertia's part added (a_j
-    its acceleration; its velocity for the generalized momentum)."""
-    return f + armature * a if armature != 0.0 else f
+def joint_force(f, armature, j, a):
+    """f + armature[j] a: a joint force P_j^T W with the joint's own inertia's part added (a the
+    axis's acceleration; its velocity for the generalized momentum); ``armature`` empty: f."""
+    if armature.shape[0] != 0:
+        return f + armature[j] * a
+    return f
 
 
 @inline

@@ -44,7 +44,7 @@ def planar_forward_dynamics(length, mass, izz_O, mc_x, mc_y, armature, gravity, 
     Returns 0.0, or NaN when some qdd is not finite (the caller's check, without a pass over qdd).
 
     izz_O: (nl,) inertia about the joint axis through O_k; mc_x, mc_y: m c in the link frame;
-    armature: (nl,) each joint's own inertia (0: none).
+    armature: (nl,) each joint's own inertia, or empty: none (.joints.joint_inertia).
     gravity: (3,) world gravity (only X and Y act in the plane).
     """
     # scratch columns: 0 c, 1 s, 2 Ox, 3 Oy, 4 w, 5 D (Ihat: psi0 + armature), 6 cx, 7 cy (c_k's
@@ -140,7 +140,7 @@ def _planar_backward(mass, izz_O, mc_x, mc_y, armature, tau, scratch):
         h12 = zxy
         h22 = m + zyy
         # Psi = Mhat e0, D = h00 (+ armature); phihat = tau - P^T p, phitil; p <- p + Psi phitil
-        d = joint_inertia(h00, armature[k])
+        d = joint_inertia(h00, armature, k)
         phihat = tau[k] - nz
         phit = phihat / d
         scratch[k, 5] = d
@@ -152,7 +152,7 @@ def _planar_backward(mass, izz_O, mc_x, mc_y, armature, tau, scratch):
         fx += h01 * phit
         fy += h02 * phit
         # Mbar_k = Mhat_k - Psi Psi^T / D (symmetric by construction)
-        armed = armature[k] != 0.0
+        armed = armature.shape[0] != 0 and armature[k] != 0.0
         if armed:
             m00 = h00 - h00 * h00 / d
             m01 = h01 - h00 * h01 / d
@@ -187,7 +187,7 @@ def _planar_forward(armature, gravity, qdd, scratch):
         m1 += scratch[k, 6]
         m2 += scratch[k, 7]
         h00 = scratch[k, 8]
-        if armature[k] != 0.0:  # qdd = phitil - Psi^T mu / D
+        if armature.shape[0] != 0 and armature[k] != 0.0:  # qdd = phitil - Psi^T mu / D
             x = scratch[k, 11] - (h00 * m0 + scratch[k, 9] * m1 + scratch[k, 10] * m2) \
                 / scratch[k, 5]
         else:  # (D = psi0: psi0 m0 / D is m0)

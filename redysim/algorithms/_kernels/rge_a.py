@@ -186,14 +186,14 @@ def _eliminate_joint(tree, oP, tau, Ihat, phihat, phitil, Psihat, jb, jl, M, nf)
         # run side by side instead of one waiting for the other's rank-1 update
         M, nf, fa, fb = eliminate_pair(oP[jl, 0], oP[jl, 1], oP[jl, 2],
                                        oP[jb, 0], oP[jb, 1], oP[jb, 2], tau[jl], tau[jb],
-                                       armature[jl], armature[jb], M, nf)
+                                       armature, jl, jb, M, nf)
         _factors(Ihat, phihat, phitil, Psihat, jl, fa[0], fa[1], fa[2], fa[3])
         _factors(Ihat, phihat, phitil, Psihat, jb, fb[0], fb[1], fb[2], fb[3])
         return M, nf
     for j in range(jl, jb - 1, -1):
         M, nf, ih, ph, ptil, v = eliminate_axis(
             dof_kind[j], oP[j, 0], oP[j, 1], oP[j, 2], oP[j, 3], oP[j, 4], oP[j, 5], tau[j],
-            armature[j], M, nf)
+            armature, j, M, nf)
         _factors(Ihat, phihat, phitil, Psihat, j, ih, ph, ptil, v)
     return M, nf
 

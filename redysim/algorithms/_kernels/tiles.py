@@ -404,9 +404,9 @@ def _back_axes(k, joint_voff, dof_kind, armature, oP, TAU, Psihat, phitil, car):
     loop)."""
     for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
         if dof_kind[j] == PRISMATIC:
-            _eliminate(j, PRISMATIC, armature[j], oP, TAU, Psihat, phitil, car)
+            _eliminate(j, PRISMATIC, armature, oP, TAU, Psihat, phitil, car)
         else:
-            _eliminate(j, REVOLUTE, armature[j], oP, TAU, Psihat, phitil, car)
+            _eliminate(j, REVOLUTE, armature, oP, TAU, Psihat, phitil, car)
 
 
 @jit_tiles
@@ -478,7 +478,7 @@ def _body_mass(k, principal, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR,
 
 
 @inline
-def _eliminate(j, kind, armature_j, oP, TAU, Psihat, phitil, car):
+def _eliminate(j, kind, armature, oP, TAU, Psihat, phitil, car):
     """One axis of Table A.1 for every state (:func:`.articulated.eliminate_axis`, the step of
     :func:`.rge_a._rge_a_backward`'s loop): phitil and Psihat written, the carried articulated
     mass and bias updated."""
@@ -486,7 +486,7 @@ def _eliminate(j, kind, armature_j, oP, TAU, Psihat, phitil, car):
         M, nf, _, _, ptil, v = eliminate_axis(
             kind, oP[at(j * 6 + 0, b)], oP[at(j * 6 + 1, b)], oP[at(j * 6 + 2, b)],
             oP[at(j * 6 + 3, b)], oP[at(j * 6 + 4, b)], oP[at(j * 6 + 5, b)], TAU[at(j, b)],
-            armature_j, _mass(car, b), _bias(car, b))
+            armature, j, _mass(car, b), _bias(car, b))
         phitil[at(j, b)] = ptil
         Psihat[at(j * 6 + 0, b)] = v[0]
         Psihat[at(j * 6 + 1, b)] = v[1]
