@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/ab_kernels.py --base 4e53e17 [--dof 2000 100000] [--reps 40]
 
 The base revision's ``redysim/_jit.py`` and ``redysim/algorithms/_kernels/`` (and ``workspace.py``,
-for its entry point) are copied out of git into a temporary package and imported beside the working
+for its entry point, and ``dh_form.py``, whose DH constants its workspace lays out) are copied out
+of git into a temporary package and imported beside the working
 tree's kernels, both compiled afresh (a temporary numba cache); both are called on the same chain
 (the RE-U steel rod, as ``make bench``) and state, alternating base and head call by call so that
 the machine's drift falls on both alike, and each is read as its fastest call. JIT compile happens
@@ -66,6 +67,11 @@ def base_kernels(rev: str, into: Path):
     has_entry = f"{where}entry.py" in names
     if has_entry:
         names.append(ws_path)
+        # the DH kernels' constants, as that revision lays them out (its workspace makes them)
+        dh_form = "redysim/algorithms/dh_form.py"
+        if subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{rev}:{dh_form}"],
+                          capture_output=True).returncode == 0:
+            names.append(dh_form)
         # the workspace's imports from outside the kernels: the working tree's
         shim = ("from redysim.model.parts import *  # noqa\n"
                 "from redysim.model.parts import _readonly, kernel_alias  # noqa\n"
@@ -83,6 +89,7 @@ def base_kernels(rev: str, into: Path):
         # a layered revision imports by absolute names: point them at the copy
         text = text.replace("redysim.algorithms._kernels", "ab_base._kernels")
         text = text.replace("redysim._jit", "ab_base._jit")
+        text = text.replace("redysim.algorithms.dh_form", "ab_base.dh_form")
         if name == f"{where}bundles.py" and text != here_bundles.read_text().replace(
                 "redysim._jit", "ab_base._jit"):
             print("note: the two revisions' bundles differ, so numba dispatches the second "
@@ -99,7 +106,7 @@ def base_kernels(rev: str, into: Path):
         if name.startswith(where):
             target = pkg / "_kernels" / name[len(where):]
         else:
-            target = pkg / Path(name).name  # workspace.py, _jit.py
+            target = pkg / Path(name).name  # workspace.py, _jit.py, dh_form.py
         target.write_text(text)
         if name == "redysim/_jit.py" and where.count("/") == 3:
             # the layered kernels' __init__ digests the _jit.py two folders above them

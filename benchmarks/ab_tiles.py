@@ -46,7 +46,21 @@ from redysim.algorithms import dynamics  # noqa: E402
 
 STATES = 64
 DENSITY = 7850 * np.pi * 0.05**2  # the RE-U steel rod (make bench)
-CASES = {"U 20": (10, "U"), "R 250": (250, "R"), "U 250": (125, "U"), "U 2000": (1000, "U")}
+# chains (links, joint), and a branched tree with a free joint (the tree passes: tests' random
+# tree of 24 bodies, ~60 DOF)
+CASES = {"U 20": (10, "U"), "R 250": (250, "R"), "U 250": (125, "U"), "U 2000": (1000, "U"),
+         "tree": (24, "tree")}
+
+
+def system(case: str):
+    """The model of a case (module docstring)."""
+    links, joint = CASES[case]
+    if joint == "tree":
+        sys.path.insert(0, str(ROOT / "tests"))
+        from test_trees import random_tree
+        return random_tree(3, n_bodies=links, free=True)
+    return Chain.uniform(links, joint, length=0.02, linear_density=DENSITY, radius=0.05,
+                         inertia="rod", name=case)
 
 
 def base_forward_tiled(rev: str):
@@ -96,11 +110,9 @@ def main(argv=None) -> int:
         print(f"{'chain':>8} {'base us':>9} {'head us':>9} {'ns/DOF/state':>13} {'base/head':>10}"
               f" {'min':>6} {'max':>6}  qdd")
         for case in a.cases:
-            links, joint = CASES[case]
-            chain = Chain.uniform(links, joint, length=0.02, linear_density=DENSITY,
-                                  radius=0.05, inertia="rod", name=case)
+            chain = system(case)
             rng = np.random.default_rng(2)
-            Q = rng.uniform(-0.1, 0.1, (STATES, chain.n_dof))
+            Q = chain.neutral() + rng.uniform(-0.1, 0.1, (STATES, chain.n_q))
             QD = rng.uniform(-0.1, 0.1, (STATES, chain.n_dof))
             sides = {"base": (base_tiled, base_ws_class(chain)),
                      "head": (head_tiled, Workspace(chain))}

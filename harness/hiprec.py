@@ -57,7 +57,7 @@ import numpy as np
 
 from redysim import Chain, Model
 from redysim.algorithms.precision import rebind
-from redysim.algorithms.workspace import bundles_in
+from redysim.algorithms.workspace import bundles_in, kernel_armature
 
 DEFAULT_DPS = 50
 
@@ -223,7 +223,9 @@ def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) ->
         q, v, tau = _state(c, arith, q, v, tau)
         qdd = arith.zeros(c.n_dof)
         fd(a["length"], a["mass"], a["inertia_O"][:, 2, 2].copy(),
-           a["mass_com"][:, 0].copy(), a["mass_com"][:, 1].copy(), arith.array(c.gravity),
+           a["mass_com"][:, 0].copy(), a["mass_com"][:, 1].copy(),
+           arith.array(kernel_armature(c)),
+           arith.array(c.gravity),
            q, v, tau, qdd, arith.zeros((c.n_links, 12)))
     return qdd
 
@@ -243,7 +245,7 @@ def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = 
         q, v, tau = _state(c, arith, q, v, tau)
         kin(tree, q, v, arith.zeros(n), arith.array(-c.gravity), s)
         bias = arith.zeros(n)
-        rnea(tree, s, bias)
+        rnea(tree, s, arith.zeros(n), bias)
         phi = tau - bias
     return s.oR, s.oO, s.oP, phi, a
 

@@ -507,6 +507,11 @@ class Engine(EnginePackage):
     # when it does not (limits then refuses a coupled model, naming this reason)
     couples: ClassVar[str] = ""
     no_couplings: ClassVar[str] = "no joint coupling built in this adapter"
+    # how the engine holds a model's armature (Model.armature: each joint's own inertia on the
+    # diagonal of M); "" when it cannot (limits then refuses a model with armature, naming this
+    # reason: never dropped silently)
+    holds_armature: ClassVar[str] = ""
+    no_armature: ClassVar[str] = "no joint armature built in this adapter"
 
     def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
@@ -557,6 +562,11 @@ class Engine(EnginePackage):
         why = cls.unsupported(model, joints)
         if why:
             return Limits(False, f"{cls.name}: {why}")
+        if np.any(model.armature) and not cls.holds_armature:
+            j = int(np.flatnonzero(model.armature)[0])
+            return Limits(False, f"{cls.name}: the model has armature (a joint's own inertia, "
+                                 f"armature[{j}] = {float(model.armature[j]):g}), which this "
+                                 f"engine does not build: {cls.no_armature}")
         if model.couplings and not cls.couples:
             return Limits(False, f"{cls.name}: the model couples joints "
                                  f"({', '.join(c.follower for c in model.couplings)} follow "

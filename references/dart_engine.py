@@ -142,6 +142,8 @@ class DART(Engine):
     name = "dart"
     package = "dartpy"
     module = "dartpy"
+    no_armature = ("dartpy 6.20 exposes no joint armature (a DOF's damping, spring stiffness "
+                   "and rest position, nothing on its inertia)")
     integrator = "semi-implicit-euler"
     integrators = {"semi-implicit-euler": NativeIntegrator(
         "semi-implicit-euler", False, "World.step at World.setTimeStep(h)",

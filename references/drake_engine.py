@@ -24,8 +24,12 @@ What the plant contains and why (docs/design.md, "Reference engines"):
 - gravity: ``mutable_gravity_field().set_gravity_vector(model.gravity)``. Nothing else: no
   SceneGraph (the plant is never registered as a geometry source, so there is no geometry, no
   contact and no query port), no actuators (an applied force goes through the
-  ``applied_generalized_force`` input port), no joint limits (a joint built without limits has
-  none), damping 0, no force elements but gravity, no constraints.
+  ``applied_generalized_force`` input port) but one per 1-DOF joint with armature
+  (``Model.armature``: its ``set_default_rotor_inertia``, gear ratio 1, so that the reflected
+  inertia in M and in ``CalcKineticEnergy`` is the armature; its actuation input left
+  unconnected, which Drake 1.51 takes as zero), no joint limits (a joint built without limits
+  has none), damping 0, no force elements but gravity, no constraints. A free joint with
+  armature is refused (a JointActuator drives a single-DOF joint).
 - free joint: one ``QuaternionFloatingJoint`` from the world frame to the body frame.
 
 Drake numbers bodies and coordinates by depth in its own forest; the adapter maps them to the
@@ -210,6 +214,7 @@ class Drake(DrakePackage, Engine):
     integrators = {
         name: NativeIntegrator(name, adaptive, _what(scheme, adaptive), note)
         for name, scheme, adaptive, _, note in _SCHEMES}
+    holds_armature = "a JointActuator's rotor inertia, gear ratio 1, per 1-DOF joint"
     # the simulator Context's cache (Drake's default: on); False disables it (module docstring:
     # the FSAL integrators' stale cache after a rejected step), at ~6x the cost a derivative
     sim_caching: bool = True
@@ -226,6 +231,11 @@ class Drake(DrakePackage, Engine):
             if model.mass[k] == 0.0 and np.any(np.asarray(model.inertia_com[k])):
                 return (f"body {joint.body!r} has zero mass and a nonzero inertia, which "
                         f"Drake's SpatialInertia (mass times a unit inertia) cannot hold")
+            if joint.type == FREE and np.any(
+                    model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]):
+                return (f"the free joint of body {joint.body!r} has armature: Drake holds "
+                        f"armature as a JointActuator's rotor inertia, and a JointActuator "
+                        f"drives a single-DOF joint only")
         return ""
 
     # ------------------------------------------------------------------ the plant
@@ -270,6 +280,11 @@ class Drake(DrakePackage, Engine):
                 cls = tree.RevoluteJoint if axis.kind == "R" else tree.PrismaticJoint
                 js.append(plant.AddJoint(cls(f"j{k}_{i}", frame, body.body_frame(),
                                              axis.vector)))
+                armature = float(m.armature[m.joint_voff[k] + i])
+                if armature:  # a rotor's inertia reflected through a gear ratio of 1
+                    actuator = plant.AddJointActuator(f"a{k}_{i}", js[-1])
+                    actuator.set_default_rotor_inertia(armature)
+                    actuator.set_default_gear_ratio(1.0)
                 frame = body.body_frame()
             drake_joints.append(js)
             body_frames.append(frame)

@@ -331,6 +331,8 @@ class Exudyn(Engine):
     name = "exudyn"
     package = "exudyn"
     module = "exudyn"
+    no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
+                   "inertia of a joint found in its items)")
     integrator = "rk44"
     integrators = NATIVE
 

@@ -21,7 +21,10 @@ What the model contains and why (docs/design.md, "Reference engines"):
   every other stage it has nothing for (actuation, sensors, springs, ...: ``_DISABLED``). The
   energy is computed on demand (``mj_energyPos``, ``mj_energyVel``), not by every ``mj_forward``
   (the ENERGY flag). Joint damping, armature, friction loss, stiffness, anchors and the hinges'
-  and slides' ``qpos0`` are left at their zero/off defaults and asserted zero after compile.
+  and slides' ``qpos0`` are left at their zero/off defaults and asserted zero after compile;
+  then the model's armature (``Model.armature``) is written into ``dof_armature`` (MuJoCo's dof
+  of each of the core's velocity slots) and ``mj_setConst`` recomputes what depends on it
+  (``dof_M0``); MuJoCo's M and its ``mj_energyVel`` include it.
 - ``compiler.balanceinertia`` only when a body's inertia violates the triangle inequality (the
   paper's rod model does; docs/design.md, "Chain conventions"); the exact principal moments are
   then written back into ``model.body_inertia`` after compiling.
@@ -162,6 +165,7 @@ class MuJoCo(Engine):
     integrator = "rk4"
     integrators = {name: entry[0] for name, entry in _INTEGRATORS.items()}
     depth_limited = True
+    holds_armature = "dof_armature, then mj_setConst"
 
     @classmethod
     def unsupported(cls, model, joints):
@@ -256,6 +260,9 @@ class MuJoCo(Engine):
                 self.qidx[qs + i] = mj_joint.qposadr[0]
                 self.eidx[vs + i] = mj_joint.dofadr[0]
         self.mjmodel, self.mjdata = model, self.lib.MjData(model)
+        if np.any(m.armature):  # per MuJoCo dof; mj_setConst recomputes dof_M0 from it
+            model.dof_armature[self.eidx] = m.armature
+            self.lib.mj_setConst(model, self.mjdata)
         if model.nv != m.n_v or model.nq != m.n_q:
             raise AssertionError(f"model has nq={model.nq}, nv={model.nv}; the tree "
                                  f"{m.n_q}, {m.n_v}")

@@ -32,10 +32,17 @@ moves its frame, and so the body and everything after it, by u q along the axis,
 core. A free joint is one ``JointModelFreeFlyer`` at the identity placement. Body inertias
 ``pin.Inertia(m, c, I_C)`` (about the COM) on the joint of the body's last axis; gravity
 ``model.gravity.linear = model.gravity``. Pinocchio models have no contacts, collision or visual
-geometry unless asked for; joint limits, damping, friction, armature and effort/velocity limits
-are left at their defaults, which ``aba``/``crba``/``rnea`` ignore (they apply no limit, damping
-or armature). ``pin.Data(model)`` is used, not ``model.createData()``, which copies through the
-bindings and doubles the peak memory (docs/design.md, "Reference engines").
+geometry unless asked for; joint limits, damping, friction and effort/velocity limits are left
+at their defaults, which ``aba``/``crba``/``rnea`` ignore (they apply no limit or damping). The
+model's armature (``Model.armature``) is ``pm.armature`` (per Pinocchio velocity coordinate),
+which ``aba``, ``crba`` and ``rnea`` add (checked on 4.1: M's diagonal, tau's armature qdd); its
+``computeKineticEnergy`` leaves out a ``JointModelRevoluteUnaligned``'s armature (every other
+joint type's is in), so the adapter's energy is the bodies' plus 1/2 armature v^2 itself. Refused:
+a coupled follower with armature (its mimic joint has no velocity of its own to hold it), and
+armature on a free joint's translations (the core's multiplies the rate of the world velocity;
+Pinocchio's free flyer's, the rate of the body-frame velocity, which differs by w x v).
+``pin.Data(model)`` is used, not ``model.createData()``, which copies through the bindings and
+doubles the peak memory (docs/design.md, "Reference engines").
 
 Bodies are added depth-first: Pinocchio's CRBA assumes each subtree's DOF contiguous
 (``Model.check`` fails otherwise; stack-of-tasks/pinocchio#1897, "expected behavior"), and on a
@@ -113,6 +120,24 @@ class PinocchioEngine(Engine):
     no_integrator = ("Pinocchio has none: it gives the dynamics, not a time stepping; any "
                      "trajectory would be an adapter's integrator, not Pinocchio's")
     universal: ClassVar[str] = "universal"
+    holds_armature = "pm.armature, which aba, crba and rnea add"
+
+    @classmethod
+    def unsupported(cls, model, joints):
+        for k, joint in enumerate(joints):
+            a = model.armature[model.joint_voff[k]:model.joint_voff[k] + 3]
+            if joint.type == FREE and np.any(a):
+                return (f"the free joint of body {joint.body!r} has armature along its "
+                        f"translations ({', '.join(f'{x:g}' for x in a)}): the model's is on "
+                        f"the world velocity's rate, Pinocchio's free flyer's on the "
+                        f"body-frame velocity's, which differs by w x v")
+        index = {name: k for k, name in enumerate(model.joint_names)}
+        for c in model.couplings:
+            k = index[c.follower]
+            if np.any(model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]):
+                return (f"joint {c.follower!r} follows {c.leader!r} and has armature: "
+                        f"Pinocchio's mimic joint has no velocity of its own to hold it")
+        return ""
 
     def _build(self):
         pin = self.lib
@@ -140,11 +165,6 @@ class PinocchioEngine(Engine):
             last[k] = parent
         if pm.nv != m.n_v or pm.nq != m.n_q:
             raise AssertionError(f"model has nq={pm.nq}, nv={pm.nv}; the tree {m.n_q}, {m.n_v}")
-        self.pm, self.data = pm, pin.Data(pm)
-        assert pm.check(self.data), "Pinocchio's Model.check failed"
-        self.body_joint = [last[k] for k in range(m.n_bodies)]
-        if m.couplings:
-            self._mimic(first)
         # the core's slots -> Pinocchio's: each body's coordinates are consecutive in both
         self.qidx = np.zeros(m.n_q, dtype=np.int64)
         for k in range(m.n_bodies):
@@ -152,6 +172,15 @@ class PinocchioEngine(Engine):
             nq, nv = m.joint_qoff[k + 1] - m.joint_qoff[k], m.joint_voff[k + 1] - m.joint_voff[k]
             self.qidx[m.joint_qoff[k]:m.joint_qoff[k + 1]] = jm.idx_q + np.arange(nq)
             self.eidx[m.joint_voff[k]:m.joint_voff[k + 1]] = jm.idx_v + np.arange(nv)
+        if np.any(m.armature):  # (Pinocchio's coordinates, as the core's slots map to them)
+            armature = np.zeros(pm.nv)
+            armature[self.eidx] = m.armature
+            pm.armature = armature
+        self.pm, self.data = pm, pin.Data(pm)
+        assert pm.check(self.data), "Pinocchio's Model.check failed"
+        self.body_joint = [last[k] for k in range(m.n_bodies)]
+        if m.couplings:
+            self._mimic(first)
 
     def _mimic(self, first):
         """Pinocchio's own coupled model (``pin.transformJointIntoMimic`` of each follower onto
@@ -210,9 +239,21 @@ class PinocchioEngine(Engine):
         return -self.lib.nonLinearEffects(self.pm, self.data, qp, y).copy()
 
     def _energy(self, qp, y):
-        pin = self.lib
-        return (pin.computeKineticEnergy(self.pm, self.data, qp, y),
-                pin.computePotentialEnergy(self.pm, self.data, qp))
+        pin, pm = self.lib, self.pm
+        if not np.any(self.model.armature):
+            return (pin.computeKineticEnergy(pm, self.data, qp, y),
+                    pin.computePotentialEnergy(pm, self.data, qp))
+        # the bodies' energy, then the armature's 1/2 armature v^2: Pinocchio 4.1's
+        # computeKineticEnergy leaves out a JointModelRevoluteUnaligned's armature (measured:
+        # every other joint type's is in, as its crba and aba have them all)
+        armature = pm.armature.copy()
+        pm.armature = np.zeros(pm.nv)
+        try:
+            T = pin.computeKineticEnergy(pm, self.data, qp, y)
+        finally:
+            pm.armature = armature
+        return (T + 0.5 * float(armature @ (y * y)),
+                pin.computePotentialEnergy(pm, self.data, qp))
 
     def _position(self, qp, body, point):
         self.lib.forwardKinematics(self.pm, self.data, qp)

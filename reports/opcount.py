@@ -53,7 +53,7 @@ import numpy as np
 from redysim import Chain, mass_matrix, phi
 from redysim.algorithms.dh_form import dh_constants
 from redysim.algorithms.precision import kernel_source
-from redysim.algorithms.workspace import DH_SCRATCH, bundles_in
+from redysim.algorithms.workspace import DH_SCRATCH, bundles_in, kernel_armature
 from redysim.harness.provenance import provenance
 from redysim.harness.store import write_json_atomic
 
@@ -194,7 +194,8 @@ def count_rge_a_planar(chain: Chain) -> tuple[int, int]:
     q, qd = state(c)
     fn = kernel_source("planar", Count)
     args = (counts(c.length), counts(c.mass), counts(c.inertia_O[:, 2, 2]),
-            counts(c.mass_com[:, 0]), counts(c.mass_com[:, 1]), counts(c.gravity), counts(q),
+            counts(c.mass_com[:, 0]), counts(c.mass_com[:, 1]), counts(kernel_armature(c)),
+            counts(c.gravity), counts(q),
             counts(qd), empty(n), empty(n), empty(c.n_links, 12))
     return tally(lambda: fn(*args))
 
@@ -296,7 +297,7 @@ def count_inverse_dynamics(system) -> tuple[int, int]:
 
     def run():
         kin(tree, counts(q), counts(qd), counts(qd), g, s)
-        rnea(tree, s, empty(n))
+        rnea(tree, s, counts(qd), empty(n))
     return tally(run)
 
 

@@ -171,7 +171,8 @@ def test_float32_runs_stay_in_float32():
     qdd, scratch = _objects(np.zeros(n), t), _objects(np.zeros((n, 12)), t)
     kernel_source("planar", t)(
         *(_objects(a, t) for a in (ch.length, ch.mass, ch.inertia_O[:, 2, 2], ch.mass_com[:, 0],
-                                   ch.mass_com[:, 1], ch.gravity, q, qd, np.zeros(n))),
+                                   ch.mass_com[:, 1], ch.armature[:0], ch.gravity, q, qd,
+                                   np.zeros(n))),
         qdd, scratch)
     assert _kinds(qdd, scratch) <= ok
     ch = Chain.uniform(4, "U", length=0.5, mass=1.5, radius=0.05, inertia="cylinder")

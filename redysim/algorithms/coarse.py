@@ -7,6 +7,9 @@ about its joint are the sums of theirs (the parallel-axis theorem about the grou
 joint), so the coarse chain is exactly the fine chain with those joints locked. Lumping k
 uniform links of a rod model gives the uniform chain of n/k links of the same rod, to
 round-off: coarse-graining and a coarser discretisation of one physical rope are the same thing.
+Armature (a joint's own inertia) follows the same rule: a coarse joint keeps its group's first
+joint's, and the inner joints' is dropped with their motion (summing it would give the coarse
+joint rotors that turn only when the inner joints do, which are locked).
 
 States:
 
@@ -186,10 +189,14 @@ def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,
                                 "it must be able to point the lumped link along a chord")
     links_out = [_lump(chain, int(s), int(e)) for s, e in zip(starts[:-1], starts[1:],
                                                               strict=True)]
+    # each coarse joint keeps its group's first joint's armature; the inner joints' goes with
+    # their motion (locked: no rotor of theirs turns), as Model.locked drops a locked joint's
+    voff = chain.joint_voff
+    armature = np.concatenate([chain.armature[voff[s]:voff[s + 1]] for s in starts[:-1]])
     coarse = Chain.build(links_out, [chain.joints[s] for s in starts[:-1]],
                          gravity=tuple(chain.gravity),
                          name=name or (f"{chain.name}/{k}" if k > 1 else chain.name),
-                         source=where)
+                         source=where, armature=armature)
     return Coarsening(chain, coarse, starts)
 
 

@@ -105,7 +105,7 @@ def _constants(model: Model) -> np.ndarray:
         out[k, :DH_TIP] = (0.0 if model.joint_types[k] == "R" else 1.0, ca, sa, ca * ca,
                            sa * sa, ca * sa, 2.0 * ca * sa, ca * ca - sa * sa, a, d, theta,
                            model.mass[k], *model.mass_com[k], J[0, 0], J[0, 1], J[0, 2],
-                           J[1, 1], J[1, 2], J[2, 2], twist)
+                           J[1, 1], J[1, 2], J[2, 2], twist, model.armature[k])
     if model.joint_types[-1] == "R":
         out[-1, DH_TIP:] = tip_columns(out[-1])
     out.flags.writeable = False

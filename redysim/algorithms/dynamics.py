@@ -174,7 +174,7 @@ def _phi(model, ws, q, v, tau):
     """phi = tau - (C v + gravity terms) into ws.phi (kinematics with qdd = 0, base at -g)."""
     c = model
     _run_kinematics(c, ws, q, v, ws.zeros, ws.base_accel)
-    rnea_backward(ws.tree, ws.s, ws.phi)
+    rnea_backward(ws.tree, ws.s, ws.zeros, ws.phi)
     ws.phi *= -1.0
     if tau is not None:
         ws.phi += tau
@@ -344,7 +344,7 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
         _DH_INVERSE.compiled(ws.kernel_f, ws.kernel_i, q, v, qdd, ws.scratch, tau)
     else:
         _run_kinematics(c, ws, q, v, qdd, ws.base_accel)
-        rnea_backward(ws.tree, ws.s, tau)
+        rnea_backward(ws.tree, ws.s, qdd, tau)
     if not np.isfinite(tau).all():
         raise overflow_error("tau", q=q, v=v, qdd=qdd)
     return tau
@@ -1227,7 +1227,7 @@ def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, f
     ws = _ws(model, ws)
     c = model
     _run_kinematics(c, ws, q, v, ws.zeros, ws.no_accel)
-    T, V = _energy(ws.tree, ws.gravity, ws.s)
+    T, V = _energy(ws.tree, ws.gravity, ws.s, v)
     if not (math.isfinite(T) and math.isfinite(V)):
         raise overflow_error("the energy", q=q, v=v)
     return float(T), float(V)
@@ -1292,7 +1292,7 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     _kinematics(tree, q, v, ws.zeros, ws.no_accel, s)
     p = np.empty(model.n_v)
     # the body momenta M_k t_k summed outboard: inverse dynamics with t := 0, td := t
-    rnea_backward(tree, s._replace(t=zero_twists, td=s.t), p)
+    rnea_backward(tree, s._replace(t=zero_twists, td=s.t), v, p)
     grad = None
     if gradient:
         grad = np.empty(model.n_v)
@@ -1300,7 +1300,7 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
         at_rest = np.zeros_like(s.t)
         at_rest[:, 3:] = ws.base_accel  # [0; -g] at every body: the gravity terms dV/dq
         gravity = np.empty(model.n_v)
-        rnea_backward(tree, s._replace(t=zero_twists, td=at_rest), gravity)
+        rnea_backward(tree, s._replace(t=zero_twists, td=at_rest), ws.zeros, gravity)
         grad -= gravity
     if not (np.isfinite(p).all() and (grad is None or np.isfinite(grad).all())):
         raise overflow_error("the generalized momentum", q=q, v=v)

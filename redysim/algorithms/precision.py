@@ -82,7 +82,7 @@ from redysim.algorithms._kernels.planar import planar_forward_dynamics
 from redysim.algorithms._kernels.rge_a import rge_a_backward, rge_a_forward, rge_a_forward_dynamics
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.dynamics import METHODS, check_state, mass_matrix, phi
-from redysim.algorithms.workspace import bundles_in
+from redysim.algorithms.workspace import bundles_in, kernel_armature
 from redysim.model.tree import Model
 
 ARITHMETICS = ("double", "decimal")
@@ -229,15 +229,16 @@ def _make_type(name, k, arithmetic, r, add, sub, mul, div, to):
 _PASSES: dict[str, tuple[Callable, str]] = {
     "kinematics": (kinematics, "(tree, q, v, qdd, base_accel, s): rotations, positions, "
                                "motion subspaces, twists and twist-rates into s"),
-    "rnea-backward": (rnea_backward, "(tree, s, tau): Newton-Euler's backward pass after "
-                                     "kinematics, tau out"),
+    "rnea-backward": (rnea_backward, "(tree, s, qdd, tau): Newton-Euler's backward pass after "
+                                     "kinematics (with qdd), tau out"),
     "rge-a": (rge_a_forward_dynamics, "(tree, q, v, tau, base_accel, zeros, s, qdd): RGE-A "
                                       "forward dynamics, the three passes"),
     "rge-a-backward": (rge_a_backward, "(tree, s, tau): Table A.1's backward pass"),
     "rge-a-forward": (rge_a_forward, "(tree, s, base_accel, qdd): Table A.1's forward pass"),
     "udu": (udu_assemble, "(tree, s, U, D): I = U D U^T, dense, after the backward pass"),
-    "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, gravity, q, v, tau, "
-                                        "qdd, scratch): RGE-A on a planar chain, scratch (nl, 12)"),
+    "planar": (planar_forward_dynamics, "(length, mass, izz_O, mc_x, mc_y, armature, gravity, q, "
+                                        "v, tau, qdd, scratch): RGE-A on a planar chain, scratch "
+                                        "(nl, 12)"),
     "dh-forward": (dh_forward_dynamics, "(dh, q, v, tau, base_accel, qdd, scratch): the "
                                         "articulated-body recursion of a robot in DH form, dh "
                                         "its constants (redysim.algorithms.dh_form), scratch "
@@ -332,6 +333,17 @@ def _empty(shape, number) -> np.ndarray:
     return np.zeros(shape, dtype=number)
 
 
+def _armature(model: Model, number) -> np.ndarray:
+    """The model's armature for the kernels' source in ``number`` (empty when it has none:
+    :func:`redysim.algorithms.workspace.kernel_armature`): in an IEEE type as the other inputs;
+    for a :class:`Rounded` type the doubles themselves, which the kernels' first operation with
+    them rounds (a Rounded equals no float, so a Rounded zero would not read as zero)."""
+    armature = kernel_armature(model)
+    if isinstance(number, type) and issubclass(number, Rounded):
+        return np.asarray(armature, dtype=float)
+    return _numbers(armature, number)
+
+
 def _to_float(a) -> np.ndarray:
     return np.asarray(a, dtype=object).astype(float) if np.asarray(a).dtype == object \
         else np.asarray(a, dtype=float)
@@ -389,10 +401,12 @@ def _rge_a(chain, q, v, tau, number, fused_phi):
         if c.is_planar:
             kernel_source("planar", number)(
                 N(c.length), N(c.mass), N(c.inertia_O[:, 2, 2]), N(c.mass_com[:, 0]),
-                N(c.mass_com[:, 1]), N(gravity), N(q), N(qd_in), N(tau_in), qdd,
+                N(c.mass_com[:, 1]), _armature(c, number), N(gravity), N(q), N(qd_in),
+                N(tau_in), qdd,
                 _empty((nl, 12), number))
         else:
-            tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
+            tree, s = bundles_in(c, N, lambda shape: _empty(shape, number),
+                                 armature=_armature(c, number))
             kernel_source("rge-a", number)(
                 tree, N(q), N(qd_in), N(tau_in), N(-np.asarray(gravity)), _empty(n, number), s,
                 qdd)
@@ -432,7 +446,7 @@ def reduced_factors(chain: Model, q, v, method: str = "ge-n", decimals: int = 3,
     c, n = chain, chain.n_dof
     N = lambda a: _numbers(a, number)  # noqa: E731
     E = lambda *s: _empty(s, number)  # noqa: E731
-    tree, s = bundles_in(c, N, lambda shape: _empty(shape, number))
+    tree, s = bundles_in(c, N, lambda shape: _empty(shape, number), armature=_armature(c, number))
     qdd, U, D, zeros = E(n), E(n, n), E(n, n), E(n)
     with np.errstate(all="ignore"):  # v = 0 and no gravity: t = td = 0 (Table A.1 as printed)
         kernel_source("kinematics", number)(tree, N(q), zeros, zeros, E(3), s)

@@ -14,6 +14,9 @@ moment about O_k and a force. Moving a twist from O_p to O_k is A = [[1, 0], [-C
 r = O_k - O_p; moving a wrench back is A^T. S (6, n_v): the motion-subspace columns, [e; 0] for a
 revolute axis e, [0; e] for a prismatic one, [R_k e_i; 0] for a free joint's rotation.
 M_k = [[I_O, C(m d)], [-C(m d), m 1]]: body k's extended mass matrix about O_k (Eq. 10a).
+A joint's own inertia (``model.armature``, one number per axis) adds to the joint-space inertia's
+diagonal: to the GIM, to each axis's pivot D = S^T Mhat S + armature, to the torques
+(armature qdd) and to the kinetic energy (1/2 armature v^2).
 
 References:
     Agarwal et al., Eq. (4)-(12), Appendix A.1 and Table A.1. Featherstone, Rigid Body Dynamics
@@ -146,7 +149,8 @@ def inverse_dynamics(model: Model, q, v, vdot) -> np.ndarray:
         p = model.parent[k]
         if p >= 0:
             W[p] += shift(kin.O[k] - kin.O[p]).T @ W[k]
-    return np.array([kin.S[:, j] @ W[_body_of(model, j)] for j in range(model.n_v)])
+    return np.array([kin.S[:, j] @ W[_body_of(model, j)] + model.armature[j] * vdot[j]
+                     for j in range(model.n_v)])
 
 
 def _body_of(model: Model, j: int) -> int:
@@ -175,7 +179,7 @@ def mass_matrix(model: Model, q) -> np.ndarray:
             I[sb, sl] = kin.S[:, sb].T @ F
             I[sl, sb] = I[sb, sl].T
             a, b = b, model.parent[b]
-    return 0.5 * (I + I.T)
+    return 0.5 * (I + I.T) + np.diag(model.armature)
 
 
 class Articulated(NamedTuple):
@@ -210,7 +214,7 @@ def articulated(model: Model, q, v, tau=None) -> tuple[np.ndarray, Articulated]:
         for j in range(model.joint_voff[k + 1] - 1, model.joint_voff[k] - 1, -1):
             s = kin.S[:, j]
             Psi = Mhat[k] @ s
-            Ihat[j] = s @ Psi
+            Ihat[j] = s @ Psi + model.armature[j]
             Psihat[j] = Psi / Ihat[j]
             phitil[j] = (tau[j] - s @ p_bias[k]) / Ihat[j]
             p_bias[k] += Psi * phitil[j]
@@ -254,10 +258,11 @@ def massless_axis(model: Model) -> int | None:
 
 
 def energy(model: Model, q, v) -> tuple[float, float]:
-    """(T, V) [J]: T = 1/2 sum t_k^T M_k t_k, V = -sum m_k g . (O_k + R_k c_k)."""
+    """(T, V) [J]: T = 1/2 sum t_k^T M_k t_k + 1/2 sum_j armature_j v_j^2,
+    V = -sum m_k g . (O_k + R_k c_k)."""
     kin = kinematics(model, q, v)
     T = sum(0.5 * kin.t[k] @ body_mass(model, k, kin.R[k]) @ kin.t[k]
-            for k in range(model.n_bodies))
+            for k in range(model.n_bodies)) + 0.5 * float(model.armature @ (v * v))
     V = -sum(model.mass[k] * model.gravity @ (kin.O[k] + kin.R[k] @ model.com[k])
              for k in range(model.n_bodies))
     return float(T), float(V)

@@ -16,6 +16,7 @@ from redysim.algorithms._kernels import entry as E
 from redysim.algorithms._kernels.bundles import (
     DH_SCRATCH,
     FIELDS,
+    H_NA,
     H_NB,
     H_NG,
     H_NQ,
@@ -79,8 +80,14 @@ def tree_tables(system: Model) -> dict:
                 qshift=(m.joint_qoff[:-1] - m.joint_voff[:-1])[:nt], along=m.placement_p[:, 0],
                 placement_R=m.placement_R[:nt], placement_p=m.placement_p[:nt],
                 joint_voff=m.joint_voff, dof_kind=m.dof_kind, dof_axis=m.dof_axis,
-                dof_u=m.dof_u, mass=m.mass, inertia_O=m.inertia_O, mass_com=m.mass_com,
-                n_q=m.n_q)
+                dof_u=m.dof_u, armature=kernel_armature(m), mass=m.mass, inertia_O=m.inertia_O,
+                mass_com=m.mass_com, n_q=m.n_q)
+
+
+def kernel_armature(system: Model) -> np.ndarray:
+    """The armature as the kernels take it: the model's (n_v,), or empty when it has none, so
+    that the kernels of a model without armature read none (``joints.joint_inertia``)."""
+    return system.armature if np.any(system.armature) else system.armature[:0]
 
 
 def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
@@ -93,7 +100,8 @@ def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
                                if FIELDS[f].dtype is np.float64 else t[f]
                                for f in Tree._fields[1:]))
     sizes = sizes_of(t["mass"].shape[0], t["dof_kind"].shape[0],
-                     int((t["gather"] >= 0).sum()), bool(t["serial"]), t["n_q"])
+                     int((t["gather"] >= 0).sum()), bool(t["serial"]), t["n_q"],
+                     t["armature"].shape[0])
     return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
 
 
@@ -151,7 +159,8 @@ class Workspace:
         self.chain = system  # the chain or model it was made for
         gravity = np.asarray(system.gravity, dtype=float)
         header = np.zeros(HEADER, dtype=np.int64)
-        header[[H_NB, H_NV, H_NQ, H_NG, H_SERIAL]] = nb, n, t["n_q"], ng, t["serial"]
+        na = t["armature"].shape[0]
+        header[[H_NB, H_NV, H_NQ, H_NG, H_SERIAL, H_NA]] = nb, n, t["n_q"], ng, t["serial"], na
         arrays = {**t, "base_accel": -gravity, "gravity": gravity, "zeros": np.zeros(n)}
         if planar:
             c = system
@@ -160,7 +169,7 @@ class Workspace:
         if dh:
             arrays["dh"] = dh_table
         # the packed arrays, as the layout table lays them out (redysim.algorithms._kernels.bundles)
-        sizes = sizes_of(nb, n, ng, bool(t["serial"]), t["n_q"])
+        sizes = sizes_of(nb, n, ng, bool(t["serial"]), t["n_q"], na)
         self.kernel_f = _pack({f: arrays[f]
                                for f in segment_sizes("tree_f", sizes, planar, dh)},
                               np.float64, header)

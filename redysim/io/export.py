@@ -13,8 +13,10 @@ the model's initial pose (:meth:`Model.initial`; MuJoCo's qpos0), the inertia as
 ``quat``: MuJoCo checks A + B >= C on principal moments strictly, so a lamina's, which round-off
 may break by an ulp, get their largest set to the sum of the others), gravity as ``<option
 gravity>``, a coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's
-y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest). No geometry,
-so no contacts; no damping, armature or limits. MuJoCo composes a body's joints one after the
+y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest), a joint's
+armature (:attr:`Model.armature`) as its ``armature`` (a free joint's, when its six are one
+number, on a ``<joint type="free">``; else refused). No geometry, so no contacts; no damping or
+limits. MuJoCo composes a body's joints one after the
 other, each about its own anchor ``pos`` and ``axis``, fixed in the
 body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
 
@@ -48,8 +50,9 @@ whose gravity points elsewhere is turned, by the rotation that takes its gravity
 functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
 included), a floating model whose gravity is not along -z (turning the world would change its
 free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
-readers take a link of that name as the world itself), repeated link or joint names. URDF holds
-no initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only.
+readers take a link of that name as the world itself), repeated link or joint names, and
+armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia). URDF holds no
+initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only.
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
 is written without recursion, so a model of any depth is written (or refused) at once.
@@ -360,6 +363,14 @@ def to_mjcf(system: Model) -> str:
                               "is too deep'; tinyxml2's element depth limit of 500, measured "
                               "with mujoco 4.0); export to URDF, which is flat")
 
+    armature = {name: float(model.armature[j]) for k in range(model.n_bodies)
+                if model.joint_types[k] != FREE
+                for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True)}
+    for k in range(model.n_bodies):
+        a = model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]
+        if model.joint_types[k] == FREE and np.any(a != a[0]):
+            raise ExportError(source, f"joint {model.joint_names[k]!r}.armature", _plain(a),
+                              "MJCF gives a free joint one armature for its six DOFs")
     root = ET.Element("mujoco", model=model.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(root, "option", gravity=_vec(model.gravity))
@@ -374,7 +385,12 @@ def to_mjcf(system: Model) -> str:
             quat = q0[qs + 3:qs + 7] / np.linalg.norm(q0[qs + 3:qs + 7])
             body = ET.SubElement(parent, "body", name=model.body_names[k],
                                  pos=_vec(q0[qs:qs + 3]), quat=_vec(quat))
-            ET.SubElement(body, "freejoint", name=model.joint_names[k])
+            free_armature = float(model.armature[model.joint_voff[k]])
+            if free_armature:
+                ET.SubElement(body, "joint", name=model.joint_names[k], type="free",
+                              armature=_num(free_armature))
+            else:
+                ET.SubElement(body, "freejoint", name=model.joint_names[k])
         else:
             (R, pos), joints = _mjcf_body(model, g, q0)
             body = ET.SubElement(parent, "body", name=model.body_names[k], pos=_vec(pos),
@@ -383,6 +399,8 @@ def to_mjcf(system: Model) -> str:
                 attrs = {"name": name, "type": kind, "axis": _vec(axis), "pos": _vec(anchor)}
                 if ref:
                     attrs["ref"] = _num(ref)
+                if armature[name]:
+                    attrs["armature"] = _num(armature[name])
                 ET.SubElement(body, "joint", attrs)
         ET.SubElement(body, "inertial", inertials[i])
         elements.append(body)
@@ -447,6 +465,12 @@ def to_urdf(system: Model) -> str:
     """
     source = "to_urdf"
     model = _as_model(system, source)
+    if np.any(model.armature):
+        j = int(np.flatnonzero(model.armature)[0])
+        k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
+        raise ExportError(source, f"joint {model.joint_names[k]!r}.armature",
+                          float(model.armature[j]), "URDF has no field for a joint's own "
+                          "inertia (armature); export to MJCF, which has one")
     free = [k for k, t in enumerate(model.joint_types) if t == FREE]
     roots = [k for k in range(model.n_bodies) if model.parent[k] < 0]
     if free and len(roots) > 1:

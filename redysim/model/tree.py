@@ -193,6 +193,13 @@ class Model:
                           (:class:`Coupling`, :meth:`with_couplings`: a URDF mimic joint); the
                           coordinates stay the tree's, n_v, of which the couplings hold
                           len(couplings): the mechanism moves with n_v - len(couplings) DOF.
+        armature:         (n_v,) each velocity coordinate's own inertia [kg m^2 for a rotation,
+                          kg for a translation], added to the diagonal of the joint-space inertia
+                          I(q) (a motor's rotor inertia reflected through its gear: MuJoCo's
+                          ``dof_armature``, Pinocchio's ``Model.armature``); zeros unless given
+                          (:meth:`with_armature`, or ``armature=`` to the constructors). Every
+                          transformation keeps it (:meth:`with_cuts`, :meth:`with_couplings`,
+                          :attr:`free_tree`, :meth:`locked`).
 
     A model also carries its own scratch: a dynamics function called without ``ws=`` uses the
     calling thread's :class:`~redysim.algorithms.workspace.Workspace` of the model, made on the
@@ -226,10 +233,18 @@ class Model:
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
     cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
     couplings: tuple = ()  # joints that follow others (Coupling: a URDF mimic joint)
+    armature: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
     # The per-thread workspaces (a threading.local), in the instance's __dict__ once made
     # (redysim.algorithms.workspace.model_workspace); declared here for the type checker only (a
     # ClassVar is no dataclass field, and the class itself has no such attribute).
     _thread_workspaces: ClassVar[threading.local]
+
+    def __post_init__(self) -> None:
+        """The armature checked (or zeros when none is given): finite and >= 0, one number per
+        velocity coordinate."""
+        object.__setattr__(self, "armature", check_armature(
+            self.name, "armature", np.zeros(self.n_v) if self.armature is None
+            else self.armature, self.n_v))
 
     # ----------------------------------------------------------------------- building
     @classmethod
@@ -237,9 +252,10 @@ class Model:
               gravity: Sequence[float] | np.ndarray = (0.0, -STANDARD_GRAVITY, 0.0),
               name: str = "model",
               frames: Mapping[str, tuple[int, Sequence[float]]] | None = None,
-              source: str = "model") -> Model:
+              source: str = "model", armature=None) -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
         ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here.
+        ``armature``: as :meth:`with_armature` takes it (of the built model's joints).
         Raises CaseError naming ``source``, the field (a body or joint by its name and index:
         ``body 'arm' (bodies[1]).mass``, ``joint 'elbow' (joints[1]).axis``) and the value."""
         nb = len(bodies)
@@ -373,7 +389,9 @@ class Model:
             mass=_readonly(m), com=_readonly(c), inertia_com=_readonly(I_c),
             inertia_O=_readonly(I_O), mass_com=_readonly(m[:, None] * c),
             gravity=_readonly(check_vector(source, "gravity", gravity, 3)),
-            frames=kept_frames)
+            frames=kept_frames,
+            armature=armature_values(source, armature, voff[-1], [jname[k] for k in kept],
+                                     voff))
 
     def with_cuts(self, cuts: Sequence, *, source: str | None = None) -> Model:
         """The model with these cut joints (:class:`CutJoint`: each keeps a point
@@ -442,6 +460,20 @@ class Model:
                       "give the follower that joint's leader (multipliers multiplied, offsets "
                       "carried)")
         return dataclasses.replace(self, couplings=tuple(couplings))
+
+    def with_armature(self, armature, *, source: str | None = None) -> Model:
+        """The model with this armature: the joints' own inertia, added to the diagonal of
+        the joint-space inertia I(q) (:attr:`armature`). ``armature``: one number for every
+        velocity coordinate, a sequence of n_v numbers, or a mapping joint name -> a number (for
+        each of its axes) or a sequence (one per axis; joints not named keep 0). Every kernel
+        honours it (forward and inverse dynamics, the GIM and its factors, the energy and the
+        generalized momentum). Raises CaseError naming the field and the value (not finite,
+        negative, a wrong count, an unknown joint)."""
+        import dataclasses
+
+        where = source or f"{self.name}.with_armature"
+        return dataclasses.replace(self, armature=armature_values(
+            where, armature, self.n_v, self.joint_names, self.joint_voff))
 
     @cached_property
     def coupling_index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -541,9 +573,11 @@ class Model:
         if not bodies:
             _fail(where, "values", sorted(values), "every joint is locked: nothing moves")
         frames = {f: (kept[b], tuple(pt)) for f, (b, pt) in self.frames.items() if b in kept}
+        armature = {name: tuple(self.armature[self.joint_voff[k]:self.joint_voff[k + 1]])
+                    for k, name in enumerate(self.joint_names) if name not in values}
         out = Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
                           name=f"{self.name} ({len(values)} joints locked)", frames=frames,
-                          source=where)
+                          source=where, armature=armature)
         return out.with_couplings(self.couplings, source=where) if self.couplings else out
 
     # ----------------------------------------------------------------------- derived facts
@@ -679,6 +713,8 @@ class Model:
         for key, value in state.items():
             object.__setattr__(self, key,
                                _readonly(value) if isinstance(value, np.ndarray) else value)
+        if state.get("armature") is None:  # pickled before models had one
+            object.__setattr__(self, "armature", _readonly(np.zeros(self.n_v)))
 
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, bodies={self.n_bodies}, n_q={self.n_q}, n_v={self.n_v}, "
@@ -858,6 +894,51 @@ class _Numbered(Sequence):
         return f"({self[0]!r}, ..., {self[self.n - 1]!r})" if self.n > 2 else repr(tuple(self))
 
 
+def check_armature(source: str, field_name: str, value, n_v: int) -> np.ndarray:
+    """``value`` as a read-only (n_v,) array of finite numbers >= 0, or CaseError naming
+    ``field_name`` and the value."""
+    a = numeric_array(value)
+    if a is None or a.shape != (n_v,):
+        _fail(source, field_name, value, f"must be {n_v} numbers, one per velocity coordinate "
+              "(n_v)" if a is not None else "must be numbers")
+    bad = ~(np.isfinite(a) & (a >= 0.0))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        _fail(source, f"{field_name}[{i}]", float(a[i]), "must be finite and >= 0 (a joint's "
+              "own inertia: kg m^2 about a rotation, kg along a translation)")
+    return _readonly(a)
+
+
+def armature_values(source: str, value, n_v: int, joint_names: Sequence[str],
+                    joint_voff) -> np.ndarray:
+    """The (n_v,) armature of :meth:`Model.with_armature`'s ``value`` (None: zeros; a number:
+    every coordinate's; n_v numbers; a mapping joint name -> a number for each of its axes, or
+    one per axis), checked (:func:`check_armature`)."""
+    if value is None:
+        return _readonly(np.zeros(n_v))
+    if isinstance(value, Mapping):
+        out = np.zeros(n_v)
+        for name, x in value.items():
+            try:
+                k = joint_names.index(name)
+            except ValueError:
+                shown = ", ".join(joint_names[i] for i in range(min(12, len(joint_names))))
+                _fail(source, "armature", name, "no such joint; joints: " + shown
+                      + (", ..." if len(joint_names) > 12 else ""))
+            width = int(joint_voff[k + 1] - joint_voff[k])
+            a = numeric_array(x)
+            if a is None or a.shape not in ((), (width,)):
+                _fail(source, f"armature[{name!r}]", x, f"joint {name!r} has {width} "
+                      f"velocity coordinate{'s' if width != 1 else ''}: give one number for "
+                      f"each, or one for all")
+            out[joint_voff[k]:joint_voff[k + 1]] = a
+        return check_armature(source, "armature", out, n_v)
+    a = numeric_array(value)
+    if a is not None and a.shape == ():
+        a = np.full(n_v, float(a))
+    return check_armature(source, "armature", value if a is None else a, n_v)
+
+
 @dataclass(frozen=True, eq=False)
 class Chain(Model):
     """A serial chain of rigid links: a :class:`Model` laid out as a chain, built from links and
@@ -876,8 +957,9 @@ class Chain(Model):
     def build(  # type: ignore[override]
             cls, links: Sequence[Link], joints: Sequence[Joint | str], *,
             gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0), name: str = "chain",
-            source: str = "chain") -> Chain:
-        """Validate and freeze a chain. ``joints`` may be Joint objects or type names."""
+            source: str = "chain", armature=None) -> Chain:
+        """Validate and freeze a chain. ``joints`` may be Joint objects or type names;
+        ``armature`` as :meth:`Model.with_armature` takes it (joints named ``joint<k+1>``)."""
         if len(links) == 0:
             raise CaseError(source, "links", len(links), "a chain needs at least one link")
         if len(joints) != len(links):
@@ -965,7 +1047,9 @@ class Chain(Model):
             dof_axis=_readonly(codes), dof_u=_readonly(units), mass=_readonly(mass),
             com=_readonly(com), inertia_com=_readonly(inertia), inertia_O=_readonly(inertia_O),
             mass_com=_readonly(mass_com), gravity=_readonly(grav),
-            frames={"tip": (nl - 1, (float(length[-1]), 0.0, 0.0))})
+            frames={"tip": (nl - 1, (float(length[-1]), 0.0, 0.0))},
+            armature=armature_values(source, armature, int(qoff[-1]),
+                                     _Numbered("joint", nl), qoff))
         # what the chain was built from, as Model's derived attributes would give them back
         object.__setattr__(chain, "length", _readonly(length))
         object.__setattr__(chain, "joints", chain_joints)
@@ -977,10 +1061,11 @@ class Chain(Model):
                 mass: float | None = None, linear_density: float | None = None,
                 radius: float = 0.0, inertia: str = "rod",
                 gravity: Sequence[float] = (0.0, -STANDARD_GRAVITY, 0.0),
-                name: str | None = None) -> Chain:
+                name: str | None = None, armature=None) -> Chain:
         """A chain of ``n_links`` identical uniform links with identical joints.
 
-        Give the link ``mass`` or the ``linear_density`` (kg/m); ``length`` is per link.
+        Give the link ``mass`` or the ``linear_density`` (kg/m); ``length`` is per link;
+        ``armature`` as :meth:`Chain.build` takes it.
         """
         if isinstance(n_links, bool) or not isinstance(n_links, int | np.integer) \
                 or n_links < 1:
@@ -993,7 +1078,7 @@ class Chain(Model):
         link = Link.uniform(length, mass, radius, inertia)
         joint = joint if isinstance(joint, Joint) else Joint(joint)
         return cls.build([link] * n_links, [joint] * n_links, gravity=gravity,
-                         name=name or f"{joint.type}{n_links}")
+                         name=name or f"{joint.type}{n_links}", armature=armature)
 
     def __repr__(self) -> str:
         types = "".join(sorted(set(self.joint_types)))

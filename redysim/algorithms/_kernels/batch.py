@@ -102,7 +102,7 @@ def inverse_rows(fdata, idata, Q, QD, QDD, scratch, TAU, first, last):
     nv = h[H_NV]
     for i in range(first, last):
         kinematics(tree, Q[i], QD[i], QDD[i], base_accel, s, False)
-        rnea_backward(tree, s, TAU[i])
+        rnea_backward(tree, s, QDD[i], TAU[i])
         bad = 0.0
         tau = TAU[i]
         for j in range(nv):

@@ -8,7 +8,8 @@ bundles are built once per chain or model (:mod:`redysim.algorithms.workspace`) 
 path, sliced out of a workspace's packed arrays inside compiled code (:mod:`.entry`).
 
 :data:`LAYOUT` is the one table: each array's name, dtype, shape (in the sizes nb bodies, n_v
-velocity coordinates, ng gathering bodies, and nt = nb for a tree, 0 for a serial chain) and the
+velocity coordinates, ng gathering bodies, nt = nb for a tree, 0 for a serial chain, and na = nv
+for a model with armature, 0 without) and the
 packed array that holds it (``tree_f``, ``tree_i``: the system's floats and ints; ``scratch``:
 what the kernels write; ``tiles``: one thread's row of the SIMD tiles' buffer), and whether it
 belongs to the :class:`Tree`, :class:`Scratch` or :class:`Tiles` bundle or is one of the
@@ -25,7 +26,12 @@ so their slicer cuts 1-D views and their numba types are 1-D; their shapes count
 Kernels read the fields into locals at their top, once per call, and pass helpers scalars, never
 arrays: an array handed to an inlined helper in a loop costs reference counting per call, ten
 times a rope body's work. The kernels that take the bundles compile without numba's reference
-counting altogether (``redysim._jit.jit_borrowed``).
+counting altogether (``redysim._jit.jit_borrowed``). Reading the fields at the top matters for
+another reason where a function makes the bundles itself (the lean entries, :mod:`.lean`) and
+inlines the passes: numba's dead-code elimination (0.68) keeps a write into an array only if it
+sees the array alive afterwards or drawn from an argument, and a field read inside an inlined
+helper (or an array taken out of a tuple there) is neither: its writes were dropped. Written
+through an array read before the pass's loop (alive in the next turn), they stay.
 
 A serial chain is a tree (parent k - 1, each joint at the parent's ``along`` on its x axis, no
 free joint): ``serial = 1`` tells the kernels so, and they then read none of the tree's tables
@@ -53,19 +59,20 @@ BACK_ROWS = 27  # X (6), Y (9), Z (6), n (3), f (3)
 # table (.dh): kind (0 R, 1 P); ca, sa = cos, sin alpha; c2, s2, cs = ca^2, sa^2, ca sa;
 # cs2 = 2 ca sa; cms = ca^2 - sa^2; a, d, theta (q adds to theta, R, or to d, P); m; h = m c (3);
 # J about O_k (xx, xy, xz, yy, yz, zz), all in the body's own frame; twist: 0 any alpha, 1, 2, 3, 4
-# alpha = 0, 90, -90, 180 degrees (.dh turns y and z into each other then, without arithmetic).
-# Then, on the last row of a robot whose last joint is revolute (zeros elsewhere), that body's
+# alpha = 0, 90, -90, 180 degrees (.dh turns y and z into each other then, without arithmetic);
+# the joint's armature. Then, on the last row of a robot whose last joint is revolute (zeros
+# elsewhere), that body's
 # articulated inertia, which is its own and so a constant in its frame: 1 / J_zz; U / D
 # (x, y angular; x, y linear); the projected inertia's A (xx, xy, yy), B (xx, xy, yx, yy) and M
 # (xx, xy, yy) (its other numbers are the body's own, or zero); and A and B moved by Tz(d).
 DH_COLUMNS = ("kind", "ca", "sa", "c2", "s2", "cs", "cs2", "cms", "a", "d", "theta",
               "m", "hx", "hy", "hz", "jxx", "jxy", "jxz", "jyy", "jyz", "jzz", "twist",
-              "tip_inv", "tip_d0", "tip_d1", "tip_d3", "tip_d4",
+              "armature", "tip_inv", "tip_d0", "tip_d1", "tip_d3", "tip_d4",
               "tip_a00", "tip_a01", "tip_a11", "tip_b00", "tip_b01", "tip_b10", "tip_b11",
               "tip_m00", "tip_m01", "tip_m11",
               "tip_za00", "tip_za01", "tip_za11", "tip_zb00", "tip_zb01", "tip_zb10", "tip_zb11")
 (DH_KIND, DH_CA, DH_SA, DH_C2, DH_S2, DH_CS, DH_CS2, DH_CMS, DH_A, DH_D, DH_TH, DH_M, DH_HX,
- DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ, DH_TW,
+ DH_HY, DH_HZ, DH_JXX, DH_JXY, DH_JXZ, DH_JYY, DH_JYZ, DH_JZZ, DH_TW, DH_ARMATURE,
  DH_TIP_INV, DH_TIP_D0, DH_TIP_D1, DH_TIP_D3, DH_TIP_D4,
  DH_TIP_A00, DH_TIP_A01, DH_TIP_A11, DH_TIP_B00, DH_TIP_B01, DH_TIP_B10, DH_TIP_B11,
  DH_TIP_M00, DH_TIP_M01, DH_TIP_M11,
@@ -75,8 +82,8 @@ DH_TIP = DH_TIP_INV  # the first of the last body's columns
 DH_SCRATCH = 48  # the DH forward kernel's scratch columns per body (.dh)
 
 # the int array's header: the sizes, the serial flag, then one offset per segment (SLOT)
-HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial")
-H_NB, H_NV, H_NQ, H_NG, H_SERIAL = range(len(HEADER_FIELDS))
+HEADER_FIELDS = ("nb", "nv", "nq", "ng", "serial", "na")
+H_NB, H_NV, H_NQ, H_NG, H_SERIAL, H_NA = range(len(HEADER_FIELDS))
 
 
 class Field(NamedTuple):
@@ -120,6 +127,10 @@ LAYOUT: tuple[Field, ...] = (
     Field("dof_kind", I, ("nv",), "tree_i", "Tree", "per axis: revolute, prismatic, ball"),
     Field("dof_axis", I, ("nv",), "tree_i", "Tree", "per axis: x, y, z or general (.joints)"),
     Field("dof_u", F, ("nv", 3), "tree_f", "Tree", "per axis: its unit vector"),
+    Field("armature", F, ("na",), "tree_f", "Tree",
+          "per axis: the joint's own inertia, added to its joint-space inertia (.joints."
+          "joint_inertia); empty (na = 0) for a model without any, whose kernels then read "
+          "none of it"),
     Field("mass", F, ("nb",), "tree_f", "Tree", "per body: its mass"),
     Field("inertia_O", F, ("nb", 3, 3), "tree_f", "Tree",
           "per body: inertia about its origin O_k, in its own frame"),
@@ -214,11 +225,12 @@ else:
                     "DOF, LANES states side by side, each array flat).")
 
 
-def sizes_of(nb: int, nv: int, ng: int, serial: bool, nq: int | None = None) -> dict[str, int]:
+def sizes_of(nb: int, nv: int, ng: int, serial: bool, nq: int | None = None,
+             na: int = 0) -> dict[str, int]:
     """The size names of :data:`LAYOUT`'s shapes, for a system of these sizes (nq: its
-    configuration coordinates, nv when not given)."""
+    configuration coordinates, nv when not given; na: nv for a model with armature, else 0)."""
     return dict(nb=nb, nb1=nb + 1, nv=nv, nq=nv if nq is None else nq, ng=ng,
-                nt=0 if serial else nb)
+                nt=0 if serial else nb, na=na)
 
 
 def shape_of(field: Field, sizes: dict[str, int]) -> tuple[int, ...]:
@@ -236,7 +248,8 @@ def segment_sizes(array: str, sizes: dict[str, int], planar: bool,
 
 # the argument of a generated slicer holding each packed array, and the size names' expressions
 PACKED = {"tree_f": "fdata", "tree_i": "idata", "scratch": "scratch", "tiles": "buf"}
-_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "nq": "nq", "ng": "ng", "nt": "nt"}
+_SIZE = {"nb": "nb", "nb1": "nb + 1", "nv": "nv", "nq": "nq", "ng": "ng", "nt": "nt",
+         "na": "na"}
 
 
 def _view(f: Field, shaper: str | None = None) -> str:
@@ -266,7 +279,8 @@ def slicer_source(name: str, bundles: tuple[str, ...], shaper: str | None = None
     lines = [f"def {name}({', '.join(args)}):",
              "    h = idata",
              f"    nb, nv, nq, ng = h[{H_NB}], h[{H_NV}], h[{H_NQ}], h[{H_NG}]",
-             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty"]
+             f"    nt = 0 if h[{H_SERIAL}] else nb  # a serial chain's tree tables are empty",
+             f"    na = h[{H_NA}]  # 0: no armature"]
     for b in bundles:
         first = f"h[{H_SERIAL}]," if b == "Tree" else ""
         lines += [f"    {b.lower()}_ = {b}({first}"]

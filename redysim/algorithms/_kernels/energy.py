@@ -1,6 +1,7 @@
 """Kinetic and potential energy of the chain, for the energy-drift check of Eq. (11).
 
-    T = 1/2 sum_k t_k^T M_k t_k = 1/2 sum_k (w . I_O w + 2 w . (m d x v) + m v . v)
+    T = 1/2 sum_k t_k^T M_k t_k + 1/2 sum_j armature_j v_j^2 = 1/2 v^T I(q) v,
+    t_k^T M_k t_k = w . I_O w + 2 w . (m d x v) + m v . v
     V = - sum_k m_k g . (O_k + d_k)
 delta_M(t) = (E(t) - E(0)) / M with E = T + V and M the total mass.
 
@@ -12,10 +13,13 @@ from __future__ import annotations
 
 from redysim._jit import jit_borrowed
 
+from .joints import joint_force
+
 
 @jit_borrowed
-def energy(tree, gravity, s):
-    """(T, V) from the kinematics pass (s.oR, s.oO, s.t)."""
+def energy(tree, gravity, s, qd):
+    """(T, V) from the kinematics pass (s.oR, s.oO, s.t) at the rates qd (the joints' own
+    inertia's part, :func:`.joints.joint_force`)."""
     mass, inertia_O, mass_com, oR, oO, t = tree.mass, tree.inertia_O, tree.mass_com, s.oR, \
         s.oO, s.t
     nl = mass.shape[0]
@@ -42,4 +46,10 @@ def energy(tree, gravity, s):
         T += 0.5 * (rot + 2.0 * cross + m * (v0 * v0 + v1 * v1 + v2 * v2))
         V -= gravity[0] * (m * oO[k, 0] + md0) + gravity[1] * (m * oO[k, 1] + md1) \
             + gravity[2] * (m * oO[k, 2] + md2)
+    armature = tree.armature
+    if armature.shape[0] != 0:  # the joints' own inertia's: 1/2 sum_j v_j (armature_j v_j)
+        Ta = 0.0
+        for j in range(qd.shape[0]):
+            Ta += qd[j] * joint_force(0.0, armature, j, qd[j])
+        T += 0.5 * Ta
     return T, V

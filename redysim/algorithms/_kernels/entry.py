@@ -29,6 +29,7 @@ from redysim._jit import EntryPoint, inline, inline_generated
 from .bundles import (
     DH_COLUMNS,
     DH_SCRATCH,
+    H_NA,
     H_NB,
     H_NQ,
     H_NV,
@@ -50,6 +51,7 @@ F_BASE_ACCEL, F_GRAVITY, F_ZEROS, F_MASS = (SLOT[k] for k in ("base_accel", "gra
                                                                "mass"))
 F_LENGTH, F_IZZ_O, F_MC_X, F_MC_Y, S_PLANAR = (SLOT[k] for k in ("length", "izz_O", "mc_x",
                                                                   "mc_y", "planar"))
+F_ARMATURE = SLOT["armature"]
 F_DH, S_DH = SLOT["dh"], SLOT["dh_scratch"]
 DHC = len(DH_COLUMNS)
 
@@ -65,7 +67,7 @@ RGE_A_CALLEES = (
     (rge_a_backward, (TREE, SCRATCH, _RO)),
     (rge_a_forward, (TREE, SCRATCH, _F1, _F1)))
 PLANAR_CALLEES = (
-    (planar_forward_dynamics, (_F1, _F1, _F1, _F1, _F1, _F1, _RO, _RO, _RO, _F1, _F2)),)
+    (planar_forward_dynamics, (_F1, _F1, _F1, _F1, _F1, _F1, _F1, _RO, _RO, _RO, _F1, _F2)),)
 DH_CALLEES = ((dh_forward_dynamics, (_F2, _RO, _RO, _RO, _F1, _F1, _F2)),)
 DH_INVERSE_CALLEES = ((dh_inverse_dynamics, (_F2, _RO, _RO, _RO, _F1, _F1, _F2)),)
 
@@ -99,7 +101,8 @@ def planar_entry(fdata, idata, q, qd, tau, scratch, qdd):
     return planar_forward_dynamics(
         fdata[h[F_LENGTH]:h[F_LENGTH] + nl], fdata[h[F_MASS]:h[F_MASS] + nl],
         fdata[h[F_IZZ_O]:h[F_IZZ_O] + nl], fdata[h[F_MC_X]:h[F_MC_X] + nl],
-        fdata[h[F_MC_Y]:h[F_MC_Y] + nl], fdata[h[F_GRAVITY]:h[F_GRAVITY] + 3], q, qd, tau, qdd,
+        fdata[h[F_MC_Y]:h[F_MC_Y] + nl], fdata[h[F_ARMATURE]:h[F_ARMATURE] + h[H_NA]],
+        fdata[h[F_GRAVITY]:h[F_GRAVITY] + 3], q, qd, tau, qdd,
         scratch[h[S_PLANAR]:h[S_PLANAR] + 12 * nl].reshape((nl, 12)))
 
 

@@ -2,7 +2,8 @@
 
     M~_nl = M_nl,   M~_k = M_k + A_{k+1,k}^T M~_{k+1} A_{k+1,k}     (backward, k = nl..1;
                     on a tree the sum runs over k's children)
-    I_ij = P_i^T M~_i A_{i,j} P_j  (i >= j),  computed as I_ji = P_j^T A_{i,j}^T (M~_i P_i)
+    I_ij = P_i^T M~_i A_{i,j} P_j  (i >= j),  computed as I_ji = P_j^T A_{i,j}^T (M~_i P_i),
+    and each joint's own inertia (armature) on the diagonal: I_jj + armature_j
 
 O(n^2) entries, each block from a wrench M~_i P_i carried towards the base. Written through the
 upper triangle and mirrored, so I is exactly symmetric.
@@ -17,6 +18,7 @@ import numpy as np
 
 from redysim._jit import jit
 
+from .joints import joint_inertia
 from .spatial import add_shifted_mass, link_mass
 
 
@@ -27,8 +29,8 @@ def gim_composite(tree, s, I):
     On a tree, M~_k gathers every child's composite mass, and each block I_ij (i an ancestor of
     j's body) is the wrench M~_j P_j carried up the path to the base; the blocks of bodies on
     different branches are zero."""
-    mass, inertia_O, mass_com, joint_voff = tree.mass, tree.inertia_O, tree.mass_com, \
-        tree.joint_voff
+    mass, inertia_O, mass_com, joint_voff, armature = (tree.mass, tree.inertia_O, tree.mass_com,
+                                                       tree.joint_voff, tree.armature)
     serial, parent, gather = tree.serial, tree.parent, tree.gather
     oR, oO, oP = s.oR, s.oO, s.oP
     nl = mass.shape[0]
@@ -61,10 +63,12 @@ def gim_composite(tree, s, I):
             for i in range(6):
                 F[i] = (Mtil[i, 0] * p[0] + Mtil[i, 1] * p[1] + Mtil[i, 2] * p[2]
                         + Mtil[i, 3] * p[3] + Mtil[i, 4] * p[4] + Mtil[i, 5] * p[5])
-            # diagonal block: columns of joint k up to j
+            # diagonal block: columns of joint k up to j (I_jj + armature_j on the diagonal)
             for jj in range(joint_voff[k], j + 1):
                 x = (oP[jj, 0] * F[0] + oP[jj, 1] * F[1] + oP[jj, 2] * F[2]
                      + oP[jj, 3] * F[3] + oP[jj, 4] * F[4] + oP[jj, 5] * F[5])
+                if jj == j:
+                    x = joint_inertia(x, armature, j)
                 I[jj, j] = x
                 I[j, jj] = x
             # off-diagonal blocks: carry F = A^T F towards the base, over k's ancestors b

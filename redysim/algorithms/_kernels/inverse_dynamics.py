@@ -4,7 +4,7 @@ Backward pass k = nb..1 (children first) over the kinematics pass's twists and t
     body wrench about O_k:  w_k = M_k td_k + W_k M_k t_k  (Newton-Euler),
         f = m vd + wd x (m d) + w x (w x m d),   n = I_O wd + w x (I_O w) + (m d) x vd,
     resultant:             W_k = w_k + sum over the children c of A_{c,k}^T W_c,
-    joint torques:         tau_k = P_k^T W_k.
+    joint torques:         tau_j = P_j^T W_k + armature_j qdd_j (the joint's own inertia).
 With qdd = 0 and the base's twist-rate [0; -g] the same pass gives C qd + gravity terms, so
 phi = tau - (C qd + gravity terms) (Eq. 12).
 
@@ -17,14 +17,17 @@ from __future__ import annotations
 
 from redysim._jit import jit_borrowed
 
+from .joints import joint_force
+
 
 @jit_borrowed
-def rnea_backward(tree, s, tau):
-    """tau = P^T W from the kinematics pass; s.W (nb, 6) receives the resultant wrenches about
-    O_k. A child that does not follow its parent (k + 1) adds its wrench, moved to the parent's
-    O, to the parent's row of s.gather_wrench."""
-    mass, inertia_O, mass_com, joint_voff = tree.mass, tree.inertia_O, tree.mass_com, \
-        tree.joint_voff
+def rnea_backward(tree, s, qdd, tau):
+    """tau = P^T W + armature qdd from the kinematics pass run with ``qdd`` (the armature's
+    part: :func:`.joints.joint_force`); s.W (nb, 6) receives the resultant wrenches about O_k.
+    A child that does not follow its parent (k + 1) adds its wrench, moved to the parent's O,
+    to the parent's row of s.gather_wrench."""
+    mass, inertia_O, mass_com, joint_voff, armature = (tree.mass, tree.inertia_O, tree.mass_com,
+                                                       tree.joint_voff, tree.armature)
     serial, parent, gather = tree.serial, tree.parent, tree.gather
     oR, oO, oP, t, td, W, gw = s.oR, s.oO, s.oP, s.t, s.td, s.W, s.gather_wrench
     for g in range(gw.shape[0]):
@@ -110,7 +113,10 @@ def rnea_backward(tree, s, tau):
             gw[g, 3] += f0
             gw[g, 4] += f1
             gw[g, 5] += f2
-        # tau_k = P_k^T W_k
+        # tau_j = P_j^T W_k
         for j in range(joint_voff[k], joint_voff[k + 1]):
             p = oP[j]
             tau[j] = (p[0] * n0 + p[1] * n1 + p[2] * n2 + p[3] * f0 + p[4] * f1 + p[5] * f2)
+    if armature.shape[0] != 0:  # + armature_j qdd_j (a pass of its own: none without armature)
+        for j in range(tau.shape[0]):
+            tau[j] = joint_force(tau[j], armature, j, qdd[j])

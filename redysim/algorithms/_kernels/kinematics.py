@@ -95,8 +95,8 @@ def _kinematics(tree, q, qd, qdd, base_accel, s, local_rates, serial):
             s2 = r20 * pp[0] + r21 * pp[1] + r22 * pp[2]
             G = placement_R[k]
             r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
-                r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                G[0, 0], G[0, 1], G[0, 2], G[1, 0], G[1, 1], G[1, 2], G[2, 0], G[2, 1], G[2, 2])
+                (r00, r01, r02, r10, r11, r12, r20, r21, r22),
+                (G[0, 0], G[0, 1], G[0, 2], G[1, 0], G[1, 1], G[1, 2], G[2, 0], G[2, 1], G[2, 2]))
         if not serial:
             qs = qshift[k]
         # joint k: columns, frame update; accumulate P qd and P qdd + Pd qd
@@ -109,10 +109,10 @@ def _kinematics(tree, q, qd, qdd, base_accel, s, local_rates, serial):
         for j in range(joint_voff[k], joint_voff[k + 1]):
             if not serial and dof_kind[j] == BALL and dof_axis[j] == 0:  # its quaternion
                 q1, q2, q3 = q[j + qs + 1], q[j + qs + 2], q[j + qs + 3]
-            (p0, p1, p2, p3, p4, p5, s0, s1, s2,
-             r00, r01, r02, r10, r11, r12, r20, r21, r22) = jcalc(
+            p0, p1, p2, p3, p4, p5, s0, s1, s2, frame = jcalc(
                 dof_kind[j], dof_axis[j], dof_u[j], q[j + qs], q1, q2, q3, s0, s1, s2,
-                r00, r01, r02, r10, r11, r12, r20, r21, r22)
+                (r00, r01, r02, r10, r11, r12, r20, r21, r22))
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = frame
             oP[j, 0] = p0
             oP[j, 1] = p1
             oP[j, 2] = p2
@@ -121,7 +121,7 @@ def _kinematics(tree, q, qd, qdd, base_accel, s, local_rates, serial):
             oP[j, 5] = p5
             # P qd into the twist, P qdd + Pd qd into the local twist-rate (Pd = om x P)
             (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2, bw0, bw1, bw2) = \
-                axis_rates(dof_kind[j], dof_axis[j], p0, p1, p2, p3, p4, p5, qd[j], qdd[j],
+                axis_rates(dof_kind[j], dof_axis[j], p0, p1, p2, p3, p4, p5, qd[j], qdd[j], True,
                            om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2,
                            bw0, bw1, bw2)
         O0 += s0

@@ -315,7 +315,7 @@ def _inverse(q, v, qdd, out, fdata, idata, scratch, serial):
     tree, s = bundles(fdata, idata, scratch)
     base_accel = fdata[h[E.F_BASE_ACCEL]:h[E.F_BASE_ACCEL] + 3]
     _kinematics(tree, q, v, qdd, base_accel, s, False, serial)
-    _rnea_backward(tree, s, out)
+    _rnea_backward(tree, s, qdd, out)
     bad = 0.0
     for j in range(nv):
         bad += out[j] * 0.0

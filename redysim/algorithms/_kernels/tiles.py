@@ -14,10 +14,17 @@ What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set
   select that makes the address non-affine, and LLVM then gives up ("unsafe dependent memory
   operations") or gathers;
 - no branch inside a loop over states: one copy of each loop per joint kind and axis code (the
-  branches on them are outside the loops), and cos and sin by Cody-Waite reduction and fdlibm's
-  polynomials with the quadrant applied by arithmetic;
+  branches on them are outside the loops: :func:`_axis` called with them as constants), and cos
+  and sin by Cody-Waite reduction and fdlibm's polynomials with the quadrant applied by
+  arithmetic;
 - the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
   time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
+
+The steps inside the loops over states are the single-state kernels' own, called once per state:
+:func:`.joints.axis_transform` and :func:`.joints.axis_rates` (the joint's column, frame and
+rates), and :mod:`.articulated`'s elimination, body mass, bias and shift; only the loading and
+storing of a state's values from and to the tile arrays is this module's. A joint's armature
+enters through them (:func:`.joints.joint_inertia`).
 
 The kernels take named bundles (:mod:`.bundles`): the system's :class:`.bundles.Tree` and one
 thread's :class:`.bundles.Tiles`, the tile arrays, declared in the layout table beside the
@@ -55,6 +62,17 @@ import numpy as np
 
 from redysim._jit import inline, inline_generated, jit_borrowed, jit_tiles
 
+from .articulated import (
+    add6,
+    add_body,
+    articulated_bias,
+    eliminate_axis,
+    shift_bias,
+    shift_to_parent,
+    velocity_wrench,
+    world_inertia,
+    world_moment,
+)
 from .bundles import (
     ALONG_X,
     BACK_ROWS,
@@ -66,8 +84,15 @@ from .bundles import (
     Tree,
     slicer_source,
 )
-from .joints import BALL, C1, C2, C3, C4, C5, C6, PRISMATIC, S1, S2, S3, S4, S5, S6, turned
-from .rge_a import articulated_bias, shift_to_parent
+from .joints import (
+    BALL,
+    PRISMATIC,
+    REVOLUTE,
+    axis_rates,
+    axis_transform,
+    fdlibm_sincos,
+    turned,
+)
 
 TWO_OVER_PI = 6.36619772367581382433e-01
 # fdlibm's pi/2 in three parts (e_rem_pio2.c): pio2_1 (33 bits), pio2_2, pio2_2t
@@ -109,13 +134,7 @@ def sincos_reduced(x):
     k = np.floor(x * TWO_OVER_PI + 0.5)
     r = (x - k * PIO2_1) - k * PIO2_1T
     # the tail of pio2_1t, as fdlibm's second round: negligible below |x| ~ 1e5
-    z = r * r
-    rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))
-    s = r + r * z * (S1 + z * rs)
-    rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))))
-    hz = 0.5 * z
-    w = 1.0 - hz
-    c = w + (((1.0 - w) - hz) + z * rc)
+    c, s = fdlibm_sincos(r)
     quadrant = k - 4.0 * np.floor(k * 0.25)  # 0, 1, 2, 3
     # the quadrant's swap and signs by arithmetic, not branches (a branch in the loop kept LLVM
     # from vectorising it): 1 x s + 0 x c is s exactly
@@ -155,32 +174,28 @@ def _kin_axes(k, qs, balls, tree, Q, QD, oP, run):
         kind, code = dof_kind[j], dof_axis[j]
         u0, u1, u2 = dof_u[j, 0], dof_u[j, 1], dof_u[j, 2]
         jq = j + qs
-        # one copy of the loop per (kind, axis code), each with its branches folded away:
-        # a branch inside a vectorised loop runs both of its sides
+        # one copy of the lane loop per (kind, axis code), each generated from _axis with its
+        # branches folded away: a branch inside a vectorised loop runs both of its sides
         if kind == PRISMATIC:
-            if code == 0:
-                _prismatic_axis(j, jq, 0, u0, u1, u2, Q, QD, oP, run)
-            elif code == 1:
-                _prismatic_axis(j, jq, 1, u0, u1, u2, Q, QD, oP, run)
-            elif code == 2:
-                _prismatic_axis(j, jq, 2, u0, u1, u2, Q, QD, oP, run)
-            else:
-                _prismatic_axis(j, jq, 3, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, PRISMATIC, code, u0, u1, u2, Q, QD, oP, run)
         elif balls and kind == BALL:
-            if code == 0:
-                _ball_axis(j, jq, 0, Q, QD, oP, run)
-            elif code == 1:
-                _ball_axis(j, jq, 1, Q, QD, oP, run)
-            else:
-                _ball_axis(j, jq, 2, Q, QD, oP, run)
-        elif code == 0:
-            _revolute_axis(j, jq, 0, u0, u1, u2, Q, QD, oP, run)
-        elif code == 1:
-            _revolute_axis(j, jq, 1, u0, u1, u2, Q, QD, oP, run)
-        elif code == 2:
-            _revolute_axis(j, jq, 2, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, BALL, code, u0, u1, u2, Q, QD, oP, run)
         else:
-            _revolute_axis(j, jq, 3, u0, u1, u2, Q, QD, oP, run)
+            _axis_of(j, jq, REVOLUTE, code, u0, u1, u2, Q, QD, oP, run)
+
+
+@inline
+def _axis_of(j, jq, kind, code, u0, u1, u2, Q, QD, oP, run):
+    """:func:`_axis` with its axis code a constant too (``kind`` given as one): a branch on
+    ``code`` outside the loop over states."""
+    if code == 0:
+        _axis(j, jq, kind, 0, u0, u1, u2, Q, QD, oP, run)
+    elif code == 1:
+        _axis(j, jq, kind, 1, u0, u1, u2, Q, QD, oP, run)
+    elif code == 2 or kind == BALL:  # (a ball's axes are its body's x, y, z)
+        _axis(j, jq, kind, 2, u0, u1, u2, Q, QD, oP, run)
+    else:
+        _axis(j, jq, kind, 3, u0, u1, u2, Q, QD, oP, run)
 
 
 @inline
@@ -208,8 +223,8 @@ def _kin_begin(k, placed, balls, lp, pp, G, run):
             (run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)],
              run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)],
              run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]) = turned(
-                r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                g00, g01, g02, g10, g11, g12, g20, g21, g22)
+                (r00, r01, r02, r10, r11, r12, r20, r21, r22),
+                (g00, g01, g02, g10, g11, g12, g20, g21, g22))
         else:
             run[at(KS + 0, b)] = lp * run[at(KR + 0, b)]
             run[at(KS + 1, b)] = lp * run[at(KR + 3, b)]
@@ -255,151 +270,55 @@ def _kin_end(k, oR, oO, W, C, run):
 
 
 @inline
-def _revolute_axis(j, jq, code, u0, u1, u2, Q, QD, oP, run):
-    """One revolute axis for every state: :func:`.joints.jcalc` and :func:`.joints.axis_rates`
-    (qdd = 0) on the carry, q_j in Q's row jq. ``code`` is the same for every state: one
-    branch, outside the loop."""
+def _axis(j, jq, kind, code, u0, u1, u2, Q, QD, oP, run):
+    """One axis for every state: the single-state pass's own steps, :func:`.joints.
+    axis_transform` (jcalc's body, with this module's branch-free cos and sin) and
+    :func:`.joints.axis_rates` at qdd = 0, on the carry ``run``, q_j in Q's row jq (a ball's
+    quaternion in rows jq..jq + 3). ``kind`` and ``code`` are the same for every state: the
+    caller passes them as constants, so each (kind, code) compiles to a lane loop of its own
+    without branches."""
     for b in range(LANES):
-        r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
-        r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
-        r20, r21, r22 = run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]
-        if code == 0:
-            e0, e1, e2 = r00, r10, r20
-        elif code == 1:
-            e0, e1, e2 = r01, r11, r21
-        elif code == 2:
-            e0, e1, e2 = r02, r12, r22
-        else:
-            e0 = r00 * u0 + r01 * u1 + r02 * u2
-            e1 = r10 * u0 + r11 * u1 + r12 * u2
-            e2 = r20 * u0 + r21 * u1 + r22 * u2
-        c, s = sincos_reduced(Q[at(jq, b)])
-        if code == 0:  # columns y, z mix
-            n01, n11, n21 = c * r01 + s * r02, c * r11 + s * r12, c * r21 + s * r22
-            n02, n12, n22 = c * r02 - s * r01, c * r12 - s * r11, c * r22 - s * r21
-            r01, r11, r21, r02, r12, r22 = n01, n11, n21, n02, n12, n22
-        elif code == 1:  # columns z, x mix
-            n02, n12, n22 = c * r02 + s * r00, c * r12 + s * r10, c * r22 + s * r20
-            n00, n10, n20 = c * r00 - s * r02, c * r10 - s * r12, c * r20 - s * r22
-            r02, r12, r22, r00, r10, r20 = n02, n12, n22, n00, n10, n20
-        elif code == 2:  # columns x, y mix
-            n00, n10, n20 = c * r00 + s * r01, c * r10 + s * r11, c * r20 + s * r21
-            n01, n11, n21 = c * r01 - s * r00, c * r11 - s * r10, c * r21 - s * r20
-            r00, r10, r20, r01, r11, r21 = n00, n10, n20, n01, n11, n21
-        else:  # R Rot(u, q)
-            t = 1.0 - c
-            g00, g01, g02 = c + t * u0 * u0, t * u0 * u1 - s * u2, t * u0 * u2 + s * u1
-            g10, g11, g12 = t * u1 * u0 + s * u2, c + t * u1 * u1, t * u1 * u2 - s * u0
-            g20, g21, g22 = t * u2 * u0 - s * u1, t * u2 * u1 + s * u0, c + t * u2 * u2
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = (
-                r00 * g00 + r01 * g10 + r02 * g20, r00 * g01 + r01 * g11 + r02 * g21,
-                r00 * g02 + r01 * g12 + r02 * g22,
-                r10 * g00 + r11 * g10 + r12 * g20, r10 * g01 + r11 * g11 + r12 * g21,
-                r10 * g02 + r11 * g12 + r12 * g22,
-                r20 * g00 + r21 * g10 + r22 * g20, r20 * g01 + r21 * g11 + r22 * g21,
-                r20 * g02 + r21 * g12 + r22 * g22)
-        oP[at(j * 6 + 0, b)] = e0
-        oP[at(j * 6 + 1, b)] = e1
-        oP[at(j * 6 + 2, b)] = e2
-        oP[at(j * 6 + 3, b)] = 0.0
-        oP[at(j * 6 + 4, b)] = 0.0
-        oP[at(j * 6 + 5, b)] = 0.0
-        run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)] = r00, r01, r02
-        run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)] = r10, r11, r12
-        run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)] = r20, r21, r22
-        # axis_rates, revolute, qdd = 0: da += Pd x = (om x e) x;  om += e x
-        x = QD[at(j, b)]
-        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
-        run[at(KDA + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
-        run[at(KDA + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
-        run[at(KDA + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
-        run[at(KOM + 0, b)] = om0 + e0 * x
-        run[at(KOM + 1, b)] = om1 + e1 * x
-        run[at(KOM + 2, b)] = om2 + e2 * x
-
-
-@inline
-def _prismatic_axis(j, jq, code, u0, u1, u2, Q, QD, oP, run):
-    """One prismatic axis for every state (:func:`_revolute_axis`'s counterpart)."""
-    for b in range(LANES):
-        if code == 0:
-            e0, e1, e2 = run[at(KR + 0, b)], run[at(KR + 3, b)], run[at(KR + 6, b)]
-        elif code == 1:
-            e0, e1, e2 = run[at(KR + 1, b)], run[at(KR + 4, b)], run[at(KR + 7, b)]
-        elif code == 2:
-            e0, e1, e2 = run[at(KR + 2, b)], run[at(KR + 5, b)], run[at(KR + 8, b)]
-        else:
-            e0 = run[at(KR + 0, b)] * u0 + run[at(KR + 1, b)] * u1 + run[at(KR + 2, b)] * u2
-            e1 = run[at(KR + 3, b)] * u0 + run[at(KR + 4, b)] * u1 + run[at(KR + 5, b)] * u2
-            e2 = run[at(KR + 6, b)] * u0 + run[at(KR + 7, b)] * u1 + run[at(KR + 8, b)] * u2
+        R = (run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)],
+             run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)],
+             run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)])
         qj = Q[at(jq, b)]
-        run[at(KS + 0, b)] += e0 * qj
-        run[at(KS + 1, b)] += e1 * qj
-        run[at(KS + 2, b)] += e2 * qj
-        oP[at(j * 6 + 0, b)] = 0.0
-        oP[at(j * 6 + 1, b)] = 0.0
-        oP[at(j * 6 + 2, b)] = 0.0
-        oP[at(j * 6 + 3, b)] = e0
-        oP[at(j * 6 + 4, b)] = e1
-        oP[at(j * 6 + 5, b)] = e2
-        x = QD[at(j, b)]
-        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
-        run[at(KDV + 0, b)] += e0 * x
-        run[at(KDV + 1, b)] += e1 * x
-        run[at(KDV + 2, b)] += e2 * x
-        run[at(KDB + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
-        run[at(KDB + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
-        run[at(KDB + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
-
-
-@inline
-def _ball_axis(j, jq, code, Q, QD, oP, run):
-    """One of a ball's three rotational axes for every state (:func:`.joints.jcalc` and
-    :func:`.joints.axis_rates`, BALL): the first turns the frame by the unit quaternion in Q's
-    rows jq..jq + 3 (normalised, as there); each gives the turned frame's column ``code``; their
-    P qd gather in bw, added to om with the last."""
-    for b in range(LANES):
-        r00, r01, r02 = run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)]
-        r10, r11, r12 = run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)]
-        r20, r21, r22 = run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]
-        if code == 0:
-            qw, qx, qy, qz = Q[at(jq, b)], Q[at(jq + 1, b)], Q[at(jq + 2, b)], Q[at(jq + 3, b)]
-            two = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = turned(
-                r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                1.0 - two * (qy * qy + qz * qz), two * (qx * qy - qw * qz),
-                two * (qx * qz + qw * qy),
-                two * (qx * qy + qw * qz), 1.0 - two * (qx * qx + qz * qz),
-                two * (qy * qz - qw * qx),
-                two * (qx * qz - qw * qy), two * (qy * qz + qw * qx),
-                1.0 - two * (qx * qx + qy * qy))
-            run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)] = r00, r01, r02
-            run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)] = r10, r11, r12
-            run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)] = r20, r21, r22
-            e0, e1, e2 = r00, r10, r20
-        elif code == 1:
-            e0, e1, e2 = r01, r11, r21
+        q1 = q2 = q3 = 0.0
+        if kind == BALL and code == 0:
+            q1, q2, q3 = Q[at(jq + 1, b)], Q[at(jq + 2, b)], Q[at(jq + 3, b)]
+        c = s = 0.0
+        if kind == REVOLUTE:
+            c, s = sincos_reduced(qj)
+        p0, p1, p2, p3, p4, p5, s0, s1, s2, R = axis_transform(
+            kind, code, u0, u1, u2, qj, c, s, q1, q2, q3,
+            run[at(KS + 0, b)], run[at(KS + 1, b)], run[at(KS + 2, b)], R)
+        oP[at(j * 6 + 0, b)] = p0
+        oP[at(j * 6 + 1, b)] = p1
+        oP[at(j * 6 + 2, b)] = p2
+        oP[at(j * 6 + 3, b)] = p3
+        oP[at(j * 6 + 4, b)] = p4
+        oP[at(j * 6 + 5, b)] = p5
+        if kind == PRISMATIC:
+            run[at(KS + 0, b)], run[at(KS + 1, b)], run[at(KS + 2, b)] = s0, s1, s2
+        elif kind == REVOLUTE or code == 0:  # the frame turned (a ball's by its first axis)
+            (run[at(KR + 0, b)], run[at(KR + 1, b)], run[at(KR + 2, b)],
+             run[at(KR + 3, b)], run[at(KR + 4, b)], run[at(KR + 5, b)],
+             run[at(KR + 6, b)], run[at(KR + 7, b)], run[at(KR + 8, b)]) = R
+        (om0, om1, om2, dv0, dv1, dv2, da0, da1, da2, db0, db1, db2, bw0, bw1, bw2) = axis_rates(
+            kind, code, p0, p1, p2, p3, p4, p5, QD[at(j, b)], 0.0, False,
+            run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)],
+            run[at(KDV + 0, b)], run[at(KDV + 1, b)], run[at(KDV + 2, b)],
+            run[at(KDA + 0, b)], run[at(KDA + 1, b)], run[at(KDA + 2, b)],
+            run[at(KDB + 0, b)], run[at(KDB + 1, b)], run[at(KDB + 2, b)],
+            run[at(KBW + 0, b)], run[at(KBW + 1, b)], run[at(KBW + 2, b)])
+        if kind == PRISMATIC:
+            run[at(KDV + 0, b)], run[at(KDV + 1, b)], run[at(KDV + 2, b)] = dv0, dv1, dv2
+            run[at(KDB + 0, b)], run[at(KDB + 1, b)], run[at(KDB + 2, b)] = db0, db1, db2
         else:
-            e0, e1, e2 = r02, r12, r22
-        oP[at(j * 6 + 0, b)] = e0
-        oP[at(j * 6 + 1, b)] = e1
-        oP[at(j * 6 + 2, b)] = e2
-        oP[at(j * 6 + 3, b)] = 0.0
-        oP[at(j * 6 + 4, b)] = 0.0
-        oP[at(j * 6 + 5, b)] = 0.0
-        x = QD[at(j, b)]
-        om0, om1, om2 = run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)]
-        run[at(KDA + 0, b)] += 0.0 + (om1 * e2 - om2 * e1) * x
-        run[at(KDA + 1, b)] += 0.0 + (om2 * e0 - om0 * e2) * x
-        run[at(KDA + 2, b)] += 0.0 + (om0 * e1 - om1 * e0) * x
-        bw0 = run[at(KBW + 0, b)] + e0 * x
-        bw1 = run[at(KBW + 1, b)] + e1 * x
-        bw2 = run[at(KBW + 2, b)] + e2 * x
-        run[at(KBW + 0, b)], run[at(KBW + 1, b)], run[at(KBW + 2, b)] = bw0, bw1, bw2
-        if code == 2:
-            run[at(KOM + 0, b)] = om0 + bw0
-            run[at(KOM + 1, b)] = om1 + bw1
-            run[at(KOM + 2, b)] = om2 + bw2
+            run[at(KDA + 0, b)], run[at(KDA + 1, b)], run[at(KDA + 2, b)] = da0, da1, da2
+        if kind == BALL:
+            run[at(KBW + 0, b)], run[at(KBW + 1, b)], run[at(KBW + 2, b)] = bw0, bw1, bw2
+        if kind == REVOLUTE or (kind == BALL and code == 2):
+            run[at(KOM + 0, b)], run[at(KOM + 1, b)], run[at(KOM + 2, b)] = om0, om1, om2
 
 
 @jit_tiles
@@ -451,14 +370,14 @@ def tile_backward(tree, tl):
     reads ``tl``'s kinematics and TAU (n, L); writes its Psihat (n, 6, L) and phitil (n, L),
     carrying the articulated mass and bias from body to body in ``car`` (BACK_ROWS, L)."""
     mass, inertia_O, mass_com = tree.mass, tree.inertia_O, tree.mass_com
-    joint_voff, dof_kind = tree.joint_voff, tree.dof_kind
+    joint_voff, dof_kind, armature = tree.joint_voff, tree.dof_kind, tree.armature
     oR, oO, oP, W, C, TAU = tl.tile_oR, tl.tile_oO, tl.tile_oP, tl.tile_W, tl.tile_C, tl.tile_TAU
     Psihat, phitil, car = tl.tile_Psihat, tl.tile_phitil, tl.tile_car
     nb = mass.shape[0]
     _zero_carry(car)
     for k in range(nb - 1, -1, -1):
         _back_body(k, mass, inertia_O, mass_com, oR, W, car)
-        _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car)
+        _back_axes(k, joint_voff, dof_kind, armature, oP, TAU, Psihat, phitil, car)
         if k > 0:
             _bias_and_shift(k, k - 1, True, oO, C, car)
         else:
@@ -480,14 +399,14 @@ def _back_body(k, mass, inertia_O, mass_com, oR, W, car):
 
 
 @inline
-def _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car):
+def _back_axes(k, joint_voff, dof_kind, armature, oP, TAU, Psihat, phitil, car):
     """Joint k's axes eliminated, last first (a ball's columns are rotational: the revolute
     loop)."""
     for j in range(joint_voff[k + 1] - 1, joint_voff[k] - 1, -1):
         if dof_kind[j] == PRISMATIC:
-            _eliminate(j, PRISMATIC, oP, TAU, Psihat, phitil, car)
+            _eliminate(j, PRISMATIC, armature, oP, TAU, Psihat, phitil, car)
         else:
-            _eliminate(j, 0, oP, TAU, Psihat, phitil, car)
+            _eliminate(j, REVOLUTE, armature, oP, TAU, Psihat, phitil, car)
 
 
 @jit_tiles
@@ -496,8 +415,8 @@ def tile_tree_backward(tree, tl):
     theirs from its row of ``tile_gm`` (:class:`.bundles.Tree`'s gather), and a body that its
     parent does not precede leaves its articulated mass and bias there, the carry then zero."""
     mass, inertia_O, mass_com = tree.mass, tree.inertia_O, tree.mass_com
-    joint_voff, dof_kind, parent, gather = (tree.joint_voff, tree.dof_kind, tree.parent,
-                                            tree.gather)
+    joint_voff, dof_kind, armature, parent, gather = (tree.joint_voff, tree.dof_kind,
+                                                      tree.armature, tree.parent, tree.gather)
     oR, oO, oP, W, C, TAU = tl.tile_oR, tl.tile_oO, tl.tile_oP, tl.tile_W, tl.tile_C, tl.tile_TAU
     Psihat, phitil, car, gm = tl.tile_Psihat, tl.tile_phitil, tl.tile_car, tl.tile_gm
     for i in range(gm.shape[0]):
@@ -508,7 +427,7 @@ def tile_tree_backward(tree, tl):
         if gather[k] >= 0:
             _gathered(gather[k], gm, car, False)
         _back_body(k, mass, inertia_O, mass_com, oR, W, car)
-        _back_axes(k, joint_voff, dof_kind, oP, TAU, Psihat, phitil, car)
+        _back_axes(k, joint_voff, dof_kind, armature, oP, TAU, Psihat, phitil, car)
         if p >= 0:
             _bias_and_shift(k, p, True, oO, C, car)
         else:
@@ -544,138 +463,38 @@ def _gathered(g, gm, car, leave):
 @inline
 def _body_mass(k, principal, m, j00, j01, j02, j11, j12, j22, mc0, mc1, mc2, oR, W, car):
     """Body k's own mass and velocity-product wrench added to the carried articulated body,
-    for every state (``principal``: its inertia is diagonal in its frame)."""
+    for every state (``principal``: its inertia is diagonal in its frame): the single-state
+    pass's steps (:mod:`.articulated`)."""
     for b in range(LANES):
-        r00, r01, r02 = oR[at(k * 9 + 0, b)], oR[at(k * 9 + 1, b)], oR[at(k * 9 + 2, b)]
-        r10, r11, r12 = oR[at(k * 9 + 3, b)], oR[at(k * 9 + 4, b)], oR[at(k * 9 + 5, b)]
-        r20, r21, r22 = oR[at(k * 9 + 6, b)], oR[at(k * 9 + 7, b)], oR[at(k * 9 + 8, b)]
-        if principal:
-            X00 = j00 * (r00 * r00) + j11 * (r01 * r01) + j22 * (r02 * r02)
-            X01 = j00 * (r00 * r10) + j11 * (r01 * r11) + j22 * (r02 * r12)
-            X02 = j00 * (r00 * r20) + j11 * (r01 * r21) + j22 * (r02 * r22)
-            X11 = j00 * (r10 * r10) + j11 * (r11 * r11) + j22 * (r12 * r12)
-            X12 = j00 * (r10 * r20) + j11 * (r11 * r21) + j22 * (r12 * r22)
-            X22 = j00 * (r20 * r20) + j11 * (r21 * r21) + j22 * (r22 * r22)
-        else:
-            c00 = r00 * j00 + r01 * j01 + r02 * j02
-            c01 = r00 * j01 + r01 * j11 + r02 * j12
-            c02 = r00 * j02 + r01 * j12 + r02 * j22
-            c10 = r10 * j00 + r11 * j01 + r12 * j02
-            c11 = r10 * j01 + r11 * j11 + r12 * j12
-            c12 = r10 * j02 + r11 * j12 + r12 * j22
-            c20 = r20 * j00 + r21 * j01 + r22 * j02
-            c21 = r20 * j01 + r21 * j11 + r22 * j12
-            c22 = r20 * j02 + r21 * j12 + r22 * j22
-            X00 = c00 * r00 + c01 * r01 + c02 * r02
-            X01 = c00 * r10 + c01 * r11 + c02 * r12
-            X02 = c00 * r20 + c01 * r21 + c02 * r22
-            X11 = c10 * r10 + c11 * r11 + c12 * r12
-            X12 = c10 * r20 + c11 * r21 + c12 * r22
-            X22 = c20 * r20 + c21 * r21 + c22 * r22
-        d0 = r00 * mc0 + r01 * mc1 + r02 * mc2
-        d1 = r10 * mc0 + r11 * mc1 + r12 * mc2
-        d2 = r20 * mc0 + r21 * mc1 + r22 * mc2
-        w0, w1, w2 = W[at(k * 3 + 0, b)], W[at(k * 3 + 1, b)], W[at(k * 3 + 2, b)]
-        h0 = X00 * w0 + X01 * w1 + X02 * w2
-        h1 = X01 * w0 + X11 * w1 + X12 * w2
-        h2 = X02 * w0 + X12 * w1 + X22 * w2
-        g0 = w1 * d2 - w2 * d1
-        g1 = w2 * d0 - w0 * d2
-        g2 = w0 * d1 - w1 * d0
-        car[at(BX + 0, b)] += X00
-        car[at(BX + 1, b)] += X01
-        car[at(BX + 2, b)] += X02
-        car[at(BX + 3, b)] += X11
-        car[at(BX + 4, b)] += X12
-        car[at(BX + 5, b)] += X22
-        car[at(BY + 1, b)] -= d2
-        car[at(BY + 2, b)] += d1
-        car[at(BY + 3, b)] += d2
-        car[at(BY + 5, b)] -= d0
-        car[at(BY + 6, b)] -= d1
-        car[at(BY + 7, b)] += d0
-        car[at(BZ + 0, b)] += m
-        car[at(BZ + 3, b)] += m
-        car[at(BZ + 5, b)] += m
-        car[at(BN + 0, b)] += w1 * h2 - w2 * h1
-        car[at(BN + 1, b)] += w2 * h0 - w0 * h2
-        car[at(BN + 2, b)] += w0 * h1 - w1 * h0
-        car[at(BF + 0, b)] += w1 * g2 - w2 * g1
-        car[at(BF + 1, b)] += w2 * g0 - w0 * g2
-        car[at(BF + 2, b)] += w0 * g1 - w1 * g0
+        R = (oR[at(k * 9 + 0, b)], oR[at(k * 9 + 1, b)], oR[at(k * 9 + 2, b)],
+             oR[at(k * 9 + 3, b)], oR[at(k * 9 + 4, b)], oR[at(k * 9 + 5, b)],
+             oR[at(k * 9 + 6, b)], oR[at(k * 9 + 7, b)], oR[at(k * 9 + 8, b)])
+        X = world_inertia(principal, j00, j01, j02, j11, j12, j22, R)
+        d0, d1, d2 = world_moment(mc0, mc1, mc2, R)
+        wrench = velocity_wrench(X, d0, d1, d2, W[at(k * 3 + 0, b)], W[at(k * 3 + 1, b)],
+                                 W[at(k * 3 + 2, b)])
+        M, nf = add_body(_mass(car, b), _bias(car, b), X, d0, d1, d2, m, wrench)
+        _put(car, b, M, nf, True)
 
 
 @inline
-def _eliminate(j, kind, oP, TAU, Psihat, phitil, car):
-    """One axis of Table A.1 for every state: phihat, Psi, Ihat, phitil, Psihat, and the
-    articulated mass and bias updated (the loop of :func:`.rge_a._rge_a_backward`)."""
+def _eliminate(j, kind, armature, oP, TAU, Psihat, phitil, car):
+    """One axis of Table A.1 for every state (:func:`.articulated.eliminate_axis`, the step of
+    :func:`.rge_a._rge_a_backward`'s loop): phitil and Psihat written, the carried articulated
+    mass and bias updated."""
     for b in range(LANES):
-        p0, p1, p2 = oP[at(j * 6 + 0, b)], oP[at(j * 6 + 1, b)], oP[at(j * 6 + 2, b)]
-        p3, p4, p5 = oP[at(j * 6 + 3, b)], oP[at(j * 6 + 4, b)], oP[at(j * 6 + 5, b)]
-        x00, x01, x02 = car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)]
-        x11, x12, x22 = car[at(BX + 3, b)], car[at(BX + 4, b)], car[at(BX + 5, b)]
-        y00, y01, y02 = car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)]
-        y10, y11, y12 = car[at(BY + 3, b)], car[at(BY + 4, b)], car[at(BY + 5, b)]
-        y20, y21, y22 = car[at(BY + 6, b)], car[at(BY + 7, b)], car[at(BY + 8, b)]
-        z00, z01, z02 = car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)]
-        z11, z12, z22 = car[at(BZ + 3, b)], car[at(BZ + 4, b)], car[at(BZ + 5, b)]
-        n0, n1, n2 = car[at(BN + 0, b)], car[at(BN + 1, b)], car[at(BN + 2, b)]
-        f0, f1, f2 = car[at(BF + 0, b)], car[at(BF + 1, b)], car[at(BF + 2, b)]
-        ph = TAU[at(j, b)] - (p0 * n0 + p1 * n1 + p2 * n2 + p3 * f0 + p4 * f1 + p5 * f2)
-        e0, e1, e2 = p0 + p3, p1 + p4, p2 + p5
-        if kind == PRISMATIC:
-            u0 = y00 * e0 + y01 * e1 + y02 * e2
-            u1 = y10 * e0 + y11 * e1 + y12 * e2
-            u2 = y20 * e0 + y21 * e1 + y22 * e2
-            u3 = z00 * e0 + z01 * e1 + z02 * e2
-            u4 = z01 * e0 + z11 * e1 + z12 * e2
-            u5 = z02 * e0 + z12 * e1 + z22 * e2
-            ih = e0 * u3 + e1 * u4 + e2 * u5
-        else:
-            u0 = x00 * e0 + x01 * e1 + x02 * e2
-            u1 = x01 * e0 + x11 * e1 + x12 * e2
-            u2 = x02 * e0 + x12 * e1 + x22 * e2
-            u3 = y00 * e0 + y10 * e1 + y20 * e2
-            u4 = y01 * e0 + y11 * e1 + y21 * e2
-            u5 = y02 * e0 + y12 * e1 + y22 * e2
-            ih = e0 * u0 + e1 * u1 + e2 * u2
-        inv = 1.0 / ih
-        v0, v1, v2, v3, v4, v5 = u0 * inv, u1 * inv, u2 * inv, u3 * inv, u4 * inv, u5 * inv
-        ptil = ph * inv
+        M, nf, _, _, ptil, v = eliminate_axis(
+            kind, oP[at(j * 6 + 0, b)], oP[at(j * 6 + 1, b)], oP[at(j * 6 + 2, b)],
+            oP[at(j * 6 + 3, b)], oP[at(j * 6 + 4, b)], oP[at(j * 6 + 5, b)], TAU[at(j, b)],
+            armature, j, _mass(car, b), _bias(car, b))
         phitil[at(j, b)] = ptil
-        Psihat[at(j * 6 + 0, b)] = v0
-        Psihat[at(j * 6 + 1, b)] = v1
-        Psihat[at(j * 6 + 2, b)] = v2
-        Psihat[at(j * 6 + 3, b)] = v3
-        Psihat[at(j * 6 + 4, b)] = v4
-        Psihat[at(j * 6 + 5, b)] = v5
-        car[at(BN + 0, b)] = n0 + u0 * ptil
-        car[at(BN + 1, b)] = n1 + u1 * ptil
-        car[at(BN + 2, b)] = n2 + u2 * ptil
-        car[at(BF + 0, b)] = f0 + u3 * ptil
-        car[at(BF + 1, b)] = f1 + u4 * ptil
-        car[at(BF + 2, b)] = f2 + u5 * ptil
-        car[at(BX + 0, b)] = x00 - v0 * u0
-        car[at(BX + 1, b)] = x01 - v0 * u1
-        car[at(BX + 2, b)] = x02 - v0 * u2
-        car[at(BX + 3, b)] = x11 - v1 * u1
-        car[at(BX + 4, b)] = x12 - v1 * u2
-        car[at(BX + 5, b)] = x22 - v2 * u2
-        car[at(BY + 0, b)] = y00 - v0 * u3
-        car[at(BY + 1, b)] = y01 - v0 * u4
-        car[at(BY + 2, b)] = y02 - v0 * u5
-        car[at(BY + 3, b)] = y10 - v1 * u3
-        car[at(BY + 4, b)] = y11 - v1 * u4
-        car[at(BY + 5, b)] = y12 - v1 * u5
-        car[at(BY + 6, b)] = y20 - v2 * u3
-        car[at(BY + 7, b)] = y21 - v2 * u4
-        car[at(BY + 8, b)] = y22 - v2 * u5
-        car[at(BZ + 0, b)] = z00 - v3 * u3
-        car[at(BZ + 1, b)] = z01 - v3 * u4
-        car[at(BZ + 2, b)] = z02 - v3 * u5
-        car[at(BZ + 3, b)] = z11 - v4 * u4
-        car[at(BZ + 4, b)] = z12 - v4 * u5
-        car[at(BZ + 5, b)] = z22 - v5 * u5
+        Psihat[at(j * 6 + 0, b)] = v[0]
+        Psihat[at(j * 6 + 1, b)] = v[1]
+        Psihat[at(j * 6 + 2, b)] = v[2]
+        Psihat[at(j * 6 + 3, b)] = v[3]
+        Psihat[at(j * 6 + 4, b)] = v[4]
+        Psihat[at(j * 6 + 5, b)] = v[5]
+        _put(car, b, M, nf, True)
 
 
 @inline
@@ -683,51 +502,51 @@ def _bias_and_shift(k, p, shift, oO, C, car):
     """Body k's articulated bias p += Mbar_k c_k, then (``shift``) Mbar and p shifted to its
     parent p's origin (A_{k,p}^T Mbar A and A^T p), for every state."""
     for b in range(LANES):
-        x00, x01, x02 = car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)]
-        x11, x12, x22 = car[at(BX + 3, b)], car[at(BX + 4, b)], car[at(BX + 5, b)]
-        y00, y01, y02 = car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)]
-        y10, y11, y12 = car[at(BY + 3, b)], car[at(BY + 4, b)], car[at(BY + 5, b)]
-        y20, y21, y22 = car[at(BY + 6, b)], car[at(BY + 7, b)], car[at(BY + 8, b)]
-        z00, z01, z02 = car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)]
-        z11, z12, z22 = car[at(BZ + 3, b)], car[at(BZ + 4, b)], car[at(BZ + 5, b)]
-        d0, d1, d2, d3, d4, d5 = articulated_bias(
-            C[at(k * 6 + 0, b)], C[at(k * 6 + 1, b)], C[at(k * 6 + 2, b)], C[at(k * 6 + 3, b)],
-            C[at(k * 6 + 4, b)], C[at(k * 6 + 5, b)], x00, x01, x02, x11, x12, x22,
-            y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
-        n0, n1, n2 = car[at(BN + 0, b)] + d0, car[at(BN + 1, b)] + d1, car[at(BN + 2, b)] + d2
-        f0, f1, f2 = car[at(BF + 0, b)] + d3, car[at(BF + 1, b)] + d4, car[at(BF + 2, b)] + d5
+        M = _mass(car, b)
+        nf = add6(_bias(car, b), articulated_bias(
+            (C[at(k * 6 + 0, b)], C[at(k * 6 + 1, b)], C[at(k * 6 + 2, b)],
+             C[at(k * 6 + 3, b)], C[at(k * 6 + 4, b)], C[at(k * 6 + 5, b)]), M))
         if shift:
             s0 = oO[at(p * 3 + 0, b)] - oO[at(k * 3 + 0, b)]
             s1 = oO[at(p * 3 + 1, b)] - oO[at(k * 3 + 1, b)]
             s2 = oO[at(p * 3 + 2, b)] - oO[at(k * 3 + 2, b)]
-            n0 -= s1 * f2 - s2 * f1
-            n1 -= s2 * f0 - s0 * f2
-            n2 -= s0 * f1 - s1 * f0
-            (x00, x01, x02, x11, x12, x22,
-             y00, y01, y02, y10, y11, y12, y20, y21, y22) = shift_to_parent(
-                s0, s1, s2, x00, x01, x02, x11, x12, x22,
-                y00, y01, y02, y10, y11, y12, y20, y21, y22, z00, z01, z02, z11, z12, z22)
-            car[at(BX + 0, b)] = x00
-            car[at(BX + 1, b)] = x01
-            car[at(BX + 2, b)] = x02
-            car[at(BX + 3, b)] = x11
-            car[at(BX + 4, b)] = x12
-            car[at(BX + 5, b)] = x22
-            car[at(BY + 0, b)] = y00
-            car[at(BY + 1, b)] = y01
-            car[at(BY + 2, b)] = y02
-            car[at(BY + 3, b)] = y10
-            car[at(BY + 4, b)] = y11
-            car[at(BY + 5, b)] = y12
-            car[at(BY + 6, b)] = y20
-            car[at(BY + 7, b)] = y21
-            car[at(BY + 8, b)] = y22
-        car[at(BN + 0, b)] = n0
-        car[at(BN + 1, b)] = n1
-        car[at(BN + 2, b)] = n2
-        car[at(BF + 0, b)] = f0
-        car[at(BF + 1, b)] = f1
-        car[at(BF + 2, b)] = f2
+            nf = shift_bias(s0, s1, s2, nf)
+            M = shift_to_parent(s0, s1, s2, M)
+        _put(car, b, M, nf, shift)
+
+
+@inline
+def _mass(car, b):
+    """The carried articulated mass of state b (its 21 numbers, :mod:`.articulated`'s order)."""
+    return (car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)], car[at(BX + 3, b)],
+            car[at(BX + 4, b)], car[at(BX + 5, b)],
+            car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)], car[at(BY + 3, b)],
+            car[at(BY + 4, b)], car[at(BY + 5, b)], car[at(BY + 6, b)], car[at(BY + 7, b)],
+            car[at(BY + 8, b)],
+            car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)], car[at(BZ + 3, b)],
+            car[at(BZ + 4, b)], car[at(BZ + 5, b)])
+
+
+@inline
+def _bias(car, b):
+    """The carried bias (n, f) of state b."""
+    return (car[at(BN + 0, b)], car[at(BN + 1, b)], car[at(BN + 2, b)],
+            car[at(BF + 0, b)], car[at(BF + 1, b)], car[at(BF + 2, b)])
+
+
+@inline
+def _put(car, b, M, nf, mass):
+    """State b's carried bias, and (``mass``) articulated mass, stored back."""
+    if mass:
+        (car[at(BX + 0, b)], car[at(BX + 1, b)], car[at(BX + 2, b)], car[at(BX + 3, b)],
+         car[at(BX + 4, b)], car[at(BX + 5, b)]) = M[0], M[1], M[2], M[3], M[4], M[5]
+        (car[at(BY + 0, b)], car[at(BY + 1, b)], car[at(BY + 2, b)], car[at(BY + 3, b)],
+         car[at(BY + 4, b)], car[at(BY + 5, b)], car[at(BY + 6, b)], car[at(BY + 7, b)],
+         car[at(BY + 8, b)]) = M[6], M[7], M[8], M[9], M[10], M[11], M[12], M[13], M[14]
+        (car[at(BZ + 0, b)], car[at(BZ + 1, b)], car[at(BZ + 2, b)], car[at(BZ + 3, b)],
+         car[at(BZ + 4, b)], car[at(BZ + 5, b)]) = M[15], M[16], M[17], M[18], M[19], M[20]
+    (car[at(BN + 0, b)], car[at(BN + 1, b)], car[at(BN + 2, b)],
+     car[at(BF + 0, b)], car[at(BF + 1, b)], car[at(BF + 2, b)]) = nf
 
 
 @jit_tiles
