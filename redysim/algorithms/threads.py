@@ -9,6 +9,7 @@ import os
 import queue
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -109,7 +110,7 @@ class _Chunks:
     chunk is handed out any more."""
 
     __slots__ = ("call", "commit", "edges", "lock", "next", "state", "started", "clocks",
-                 "flags", "values", "results", "errors", "waiter", "per_row")
+                 "flags", "values", "results", "errors", "waiter", "per_row", "done")
 
     def __init__(self, call, edges: list[int], commit=None):
         self.call = call
@@ -127,6 +128,7 @@ class _Chunks:
         self.errors: dict[int, BaseException] = {}  # chunk -> what it raised
         self.waiter: threading.Lock | None = None  # (without commit) released when flags is 0
         self.per_row = 0.0  # the caller's seconds a row, from its own chunks
+        self.done = threading.Condition(self.lock)  # (A/B: caller_spin off) a helper's chunk done
 
     def _take(self, state: int, own: _Own | None = None) -> int:
         with self.lock:
@@ -175,6 +177,8 @@ class _Chunks:
                     self.values[i], self.results[i] = value, result
                     if error is not None:
                         self.errors[i] = error
+                    if not AB["caller_spin"]:
+                        self.done.notify_all()
                 if not self.flags[0] and self.waiter is not None:
                     self.waiter.release()
                     self.waiter = None
@@ -195,6 +199,11 @@ class _Chunks:
         for i in range(len(self.state)):
             while self.state[i] == HELPER and not self.errors:
                 left = self._left(i)
+                if left is not None and not AB["caller_spin"]:
+                    with self.lock:
+                        if self.state[i] == HELPER:
+                            self.done.wait(left)
+                    continue
                 if left is not None and _SPIN:  # spin while the helper should be about done
                     clock = np.empty(2, dtype=np.int64) if clock is None else clock
                     seen = int(self.flags[0])
@@ -226,6 +235,7 @@ class _Chunks:
         itself (a helper the OS holds up gets no CPU time); without that clock, from the wall
         time since it took the chunk."""
         t0, cpu0, clock = self.started[i]
+        clock = clock if AB["cpu_clock"] else None
         work = 1.5 * self.per_row * (self.edges[i + 1] - self.edges[i]) + 20e-6
         elapsed = time.perf_counter() - t0
         if clock is None:
@@ -239,7 +249,7 @@ class _Chunks:
         """Wait for the chunks that helpers run (none can start any more): a while without
         sleeping, as long as no other thread wants this core, then asleep."""
         running = int(self.flags[0])
-        if running and _SPIN:
+        if running and _SPIN and AB["caller_spin"]:
             clock = np.empty(2, dtype=np.int64)
             while running and _spin.wait_change(self.flags, 0, running, CALLER_SPIN_NS,
                                                  AWAY_NS, clock, False) == 1:
@@ -305,6 +315,8 @@ def helpers_for(wanted: int) -> int:
     instant (:func:`idle_cores`, looked at no more than every IDLE_CHECK_S, or BUSY_CHECK_S
     after a look that found none): a helper woken onto a busy core joins late, and shares the
     core, its caches and the GIL with those who run there."""
+    if not AB["idle_check"]:
+        return wanted
     watching = watching_helpers()
     if watching >= wanted:
         return wanted
@@ -380,18 +392,28 @@ def _speed(ws: Workspace, key, threads: int | None, chunks: int) -> tuple[int, _
     return speed.plan(count), speed
 
 
+def _policy(local) -> None:
+    """(A/B) this helper thread's scheduling policy as AB["batch_sched"] says."""
+    want = AB["batch_sched"]
+    if getattr(local, "batch", False) != want:
+        try:  # never preempt another thread on waking (Linux: SCHED_BATCH, same share of the CPU)
+            os.sched_setscheduler(0, os.SCHED_BATCH if want else os.SCHED_OTHER,
+                                  os.sched_param(0))
+        except (AttributeError, OSError):
+            pass
+        local.batch = want
+
+
 def _helper(k: int) -> None:
-    try:  # never preempt another thread on waking (Linux: SCHED_BATCH, same share of the CPU)
-        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
-    except (AttributeError, OSError):
-        pass
+    local = threading.local()
+    _policy(local)
     own, clock = _Own(), np.empty(2, dtype=np.int64)
     while True:
         seen = int(_POSTED[0])
         try:
             job = _JOBS.get_nowait()
         except queue.Empty:
-            if _SPIN:
+            if _SPIN and AB["spin_watch"]:
                 _WATCHING[k] = True
                 posted = _spin.wait_change(_POSTED, 0, seen, HELPER_SPIN_NS, AWAY_NS, clock,
                                             True)
@@ -399,13 +421,31 @@ def _helper(k: int) -> None:
                 if posted == 1:
                     continue  # a batch was posted: take it
             job = _JOBS.get()
+        _policy(local)
         job.help(own)
         del job  # (not kept alive, with its arrays, until the next batch)
 
 
+# A/B (benchmarks/ab_threads.py): each piece of the policy on or off, and the helpers a
+# concurrent.futures.ThreadPoolExecutor's ("executor") instead of our own ("own")
+AB = {"spin_watch": True, "idle_check": True, "batch_sched": True, "caller_spin": True,
+      "cpu_clock": True, "pool": "own"}
+_EXECUTOR: ThreadPoolExecutor | None = None
+_EXEC_LOCAL = threading.local()
+
+
+def _executor_help(job) -> None:
+    local = _EXEC_LOCAL
+    if not hasattr(local, "own"):
+        local.own = _Own()
+    _policy(local)
+    job.help(local.own)
+
+
 def _after_fork() -> None:  # a forked child has no helper threads: it starts its own
-    global _JOBS, _HELPERS_LOCK, _WATCHING
+    global _JOBS, _HELPERS_LOCK, _WATCHING, _EXECUTOR
     _JOBS, _HELPERS_LOCK, _WATCHING = queue.SimpleQueue(), threading.Lock(), []
+    _EXECUTOR = None
 
 
 os.register_at_fork(after_in_child=_after_fork)
@@ -432,7 +472,15 @@ def run_blocks(rows: int, threads: int | None, call, count: int | None = None,
         edges = [*range(0, rows, chunk), rows]
     helpers = min(count, len(edges) - 1) - 1
     job = _Chunks(call, edges, commit)
-    if helpers > 0:
+    if helpers > 0 and AB["pool"] == "executor":
+        global _EXECUTOR
+        if _EXECUTOR is None or _EXECUTOR._max_workers < helpers:
+            with _HELPERS_LOCK:
+                if _EXECUTOR is None or _EXECUTOR._max_workers < helpers:
+                    _EXECUTOR = ThreadPoolExecutor(helpers, thread_name_prefix="redysim-pool")
+        for _ in range(helpers):
+            _EXECUTOR.submit(_executor_help, job)
+    elif helpers > 0:
         if len(_WATCHING) < helpers:
             with _HELPERS_LOCK:
                 while len(_WATCHING) < helpers:

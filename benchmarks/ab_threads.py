@@ -1,0 +1,183 @@
+"""Each piece of the batch thread runtime against the same runtime without it, side by side.
+
+    .venv/bin/python benchmarks/ab_threads.py [--dof 250] [--states 64] [--rounds 20]
+        [--calls 30] [--busy 1] [--variants now simple ...] [--kinds tiles rows]
+
+The policy pieces of :mod:`redysim.algorithms.threads` are switched per call through its
+``AB`` table and ``ADAPT`` flag (each variant on a workspace of its own, so that the adaptive
+policy's record of one does not steer another). Variants: ``now`` (every piece), ``-X`` (every
+piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose threads sleep
+between batches, helpers posted whatever the machine runs, the caller waiting for a late helper's
+chunk on a ``threading.Condition`` and taking it back after 1.5x its own time for the chunk by the
+wall clock), ``simple+X`` (simple with X), and ``threads=1``. Phases quiet and busy (``--busy``
+processes ``while True: pass``), as ``benchmarks/busy_batch.py``: turns of BLOCK + 1 calls of
+each variant in an order drawn afresh each turn, the first call of a turn not counted (it meets
+the helper threads as the variant before left them: awake or asleep). Prints per variant the
+median call and the median over turns of the turn's median over threads=1's; writes
+``results/bench/ab_threads.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from busy_batch import cpu_jiffies, rope, start_competitors, stop_competitors
+from conftest import machine
+
+from redysim import Workspace, forward_dynamics
+from redysim.algorithms import threads as runtime
+
+BLOCK = 5  # timed calls of a variant back to back (after one untimed)
+PIECES = {  # name -> (AB key or "adapt", value with the piece, value without)
+    "spin": ("spin_watch", True, False),  # helpers watch for the next batch, spinning
+    "loadavg": ("idle_check", True, False),  # sleeping helpers woken only for idle cores
+    "batch": ("batch_sched", True, False),  # helpers SCHED_BATCH
+    "adapt": ("adapt", True, False),  # per-workspace record: helpers only while they pay
+    "callspin": ("caller_spin", True, False),  # the caller spins for a helper's chunk
+    "cpuclock": ("cpu_clock", True, False),  # late judged by the helper's CPU time
+    "own": ("pool", "own", "executor"),  # our own helper threads, not a ThreadPoolExecutor
+}
+
+
+def settings(name: str) -> dict:
+    """AB table and ADAPT of a variant (a name's ``#...`` suffix makes a second copy of one: the
+    noise between two copies of one variant)."""
+    name = name.split("#")[0]
+    every = {key: on for key, on, _ in PIECES.values()}
+    none = {key: off for key, _, off in PIECES.values()}
+    if name == "now":
+        return every
+    if name == "simple":
+        return none
+    if name.startswith("-"):
+        key, _, off = PIECES[name[1:]]
+        return {**every, key: off}
+    if name.startswith("simple+"):
+        out = dict(none)
+        for piece in name[len("simple+"):].split("+"):
+            key, on, _ = PIECES[piece]
+            out[key] = on
+        return out
+    raise SystemExit(f"unknown variant {name!r}")
+
+
+def variant(model, Q, QD, name: str, simd: bool):
+    out = np.empty_like(QD)
+    if name.split("#")[0] == "threads=1":
+        ws = Workspace(model)
+        return lambda: forward_dynamics(model, Q, QD, ws=ws, out=out, threads=1, simd=simd), out
+    ab = settings(name)
+    adapt = ab.pop("adapt")
+    ws = Workspace(model)
+
+    def call():
+        runtime.AB.update(ab)
+        runtime.ADAPT = adapt
+        forward_dynamics(model, Q, QD, ws=ws, out=out, simd=simd)
+    return call, out
+
+
+def phase(calls: dict, rounds: int, per_round: int) -> tuple[dict, float]:
+    times: dict[str, list[float]] = {k: [] for k in calls}
+    names = list(calls)
+    busy0, _ = cpu_jiffies()
+    own0, wall0 = os.times(), time.perf_counter()
+    order = random.Random(0)
+    for _ in range(rounds):
+        for _ in range(0, per_round, BLOCK):
+            for name in order.sample(names, len(names)):
+                fn, record = calls[name], times[name]
+                fn()  # (not counted: it meets the helpers as the variant before left them)
+                for _ in range(BLOCK):
+                    t0 = time.perf_counter()
+                    fn()
+                    record.append(time.perf_counter() - t0)
+    busy1, _ = cpu_jiffies()
+    own1, wall1 = os.times(), time.perf_counter()
+    own = (own1.user - own0.user) + (own1.system - own0.system)
+    others = (busy1 - busy0) / os.sysconf("SC_CLK_TCK") - own
+    return times, others / (wall1 - wall0)
+
+
+def paired(a: list[float], b: list[float]) -> float:
+    blocks = [slice(i, i + BLOCK) for i in range(0, min(len(a), len(b)), BLOCK)]
+    return float(np.median([np.median(a[k]) / np.median(b[k]) for k in blocks]))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dof", type=int, nargs="+", default=[250])
+    ap.add_argument("--states", type=int, default=64)
+    ap.add_argument("--rounds", type=int, default=20)
+    ap.add_argument("--calls", type=int, default=30, help="timed calls of each variant a round")
+    ap.add_argument("--busy", type=int, default=1)
+    ap.add_argument("--kinds", nargs="+", default=["tiles", "rows"])
+    ap.add_argument("--phases", nargs="+", default=["quiet", "busy"])
+    ap.add_argument("--variants", nargs="+",
+                    default=["now", *(f"-{p}" for p in PIECES if p != "own"), "simple"])
+    ap.add_argument("--out", type=Path, default=Path("results/bench/ab_threads.json"))
+    args = ap.parse_args(argv)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    date = time.strftime("%Y-%m-%d %H:%M")
+    info = machine()
+    print(", ".join(f"{k} {v}" for k, v in info.items()) + f", {date}, load average "
+          + " ".join(f"{x:.2f}" for x in os.getloadavg()))
+    report: dict = {"machine": info, "date": date, "args": {k: str(v) for k, v in
+                                                            vars(args).items()}, "configs": []}
+    for dof in args.dof:
+        chain = rope(dof)
+        rng = np.random.default_rng(0)
+        Q = rng.uniform(-0.3, 0.3, (args.states, chain.n_dof))
+        QD = rng.normal(size=(args.states, chain.n_dof))
+        for kind in args.kinds:
+            simd = kind == "tiles"
+            one = forward_dynamics(chain, Q, QD, threads=1, simd=simd)
+            calls, outs = {}, {}
+            for name in [*args.variants, "threads=1"]:
+                calls[name], outs[name] = variant(chain, Q, QD, name, simd)
+                for _ in range(3):  # compile or load; the same bits every way
+                    calls[name]()
+                    assert np.array_equal(outs[name], one), name
+            results = {}
+            for label in args.phases:
+                procs = start_competitors(args.busy) if label == "busy" else []
+                try:
+                    if procs:
+                        time.sleep(0.5)
+                    load = os.getloadavg()[0]
+                    times, others = phase(calls, args.rounds, args.calls)
+                finally:
+                    stop_competitors(procs)
+                one_t = times["threads=1"]
+                results[label] = {
+                    "others_cores": others, "loadavg_before": load,
+                    "median_us": {k: float(np.median(v)) * 1e6 for k, v in times.items()},
+                    "paired": {k: paired(v, one_t) for k, v in times.items()}}
+            report["configs"].append({"dof": dof, "kind": kind, "states": args.states,
+                                      **results})
+            print(f"\n{args.states} states, U rope {dof} DOF, {kind}: median call us, and "
+                  "median over turns of (variant / threads=1)")
+            for label, res in results.items():
+                print(f"  {label}: others' load {res['others_cores']:.2f} cores (load average "
+                      f"{res['loadavg_before']:.2f} at the start)")
+                for name in calls:
+                    print(f"    {name:22s} {res['median_us'][name]:8.0f} "
+                          f"{res['paired'][name]:6.3f}")
+    now = settings("now")
+    runtime.ADAPT = now.pop("adapt")
+    runtime.AB.update(now)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(report, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
