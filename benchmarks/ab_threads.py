@@ -5,8 +5,8 @@
 
 The policy pieces of :mod:`redysim.algorithms.threads` are switched per call through its
 ``AB`` table and ``ADAPT`` flag (each variant on a workspace of its own, so that the adaptive
-policy's record of one does not steer another). Variants: ``now`` (every piece), ``-X`` (every
-piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose threads sleep
+policy's record of one does not steer another). Variants: ``now`` (every piece), ``no-X``
+(every piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose threads sleep
 between batches, helpers posted whatever the machine runs, the caller waiting for a late helper's
 chunk on a ``threading.Condition`` and taking it back after 1.5x its own time for the chunk by the
 wall clock), ``simple+X`` (simple with X), and ``threads=1``. Phases quiet and busy (``--busy``
@@ -57,8 +57,8 @@ def settings(name: str) -> dict:
         return every
     if name == "simple":
         return none
-    if name.startswith("-"):
-        key, _, off = PIECES[name[1:]]
+    if name.startswith("no-"):
+        key, _, off = PIECES[name[3:]]
         return {**every, key: off}
     if name.startswith("simple+"):
         out = dict(none)
@@ -122,7 +122,7 @@ def main(argv=None) -> int:
     ap.add_argument("--kinds", nargs="+", default=["tiles", "rows"])
     ap.add_argument("--phases", nargs="+", default=["quiet", "busy"])
     ap.add_argument("--variants", nargs="+",
-                    default=["now", *(f"-{p}" for p in PIECES if p != "own"), "simple"])
+                    default=["now", *(f"no-{p}" for p in PIECES if p != "own"), "simple"])
     ap.add_argument("--out", type=Path, default=Path("results/bench/ab_threads.json"))
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
