@@ -6,15 +6,18 @@
 The policy pieces of :mod:`redysim.algorithms.threads` are switched per call through its
 ``AB`` table and ``ADAPT`` flag (each variant on a workspace of its own, so that the adaptive
 policy's record of one does not steer another). Variants: ``now`` (every piece), ``no-X``
-(every piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose threads sleep
-between batches, helpers posted whatever the machine runs, the caller waiting for a late helper's
-chunk on a ``threading.Condition`` and taking it back after 1.5x its own time for the chunk by the
-wall clock), ``simple+X`` (simple with X), and ``threads=1``. Phases quiet and busy (``--busy``
-processes ``while True: pass``), as ``benchmarks/busy_batch.py``: turns of BLOCK + 1 calls of
-each variant in an order drawn afresh each turn, the first call of a turn not counted (it meets
-the helper threads as the variant before left them: awake or asleep). Prints per variant the
-median call and the median over turns of the turn's median over threads=1's; writes
-``results/bench/ab_threads.json``.
+(every piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose
+threads sleep between batches, helpers posted whatever the machine runs, the caller waiting for
+a late helper's chunk on a ``threading.Condition`` and taking it back after 1.5x its own time
+for the chunk by the wall clock), ``simple+X`` (simple with X), and ``threads=1``; ``#2`` after
+a name makes a second copy of a variant (the noise between two copies). Kinds: a U rope of
+``--dof`` DOF in tiles and row by row; ``xarm7`` and ``talos`` (the ladder's states, tiles).
+Phases quiet and busy (``--busy`` processes ``while True: pass``), as
+``benchmarks/busy_batch.py``: turns of BLOCK + 1 calls of each variant in an order drawn afresh
+each turn, the first call of a turn not counted (it meets the helper threads as the variant
+before left them: awake or asleep). Prints per variant the median call, the median over turns
+of the turn's median over threads=1's, the total time over threads=1's, and the others' load
+over the phase; writes ``results/bench/ab_threads.json``.
 """
 
 from __future__ import annotations
@@ -29,12 +32,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-from busy_batch import cpu_jiffies, rope, start_competitors, stop_competitors
+from busy_batch import cpu_jiffies, rope, start_competitors, stop_competitors, wait_quiet
 from conftest import machine
 
 from redysim import Workspace, forward_dynamics
 from redysim.algorithms import threads as runtime
 
+KINDS = ("tiles", "rows")  # a rope's batch in SIMD tiles, row by row
+ROBOTS = {"xarm7": "XARM7-FALL", "talos": "TALOS-FALL"}  # as benchmarks/test_bench_core.py
 BLOCK = 5  # timed calls of a variant back to back (after one untimed)
 PIECES = {  # name -> (AB key or "adapt", value with the piece, value without)
     "spin": ("spin_watch", True, False),  # helpers watch for the next batch, spinning
@@ -123,6 +128,9 @@ def main(argv=None) -> int:
     ap.add_argument("--phases", nargs="+", default=["quiet", "busy"])
     ap.add_argument("--variants", nargs="+",
                     default=["now", *(f"no-{p}" for p in PIECES if p != "own"), "simple"])
+    ap.add_argument("--wait-quiet", type=float, default=0.0,
+                    help="seconds to wait at most for others' load under 0.25 cores before "
+                         "each quiet phase")
     ap.add_argument("--out", type=Path, default=Path("results/bench/ab_threads.json"))
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
@@ -132,13 +140,23 @@ def main(argv=None) -> int:
           + " ".join(f"{x:.2f}" for x in os.getloadavg()))
     report: dict = {"machine": info, "date": date, "args": {k: str(v) for k, v in
                                                             vars(args).items()}, "configs": []}
-    for dof in args.dof:
-        chain = rope(dof)
-        rng = np.random.default_rng(0)
-        Q = rng.uniform(-0.3, 0.3, (args.states, chain.n_dof))
-        QD = rng.normal(size=(args.states, chain.n_dof))
-        for kind in args.kinds:
+    configs = [(dof, kind) for dof in args.dof for kind in args.kinds if kind in KINDS]
+    configs += [(None, kind) for kind in args.kinds if kind in ROBOTS]
+    for dof, kind in configs:
+        if dof is None:  # a robot: the ladder's states, in a tree's tiles
+            from ladder import states
+
+            from redysim.io.scenarios import load_scenario
+            chain = load_scenario(ROBOTS[kind]).model
+            Q, QD = states(chain, args.states)
+            simd = True
+        else:
+            chain = rope(dof)
+            rng = np.random.default_rng(0)
+            Q = rng.uniform(-0.3, 0.3, (args.states, chain.n_dof))
+            QD = rng.normal(size=(args.states, chain.n_dof))
             simd = kind == "tiles"
+        if True:
             one = forward_dynamics(chain, Q, QD, threads=1, simd=simd)
             calls, outs = {}, {}
             for name in [*args.variants, "threads=1"]:
@@ -148,6 +166,8 @@ def main(argv=None) -> int:
                     assert np.array_equal(outs[name], one), name
             results = {}
             for label in args.phases:
+                if label == "quiet" and args.wait_quiet:
+                    wait_quiet(args.wait_quiet)
                 procs = start_competitors(args.busy) if label == "busy" else []
                 try:
                     if procs:
@@ -160,17 +180,19 @@ def main(argv=None) -> int:
                 results[label] = {
                     "others_cores": others, "loadavg_before": load,
                     "median_us": {k: float(np.median(v)) * 1e6 for k, v in times.items()},
-                    "paired": {k: paired(v, one_t) for k, v in times.items()}}
+                    "paired": {k: paired(v, one_t) for k, v in times.items()},
+                    "total": {k: float(np.sum(v) / np.sum(one_t)) for k, v in times.items()}}
             report["configs"].append({"dof": dof, "kind": kind, "states": args.states,
                                       **results})
-            print(f"\n{args.states} states, U rope {dof} DOF, {kind}: median call us, and "
-                  "median over turns of (variant / threads=1)")
+            what = f"U rope {dof} DOF, {kind}" if dof else f"{kind} ({chain.n_v} DOF), tiles"
+            print(f"\n{args.states} states, {what}: median call us; median over turns of "
+                  "(variant / threads=1); total time over threads=1's")
             for label, res in results.items():
                 print(f"  {label}: others' load {res['others_cores']:.2f} cores (load average "
                       f"{res['loadavg_before']:.2f} at the start)")
                 for name in calls:
-                    print(f"    {name:22s} {res['median_us'][name]:8.0f} "
-                          f"{res['paired'][name]:6.3f}")
+                    print(f"    {name:40s} {res['median_us'][name]:8.0f} "
+                          f"{res['paired'][name]:6.3f} {res['total'][name]:6.3f}")
     now = settings("now")
     runtime.ADAPT = now.pop("adapt")
     runtime.AB.update(now)

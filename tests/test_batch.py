@@ -460,8 +460,12 @@ def test_idle_cores_counts_the_machine():
 
 
 def test_the_default_thread_count_follows_the_environment(monkeypatch):
+    """A batch of more than one chunk reads REDYSIM_THREADS (one of one chunk runs on the
+    caller without looking)."""
+    from redysim.algorithms import threads as runtime
     from redysim.algorithms.threads import THREADS_VARIABLE, default_threads
 
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 100)
     monkeypatch.delenv(THREADS_VARIABLE, raising=False)
     cores = default_threads()
     assert cores >= 1
@@ -476,6 +480,8 @@ def test_the_default_thread_count_follows_the_environment(monkeypatch):
             forward_dynamics(s, Q, QD)
     monkeypatch.setenv(THREADS_VARIABLE, "two")
     assert forward_dynamics(s, Q, QD, threads=1).shape == Q.shape  # threads given: not read
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 10**6)
+    assert forward_dynamics(s, Q, QD).shape == Q.shape  # one chunk: not read
 
 
 def test_pool_workers_take_one_thread_unless_told(monkeypatch):
