@@ -12,12 +12,12 @@ a late helper's chunk on a ``threading.Condition`` and taking it back after 1.5x
 for the chunk by the wall clock), ``simple+X`` (simple with X), and ``threads=1``; ``#2`` after
 a name makes a second copy of a variant (the noise between two copies). Kinds: a U rope of
 ``--dof`` DOF in tiles and row by row; ``xarm7`` and ``talos`` (the ladder's states, tiles).
-Phases quiet and busy (``--busy`` processes ``while True: pass``), as
-``benchmarks/busy_batch.py``: turns of BLOCK + 1 calls of each variant in an order drawn afresh
-each turn, the first call of a turn not counted (it meets the helper threads as the variant
-before left them: awake or asleep). Prints per variant the median call, the median over turns
-of the turn's median over threads=1's, the total time over threads=1's, and the others' load
-over the phase; writes ``results/bench/ab_threads.json``.
+Phases quiet, busy (``--busy`` processes ``while True: pass``, as ``benchmarks/busy_batch.py``)
+and bursty (as many, each busy 30 ms then asleep 30 ms): turns of BLOCK + 1 calls of each
+variant in an order drawn afresh each turn, the first call of a turn not counted (it meets the
+helper threads as the variant before left them: awake or asleep). Prints per variant the median
+call, the median over turns of the turn's median over threads=1's, the total time over
+threads=1's, and the others' load over the phase; writes ``results/bench/ab_threads.json``.
 """
 
 from __future__ import annotations
@@ -27,17 +27,23 @@ import json
 import os
 import random
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-from busy_batch import cpu_jiffies, rope, start_competitors, stop_competitors, wait_quiet
+from busy_batch import cpu_jiffies, rope, stop_competitors, wait_quiet
 from conftest import machine
 
 from redysim import Workspace, forward_dynamics
 from redysim.algorithms import threads as runtime
 
+# the competitors of the phases busy (a core kept busy) and bursty (busy 30 ms, asleep 30 ms:
+# the load comes and goes while a workspace's record of what helpers buy lags behind)
+COMPETITOR = {"busy": "while True: pass",
+              "bursty": "import time\nwhile True:\n    t = time.perf_counter()\n"
+                        "    while time.perf_counter() - t < 0.03: pass\n    time.sleep(0.03)"}
 KINDS = ("tiles", "rows")  # a rope's batch in SIMD tiles, row by row
 ROBOTS = {"xarm7": "XARM7-FALL", "talos": "TALOS-FALL"}  # as benchmarks/test_bench_core.py
 BLOCK = 5  # timed calls of a variant back to back (after one untimed)
@@ -168,7 +174,9 @@ def main(argv=None) -> int:
             for label in args.phases:
                 if label == "quiet" and args.wait_quiet:
                     wait_quiet(args.wait_quiet)
-                procs = start_competitors(args.busy) if label == "busy" else []
+                procs = [subprocess.Popen([sys.executable, "-c", COMPETITOR[label]],
+                                          start_new_session=True)
+                         for _ in range(args.busy if label in COMPETITOR else 0)]
                 try:
                     if procs:
                         time.sleep(0.5)
