@@ -4,8 +4,9 @@
         [--calls 30] [--busy 1] [--variants now simple ...] [--kinds tiles rows]
 
 The policy pieces of :mod:`redysim.algorithms.threads` are switched per call through its
-``AB`` table and ``ADAPT`` flag (each variant on a workspace of its own, so that the adaptive
-policy's record of one does not steer another). Variants: ``now`` (every piece), ``no-X``
+``AB`` table and ``ADAPT`` flag (each variant with a record of its own of what helpers buy, so
+that one does not steer another; the workspaces and outputs rotate among the
+variants, turn by turn). Variants: ``now`` (every piece), ``no-X``
 (every piece but X), ``simple`` (none: a ``concurrent.futures.ThreadPoolExecutor`` whose
 threads sleep between batches, helpers posted whatever the machine runs, the caller waiting for
 a late helper's chunk on a ``threading.Condition`` and taking it back after 1.5x its own time
@@ -81,22 +82,28 @@ def settings(name: str) -> dict:
 
 
 def variant(model, Q, QD, name: str, simd: bool):
-    out = np.empty_like(QD)
+    """call(ws, out) of a variant: the batch into ``out`` on ``ws`` with the variant's own
+    record of what helpers buy (``ws.batch_speed``, swapped in)."""
     if name.split("#")[0] == "threads=1":
-        ws = Workspace(model)
-        return lambda: forward_dynamics(model, Q, QD, ws=ws, out=out, threads=1, simd=simd), out
+        return lambda ws, out: forward_dynamics(model, Q, QD, ws=ws, out=out, threads=1,
+                                                simd=simd)
     ab = settings(name)
     adapt = ab.pop("adapt")
-    ws = Workspace(model)
+    speeds: dict = {}
 
-    def call():
+    def call(ws, out):
         runtime.AB.update(ab)
         runtime.ADAPT = adapt
+        ws.batch_speed = speeds
         forward_dynamics(model, Q, QD, ws=ws, out=out, simd=simd)
-    return call, out
+    return call
 
 
-def phase(calls: dict, rounds: int, per_round: int) -> tuple[dict, float]:
+def phase(calls: dict, places: list, rounds: int, per_round: int) -> tuple[dict, float]:
+    """Per-call seconds of each variant, and the others' load over the phase (cores). Each turn
+    the variants take the (workspace, out) pairs of ``places`` in a rotation drawn afresh: where
+    a batch's arrays lie moved its time by up to 6 % (two copies of one variant, each on arrays
+    of its own, in one process), and this way every variant meets every placement alike."""
     times: dict[str, list[float]] = {k: [] for k in calls}
     names = list(calls)
     busy0, _ = cpu_jiffies()
@@ -104,12 +111,14 @@ def phase(calls: dict, rounds: int, per_round: int) -> tuple[dict, float]:
     order = random.Random(0)
     for _ in range(rounds):
         for _ in range(0, per_round, BLOCK):
+            shift = order.randrange(len(places))
             for name in order.sample(names, len(names)):
                 fn, record = calls[name], times[name]
-                fn()  # (not counted: it meets the helpers as the variant before left them)
+                ws, out = places[(names.index(name) + shift) % len(places)]
+                fn(ws, out)  # (not counted: it meets the helpers as the variant before left them)
                 for _ in range(BLOCK):
                     t0 = time.perf_counter()
-                    fn()
+                    fn(ws, out)
                     record.append(time.perf_counter() - t0)
     busy1, _ = cpu_jiffies()
     own1, wall1 = os.times(), time.perf_counter()
@@ -164,12 +173,13 @@ def main(argv=None) -> int:
             simd = kind == "tiles"
         if True:
             one = forward_dynamics(chain, Q, QD, threads=1, simd=simd)
-            calls, outs = {}, {}
-            for name in [*args.variants, "threads=1"]:
-                calls[name], outs[name] = variant(chain, Q, QD, name, simd)
-                for _ in range(3):  # compile or load; the same bits every way
-                    calls[name]()
-                    assert np.array_equal(outs[name], one), name
+            names = [*args.variants, "threads=1"]
+            places = [(Workspace(chain), np.empty_like(QD)) for _ in names]
+            calls = {name: variant(chain, Q, QD, name, simd) for name in names}
+            for name in names:  # compile or load; the same bits every way, on every placement
+                for ws, out in places:
+                    calls[name](ws, out)
+                    assert np.array_equal(out, one), name
             results = {}
             for label in args.phases:
                 if label == "quiet" and args.wait_quiet:
@@ -181,7 +191,7 @@ def main(argv=None) -> int:
                     if procs:
                         time.sleep(0.5)
                     load = os.getloadavg()[0]
-                    times, others = phase(calls, args.rounds, args.calls)
+                    times, others = phase(calls, places, args.rounds, args.calls)
                 finally:
                     stop_competitors(procs)
                 one_t = times["threads=1"]
