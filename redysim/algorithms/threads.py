@@ -81,19 +81,24 @@ class _Own:
     KEEP = 4
 
     def __init__(self) -> None:
-        self.arrays: dict[int, np.ndarray] = {}
+        self.arrays: dict[tuple, np.ndarray] = {}
         try:  # the helper thread's CPU-time clock, which the caller reads to see it progress
             self.clock: int | None = time.pthread_getcpuclockid(threading.get_ident())
         except (AttributeError, OSError):
             self.clock = None
 
     def get(self, like: np.ndarray) -> np.ndarray:
-        a = self.arrays.pop(like.size, None)
+        key = (like.size, AB["aligned"])  # (A/B: each variant its own arrays)
+        a = self.arrays.pop(key, None)
         if a is None:
             a = np.zeros(like.size)  # (as a workspace's tile arrays start)
+            if AB["aligned"]:  # (A/B) on a 64-byte boundary, as Workspace.tile_buffer's
+                raw = np.zeros(like.size + 8)
+                start = (-raw.ctypes.data // 8) % 8
+                a = raw[start:start + like.size]
             while len(self.arrays) >= self.KEEP:
                 self.arrays.pop(next(iter(self.arrays)))
-        self.arrays[like.size] = a  # (the most recent last)
+        self.arrays[key] = a  # (the most recent last)
         return a
 
 
@@ -431,7 +436,7 @@ def _helper(k: int) -> None:
 # A/B (benchmarks/ab_threads.py): each piece of the policy on or off, and the helpers a
 # concurrent.futures.ThreadPoolExecutor's ("executor") instead of our own ("own")
 AB = {"spin_watch": True, "idle_check": True, "batch_sched": True, "caller_spin": True,
-      "cpu_clock": True, "pool": "own"}
+      "cpu_clock": True, "pool": "own", "aligned": False}
 _EXECUTOR: ThreadPoolExecutor | None = None
 _EXEC_LOCAL = threading.local()
 
