@@ -154,11 +154,10 @@ CHUNKINGS = [1, 37, 250, 10**6]  # CHUNK_WORK: a chunk a row (or tile), uneven, 
 
 @pytest.fixture
 def idle(monkeypatch):
-    """Helpers wanted whatever the machine runs (a batch takes no more helpers than there are
-    idle cores: on a busy test machine these tests would otherwise run on one thread)."""
+    """Helpers whatever they buy (a workspace pauses helpers that do not pay: on a busy test
+    machine these tests would otherwise run on one thread)."""
     from redysim.algorithms import threads as runtime
 
-    monkeypatch.setattr(runtime, "helpers_for", lambda wanted: wanted)
     monkeypatch.setattr(runtime, "ADAPT", False)  # (no batch alone to measure its time)
 
 
@@ -345,51 +344,14 @@ def test_a_batch_inside_a_batch_does_not_wait_for_busy_helpers(idle):
     assert sorted(got) == [0, 1, 2, 3] and all(np.array_equal(v, want) for v in got.values())
 
 
-def test_no_helper_joins_a_batch_when_no_core_is_idle(monkeypatch):
-    """A batch posts itself to the helpers watching for work, and wakes sleeping ones only for
-    the cores idle at its start; with none, it runs on the calling thread alone (the same
-    bits)."""
-    from redysim.algorithms import threads as runtime
-
-    posted, jobs = [], runtime._JOBS
-
-    class Jobs:  # the helpers' queue, counting what is posted to it
-        get, get_nowait = jobs.get, jobs.get_nowait
-
-        def put(self, job):
-            posted.append(job)
-            jobs.put(job)
-
-    monkeypatch.setattr(runtime, "CHUNK_WORK", 100)
-    monkeypatch.setattr(runtime, "_JOBS", Jobs())
-    monkeypatch.setattr(runtime, "ADAPT", False)
-    s = rope(30)
-    Q, QD, _ = states(s, 64, 15)
-    want = forward_dynamics(s, Q, QD, threads=1)
-    rows = want_rows(s, Q, QD)
-    # (watching helpers, idle cores) -> helpers posted to, of the 3 a 4-thread batch wants
-    for watching, idle, helpers in ((0, 0, 0), (0, -3, 0), (0, 1, 1), (0, 5, 3), (2, 0, 2),
-                                    (3, 0, 3), (1, None, 3)):
-        monkeypatch.setattr(runtime, "watching_helpers", lambda w=watching: w)
-        monkeypatch.setattr(runtime, "idle_cores", lambda i=idle: i)
-        for simd, expected in ((True, want), (False, rows)):
-            monkeypatch.setattr(runtime, "_IDLE", [-1.0, 0])  # (no earlier look)
-            posted.clear()
-            assert np.array_equal(forward_dynamics(s, Q, QD, threads=4, simd=simd), expected)
-            assert len(posted) == helpers, (watching, idle, simd)
-
-
-def test_helpers_are_taken_only_while_they_pay(monkeypatch):
+def test_helpers_are_taken_only_while_they_pay():
     """Each workspace measures, kind of batch by kind, its seconds a DOF-state alone and with
     helpers: the first two batches run alone; helpers are kept while the median of the last
     batches with them is under GAIN of the time alone (one slow batch decides nothing), else
-    paused for 4, 8, 16, ... batches; a batch in REFRESH runs alone to keep that time fresh; a
-    busy machine (no helper to be had) runs alone."""
-    from redysim.algorithms import threads as runtime
-    from redysim.algorithms.threads import GAIN, REFRESH, _Speed
+    paused for 4, 8, 16, ... batches; a batch in REFRESH runs alone to keep that time fresh."""
+    from redysim.algorithms.threads import GAIN, REFRESH, Speed
 
-    monkeypatch.setattr(runtime, "helpers_for", lambda wanted: wanted)
-    speed = _Speed()
+    speed = Speed()
     for per in (5.0, 1.0):  # the first two alone (the first slowed by first touches)
         assert speed.plan(2) == 1
         speed.record(False, per)
@@ -403,7 +365,7 @@ def test_helpers_are_taken_only_while_they_pay(monkeypatch):
     speed.record(True, 0.6)
     assert speed.plan(2) == 1  # the REFRESH-th: alone
     speed.record(False, 1.0)
-    speed = _Speed()
+    speed = Speed()
     speed.skip = 0
     speed.record(False, 1.0)
     pauses = []
@@ -421,8 +383,6 @@ def test_helpers_are_taken_only_while_they_pay(monkeypatch):
         speed.record(True, 0.5)
         assert speed.plan(2) == 2
     assert speed.backoff == 0
-    monkeypatch.setattr(runtime, "helpers_for", lambda wanted: 0)  # a busy machine
-    assert speed.plan(2) == 1
 
 
 def test_a_workspace_measures_each_kind_of_batch(monkeypatch):
@@ -440,23 +400,6 @@ def test_a_workspace_measures_each_kind_of_batch(monkeypatch):
     assert all(v.alone is not None and v.alone > 0 for v in ws.batch_speed.values())
     forward_dynamics(s, Q, QD, ws=ws, threads=1)  # one thread: nothing to measure
     assert len(ws.batch_speed) == 3
-
-
-def want_rows(s, Q, QD):
-    return np.array([forward_dynamics(s, Q[i], QD[i]) for i in range(len(Q))])
-
-
-def test_idle_cores_counts_the_machine():
-    import os
-
-    from redysim.algorithms import threads as runtime
-
-    idle = runtime.idle_cores()
-    if not os.path.exists("/proc/loadavg"):
-        assert idle is None
-    else:  # this thread runs: at most every other core is idle (our watching helpers aside)
-        assert isinstance(idle, int)
-        assert idle <= (os.cpu_count() or 1) - 1 + runtime.watching_helpers()
 
 
 def test_the_default_thread_count_follows_the_environment(monkeypatch):

@@ -39,10 +39,10 @@ from redysim.algorithms._kernels.rge_a import rge_a_backward
 from redysim.algorithms._kernels.udu import udu_assemble
 from redysim.algorithms.dh_form import dh_problem
 from redysim.algorithms.methods import ELIMINATIONS, METHODS, PAPER_NAMES  # noqa: F401  (re-exported)
-from redysim.algorithms.threads import (  # noqa: F401  (run_blocks, default_threads: re-exported)
-    _speed,
+from redysim.algorithms.threads import (  # noqa: F401  (default_threads: re-exported)
     chunk_edges,
     default_threads,
+    plan,
     run_blocks,
 )
 from redysim.algorithms.vectors import cross
@@ -532,13 +532,13 @@ def check_batch(model: Model, name: str, x, rows: int | None, *,
 
 def _run_rows(Q, n: int, threads: int | None, ws: Workspace, kernel, out, *inputs) -> int:
     """kernel(f, i, Q, *inputs, scratch, out, first, last) over the rows of Q in chunks of up to
-    CHUNK_WORK DOF-states, on up to :func:`thread_count` threads (:func:`helpers_for`): the
-    caller in ``ws``'s scratch, into ``out``; a helper in its own scratch, into an array of its
-    own that the caller copies into ``out`` (inputs: arrays of B rows, or of one row for every
-    state). The first failing row (the lowest of the chunks') or -1."""
+    CHUNK_WORK DOF-states (:mod:`redysim.algorithms.threads`), on the threads its plan gives:
+    the caller in ``ws``'s scratch, into ``out``; a helper in its own scratch, into an array of
+    its own that the caller copies into ``out`` (inputs: arrays of B rows, or of one row for
+    every state). The first failing row (the lowest of the chunks') or -1."""
     rows = Q.shape[0]
     edges = chunk_edges(rows, rows * n)
-    count, speed = _speed(ws, (kernel, len(edges)), threads, len(edges) - 1)
+    count, speed = plan(ws.batch_speed, (kernel, len(edges)), threads, len(edges) - 1)
     f, i = ws.kernel_f, ws.kernel_i
     t0 = time.perf_counter()
     if count == 1:
@@ -583,7 +583,7 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     split = min(B, tiles * lanes)
     edges = [min(e * lanes, split) for e in chunk_edges(tiles, B * n)]  # whole tiles
     edges += [B] if split < B and len(edges) > 2 else []  # (one chunk: one thread, as below)
-    count, speed = _speed(ws, ("tiles", len(edges)), threads, len(edges) - 1)
+    count, speed = plan(ws.batch_speed, ("tiles", len(edges)), threads, len(edges) - 1)
     f, i = ws.kernel_f, ws.kernel_i
     forward_tiles = _tiles.forward_tree_tiles if ws.tiles_tree else _tiles.forward_tiles
     t0 = time.perf_counter()
