@@ -33,8 +33,8 @@ Under load: never slower than one thread
     (:class:`Speed`, kept in ``Workspace.batch_speed``), its time a DOF-state alone and with
     helpers: helpers that do not bring a batch under :data:`GAIN` of its time alone are paused
     for 4, 8, ..., 256 batches, then tried again. Measured side by side in one process, quiet,
-    beside a busy process and beside one busy half the time (``benchmarks/busy_batch.py``):
-    docs/notes/2026-12-07-threads.md, which also says what was measured and removed.
+    beside a busy process and beside one busy half the time (``benchmarks/ab_threads.py`` at
+    bcb28b0): docs/notes/2026-12-07-threads.md, which also says what was measured and removed.
 
 Quiet: what it costs
     Where helpers pay, no batch waits for a sleeping thread to wake: after each batch a helper
