@@ -391,18 +391,17 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     up to ``threads`` threads (default :func:`default_threads`: every core this process may use, or
     ``REDYSIM_THREADS``), in chunks of up to 8,000 DOF-states (a smaller batch runs on the calling
     thread): the caller works through the chunks, and helper threads take chunks too when they get a
-    core, each in arrays of its own; a helper is woken only for a core idle at that instant, a
-    chunk a helper is late with the caller runs itself, and each workspace measures, per kind of
-    batch, whether helpers pay (else it pauses them), so that a busy machine costs a batch no more
-    than a few percent over ``threads=1`` (docs/design.md, "Threads under load"). Each row's bits do
-    not depend on the threads. With ``simd`` (the default), a system in the spatial recursion (a
-    chain, or any tree: robots, free joints) runs its states 16 at a time in SIMD lanes
-    (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the throughput a core at 250 DOF, 3.4-3.9x
-    on robots): row i then equals the single call to rounding (measured within 4e-15 of max |qdd|
-    on ropes, 1.4e-13 on random chains with GIM condition numbers up to 5e5, 1.2e-14 on random
-    trees), not bit for bit; ``simd=False`` gives the single calls' bits. A batch's last rows,
-    when they fill less than half a tile, systems over 10,000 DOF, planar chains (their own
-    kernel) and any batch with |q| > 1e5 run row by row.
+    core, each in arrays of its own; a chunk a helper is late with the caller runs itself, and each
+    workspace measures, per kind of batch, whether helpers pay (else it pauses them), so that a busy
+    machine costs a batch no more than a few percent over ``threads=1`` (docs/design.md,
+    "Threads under load"). Each row's bits do not depend on the threads. With ``simd`` (the
+    default), a system in the spatial recursion (a chain, or any tree: robots, free joints) runs its
+    states 16 at a time in SIMD lanes (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the
+    throughput a core at 250 DOF, 3.4-3.9x on robots): row i then equals the single call to rounding
+    (measured within 4e-15 of max |qdd| on ropes, 1.4e-13 on random chains with GIM condition
+    numbers up to 5e5, 1.2e-14 on random trees), not bit for bit; ``simd=False`` gives the single
+    calls' bits. A batch's last rows, when they fill less than half a tile, systems over 10,000 DOF,
+    planar chains (their own kernel) and any batch with |q| > 1e5 run row by row.
 
     Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
     ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
