@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 from conftest import machine
 
-import redysim.algorithms.dynamics
+import redysim.algorithms.threads
 from redysim import Chain, forward_dynamics
-from redysim.algorithms.dynamics import default_threads
+from redysim.algorithms.threads import default_threads
 
 BUSY = "while True: pass"
 BLOCK = 5  # calls of a variant back to back
@@ -45,7 +45,7 @@ def rope(dof: int) -> Chain:
 
 
 def variants(chain, Q, QD, chunks: list[int] | None) -> dict:
-    """name -> call. With ``chunks`` (values of redysim.algorithms.dynamics.CHUNK_WORK), the
+    """name -> call. With ``chunks`` (values of redysim.algorithms.threads.CHUNK_WORK), the
     default-thread batches once per chunk size, side by side."""
     out = np.empty_like(Q)
 
@@ -56,7 +56,7 @@ def variants(chain, Q, QD, chunks: list[int] | None) -> dict:
     def chunked(work, **kw):
         def call():
             if work is not None:
-                redysim.algorithms.dynamics.CHUNK_WORK = work
+                redysim.algorithms.threads.CHUNK_WORK = work
             forward_dynamics(chain, Q, QD, out=out, **kw)
         return call
 
@@ -155,7 +155,7 @@ def main(argv=None) -> int:
     ap.add_argument("--calls", type=int, default=30, help="calls of each variant a round")
     ap.add_argument("--busy", type=int, default=1, help="busy competitor processes")
     ap.add_argument("--chunk-work", type=int, nargs="+", default=None,
-                    help="DOF x states a chunk (redysim.algorithms.dynamics.CHUNK_WORK), "
+                    help="DOF x states a chunk (redysim.algorithms.threads.CHUNK_WORK), "
                     "each a config")
     ap.add_argument("--wait-quiet", type=float, default=0.0,
                     help="seconds to wait at most for the machine to be quiet (others' load "
@@ -169,7 +169,7 @@ def main(argv=None) -> int:
     print(", ".join(f"{k} {v}" for k, v in info.items()) + f", {date}")
     report: dict = {"machine": info, "date": date, "args": {k: str(v) for k, v in
                                                             vars(args).items()}, "configs": []}
-    default_chunk = redysim.algorithms.dynamics.CHUNK_WORK
+    default_chunk = redysim.algorithms.threads.CHUNK_WORK
     for dof in args.dof:
         chain = rope(dof)
         rng = np.random.default_rng(0)
@@ -198,7 +198,7 @@ def main(argv=None) -> int:
                               "paired": {name: paired(times[name],
                                                       times[f"{name.split(',')[0]}, threads=1"])
                                          for name in times if "default threads" in name}}
-        redysim.algorithms.dynamics.CHUNK_WORK = default_chunk
+        redysim.algorithms.threads.CHUNK_WORK = default_chunk
         report["configs"].append({"dof": dof, "states": args.states,
                                   "chunk_work": args.chunk_work or default_chunk, **results})
         chunk = ("" if args.chunk_work else

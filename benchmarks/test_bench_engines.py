@@ -118,7 +118,7 @@ def test_qdd_batch(benchmark, name, dof):
         simd = name == "core"
         redysim.forward_dynamics(chain, Q, QD, ws=ws, out=out, simd=simd)  # JIT warm-up
         info["version"] = redysim.__version__
-        info["threads"] = (redysim.algorithms.dynamics.default_threads()
+        info["threads"] = (redysim.algorithms.threads.default_threads()
                            if name != "core-single" else 1)
         if name in ("core", "core-rows"):
             def call():

@@ -47,7 +47,7 @@ def limit_blas_threads() -> None:
 limit_blas_threads()
 
 # redysim's batches (forward_dynamics on (B, n) arrays, simulate_batch) use every core unless this
-# variable says otherwise (redysim.algorithms.dynamics.default_threads). The harness's process pools
+# variable says otherwise (redysim.algorithms.threads.default_threads). The harness's process pools
 # run one process per core: their workers take one thread each (worker_threads).
 REDYSIM_THREADS = "REDYSIM_THREADS"
 

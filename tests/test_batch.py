@@ -145,7 +145,7 @@ def test_a_bad_row_of_a_batch_of_motions_is_named():
 
 # --------------------------------------------------------------------------- threads A batch's rows
 # go out in chunks from a shared counter: the calling thread takes chunks until none are left,
-# helper threads take chunks when they get to run (redysim.algorithms.dynamics.run_blocks). These
+# helper threads take chunks when they get to run (redysim.algorithms.threads.run_blocks). These
 # pin what that must not change: every row done, each row's bits whatever the chunking and whoever
 # ran it, errors raised on a helper reaching the caller, and threads=1 one call.
 
@@ -154,21 +154,20 @@ CHUNKINGS = [1, 37, 250, 10**6]  # CHUNK_WORK: a chunk a row (or tile), uneven, 
 
 @pytest.fixture
 def idle(monkeypatch):
-    """Helpers wanted whatever the machine runs (a batch takes no more helpers than there are
-    idle cores: on a busy test machine these tests would otherwise run on one thread)."""
-    from redysim.algorithms import dynamics
+    """Helpers whatever they buy (a workspace pauses helpers that do not pay: on a busy test
+    machine these tests would otherwise run on one thread)."""
+    from redysim.algorithms import threads as runtime
 
-    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: wanted)
-    monkeypatch.setattr(dynamics, "ADAPT", False)  # (no batch alone to measure its time)
+    monkeypatch.setattr(runtime, "ADAPT", False)  # (no batch alone to measure its time)
 
 
 @pytest.mark.parametrize("chunk_work", CHUNKINGS)
 @pytest.mark.parametrize("system", SYSTEMS)
 def test_every_row_is_its_single_call_whatever_the_chunks(system, chunk_work, monkeypatch,
                                                           idle):
-    from redysim.algorithms import dynamics
+    from redysim.algorithms import threads as runtime
 
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", chunk_work)
+    monkeypatch.setattr(runtime, "CHUNK_WORK", chunk_work)
     s = SYSTEMS[system]()
     Q, QD, TAU = states(s, 45, 8)
     singles = np.array([forward_dynamics(s, Q[i], QD[i], TAU[i]) for i in range(len(Q))])
@@ -187,14 +186,15 @@ def test_the_tiles_bits_do_not_depend_on_threads_or_chunks(rows, chunk_work, mon
     """Chunks are whole tiles from row 0 (no lane left empty but in the last tile) and the rows
     after the last tile one more chunk: the same rows run in tiles as on one thread, the same
     rows one by one, and each row has the same bits."""
-    from redysim.algorithms import dynamics
+    from redysim.algorithms import threads as runtime
     from redysim.algorithms._kernels import tiles
+    from redysim.algorithms.dynamics import TILE_MIN_ROWS
 
     s = rope(30)
     Q, QD, TAU = states(s, rows, 9)
     one = forward_dynamics(s, Q, QD, TAU, threads=1)
-    split = rows - rows % 16 if rows % 16 < dynamics.TILE_MIN_ROWS else rows
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", chunk_work)
+    split = rows - rows % 16 if rows % 16 < TILE_MIN_ROWS else rows
+    monkeypatch.setattr(runtime, "CHUNK_WORK", chunk_work)
     kernel, chunks = tiles.forward_tiles, []
 
     def spy(*args):  # the rows each call runs, in rows of Q (args[2]; a helper gets slices of it)
@@ -246,7 +246,7 @@ def test_an_error_on_a_helper_thread_reaches_the_caller():
     lowest one's exception (as one thread would have met first)."""
     import threading
 
-    from redysim.algorithms.dynamics import run_blocks
+    from redysim.algorithms.threads import run_blocks
 
     helper_ran = threading.Event()
     ran = []
@@ -282,7 +282,7 @@ def test_the_caller_takes_back_a_chunk_its_helper_is_late_with():
     itself and returns; the helper's result, when it comes, is dropped."""
     import threading
 
-    from redysim.algorithms.dynamics import run_blocks
+    from redysim.algorithms.threads import run_blocks
 
     started, release = threading.Event(), threading.Event()
     committed, out = [], [None] * 6
@@ -310,9 +310,9 @@ def test_the_caller_takes_back_a_chunk_its_helper_is_late_with():
 
 
 def test_a_bad_row_on_threads_is_the_lowest_bad_row(monkeypatch, idle):
-    from redysim.algorithms import dynamics
+    from redysim.algorithms import threads as runtime
 
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", 1)  # a chunk a row: the bad rows far apart
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 1)  # a chunk a row: the bad rows far apart
     s = rope(8)
     Q, QD, _ = states(s, 40, 11)
     Q[33, 2] = Q[7, 1] = np.nan
@@ -326,7 +326,7 @@ def test_a_batch_inside_a_batch_does_not_wait_for_busy_helpers(idle):
     caller works through its own chunks, whether or not a helper is free."""
     import threading
 
-    from redysim.algorithms.dynamics import run_blocks
+    from redysim.algorithms.threads import run_blocks
 
     s = rope(20)
     Q, QD, _ = states(s, 64, 12)
@@ -344,51 +344,14 @@ def test_a_batch_inside_a_batch_does_not_wait_for_busy_helpers(idle):
     assert sorted(got) == [0, 1, 2, 3] and all(np.array_equal(v, want) for v in got.values())
 
 
-def test_no_helper_joins_a_batch_when_no_core_is_idle(monkeypatch):
-    """A batch posts itself to the helpers watching for work, and wakes sleeping ones only for
-    the cores idle at its start; with none, it runs on the calling thread alone (the same
-    bits)."""
-    from redysim.algorithms import dynamics
-
-    posted, jobs = [], dynamics._JOBS
-
-    class Jobs:  # the helpers' queue, counting what is posted to it
-        get, get_nowait = jobs.get, jobs.get_nowait
-
-        def put(self, job):
-            posted.append(job)
-            jobs.put(job)
-
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", 100)
-    monkeypatch.setattr(dynamics, "_JOBS", Jobs())
-    monkeypatch.setattr(dynamics, "ADAPT", False)
-    s = rope(30)
-    Q, QD, _ = states(s, 64, 15)
-    want = forward_dynamics(s, Q, QD, threads=1)
-    rows = want_rows(s, Q, QD)
-    # (watching helpers, idle cores) -> helpers posted to, of the 3 a 4-thread batch wants
-    for watching, idle, helpers in ((0, 0, 0), (0, -3, 0), (0, 1, 1), (0, 5, 3), (2, 0, 2),
-                                    (3, 0, 3), (1, None, 3)):
-        monkeypatch.setattr(dynamics, "watching_helpers", lambda w=watching: w)
-        monkeypatch.setattr(dynamics, "idle_cores", lambda i=idle: i)
-        for simd, expected in ((True, want), (False, rows)):
-            monkeypatch.setattr(dynamics, "_IDLE", [-1.0, 0])  # (no earlier look)
-            posted.clear()
-            assert np.array_equal(forward_dynamics(s, Q, QD, threads=4, simd=simd), expected)
-            assert len(posted) == helpers, (watching, idle, simd)
-
-
-def test_helpers_are_taken_only_while_they_pay(monkeypatch):
+def test_helpers_are_taken_only_while_they_pay():
     """Each workspace measures, kind of batch by kind, its seconds a DOF-state alone and with
     helpers: the first two batches run alone; helpers are kept while the median of the last
     batches with them is under GAIN of the time alone (one slow batch decides nothing), else
-    paused for 4, 8, 16, ... batches; a batch in REFRESH runs alone to keep that time fresh; a
-    busy machine (no helper to be had) runs alone."""
-    from redysim.algorithms import dynamics
-    from redysim.algorithms.dynamics import GAIN, REFRESH, _Speed
+    paused for 4, 8, 16, ... batches; a batch in REFRESH runs alone to keep that time fresh."""
+    from redysim.algorithms.threads import GAIN, REFRESH, Speed
 
-    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: wanted)
-    speed = _Speed()
+    speed = Speed()
     for per in (5.0, 1.0):  # the first two alone (the first slowed by first touches)
         assert speed.plan(2) == 1
         speed.record(False, per)
@@ -402,7 +365,7 @@ def test_helpers_are_taken_only_while_they_pay(monkeypatch):
     speed.record(True, 0.6)
     assert speed.plan(2) == 1  # the REFRESH-th: alone
     speed.record(False, 1.0)
-    speed = _Speed()
+    speed = Speed()
     speed.skip = 0
     speed.record(False, 1.0)
     pauses = []
@@ -420,14 +383,12 @@ def test_helpers_are_taken_only_while_they_pay(monkeypatch):
         speed.record(True, 0.5)
         assert speed.plan(2) == 2
     assert speed.backoff == 0
-    monkeypatch.setattr(dynamics, "helpers_for", lambda wanted: 0)  # a busy machine
-    assert speed.plan(2) == 1
 
 
 def test_a_workspace_measures_each_kind_of_batch(monkeypatch):
-    from redysim.algorithms import dynamics
+    from redysim.algorithms import threads as runtime
 
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", 100)
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 100)
     s = rope(30)
     ws = Workspace(s)
     Q, QD, _ = states(s, 64, 16)
@@ -441,26 +402,13 @@ def test_a_workspace_measures_each_kind_of_batch(monkeypatch):
     assert len(ws.batch_speed) == 3
 
 
-def want_rows(s, Q, QD):
-    return np.array([forward_dynamics(s, Q[i], QD[i]) for i in range(len(Q))])
-
-
-def test_idle_cores_counts_the_machine():
-    import os
-
-    from redysim.algorithms import dynamics
-
-    idle = dynamics.idle_cores()
-    if not os.path.exists("/proc/loadavg"):
-        assert idle is None
-    else:  # this thread runs: at most every other core is idle (our watching helpers aside)
-        assert isinstance(idle, int)
-        assert idle <= (os.cpu_count() or 1) - 1 + dynamics.watching_helpers()
-
-
 def test_the_default_thread_count_follows_the_environment(monkeypatch):
-    from redysim.algorithms.dynamics import THREADS_VARIABLE, default_threads
+    """A batch of more than one chunk reads REDYSIM_THREADS (one of one chunk runs on the
+    caller without looking)."""
+    from redysim.algorithms import threads as runtime
+    from redysim.algorithms.threads import THREADS_VARIABLE, default_threads
 
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 100)
     monkeypatch.delenv(THREADS_VARIABLE, raising=False)
     cores = default_threads()
     assert cores >= 1
@@ -475,11 +423,13 @@ def test_the_default_thread_count_follows_the_environment(monkeypatch):
             forward_dynamics(s, Q, QD)
     monkeypatch.setenv(THREADS_VARIABLE, "two")
     assert forward_dynamics(s, Q, QD, threads=1).shape == Q.shape  # threads given: not read
+    monkeypatch.setattr(runtime, "CHUNK_WORK", 10**6)
+    assert forward_dynamics(s, Q, QD).shape == Q.shape  # one chunk: not read
 
 
 def test_pool_workers_take_one_thread_unless_told(monkeypatch):
     pytest.importorskip("pandas")
-    from redysim.algorithms.dynamics import THREADS_VARIABLE, default_threads
+    from redysim.algorithms.threads import THREADS_VARIABLE, default_threads
     from redysim.harness import REDYSIM_THREADS, worker_threads
 
     assert REDYSIM_THREADS == THREADS_VARIABLE

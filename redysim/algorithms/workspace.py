@@ -208,7 +208,7 @@ class Workspace:
         self.gravity = f[header[SLOT["gravity"]]:header[SLOT["gravity"]] + 3]
         self.no_accel = np.zeros(3)
         # what helper threads buy this workspace's batches, by kind of batch: measured as they
-        # run (redysim.algorithms.dynamics._Speed), so that a batch takes helpers only while
+        # run (redysim.algorithms.threads.Speed), so that a batch takes helpers only while
         # they pay
         self.batch_speed: dict = {}
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
