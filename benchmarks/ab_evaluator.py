@@ -37,8 +37,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
 from ab_kernels import base_kernels  # noqa: E402  (sets a temporary NUMBA_CACHE_DIR first)
 
-from redysim import Chain, Workspace  # noqa: E402
-from redysim.io.importers import load_model  # noqa: E402
+from redysim import Chain, Workspace, load_model  # noqa: E402
 
 
 def models() -> dict:
