@@ -16,8 +16,8 @@ sides' qdd are compared bit for bit.
 
 Both sides' tile buffers are put on a 64-byte boundary (``--misalign`` shifts them by that many
 bytes): a thread's tile arrays are one buffer, and where malloc placed it (16 bytes past a cache
-line, say) had changed the tiles' speed by up to 1.35x (docs/design.md, "Performance notes"), more
-than any change compared here.
+line, say) had changed the tiles' speed more than any change compared here
+(docs/notes/2026-11-batches-and-tiles.md).
 
 Speed changes to the tiles are claimed from this script's output, never from two separate runs.
 """

@@ -36,8 +36,8 @@ chains of 1..15 links at random states (agreement ~1e-45 at dps = 50); against
 against the spatial one; dps = 50 against dps = 70 on long stretched chains (the reference's own
 digits); and the Python path in float64 against the compiled kernel.
 
-Cost: ~2.4 ms per U-link, ~1 ms per R-link at dps = 50 here (pure-Python mpmath, no gmpy2), so
-100,000 U-links take ~4 min. O(n) memory (object arrays).
+Cost: O(n) time, milliseconds a link at dps = 50 in pure-Python mpmath (no gmpy2), so 100,000
+U-links take minutes (docs/notes/2026-11-costs-in-the-code.md). O(n) memory (object arrays).
 
 References:
     Agarwal et al., Appendix A.1, Table A.1 (the recursion); Eq. (9)-(12) (phi).

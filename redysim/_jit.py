@@ -45,7 +45,7 @@ jit_strict: _JITWrapper = numba.njit(**STRICT_OPTIONS)
 # compile without numba's reference counting (NRT): every array they see is borrowed from their
 # caller, which keeps it alive for the call. With it, reading a bundle's fields costs an atomic
 # increment and a decrement per array per call, more than a 30-body tree's whole kinematics for
-# the arrays of two bundles (docs/design.md, "Performance notes").
+# the arrays of two bundles (docs/notes/2026-11-kernels-speed.md).
 BORROWED_OPTIONS: dict[str, Any] = dict(OPTIONS, _nrt=False)
 jit_borrowed: _JITWrapper = numba.njit(**BORROWED_OPTIONS)
 # Borrowed and strict: for kernels whose every caller must get the same bits whether it calls
@@ -56,9 +56,9 @@ jit_exact: _JITWrapper = numba.njit(**EXACT_BORROWED_OPTIONS)
 
 # The SIMD tile kernels (redysim.algorithms._kernels.tiles) also declare their array arguments free
 # of overlap (LLVM's noalias), without which LLVM guards each vectorised loop with run-time overlap
-# checks of ~15 arrays, which more than halved the backward pass's speed (docs/design.md,
-# "Performance notes"). numba sets this flag itself only for the loops it parallelises; its njit
-# takes it once CPUTargetOptions maps the option name (numba 0.68:
+# checks of its arrays, behind which the backward pass ran far slower
+# (docs/notes/2026-11-batches-and-tiles.md). numba sets this flag itself only for the loops it
+# parallelises; its njit takes it once CPUTargetOptions maps the option name (numba 0.68:
 # numba.core.compiler.Flags.noalias; tests/test_tiles.py fails if it goes). Every array a tile
 # kernel is given is a distinct view of its thread's tile buffer (the Tiles bundle, its segments
 # laid out by the layout table) or a chain table it only reads; a bundle's arrays reach the compiled
@@ -96,7 +96,7 @@ class EntryPoint:
     calls them with; they are compiled (or loaded from disk) first, on their own. Why: numba
     links a copy of every callee into the caller's machine code, optimised a second time with
     it, and that copy ran RGE-A slower than the callee compiled on its own
-    (``benchmarks/entry_copies.py``; docs/design.md, "Performance notes"). A caller compiled
+    (``benchmarks/entry_copies.py``; docs/notes/2026-11-kernels-speed.md). A caller compiled
     afresh calls the callees' own code, which numba compiled first and the JIT linker prefers to
     the copies; one loaded from numba's disk cache calls its copies unless the callees' own code
     is loaded before it. Declared types that differed from the entry's would load callee code the
@@ -127,21 +127,21 @@ class EntryPoint:
 
 
 # The lean entries (redysim.algorithms._kernels.lean, behind redysim.evaluator) keep the GIL:
-# releasing and taking it back costs a few percent of a small system's call (docs/design.md,
-# "Performance notes"), and held, it serialises the calls of several threads on one evaluator's
-# scratch.
+# releasing and taking it back costs a measurable part of a small system's call
+# (docs/notes/2026-11-evaluator-and-ladder.md), and held, it serialises the calls of several
+# threads on one evaluator's scratch.
 LEAN_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, nogil=False)
 
 
 def unchecked_call(dispatcher):
-    """The compiled wrapper of ``dispatcher``'s one signature, called without numba's dispatch:
-    no typing of the arguments (a cost per array that matters for small systems: docs/design.md,
-    "Performance notes"), and no check that they match the signature beyond each array being an
-    ndarray of the signature's item size: the caller must pass arrays of the declared dtype and
-    dimension (a 2-D array where a 1-D one is declared is unboxed past the end of its slot),
-    unless the signature declares types whose unboxing checks them (the lean entries' vectors:
-    ``redysim.algorithms._kernels.lean.CheckedVector``). None with ``NUMBA_DISABLE_JIT`` (the
-    kernel is then a plain function) or for a dispatcher without exactly one compiled
+    """The compiled wrapper of ``dispatcher``'s one signature, called without numba's dispatch: no
+    typing of the arguments (a cost per array that matters for small systems:
+    docs/notes/2026-11-evaluator-and-ladder.md), and no check that they match the signature beyond
+    each array being an ndarray of the signature's item size: the caller must pass arrays of the
+    declared dtype and dimension (a 2-D array where a 1-D one is declared is unboxed past the end
+    of its slot), unless the signature declares types whose unboxing checks them (the lean entries'
+    vectors: ``redysim.algorithms._kernels.lean.CheckedVector``). None with ``NUMBA_DISABLE_JIT``
+    (the kernel is then a plain function) or for a dispatcher without exactly one compiled
     signature."""
     overloads = getattr(dispatcher, "overloads", None)
     if not overloads or len(overloads) != 1:

@@ -75,10 +75,9 @@ depend on it. ``sim_counts``: the steps, no rejections, one forward dynamics a s
 ``manifest``: the time step, the deactivation, the collision detector, the LCP solvers, split
 impulse and the threads.
 
-Limit: building the skeleton costs ~n^3 in time (54 s at 2,000 DOF; docs/design.md, "Reference
-engines"), so time, not memory, stops it (references/limits.toml). ``limits`` refuses a
-massless body (no massless BodyNodes, above) and a joint no DART joint composes (none of the
-core's joint types).
+Limit: building the skeleton costs ~n^3 in time (docs/notes/2026-11-reference-engines.md), so time,
+not memory, stops it (references/limits.toml). ``limits`` refuses a massless body (no massless
+BodyNodes, above) and a joint no DART joint composes (none of the core's joint types).
 """
 
 from __future__ import annotations

@@ -50,10 +50,10 @@ Stages, on ONE double-valued Context reused for every call (no AutoDiff plant, n
 ``qdd`` is the plant's ``generalized_acceleration`` output port evaluated on it: Drake's O(n)
 articulated-body forward dynamics of a continuous plant (what ``CalcTimeDerivatives`` and so its
 own integrators use), the joint force through a fixed value of the ``applied_generalized_force``
-input port. Measured on one state (2026-11-27, the VM): UR5 9.1 us, 20 DOF 23 us, 200 DOF 203 us
-a call of the port, against 10.5, 25, 211 us for ``EvalTimeDerivatives`` and 14.5, 32, 821 us
-for ``CalcMassMatrix`` + gravity - bias + a dense solve; the adapter's ``qdd`` adds ~1 us of
-checks and ~1.5 us to set tau. ``mass_matrix`` is ``CalcMassMatrix``; ``bias`` is
+input port: of the three ways to qdd (the port, ``EvalTimeDerivatives``, ``CalcMassMatrix`` +
+gravity - bias + a dense solve) the fastest at every size timed, the adapter's own checks and
+setting of tau small beside it (references/README.md, "Each engine's fastest honest
+configuration"). ``mass_matrix`` is ``CalcMassMatrix``; ``bias`` is
 ``CalcGravityGeneralizedForces - CalcBiasTerm`` (``redysim.phi``: the gravity forces minus
 C(q, v) v); ``energy`` is (``CalcKineticEnergy``, ``CalcPotentialEnergy``), whose zero is the
 core's (Drake's uniform-gravity potential is -sum m g . p_WBcm: no offset); ``position`` is

@@ -27,13 +27,13 @@ What the model contains and why (docs/design.md, "Reference engines"):
   parent = R p + o). For +x, +y, +z axes A is the identity and nothing is turned.
 - No markers, loads, connectors, contacts or graphics; visualisation off (``show=False``); no
   joint P/D control, force vectors or user functions (all empty/zero by default).
-- Solver settings: ``linearSolver.solverType = EigenDense`` (the default EXUdense was ~17x slower
-  and inaccurate at 1,000 links; docs/design.md, "Reference engines"); no solution file, no
+- Solver settings: ``linearSolver.solverType = EigenDense`` (the default EXUdense was slower
+  and inaccurate at 1,000 links; docs/notes/2026-11-reference-engines.md); no solution file, no
   sensors written, verbose off. Above 1,000 coordinates Exudyn prints, at every solve, a
   multi-line advice to consider a sparse solver: it does not apply here (a chain's kinematic tree
-  couples every joint, so its mass matrix is dense; EigenSparse measured 0.144 s per qdd at
-  1,200 DOF against EigenDense's 0.105 s, 2026-11-23), so that one message is dropped
-  (:func:`_without_sparse_advice`); anything else Exudyn prints passes through.
+  couples every joint, so its mass matrix is dense, and EigenSparse was the slower at 1,200 DOF:
+  references/README.md, "Each engine's fastest honest configuration"), so that one message is
+  dropped (:func:`_without_sparse_advice`); anything else Exudyn prints passes through.
 
 ``qdd`` uses Exudyn's own solver (Exudyn has no public qdd call): the state is written as the
 initial state, one ``ExplicitEuler`` step of 1e-12 s is taken with

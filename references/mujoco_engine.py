@@ -124,8 +124,8 @@ _INTEGRATORS = {
 
 # Pipeline stages the models here have nothing for (no contacts, constraints, actuators, sensors,
 # springs, dampers, friction loss, limits or equalities): disabled, so mj_forward skips their
-# bookkeeping. Measured (U chains, 2026-11-23): 367 -> 308 us a call at 200 DOF, 3.9 -> 3.5 us at
-# 20, the same qacc to the bit; at 2,000 DOF the dense factorisation of M is all there is.
+# bookkeeping, the same qacc to the bit (its time saved: references/README.md, "Each engine's
+# fastest honest configuration"); at 2,000 DOF the dense factorisation of M is all there is.
 _DISABLED = ("mjDSBL_CONTACT", "mjDSBL_CONSTRAINT", "mjDSBL_ACTUATION", "mjDSBL_SENSOR",
              "mjDSBL_SPRING", "mjDSBL_DAMPER", "mjDSBL_FRICTIONLOSS", "mjDSBL_LIMIT",
              "mjDSBL_EQUALITY", "mjDSBL_ISLAND", "mjDSBL_EULERDAMP")

@@ -101,7 +101,7 @@ def _joint_models(pin, axes, universal: str) -> list:
 
 def _upper_cholesky_solve(M, rhs):
     """M x = rhs by the upper Cholesky factor, which reads only M's upper triangle (SciPy's
-    linalg imported here, on first use: 0.12 s that ``redysim --help`` does not need)."""
+    linalg imported here, on first use: an import that ``redysim --help`` does not need)."""
     from scipy.linalg import cho_factor, cho_solve
 
     return cho_solve(cho_factor(M, lower=False), rhs)

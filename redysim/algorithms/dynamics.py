@@ -185,11 +185,11 @@ def _phi(model, ws, q, v, tau):
 
 
 # inverse_dynamics calls of at most this many DOF go to the evaluator's lean entry
-# (redysim.evaluator), which holds the GIL: its checked path spends ~14 us in Python (holding
-# the GIL) calling the passes, and up to ~500 DOF the lean entry holds it for less than that in
-# all (200 DOF: 6.3 us against 20.6; 1,000 DOF: 25.5 against 41.2, 14 of them held).
-# (forward_dynamics keeps its own entry: the lean one saved ~0.7 us a call on the UR5 but
-# doubled a fresh install's first call, 18.6 to 38.8 s of compiling; docs/design.md)
+# (redysim.evaluator), which holds the GIL: its checked path spends a fixed time in Python
+# (holding the GIL) calling the passes, and up to about this size the lean entry holds it for
+# less than that in all. (forward_dynamics keeps its own entry: the lean one saved a fraction of
+# a microsecond a call but doubled a fresh install's first compile. The figures:
+# docs/notes/2026-11-evaluator-and-ladder.md)
 LEAN_INVERSE_MAX_DOF = 500
 COUPLING_TOL = 1e-9  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f| (and for v, qdd)
 
@@ -246,7 +246,7 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
 
         ws, cp = _coupling_scratch(model)
         res = np.empty(model.n_v) if out is None else out
-        # writable arrays: a read-only one is another numba type (one compile more, ~7 s)
+        # writable arrays: a read-only one is another numba type (one compile more)
         a, b, t = (x if x.flags.writeable else x.copy()
                    for x in (q, v, ws.zeros if tau is None else tau))
         if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, cp, a, b, t, res) == 0.0:
@@ -396,18 +396,18 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     machine costs a batch no more than a few percent over ``threads=1`` (docs/design.md,
     "Threads under load"). Each row's bits do not depend on the threads. With ``simd`` (the
     default), a system in the spatial recursion (a chain, or any tree: robots, free joints) runs its
-    states 16 at a time in SIMD lanes (:mod:`redysim.algorithms._kernels.tiles`, ~2.5x the
-    throughput a core at 250 DOF, 3.4-3.9x on robots): row i then equals the single call to rounding
-    (measured within 4e-15 of max |qdd| on ropes, 1.4e-13 on random chains with GIM condition
-    numbers up to 5e5, 1.2e-14 on random trees), not bit for bit; ``simd=False`` gives the single
-    calls' bits. A batch's last rows, when they fill less than half a tile, systems over 10,000 DOF,
-    planar chains (their own kernel) and any batch with |q| > 1e5 run row by row.
+    states 16 at a time in SIMD lanes (:mod:`redysim.algorithms._kernels.tiles`, several states
+    in a single call's time on one core: docs/notes/2026-11-batches-and-tiles.md): row i then
+    equals the single call to rounding (``tests/test_tiles.py``), not bit for bit; ``simd=False``
+    gives the single calls' bits. A batch's last rows, when they fill less than half a tile,
+    systems over 10,000 DOF, planar chains (their own kernel) and any batch with |q| > 1e5 run row
+    by row.
 
     Fastest with contiguous float64 vectors and ``out`` (an integrator's loop), with or without
     ``ws`` (without, the model's own workspace for the calling thread: the same speed and bits):
     these go to the compiled entry point as they are, which checks their types and sizes
     itself. Anything else is checked and converted first: lists at once, other arrays (float32,
-    strided) after numba refuses their types, ~0.1 ms a call here.
+    strided) after numba refuses their types, a slower path.
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
     model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion, by Featherstone's
@@ -448,7 +448,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
         t = ws.zeros if tau is None else tau
         if type(q) is ndarray and type(v) is ndarray and type(t) is ndarray \
                 and type(qdd) is ndarray:
-            if q.ndim == 2:  # a batch (before the entry: its TypeError costs ~0.1 ms)
+            if q.ndim == 2:  # a batch (before the entry: its TypeError is slow)
                 return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd, use_dh)
             try:  # the hot path: no conversion, the entry checks the sizes
                 flag = entry(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch, qdd)
@@ -568,7 +568,7 @@ def _run_rows(Q, n: int, threads: int | None, ws: Workspace, kernel, out, *input
 TILE_MIN_ROWS = _tiles.LANES // 2  # a batch's last tile runs as a tile from this many rows
 TILE_MAX_Q = 1e5  # |q| up to which the tiles' cos and sin reduce angles to within 1 ulp
 TILE_MAX_DOF = 10_000  # beyond: rows (a thread's tile arrays are ~3.5 kB a DOF, 35 MB here;
-# and at 2,000 DOF the tiles were already bound by memory, 1.3x the rows)
+# and large tiles are bound by memory: docs/notes/2026-11-batches-and-tiles.md)
 
 
 def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:

@@ -24,7 +24,7 @@ process. With numba disabled (``NUMBA_DISABLE_JIT``), or where NumPy's structs a
 builtin reads them, the evaluator is the checked path.
 
 What a call costs, against the public function's and Pinocchio's: ``benchmarks/lean_call.py``
-(docs/design.md, "Performance notes").
+(docs/notes/2026-11-evaluator-and-ladder.md).
 """
 
 from __future__ import annotations

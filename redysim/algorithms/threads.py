@@ -59,10 +59,9 @@ from redysim.algorithms._kernels import spin as _spin
 from redysim.algorithms.workspace import ALIGN
 from redysim.errors import FieldError
 
-CHUNK_WORK = 8000  # DOF x states a chunk of a batch holds at most (~0.16 ms in SIMD tiles, ~0.35
-# ms row by row): a batch under it runs on the calling thread alone (benchmarks/busy_batch.py:
-# 2,000 and 4,000 cost 4-5 % and 2 % more than one thread per 64-state batch at 250 DOF, 8,000
-# under 1 %)
+CHUNK_WORK = 8000  # DOF x states a chunk of a batch holds at most: a batch under it runs on the
+# calling thread alone; smaller chunks cost a batch measurably more than one thread even with no
+# helper (benchmarks/busy_batch.py; docs/notes/2026-11-27-threads-under-load.md)
 THREADS_VARIABLE = "REDYSIM_THREADS"  # when set, the default thread count (pool workers: 1)
 LATE = 1.5  # a helper's chunk is late after LATE x the caller's time for it (+ LATE_S): two
 LATE_S = 20e-6  # threads share the caches, and the OS's timers are coarse
@@ -86,7 +85,7 @@ def default_threads() -> int:
                              "must be a whole number >= 1 (threads of a batch)")
         return count
     now = time.monotonic()
-    if now - _CORES[0] > 1.0:  # (looked at once a second: ~1 us a look)
+    if now - _CORES[0] > 1.0:  # (looked at once a second, not at every batch)
         try:
             _CORES[:] = now, len(os.sched_getaffinity(0))
         except AttributeError:  # not on Linux

@@ -200,7 +200,7 @@ class Workspace:
         f = self.kernel_f
         self.zeros = f[header[SLOT["zeros"]]:header[SLOT["zeros"]] + n]  # (n,) of zeros
         # the same, read-only: a pass that the forward-dynamics entry also calls, given it, runs
-        # the entry's compiled code (read-only is another numba type: another compile, ~7 s)
+        # the entry's compiled code (read-only is another numba type: another compile)
         self.zeros_ro = self.zeros.view()
         self.zeros_ro.flags.writeable = False
         self.zeros6 = np.zeros((nb, 6))
@@ -243,8 +243,8 @@ class Workspace:
         if self._tiles is None or self._tiles.shape[0] < count:
             # on a 64-byte boundary (each row then too: its segments are whole multiples of
             # ALIGN items): numpy's allocation is aligned to 16 bytes only, and a buffer 16, 32
-            # or 48 bytes past a boundary made the tiles 1.07-1.35x slower (docs/design.md,
-            # "Performance notes")
+            # or 48 bytes past a boundary made the tiles slower
+            # (docs/notes/2026-11-batches-and-tiles.md)
             items = count * self._tile_items
             self._tiles_raw = np.zeros(items + ALIGN)
             start = (-self._tiles_raw.ctypes.data // 8) % ALIGN

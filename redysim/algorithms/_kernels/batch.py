@@ -52,8 +52,8 @@ def forward_rows(fdata, idata, Q, QD, TAU, scratch, QDD, first, last):
 @jit_borrowed
 def planar_rows(fdata, idata, Q, QD, TAU, scratch, QDD, first, last):
     """:func:`forward_rows` by the planar kernel (a planar chain). A function of its own rather
-    than a flag of :func:`forward_rows`: one function calling both kernels compiled both, ~20 s
-    on first use, and a factory of the two would give numba's disk cache two functions of one
+    than a flag of :func:`forward_rows`: one function calling both kernels compiled both on
+    first use, and a factory of the two would give numba's disk cache two functions of one
     name."""
     every = TAU.shape[0] > 1
     for i in range(first, last):

@@ -15,9 +15,9 @@ arguments (vectorcall): the
 public function's conversions, errors and bits.
 
 Why: with a Python function between the call and the compiled wrapper (numba's, which takes
-fixed positional arguments and ignores keywords), the UR5's call spent ~0.2 us of its ~0.95 us
-around a kernel of ~0.47 us: the Python frame (~0.06 us), ``np.empty`` from Python (~0.11 us)
-and seven arrays unboxed by numba's adaptor (docs/design.md, "Performance notes").
+fixed positional arguments and ignores keywords), a small system's call spent much of its time
+around the kernel: the Python frame, ``np.empty`` called from Python and seven arrays unboxed by
+numba's adaptor (docs/notes/2026-11-evaluator-and-ladder.md).
 
 What it relies on, checked at import (:func:`_binding_ok`; without it the evaluator is the
 checked path): NumPy's C-API table (the ``_ARRAY_API`` capsule, through which every extension

@@ -270,7 +270,7 @@ def _view(f: Field, shaper: str | None = None) -> str:
 def slicer_source(name: str, bundles: tuple[str, ...], shaper: str | None = None) -> str:
     """The Python source of ``name(...)``: the named bundles (one, or a tuple of them) as views
     of a workspace's packed arrays, every segment sliced out inline (a helper taking the slot, a
-    literal int, was compiled once per slot: 3 s of the cold compile). Its arguments are the
+    literal int, was compiled once per slot, lengthening the cold compile). Its arguments are the
     packed arrays the bundles' fields are in and the int array ``idata``, whose header holds the
     sizes and offsets, in :data:`PACKED`'s order (``bundles(fdata, idata, scratch)``,
     ``tiles_of(idata, buf)``); ``shaper`` as for :func:`_view`."""

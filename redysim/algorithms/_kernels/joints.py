@@ -64,9 +64,10 @@ def _sincos_compiled(x):
     """Compiled (cos x, sin x): for |x| <= pi/4 (every joint angle of a gently bent chain)
     fdlibm's kernels inline, without a call to libm; else libm's cos and sin.
 
-    Why: two libm calls per axis were half of the kinematics pass, each call also spilling the
-    pass's running scalars (docs/design.md, "Performance notes"). The polynomials are libm's own
-    (fdlibm, error < 1 ulp); ``tests/test_identities.py`` checks them against ``math`` to 1 ulp.
+    Why: two libm calls per axis were a large part of the kinematics pass, each call also spilling
+    the pass's running scalars (docs/notes/2026-11-kernels-speed.md). The polynomials are libm's
+    own (fdlibm, error < 1 ulp); ``tests/test_identities.py`` checks them against ``math`` to 1
+    ulp.
     """
     def impl(x):
         if abs(x) <= PI_4:

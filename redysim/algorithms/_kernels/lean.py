@@ -84,18 +84,17 @@ def c_view(typingctx, segment, shape):
 # ---- Vectors that check themselves: q, v, tau (or qdd) and out
 #
 # The evaluator calls an entry's compiled wrapper directly (redysim._jit.unchecked_call: numba's
-# dispatch types every argument, ~20-40 ns an array). That wrapper unboxes a declared 1-D float64
+# dispatch types every argument, at a cost per array). That wrapper unboxes a declared 1-D float64
 # array from any ndarray of 8-byte items: numba's adaptor copies one shape and one stride per
 # dimension into a slot made for one (a 2-D array writes past it), and an int64 array passes as
 # float64. The four vectors are declared as a CheckedVector instead, whose unboxing (below, in
-# compiled code) refuses, with a TypeError, anything but an ndarray (or subclass) of one
-# dimension of aligned native float64, and a read-only one where the entry writes: the checks
-# that took six attribute reads in Python (~0.15 us of the UR5's ~1 us call). It reads the
-# array's fields at their offsets in NumPy's C structs (PyArrayObject_fields and PyArray_Descr of
-# numpy/ndarraytypes.h, unchanged since NumPy 1.7 for the array and in NumPy 2 for the
-# descriptor's fields read here); NUMPY_LAYOUT_OK checks them against NumPy's own answers at
-# import, and without it the entries are never called (the evaluator and inverse_dynamics take
-# their checked paths).
+# compiled code) refuses, with a TypeError, anything but an ndarray (or subclass) of one dimension
+# of aligned native float64, and a read-only one where the entry writes: the checks that took six
+# attribute reads in Python, a part of a small system's call worth saving. It reads the array's
+# fields at their offsets in NumPy's C structs (PyArrayObject_fields and PyArray_Descr of
+# numpy/ndarraytypes.h, unchanged since NumPy 1.7 for the array and in NumPy 2 for the descriptor's
+# fields read here); NUMPY_LAYOUT_OK checks them against NumPy's own answers at import, and without
+# it the entries are never called (the evaluator and inverse_dynamics take their checked paths).
 ND_OFFSET, DESCR_OFFSET, FLAGS_OFFSET = 24, 56, 64  # in the array: int nd, descr*, int flags
 BYTEORDER_OFFSET, TYPE_NUM_OFFSET = 26, 28  # in the descriptor: char byteorder, int type_num
 NPY_DOUBLE, NPY_ARRAY_ALIGNED, NPY_ARRAY_WRITEABLE = 12, 0x0100, 0x0400

@@ -35,17 +35,17 @@ Implementation notes:
   independent divisions. The factors are the axis-by-axis ones (the same formulas, rearranged),
   and the update is still two symmetric rank-1 updates of the upper triangles. Axis by axis,
   the pass waits for a column product, a dot product, a division and a rank-1 update per axis;
-  this cut its time by 15-16 % at 2,000-100,000 DOF (docs/design.md, "Performance notes").
+  the block shortens that chain, and the pass's time with it (docs/notes/2026-11-kernels-speed.md).
 - Exact symmetry. The articulated mass is carried as its blocks [[X, Y], [Y^T, Z]] with X and Z
   symmetric (6 + 9 + 6 numbers); only those numbers are ever computed, so Mhat_k is exactly
   symmetric by construction. A literal 6 x 6 transcription lets rounding make Mhat_k slightly
-  asymmetric, the recursion amplifies it, and all accuracy is gone by ~100 U-links
-  (docs/design.md, "The algorithm"; stock Pinocchio ABA fails the same way on such chains).
+  asymmetric, the recursion amplifies it, and on long U chains all accuracy is gone
+  (docs/notes/2026-11-algorithm-errors.md; stock Pinocchio ABA fails the same way on such chains).
 - Gravity and the velocity terms never enter phi. Table A.1 as printed solves I qdd = phi with
   phi = tau - (C qd + gravity terms) (Eq. 12); on a long chain phi_k holds the gravity and
   centripetal moments of every link outboard of joint k (~(n - k)^2 m g l) while phihat_k is of
   order m g l, so phihat_k = phi_k - P_k^T eta cancels ~2 log10(n) digits and the true error grows
-  ~n^2 eps (docs/design.md, "The algorithm", gives the measured errors against a 50-digit
+  ~n^2 eps (docs/notes/2026-11-algorithm-errors.md gives the measured errors against a 50-digit
   reference). Here, as in the articulated-body algorithm, gravity is the base's twist-rate [0; -g]
   that the forward pass carries up the chain, and the velocity terms enter as each link's local
   twist-rate c_k (kinematics with ``local_rates``) and its velocity-product wrench, accumulated in

@@ -5,8 +5,8 @@ states the last, contiguous axis, and every step of the passes a branch-free loo
 states with a constant trip count, which LLVM turns into vector instructions (4 doubles a ymm
 register here). The single-state kernels (:mod:`.rge_a`, :mod:`.kinematics`) keep a body's
 running values in registers and run one state at a time; here the same values live in a small
-tile array (``run``, ``car``, ``mu``) between steps. Measured (docs/design.md, "Performance
-notes"): ~2.5x the single-state kernel per state at 250 DOF, on one core.
+tile array (``run``, ``car``, ``mu``) between steps, and a state on one core takes a fraction of
+a single call's time (measured: docs/notes/2026-11-batches-and-tiles.md).
 
 What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set_option("",
 "--pass-remarks-missed=loop-vectorize")``):
@@ -18,7 +18,7 @@ What it takes to vectorise, each found by LLVM's remarks (``llvmlite.binding.set
   and sin by Cody-Waite reduction and fdlibm's polynomials with the quadrant applied by
   arithmetic;
 - the tile kernels' arrays declared not to overlap (``_jit.jit_tiles``): without it LLVM adds run-
-  time overlap checks for ~15 arrays and the backward pass ran 2.2x slower.
+  time overlap checks for the arrays, and the backward pass ran far slower behind them.
 
 The steps inside the loops over states are the single-state kernels' own, called once per state:
 :func:`.joints.axis_transform` and :func:`.joints.axis_rates` (the joint's column, frame and
@@ -27,14 +27,14 @@ storing of a state's values from and to the tile arrays is this module's. A join
 enters through them (:func:`.joints.joint_inertia`).
 
 The kernels take named bundles (:mod:`.bundles`): the system's :class:`.bundles.Tree` and one
-thread's :class:`.bundles.Tiles`, the tile arrays, declared in the layout table beside the
-others (flat, their shapes in nb, nv and LANES); each kernel reads the fields it needs into
-locals at its top. :func:`forward_tiles` slices both bundles out of a workspace's packed arrays
-and its thread's row of the tile buffer, in compiled code (:data:`tile_bundles`, generated from
-the table; a bundle passed from Python costs numba's dispatch ~2 us a call). numba hands a
-bundle's arrays to a compiled function as separate pointer arguments, each declared noalias as
-the positional arrays were: LLVM vectorises the same loops into the same packed instructions, and
-a batch runs as fast (docs/design.md, "Performance notes"; ``benchmarks/ab_tiles.py``).
+thread's :class:`.bundles.Tiles`, the tile arrays, declared in the layout table beside the others
+(flat, their shapes in nb, nv and LANES); each kernel reads the fields it needs into locals at its
+top. :func:`forward_tiles` slices both bundles out of a workspace's packed arrays and its thread's
+row of the tile buffer, in compiled code (:data:`tile_bundles`, generated from the table; a bundle
+passed from Python costs numba's dispatch more than the packed arrays do). numba hands a bundle's
+arrays to a compiled function as separate pointer arguments, each declared noalias as the
+positional arrays were: LLVM vectorises the same loops into the same packed instructions, and a
+batch runs as fast (docs/notes/2026-11-batches-and-tiles.md; ``benchmarks/ab_tiles.py``).
 
 Scope: any spatial tree, in two sets of passes. A serial chain (``Tree.serial``) of revolute
 and prismatic axes (R, P, U, S as three R axes) runs :func:`forward_tiles`, whose passes carry
