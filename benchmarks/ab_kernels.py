@@ -119,15 +119,15 @@ def base_kernels(rev: str, into: Path):
             importlib.import_module("ab_base.workspace").Workspace if has_entry else Workspace)
 
 
-def calls(rge_a, kin, entry, workspace, chain: Chain, q, qd) -> tuple[list, np.ndarray]:
+def calls(rge_a, kin, entry, workspace, model: Chain, q, qd) -> tuple[list, np.ndarray]:
     """The timed calls (entry, whole, kinematics, backward, forward) and the qdd they write.
 
     entry: forward dynamics' compiled entry point, as ``forward_dynamics`` calls it (None for a
     revision without one: not timed); whole: ``rge_a_forward_dynamics``, the three passes by
     their arrays (a revision with named bundles: by its workspace's ``tree`` and ``s``; before
     them: by 23 positional arrays)."""
-    ws = workspace(chain)
-    out = np.empty(chain.n_dof)
+    ws = workspace(model)
+    out = np.empty(model.n_dof)
     if hasattr(ws, "tree"):  # the kernels take named bundles
         tree, s = ws.tree, ws.s
         whole = (tree, q, qd, ws.zeros, ws.base_accel, ws.zeros, s, out)

@@ -44,20 +44,20 @@ def rope(dof: int) -> Chain:
                          radius=0.05, inertia="rod", name=f"U{dof // 2}")
 
 
-def variants(chain, Q, QD, chunks: list[int] | None) -> dict:
+def variants(model, Q, QD, chunks: list[int] | None) -> dict:
     """name -> call. With ``chunks`` (values of redysim.algorithms.threads.CHUNK_WORK), the
     default-thread batches once per chunk size, side by side."""
     out = np.empty_like(Q)
 
     def singles():
         for i in range(Q.shape[0]):
-            forward_dynamics(chain, Q[i], QD[i], out=out[i])
+            forward_dynamics(model, Q[i], QD[i], out=out[i])
 
     def chunked(work, **kw):
         def call():
             if work is not None:
                 redysim.algorithms.threads.CHUNK_WORK = work
-            forward_dynamics(chain, Q, QD, out=out, **kw)
+            forward_dynamics(model, Q, QD, out=out, **kw)
         return call
 
     calls = {}

@@ -187,9 +187,9 @@ def make_chain(kind, nl):
     return Chain.uniform(nl, kind, length=1.0 / nl, linear_density=61.65, radius=0.05)
 
 
-def make_state(chain):
+def make_state(model):
     rng = np.random.default_rng(1)
-    n = chain.n_dof
+    n = model.n_dof
     return 0.1 * rng.standard_normal(n), rng.standard_normal(n)
 
 

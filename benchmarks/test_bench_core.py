@@ -28,9 +28,9 @@ def u_chain(dof):
                          radius=0.05, inertia="rod", name=f"U{dof // 2}")
 
 
-def state(chain, seed=0):
+def state(model, seed=0):
     rng = np.random.default_rng(seed)
-    return rng.uniform(-0.3, 0.3, chain.n_dof), rng.normal(size=chain.n_dof)
+    return rng.uniform(-0.3, 0.3, model.n_dof), rng.normal(size=model.n_dof)
 
 
 @pytest.mark.parametrize("dof", U_DOF)

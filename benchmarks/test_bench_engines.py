@@ -48,9 +48,9 @@ def chain_of(dof: int) -> redysim.Chain:
     return _CHAINS[dof]
 
 
-def state(chain):
+def state(model):
     rng = np.random.default_rng(0)
-    return rng.uniform(-0.1, 0.1, chain.n_dof), rng.uniform(-0.1, 0.1, chain.n_dof)
+    return rng.uniform(-0.1, 0.1, model.n_dof), rng.uniform(-0.1, 0.1, model.n_dof)
 
 
 def machine() -> dict:

@@ -112,9 +112,9 @@ def make_chain(kind: str, n_links: int):
                          inertia=p["inertia"], name=f"{kind}{n_links}")
 
 
-def make_state(chain, kind: str, n_links: int, config: str):
+def make_state(model, kind: str, n_links: int, config: str):
     """(q, v) of a configuration (module docstring); seeded by chain kind and size."""
-    n = chain.n_dof
+    n = model.n_dof
     if config == "stretched":
         q = np.zeros(n)
         v = np.zeros(n)
@@ -127,16 +127,16 @@ def make_state(chain, kind: str, n_links: int, config: str):
     raise ValueError(f"config {config!r}: one of {CONFIGS}")
 
 
-def zero_gravity(chain):
+def zero_gravity(model):
     g = np.zeros(3)
     g.flags.writeable = False
-    return dataclasses.replace(chain, gravity=g)
+    return dataclasses.replace(model, gravity=g)
 
 
 # --------------------------------------------------------------------------- conditioning
-def cond_svd(chain, q) -> float:
+def cond_svd(model, q) -> float:
     from redysim import mass_matrix
-    return float(np.linalg.cond(mass_matrix(chain, q)))
+    return float(np.linalg.cond(mass_matrix(model, q)))
 
 
 def lanczos_max(matvec, n: int, *, steps: int = 120, seed: int = 1,
@@ -177,16 +177,16 @@ def lanczos_max(matvec, n: int, *, steps: int = 120, seed: int = 1,
     return tops[-1], len(tops), change
 
 
-def cond_lanczos(chain, q) -> dict:
+def cond_lanczos(model, q) -> dict:
     """lambda_max(I) and lambda_min(I) = 1 / lambda_max(I^-1) by Lanczos on O(n) operators (I v:
     inverse dynamics; I^-1 v: RGE-A; both with v = 0 and gravity off). Both Ritz values are
     lower bounds, so cond2_lanczos slightly underestimates cond2 (by < 1e-3 where the SVD is
     reliable); the relative changes over the last 5 steps are returned as lanczos_change_*."""
     from redysim import Workspace, forward_dynamics, inverse_dynamics, mass_matrix
-    c0 = zero_gravity(chain)
+    c0 = zero_gravity(model)
     n = c0.n_dof
     if n <= 2:
-        ev = np.linalg.eigvalsh(mass_matrix(chain, q))
+        ev = np.linalg.eigvalsh(mass_matrix(model, q))
         return dict(lambda_max=float(ev[-1]), lambda_min=float(ev[0]),
                     cond2_lanczos=float(ev[-1] / ev[0]), cond_method="eigvalsh")
     ws = Workspace(c0)
@@ -217,7 +217,7 @@ class RefStore:
         stem = self.dir / f"{kind}{n_links}-{config}-dps{self.dps}"
         return stem.with_suffix(".npz"), stem.with_suffix(".json")
 
-    def get(self, kind, n_links, config, chain, q, v) -> tuple[np.ndarray, dict]:
+    def get(self, kind, n_links, config, model, q, v) -> tuple[np.ndarray, dict]:
         from . import hiprec
         from .store import read_json, write_json_atomic, write_npz_atomic
         npz, meta_path = self._paths(kind, n_links, config)
@@ -227,16 +227,16 @@ class RefStore:
                 ref = f["qdd_dd"]
         else:
             log(f"reference {kind}{n_links} {config}: mpmath dps={self.dps} "
-                f"({chain.n_dof:,} DOF) ...")
+                f"({model.n_dof:,} DOF) ...")
             t0 = time.perf_counter()
-            mp_ref = hiprec.qdd_reference(chain, q, v, dps=self.dps, output="mpf")
+            mp_ref = hiprec.qdd_reference(model, q, v, dps=self.dps, output="mpf")
             meta["ref_s"] = time.perf_counter() - t0
             meta["ref_s_per_link"] = meta["ref_s"] / n_links
             meta["dps"] = self.dps
             ref = hiprec.to_double_double(mp_ref)
             if n_links <= self.check_max_links and self.check_dps:
                 import mpmath
-                hi = hiprec.qdd_reference(chain, q, v, dps=self.check_dps, output="mpf")
+                hi = hiprec.qdd_reference(model, q, v, dps=self.check_dps, output="mpf")
                 with mpmath.workdps(self.check_dps):
                     diff = max(abs(a - b) for a, b in zip(mp_ref, hi, strict=True))
                     scale = max(abs(b) for b in hi)
@@ -249,9 +249,9 @@ class RefStore:
                 f"{self.check_dps}: {meta.get('ref_check', float('nan')):.1e}")
         if meta.get("cond_method") not in (COND_METHOD, "eigvalsh"):
             t0 = time.perf_counter()
-            meta.update(cond_lanczos(chain, q))
-            if chain.n_dof <= self.max_svd_dof and "cond2" not in meta:
-                meta["cond2"] = cond_svd(chain, q)
+            meta.update(cond_lanczos(model, q))
+            if model.n_dof <= self.max_svd_dof and "cond2" not in meta:
+                meta["cond2"] = cond_svd(model, q)
             meta["cond_s"] = time.perf_counter() - t0
             write_json_atomic(meta, meta_path)
         return ref, meta
@@ -272,7 +272,7 @@ def _elimination32(name):
     return _NJIT32[name]
 
 
-def run_core(method: str, precision: str, chain, q, v) -> np.ndarray:
+def run_core(method: str, precision: str, model, q, v) -> np.ndarray:
     """qdd of a core method (module docstring) at a precision."""
     from redysim import forward_dynamics, mass_matrix, phi
 
@@ -281,43 +281,43 @@ def run_core(method: str, precision: str, chain, q, v) -> np.ndarray:
     f32 = precision == "float32"
     if method == "rge-a":
         if f32:
-            return hiprec.rge_a_qdd(chain, q, v, arith=hiprec.FLOAT32)
-        return forward_dynamics(chain, q, v, planar=False)
+            return hiprec.rge_a_qdd(model, q, v, arith=hiprec.FLOAT32)
+        return forward_dynamics(model, q, v, planar=False)
     if method == "rge-a-planar":
         if f32:
-            return hiprec.planar_qdd(chain, q, v, arith=hiprec.FLOAT32)
-        return forward_dynamics(chain, q, v, planar=True)
+            return hiprec.planar_qdd(model, q, v, arith=hiprec.FLOAT32)
+        return forward_dynamics(model, q, v, planar=True)
     if method in ("ge-n", "rge-n"):
         if not f32:
-            return forward_dynamics(chain, q, v, method=method)
-        A = mass_matrix(chain, q).astype(np.float32)
-        b = phi(chain, q, v).astype(np.float32)
-        x = np.empty(chain.n_dof, dtype=np.float32)
+            return forward_dynamics(model, q, v, method=method)
+        A = mass_matrix(model, q).astype(np.float32)
+        b = phi(model, q, v).astype(np.float32)
+        x = np.empty(model.n_dof, dtype=np.float32)
         _elimination32(method)(A, b, np.zeros_like(A), x)
         return x
     if method == "cholesky":
         import scipy.linalg
         dt = np.float32 if f32 else np.float64
-        A = mass_matrix(chain, q).astype(dt)
-        b = phi(chain, q, v).astype(dt)
+        A = mass_matrix(model, q).astype(dt)
+        b = phi(model, q, v).astype(dt)
         return scipy.linalg.cho_solve(scipy.linalg.cho_factor(A, check_finite=False), b,
                                       check_finite=False)
     if method == "rge-a-phi":
-        return rge_a_on_phi(chain, q, v)
+        return rge_a_on_phi(model, q, v)
     if method in ("literal-6x6", "literal-6x6-resym"):
-        return literal_rge_a(chain, q, v, dtype=np.float32 if f32 else np.float64,
+        return literal_rge_a(model, q, v, dtype=np.float32 if f32 else np.float64,
                              resymmetrise=method.endswith("resym"))
     raise ValueError(method)
 
 
-def rge_a_on_phi(chain, q, v) -> np.ndarray:
+def rge_a_on_phi(model, q, v) -> np.ndarray:
     """Table A.1 as printed (``rge-a-phi``, module docstring), float64, O(n): the core's compiled
     passes, taken from its door to the kernels (:mod:`redysim.algorithms.precision`)."""
     from redysim import Workspace, phi
     from redysim.algorithms.precision import kernel_pass
     kinematics = kernel_pass("kinematics")
     rge_a_backward, rge_a_forward = kernel_pass("rge-a-backward"), kernel_pass("rge-a-forward")
-    c, ws = chain, Workspace(chain)
+    c, ws = model, Workspace(model)
     ph = phi(c, q, v).copy()
     kinematics(ws.tree, q, ws.zeros, ws.zeros, ws.no_accel, ws.s)
     rge_a_backward(ws.tree, ws.table_a1, ph)
@@ -326,10 +326,10 @@ def rge_a_on_phi(chain, q, v) -> np.ndarray:
     return qdd
 
 
-def core_skip_reason(method: str, precision: str, chain, a) -> str:
+def core_skip_reason(method: str, precision: str, model, a) -> str:
     """Why a core cell is not run ('' to run it)."""
-    n, nl = chain.n_dof, chain.n_links
-    if method == "rge-a-planar" and not chain.is_planar:
+    n, nl = model.n_dof, model.n_links
+    if method == "rge-a-planar" and not model.is_planar:
         return "n/a"  # not a cell at all
     if precision == "float32" and method not in FLOAT32_METHODS:
         return "n/a"
@@ -393,19 +393,19 @@ def run_engine_job(name, kind, n_links, states, timeout_s, mem_gib) -> dict:
     return res
 
 
-def engine_precheck(name, chain) -> tuple[str, str]:
+def engine_precheck(name, model) -> tuple[str, str]:
     """('refused', reason) beyond the engine's limits; ('deferred', reason) when the machine has
     not the memory now; ('', '') to run."""
     from redysim import references
     cls = references.get(name)
     if not cls.available():
         return "refused", f"{name}: package {cls.package!r} not installed"
-    lim = cls.limits(chain)
+    lim = cls.limits(model)
     if not lim.ok:
         return "refused", lim.reason
     if name.startswith("pinocchio"):
         import psutil
-        need = 33 * chain.n_dof**3 * 1.2 + 0.5 * 2**30  # pin.Data's nv^3 tensors (limits.toml)
+        need = 33 * model.n_dof**3 * 1.2 + 0.5 * 2**30  # pin.Data's nv^3 tensors (limits.toml)
         avail = psutil.virtual_memory().available
         if avail < need + 2 * 2**30:
             return "deferred", (f"memory guard: pin.Data needs ~{need / 2**30:.1f} GiB, "
@@ -475,10 +475,10 @@ def cond_fields(meta: dict, precision: str = "") -> dict:
     return out
 
 
-def base_row(kind, chain, config, method, precision, meta) -> dict:
-    nl = chain.n_links
+def base_row(kind, model, config, method, precision, meta) -> dict:
+    nl = model.n_links
     return {
-        "chain": kind, "joint": CHAINS[kind]["joint"], "n_links": nl, "n_dof": chain.n_dof,
+        "chain": kind, "joint": CHAINS[kind]["joint"], "n_links": nl, "n_dof": model.n_dof,
         "config": config, "method": method, "precision": precision, "status": "", "reason": "",
         "rel2": float("nan"), "relmax": float("nan"), "n_nonfinite": 0, "time_s": float("nan"),
         **cond_fields(meta, precision), "cond_featherstone": 4.0 * nl**4,

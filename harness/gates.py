@@ -257,24 +257,24 @@ def _worse(new: float, old: float) -> bool:
     return math.isnan(new) or (not math.isnan(old) and new > old)
 
 
-def _engine_errors(chain, eng, stages, states) -> dict[str, tuple[float, str]]:
+def _engine_errors(model, eng, stages, states) -> dict[str, tuple[float, str]]:
     """{stage: (max relative difference to the core, the state where it was largest)}."""
     import redysim
 
     from .random_chains import random_state
 
     out = {}
-    drawn = [random_state(chain, kind, seed) for kind, seed in states]
+    drawn = [random_state(model, kind, seed) for kind, seed in states]
     if "qdd" in stages:  # the core's qdd of every state in one batch
-        qdd = redysim.forward_dynamics(chain, *(np.array(x) for x in zip(*drawn, strict=True)))
+        qdd = redysim.forward_dynamics(model, *(np.array(x) for x in zip(*drawn, strict=True)))
     for stage in stages:
         worst = (-1.0, "")
         for i, (kind, _seed) in enumerate(states):
             q, v, tau = drawn[i]
             if stage == "gim":
-                ref, got = redysim.mass_matrix(chain, q), eng.mass_matrix(q)
+                ref, got = redysim.mass_matrix(model, q), eng.mass_matrix(q)
             elif stage == "phi":
-                ref, got = redysim.phi(chain, q, v), eng.bias(q, v)
+                ref, got = redysim.phi(model, q, v), eng.bias(q, v)
             elif stage == "qdd":
                 ref, got = qdd[i], eng.qdd(q, v, tau)
             else:

@@ -138,7 +138,7 @@ def kernel_function(name: str, arith: Arithmetic) -> types.FunctionType:
 
 
 # --------------------------------------------------------------------------- chain and state
-def chain_arrays(chain: Model, arith: Arithmetic) -> dict[str, np.ndarray]:
+def chain_arrays(model: Model, arith: Arithmetic) -> dict[str, np.ndarray]:
     """The per-body arrays the kernels read, recomputed in ``arith`` from the model's doubles.
 
     mass: converted; inertia_O = I_C + m (|c|^2 1 - c c^T) and mass_com = m c computed in ``arith``
@@ -150,10 +150,10 @@ def chain_arrays(chain: Model, arith: Arithmetic) -> dict[str, np.ndarray]:
     model's placements are taken as they are, converted).
     """
     with arith.context():
-        m = arith.array(chain.mass)
-        c = arith.array(chain.com)
-        ic = arith.array(chain.inertia_com)
-        nl = chain.n_bodies
+        m = arith.array(model.mass)
+        c = arith.array(model.com)
+        ic = arith.array(model.inertia_com)
+        nl = model.n_bodies
         inertia_O = np.empty((nl, 3, 3), dtype=arith.dtype)
         mass_com = np.empty((nl, 3), dtype=arith.dtype)
         for k in range(nl):
@@ -164,20 +164,20 @@ def chain_arrays(chain: Model, arith: Arithmetic) -> dict[str, np.ndarray]:
                 for j in range(3):
                     par = (sq if i == j else 0.0) - ck[i] * ck[j]
                     inertia_O[k, i, j] = ic[k, i, j] + m[k] * par
-        dof_u = arith.array(chain.dof_u)
+        dof_u = arith.array(model.dof_u)
         if arith.dps:
             for j in range(dof_u.shape[0]):
                 u = dof_u[j]
                 norm = mpmath.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
                 dof_u[j] = [u[0] / norm, u[1] / norm, u[2] / norm]
         out = {"mass": m, "inertia_O": inertia_O, "mass_com": mass_com, "dof_u": dof_u}
-        if isinstance(chain, Chain):
-            out["length"] = arith.array(chain.length)
+        if isinstance(model, Chain):
+            out["length"] = arith.array(model.length)
         return out
 
 
-def _state(chain, arith, q, v, tau):
-    n = chain.n_dof
+def _state(model, arith, q, v, tau):
+    n = model.n_dof
     q = arith.array(np.asarray(q, dtype=float).reshape(n))
     v = arith.array(np.asarray(v, dtype=float).reshape(n))
     tau = arith.zeros(n) if tau is None else arith.array(np.asarray(tau, float).reshape(n))
@@ -185,13 +185,13 @@ def _state(chain, arith, q, v, tau):
 
 
 # --------------------------------------------------------------------------- kernels in arith
-def rge_a_qdd(chain: Model, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
+def rge_a_qdd(model: Model, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
     """qdd by the core's spatial RGE-A kernel (``rge_a_forward_dynamics``) run in ``arith``.
 
     Returns an array of ``arith``'s scalars (object array of mpf, or float32).
     """
     arith = arith or mpf_arithmetic()
-    c = chain
+    c = model
     n = c.n_dof
     fd = kernel_function("rge-a", arith)
     with arith.context():
@@ -202,17 +202,21 @@ def rge_a_qdd(chain: Model, q, v, tau=None, arith: Arithmetic | None = None) -> 
     return qdd
 
 
-def _bundles(chain: Model, arith: Arithmetic):
+def _bundles(model: Model, arith: Arithmetic):
     """The kernels' Tree and Scratch bundles in ``arith``, the tree's arrays from
     :func:`chain_arrays` (a chain's placements from its lengths, any other model's converted)."""
-    a = chain_arrays(chain, arith)
+    a = chain_arrays(model, arith)
     extra = {"along": np.concatenate((arith.zeros(1), a["length"][:-1]))} if "length" in a else {}
-    return bundles_in(chain, arith.array, arith.zeros, mass=a["mass"], inertia_O=a["inertia_O"],
+    return bundles_in(model, arith.array, arith.zeros, mass=a["mass"], inertia_O=a["inertia_O"],
                       mass_com=a["mass_com"], dof_u=a["dof_u"], **extra)
 
 
 def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) -> np.ndarray:
-    """qdd by the core's planar kernel (``planar_forward_dynamics``) run in ``arith``."""
+    """qdd by the core's planar kernel (``planar_forward_dynamics``) run in ``arith``.
+
+    ``chain``: a planar serial chain (:attr:`redysim.Model.is_planar`: a chain of links whose
+    joints each turn about z; ValueError for any other model), whose link lengths the kernel
+    reads."""
     if not chain.is_planar:
         raise ValueError(f"chain {chain.name!r} is not planar")
     arith = arith or mpf_arithmetic()
@@ -230,12 +234,12 @@ def planar_qdd(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None) ->
     return qdd
 
 
-def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = None):
+def kinematics_and_phi(model: Model, q, v, tau=None, arith: Arithmetic | None = None):
     """(oR, oO, oP, phi, arrays) from the core's kinematics and Newton-Euler kernels in ``arith``
     (qdd = 0, base at -g); ``arrays`` is :func:`chain_arrays`. For study kernels that need the
     same inputs as RGE-A in another arithmetic (``redysim.harness.nonsymmetric``)."""
     arith = arith or mpf_arithmetic()
-    c = chain
+    c = model
     n = c.n_dof
     kin = kernel_function("kinematics", arith)
     rnea = kernel_function("rnea-backward", arith)
@@ -251,11 +255,11 @@ def kinematics_and_phi(chain: Chain, q, v, tau=None, arith: Arithmetic | None = 
 
 
 # --------------------------------------------------------------------------- the reference
-def qdd_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS, *,
+def qdd_reference(model: Model, q, v, tau=None, dps: int = DEFAULT_DPS, *,
                   output: str = "float"):
     """The exact qdd of the double-precision input, to ~dps - 10 digits, in O(n).
 
-    chain, q, v, tau: as for :func:`redysim.forward_dynamics` (tau default zero); every double
+    model, q, v, tau: as for :func:`redysim.forward_dynamics` (tau default zero); every double
     is taken as exact. dps: mpmath's decimal digits (50: qdd good to ~40 digits even where
     cond2(GIM) ~ 1e20).
     output: ``"float"`` -> numpy float64 array (each value correctly rounded);
@@ -264,7 +268,7 @@ def qdd_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS, *,
             double-double: what the error study caches on disk, see :func:`to_double_double`).
     """
     arith = mpf_arithmetic(dps)
-    qdd = rge_a_qdd(chain, q, v, tau, arith)
+    qdd = rge_a_qdd(model, q, v, tau, arith)
     if output == "mpf":
         return list(qdd)
     if output == "float":
@@ -402,6 +406,7 @@ def newton_euler_mp(chain: Model, q, v, qdd, *, gravity: bool = True) -> list:
 def dense_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS) -> list:
     """qdd by an independent dense solve in mpmath (O(n^3), for small chains: tests only).
 
+    ``chain``: a serial chain, revolute axes only (as :func:`newton_euler_mp` takes it).
     GIM column i = newton_euler_mp(q, 0, e_i, no gravity); phi = tau - newton_euler_mp(q, v, 0);
     qdd = mpmath.lu_solve(GIM, phi). Returns a list of mpf.
     """
@@ -416,7 +421,8 @@ def dense_reference(chain: Model, q, v, tau=None, dps: int = DEFAULT_DPS) -> lis
 
 
 def dense_gim_mp(chain: Model, q, dps: int = DEFAULT_DPS) -> mpmath.matrix:
-    """The GIM in mpmath by the independent Newton-Euler (column i = I e_i); small chains."""
+    """The GIM in mpmath by the independent Newton-Euler (column i = I e_i); small serial
+    chains, revolute axes only (as :func:`newton_euler_mp` takes them)."""
     n = chain.n_dof
     with mpmath.workdps(dps):
         zeros = np.zeros(n)

@@ -72,6 +72,7 @@ def literal_rge_a(chain: Chain, q, v, tau=None, *, dtype=np.float64,
                   resymmetrise: bool = False, return_asymmetry: bool = False):
     """qdd by the literal, non-symmetric 6 x 6 transcription of Table A.1 (module docstring).
 
+    chain: a serial chain (body k on body k - 1: each body's terms are shifted to the next one's).
     dtype: numpy.float64 or numpy.float32 (all arithmetic, kinematics and phi included).
     resymmetrise: replace Mhat_k by its symmetric part at every step (the control).
     return_asymmetry: also return max_k ||Mhat_k - Mhat_k^T||_max / ||Mhat_k||_max.

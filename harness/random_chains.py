@@ -128,7 +128,7 @@ def engine_test_chain(joint: str, n_links: int) -> redysim.Chain:
     return random_chain(joint, n_links, seed=n_links + 1000 * FAMILIES.index(joint))
 
 
-def random_state(chain: redysim.Chain, kind: str, seed: int):
+def random_state(model: redysim.Model, kind: str, seed: int):
     """(q, v, tau): ``spread`` draws q uniformly in (-pi, pi); ``straight`` within 1e-3 rad of
     the straight chain (q = 0), where U joints are far from their singular configuration
     but the chain is at its stiffest conditioning. (For a prismatic axis q is a displacement in
@@ -136,7 +136,7 @@ def random_state(chain: redysim.Chain, kind: str, seed: int):
     if kind not in STATE_KINDS:
         raise ValueError(f"kind = {kind!r}: choose one of {', '.join(STATE_KINDS)}")
     rng = np.random.default_rng(seed)
-    n = chain.n_dof
+    n = model.n_dof
     if kind == "spread":
         q = rng.uniform(-np.pi, np.pi, n)
     else:

@@ -204,14 +204,14 @@ class Sample(NamedTuple):
     ws: Workspace
 
 
-def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = False):
+def frame_observer(model: Model, frame: str = "tip", *, acceleration: bool = False):
     """An observer for :class:`Simulator`: a frame's world position and velocity at each sample
     (and, with ``acceleration``, its acceleration from the run's own qdd), as one row
     [px, py, pz, vx, vy, vz(, ax, ay, az)]. ``frame``: as :func:`redysim.frame_motion`."""
     from redysim.algorithms.dynamics import frame_motion
 
     def observe(s: Sample):
-        m = frame_motion(system, s.q, s.v, s.accel() if acceleration else None, frame=frame,
+        m = frame_motion(model, s.q, s.v, s.accel() if acceleration else None, frame=frame,
                          ws=s.ws)
         return np.concatenate((m.position, m.velocity, *(() if m.acceleration is None
                                                          else (m.acceleration,))))
@@ -219,13 +219,13 @@ def frame_observer(system: Model, frame: str = "tip", *, acceleration: bool = Fa
     return observe
 
 
-def momentum_observer(system: Model):
+def momentum_observer(model: Model):
     """An observer for :class:`Simulator`: the momentum (:func:`redysim.momentum`) at each
     sample as one row [p (3), h_G (3)]: linear, and angular about the centre of mass."""
     from redysim.algorithms.dynamics import momentum
 
     def observe(s: Sample):
-        mom = momentum(system, s.q, s.v, ws=s.ws)
+        mom = momentum(model, s.q, s.v, ws=s.ws)
         return np.concatenate((mom.linear, mom.angular))
 
     return observe

@@ -263,15 +263,15 @@ def import_engine(engine: str, package: str, module: str | None = None):
 
 
 # --------------------------------------------------------------------------- the door
-def as_model(system: Model | Case | Chain) -> Model:
-    """The Model an adapter builds: ``system`` itself (a :class:`redysim.Model`, a Chain
+def as_model(model: Model | Case | Chain) -> Model:
+    """The Model an adapter builds: ``model`` itself (a :class:`redysim.Model`, a Chain
     included), or a Case's chain. Raises TypeError for anything else."""
-    if isinstance(system, Case):
-        system = system.chain
-    if isinstance(system, Model):  # a Chain is one
-        return system
+    if isinstance(model, Case):
+        model = model.chain
+    if isinstance(model, Model):  # a Chain is one
+        return model
     raise TypeError(f"expected a redysim Model (a Chain is one), or a Case, got "
-                    f"{type(system).__name__}")
+                    f"{type(model).__name__}")
 
 
 # --------------------------------------------------------------------------- joints
@@ -342,11 +342,11 @@ class JointAxes(NamedTuple):
         return f"body {self.body!r}, joint {self.name!r} ({self.describe()})"
 
 
-def joint_axes(system: Model | Case | Chain) -> list[JointAxes]:
+def joint_axes(model: Model | Case | Chain) -> list[JointAxes]:
     """Per body, its joint (:class:`JointAxes`, module docstring) from the model's own per-DOF
     tables (a Case or Chain is converted by :func:`as_model`). Raises ValueError on a DOF kind
     the adapters do not model (outside a free joint)."""
-    model = as_model(system)
+    model = as_model(model)
     out = []
     for k, jtype in enumerate(model.joint_types):
         axes = []
@@ -513,9 +513,9 @@ class Engine(EnginePackage):
     holds_armature: ClassVar[str] = ""
     no_armature: ClassVar[str] = "no joint armature built in this adapter"
 
-    def __init__(self, system: Model | Case | Chain, *, check_limits: bool = True):
+    def __init__(self, model: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
-        self.model = as_model(system)
+        self.model = as_model(model)
         if check_limits:
             lim = self.limits(self.model)
             if not lim.ok:
@@ -540,12 +540,12 @@ class Engine(EnginePackage):
 
     # ----------------------------------------------------------------------- limits
     @classmethod
-    def limits(cls, system: Model | Case | Chain) -> Limits:
+    def limits(cls, model: Model | Case | Chain) -> Limits:
         """Can this engine take the model (a Case or Chain: its Model)? Decided before anything
         is built: its size against the measured limits in ``references/limits.toml``, then its
-        joints and bodies (:meth:`unsupported`). Raises TypeError for a ``system`` that is not a
+        joints and bodies (:meth:`unsupported`). Raises TypeError for a ``model`` that is not a
         Model, Case or Chain."""
-        model = as_model(system)
+        model = as_model(model)
         entry = load_limits()["engine"][cls.name]
         n = model.n_v
         links = tree_depth(model) if cls.depth_limited else model.n_bodies

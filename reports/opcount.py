@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from redysim import Chain, mass_matrix, phi
+from redysim import Chain, Model, mass_matrix, phi
 from redysim.algorithms.dh_form import dh_constants
 from redysim.algorithms.precision import kernel_source
 from redysim.algorithms.workspace import DH_SCRATCH, bundles_in, kernel_armature
@@ -172,14 +172,14 @@ def make_chain(kind: str, n_links: int) -> Chain:
     return Chain.uniform(n_links, p.pop("joint"), **p)
 
 
-def state(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
+def state(model: Model) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(SEED)
-    return rng.uniform(-0.3, 0.3, chain.n_dof), rng.uniform(-0.3, 0.3, chain.n_dof)
+    return rng.uniform(-0.3, 0.3, model.n_dof), rng.uniform(-0.3, 0.3, model.n_dof)
 
 
-def count_rge_a_spatial(chain: Chain) -> tuple[int, int]:
+def count_rge_a_spatial(model: Model) -> tuple[int, int]:
     """One ``rge_a_forward_dynamics`` call (tau = 0), the spatial kernels."""
-    c, n = chain, chain.n_dof
+    c, n = model, model.n_dof
     q, qd = state(c)
     fn = kernel_source("rge-a", Count)
     tree, s = bundles_in(c, counts, lambda shape: empty(*shape))
@@ -189,7 +189,8 @@ def count_rge_a_spatial(chain: Chain) -> tuple[int, int]:
 
 
 def count_rge_a_planar(chain: Chain) -> tuple[int, int]:
-    """One ``planar_forward_dynamics`` call (tau = 0)."""
+    """One ``planar_forward_dynamics`` call (tau = 0); ``chain``: a planar serial chain (the
+    kernel reads its link lengths)."""
     c, n = chain, chain.n_dof
     q, qd = state(c)
     fn = kernel_source("planar", Count)
@@ -200,11 +201,11 @@ def count_rge_a_planar(chain: Chain) -> tuple[int, int]:
     return tally(lambda: fn(*args))
 
 
-def count_ge_n(chain: Chain) -> tuple[int, int]:
-    """One ``ge_n`` elimination of the chain's GIM and phi (assembly not counted)."""
-    q, qd = state(chain)
-    A, b = counts(mass_matrix(chain, q)), counts(phi(chain, q, qd))
-    n = chain.n_dof
+def count_ge_n(model: Model) -> tuple[int, int]:
+    """One ``ge_n`` elimination of the model's GIM and phi (assembly not counted)."""
+    q, qd = state(model)
+    A, b = counts(mass_matrix(model, q)), counts(phi(model, q, qd))
+    n = model.n_dof
     fn = kernel_source("ge-n", Count)
     return tally(lambda: fn(A, b, empty(n, n), empty(n)))
 
@@ -287,13 +288,13 @@ def dh_robot(n: int, joints: str | None = None, right_angles: bool = False):
     return dh_model(links, convention="modified", name=f"DH{n}")
 
 
-def count_inverse_dynamics(system) -> tuple[int, int]:
+def count_inverse_dynamics(model) -> tuple[int, int]:
     """One inverse dynamics: the kinematics pass with qdd and Newton-Euler's backward pass."""
-    n = system.n_dof
-    q, qd = state(system)
+    n = model.n_dof
+    q, qd = state(model)
     kin, rnea = kernel_source("kinematics", Count), kernel_source("rnea-backward", Count)
-    tree, s = bundles_in(system, counts, lambda shape: empty(*shape))
-    g = counts(-np.asarray(system.gravity))
+    tree, s = bundles_in(model, counts, lambda shape: empty(*shape))
+    g = counts(-np.asarray(model.gravity))
 
     def run():
         kin(tree, counts(q), counts(qd), counts(qd), g, s)
@@ -303,12 +304,12 @@ def count_inverse_dynamics(system) -> tuple[int, int]:
 
 def count_dh(name: str):
     """A counter of the DH kernel ``name`` ("dh-forward" or "dh-inverse", tau or qdd zero)."""
-    def counter(system) -> tuple[int, int]:
-        n = system.n_dof
-        q, qd = state(system)
+    def counter(model) -> tuple[int, int]:
+        n = model.n_dof
+        q, qd = state(model)
         fn = kernel_source(name, Count)
-        args = (counts(dh_constants(system)), counts(q), counts(qd), empty(n),
-                counts(-np.asarray(system.gravity)), empty(n), empty(n, DH_SCRATCH))
+        args = (counts(dh_constants(model)), counts(q), counts(qd), empty(n),
+                counts(-np.asarray(model.gravity)), empty(n), empty(n, DH_SCRATCH))
         return tally(lambda: fn(*args))
     return counter
 

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 import psutil
 
-from redysim import Chain, Workspace, __version__, forward_dynamics, references
+from redysim import Chain, Model, Workspace, __version__, forward_dynamics, references
 from redysim.harness.provenance import provenance
 from redysim.harness.spec import CORE
 from redysim.harness.store import write_parquet_atomic
@@ -75,10 +75,10 @@ def make_chain(dof: int) -> Chain:
                          radius=RADIUS, inertia="rod", name=f"U{dof // 2}")
 
 
-def make_state(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
+def make_state(model: Model) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(SEED)
-    return (rng.uniform(-STATE_SPREAD, STATE_SPREAD, chain.n_dof),
-            rng.uniform(-STATE_SPREAD, STATE_SPREAD, chain.n_dof))
+    return (rng.uniform(-STATE_SPREAD, STATE_SPREAD, model.n_dof),
+            rng.uniform(-STATE_SPREAD, STATE_SPREAD, model.n_dof))
 
 
 def time_call(call) -> float:
@@ -117,12 +117,12 @@ def extrapolate(points: list[tuple[int, float]], dof: int) -> float:
 class _Core:
     """The core's qdd by one method."""
 
-    def __init__(self, method: str, chain: Chain):
-        self.method, self.chain, self.ws = method, chain, Workspace(chain)
+    def __init__(self, method: str, model: Model):
+        self.method, self.model, self.ws = method, model, Workspace(model)
         self.version = __version__
 
     def qdd(self, q, qd):
-        return forward_dynamics(self.chain, q, qd, method=self.method, ws=self.ws)
+        return forward_dynamics(self.model, q, qd, method=self.method, ws=self.ws)
 
 
 def algorithms() -> list[tuple[str, str]]:

@@ -227,7 +227,7 @@ def test_forward_dynamics_refuses_a_read_only_out(kind):
 
 # --------------------------------------------------------------------------- named, not deep
 @pytest.mark.parametrize("call, error, fragment", [
-    (lambda: Workspace(None), FieldError, "Workspace: chain = 'NoneType': must be a redysim."),
+    (lambda: Workspace(None), FieldError, "Workspace: model = 'NoneType': must be a redysim."),
     (lambda: Chain.uniform(2.5), CaseError, "n_links = 2.5: must be a whole number"),
     (lambda: Chain.uniform(0), CaseError, "n_links = 0: must be a whole number"),
     (lambda: forward_dynamics(Chain.uniform(2, mass=1.0), [0, 0], [0, 0], ws=object()),

@@ -125,7 +125,7 @@ def test_the_default_call_is_the_ws_call_bit_for_bit(system, monkeypatch):
             assert same_bits(call(), want[name]), name
     assert len(made) == 1
     assert model_workspace(s) is model_workspace(s) is not given
-    assert model_workspace(s).chain is s
+    assert model_workspace(s).model is s
 
 
 def _counting(made):
@@ -182,7 +182,7 @@ def test_a_thread_has_its_own_workspace_and_two_threads_get_their_single_results
         assert len(got[t]) == 60
         for rounds in got[t]:
             assert all(same_bits(a, b) for a, b in zip(rounds, want[t], strict=True))
-    assert seen[0] is not seen[1] and seen[0].chain is seen[1].chain is s
+    assert seen[0] is not seen[1] and seen[0].model is seen[1].model is s
     assert model_workspace(s) not in seen  # the test's own thread has a third
 
 
@@ -205,7 +205,7 @@ def test_the_workspaces_stay_out_of_the_models_data():
         assert other != s and s == s  # equality is identity, workspace or not
         assert np.array_equal(redysim.forward_dynamics(other, q, qd, x), qdd)
         assert model_workspace(other) is not model_workspace(s)
-        assert model_workspace(other).chain is other
+        assert model_workspace(other).model is other
 
 
 def test_a_model_and_its_workspaces_are_freed_together():
@@ -224,7 +224,7 @@ def test_a_model_and_its_workspaces_are_freed_together():
 @pytest.mark.parametrize("system", [None, "U10", object()])
 def test_something_that_is_not_a_model_is_named(system):
     """As when the default call built a workspace a call: FieldError naming the argument."""
-    with pytest.raises(FieldError, match=r"Workspace: chain = .*must be a redysim.Model"):
+    with pytest.raises(FieldError, match=r"Workspace: model = .*must be a redysim.Model"):
         redysim.forward_dynamics(system, [0.0, 0.0], [0.0, 0.0])
-    with pytest.raises(FieldError, match=r"Workspace: chain = .*must be a redysim.Model"):
+    with pytest.raises(FieldError, match=r"Workspace: model = .*must be a redysim.Model"):
         model_workspace(system)

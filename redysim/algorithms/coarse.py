@@ -133,20 +133,19 @@ class Coarsening:
         return qc, qdc
 
 
-def chain_of(system: Model, where: str = "coarsen") -> Model:
-    """``system`` when it is laid out as a chain of links (:attr:`Model.chain_layout`: every
+def chain_of(model: Model, where: str = "coarsen") -> Model:
+    """``model`` when it is laid out as a chain of links (:attr:`Model.chain_layout`: every
     :class:`~redysim.model.tree.Chain`, and a model read from a file that has a chain's layout),
-    else
-    CaseError naming what is not a chain's."""
-    if not isinstance(system, Model):
-        raise CaseError(where, "chain", type(system).__name__, "must be a redysim.Model (a "
+    else CaseError naming what is not a chain's (as ``where``'s argument ``chain``)."""
+    if not isinstance(model, Model):
+        raise CaseError(where, "chain", type(model).__name__, "must be a redysim.Model (a "
                         "Chain is one)")
-    if system.chain_layout is not None:
-        raise CaseError(f"{system.name}.{where}", "chain", system.name,
-                        f"not a chain of links: {system.chain_layout}; coarse-graining lumps "
+    if model.chain_layout is not None:
+        raise CaseError(f"{model.name}.{where}", "chain", model.name,
+                        f"not a chain of links: {model.chain_layout}; coarse-graining lumps "
                         "consecutive links of a serial chain whose links lie along their x "
                         "axes (a Chain); hold joints of any tree with Model.locked instead")
-    return system
+    return model
 
 
 def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,

@@ -149,10 +149,10 @@ def _ws(model: Model, ws: Workspace | None) -> Workspace:
             return model._thread_workspaces.ws
         except AttributeError:
             return model_workspace(model)
-    if getattr(ws, "chain", None) is not model:  # one attribute read on the hot path
+    if getattr(ws, "model", None) is not model:  # one attribute read on the hot path
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
-        raise FieldError("dynamics", "ws", repr(ws.chain), f"was made for another chain than "
+        raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another chain than "
                          f"{model!r}; make one with Workspace(model)")
     return ws
 

@@ -62,7 +62,9 @@ def _tip_position(chain: Model, q: np.ndarray, ws: Workspace | None
 def tip_force_torques(chain: Model, q, force, *, ws: Workspace | None = None) -> np.ndarray:
     """tau = J_tip(q)^T F (n,): the joint forces of a constant world-frame force ``force`` [N]
     acting at the chain's tip (module docstring). Pass it, plus any other joint forces, as the
-    ``tau`` of :func:`redysim.forward_dynamics`."""
+    ``tau`` of :func:`redysim.forward_dynamics`. ``chain``: a serial chain of links (a Chain, or
+    a Model with a chain's layout), the tip the distal end of its last link; FieldError for any
+    other model (a tree has no single tip)."""
     q, F = _inputs(chain, q, force, "tip_force_torques")
     p, ws = _tip_position(chain, q, ws)
     # each DOF's moment arm p - O_k, O_k its joint's origin: every revolute axis passes through
@@ -79,7 +81,8 @@ def tip_force_torques(chain: Model, q, force, *, ws: Workspace | None = None) ->
 
 def tip_force_potential(chain: Model, q, force, *, ws: Workspace | None = None) -> float:
     """-F . p_tip(q) [J]: the potential of a constant force at the tip, zero with the tip at the
-    origin, so that T + V + this is conserved (V from :func:`redysim.energy`)."""
+    origin, so that T + V + this is conserved (V from :func:`redysim.energy`). ``chain``: as
+    :func:`tip_force_torques` takes it (a serial chain of links)."""
     q, F = _inputs(chain, q, force, "tip_force_potential")
     p, _ = _tip_position(chain, q, ws)
     with np.errstate(over="ignore", invalid="ignore"):

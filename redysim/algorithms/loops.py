@@ -227,7 +227,7 @@ class ClosedLoops:
         """X = M^-1 J^T (n, m), each column by RGE-A with no gravity and no velocity."""
         from redysim.algorithms.dynamics import forward_dynamics
 
-        model0 = self.ws0.chain
+        model0 = self.ws0.model
         return np.column_stack([forward_dynamics(model0, q, self._zeros, Jrow, ws=self.ws0)
                                 for Jrow in J])
 

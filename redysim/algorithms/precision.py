@@ -225,7 +225,7 @@ def _make_type(name, k, arithmetic, r, add, sub, mul, div, to):
 
 # --------------------------------------------------------------------------- the kernels' passes
 # name -> (the compiled kernel, its arguments); tree and s are the bundles of
-# redysim.algorithms.workspace (Workspace(system).tree and .s, or bundles_in in another number type)
+# redysim.algorithms.workspace (Workspace(model).tree and .s, or bundles_in in another number type)
 _PASSES: dict[str, tuple[Callable, str]] = {
     "kinematics": (kinematics, "(tree, q, v, qdd, base_accel, s): rotations, positions, "
                                "motion subspaces, twists and twist-rates into s"),
@@ -368,19 +368,19 @@ class Factors(NamedTuple):
     D: np.ndarray | None = None
 
 
-def _check(chain: Model, q, v, tau, method: str):
+def _check(model: Model, q, v, tau, method: str):
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
-    q = check_state(chain, "q", q)
-    v = check_state(chain, "v", v)
-    tau = check_state(chain, "tau", tau, optional=True)
+    q = check_state(model, "q", q)
+    v = check_state(model, "v", v)
+    tau = check_state(model, "tau", tau, optional=True)
     return q, v, tau
 
 
-def _eliminate(chain, q, v, tau, method, number):
-    A = _numbers(mass_matrix(chain, q), number)
-    b = _numbers(phi(chain, q, v, tau), number)
-    n = chain.n_dof
+def _eliminate(model, q, v, tau, method, number):
+    A = _numbers(mass_matrix(model, q), number)
+    b = _numbers(phi(model, q, v, tau), number)
+    n = model.n_dof
     mult = _empty((n, n), number)
     x = _empty(n, number)
     with np.errstate(all="ignore"):
@@ -388,8 +388,8 @@ def _eliminate(chain, q, v, tau, method, number):
     return A, b, mult, x
 
 
-def _rge_a(chain, q, v, tau, number, fused_phi):
-    c, n, nl = chain, chain.n_dof, chain.n_links
+def _rge_a(model, q, v, tau, number, fused_phi):
+    c, n, nl = model, model.n_dof, model.n_links
     N = lambda a: _numbers(a, number)  # noqa: E731
     if fused_phi:
         gravity, qd_in = c.gravity, v
@@ -413,7 +413,7 @@ def _rge_a(chain, q, v, tau, number, fused_phi):
     return qdd
 
 
-def reduced_qdd(chain: Model, q, v, method: str = "rge-a", decimals: int = 3, *,
+def reduced_qdd(model: Model, q, v, method: str = "rge-a", decimals: int = 3, *,
                 arithmetic: str = "double", tau=None, fused_phi: bool = False) -> np.ndarray:
     """qdd with floating-point accuracy 1e-``decimals`` (section 5.2, Table 10).
 
@@ -421,29 +421,29 @@ def reduced_qdd(chain: Model, q, v, method: str = "rge-a", decimals: int = 3, *,
     recursion on rounded link quantities, phi rounded as for the others or, with ``fused_phi``,
     computed inside). Returns floats; NaN and +-inf appear where a pivot rounds to zero.
     """
-    q, v, tau = _check(chain, q, v, tau, method)
+    q, v, tau = _check(model, q, v, tau, method)
     number = rounded_type(decimals, arithmetic)
     if method == "rge-a":
-        return _to_float(_rge_a(chain, q, v, tau, number, fused_phi))
-    return _to_float(_eliminate(chain, q, v, tau, method, number)[3])
+        return _to_float(_rge_a(model, q, v, tau, number, fused_phi))
+    return _to_float(_eliminate(model, q, v, tau, method, number)[3])
 
 
-def reduced_factors(chain: Model, q, v, method: str = "ge-n", decimals: int = 3, *,
+def reduced_factors(model: Model, q, v, method: str = "ge-n", decimals: int = 3, *,
                     arithmetic: str = "double", tau=None) -> Factors:
     """The factors and phi-hat of the rounded elimination (Table A.2), see :class:`Factors`.
 
     For ``"rge-a"`` the spatial kernels run (kinematics, Table A.1's backward pass with phi given,
-    the U D U^T assembly of ``udu.py``, the forward pass) for any chain, planar or not.
+    the U D U^T assembly of ``udu.py``, the forward pass) for any model, planar or not.
     """
-    q, v, tau = _check(chain, q, v, tau, method)
+    q, v, tau = _check(model, q, v, tau, method)
     number = rounded_type(decimals, arithmetic)
     if method != "rge-a":
-        A, b, mult, x = _eliminate(chain, q, v, tau, method, number)
+        A, b, mult, x = _eliminate(model, q, v, tau, method, number)
         A, b, mult, x = (_to_float(a) for a in (A, b, mult, x))
         if method == "ge-n":
             return Factors(method, mult, A, b, x)
         return Factors(method, A, mult, b, x)
-    c, n = chain, chain.n_dof
+    c, n = model, model.n_dof
     N = lambda a: _numbers(a, number)  # noqa: E731
     E = lambda *s: _empty(s, number)  # noqa: E731
     tree, s = bundles_in(c, N, lambda shape: _empty(shape, number), armature=_armature(c, number))
@@ -457,7 +457,7 @@ def reduced_factors(chain: Model, q, v, method: str = "ge-n", decimals: int = 3,
     return Factors(method, _to_float(L), _to_float(U), None, _to_float(qdd), _to_float(D))
 
 
-def ieee_qdd(chain: Model, q, v, method: str = "rge-a", dtype=np.float32, *, tau=None,
+def ieee_qdd(model: Model, q, v, method: str = "rge-a", dtype=np.float32, *, tau=None,
              fused_phi: bool = False) -> np.ndarray:
     """qdd computed by the same kernel source in an IEEE format (float16, float32, float64).
 
@@ -465,13 +465,13 @@ def ieee_qdd(chain: Model, q, v, method: str = "rge-a", dtype=np.float32, *, tau
     double-precision ones rounded to ``dtype``; every operation then rounds to ``dtype``
     (numpy scalar arithmetic). Overflow gives inf (float16 holds at most 65504).
     """
-    q, v, tau = _check(chain, q, v, tau, method)
+    q, v, tau = _check(model, q, v, tau, method)
     number = np.dtype(dtype).type
     if number not in IEEE_DTYPES:
         raise ValueError(f"dtype = {dtype!r}: choose float16, float32 or float64")
     if method == "rge-a":
-        return _rge_a(chain, q, v, tau, number, fused_phi)
-    return _eliminate(chain, q, v, tau, method, number)[3]
+        return _rge_a(model, q, v, tau, number, fused_phi)
+    return _eliminate(model, q, v, tau, method, number)[3]
 
 
 __all__ = ["ARITHMETICS", "Factors", "IEEE_DTYPES", "METHODS", "PASSES", "Rounded", "ieee_qdd",

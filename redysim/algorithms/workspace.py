@@ -1,4 +1,4 @@
-"""Preallocated per-system scratch arrays (Pinocchio's ``Data``): the kernels write into these.
+"""Preallocated per-model scratch arrays (Pinocchio's ``Data``): the kernels write into these.
 
 A dynamics function called without ``ws=`` uses the model's own workspace for the calling thread
 (:func:`model_workspace`): made on that thread's first call, then reused, so the default call is
@@ -59,11 +59,11 @@ def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int
     return packed
 
 
-def tree_tables(system: Model) -> dict:
+def tree_tables(model: Model) -> dict:
     """The :class:`~redysim.algorithms._kernels.bundles.Tree` fields of a model, as numpy arrays
     (plus ``n_q``). A serial chain (parent k - 1, every joint placed along its parent's x, no free
     joint: every :class:`~redysim.model.tree.Chain`) is ``serial``, its tree tables empty."""
-    m = system
+    m = model
     nb = m.n_bodies
     serial = m.is_chain and not m.placement_code.any() and FREE not in m.joint_types
     parent = np.asarray(m.parent)
@@ -84,18 +84,18 @@ def tree_tables(system: Model) -> dict:
                 mass_com=m.mass_com, n_q=m.n_q)
 
 
-def kernel_armature(system: Model) -> np.ndarray:
+def kernel_armature(model: Model) -> np.ndarray:
     """The armature as the kernels take it: the model's (n_v,), or empty when it has none, so
     that the kernels of a model without armature read none (``joints.joint_inertia``)."""
-    return system.armature if np.any(system.armature) else system.armature[:0]
+    return model.armature if np.any(model.armature) else model.armature[:0]
 
 
-def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
+def bundles_in(model: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
     """The two bundles with the tree's float arrays passed through ``convert`` (or given in
     ``arrays`` by field name) and the scratch made by ``zeros(shape)``: for running the kernels'
     Python source in another arithmetic (``redysim.algorithms.precision``,
     ``redysim.harness.hiprec``)."""
-    t = tree_tables(system)
+    t = tree_tables(model)
     tree = Tree(t["serial"], *(arrays[f] if f in arrays else convert(t[f])
                                if FIELDS[f].dtype is np.float64 else t[f]
                                for f in Tree._fields[1:]))
@@ -105,8 +105,8 @@ def bundles_in(system: Model, convert, zeros, **arrays) -> tuple[Tree, Scratch]:
     return tree, Scratch(*(zeros(shape_of(FIELDS[f], sizes)) for f in Scratch._fields))
 
 
-def model_workspace(system: Model) -> Workspace:
-    """The calling thread's workspace of ``system``: the scratch that the dynamics functions use
+def model_workspace(model: Model) -> Workspace:
+    """The calling thread's workspace of ``model``: the scratch that the dynamics functions use
     when called without ``ws=``.
 
     Made on the thread's first call and kept by the model (a ``threading.local`` in the model's
@@ -118,11 +118,11 @@ def model_workspace(system: Model) -> Workspace:
     thread that called without ``ws=``; give ``ws=`` to hold the scratch yourself.
     """
     try:
-        return system._thread_workspaces.ws
+        return model._thread_workspaces.ws
     except AttributeError:  # not made yet on this thread (or for this model)
         pass
-    ws = Workspace(system)  # (FieldError for something that is not a Model)
-    local = system.__dict__.setdefault(THREAD_WORKSPACES, threading.local())  # (atomic)
+    ws = Workspace(model)  # (FieldError for something that is not a Model)
+    local = model.__dict__.setdefault(THREAD_WORKSPACES, threading.local())  # (atomic)
     local.ws = ws
     return ws
 
@@ -132,7 +132,7 @@ class Workspace:
     functions called without ``ws=`` do so by themselves: :func:`model_workspace`).
 
     ``tree`` and ``s``: the named bundles the kernels take
-    (:mod:`redysim.algorithms._kernels.bundles`), the system's arrays (copies: the system is
+    (:mod:`redysim.algorithms._kernels.bundles`), the model's arrays (copies: the model is
     immutable) and the scratch, views of three packed arrays, ``kernel_f`` and ``kernel_i`` (the
     tree's floats and ints, with a header) and ``scratch``, which forward dynamics' entry points
     take (:mod:`redysim.algorithms._kernels.entry`: 7 arguments instead of 28). The scratch arrays
@@ -145,25 +145,25 @@ class Workspace:
     ``dh_scratch`` (nb, DH_SCRATCH); None both otherwise.
     """
 
-    def __init__(self, system: Model):
-        if not isinstance(system, Model):
-            raise FieldError("Workspace", "chain", type(system).__name__,
+    def __init__(self, model: Model):
+        if not isinstance(model, Model):
+            raise FieldError("Workspace", "model", type(model).__name__,
                              "must be a redysim.Model (Chain.build, Chain.uniform, "
                              "load_case(...).chain, load_model(...))")
-        t = tree_tables(system)
+        t = tree_tables(model)
         nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
         ng = int((t["gather"] >= 0).sum())
-        planar = system.is_planar
-        dh_table = None if planar else dh_constants(system)
+        planar = model.is_planar
+        dh_table = None if planar else dh_constants(model)
         dh = dh_table is not None
-        self.chain = system  # the chain or model it was made for
-        gravity = np.asarray(system.gravity, dtype=float)
+        self.model = model  # the model (a Chain is one) it was made for
+        gravity = np.asarray(model.gravity, dtype=float)
         header = np.zeros(HEADER, dtype=np.int64)
         na = t["armature"].shape[0]
         header[[H_NB, H_NV, H_NQ, H_NG, H_SERIAL, H_NA]] = nb, n, t["n_q"], ng, t["serial"], na
         arrays = {**t, "base_accel": -gravity, "gravity": gravity, "zeros": np.zeros(n)}
         if planar:
-            c = system
+            c = model
             arrays.update(length=c.length, izz_O=c.inertia_O[:, 2, 2], mc_x=c.mass_com[:, 0],
                           mc_y=c.mass_com[:, 1])
         if dh:
@@ -214,7 +214,7 @@ class Workspace:
         self._extra_scratch: list[np.ndarray] = []  # more threads' scratch (scratches)
         self._tiles: np.ndarray | None = None  # the SIMD tiles' arrays (tile_buffer)
         self._tiles_raw: np.ndarray | None = None  # (their allocation, a little larger)
-        # batches of this system can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
+        # batches of this model can run in SIMD tiles (redysim.algorithms._kernels.tiles): a serial
         # chain of revolute and prismatic axes, or any tree (its own passes, tiles_tree)
         self.tiles_tree = not t["serial"]
         self.tiles_ok = self.tiles_tree or not (t["dof_kind"] == BALL).any()
@@ -254,7 +254,7 @@ class Workspace:
     @property
     def nbytes(self) -> int:
         """Bytes held by the workspace's own arrays (O(n); views not counted twice, the
-        system's arrays not counted)."""
+        model's arrays not counted)."""
         own = sum(v.nbytes for v in vars(self).values()
                   if isinstance(v, np.ndarray) and v.base is None)
         return own + sum(a.nbytes for a in self._extra_scratch)  # (the tile buffer's is in own)

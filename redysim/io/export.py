@@ -106,15 +106,15 @@ def _plain(v):
     return float(a) if a.ndim == 0 else tuple(float(x) for x in a.ravel())
 
 
-def _as_model(system: Model, source: str = "export") -> Model:
-    if not isinstance(system, Model):
+def _as_model(model: Model, source: str = "export") -> Model:
+    if not isinstance(model, Model):
         raise TypeError(f"export takes a redysim.Model (a Chain is one), not "
-                        f"{type(system).__name__}")
-    if system.cuts:
-        raise ExportError(source, "cuts", [c.name for c in system.cuts],
+                        f"{type(model).__name__}")
+    if model.cuts:
+        raise ExportError(source, "cuts", [c.name for c in model.cuts],
                           "a closed mechanism: the exporters write trees, and would drop its "
                           "cut joints; export the open tree (model.with_cuts(()))")
-    return system
+    return model
 
 
 def _axes(model: Model, k: int) -> list[tuple[str, np.ndarray, int]]:
@@ -323,14 +323,14 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
     return suffix, joints[::-1]
 
 
-def to_mjcf(system: Model) -> str:
+def to_mjcf(model: Model) -> str:
     """The MJCF text of a chain or model (module docstring).
 
     Raises ExportError naming the body or joint that MJCF (MuJoCo's compiler or XML reader)
     cannot hold, TypeError for anything but a Model.
     """
     source = "to_mjcf"
-    model = _as_model(system, source)
+    model = _as_model(model, source)
     if URDF_ROOT in model.body_names:
         raise ExportError(source, f"body {URDF_ROOT!r}", None,
                           "MuJoCo's world body is named 'world', and its compiler refuses a "
@@ -457,14 +457,14 @@ def _urdf_turn(source: str, model: Model) -> np.ndarray | None:
     return _turn_to_minus_z(g / norm)
 
 
-def to_urdf(system: Model) -> str:
+def to_urdf(model: Model) -> str:
     """The URDF text of a chain or model (module docstring).
 
     Raises ExportError naming what URDF (or its readers) cannot hold, TypeError for anything
     but a Model.
     """
     source = "to_urdf"
-    model = _as_model(system, source)
+    model = _as_model(model, source)
     if np.any(model.armature):
         j = int(np.flatnonzero(model.armature)[0])
         k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
