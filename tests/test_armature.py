@@ -29,11 +29,10 @@ import numpy as np
 import pytest
 
 import redysim
-from redysim import Chain, forward_dynamics, inverse_dynamics, mass_matrix
+from redysim import Chain, forward_dynamics, inverse_dynamics, load_model, mass_matrix
 from redysim.algorithms import rbda
 from redysim.algorithms.dynamics import energy, generalized_momentum, phi, udu_factors
 from redysim.errors import CaseError
-from redysim.io.importers import load_model
 
 HERE = Path(__file__).parent
 FIXTURE = HERE / "models" / "armature_zero_be08d5d.npz"
