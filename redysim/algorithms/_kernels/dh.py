@@ -503,8 +503,8 @@ def _articulated(dh, q, tau, scr):
             _base_pivot(dh, tau, scr)
             break
         # the child's inertia and bias, sliced once here and handed to the helpers (a slice of
-        # its own in each, with the general step inlined, made this pass 4 % slower than
-        # be08d5d's one function: benchmarks/ab_evaluator.py's PUMA 560 forward row)
+        # its own in each, with the armature's elimination inlined, made this pass 4 % slower
+        # than be08d5d's one function: benchmarks/ab_evaluator.py's PUMA 560 forward row)
         I = scr[k, S_CHILD_I:S_CHILD_I + IA]
         P = scr[k, S_CHILD_P:S_CHILD_P + 6]
         p = _with_own(dh, k, tip, not (revolute and plain), I, P, scr)
@@ -758,17 +758,12 @@ def _revolute_move(dh, k, tip, base_turns, J15, scr):
     _tx(J, la)
 
 
-@jit_exact
+@inline
 def _general_step(dh, q, tau, k, revolute, p, scr):
     """Body k's general step: a prismatic joint (U = I[:, linear z], D = M_zz), or either kind
     with armature (D = P^T I P + armature: :mod:`.articulated`'s elimination, whose projection
     keeps every number), then the projected inertia moved into the parent's child inertia by
-    Tz(d), Rz(theta), Rx(alpha) and Tx(a) on all 21 numbers. Returns the projected bias.
-
-    Compiled on its own (IEEE as written, as the kernel) and called, not inlined: a robot of
-    revolute joints without armature never takes it, and inlined its code (the elimination's
-    above all) shaped the zero-structured steps' machine code in the same loop, which LLVM
-    cannot tell are the hot ones."""
+    Tz(d), Rz(theta), Rx(alpha) and Tx(a) on all 21 numbers. Returns the projected bias."""
     if dh[k, ARMATURE] == 0.0:  # prismatic along z, its projection's linear-z row zero
         p = _prismatic_projection(dh, tau, k, p, scr)
     else:
@@ -851,12 +846,17 @@ def _prismatic_projection(dh, tau, k, p, scr):
     return p0, p1, p2, p3, p4, p5
 
 
-@inline
+@jit_exact
 def _armature_projection(dh, tau, k, revolute, p, scr):
     """A joint with armature, either kind: its axis (angular or linear z) eliminated from the
     articulated inertia I by :func:`.articulated.eliminate_axis` (D = P^T I P + armature), the
     projection (all 21 numbers) into the parent's child inertia (unless the base's) and the
-    bias p + I^a c + U phitil returned."""
+    bias p + I^a c + U phitil returned.
+
+    Compiled on its own (IEEE as written, as the kernel) and called, not inlined: a robot
+    without armature never takes it, and inlined, its code (the elimination's) shaped the
+    machine code of the steps that robot takes in the same loop, which LLVM cannot tell are
+    the hot ones (benchmarks/ab_evaluator.py: the PUMA 560's forward row 0.96 of be08d5d)."""
     I = scr[k, S_CHILD_I:S_CHILD_I + IA]
     Mhat = (I[0], I[1], I[2], I[3], I[4], I[5], I[6], I[7], I[8], I[9], I[10], I[11], I[12],
             I[13], I[14], I[15], I[16], I[17], I[18], I[19], I[20])
