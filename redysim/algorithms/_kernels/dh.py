@@ -502,11 +502,16 @@ def _articulated(dh, q, tau, scr):
         if revolute and k == 0 and not tip:
             _base_pivot(dh, tau, scr)
             break
-        p = _with_own(dh, k, tip, not (revolute and plain), scr)
+        # the child's inertia and bias, sliced once here and handed to the helpers (a slice of
+        # its own in each, with the armature's elimination inlined, made this pass 4 % slower
+        # than be08d5d's one function: benchmarks/ab_evaluator.py's PUMA 560 forward row)
+        I = scr[k, S_CHILD_I:S_CHILD_I + IA]
+        P = scr[k, S_CHILD_P:S_CHILD_P + 6]
+        p = _with_own(dh, k, tip, not (revolute and plain), I, P, scr)
         if revolute and plain and tip:
             p, J = _revolute_tip(dh, tau, k, p, scr)
         elif revolute and plain:
-            p, J = _revolute_projection(dh, tau, k, p, scr)
+            p, J = _revolute_projection(dh, tau, k, p, I, scr)
         else:
             p, J = _general_step(dh, q, tau, k, revolute, p, scr), NO_J
         if k == 0:  # (the base's body: nothing moves on to a base at rest)
@@ -543,14 +548,12 @@ def _base_pivot(dh, tau, scr):
 
 
 @inline
-def _with_own(dh, k, tip, full, scr):
+def _with_own(dh, k, tip, full, I, P, scr):
     """Body k's own inertia and bias added to what its child moved here (at the tip: its own
     alone, its inertia written only when ``full``: the zero-structured tip reads constants).
     Returns the bias p = (n, f)."""
     m = dh[k, M]
     hx, hy, hz = dh[k, HX], dh[k, HY], dh[k, HZ]
-    I = scr[k, S_CHILD_I:S_CHILD_I + IA]
-    P = scr[k, S_CHILD_P:S_CHILD_P + 6]
     if tip:  # no child: the body's own bias
         if full:  # its own inertia [[J, h~], [h~^T, m 1]]
             I[0], I[1], I[2], I[3], I[4], I[5] = dh[k, JXX], dh[k, JXY], dh[k, JXZ], \
@@ -622,11 +625,10 @@ def _revolute_tip(dh, tau, k, p, scr):
 
 
 @inline
-def _revolute_projection(dh, tau, k, p, scr):
+def _revolute_projection(dh, tau, k, p, I, scr):
     """Body k, revolute about z, without armature: U = I[:, angular z], D = A_zz; the projected
     inertia (its angular-z row and column zero), the bias p + I^a c + (U/D) u, and the inertia
     moved by Tz(d) (returned as :func:`_revolute_tip`'s 15 numbers)."""
-    I = scr[k, S_CHILD_I:S_CHILD_I + IA]
     p0, p1, p2, p3, p4, p5 = p
     c0, c1, c3, c4, c5 = scr[k, S_C0], scr[k, S_C1], scr[k, S_C3], scr[k, S_C4], scr[k, S_C5]
     scr[k, S_PIVOT] = I[5]
@@ -844,12 +846,17 @@ def _prismatic_projection(dh, tau, k, p, scr):
     return p0, p1, p2, p3, p4, p5
 
 
-@inline
+@jit_exact
 def _armature_projection(dh, tau, k, revolute, p, scr):
     """A joint with armature, either kind: its axis (angular or linear z) eliminated from the
     articulated inertia I by :func:`.articulated.eliminate_axis` (D = P^T I P + armature), the
     projection (all 21 numbers) into the parent's child inertia (unless the base's) and the
-    bias p + I^a c + U phitil returned."""
+    bias p + I^a c + U phitil returned.
+
+    Compiled on its own (IEEE as written, as the kernel) and called, not inlined: a robot
+    without armature never takes it, and inlined, its code (the elimination's) shaped the
+    machine code of the steps that robot takes in the same loop, which LLVM cannot tell are
+    the hot ones (benchmarks/ab_evaluator.py: the PUMA 560's forward row 0.96 of be08d5d)."""
     I = scr[k, S_CHILD_I:S_CHILD_I + IA]
     Mhat = (I[0], I[1], I[2], I[3], I[4], I[5], I[6], I[7], I[8], I[9], I[10], I[11], I[12],
             I[13], I[14], I[15], I[16], I[17], I[18], I[19], I[20])
