@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from ab_kernels import base_kernels  # noqa: E402  (sets a temporary NUMBA_CACHE_DIR first)
 
 from redysim import Chain, Workspace, forward_dynamics  # noqa: E402
-from redysim.algorithms import dynamics  # noqa: E402
+from redysim.algorithms import dynamics, threads  # noqa: E402
 
 STATES = 64
 DENSITY = 7850 * np.pi * 0.05**2  # the RE-U steel rod (make bench)
@@ -74,7 +74,14 @@ def base_forward_tiled(rev: str):
                             capture_output=True, text=True, check=True).stdout
     node = next(n for n in ast.parse(source).body
                 if isinstance(n, ast.FunctionDef) and n.name == "_forward_tiled")
-    scope = dict(vars(dynamics), _tiles=tiles, _batch=batch)
+    scope = {**vars(threads), **vars(dynamics), "_tiles": tiles, "_batch": batch}
+    if "_speed" in source and "_speed" not in scope:
+        # a revision whose runtime lived in dynamics (before 435b390): its record of whether
+        # helpers pay, as the working tree's runtime keeps it (always a record: it reports to it)
+        def _speed(ws, key, count_threads, chunks):
+            count, speed = threads.plan({}, key, count_threads, chunks)
+            return count, speed if speed is not None else threads.Speed()
+        scope["_speed"] = _speed
     exec(compile(ast.Module([node], []), f"<{rev} _forward_tiled>", "exec"), scope)  # noqa: S102
     return scope["_forward_tiled"]
 
@@ -114,8 +121,10 @@ def main(argv=None) -> int:
             rng = np.random.default_rng(2)
             Q = chain.neutral() + rng.uniform(-0.1, 0.1, (STATES, chain.n_q))
             QD = rng.uniform(-0.1, 0.1, (STATES, chain.n_dof))
-            sides = {"base": (base_tiled, base_ws_class(chain)),
-                     "head": (head_tiled, Workspace(chain))}
+            base_ws = base_ws_class(chain)
+            if not hasattr(base_ws, "model"):  # a revision whose workspace called it chain
+                base_ws.model = base_ws.chain
+            sides = {"base": (base_tiled, base_ws), "head": (head_tiled, Workspace(chain))}
             outs = {s: np.empty((STATES, chain.n_dof)) for s in sides}
 
             def call(side, sides=sides, outs=outs, chain=chain, Q=Q, QD=QD):
