@@ -641,6 +641,7 @@ def advance(solver, t_eval, on_sample=None, on_step=None) -> tuple[int, str]:
     return 0, "ok"
 
 
+@functools.cache  # once a process: after that a run would pay its set-up for nothing
 def compile_kernels() -> None:
     """Compile (or load from numba's disk cache) the stage-sum kernels every scheme calls, by a
     few ode45 steps on a 2-state problem (with samples: its dense output too): so that a timed

@@ -49,6 +49,7 @@ Equations II", 2nd ed. (1996), IV.8 (the filtered error estimate); D. A. Knoll, 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -365,6 +366,7 @@ class MidpointSolver(OdeSolver):
         return steps.hermite(self.y_old, self.f_old, self.y, self.f, h, (ts - self.t_old) / h)
 
 
+@functools.cache  # once a process: after that a run would pay its set-up for nothing
 def compile_kernels() -> None:
     """Load (or compile) the kernels an implicit step calls beyond qdd: inverse dynamics for the
     tensions and the spatial forward dynamics for the preconditioner, by one application on a
