@@ -6,7 +6,8 @@ The base revision's ``redysim/`` (the core only: these runs need nothing else) i
 git into a temporary folder; two worker processes, one importing it and one the working tree's
 (each with a numba cache of its own, both compiling afresh), build the same runs by the scenario
 API both revisions have: the RE-U125-L1 rope (250 DOF, ode45 as the paper's) and TALOS falling
-(a floating robot: a free joint's quaternion and 32 joints, dop853), and the UR5 falling with
+(a floating robot: a free joint's quaternion and 32 joints, dop853), the UR5 and the PUMA 560 (a DH
+robot) falling, compiled, and the UR5 falling with
 its accelerations from a Python function (the stepping run as Python, as an engine's qdd is).
 Each run's steps are timed ``--steps`` at a time from the same initial state, the two workers
 taking turns round by round (the machine's drift falls on both alike); each side is read as its
@@ -36,6 +37,8 @@ RUNS = {  # name -> (scenario, integrator, rtol, atol, qdd from Python)
     "rope RE-U125-L1 (250 DOF, ode45)": ("cases/RE-U125-L1.toml", "ode45", 1e-4, 1e-6, False),
     "TALOS-FALL (floating, dop853)": ("TALOS-FALL", "dop853", 1e-8, 1e-10, False),
     "UR5-FALL, qdd from Python (ode45)": ("UR5-FALL", "ode45", 1e-8, 1e-10, True),
+    "UR5-FALL (6 DOF, ode45)": ("UR5-FALL", "ode45", 1e-8, 1e-10, False),
+    "PUMA560-FALL (DH, ode45)": ("PUMA560-FALL", "ode45", 1e-8, 1e-10, False),
 }
 
 WORKER = r'''
