@@ -26,7 +26,7 @@ What a caller gets
       do. A chunk may run a batch itself: the inner caller works through its own chunks and
       waits for no helper to start. A child made by ``os.fork`` starts helpers of its own.
 
-Under load: never slower than one thread
+Under load: about one thread's time (within a few per cent in the note's runs)
     The OS may keep a helper off its core for a time slice (milliseconds) while another process
     runs. The caller does not wait for that (above): a batch with helpers costs at most about
     its time alone plus LATE times a chunk. And each workspace records, kind of batch by kind
@@ -43,7 +43,8 @@ Quiet: what it costs
     its core. Both spin in compiled code without the GIL on a flag read and written atomically
     (:mod:`redysim.algorithms._kernels.spin`); where that primitive is not available they sleep
     instead (``threading``): the same results, slower. Where helpers do not pay, a batch runs
-    alone but for three with helpers after each pause and the bookkeeping of its time.
+    alone but for three with helpers after each pause and the bookkeeping of its time: a few
+    per cent over one thread (64 states in tiles at 250 DOF, in the note).
 """
 
 from __future__ import annotations
