@@ -244,10 +244,26 @@ def main(argv=None) -> int:
                     help="write a small tetrahedron where a mesh file is absent (module doc)")
     ap.add_argument("--out", type=Path, help="write the table as CSV here")
     ap.add_argument("--only", help="models whose path matches this regular expression")
+    ap.add_argument("--fixtures", type=Path, metavar="DIR",
+                    help="instead of the survey, write each model --only selects as a test "
+                    "fixture needing no mesh file (write_fixture), with its folder's LICENSE, "
+                    "under DIR/<folder>/")
     args = ap.parse_args(argv)
     if not args.root.is_dir():
         ap.error(f"{args.root}: no such folder (a mujoco_menagerie checkout)")
     import mujoco
+
+    if args.fixtures:
+        import shutil
+
+        for path in model_files(args.root):
+            if args.only and re.search(args.only, str(path.relative_to(args.root))):
+                if args.stub_missing_meshes:
+                    stub_missing_meshes(args.root, path, mujoco)
+                target = write_fixture(path, args.fixtures / path.parent.name, mujoco)
+                shutil.copy(path.parent / "LICENSE", target.parent / "LICENSE")
+                print(target)
+        return 0
 
     files = [p for p in model_files(args.root)
              if not args.only or re.search(args.only, str(p.relative_to(args.root)))]
@@ -274,6 +290,93 @@ def main(argv=None) -> int:
             w.writeheader()
             w.writerows(rows)
     return 0
+
+
+
+# --------------------------------------------------------------------------- test fixtures
+def _exact_inertials(xml: str, m, mujoco) -> str:
+    """The XML with each body's pose, <inertial> and joint axes written to 17 digits from the
+    compiled model (the spec's writer rounds quaternions to 6)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    if root.find(".//frame") is None:  # (a <frame> would compose into the compiled poses)
+        for el in root.iter("body"):
+            if el.get("name"):
+                b = m.body(el.get("name"))
+                for key in ("euler", "axisangle", "xyaxes", "zaxis"):
+                    el.attrib.pop(key, None)
+                el.set("pos", " ".join(repr(float(x)) for x in b.pos))
+                el.set("quat", " ".join(repr(float(x)) for x in b.quat))
+        for el in root.iter("joint"):
+            if el.get("name") and el.get("type", "hinge") in ("hinge", "slide"):
+                j = m.joint(el.get("name"))
+                el.set("axis", " ".join(repr(float(x)) for x in j.axis))
+                adr = int(j.qposadr[0])  # ref and springref in radians (the writer's angle)
+                el.set("ref", repr(float(m.qpos0[adr])))
+                el.set("springref", repr(float(m.qpos_spring[adr])))
+            if el.get("name"):
+                el.set("pos", " ".join(repr(float(x)) for x in m.joint(el.get("name")).pos))
+    for el in root.iter("body"):
+        inertial = el.find("inertial")
+        if inertial is None or not el.get("name"):
+            continue
+        b = m.body(el.get("name"))
+        inertial.attrib.clear()
+        inertial.set("pos", " ".join(repr(float(x)) for x in b.ipos))
+        inertial.set("quat", " ".join(repr(float(x)) for x in b.iquat))
+        inertial.set("mass", repr(float(b.mass[0])))
+        inertial.set("diaginertia", " ".join(repr(float(x)) for x in b.inertia))
+    return ET.tostring(root, encoding="unicode")
+
+
+def write_fixture(path: Path, out: Path, mujoco) -> Path:
+    """A copy of the model ``path`` that needs no mesh file, with the same dynamics: every
+    body's inertia written explicitly as MuJoCo compiled it (from the meshes present), mesh
+    geoms, meshes, textures and materials removed. Checked: its mass matrix and qacc equal the
+    original's at random states (to 1e-13 relative), else ValueError. Returns the file written."""
+    spec = mujoco.MjSpec.from_file(str(path))
+    m = spec.compile()
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    for body in spec.bodies[1:]:
+        b = m.body(body.name) if body.name else None
+        if b is None:
+            raise ValueError(f"{path}: an unnamed body; name it to make a fixture")
+        body.explicitinertial = True
+        body.mass, body.ipos = float(b.mass[0]), b.ipos.copy()
+        body.iquat, body.inertia = b.iquat.copy(), b.inertia.copy()
+        body.fullinertia = np.full(6, np.nan)
+    meshes = {g.name for g in spec.geoms if g.type == mujoco.mjtGeom.mjGEOM_MESH}
+    for g in list(spec.geoms):
+        if g.type == mujoco.mjtGeom.mjGEOM_MESH:
+            spec.delete(g)
+        else:
+            g.material = ""
+    for pair in list(spec.pairs):
+        if pair.geomname1 in meshes or pair.geomname2 in meshes:
+            spec.delete(pair)
+    for item in [*spec.meshes, *spec.materials, *spec.textures, *spec.hfields]:
+        spec.delete(item)
+    for s in spec.skins:
+        spec.delete(s)
+    out.mkdir(parents=True, exist_ok=True)
+    target = out / path.name
+    target.write_text(_exact_inertials(spec.to_xml(), m, mujoco))
+    m1 = _mujoco_model(mujoco, path)
+    m2 = _mujoco_model(mujoco, target)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        q = m1.qpos0 + 0.1 * rng.normal(size=m1.nq) * (m1.jnt_type[m1.dof_jntid[0]] != 0)
+        d = mujoco.MjData(m1)
+        d.qpos[:] = q
+        mujoco.mj_normalizeQuat(m1, d.qpos)
+        v, tau = rng.normal(size=m1.nv), rng.normal(size=m1.nv)
+        a1, M1 = mujoco_truth(mujoco, m1, d.qpos.copy(), v, tau)
+        a2, M2 = mujoco_truth(mujoco, m2, d.qpos.copy(), v, tau)
+        if _rel(M2, M1) > 1e-13 or _rel(a2, a1) > 1e-12:
+            raise ValueError(f"{target}: the fixture's dynamics differ from {path}'s "
+                             f"(M {_rel(M2, M1):.1e}, qacc {_rel(a2, a1):.1e})")
+    return target
 
 
 if __name__ == "__main__":
