@@ -31,13 +31,19 @@ massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed
 P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
--a_n. A joint equality of degree 1 between two hinge or slide joints is a coupling of the model
-(:class:`~redysim.model.tree.Coupling`, held exactly: MuJoCo's softness announced). Refused: a
-ball joint, a free joint below the root, any other active equality constraint (a loop closure;
-closed loops are built with :func:`redysim.load_linkage` and :class:`redysim.ClosedLoops`) unless
-``equality="drop"`` (which drops every equality, couplings too), a file nested deeper than MuJoCo's
-XML reader takes (:data:`MJCF_MAX_DEPTH` elements), and what MuJoCo's compiler refuses (its
-message kept, the element named).
+-a_n. Equalities are held exactly (MuJoCo's softness announced), by default
+(``equality="close"``): a joint equality of degree 1 between two hinge or slide joints is a
+coupling of the model (:class:`~redysim.model.tree.Coupling`; a chain of them composed onto its
+first leader), as is a tendon equality of one fixed tendon of two joints; a ``connect`` or
+``weld`` is a cut joint of the model (:class:`~redysim.model.tree.CutJoint`,
+:attr:`Model.cuts`: :class:`redysim.ClosedLoops` and :func:`redysim.simulate` close it; a
+connect of a mechanism moving in a plane keeps its two in-plane equations, a 'planar' or
+'plane' cut). ``equality="refuse"`` refuses a loop closure, ``equality="drop"`` drops every
+equality (announced). Refused: a ball joint, a free joint below the root, an equality the core
+cannot hold (a polynomial of degree > 1, a cycle of equalities, a joint that follows two, a
+flex's, redundant loop equations, loops on a model with a free joint) naming the
+``<equality>``, a file nested deeper than MuJoCo's XML reader takes (:data:`MJCF_MAX_DEPTH`
+elements), and what MuJoCo's compiler refuses (its message kept, the element named).
 
 **Honoured, announced or refused.** Every attribute of a file that changes the motion is
 honoured, refused, or announced: a line of :attr:`Model.notes` names the element, its name and
