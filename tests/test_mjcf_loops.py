@@ -14,6 +14,7 @@ from conftest import stable_seed
 
 from redysim import mass_matrix, phi, simulate
 from redysim.algorithms.loops import ClosedLoops
+from redysim.errors import StateError
 from redysim.io.importers import ModelFileError, load_mjcf
 from redysim.io.kinds import load_model
 
@@ -336,3 +337,19 @@ def test_a_plane_cut_is_differentiated_right(tmp_path):
     assert np.abs((up - 2 * gap + down) / h**2 - Jdv).max() < 1e-5 * np.abs(Jdv).max()
     q1 = loops.project(q, v)[0]  # onto the loop, then a velocity it allows
     check_constrained_qdd(loops, q1, on_the_loops(loops, q1, rng), rng.normal(size=9))
+
+
+def test_a_closure_open_in_the_file_is_announced_and_projected_shut(tmp_path):
+    """Two sites 0.01 m apart at qpos0 (MuJoCo pulls them together softly): the model says so
+    in its notes, a run refuses the open start by name, and ClosedLoops.project shuts it."""
+    path = write(tmp_path, FOURBAR.format(eq=SITES).replace('name="c2" pos="-0.1 0 0.4"',
+                                                            'name="c2" pos="-0.1 0 0.41"'))
+    model = load_model(path)
+    assert any("equality 'pin': open at the file's configuration by up to 0.01" in n
+               for n in model.notes), model.notes
+    loops = ClosedLoops(model)
+    with pytest.raises(StateError, match="violates the cut joint 'pin'"):
+        simulate(model, 0.1)
+    q, _, _, _ = loops.project(model.initial(), np.zeros(3))
+    assert max(loops.residuals(q, np.zeros(3))) < 1e-12
+    assert simulate(model, 0.1, q0=q).status == 0

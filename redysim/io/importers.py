@@ -105,6 +105,7 @@ MJCF_MAX_DEPTH = 499
 # a point closure whose J M^-1 J^T has a singular value ratio below this at the file's
 # configuration and near it moves in a plane: two of its three equations are kept
 PLANE_RANK = 1e-8
+LOOP_GAP = 1e-6  # a closure further open than this at qpos0 (relative to the model's size): noted
 LISTED = 6  # names (and values) a note lists before "and N more"
 
 
@@ -1130,13 +1131,14 @@ def _mjcf_equality(mj, m, src: str, report: _Report, equality: str
     return [c for _, c in couplings], closures
 
 
-def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str) -> list[CutJoint]:
+def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
+               ) -> tuple[list[CutJoint], list[str]]:
     """The cut joints of the loop closures, in the model's bodies (a MuJoCo body fused into
     an ancestor or the world, its points and frames carried there through the poses at qpos0);
     ModelFileError naming the equality for a closure of the world to itself, a model with a
     free joint, or equations that are redundant (a point closure of a mechanism that moves in
     a plane: 2 independent equations of 3; one in the world's xy plane becomes a 'planar'
-    cut)."""
+    cut). Also a note for each closure open at qpos0 (MuJoCo pulls it shut softly)."""
     from redysim.algorithms import rbda
     from redysim.algorithms.loops import ClosedLoops
 
@@ -1180,19 +1182,28 @@ def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str) -> list[
         rots = {"rot_a": tuple(map(tuple, R1)), "rot_b": tuple(map(tuple, R2))} \
             if c.kind == "weld" else {}
         cuts.append(CutJoint(c.name, k1, tuple(p1), k2, tuple(p2), c.kind, **rots))
-    cuts = [_planar_if_redundant(model, cuts, i, q0) for i in range(len(cuts))]
+    qc = model.couple(q0)  # (qpos0 is off a coupling whose a0 is not 0)
+    cuts = [_planar_if_redundant(model, cuts, i, qc) for i in range(len(cuts))]
     loops = ClosedLoops(model, cuts, source=src)
     try:
-        loops.forward_dynamics(q0, np.zeros(model.n_v))
+        loops.forward_dynamics(qc, np.zeros(model.n_v))
     except StateError as exc:
         names = [c.name for c in cuts if repr(c.name) in str(exc)] or [cuts[0].name]
         c = next(x for x in closures if x.name == names[0])
-        raise ModelFileError(src, f"equality {c.name!r}", c.what, "its equations are "
-                             f"redundant at the file's configuration ({exc}); MuJoCo's soft "
-                             "constraints take redundant rows, the core's exact ones do not "
-                             "(a point closure of a mechanism moving in a plane other than the "
-                             "world's xy plane); load with equality='drop' to drop it") from None
-    return cuts
+        why = ("its equations are redundant at the file's configuration" if "redundant" in
+               str(exc) else "the loops cannot be closed at the file's configuration")
+        raise ModelFileError(src, f"equality {c.name!r}", c.what, f"{why} ({exc}); MuJoCo's "
+                             "soft constraints take redundant rows, the core's exact ones do "
+                             "not; load with equality='drop' to drop it") from None
+    gap = loops.evaluate(qc, np.zeros(model.n_v))[0]
+    worst: dict[str, float] = {}
+    for r, (i, _) in enumerate(loops.rows):
+        if abs(gap[r]) > LOOP_GAP * loops.size:
+            worst[cuts[i].name] = max(worst.get(cuts[i].name, 0.0), abs(float(gap[r])))
+    notes = [f"equality {name!r}: open at the file's configuration by up to {g:.3g} (m, or rad "
+             "for a weld's frames; MuJoCo pulls it shut softly): a run starts from an assembled "
+             "q (ClosedLoops.project moves q onto the loops)" for name, g in worst.items()]
+    return cuts, notes
 
 
 def _planar_if_redundant(model: Model, cuts: list[CutJoint], i: int, q0) -> CutJoint:
@@ -1269,12 +1280,12 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
         model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))
     if closures:
-        cuts = _mjcf_cuts(mj, m, model, closures, src)
+        cuts, gaps = _mjcf_cuts(mj, m, model, closures, src)
         planar = [c.name for c in cuts if c.kind in ("planar", "plane")]
         notes = model.notes + ((f"equality {', '.join(map(repr, planar))}: a connect of a "
                                 "mechanism that moves in a plane, closed by its two in-plane "
                                 "equations (a 'planar' or 'plane' cut: the third repeats "
-                                "them)",) if planar else ())
+                                "them)",) if planar else ()) + tuple(gaps)
         initial = model.initial_q
         model = model.with_cuts(cuts, source=src)
         object.__setattr__(model, "notes", notes)
