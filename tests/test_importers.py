@@ -654,17 +654,17 @@ def test_a_joint_equality_of_degree_one_is_a_coupling(tmp_path):
     ('<connect name="loop" body1="a" body2="b" anchor="0.3 0 0"/>',
      "connect of body 'a' and body 'b'"),
     ('<weld name="loop" body1="a" body2="b"/>', "weld of body 'a' and body 'b'"),
-    ('<joint name="loop" joint1="ja" joint2="jb" polycoef="0 1 0.5 0 0"/>',
-     "joint of joint 'ja' and joint 'jb'"),  # of degree 2: no coupling
 ])
-def test_an_equality_constraint_is_refused_or_dropped_by_name(tmp_path, eq, what):
-    """A loop closure or coupling: refused by default, with the hint to build closed loops with
-    load_linkage / ClosedLoops; equality="drop" drops it, announced (strict=True does not
-    refuse what the caller dropped by name); an inactive one is announced. Before: dropped
-    with a vague note."""
+def test_a_loop_closure_is_refused_or_dropped_by_name(tmp_path, eq, what):
+    """A loop closure is closed by default (tests/test_mjcf_loops.py); equality="refuse" refuses
+    it by name, equality="drop" drops it, announced (strict=True does not refuse what the
+    caller dropped by name); an inactive one is announced. Here the two bars lie in a line, so
+    that the closure is redundant: refused by name (MuJoCo's soft rows take it)."""
     path = write(tmp_path, EQUALITY.format(eq=eq), "eq.xml")
-    err = refused(lambda: load_model(path), "equality 'loop'", "redysim.load_linkage",
-                  "ClosedLoops", "equality='drop'")
+    err = refused(lambda: load_model(path, equality="refuse"), "equality 'loop'",
+                  "equality='close'", "equality='drop'")
+    assert err.value == what
+    err = refused(lambda: load_model(path), "equality 'loop'", "redundant", "equality='drop'")
     assert err.value == what
     model = load_model(path, equality="drop", strict=True)
     notes_with(model, f"equality 'loop': constraint = {what} dropped (equality='drop'")
@@ -683,7 +683,7 @@ def test_flex_and_plugins_are_announced(tmp_path):
      radius="0.01" dim="2" pos="0 0 1"><edge equality="true"/></flexcomp>
     </worldbody></mujoco>"""
     path = write(tmp_path, flex, "flex.xml")
-    refused(lambda: load_model(path), "equality 'equality0'", "a loop closure")
+    refused(lambda: load_model(path), "equality 'equality0'", "a flex equality")
     model = load_model(path, equality="drop")
     notes_with(model, "flex 'cloth': elasticity and contacts dropped")
     refused(lambda: load_model(path, equality="drop", strict=True),

@@ -4,7 +4,10 @@ A closed-loop mechanism is a spanning tree (a :class:`~redysim.model.tree.Model`
 to open it (:class:`CutJoint`): each keeps a point of one body on a point of another body (or of
 the world), in all three directions (``"point"``: a ball joint, 3 equations) or in the world's
 x and y only (``"planar"``: a pin of a mechanism moving in the xy plane, 2 equations; the third
-would repeat the other two); ``"revolute"`` (5 equations) also keeps the z axes of two frames
+would repeat the other two), or along the x and y axes of a frame ``rot_b`` fixed on body b
+(``"plane"``: the same pin in a plane of any orientation, moving with body b; its rows are
+u_k . (x_a - x_b), u_k = R_b rot_b e_k, whose rates carry the frame's turning, w_b x u_k);
+``"revolute"`` (5 equations) also keeps the z axes of two frames
 fixed on the bodies (``rot_a``, ``rot_b``) aligned, ``"weld"`` (6) the whole frames. Their
 rotation rows are velocity-level equations on the relative angular velocity: for a weld
 w_a - w_b = 0 along the world axes, for a revolute joint its components along the x and y axes
@@ -95,7 +98,9 @@ class ClosedLoops:
         self.size = max(1.0, float(np.abs(model.placement_p).sum()))  # for the tolerance
         # the compiled functions' bundle; None for a coupled tree, whose qdd is its couplings'
         # (numpy path)
-        self.bundle = None if model.couplings else self._bundle()
+        # (numpy path), as is one with a 'plane' cut (the compiled functions have none)
+        self.bundle = None if model.couplings or any(c.kind == "plane" for c in self.cuts) \
+            else self._bundle()
 
     def _bundle(self):
         """The compiled functions' bundle (:class:`redysim.algorithms._kernels.constraints.Loops`):
@@ -197,6 +202,24 @@ class ClosedLoops:
         Jdv = u.T @ alpha + np.array([w @ cross(wb, u[:, 0]), w @ cross(wb, u[:, 1])])
         return phi, u.T @ Jw, u.T @ w, Jdv
 
+    def _plane_rows(self, ws, c, rot, path_b, diff, Jc):
+        """(phi, J, J v, Jdot v) of a 'plane' cut: u_k . d, d = x_a - x_b, along u_k the x and
+        y axes of frame ``rot`` on body b; d/dt u_k = w_b x u_k, so the rows carry
+        (u_k x d) . w_b, and Jdot v adds 2 (w_b x u_k) . d' + (alpha_b x u_k + w_b x (w_b x
+        u_k)) . d (alpha_b at qdd = 0)."""
+        d, dv, da = diff
+        RB, wb, ab = self._frame(ws, c.body_b, rot)
+        u = RB[:, :2]
+        wu = [cross(wb, u[:, k]) for k in range(2)]
+        J = u.T @ Jc
+        if c.body_b >= 0:
+            J = J + np.vstack([cross(u[:, k], d) for k in range(2)]) @ \
+                self._angular_block(ws, path_b)
+        Jv = u.T @ dv + np.array([wu[k] @ d for k in range(2)])
+        Jdv = u.T @ da + np.array([2.0 * (wu[k] @ dv) + cross(ab, u[:, k]) @ d
+                                   + cross(wb, wu[k]) @ d for k in range(2)])
+        return u.T @ d, J, Jv, Jdv
+
     def evaluate(self, q, v):
         """(phi (m,), J (m, n), J v (m,), Jdot v (m,)) at (q, v)."""
         ws = self._kinematics(q, v)
@@ -206,6 +229,12 @@ class ClosedLoops:
             xb, vb, ab = self._point(ws, c.body_b, c.point_b)
             Jc = self._jacobian_block(ws, pa, xa) - (self._jacobian_block(ws, pb, xb)
                                                      if c.body_b >= 0 else 0.0)
+            if c.kind == "plane":
+                rows = self._plane_rows(ws, c, self._rots[i][1], pb, (xa - xb, va - vb, aa - ab),
+                                        Jc)
+                for out, x in zip((phi, J, Jv, Jdv), rows, strict=True):
+                    out.append(x)
+                continue
             k = min(KINDS[c.kind], 3)
             phi.append((xa - xb)[:k])
             J.append(Jc[:k])
@@ -262,7 +291,7 @@ class ClosedLoops:
         directions): the redundancy at q is then a change point's, not the cuts' own."""
         dq = np.random.default_rng(CHANGE_POINT_SEED).uniform(-1.0, 1.0, self.model.n_v)
         dq *= CHANGE_POINT_STEP * np.where(self.model.dof_kind == 1, self.size, 1.0)
-        near = np.asarray(q, dtype=float) + dq
+        near = self.model.couple(np.asarray(q, dtype=float) + dq)  # on the couplings
         J = self.evaluate(near, self._zeros)[1]
         s = np.linalg.svd(J @ self._mobility(near, J), compute_uv=False)
         return bool(s[0] > 0 and s[-1] > REGULAR_NEAR * s[0])

@@ -31,13 +31,19 @@ massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed
 P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
--a_n. A joint equality of degree 1 between two hinge or slide joints is a coupling of the model
-(:class:`~redysim.model.tree.Coupling`, held exactly: MuJoCo's softness announced). Refused: a
-ball joint, a free joint below the root, any other active equality constraint (a loop closure;
-closed loops are built with :func:`redysim.load_linkage` and :class:`redysim.ClosedLoops`) unless
-``equality="drop"`` (which drops every equality, couplings too), a file nested deeper than MuJoCo's
-XML reader takes (:data:`MJCF_MAX_DEPTH` elements), and what MuJoCo's compiler refuses (its
-message kept, the element named).
+-a_n. Equalities are held exactly (MuJoCo's softness announced), by default
+(``equality="close"``): a joint equality of degree 1 between two hinge or slide joints is a
+coupling of the model (:class:`~redysim.model.tree.Coupling`; a chain of them composed onto its
+first leader), as is a tendon equality of one fixed tendon of two joints; a ``connect`` or
+``weld`` is a cut joint of the model (:class:`~redysim.model.tree.CutJoint`,
+:attr:`Model.cuts`: :class:`redysim.ClosedLoops` and :func:`redysim.simulate` close it; a
+connect of a mechanism moving in a plane keeps its two in-plane equations, a 'planar' or
+'plane' cut). ``equality="refuse"`` refuses a loop closure, ``equality="drop"`` drops every
+equality (announced). Refused: a ball joint, a free joint below the root, an equality the core
+cannot hold (a polynomial of degree > 1, a cycle of equalities, a joint that follows two, a
+flex's, redundant loop equations, loops on a model with a free joint) naming the
+``<equality>``, a file nested deeper than MuJoCo's XML reader takes (:data:`MJCF_MAX_DEPTH`
+elements), and what MuJoCo's compiler refuses (its message kept, the element named).
 
 **Honoured, announced or refused.** Every attribute of a file that changes the motion is
 honoured, refused, or announced: a line of :attr:`Model.notes` names the element, its name and
@@ -72,13 +78,14 @@ from pathlib import Path
 
 import numpy as np
 
-from redysim.errors import CaseError, ModelFileError
+from redysim.errors import CaseError, ModelFileError, StateError
 from redysim.model.parts import KIND_CODES, check_inertia, check_positive
 from redysim.model.tree import (
     FIXED,
     FREE,
     Body,
     Coupling,
+    CutJoint,
     Model,
     TreeJoint,
     drop_world_fixed,
@@ -91,10 +98,14 @@ __all__ = ["ModelFileError", "load_urdf", "load_mjcf", "MIMIC", "EQUALITY",
 
 URDF_GRAVITY = (0.0, 0.0, -9.81)  # URDF has no gravity; robots are described z up
 MIMIC = ("couple", "independent", "refuse")
-EQUALITY = ("refuse", "drop")
+EQUALITY = ("close", "refuse", "drop")
 # MuJoCo's XML reader (tinyxml2) refuses a document nested deeper than this many elements
 # (measured with MuJoCo 4.0: <mujoco><worldbody>, 496 nested <body>, a <joint> in the last)
 MJCF_MAX_DEPTH = 499
+# a point closure whose J M^-1 J^T has a singular value ratio below this at the file's
+# configuration and near it moves in a plane: two of its three equations are kept
+PLANE_RANK = 1e-8
+LOOP_GAP = 1e-6  # a closure further open than this at qpos0 (relative to the model's size): noted
 LISTED = 6  # names (and values) a note lists before "and N more"
 
 
@@ -918,32 +929,163 @@ def _mjcf_contacts(mj, m, report: _Report, *, filterparent: bool) -> None:
                 "no contacts in the core")
 
 
-def _mjcf_coupling(mj, m, e: int) -> Coupling | None:
-    """The coupling an equality holds (a joint equality of two hinge or slide joints whose
-    polynomial is of degree 1 at most: MuJoCo's y - y0 = a0 + a1 (x - x0), x0 and y0 the joints'
-    qpos0, i.e. q_y = a1 q_x + a0 + y0 - a1 x0), else None."""
-    if int(m.eq_type[e]) != int(mj.mjtEq.mjEQ_JOINT) or int(m.eq_obj2id[e]) < 0:
+def _mjcf_rule(mj, m, e: int, what: str, src: str, name: str
+               ) -> tuple[str, str, float, float] | None:
+    """(follower, leader, multiplier, offset) of an active joint or tendon equality, or None for
+    another kind; ModelFileError naming the equality for one that is no coupling of two R or P
+    joints. A joint equality: MuJoCo's y - y0 = a0 + a1 (x - x0) (y joint1, x joint2, x0 and y0
+    their qpos0), i.e. q_y = a1 q_x + a0 + y0 - a1 x0, of degree 1 at most. A tendon equality
+    of one fixed tendon of two joints, L = c1 q1 + c2 q2 (no tendon2): L - L0 = a0, L0 its
+    length at qpos0, i.e. q1 = -(c2 / c1) q2 + (a0 + L0) / c1."""
+    EQ, JNT = mj.mjtEq, mj.mjtJoint
+    kind = int(m.eq_type[e])
+    if kind not in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
         return None
-    j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
-    scalar = (int(mj.mjtJoint.mjJNT_HINGE), int(mj.mjtJoint.mjJNT_SLIDE))
+    field = f"equality {name!r}"
     a = np.asarray(m.eq_data[e][:5], dtype=float)
-    if int(m.jnt_type[j1]) not in scalar or int(m.jnt_type[j2]) not in scalar or np.any(a[2:]):
+    scalar = (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE))
+    o1, o2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+    if kind == int(EQ.mjEQ_JOINT):
+        if o2 < 0:
+            raise ModelFileError(src, f"{field}.joint1", what, "a joint equality without "
+                                 "joint2 holds the joint still (a lock): lock it with "
+                                 "Model.locked, or load with equality='drop'")
+        for j in (o1, o2):
+            if int(m.jnt_type[j]) not in scalar:
+                raise ModelFileError(src, field, what, f"joint {_name(mj, m, 'joint', j)!r} "
+                                     "is no hinge or slide: a coupling holds one hinge or slide "
+                                     "joint's coordinate to another's")
+        if np.any(a[2:]):
+            raise ModelFileError(src, f"{field}.polycoef", [float(x) for x in a],
+                                 "a polynomial of degree > 1: the core's couplings are linear "
+                                 "(q1 = a1 q2 + a0); load with equality='drop' to drop it")
+        y0, x0 = float(m.qpos0[m.jnt_qposadr[o1]]), float(m.qpos0[m.jnt_qposadr[o2]])
+        return (_name(mj, m, "joint", o1), _name(mj, m, "joint", o2), float(a[1]),
+                float(a[0] + y0 - a[1] * x0))
+    # a tendon equality: one fixed tendon of two hinge or slide joints, held at a length
+    if o2 >= 0:
+        raise ModelFileError(src, f"{field}.tendon2", what, "an equality between two tendons: "
+                             "not a coupling of two joints the core holds; load with "
+                             "equality='drop' to drop it")
+    adr, num = int(m.tendon_adr[o1]), int(m.tendon_num[o1])
+    wraps = [(int(m.wrap_type[i]), int(m.wrap_objid[i]), float(m.wrap_prm[i]))
+             for i in range(adr, adr + num)]
+    joints = [(j, c) for t, j, c in wraps if t == int(mj.mjtWrap.mjWRAP_JOINT)]
+    if len(joints) != 2 or len(wraps) != 2 or any(
+            int(m.jnt_type[j]) not in scalar for j, _ in joints) or not all(c for _, c in joints):
+        raise ModelFileError(src, f"{field}.tendon1", _name(mj, m, "tendon", o1), "a tendon "
+                             "equality couples two joints when its tendon is a <fixed> one of "
+                             "two hinge or slide joints with nonzero coefs; load with "
+                             "equality='drop' to drop it")
+    if np.any(a[1:]):
+        raise ModelFileError(src, f"{field}.polycoef", [float(x) for x in a], "a tendon "
+                             "equality of one tendon holds its length at L0 + a0; the other "
+                             "terms must be 0")
+    (j1, c1), (j2, c2) = joints
+    q1, q2 = (float(m.qpos0[m.jnt_qposadr[j]]) for j in (j1, j2))
+    # c1 (q1 - q1_0) + c2 (q2 - q2_0) = a0 (L0 = c1 q1_0 + c2 q2_0, the length at qpos0)
+    return (_name(mj, m, "joint", j1), _name(mj, m, "joint", j2), -c2 / c1,
+            (float(a[0]) + c1 * q1 + c2 * q2) / c1)
+
+
+def _compose(src: str, rules: list[tuple[str, tuple[str, str, float, float]]]
+             ) -> list[tuple[str, Coupling]]:
+    """The couplings of (equality name, rule) pairs, each composed onto its first leader (a
+    follower of a follower: multipliers multiplied, offsets carried); ModelFileError naming the
+    equality for a joint that follows twice, or equalities that follow one another in a
+    cycle."""
+    rule: dict[str, tuple[str, str, float, float]] = {}
+    for name, (follower, leader, mult, off) in rules:
+        if follower in rule:
+            raise ModelFileError(src, f"equality {name!r}", follower, f"joint {follower!r} "
+                                 f"already follows joint {rule[follower][1]!r} (equality "
+                                 f"{rule[follower][0]!r}): a joint follows one leader; load "
+                                 "with equality='drop' to drop them")
+        rule[follower] = (name, leader, mult, off)
+    out = []
+    for follower, (name, leader, mult, off) in rule.items():
+        seen = [follower]
+        while leader in rule:  # q = m (m2 q2 + o2) + o
+            if leader in seen:
+                chain = " -> ".join(map(repr, seen[seen.index(leader):] + [leader]))
+                raise ModelFileError(src, f"equality {name!r}", leader, "joint equalities "
+                                     f"follow one another in a cycle ({chain}): no joint leads "
+                                     "them; load with equality='drop' to drop them")
+            seen.append(leader)
+            _, leader, m2, o2 = rule[leader]
+            mult, off = mult * m2, mult * o2 + off
+        out.append((name, Coupling(follower, leader, mult, off)))
+    return out
+
+
+@dataclass(frozen=True)
+class _Closure:
+    """A loop closure of the file (a connect or weld equality), in MuJoCo's bodies: point
+    ``p1`` of body ``b1`` on point ``p2`` of body ``b2`` (body frames; 0: the world), for a
+    weld also the frames ``R1``, ``R2`` aligned."""
+
+    name: str
+    what: str
+    kind: str  # "point" or "weld"
+    b1: int
+    p1: np.ndarray
+    b2: int
+    p2: np.ndarray
+    R1: np.ndarray | None = None
+    R2: np.ndarray | None = None
+
+
+def _mjcf_closure(mj, m, e: int, name: str, what: str, report: _Report) -> _Closure | None:
+    """The loop closure of a connect or weld equality (None for another kind), as MuJoCo's
+    engine reads it: a connect keeps body1's point data[0:3] on body2's data[3:6] (site1 on
+    site2); a weld keeps body1's point data[3:6] on body2's data[0:3] and body2's frame at
+    body1's turned by relpose (data[6:10]) (sites: the two sites' frames). A weld with
+    torquescale 0 leaves the rotation free: a point closure (announced)."""
+    EQ = mj.mjtEq
+    kind = int(m.eq_type[e])
+    if kind not in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
         return None
-    y0, x0 = float(m.qpos0[m.jnt_qposadr[j1]]), float(m.qpos0[m.jnt_qposadr[j2]])
-    return Coupling(_name(mj, m, "joint", j1), _name(mj, m, "joint", j2), float(a[1]),
-                    float(a[0] + y0 - a[1] * x0))
+    data = np.asarray(m.eq_data[e], dtype=float)
+    o1, o2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+    sites = int(m.eq_objtype[e]) == int(mj.mjtObj.mjOBJ_SITE)
+    if sites:
+        b1, b2 = int(m.site_bodyid[o1]), int(m.site_bodyid[o2])
+        p1, p2 = np.array(m.site_pos[o1]), np.array(m.site_pos[o2])
+        R1, R2 = (quaternion_matrix(*(m.site_quat[o] / np.linalg.norm(m.site_quat[o])))
+                  for o in (o1, o2))
+    else:
+        b1, b2 = o1, max(o2, 0)
+        if kind == int(EQ.mjEQ_CONNECT):
+            p1, p2 = data[0:3].copy(), data[3:6].copy()
+        else:
+            p1, p2 = data[3:6].copy(), data[0:3].copy()
+        R1 = R2 = np.eye(3)
+        if kind == int(EQ.mjEQ_WELD):  # relpose (w, x, y, z)
+            R1 = quaternion_matrix(*(data[6:10] / np.linalg.norm(data[6:10])))
+    if kind == int(EQ.mjEQ_CONNECT):
+        return _Closure(name, what, "point", b1, p1, b2, p2)
+    if data[10] == 0.0:
+        report.drop("equality", [(name, 0.0)], "torquescale", "a weld with torquescale 0 "
+                    "leaves the rotation free: closed as a point (a connect)", motion=False)
+        return _Closure(name, what, "point", b1, p1, b2, p2)
+    return _Closure(name, what, "weld", b1, p1, b2, p2, R1, R2)
 
 
-def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> list[Coupling]:
-    """The couplings of the active joint equalities of degree 1 between two hinge or slide
-    joints (held exactly: MuJoCo's soft constraint without its softness, announced); refuse any
-    other active equality constraint (or drop every one, announced, with equality='drop');
-    announce an inactive one."""
+def _mjcf_equality(mj, m, src: str, report: _Report, equality: str
+                   ) -> tuple[list[Coupling], list[_Closure]]:
+    """The couplings of the active joint equalities (and tendon equalities of one fixed tendon
+    of two joints), composed onto their first leaders, and the loop closures (connect, weld)
+    with equality='close' (the default); equality='refuse' refuses a loop closure,
+    equality='drop' drops every equality (announced). Each held exactly: MuJoCo's soft
+    constraint without its softness, announced. Refused by name: any other active equality
+    (a flex's, a polynomial of degree > 1, a cycle, two tendons). An inactive one is
+    announced."""
     off = m.opt.disableflags & (mj.mjtDisableBit.mjDSBL_EQUALITY |
                                 mj.mjtDisableBit.mjDSBL_CONSTRAINT)
-    active: list[tuple[str, str, str]] = []
-    inactive: list[tuple[str, str, str]] = []
-    couplings: list[tuple[str, Coupling]] = []
+    dropped: list[tuple[str, str]] = []
+    inactive: list[tuple[str, str]] = []
+    rules: list[tuple[str, tuple[str, str, float, float]]] = []
+    closures: list[_Closure] = []
     for e in range(m.neq):
         kind = mj.mjtEq(int(m.eq_type[e])).name.removeprefix("mjEQ_").lower()
         name = _name(mj, m, "equality", e)
@@ -954,41 +1096,173 @@ def _mjcf_equality(mj, m, src: str, report: _Report, equality: str) -> list[Coup
         between = [mj.mj_id2name(m, code, int(i)) or f"{obj}{int(i)}"
                    for i in (m.eq_obj1id[e], m.eq_obj2id[e]) if int(i) >= 0]
         what = f"{kind} of " + " and ".join(f"{obj} {n!r}" for n in between)
-        coupling = _mjcf_coupling(mj, m, e)
-        if m.eq_active0[e] and not off and coupling is not None and equality == "refuse":
-            couplings.append((name, coupling))
+        if not m.eq_active0[e] or off:
+            inactive.append((name, what))
             continue
-        (active if m.eq_active0[e] and not off else inactive).append((name, what, kind))
-    if active and equality == "refuse":
-        name, what, kind = active[0]
-        raise ModelFileError(src, f"equality {name!r}", what, "a loop closure or a coupling, "
-                             "which a tree of independent joints cannot hold: closed loops are "
-                             "built with redysim.load_linkage (a linkage file) or "
-                             "redysim.ClosedLoops (docs/design.md, 'Closed loops'); load with "
-                             "equality='drop' to drop it (announced in Model.notes)"
-                             + (f"; {len(active) - 1} more" if len(active) > 1 else ""))
-    report.drop("equality", [(n, w) for n, w, _ in active], "constraint",
-                "equality='drop': the tree moves without it", motion=False)
-    report.drop("equality", [(n, w) for n, w, _ in inactive], "constraint", "inactive in the "
-                "file (active = false, or equality disabled by a flag)", motion=False)
+        if equality == "drop":
+            dropped.append((name, what))
+            continue
+        rule = _mjcf_rule(mj, m, e, what, src, name)
+        if rule is not None:
+            rules.append((name, rule))
+            continue
+        closure = _mjcf_closure(mj, m, e, name, what, report)
+        if closure is None:
+            raise ModelFileError(src, f"equality {name!r}", what, f"a {kind} equality, which "
+                                 "the core cannot hold (it holds joint couplings, connect and "
+                                 "weld loop closures); load with equality='drop' to drop it "
+                                 "(announced in Model.notes)")
+        if equality == "refuse":
+            raise ModelFileError(src, f"equality {name!r}", what, "a loop closure, refused "
+                                 "with equality='refuse'; load with equality='close' (the "
+                                 "default) to close it (docs/design.md, 'Closed loops'), or "
+                                 "equality='drop' to drop it (announced in Model.notes)")
+        closures.append(closure)
+    couplings = _compose(src, rules)
+    report.drop("equality", dropped, "constraint", "equality='drop': the tree moves without "
+                "it", motion=False)
+    report.drop("equality", inactive, "constraint", "inactive in the file (active = false, "
+                "or equality disabled by a flag)", motion=False)
     report.drop("equality", [(n, f"{c.follower!r} = {c.multiplier:g} {c.leader!r} + "
                              f"{c.offset:g}") for n, c in couplings], "solref, solimp",
                 "a joint coupling, held exactly (Model.couplings), not softly as MuJoCo does")
-    return [c for _, c in couplings]
+    report.drop("equality", [(c.name, c.what) for c in closures], "solref, solimp",
+                "a loop closure, held exactly (Model.cuts), not softly as MuJoCo does")
+    return [c for _, c in couplings], closures
 
 
-def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str = "refuse",
+def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
+               ) -> tuple[list[CutJoint], list[str]]:
+    """The cut joints of the loop closures, in the model's bodies (a MuJoCo body fused into
+    an ancestor or the world, its points and frames carried there through the poses at qpos0);
+    ModelFileError naming the equality for a closure of the world to itself, a model with a
+    free joint, or equations that are redundant (a point closure of a mechanism that moves in
+    a plane: 2 independent equations of 3; one in the world's xy plane becomes a 'planar'
+    cut). Also a note for each closure open at qpos0 (MuJoCo pulls it shut softly)."""
+    from redysim.algorithms import rbda
+    from redysim.algorithms.loops import ClosedLoops
+
+    if FREE in model.joint_types:
+        c = closures[0]
+        raise ModelFileError(src, f"equality {c.name!r}", c.what, "a loop closure on a model "
+                             "with a free joint, which the core's closed loops do not support "
+                             "yet; load with equality='drop' to drop it")
+    d = mj.MjData(m)
+    d.qpos[:] = m.qpos0
+    mj.mj_kinematics(m, d)
+    q0 = np.array(m.qpos0, dtype=float)
+    kin = rbda.kinematics(model, q0, np.zeros(model.n_v))
+
+    def ours(b: int) -> int:
+        while b and not int(m.body_jntnum[b]):
+            b = int(m.body_parentid[b])
+        if not b:
+            return -1
+        j = int(m.body_jntadr[b]) + int(m.body_jntnum[b]) - 1
+        return model.joint_names.index(_name(mj, m, "joint", j))
+
+    def local(b: int, p, R):
+        """Body b's point p and frame R (MuJoCo's body frame) in our body's frame."""
+        Rw = np.asarray(d.xmat[b], dtype=float).reshape(3, 3)
+        x, F = d.xpos[b] + Rw @ p, Rw @ (np.eye(3) if R is None else R)
+        k = ours(b)
+        if k < 0:
+            return k, x, F
+        return k, kin.R[k].T @ (x - kin.O[k]), kin.R[k].T @ F
+
+    cuts = []
+    for c in closures:
+        (k1, p1, R1), (k2, p2, R2) = local(c.b1, c.p1, c.R1), local(c.b2, c.p2, c.R2)
+        if k1 < 0:  # body_a moves; the world is body_b
+            (k1, p1, R1), (k2, p2, R2) = (k2, p2, R2), (k1, p1, R1)
+        if k1 < 0 or k1 == k2:
+            raise ModelFileError(src, f"equality {c.name!r}", c.what, "joins two bodies that "
+                                 "do not move relative to each other (both fixed to the world, "
+                                 "or to one body): it closes no loop")
+        rots = {"rot_a": tuple(map(tuple, R1)), "rot_b": tuple(map(tuple, R2))} \
+            if c.kind == "weld" else {}
+        cuts.append(CutJoint(c.name, k1, tuple(p1), k2, tuple(p2), c.kind, **rots))
+    qc = model.couple(q0)  # (qpos0 is off a coupling whose a0 is not 0)
+    cuts = [_planar_if_redundant(model, cuts, i, qc) for i in range(len(cuts))]
+    loops = ClosedLoops(model, cuts, source=src)
+    try:
+        loops.forward_dynamics(qc, np.zeros(model.n_v))
+    except StateError as exc:
+        names = [c.name for c in cuts if repr(c.name) in str(exc)] or [cuts[0].name]
+        c = next(x for x in closures if x.name == names[0])
+        why = ("its equations are redundant at the file's configuration" if "redundant" in
+               str(exc) else "the loops cannot be closed at the file's configuration")
+        raise ModelFileError(src, f"equality {c.name!r}", c.what, f"{why} ({exc}); MuJoCo's "
+                             "soft constraints take redundant rows, the core's exact ones do "
+                             "not; load with equality='drop' to drop it") from None
+    gap = loops.evaluate(qc, np.zeros(model.n_v))[0]
+    worst: dict[str, float] = {}
+    for r, (i, _) in enumerate(loops.rows):
+        if abs(gap[r]) > LOOP_GAP * loops.size:
+            worst[cuts[i].name] = max(worst.get(cuts[i].name, 0.0), abs(float(gap[r])))
+    notes = [f"equality {name!r}: open at the file's configuration by up to {g:.3g} (m, or rad "
+             "for a weld's frames; MuJoCo pulls it shut softly): a run starts from an assembled "
+             "q (ClosedLoops.project moves q onto the loops)" for name, g in worst.items()]
+    return cuts, notes
+
+
+def _planar_if_redundant(model: Model, cuts: list[CutJoint], i: int, q0) -> CutJoint:
+    """Cut i, or, where it is a point cut whose three equations are dependent at q0 and near it
+    (a mechanism moving in a plane: the equation along the plane's normal n repeats the
+    others), its two in-plane equations: a 'planar' cut when n is the world's z, else a
+    'plane' cut whose frame on body b has n as its z (the plane moves with body b)."""
+    from redysim.algorithms.loops import ClosedLoops
+
+    c = cuts[i]
+    if c.kind != "point":
+        return c
+    near = model.couple(q0 + np.random.default_rng(20261207).uniform(-1e-3, 1e-3, q0.shape))
+
+    def smallest(cut):
+        """The least singular value ratio of J M^-1 J^T over q0 and near it, and the direction
+        of the smallest at q0."""
+        loops = ClosedLoops(model, [cut])
+        worst, normal = math.inf, None
+        for q in (q0, near):
+            J = loops.evaluate(q, np.zeros(model.n_v))[1]
+            _, s, Vt = np.linalg.svd(J @ loops._mobility(q, J))
+            worst = min(worst, float(s[-1] / s[0]) if s[0] > 0 else 0.0)
+            normal = Vt[-1] if normal is None else normal
+        return worst, normal
+
+    ratio, n = smallest(c)
+    if ratio > PLANE_RANK:
+        return c
+    if abs(abs(n[2]) - 1.0) < 1e-9:
+        cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "planar")
+    else:
+        e1 = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        e1 /= np.linalg.norm(e1)
+        F = np.column_stack([e1, np.cross(n, e1), n])  # world, at q0
+        if c.body_b >= 0:
+            from redysim.algorithms import rbda
+
+            F = rbda.kinematics(model, q0, np.zeros(model.n_v)).R[c.body_b].T @ F
+        cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "plane",
+                       rot_b=tuple(map(tuple, F)))
+    return cut if smallest(cut)[0] > PLANE_RANK else c
+
+
+def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str = "close",
               strict: bool = False) -> Model:
     """An MJCF model's tree as MuJoCo compiles it, with its gravity (module doc): q is MuJoCo's
     qpos, :meth:`Model.initial` its qpos0.
 
     ``floating``: the one root body without joints gets a free joint (its file pose the
     initial q); refused when a root body already moves on other joints or several roots have
-    none. ``equality``: "refuse" (the default) an active equality constraint that is no
-    coupling (a joint equality of degree 1: kept as one, :attr:`Model.couplings`), or "drop"
-    every one (announced). ``strict``: refuse, instead of announcing in :attr:`Model.notes`,
-    what would change the motion and the core does not model. Raises ModelFileError naming the
-    file, the element (``joint 'knee'``, ``body 'torso'``) and the value."""
+    none. ``equality``: "close" (the default) keeps the active equalities exactly: joint
+    equalities of degree 1 as couplings (:attr:`Model.couplings`, chains composed onto their
+    first leader), connect and weld equalities as the model's cut joints (:attr:`Model.cuts`,
+    closed by :class:`redysim.ClosedLoops` and :func:`redysim.simulate`); "refuse" refuses a
+    connect or weld (couplings kept); "drop" drops every equality (announced). ``strict``:
+    refuse, instead of announcing in :attr:`Model.notes`, what would change the motion and the
+    core does not model. Raises ModelFileError naming the file, the element (``joint 'knee'``,
+    ``body 'torso'``, ``equality 'loop'``) and the value."""
     path = Path(path)
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
@@ -997,7 +1271,7 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     m = _compile_mjcf(mj, path, floating)
     bodies, joints, parents = _mjcf_tree(mj, m, src)
     report = _Report(src)
-    couplings = _mjcf_equality(mj, m, src, report, equality)
+    couplings, closures = _mjcf_equality(mj, m, src, report, equality)
     _mjcf_unread(mj, m, report)
     gravity = (0.0, 0.0, 0.0) if m.opt.disableflags & mj.mjtDisableBit.mjDSBL_GRAVITY else \
         tuple(float(g) for g in m.opt.gravity)
@@ -1005,6 +1279,17 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     if couplings:
         model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))
+    if closures:
+        cuts, gaps = _mjcf_cuts(mj, m, model, closures, src)
+        planar = [c.name for c in cuts if c.kind in ("planar", "plane")]
+        notes = model.notes + ((f"equality {', '.join(map(repr, planar))}: a connect of a "
+                                "mechanism that moves in a plane, closed by its two in-plane "
+                                "equations (a 'planar' or 'plane' cut: the third repeats "
+                                "them)",) if planar else ()) + tuple(gaps)
+        initial = model.initial_q
+        model = model.with_cuts(cuts, source=src)
+        object.__setattr__(model, "notes", notes)
+        object.__setattr__(model, "initial_q", initial)
     return model
 
 

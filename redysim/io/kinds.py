@@ -81,7 +81,7 @@ class FileKind:
             self.table is None or has_table(path, self.table))
 
     def model(self, path: Path, *, floating: bool = False, mimic: str = "couple",
-              equality: str = "refuse", strict: bool = False) -> Model:
+              equality: str = "close", strict: bool = False) -> Model:
         """The model in the file (:func:`load_model`'s contract, its arguments checked):
         ``floating``, ``mimic``, ``equality`` and ``strict`` as the kind's reader takes them, or
         a ModelFileError naming why it cannot."""
@@ -126,7 +126,7 @@ def _given(value) -> bool:
     return value not in (None, False, {})
 
 
-def _loader_args(src: str, *, floating=False, mimic="couple", equality="refuse",
+def _loader_args(src: str, *, floating=False, mimic="couple", equality="close",
                  strict=False) -> dict[str, Any]:
     """load_model's arguments, checked as the readers check them (ModelFileError naming the one
     that is wrong), for every kind alike."""
@@ -249,7 +249,7 @@ class MjcfKind(FileKind):
     suffixes = (".xml",)
     options = ("floating", "equality", "lock")
 
-    def model(self, path, *, floating=False, equality="refuse", strict=False, **_) -> Model:
+    def model(self, path, *, floating=False, equality="close", strict=False, **_) -> Model:
         from redysim.io.importers import load_mjcf
 
         return load_mjcf(path, floating=floating, equality=equality, strict=strict)
@@ -337,7 +337,7 @@ def by_suffix(path: str | os.PathLike) -> bool:
 
 
 def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
-               equality: str = "refuse", strict: bool = False) -> Model:
+               equality: str = "close", strict: bool = False) -> Model:
     """The model in ``path``, read as its kind reads it (:data:`KINDS`): ``.urdf``
     (:func:`~redysim.io.importers.load_urdf`: ``floating``, ``mimic``, ``strict``), MJCF ``.xml``
     (:func:`~redysim.io.importers.load_mjcf`: ``floating``, ``equality``, ``strict``), a

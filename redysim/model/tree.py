@@ -407,9 +407,6 @@ class Model:
         if cuts is not None and not isinstance(cuts, str | CutJoint) and len(cuts) == 0:
             return dataclasses.replace(self, cuts=())
         check_cuts(self, cuts, source or f"{self.name}.with_cuts")
-        if self.couplings:
-            _fail(source or f"{self.name}.with_cuts", "cuts", [c.name for c in cuts],
-                  "a model with couplings takes no cut joints (not supported together yet)")
         return dataclasses.replace(self, cuts=tuple(cuts))
 
     def with_couplings(self, couplings: Sequence, *, source: str | None = None) -> Model:
@@ -422,7 +419,7 @@ class Model:
         is the uncoupled tree. Raises CaseError naming a bad coupling (``source``: where they
         come from): an unknown joint, a joint that is not R or P, a follower that follows twice
         or leads another (give each follower its first leader: q_f = m1 m2 q_l + ...), a joint
-        that follows itself, a number that is not finite, or a model with cut joints."""
+        that follows itself, or a number that is not finite."""
         import dataclasses
 
         where = source or f"{self.name}.with_couplings"
@@ -431,9 +428,6 @@ class Model:
             return dataclasses.replace(self, couplings=())
         if isinstance(couplings, Coupling | str) or not isinstance(couplings, Sequence):
             _fail(where, "couplings", type(couplings).__name__, "must be a list of Coupling")
-        if self.cuts:
-            _fail(where, "couplings", [c.follower for c in couplings if isinstance(c, Coupling)],
-                  "a model with cut joints takes no couplings (not supported together yet)")
         index = {name: k for k, name in enumerate(self.joint_names)}
         followers: set[str] = set()
         for i, c in enumerate(couplings):
@@ -745,7 +739,8 @@ class Coupling:
             object.__setattr__(self, key, float(x))
 
 
-KINDS = {"point": 3, "planar": 2, "revolute": 5, "weld": 6}  # cut joint -> constraint equations
+# cut joint -> constraint equations
+KINDS = {"point": 3, "planar": 2, "plane": 2, "revolute": 5, "weld": 6}
 WORLD = -1  # a cut joint's body_b: the world
 
 
@@ -754,7 +749,10 @@ class CutJoint:
     """Point ``point_a`` of body ``body_a`` kept on point ``point_b`` of body ``body_b`` (each
     in its body's frame; ``body_b = -1``: the world, ``point_b`` in world coordinates); for a
     revolute or weld cut also the frames ``rot_a``, ``rot_b`` (3 x 3 rotations in the bodies'
-    frames, default the bodies' own; the revolute axis is their z) kept aligned."""
+    frames, default the bodies' own; the revolute axis is their z) kept aligned. A ``"plane"``
+    cut keeps the points together along the x and y axes of frame ``rot_b`` on body b (the
+    plane a mechanism moves in, its normal z: a ``"planar"`` cut in a plane of any
+    orientation, which may move with body b)."""
 
     name: str
     body_a: int
@@ -793,9 +791,10 @@ class CutJoint:
             if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
                     np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
                 raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
-            if self.kind not in ("revolute", "weld"):
+            if self.kind not in ("revolute", "weld") and (self.kind, side) != ("plane", "rot_b"):
                 raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
-                                f"or 'weld' cut only; a {self.kind!r} cut would ignore it")
+                                f"or 'weld' cut only (a 'plane' cut's rot_b gives its plane); "
+                                f"a {self.kind!r} cut would ignore it")
 
 
 def _numbers(value) -> np.ndarray | None:
