@@ -169,11 +169,13 @@ def _state(rng, model, system, first: bool):
                 x, y, z, w = Rotation.random(random_state=rng).as_quat()
                 q[qs:qe] = [w, x, y, z]
             else:
-                q[qs:qe] += rng.normal(scale=0.3, size=qe - qs)
+                q[qs:qe] += rng.normal(scale=0.05 if model.cuts else 0.3, size=qe - qs)
     v = rng.normal(size=model.n_v)
     tau = rng.normal(size=model.n_v)
     if model.couplings:
         q, v = model.couple(q, v)
+    if system.loops is not None:  # onto the loops (Newton from the moved q)
+        q, v, _, _ = system.loops.project(q, v)
     y = system.initial_state(q, v) if (model.cuts or model.couplings) else np.concatenate((q, v))
     return y[:model.n_q], y[model.n_q:], tau
 
