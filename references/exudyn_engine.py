@@ -333,6 +333,10 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
+    no_couplings = ("Exudyn's CoordinateConstraint (factor, offset) is an algebraic constraint "
+                    "that only its implicit solvers hold (its explicit ones, this adapter's "
+                    "qdd and default, abort on constraints or ignore them, as with the loops' "
+                    "cut joints: references/loops.py); not built in this adapter")
     integrator = "rk44"
     integrators = NATIVE
 
