@@ -1,0 +1,173 @@
+"""A robot with a coupled gripper keeps every engine (issue 56, item 6): a small arm whose two
+pairs of fingers are coupled (tests/models/coupled_gripper.xml, MJCF joint equalities, and
+coupled_gripper.urdf, URDF mimic joints), one follower before its leader in the tree (as
+Menagerie's Panda's fingers) and one after, with multipliers other than +-1 and offsets.
+
+Each engine's qdd against the core's coupled qdd (the core's own check of that qdd is
+tests/test_couplings.py: the reduced-coordinate solve written independently): Pinocchio's CRBA
+on its own mimic joints, DART, Exudyn and Drake on their own mass matrix and bias coupled by the
+adapter (they have no coupling reachable: each says why). MuJoCo holds couplings softly, which
+tests/test_couplings.py checks against its regulariser. Then short runs: each engine's qdd in
+redysim's integrator along the core's path, MuJoCo's own integrator, which holds the couplings,
+and the other engines' own integrators refused by name. Last, ``redysim compare`` on the gripper
+keeps the engines, and its first screen says what the file has that the run does not simulate.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import stable_seed
+from engine_chains import engine_or_skip
+
+import redysim
+
+MODELS = Path(__file__).parent / "models"
+FILES = ("coupled_gripper.xml", "coupled_gripper.urdf")
+PROJECTED = ("dart", "exudyn", "drake")  # no coupling of their own reachable (each says why)
+BUILT = ("pinocchio-crba", *PROJECTED)
+
+
+def gripper(file):
+    model = redysim.load_model(MODELS / file)
+    names = list(model.joint_names)
+    # the test's premise: one follower before its leader in the tree, one after
+    fingers, thumbs = model.couplings
+    assert (fingers.follower, fingers.leader) == ("finger_a", "finger_b")
+    assert names.index("finger_a") < names.index("finger_b")
+    assert (thumbs.follower, thumbs.leader) == ("thumb_b", "thumb_a")
+    assert names.index("thumb_a") < names.index("thumb_b")
+    return model
+
+
+def coupled_state(model, rng):
+    q = model.initial() + rng.uniform(-0.8, 0.8, model.n_q)
+    q, v = model.couple(q, rng.normal(size=model.n_v))
+    return q, v, rng.normal(size=model.n_v)
+
+
+def test_pinocchios_mimic_joint_comes_after_the_joint_it_mimics():
+    """transformJointIntoMimic needs the mimicked joint first: finger_a = 0.8 finger_b + 0.001
+    with finger_a first becomes finger_b = finger_a / 0.8 - 0.001 / 0.8 (by hand: 1.25,
+    -0.00125); thumb_b after thumb_a stays as written."""
+    from redysim.references.pinocchio_engine import mimic_order
+
+    (f1, l1, m1, c1), second = mimic_order(gripper("coupled_gripper.xml"))
+    assert (f1, l1) == ("finger_b", "finger_a")
+    assert m1 == pytest.approx(1.25, rel=1e-15) and c1 == pytest.approx(-0.00125, rel=1e-15)
+    assert second == ("thumb_b", "thumb_a", -1.3, 0.05)
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("name", BUILT)
+@pytest.mark.parametrize("file", FILES)
+def test_each_engine_gives_the_cores_coupled_qdd(file, name):
+    model = gripper(file)
+    eng = engine_or_skip(name)(model)
+    rng = np.random.default_rng(stable_seed("engine-coupled", file, name))
+    for _ in range(4):
+        q, v, tau = coupled_state(model, rng)
+        for t in (tau, None):
+            core = redysim.forward_dynamics(model, q, v, t)
+            got = eng.qdd(q, v, t)
+            assert np.abs(got - core).max() < 1e-9 * np.abs(core).max(), (name, t is None)
+            _, _, fv, lv, m, _ = model.coupling_index
+            assert np.allclose(got[fv], m * got[lv], rtol=1e-12, atol=0.0)  # on the couplings
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("file", FILES)
+def test_the_engines_without_coupling_refuse_nothing_and_say_how_they_couple(file):
+    """Every engine but Pinocchio's ABA (pinocchio-crba builds the mimic joints) takes the
+    coupled model; the ones without a coupling of their own name why in how they couple."""
+    from redysim import references
+
+    model = gripper(file)
+    for name in references.ENGINES:
+        lim = references.get(name).limits(model)
+        assert lim.ok == (name not in ("pinocchio-aba", "pinocchio-aba-ryrz")), (name, lim)
+    for name in PROJECTED:
+        how = references.get(name).coupling()
+        assert "G^T M G" in how and references.get(name).no_couplings in how
+    assert "pinocchio-crba builds them" in references.get("pinocchio-aba").limits(model).reason
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("name", BUILT)
+def test_a_short_run_on_each_engines_qdd_follows_the_cores_path(name):
+    """0.3 s of free fall from a coupled state, DOP853 at 1e-10 on the engine's qdd and on the
+    core's: the same path to the integrator's tolerance, the couplings held."""
+    from redysim.simulation import simulator
+
+    model = gripper("coupled_gripper.urdf")
+    eng = engine_or_skip(name)(model)
+    q0, v0, _ = coupled_state(model, np.random.default_rng(stable_seed("engine-coupled-run")))
+    runs = [simulator(model, 0.3, q0=q0, v0=v0, integrator="dop853", rtol=1e-10, atol=1e-10,
+                      sample=0.05, **kw).run() for kw in ({}, {"qdd": eng.qdd})]
+    core, got = runs
+    assert got.status == 0 and len(got.t) == len(core.t) == 7
+    assert np.abs(got.q - core.q).max() < 1e-7
+    fq, lq, _, _, m, off = model.coupling_index
+    assert np.abs(got.q[:, fq] - (m * got.q[:, lq] + off)).max() < 1e-9
+
+
+@pytest.mark.engine
+def test_mujocos_own_integrator_holds_the_coupling_and_the_others_refuse_theirs():
+    """MuJoCo's RK4 with its joint equalities: the core's path within MuJoCo's softness and
+    step (0.3 s, h = 1 ms), the couplings held to it; DART's, Exudyn's and Drake's own
+    integrators would step the joints uncoupled: refused, naming the couplings."""
+    from redysim.simulation import simulator
+
+    model = gripper("coupled_gripper.xml")
+    q0, v0, _ = coupled_state(model, np.random.default_rng(stable_seed("engine-coupled-own")))
+    mj = engine_or_skip("mujoco")(model)
+    traj = mj.simulate(q0, v0, 0.3, 1e-3, every=50)
+    core = simulator(model, 0.3, q0=q0, v0=v0, integrator="dop853", rtol=1e-10, atol=1e-10,
+                     sample=0.05).run()
+    assert np.allclose(traj.t, core.t)
+    err = np.abs(traj.q - core.q).max()
+    assert err < 1e-4, err  # measured 3.0e-6 (the equality's softness and the step)
+    fq, lq, _, _, m, off = model.coupling_index
+    assert np.abs(traj.q[:, fq] - (m * traj.q[:, lq] + off)).max() < 1e-4  # measured 5.0e-6
+    for name in PROJECTED:
+        eng = engine_or_skip(name)(model)
+        info = eng.native_integrator()
+        settings = {"rtol": 1e-6} if info.adaptive else {}
+        with pytest.raises(ValueError, match="do not hold the model's couplings"):
+            eng.sim_reset(q0, v0, 1e-3, **settings)
+
+
+@pytest.mark.engine
+def test_compare_keeps_the_engines_on_a_coupled_gripper(tmp_path, monkeypatch):
+    """``redysim compare`` on the gripper with a tiny budget (one setting per ladder, 0.02 s):
+    at least four engines beside the core run ok (Pinocchio by its CRBA's mimic joints, DART,
+    Exudyn and Drake through their qdd, MuJoCo with its own integrators too); the engines whose
+    own integrators do not hold the couplings get no native run, and the page's first screen
+    (before its first section) names what the file has that the run does not simulate."""
+    import pandas as pd
+
+    from redysim.harness.spec import CORE
+    from redysim.reports import compare as cmp
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))  # the reference's cache
+    for key, value in (("CORE_RTOLS", (1e-7,)), ("ENGINE_RTOLS", (1e-7,)),
+                       ("STEP_DIVISIONS", (5,)), ("NATIVE_RTOLS", (1e-6,))):
+        monkeypatch.setattr(cmp, key, value)
+    out = tmp_path / "cmp"
+    html, _ = cmp.compare(str(MODELS / "coupled_gripper.urdf"), out, t_end=0.02, workers=1,
+                          progress=False, log=lambda *a: None)
+    runs = pd.read_parquet(out / "runs.parquet")
+    ok = runs[runs["status"] == "ok"]
+    engines = set(ok["engine"]) - {CORE}
+    assert len(engines) >= 4, sorted(engines)
+    assert (runs["status"] == "ok").all(), runs.loc[runs["status"] != "ok", "reason"].tolist()
+    native = runs[runs["integrator"].str.startswith("native:")]
+    assert set(native["engine"]) <= {"mujoco"}
+    page = html.read_text()
+    first_screen = page[:page.index('<section id="model">')]
+    assert "in the file, not simulated" in first_screen
+    assert "joint &lt;limit&gt; lower, upper (4 joints)" in first_screen
+    assert "engines that ran" in first_screen
+    assert "no effect on the motion" not in first_screen
