@@ -138,9 +138,10 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
 
 def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
     """(who, the largest path distance) of the reference against the same DOP853 on
-    :data:`CONFIRM_ENGINE`'s qdd (a coupled model: :data:`CONFIRM_ENGINE_COUPLED`'s): a second implementation of the dynamics. Ropes (their numbers
-    checked against the paper and the engines elsewhere) and closed loops are not confirmed so;
-    an engine that is missing or refuses says why."""
+    :data:`CONFIRM_ENGINE`'s qdd (a coupled model: :data:`CONFIRM_ENGINE_COUPLED`'s): a second
+    implementation of the dynamics. Ropes (their numbers checked against the paper and the
+    engines elsewhere) and closed loops are not confirmed so; an engine that is missing or
+    refuses says why."""
     scn = _scenario(case)
     if scn.case is not None:
         return "none: a rope case, checked against the paper's tables and the engines", math.nan
