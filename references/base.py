@@ -911,7 +911,7 @@ class Engine(EnginePackage):
         """Everything a fair comparison must know about how this engine ran: its name and
         package version, the native integrator and its settings (after :meth:`sim_reset`),
         and the adapter's flags and solver settings (``_settings``: stages disabled, solver
-        iterations, tolerances)."""
+        iterations, tolerances); for a coupled model, how its qdd holds the couplings."""
         info = getattr(self, "sim_integrator", None)
         out: dict[str, Any] = {"engine": self.name, "package": self.package,
                                "version": self.version}
@@ -920,6 +920,8 @@ class Engine(EnginePackage):
                        adaptive=info.adaptive, integrator_note=info.note,
                        **{k: v for k, v in self.sim_settings.items() if v is not None})
         out.update(self._settings())
+        if self.model.couplings:  # how its qdd holds them: its own, or the adapter's projection
+            out["couplings"] = self.coupling()
         return out
 
     def __repr__(self) -> str:

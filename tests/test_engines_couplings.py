@@ -171,3 +171,13 @@ def test_compare_keeps_the_engines_on_a_coupled_gripper(tmp_path, monkeypatch):
     assert "joint &lt;limit&gt; lower, upper (4 joints)" in first_screen
     assert "engines that ran" in first_screen
     assert "no effect on the motion" not in first_screen
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("name", BUILT)
+def test_the_manifest_says_how_the_couplings_are_held(name):
+    from redysim import references
+
+    eng = engine_or_skip(name)(gripper("coupled_gripper.xml"))
+    assert eng.manifest()["couplings"] == references.get(name).coupling()
+    assert "couplings" not in engine_or_skip(name)(eng.model.tree).manifest()
