@@ -333,10 +333,13 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
-    no_couplings = ("Exudyn's CoordinateConstraint (factor, offset) is an algebraic constraint "
-                    "that only its implicit solvers hold (its explicit ones, this adapter's "
-                    "qdd and default, abort on constraints or ignore them, as with the loops' "
-                    "cut joints: references/loops.py); not built in this adapter")
+    couples = ("one CoordinateConstraint per coupling on the tree's coordinates (factor1 = m, "
+               "offset = -c: Exudyn's factor1 q_m1 - q_m0 - offset = 0, measured), qdd from its "
+               "implicit solver's consistent initial accelerations (GeneralizedAlpha "
+               "computeInitialAccelerations), as the loops' constraints")
+    no_couplings = ("Exudyn's explicit solvers (rk44, its default, and the rest) abort on a "
+                    "constraint; its implicit ones would hold the CoordinateConstraints but are "
+                    "not run on a coupled model by this adapter")
     integrator = "rk44"
     integrators = NATIVE
 
@@ -404,6 +407,37 @@ class Exudyn(Engine):
         self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
         self.solver = exu.MainSolverExplicit()
         self._init_rhs = False
+        self.coupled = None
+        if m.couplings:
+            self._couple()
+
+    def _couple(self):
+        """The model's couplings as Exudyn's own constraints, in a second system of the same
+        tree (``coupled``: the adapter built on the uncoupled tree), so that M, the bias and
+        the energy stay this tree's (the core's, a coupled model's are the tree's) and the
+        explicit solver that computes them sees no constraint: one ``CoordinateConstraint``
+        (ObjectConnectorCoordinate) per coupling between a ``MarkerNodeCoordinate`` of the
+        follower (m0) and one of the leader (m1), factor1 = m, offset = -c (its equation is
+        factor1 q_m1 - q_m0 - offset = 0: measured, a GeneralizedAlpha step from a coupled
+        state stays on q_f = m q_l + c with offset -c and is pulled off it with +c). qdd: the
+        implicit solver's consistent initial accelerations (``computeInitialAccelerations``,
+        in ``InitializeSolver``; no step taken), as references/loops.py's ExudynLoops."""
+        from exudyn.itemInterface import MarkerNodeCoordinate, ObjectConnectorCoordinate
+
+        exu, m = self.lib, self.model
+        tree = type(self)(m.tree)
+        mbs = tree.mbs
+        _, _, fv, lv, mult, off = m.coupling_index
+        for f, ld, mu, c in zip(fv, lv, mult, off, strict=True):
+            pair = [mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=tree.node,
+                                                       coordinate=int(tree.eidx[k])))
+                    for k in (f, ld)]
+            mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=pair, factor1=float(mu),
+                                                    offset=-float(c)))
+        mbs.Assemble()
+        ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, QDD_STEP, 1)
+        ss.timeIntegration.generalizedAlpha.computeInitialAccelerations = True
+        self.coupled = (tree, ss, exu.MainSolverImplicitSecondOrder())
 
     # the engine's coordinates: the Model's order, a free joint's (x, y, z, a, b, c) in its six
     # slots (eidx is the identity); the "state" is the coordinate vector, the chart set already
@@ -453,6 +487,16 @@ class Exudyn(Engine):
         self._set_state(qe, y, None, which="Current")
 
     def _qdd(self, qe, y, tau_e):
+        if self.coupled is not None:  # the constrained system's initial accelerations
+            tree, ss, solver = self.coupled
+            tree.hts = self.hts
+            if self.free_links:  # the chart this call's state set
+                tree.mbs.SetObjectParameter(tree.tree, "jointHTs", self.hts)
+            tree._set_state(qe, y, tau_e)
+            with _without_sparse_advice():
+                solver.InitializeSolver(tree.mbs, ss)
+            return np.array(tree.mbs.systemData.GetODE2Coordinates_tt(
+                configuration=self.lib.ConfigurationType.Current))
         self._set_state(qe, y, tau_e)
         with _without_sparse_advice():
             self.solver.SolveSystem(self.mbs, self.ss_qdd)

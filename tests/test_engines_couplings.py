@@ -5,12 +5,14 @@ Menagerie's Panda's fingers) and one after, with multipliers other than +-1 and 
 
 Each engine's qdd against the core's coupled qdd (the core's own check of that qdd is
 tests/test_couplings.py: the reduced-coordinate solve written independently): Pinocchio's CRBA
-on its own mimic joints, DART, Exudyn and Drake on their own mass matrix and bias coupled by the
-adapter (they have no coupling reachable: each says why). MuJoCo holds couplings softly, which
+on its own mimic joints, Exudyn's CoordinateConstraints (its implicit solver's initial
+accelerations), DART and Drake on their own mass matrix and bias coupled by the adapter (they
+have no coupling reachable: each says why). MuJoCo holds couplings softly, which
 tests/test_couplings.py checks against its regulariser. Then short runs: each engine's qdd in
 redysim's integrator along the core's path, MuJoCo's own integrator, which holds the couplings,
-and the other engines' own integrators refused by name. Last, ``redysim compare`` on the gripper
-keeps the engines, and its first screen says what the file has that the run does not simulate.
+and DART's, Exudyn's and Drake's own integrators refused by name. Last, ``redysim compare`` on
+the gripper keeps the engines, and its first screen says what the file has that the run does
+not simulate.
 """
 
 from __future__ import annotations
@@ -26,8 +28,9 @@ import redysim
 
 MODELS = Path(__file__).parent / "models"
 FILES = ("coupled_gripper.xml", "coupled_gripper.urdf")
-PROJECTED = ("dart", "exudyn", "drake")  # no coupling of their own reachable (each says why)
-BUILT = ("pinocchio-crba", *PROJECTED)
+PROJECTED = ("dart", "drake")  # no coupling of their own reachable (each says why)
+BUILT = ("pinocchio-crba", "exudyn", *PROJECTED)
+UNCOUPLED_STEPS = ("dart", "exudyn", "drake")  # their own integrators would not hold them
 
 
 def gripper(file):
@@ -91,6 +94,7 @@ def test_the_engines_without_coupling_refuse_nothing_and_say_how_they_couple(fil
     for name in PROJECTED:
         how = references.get(name).coupling()
         assert "G^T M G" in how and references.get(name).no_couplings in how
+    assert "CoordinateConstraint" in references.get("exudyn").coupling()
     assert "pinocchio-crba builds them" in references.get("pinocchio-aba").limits(model).reason
 
 
@@ -131,7 +135,7 @@ def test_mujocos_own_integrator_holds_the_coupling_and_the_others_refuse_theirs(
     assert err < 1e-4, err  # measured 3.0e-6 (the equality's softness and the step)
     fq, lq, _, _, m, off = model.coupling_index
     assert np.abs(traj.q[:, fq] - (m * traj.q[:, lq] + off)).max() < 1e-4  # measured 5.0e-6
-    for name in PROJECTED:
+    for name in UNCOUPLED_STEPS:
         eng = engine_or_skip(name)(model)
         info = eng.native_integrator()
         settings = {"rtol": 1e-6} if info.adaptive else {}
@@ -181,3 +185,27 @@ def test_the_manifest_says_how_the_couplings_are_held(name):
     eng = engine_or_skip(name)(gripper("coupled_gripper.xml"))
     assert eng.manifest()["couplings"] == references.get(name).coupling()
     assert "couplings" not in engine_or_skip(name)(eng.model.tree).manifest()
+
+
+@pytest.mark.engine
+def test_exudyns_coordinate_constraints_hold_the_offsets_in_its_own_step():
+    """The offsets, which no acceleration sees: one GeneralizedAlpha step (1 ms, Newton to
+    1e-12) of Exudyn's coupled system from a coupled state stays on q_f = m q_l + c (with the
+    offset's sign the other way it is pulled 0.1 rad off at once: measured)."""
+    from redysim.references.exudyn_engine import _settings
+
+    model = gripper("coupled_gripper.xml")
+    eng = engine_or_skip("exudyn")(model)
+    tree, _, _ = eng.coupled
+    exu = eng.lib
+    q, v, _ = coupled_state(model, np.random.default_rng(stable_seed("exudyn-offset")))
+    qe, blocks = tree._state(q, v)
+    tree._set_state(qe, tree._to_engine(v, blocks), None)
+    ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, 1e-3, 1)
+    ss.timeIntegration.newton.relativeTolerance = 1e-12
+    ss.timeIntegration.newton.absoluteTolerance = 1e-12
+    assert exu.MainSolverImplicitSecondOrder().SolveSystem(tree.mbs, ss)
+    after = np.array(tree.mbs.systemData.GetODE2Coordinates())[tree.eidx]
+    assert np.abs(after - q).max() > 1e-4  # it moved
+    fq, lq, _, _, m, off = model.coupling_index
+    assert np.abs(after[fq] - (m * after[lq] + off)).max() < 1e-12
