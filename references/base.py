@@ -685,6 +685,12 @@ class Engine(EnginePackage):
         return out + self._c(blocks) if blocks else out
 
     @classmethod
+    def holds_couplings_in(cls, info: NativeIntegrator) -> bool:
+        """Whether the engine's own integrator ``info`` holds a model's couplings (default: all
+        of them when ``couples_native`` says how, none otherwise)."""
+        return bool(cls.couples_native)
+
+    @classmethod
     def coupling(cls) -> str:
         """How this engine's qdd holds a model's couplings: its own construction (``couples``),
         or the adapter's projection of the engine's M and bias and why (``no_couplings``)."""
@@ -817,12 +823,12 @@ class Engine(EnginePackage):
         ``rtol`` (required) and ``atol`` (default ``rtol``), and h, when given, as its largest
         step. Raises ValueError naming the bad setting."""
         info = self.native_integrator(integrator)
-        if self.model.couplings and not self.couples_native:
+        if self.model.couplings and not self.holds_couplings_in(info):
             raise ValueError(
-                f"engine {self.name!r}'s own integrators do not hold the model's couplings "
-                f"({', '.join(c.follower for c in self.model.couplings)} follow others): "
-                f"{self.no_couplings}; run its qdd, which does, in redysim's integrators "
-                f"(--integrator ode45)")
+                f"engine {self.name!r}'s own integrator {info.name!r} does not hold the "
+                f"model's couplings ({', '.join(c.follower for c in self.model.couplings)} "
+                f"follow others): {self.no_couplings}; run its qdd, which does, in redysim's "
+                f"integrators (--integrator ode45)")
         if info.adaptive:
             if rtol is None or not (math.isfinite(rtol) and rtol > 0):
                 raise ValueError(f"{self.name} integrator {info.name!r} is adaptive: give "

@@ -338,8 +338,8 @@ class Exudyn(Engine):
                "implicit solver's consistent initial accelerations (GeneralizedAlpha "
                "computeInitialAccelerations), as the loops' constraints")
     no_couplings = ("Exudyn's explicit solvers (rk44, its default, and the rest) abort on a "
-                    "constraint; its implicit ones would hold the CoordinateConstraints but are "
-                    "not run on a coupled model by this adapter")
+                    "constraint; its implicit ones (generalized-alpha, trapezoidal) hold the "
+                    "CoordinateConstraints")
     integrator = "rk44"
     integrators = NATIVE
 
@@ -438,6 +438,26 @@ class Exudyn(Engine):
         ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, QDD_STEP, 1)
         ss.timeIntegration.generalizedAlpha.computeInitialAccelerations = True
         self.coupled = (tree, ss, exu.MainSolverImplicitSecondOrder())
+
+    @classmethod
+    def holds_couplings_in(cls, info) -> bool:
+        """Exudyn's implicit solvers hold the CoordinateConstraints (index 3, or index 2 for
+        TrapezoidalIndex2); its explicit ones abort on a constraint."""
+        return _SOLVERS[info.name].kind == "implicit"
+
+    def set_sim_deadline(self, clock, deadline: float) -> None:
+        super().set_sim_deadline(clock, deadline)
+        if self.coupled is not None:  # (a coupled model steps on the coupled system)
+            self.coupled[0].set_sim_deadline(clock, deadline)
+
+    def _on_coupled(self, hook: str, *args):
+        """A native stepping hook of a coupled model, run on the coupled system's adapter (its
+        mbs holds the constraints), which takes this run's integrator, settings and deadline."""
+        tree = self.coupled[0]
+        if hook == "_sim_reset":
+            tree.sim_integrator, tree.sim_settings = self.sim_integrator, self.sim_settings
+            tree._deadline = self._deadline
+        return getattr(tree, hook)(*args)
 
     # the engine's coordinates: the Model's order, a free joint's (x, y, z, a, b, c) in its six
     # slots (eidx is the identity); the "state" is the coordinate vector, the chart set already
@@ -559,6 +579,8 @@ class Exudyn(Engine):
     # stepped is kept here and written back before every solve, so that a qdd, bias or position
     # call between steps (which set the system's state) changes nothing.
     def _sim_reset(self, q0, v0, h):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_reset", q0, v0, h)
         exu, info = self.lib, self.sim_integrator
         sol = _SOLVERS[info.name]
         qe, blocks = self._state(q0, v0)  # a free joint's chart centred at q0
@@ -699,6 +721,8 @@ class Exudyn(Engine):
                    default=0.0)
 
     def _sim_step(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_step")
         ex = self._exu
         h = self.sim_settings["h"]
         n = ex["n"]
@@ -724,6 +748,8 @@ class Exudyn(Engine):
         ex["jacobians"] += jac
 
     def _sim_advance(self, t):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_advance", t)
         ex = self._exu
         while ex["t"] < t:
             t1 = t
@@ -762,6 +788,8 @@ class Exudyn(Engine):
         return float(min(h, h_max) if h_max else h)
 
     def _sim_counts(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_counts")
         ex = self._exu
         sol = _SOLVERS[self.sim_integrator.name]
         if sol.kind == "implicit":
@@ -771,6 +799,8 @@ class Exudyn(Engine):
                 sol.per_step * (ex["steps"] + ex["rejected"]) + starting)
 
     def _settings(self) -> dict[str, Any]:
+        if self.coupled is not None and getattr(self.coupled[0], "_exu", None) is not None:
+            return self._on_coupled("_settings")
         out: dict[str, Any] = {
             "linear_solver": "EigenDense", "threads": 1, "constraints": 0,
             "qdd": f"one ExplicitEuler step of {QDD_STEP:g} s, computeEndOfStepAccelerations "
@@ -824,6 +854,8 @@ class Exudyn(Engine):
         return out
 
     def _sim_state(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_state")
         qe, ye, _ = self._sim_e
         if self.identity:
             return qe.copy(), ye.copy()

@@ -61,10 +61,11 @@ def engine_names(model) -> list[str]:
     return [n for n in references.ENGINES if n not in drop]
 
 
-def own_steps_left_out(model, names) -> dict[str, str]:
-    """The engines of ``names`` whose own integrators do not hold ``model``'s couplings (none
-    for a model without), each with why: they run through their qdd, which does, in redysim's
-    integrators, and not with their own (which would simulate another mechanism)."""
+def own_steps_left_out(model, names) -> dict[str, tuple[list[str], str]]:
+    """The engines of ``names`` with own integrators that do not hold ``model``'s couplings
+    (none for a model without): those integrators and why. They are not run (they would
+    simulate another mechanism); the engine runs through its qdd, which holds them, in
+    redysim's integrators, and with its own integrators that hold them."""
     from redysim import references
 
     if not model.couplings:
@@ -72,9 +73,17 @@ def own_steps_left_out(model, names) -> dict[str, str]:
     out = {}
     for name in names:
         cls = references.get(name)
-        if cls.integrators and not cls.couples_native:
-            out[name] = cls.no_couplings
+        left = [n for n, info in cls.integrators.items() if not cls.holds_couplings_in(info)]
+        if left:
+            out[name] = (left, cls.no_couplings)
     return out
+
+
+def _integrators_named(name: str, left: list[str]) -> str:
+    """'all' when ``left`` is every own integrator of engine ``name``, else their names."""
+    from redysim import references
+
+    return "all" if len(left) == len(references.get(name).integrators) else ", ".join(left)
 
 
 NOT_MOTION = "no effect on the motion"  # the importers' summary line of what does not act
@@ -120,9 +129,11 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
             continue
         specs += [RunSpec(**base, engine=name, integrator="ode45", rtol=r, atol=r * 1e-2)
                   for r in ENGINE_RTOLS]
-        if scn.model.cuts or name in left_out:
+        if scn.model.cuts:
             continue
         for own, info in cls.integrators.items():
+            if own in left_out.get(name, ((), ""))[0]:
+                continue
             if info.adaptive:
                 specs += [RunSpec(**base, engine=name, integrator=f"native:{own}", rtol=r,
                                   atol=r * 1e-2) for r in NATIVE_RTOLS]
@@ -313,8 +324,9 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                f"coupling of its own (" + "; ".join(f"{n}: {references.get(n).no_couplings}"
                                                     for n in projected) + ")"
                if projected else "")
-            + (f". Not run with their own integrators, which would simulate the joints "
-               f"uncoupled: {', '.join(left_out)}" if left_out else "") + ".")
+            + (". Own integrators not run, which would step the joints uncoupled: "
+               + "; ".join(f"{n}: {_integrators_named(n, left)}"
+                           for n, (left, _) in left_out.items()) if left_out else "") + ".")
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
                     ["engine", "status", *STAGES, "note"],
                     notes=[f"Worst relative difference max|engine - core| / max|core| over "
