@@ -115,10 +115,14 @@ What a fair comparison must know (each entry's ``note`` and the ``manifest`` say
   in one; the implicit ones keep the chart (their history lives in it) until an angle passes
   0.5 rad, then centre it and restart the solver (consistent accelerations again: a one-off
   O(h) perturbation of the algorithmic acceleration, order 2 kept, measured).
-- Constraints: this tree has none, and every solver above steps it. With the loops' cut joints
-  (``references/loops.py``) only the implicit ones apply: the explicit solvers abort ("explicit
-  integrator detected object ... which contains constraints that cannot be solved") or, with
-  ``explicit.eliminateConstraints = False``, ignore them (references/README.md, "Loops").
+- Constraints: this tree has none, and every solver above steps it. A coupled model's couplings
+  are ``CoordinateConstraint``s in a second system of the tree (``Exudyn._couple``): its qdd is
+  the implicit solver's consistent initial accelerations, and only the implicit solvers step it
+  (generalized-alpha, trapezoidal: ``holds_couplings_in``); the explicit ones are refused.
+  With the loops' cut joints (``references/loops.py``) only the implicit ones apply: the
+  explicit solvers abort ("explicit integrator detected object ... which contains constraints
+  that cannot be solved") or, with ``explicit.eliminateConstraints = False``, ignore them
+  (references/README.md, "Loops").
 - The state stepped is kept by the adapter and written back before every step, so a ``qdd``,
   ``bias`` or ``position`` call between steps (which set the system's state and a free joint's
   chart) leaves the run as it was (tested).
