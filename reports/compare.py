@@ -95,10 +95,16 @@ def acting_notes(model) -> list[str]:
     return [n for n in model.notes if NOT_MOTION not in n]
 
 
+SHORT_NOTE = 80  # characters of a note's head on the first screen
+
+
 def _short(note: str) -> str:
     """A note's head for the first screen: 'joint damping (9 joints)' of 'joint damping
-    dropped (...): ... (9 joints)'."""
-    head = note.split(" dropped", 1)[0].split(":", 1)[0].strip()
+    dropped (...): ... (9 joints)', "equality 'e0': solref, solimp" of "equality 'e0':
+    solref, solimp = 'j1' = 1 'j2' + 0 dropped (...)"."""
+    head = note.split(" dropped", 1)[0].split(" = ", 1)[0].strip()
+    if len(head) > SHORT_NOTE:
+        head = head[:SHORT_NOTE - 3].rstrip() + "..."
     tail = note.rstrip().rsplit("(", 1)
     count = f" ({tail[1]}" if len(tail) == 2 and tail[1][:1].isdigit() else ""
     return f"{head}{count}"

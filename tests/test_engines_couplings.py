@@ -238,3 +238,17 @@ def test_exudyns_implicit_integrators_step_the_coupled_gripper(integrator):
     assert eng.manifest()["constraints"] == len(model.couplings)
     with pytest.raises(ValueError, match="'rk44' does not hold the model's couplings"):
         eng.simulate(q0, v0, 0.3, 1e-3)
+
+
+def test_the_first_screen_names_what_acts_and_leaves_out_what_does_not():
+    """compare's first-screen card: the notes that change the motion, each by its head and
+    count; the importers' summary of what has no effect on the motion is not among them."""
+    from redysim.reports.compare import _short, acting_notes
+
+    model = gripper("coupled_gripper.urdf")
+    assert any("no effect on the motion" in n for n in model.notes)  # the file's bounds
+    assert [_short(n) for n in acting_notes(model)] == ["joint <limit> lower, upper (4 joints)"]
+    note = ("equality 'e0': solref, solimp = 'j1' = 1 'j2' + 0 dropped (a joint coupling, held "
+            "exactly (Model.couplings), not softly as MuJoCo does)")
+    assert _short(note) == "equality 'e0': solref, solimp"
+    assert len(_short("x" * 200)) == 80
