@@ -46,6 +46,8 @@ CHECK_RTOL = 1e-13
 # A second method for a scenario that is not a rope: the same DOP853 on another engine's qdd
 # (Pinocchio's ABA: an independent implementation of the dynamics), when installed and able.
 CONFIRM_ENGINE = "pinocchio-aba"
+# a coupled model's (pin.aba refuses mimic joints): Pinocchio's CRBA on its own mimic joints
+CONFIRM_ENGINE_COUPLED = "pinocchio-crba"
 
 
 def results_dir() -> Path:
@@ -136,9 +138,10 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
 
 def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
     """(who, the largest path distance) of the reference against the same DOP853 on
-    :data:`CONFIRM_ENGINE`'s qdd: a second implementation of the dynamics. Ropes (their numbers
-    checked against the paper and the engines elsewhere) and closed loops are not confirmed so;
-    an engine that is missing or refuses says why."""
+    :data:`CONFIRM_ENGINE`'s qdd (a coupled model: :data:`CONFIRM_ENGINE_COUPLED`'s): a second
+    implementation of the dynamics. Ropes (their numbers checked against the paper and the
+    engines elsewhere) and closed loops are not confirmed so; an engine that is missing or
+    refuses says why."""
     scn = _scenario(case)
     if scn.case is not None:
         return "none: a rope case, checked against the paper's tables and the engines", math.nan
@@ -147,7 +150,8 @@ def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
             math.nan
     from redysim import references
 
-    cls = references.get(CONFIRM_ENGINE)
+    name = CONFIRM_ENGINE_COUPLED if scn.model.couplings else CONFIRM_ENGINE
+    cls = references.get(name)
     if not cls.available():
         return f"none: {cls.package} is not installed", math.nan
     lim = cls.limits(scn.model)
@@ -155,7 +159,7 @@ def _confirm(case, t_end: float, interval: float, P) -> tuple[str, float]:
         return f"none: {lim.reason}", math.nan
     eng = cls(scn.model)
     _, _, P_engine, _, _ = _solve(scn, t_end, interval, REF_METHOD, REF_RTOL, qdd=eng.qdd)
-    return (f"{CONFIRM_ENGINE} {eng.version}",
+    return (f"{name} {eng.version}",
             float(np.linalg.norm(P - P_engine, axis=1).max()))
 
 

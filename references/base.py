@@ -503,10 +503,16 @@ class Engine(EnginePackage):
     integrators: ClassVar[dict[str, NativeIntegrator]] = {}
     no_integrator: ClassVar[str] = ""  # why ``integrators`` is empty, in the engine's words
     depth_limited: ClassVar[bool] = False  # limits.toml's max_links is a body-tree depth
-    # how the engine holds a model's couplings (Model.couplings: mimic joints) in its qdd; ""
-    # when it does not (limits then refuses a coupled model, naming this reason)
+    # how the engine holds a model's couplings (Model.couplings: mimic joints) in its qdd, its
+    # own construction; "" when it has none: ``no_couplings`` says why (in the engine's terms),
+    # and then, with ``projects_couplings``, qdd is the engine's own M and bias restricted to
+    # the coupled motion by the adapter (:meth:`_coupled_qdd`), else limits refuses the model
     couples: ClassVar[str] = ""
     no_couplings: ClassVar[str] = "no joint coupling built in this adapter"
+    projects_couplings: ClassVar[bool] = True
+    # how the engine's own integrators hold the couplings; "" when they do not (a coupled
+    # model's native run is then refused, naming ``no_couplings``)
+    couples_native: ClassVar[str] = ""
     # how the engine holds a model's armature (Model.armature: each joint's own inertia on the
     # diagonal of M); "" when it cannot (limits then refuses a model with armature, naming this
     # reason: never dropped silently)
@@ -567,7 +573,7 @@ class Engine(EnginePackage):
             return Limits(False, f"{cls.name}: the model has armature (a joint's own inertia, "
                                  f"armature[{j}] = {float(model.armature[j]):g}), which this "
                                  f"engine does not build: {cls.no_armature}")
-        if model.couplings and not cls.couples:
+        if model.couplings and not cls.couples and not cls.projects_couplings:
             return Limits(False, f"{cls.name}: the model couples joints "
                                  f"({', '.join(c.follower for c in model.couplings)} follow "
                                  f"others: mimic joints), which this engine does not build: "
@@ -671,10 +677,47 @@ class Engine(EnginePackage):
         """vdot (n_v,) from I(q) vdot = phi(q, v, tau); tau None: no joint force."""
         q, v = self._vec("q", q, "n_q"), self._vec("v", v, "n_v")
         tau = self._vec("tau", tau, "n_v", optional=True)
+        if self.model.couplings and not self.couples:
+            return self._coupled_qdd(q, v, tau)
         state, blocks = self._state(q, v)
         tau_e = None if tau is None else self._to_engine(tau, blocks)
         out = self._from_engine(self._qdd(state, self._to_engine(v, blocks), tau_e), blocks)
         return out + self._c(blocks) if blocks else out
+
+    @classmethod
+    def holds_couplings_in(cls, info: NativeIntegrator) -> bool:
+        """Whether the engine's own integrator ``info`` holds a model's couplings (default: all
+        of them when ``couples_native`` says how, none otherwise)."""
+        return bool(cls.couples_native)
+
+    @classmethod
+    def coupling(cls) -> str:
+        """How this engine's qdd holds a model's couplings: its own construction (``couples``),
+        or the adapter's projection of the engine's M and bias and why (``no_couplings``)."""
+        if cls.couples:
+            return cls.couples
+        return (f"the engine's own M and bias restricted to the coupled motion by the adapter, "
+                f"qdd = G (G^T M G)^-1 G^T phi (v = G v_independent), as it has none: "
+                f"{cls.no_couplings}")
+
+    def _coupled_qdd(self, q, v, tau) -> np.ndarray:
+        """qdd of a coupled model from the engine's own mass matrix and bias (its CRBA and
+        RNEA, whatever it calls them), for an engine with no coupling of its own: the motions
+        that keep the couplings are v = G u (u the velocities of the joints that follow none,
+        a follower's row m times its leader's), the couplings' forces do no work on them, so
+        G^T M G u' = G^T phi and qdd = G u' (the couplings are linear: no velocity term). The
+        state is taken as given (as the core's right-hand side takes it): a follower's rows are
+        exactly m times its leader's."""
+        m = self.model
+        _, _, fv, lv, mult, _ = m.coupling_index
+        free = np.setdiff1d(np.arange(m.n_v), fv)
+        G = np.zeros((m.n_v, free.size))
+        G[free, np.arange(free.size)] = 1.0
+        for f, ld, mu in zip(fv, lv, mult, strict=True):
+            G[f] = mu * G[ld]
+        M = self.mass_matrix(q)
+        phi = self.bias(q, v) if tau is None else self.bias(q, v) + tau
+        return G @ np.linalg.solve(G.T @ M @ G, G.T @ phi)
 
     def mass_matrix(self, q) -> np.ndarray:
         """The GIM I(q), (n_v, n_v), symmetric."""
@@ -780,6 +823,12 @@ class Engine(EnginePackage):
         ``rtol`` (required) and ``atol`` (default ``rtol``), and h, when given, as its largest
         step. Raises ValueError naming the bad setting."""
         info = self.native_integrator(integrator)
+        if self.model.couplings and not self.holds_couplings_in(info):
+            raise ValueError(
+                f"engine {self.name!r}'s own integrator {info.name!r} does not hold the "
+                f"model's couplings ({', '.join(c.follower for c in self.model.couplings)} "
+                f"follow others): {self.no_couplings}; run its qdd, which does, in redysim's "
+                f"integrators (--integrator ode45)")
         if info.adaptive:
             if rtol is None or not (math.isfinite(rtol) and rtol > 0):
                 raise ValueError(f"{self.name} integrator {info.name!r} is adaptive: give "
@@ -868,7 +917,7 @@ class Engine(EnginePackage):
         """Everything a fair comparison must know about how this engine ran: its name and
         package version, the native integrator and its settings (after :meth:`sim_reset`),
         and the adapter's flags and solver settings (``_settings``: stages disabled, solver
-        iterations, tolerances)."""
+        iterations, tolerances); for a coupled model, how its qdd holds the couplings."""
         info = getattr(self, "sim_integrator", None)
         out: dict[str, Any] = {"engine": self.name, "package": self.package,
                                "version": self.version}
@@ -877,6 +926,8 @@ class Engine(EnginePackage):
                        adaptive=info.adaptive, integrator_note=info.note,
                        **{k: v for k, v in self.sim_settings.items() if v is not None})
         out.update(self._settings())
+        if self.model.couplings:  # how its qdd holds them: its own, or the adapter's projection
+            out["couplings"] = self.coupling()
         return out
 
     def __repr__(self) -> str:

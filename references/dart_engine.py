@@ -143,6 +143,9 @@ class DART(Engine):
     module = "dartpy"
     no_armature = ("dartpy 6.20 exposes no joint armature (a DOF's damping, spring stiffness "
                    "and rest position, nothing on its inertia)")
+    no_couplings = ("DART's mimic joints are out of reach from Python: dartpy 6.20 binds "
+                    "Joint.setActuatorType(MIMIC) but not setMimicJoint (no such method on "
+                    "dartpy.dynamics.Joint, checked), so a MIMIC joint has no leader")
     integrator = "semi-implicit-euler"
     integrators = {"semi-implicit-euler": NativeIntegrator(
         "semi-implicit-euler", False, "World.step at World.setTimeStep(h)",

@@ -215,6 +215,11 @@ class Drake(DrakePackage, Engine):
         name: NativeIntegrator(name, adaptive, _what(scheme, adaptive), note)
         for name, scheme, adaptive, _, note in _SCHEMES}
     holds_armature = "a JointActuator's rotor inertia, gear ratio 1, per 1-DOF joint"
+    no_couplings = ("Drake's coupler constraint (MultibodyPlant.AddCouplerConstraint) is for a "
+                    "discrete plant with the SAP solver only (compliant, by a step's impulses); "
+                    "this adapter's plant is continuous (time_step = 0), where the plant takes "
+                    "it and then EvalTimeDerivatives raises 'Continuous time does not support "
+                    "constraints' (Drake, measured)")
     # the simulator Context's cache (Drake's default: on); False disables it (module docstring:
     # the FSAL integrators' stale cache after a rejected step), at ~6x the cost a derivative
     sim_caching: bool = True

@@ -115,10 +115,14 @@ What a fair comparison must know (each entry's ``note`` and the ``manifest`` say
   in one; the implicit ones keep the chart (their history lives in it) until an angle passes
   0.5 rad, then centre it and restart the solver (consistent accelerations again: a one-off
   O(h) perturbation of the algorithmic acceleration, order 2 kept, measured).
-- Constraints: this tree has none, and every solver above steps it. With the loops' cut joints
-  (``references/loops.py``) only the implicit ones apply: the explicit solvers abort ("explicit
-  integrator detected object ... which contains constraints that cannot be solved") or, with
-  ``explicit.eliminateConstraints = False``, ignore them (references/README.md, "Loops").
+- Constraints: this tree has none, and every solver above steps it. A coupled model's couplings
+  are ``CoordinateConstraint``s in a second system of the tree (``Exudyn._couple``): its qdd is
+  the implicit solver's consistent initial accelerations, and only the implicit solvers step it
+  (generalized-alpha, trapezoidal: ``holds_couplings_in``); the explicit ones are refused.
+  With the loops' cut joints (``references/loops.py``) only the implicit ones apply: the
+  explicit solvers abort ("explicit integrator detected object ... which contains constraints
+  that cannot be solved") or, with ``explicit.eliminateConstraints = False``, ignore them
+  (references/README.md, "Loops").
 - The state stepped is kept by the adapter and written back before every step, so a ``qdd``,
   ``bias`` or ``position`` call between steps (which set the system's state and a free joint's
   chart) leaves the run as it was (tested).
@@ -333,6 +337,13 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
+    couples = ("one CoordinateConstraint per coupling on the tree's coordinates (factor1 = m, "
+               "offset = -c: Exudyn's factor1 q_m1 - q_m0 - offset = 0, measured), qdd from its "
+               "implicit solver's consistent initial accelerations (GeneralizedAlpha "
+               "computeInitialAccelerations), as the loops' constraints")
+    no_couplings = ("Exudyn's explicit solvers (rk44, its default, and the rest) abort on a "
+                    "constraint; its implicit ones (generalized-alpha, trapezoidal) hold the "
+                    "CoordinateConstraints")
     integrator = "rk44"
     integrators = NATIVE
 
@@ -400,6 +411,57 @@ class Exudyn(Engine):
         self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
         self.solver = exu.MainSolverExplicit()
         self._init_rhs = False
+        self.coupled = None
+        if m.couplings:
+            self._couple()
+
+    def _couple(self):
+        """The model's couplings as Exudyn's own constraints, in a second system of the same
+        tree (``coupled``: the adapter built on the uncoupled tree), so that M, the bias and
+        the energy stay this tree's (the core's, a coupled model's are the tree's) and the
+        explicit solver that computes them sees no constraint: one ``CoordinateConstraint``
+        (ObjectConnectorCoordinate) per coupling between a ``MarkerNodeCoordinate`` of the
+        follower (m0) and one of the leader (m1), factor1 = m, offset = -c (its equation is
+        factor1 q_m1 - q_m0 - offset = 0: measured, a GeneralizedAlpha step from a coupled
+        state stays on q_f = m q_l + c with offset -c and is pulled off it with +c). qdd: the
+        implicit solver's consistent initial accelerations (``computeInitialAccelerations``,
+        in ``InitializeSolver``; no step taken), as references/loops.py's ExudynLoops."""
+        from exudyn.itemInterface import MarkerNodeCoordinate, ObjectConnectorCoordinate
+
+        exu, m = self.lib, self.model
+        tree = type(self)(m.tree)
+        mbs = tree.mbs
+        _, _, fv, lv, mult, off = m.coupling_index
+        for f, ld, mu, c in zip(fv, lv, mult, off, strict=True):
+            pair = [mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=tree.node,
+                                                       coordinate=int(tree.eidx[k])))
+                    for k in (f, ld)]
+            mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=pair, factor1=float(mu),
+                                                    offset=-float(c)))
+        mbs.Assemble()
+        ss = _settings(exu, exu.DynamicSolverType.GeneralizedAlpha, QDD_STEP, 1)
+        ss.timeIntegration.generalizedAlpha.computeInitialAccelerations = True
+        self.coupled = (tree, ss, exu.MainSolverImplicitSecondOrder())
+
+    @classmethod
+    def holds_couplings_in(cls, info) -> bool:
+        """Exudyn's implicit solvers hold the CoordinateConstraints (index 3, or index 2 for
+        TrapezoidalIndex2); its explicit ones abort on a constraint."""
+        return _SOLVERS[info.name].kind == "implicit"
+
+    def set_sim_deadline(self, clock, deadline: float) -> None:
+        super().set_sim_deadline(clock, deadline)
+        if self.coupled is not None:  # (a coupled model steps on the coupled system)
+            self.coupled[0].set_sim_deadline(clock, deadline)
+
+    def _on_coupled(self, hook: str, *args):
+        """A native stepping hook of a coupled model, run on the coupled system's adapter (its
+        mbs holds the constraints), which takes this run's integrator, settings and deadline."""
+        tree = self.coupled[0]
+        if hook == "_sim_reset":
+            tree.sim_integrator, tree.sim_settings = self.sim_integrator, self.sim_settings
+            tree._deadline = self._deadline
+        return getattr(tree, hook)(*args)
 
     # the engine's coordinates: the Model's order, a free joint's (x, y, z, a, b, c) in its six
     # slots (eidx is the identity); the "state" is the coordinate vector, the chart set already
@@ -449,6 +511,16 @@ class Exudyn(Engine):
         self._set_state(qe, y, None, which="Current")
 
     def _qdd(self, qe, y, tau_e):
+        if self.coupled is not None:  # the constrained system's initial accelerations
+            tree, ss, solver = self.coupled
+            tree.hts = self.hts
+            if self.free_links:  # the chart this call's state set
+                tree.mbs.SetObjectParameter(tree.tree, "jointHTs", self.hts)
+            tree._set_state(qe, y, tau_e)
+            with _without_sparse_advice():
+                solver.InitializeSolver(tree.mbs, ss)
+            return np.array(tree.mbs.systemData.GetODE2Coordinates_tt(
+                configuration=self.lib.ConfigurationType.Current))
         self._set_state(qe, y, tau_e)
         with _without_sparse_advice():
             self.solver.SolveSystem(self.mbs, self.ss_qdd)
@@ -511,6 +583,8 @@ class Exudyn(Engine):
     # stepped is kept here and written back before every solve, so that a qdd, bias or position
     # call between steps (which set the system's state) changes nothing.
     def _sim_reset(self, q0, v0, h):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_reset", q0, v0, h)
         exu, info = self.lib, self.sim_integrator
         sol = _SOLVERS[info.name]
         qe, blocks = self._state(q0, v0)  # a free joint's chart centred at q0
@@ -651,6 +725,8 @@ class Exudyn(Engine):
                    default=0.0)
 
     def _sim_step(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_step")
         ex = self._exu
         h = self.sim_settings["h"]
         n = ex["n"]
@@ -676,6 +752,8 @@ class Exudyn(Engine):
         ex["jacobians"] += jac
 
     def _sim_advance(self, t):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_advance", t)
         ex = self._exu
         while ex["t"] < t:
             t1 = t
@@ -714,6 +792,8 @@ class Exudyn(Engine):
         return float(min(h, h_max) if h_max else h)
 
     def _sim_counts(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_counts")
         ex = self._exu
         sol = _SOLVERS[self.sim_integrator.name]
         if sol.kind == "implicit":
@@ -723,6 +803,8 @@ class Exudyn(Engine):
                 sol.per_step * (ex["steps"] + ex["rejected"]) + starting)
 
     def _settings(self) -> dict[str, Any]:
+        if self.coupled is not None and getattr(self.coupled[0], "_exu", None) is not None:
+            return self._on_coupled("_settings")
         out: dict[str, Any] = {
             "linear_solver": "EigenDense", "threads": 1, "constraints": 0,
             "qdd": f"one ExplicitEuler step of {QDD_STEP:g} s, computeEndOfStepAccelerations "
@@ -776,6 +858,8 @@ class Exudyn(Engine):
         return out
 
     def _sim_state(self):
+        if self.coupled is not None:
+            return self._on_coupled("_sim_state")
         qe, ye, _ = self._sim_e
         if self.identity:
             return qe.copy(), ye.copy()

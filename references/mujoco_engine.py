@@ -162,6 +162,7 @@ class MuJoCo(Engine):
     couples = ("one mjEQ_JOINT equality per coupling (polycoef = offset, multiplier), solimp "
                "at MuJoCo's hardest (d = mjMAXIMP), Newton solver: MuJoCo's soft constraint, "
                "regularised as its loops are")
+    couples_native = "the same joint equalities in mj_step, MuJoCo's constraint solver"
     integrator = "rk4"
     integrators = {name: entry[0] for name, entry in _INTEGRATORS.items()}
     depth_limited = True

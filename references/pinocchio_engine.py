@@ -132,11 +132,22 @@ class PinocchioEngine(Engine):
                         f"the world velocity's rate, Pinocchio's free flyer's on the "
                         f"body-frame velocity's, which differs by w x v")
         index = {name: k for k, name in enumerate(model.joint_names)}
-        for c in model.couplings:
-            k = index[c.follower]
+        for c, (follower, _, _, _) in zip(model.couplings, mimic_order(model), strict=True):
+            if follower is None:
+                return (f"joint {c.follower!r} follows {c.leader!r} with multiplier 0 and comes "
+                        f"before it in the tree: Pinocchio's mimic joint must come after the "
+                        f"joint it mimics, and a constant joint cannot be mimicked")
+            k = index[follower]
             if np.any(model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]):
-                return (f"joint {c.follower!r} follows {c.leader!r} and has armature: "
-                        f"Pinocchio's mimic joint has no velocity of its own to hold it")
+                return (f"joint {follower!r} is the mimic joint of the coupling of "
+                        f"{c.follower!r} to {c.leader!r} and has armature: Pinocchio's mimic "
+                        f"joint has no velocity of its own to hold it")
+        mimics = {f for f, _, _, _ in mimic_order(model)}
+        for f, ld, _, _ in mimic_order(model):
+            if ld in mimics:
+                return (f"joint {ld!r} is mimicked by {f!r} and itself a mimic joint once each "
+                        f"coupling's mimic joint comes after its leader in the tree (as "
+                        f"Pinocchio requires): Pinocchio does not chain mimic joints")
         return ""
 
     def _build(self):
@@ -190,14 +201,14 @@ class PinocchioEngine(Engine):
         pin, m, pm = self.lib, self.model, self.pm
         index = {name: k for k, name in enumerate(m.joint_names)}
         pmm = pm
-        for c in m.couplings:
-            pmm = pin.transformJointIntoMimic(pmm, first[index[c.leader]],
-                                              first[index[c.follower]], c.multiplier, c.offset)
+        order = mimic_order(m)  # each coupling with its mimic joint after its leader
+        for follower, leader, mult, offset in order:
+            pmm = pin.transformJointIntoMimic(pmm, first[index[leader]], first[index[follower]],
+                                              mult, offset)
         self.pmm, self.dmm = pmm, pin.Data(pmm)
         G = np.zeros((pm.nv, pmm.nv))
         mq, mv = np.zeros(pmm.nq, dtype=np.int64), np.zeros(pmm.nv, dtype=np.int64)
-        rule = {first[index[c.follower]]: (first[index[c.leader]], c.multiplier)
-                for c in m.couplings}
+        rule = {first[index[f]]: (first[index[ld]], mult) for f, ld, mult, _ in order}
         for j in range(1, pm.njoints):
             full, red = pm.joints[j], pmm.joints[j]
             if j in rule:  # a mimic: its velocity m times its leader's
@@ -260,6 +271,27 @@ class PinocchioEngine(Engine):
         return self.data.oMi[self.body_joint[body]].act(point).copy()
 
 
+def mimic_order(model) -> list[tuple[str | None, str, float, float]]:
+    """Each coupling of ``model`` as Pinocchio's mimic joint takes it, (mimic joint, the joint
+    it mimics, multiplier, offset): ``pin.transformJointIntoMimic`` needs the mimicked joint
+    before the mimic one in the joint order ('index_mimicking is greater than index_mimicked',
+    4.1.0), which is the adapter's depth-first body order. A follower that comes before its
+    leader (Menagerie's Panda: finger_joint1 follows finger_joint2) swaps the roles by the
+    inverse map q_l = q_f / m - c / m, the same constraint and so the same dynamics; with
+    m = 0 there is none (the mimic joint None: ``unsupported`` refuses it)."""
+    rank = {k: i for i, k in enumerate(depth_first(model))}
+    index = {name: k for k, name in enumerate(model.joint_names)}
+    out: list[tuple[str | None, str, float, float]] = []
+    for c in model.couplings:
+        if rank[index[c.leader]] < rank[index[c.follower]]:
+            out.append((c.follower, c.leader, c.multiplier, c.offset))
+        elif c.multiplier == 0.0:
+            out.append((None, c.leader, c.multiplier, c.offset))
+        else:
+            out.append((c.leader, c.follower, 1.0 / c.multiplier, -c.offset / c.multiplier))
+    return out
+
+
 ABA_NO_MIMIC = ("Pinocchio's ABA refuses mimic joints ('This algorithm does not support Joint "
                 "Mimic type in the model', pin.aba, 4.1.0); pinocchio-crba builds them")
 
@@ -270,6 +302,7 @@ class PinocchioABA(PinocchioEngine):
     name = "pinocchio-aba"
     universal = "universal"
     no_couplings = ABA_NO_MIMIC
+    projects_couplings = False  # pinocchio-crba couples with Pinocchio's own mimic joints
 
 
 class PinocchioABARyRz(PinocchioEngine):
@@ -279,6 +312,7 @@ class PinocchioABARyRz(PinocchioEngine):
     name = "pinocchio-aba-ryrz"
     universal = "ryrz"
     no_couplings = ABA_NO_MIMIC
+    projects_couplings = False  # pinocchio-crba couples with Pinocchio's own mimic joints
 
 
 class PinocchioCRBA(PinocchioEngine):
@@ -288,7 +322,8 @@ class PinocchioCRBA(PinocchioEngine):
     name = "pinocchio-crba"
     universal = "universal"
     couples = ("Pinocchio's mimic joints (pin.transformJointIntoMimic of each follower onto its "
-               "leader, as buildModelFromUrdf(..., mimic=True) reads a URDF): qdd from that "
+               "leader, as buildModelFromUrdf(..., mimic=True) reads a URDF; a follower before "
+               "its leader in the tree swaps roles, q_l = q_f / m - c / m): qdd from that "
                "model's crba and nonLinearEffects, tau mapped as G^T tau")
 
     def _qdd(self, qp, y, tau_e):

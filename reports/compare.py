@@ -56,7 +56,58 @@ def engine_names(model) -> list[str]:
 
     split = any(t in ("U", "S") for t in model.joint_types)
     drop = ("pinocchio-crba", "pinocchio-aba" if split else "pinocchio-aba-ryrz")
+    if model.couplings:  # pin.aba refuses mimic joints; its CRBA builds them
+        drop = ("pinocchio-aba", "pinocchio-aba-ryrz")
     return [n for n in references.ENGINES if n not in drop]
+
+
+def own_steps_left_out(model, names) -> dict[str, tuple[list[str], str]]:
+    """The engines of ``names`` with own integrators that do not hold ``model``'s couplings
+    (none for a model without): those integrators and why. They are not run (they would
+    simulate another mechanism); the engine runs through its qdd, which holds them, in
+    redysim's integrators, and with its own integrators that hold them."""
+    from redysim import references
+
+    if not model.couplings:
+        return {}
+    out = {}
+    for name in names:
+        cls = references.get(name)
+        left = [n for n, info in cls.integrators.items() if not cls.holds_couplings_in(info)]
+        if left:
+            out[name] = (left, cls.no_couplings)
+    return out
+
+
+def _integrators_named(name: str, left: list[str]) -> str:
+    """'all' when ``left`` is every own integrator of engine ``name``, else their names."""
+    from redysim import references
+
+    return "all" if len(left) == len(references.get(name).integrators) else ", ".join(left)
+
+
+NOT_MOTION = "no effect on the motion"  # the importers' summary line of what does not act
+
+
+def acting_notes(model) -> list[str]:
+    """The lines of ``model.notes`` that change the motion: what the file has and the run does
+    not simulate (the importers' summary of what has no effect on the motion left out)."""
+    return [n for n in model.notes if NOT_MOTION not in n]
+
+
+SHORT_NOTE = 80  # characters of a note's head on the first screen
+
+
+def _short(note: str) -> str:
+    """A note's head for the first screen: 'joint damping (9 joints)' of 'joint damping
+    dropped (...): ... (9 joints)', "equality 'e0': solref, solimp" of "equality 'e0':
+    solref, solimp = 'j1' = 1 'j2' + 0 dropped (...)"."""
+    head = note.split(" dropped", 1)[0].split(" = ", 1)[0].strip()
+    if len(head) > SHORT_NOTE:
+        head = head[:SHORT_NOTE - 3].rstrip() + "..."
+    tail = note.rstrip().rsplit("(", 1)
+    count = f" ({tail[1]}" if len(tail) == 2 and tail[1][:1].isdigit() else ""
+    return f"{head}{count}"
 
 
 def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
@@ -77,6 +128,7 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     # (Pinocchio's loops are built on its CRBA; Drake's continuous plant takes no constraints)
     names = ([c.adapter.name for c in references.LOOP_ENGINES.values()] if scn.model.cuts
              else engine_names(scn.model))
+    left_out = own_steps_left_out(scn.model, names)
     for name in names:
         cls = references.get(name)
         if engines is not None and name not in engines:
@@ -86,6 +138,8 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
         if scn.model.cuts:
             continue
         for own, info in cls.integrators.items():
+            if own in left_out.get(name, ((), ""))[0]:
+                continue
             if info.adaptive:
                 specs += [RunSpec(**base, engine=name, integrator=f"native:{own}", rtol=r,
                                   atol=r * 1e-2) for r in NATIVE_RTOLS]
@@ -260,6 +314,25 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                      f"(the observed path's largest distance); {check}.")
     if m.notes:
         intro.append("From the file, not simulated (Model.notes): " + "; ".join(m.notes))
+    if m.couplings:
+        from redysim import references
+
+        kept = [n for n in engine_names(m) if references.get(n).limits(m).ok]
+        own = [f"{n}: {references.get(n).couples}" for n in kept if references.get(n).couples]
+        projected = [n for n in kept if not references.get(n).couples]
+        left_out = own_steps_left_out(m, kept)
+        rules = ", ".join(f"{c.follower} = {c.multiplier:g} {c.leader} + {c.offset:g}"
+                          for c in m.couplings)
+        intro.append(
+            f"Coupled joints ({rules}). Each engine's qdd holds them: " + "; ".join(own)
+            + (f"; {', '.join(projected)}: the engine's own M and bias restricted to the "
+               f"coupled motion by the adapter, qdd = G (G^T M G)^-1 G^T phi, as it has no "
+               f"coupling of its own (" + "; ".join(f"{n}: {references.get(n).no_couplings}"
+                                                    for n in projected) + ")"
+               if projected else "")
+            + (". Own integrators not run, which would step the joints uncoupled: "
+               + "; ".join(f"{n}: {_integrators_named(n, left)}"
+                           for n, (left, _) in left_out.items()) if left_out else "") + ".")
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
                     ["engine", "status", *STAGES, "note"],
                     notes=[f"Worst relative difference max|engine - core| / max|core| over "
@@ -296,6 +369,16 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         heads.append(Headline(f"cheapest within {a['tol']:g} m", f"{label(b)} {setting(b)}",
                               f"{float(b['cpu_s']):.3g} s CPU, error "
                               f"{float(b['max_tip_err']):.1e} m"))
+    acting = acting_notes(m)
+    if acting:  # first on the page: what the file has and this run does not simulate
+        heads.insert(0, Headline("in the file, not simulated", f"{len(acting)} item"
+                                 f"{'s' if len(acting) > 1 else ''}",
+                                 "; ".join(_short(n) for n in acting)
+                                 + " (each in full under 'The model')", DIFFER))
+    ran = sorted({str(e) for e in runs.loc[runs["status"] == "ok", "engine"]} - {CORE})
+    heads.insert(1 if acting else 0, Headline(
+        "engines that ran", f"{len(ran)} + the core", ", ".join(ran) or "none",
+        INFO if ran else NOT_RUN))
     runs_t = Table("compare-runs", "Every run", ["run", "status", "steps", "RHS calls",
                                                   "CPU [s]", "path error [m]",
                                                   "max |delta_M| [J/kg]", "reason"])
