@@ -882,20 +882,32 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     return p if grad is None else (p, grad)
 
 
-class Tip(NamedTuple):
-    """The motion of a frame fixed in a body (world frame): the tip of a chain (the distal end
-    of its last link), a model's named frame or a body's origin. Its point's position [m],
-    velocity [m/s] and acceleration [m/s^2] (None without qdd), then its axes: ``rotation``
-    (3, 3), the frame's axes as columns in world coordinates (MuJoCo's xmat / site_xmat),
-    ``angular_velocity`` [rad/s] and ``angular_acceleration`` [rad/s^2] (None without qdd),
-    the body's, in world coordinates."""
-
+class _Point(NamedTuple):
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray | None
-    rotation: np.ndarray | None = None
-    angular_velocity: np.ndarray | None = None
-    angular_acceleration: np.ndarray | None = None
+
+
+class Tip(_Point):
+    """The motion of a frame fixed in a body (world frame): the tip of a chain (the distal end
+    of its last link), a model's named frame or a body's origin. As a tuple, its point's
+    ``position`` [m], ``velocity`` [m/s] and ``acceleration`` [m/s^2] (None without qdd), as it
+    always was (``p, v, a = tip(...)``); besides, as attributes, its axes: ``rotation`` (3, 3),
+    the frame's axes as columns in world coordinates (MuJoCo's xmat / site_xmat),
+    ``angular_velocity`` [rad/s] and ``angular_acceleration`` [rad/s^2] (None without qdd), the
+    body's, in world coordinates."""
+
+    rotation: np.ndarray | None
+    angular_velocity: np.ndarray | None
+    angular_acceleration: np.ndarray | None
+
+    def __new__(cls, position, velocity, acceleration, rotation=None, angular_velocity=None,
+                angular_acceleration=None):
+        self = super().__new__(cls, position, velocity, acceleration)
+        self.rotation = rotation
+        self.angular_velocity = angular_velocity
+        self.angular_acceleration = angular_acceleration
+        return self
 
 
 TIP = "tip"  # the frame of a chain's tip (a Chain names it so)
@@ -913,7 +925,8 @@ def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray, np.ndarray 
             None if axes is None else np.asarray(axes, dtype=float)
     if isinstance(frame, str) and frame in model.body_names:
         return model.body_names.index(frame), np.zeros(3), None
-    known = [*model.frames, *model.body_names[:10]]
+    frames = list(model.frames)
+    known = [*frames[:10], *(["..."] if len(frames) > 10 else []), *model.body_names[:10]]
     if model.n_bodies > 10:
         known += ["...", model.body_names[-1]]
     where = "tip" if frame == TIP else "frame"

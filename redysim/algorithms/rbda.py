@@ -25,7 +25,6 @@ References:
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -257,7 +256,7 @@ def pivots(model: Model) -> tuple[np.ndarray, np.ndarray]:
     kin = kinematics(model, model.neutral(), np.zeros(n))
     Mhat = np.zeros((nb, 6, 6))
     D, scale = np.zeros(n), np.zeros(n)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a zero pivot is looked for
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero pivots looked for
         for k in range(nb - 1, -1, -1):  # children before parents
             Mhat[k] += body_mass(model, k, kin.R[k])
             gathered = np.abs(Mhat[k])
@@ -276,11 +275,13 @@ def pivots(model: Model) -> tuple[np.ndarray, np.ndarray]:
     return D, scale
 
 
-def singular_axes(model: Model) -> np.ndarray:
-    """The DOFs whose pivot (:func:`pivots`) is zero, not finite, or round-off of what it is
-    computed from (at most MASSLESS_TOL of it), in elimination order (from the tip: the first is
-    the one that makes the GIM singular; those after it inherit its NaN)."""
-    D, scale = pivots(model)
+def singular_axes(model: Model, pivoted: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> np.ndarray:
+    """The DOFs whose pivot (:func:`pivots`, or ``pivoted``: its result) is zero, not finite,
+    or round-off of what it is computed from (at most MASSLESS_TOL of it), in elimination order
+    (from the tip: the first is the one that makes the GIM singular; those after it inherit its
+    NaN)."""
+    D, scale = pivots(model) if pivoted is None else pivoted
     with np.errstate(invalid="ignore"):
         bad = ~(D > MASSLESS_TOL * scale) | ~np.isfinite(D)
     return np.flatnonzero(bad)[::-1]

@@ -9,7 +9,11 @@ inertias are taken as the file gives them (real robot files break the triangle i
 rounding; a link of mass 0 keeps its rotational inertia, as Pinocchio reads it), rotations from
 ``rpy`` as urdfdom's, Rz(yaw) Ry(pitch) Rx(roll); gravity -9.81 along z (URDF has none; robots
 are described z up). A root link named ``world`` is the world, as MuJoCo and Gazebo read it.
-Refused, naming the file and the element: not well-formed XML, a link or joint name used twice,
+The XML is read as urdfdom reads it (no namespace processing), so an undeclared prefix in an
+element redysim does not read (``<sensor:camera>`` in ``<gazebo>``) stops nothing. A placeholder
+link (tiny but positive mass and inertia, Gazebo's 1e-10) is loaded as written, announced when
+its pivot is below 1e-12 of the largest. Refused, naming the file and the element: not
+well-formed XML, a link or joint name used twice,
 a joint whose parent or child link does not exist, a link that is the child of two joints or a
 cycle of joints (a kinematic loop), two root links, a planar joint, a floating joint below a
 link that moves, a malformed number, an <inertial> without its <mass> or <inertia> (urdfdom
@@ -31,7 +35,10 @@ massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed
 P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
--a_n. A joint equality of degree 1 between two hinge or slide joints is a coupling of the model
+-a_n; a frame by the body's name keeps its origin where the file puts it (also for a jointless
+body, fused into its parent), so ``frame_motion(frame=body)`` is MuJoCo's xpos and xmat, and
+every named site on a moving body is a frame with its axes (``Model.frame_rotations``). A joint
+equality of degree 1 between two hinge or slide joints is a coupling of the model
 (:class:`~redysim.model.tree.Coupling`, held exactly: MuJoCo's softness announced). Refused: a
 ball joint, a free joint below the root, any other active equality constraint (a loop closure;
 closed loops are built with :func:`redysim.load_linkage` and :class:`redysim.ClosedLoops`) unless
@@ -46,18 +53,22 @@ the value, e.g. ``joint 'knee': damping = 0.5 dropped (no joint damping in the c
 damping, armature, stiffness (with springref), frictionloss, limits (MJCF ``range``, URDF
 ``<limit lower upper>``), URDF ``<dynamics>``, body ``gravcomp``, fluid forces (``density``,
 ``viscosity``), tendons, actuators with a force at ctrl 0 (a position or velocity servo),
-contact geometry (MJCF geoms that can touch one another, URDF ``<collision>``), flex and
-plugins. ``strict=True`` refuses each of these instead (ModelFileError naming the element and
-attribute), except what the caller chose to drop by name (``mimic="independent"``,
-``equality="drop"``). Things that do not act on the motion are one summary line: visual
-geometry, materials, sites, cameras, lights, sensors, keyframes, transmissions, Gazebo tags,
-a URDF joint's effort and velocity bounds (tau is the caller's), actuators without a force at
-ctrl 0 (a motor: give its force as tau).
+contact geometry (MJCF geoms that can touch one another, URDF ``<collision>``), flex,
+plugins and plugin actuators (a PID servo pushes at ctrl 0). ``strict=True`` refuses each of
+these instead (ModelFileError naming the element and attribute), except what the caller chose
+to drop by name (``mimic="independent"``, ``equality="drop"``). Things that do not act on the
+motion are one summary line: visual geometry, materials, sites on the world, cameras, lights,
+sensors, keyframes, transmissions, Gazebo tags, a URDF joint's effort and velocity bounds (tau
+is the caller's), actuators without a force at ctrl 0 (a motor: give its force as tau).
 
 ``floating=True``: a URDF's root link (the link fixed to a root link named ``world``), or the
 one MJCF root body without joints, gets a free joint, its pose in the file the initial q; a
 file whose root already floats is taken as it is; an MJCF root body that already moves on other
 joints, or several jointless roots, are refused by name.
+
+**A singular GIM** is refused naming the first joint, from the tip, whose pivot vanishes at the
+neutral configuration (:func:`redysim.algorithms.rbda.singular_axes`: zero, not finite, or
+round-off of the articulated mass it is computed from) and the massless body that makes it so.
 """
 
 from __future__ import annotations
@@ -1085,17 +1096,18 @@ def _check_inertia_to_move(model: Model, src: str) -> list[str]:
     notes returned when its pivot is below MASSLESS_TOL of the largest."""
     from redysim.algorithms.rbda import MASSLESS_TOL, pivots, singular_axes
 
-    bad = singular_axes(model)
+    pivoted = pivots(model)
+    bad = singular_axes(model, pivoted)
     if bad.size:
         j = int(bad[0])
         k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
         raise ModelFileError(src, f"joint {model.joint_names[k]!r}", None,
                              _singular_text(model, k, j - int(model.joint_voff[k])))
-    D, _ = pivots(model)
+    D = pivoted[0]
     largest = float(np.max(D)) if D.size else 0.0
     small = np.flatnonzero(D < MASSLESS_TOL * largest)
     notes = []
-    for j in small[::-1]:
+    for j in small[::-1][:LISTED]:
         k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
         what = "inertia" if model.dof_kind[j] != KIND_CODES["P"] else "mass"
         notes.append(f"joint {model.joint_names[k]!r}: moves {_carried(model, k)} with "
@@ -1103,6 +1115,9 @@ def _check_inertia_to_move(model: Model, src: str) -> list[str]:
                      f"{float(D[j]) / largest:.2g} of the largest (a placeholder's?): loaded as "
                      "written (its pivot is finite); its accelerations are as ill-conditioned "
                      "as that ratio")
+    if small.size > LISTED:
+        notes.append(f"and {small.size - LISTED} more joints whose pivot is below "
+                     f"{MASSLESS_TOL:g} of the largest (placeholders?), loaded as written")
     return notes
 
 
