@@ -982,7 +982,7 @@ def _link(name, mass, inertia, com="0 0 0"):
 # wheel about y: its pivot is 2e-13 of the arm's (refused before as "no inertia")
 PLACEHOLDER = ('<robot name="ph"><link name="base"/>' + _link("arm", 200, 0.1, "1.5 0 0")
                + _link("ph", 1e-10, 1e-10) +
-               '<joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>'
+               '<joint name="shoulder" type="continuous"><parent link="base"/><child link="arm"/>'
                '<axis xyz="0 0 1"/></joint><joint name="wheel" type="continuous"><parent '
                'link="arm"/><child link="ph"/><origin xyz="0.6 0 0"/><axis xyz="0 1 0"/></joint>'
                '</robot>')
