@@ -1161,7 +1161,9 @@ def _singular_text(model: Model, k: int, axis: int) -> str:
     sub = _subtree(model, k)
     if all(_massless(model, b) for b in sub):
         what = "which is" if len(sub) == 1 else "and what it carries, which are"
-        return (f"moves body {name} {what} massless: no inertia about its axis {axis} (a "
+        about = "mass along" if model.dof_kind[int(model.joint_voff[k]) + axis] == \
+            KIND_CODES["P"] else "inertia about"
+        return (f"moves body {name} {what} massless: no {about} its axis {axis} (a "
                 f"massless body at the end of a joint), the GIM is singular; give body {name} "
                 "an <inertial> or fix the joint")
     return (f"moves {_carried(model, k)}, which have no inertia about its axis {axis} (their "
