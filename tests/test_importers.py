@@ -578,9 +578,9 @@ def test_the_bodies_announced_in_contact_are_mujocos(tmp_path, text):
 
 @pytest.mark.engine
 def test_a_motor_is_an_input_and_visual_things_are_one_line(tmp_path):
-    """A motor has no force at ctrl 0 (its force is a tau the caller gives); sites, sensors,
-    cameras, lights, visual geoms and keyframes do not act on the motion: one summary line,
-    and strict=True loads the file."""
+    """A motor has no force at ctrl 0 (its force is a tau the caller gives); sensors, cameras,
+    lights, visual geoms and keyframes do not act on the motion: one summary line, and
+    strict=True loads the file (a site is read: a frame)."""
     extra = ('<actuator><motor name="m" joint="elbow" gear="2"/></actuator><sensor>'
              '<jointpos joint="elbow"/></sensor><keyframe><key qpos="0.1 0.2"/></keyframe>')
     text = mjcf_pendulum(extra=extra).replace(
@@ -589,8 +589,9 @@ def test_a_motor_is_an_input_and_visual_things_are_one_line(tmp_path):
     path = write(tmp_path, text, "p.xml")
     model = load_model(path, strict=True)
     notes_with(model, "actuator 'm': force dropped (an input: give it as tau)")
-    notes_with(model, "not read (no effect on the motion): ", "1 sites", "1 cameras",
+    notes_with(model, "not read (no effect on the motion): ", "1 cameras",
                "1 lights", "1 sensors", "1 keyframes", "2 visual-only geoms")
+    assert model.frames["s"] == (0, (0.0, 0.0, 0.0))  # a site on a moving body is a frame
 
 
 @pytest.mark.engine
@@ -694,7 +695,8 @@ def test_flex_and_plugins_are_announced(tmp_path):
     <actuator><plugin joint="h" plugin="mujoco.pid" instance="pid1"/></actuator></mujoco>"""
     path = write(tmp_path, pid, "pid.xml")
     notes_with(load_model(path), "plugin 'pid1': forces dropped")
-    refused(lambda: load_model(path, strict=True), "plugin 'pid1'.forces", "strict=True")
+    refused(lambda: load_model(path, strict=True), "actuator 'actuator0'.plugin", "strict=True",
+            "also: plugin forces")
 
 
 @pytest.mark.engine
@@ -967,3 +969,172 @@ def test_bodies_sit_where_mujoco_puts_them(tmp_path, text):
             k = model.body_names.index(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b))
             assert np.allclose(kin.O[k] + kin.R[k] @ model.com[k], d.xipos[b], rtol=0,
                                atol=1e-14), model.body_names[k]
+
+
+# --------------------------------------------------------------------------- issue 56: items 5, 7
+def _link(name, mass, inertia, com="0 0 0"):
+    i = inertia
+    return (f'<link name="{name}"><inertial><origin xyz="{com}"/><mass value="{mass}"/>'
+            f'<inertia ixx="{i}" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>')
+
+
+# a 200 kg arm turning about z; at its end a Gazebo placeholder (1e-10 kg, 1e-10 kg m^2) on a
+# wheel about y: its pivot is 2e-13 of the arm's (refused before as "no inertia")
+PLACEHOLDER = ('<robot name="ph"><link name="base"/>' + _link("arm", 200, 0.1, "1.5 0 0")
+               + _link("ph", 1e-10, 1e-10) +
+               '<joint name="shoulder" type="continuous"><parent link="base"/><child link="arm"/>'
+               '<axis xyz="0 0 1"/></joint><joint name="wheel" type="continuous"><parent '
+               'link="arm"/><child link="ph"/><origin xyz="0.6 0 0"/><axis xyz="0 1 0"/></joint>'
+               '</robot>')
+
+
+def test_a_placeholder_link_loads_and_is_announced(tmp_path):
+    """Tiny but positive mass and inertia keep the pivot finite: loaded, with a note. At rest at
+    q = 0 the wheel's axis (y) is across the shoulder's (z) and the placeholder's centre of mass
+    is on it, so the GIM is diagonal and gravity (along -z) turns neither joint: a torque of
+    1e-10 N m on the wheel gives it qdd = tau / I_yy = 1 rad/s^2 and the shoulder none (a hand
+    calculation)."""
+    model = load_urdf(write(tmp_path, PLACEHOLDER, "ph.urdf"), strict=True)
+    notes_with(model, "joint 'wheel'", "body 'ph' (1e-10 kg)", "placeholder", "loaded")
+    qdd = forward_dynamics(model, model.neutral(), np.zeros(2), [0.0, 1e-10])
+    np.testing.assert_allclose(qdd, [0.0, 1.0], rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.engine
+def test_a_placeholder_link_moves_as_pinocchio_moves_it(tmp_path):
+    """Pinocchio's aba on the same file (its continuous joints' q as cos, sin) at seeded random
+    states, torques of the placeholder's size: the core's qdd to 1e-12 relative (measured 3e-16)."""
+    pin = pytest.importorskip("pinocchio")
+    path = write(tmp_path, PLACEHOLDER, "ph.urdf")
+    model = load_urdf(path)
+    pm = pin.buildModelFromUrdf(str(path))
+    pm.gravity.linear[:] = model.gravity
+    pd = pm.createData()
+    rng = np.random.default_rng(stable_seed("placeholder"))
+    for _ in range(5):
+        q, v, tau = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2) * 1e-10
+        qp = np.array([np.cos(q[0]), np.sin(q[0]), np.cos(q[1]), np.sin(q[1])])
+        assert rel(forward_dynamics(model, q, v, tau), pin.aba(pm, pd, qp, v, tau)) < 1e-12
+
+
+def test_only_a_vanishing_pivot_is_refused_and_the_massless_body_named(tmp_path):
+    """A massless link at the end of a joint is still refused (its pivot is zero), naming it."""
+    text = PLACEHOLDER.replace(_link("ph", 1e-10, 1e-10), '<link name="ph"/>')
+    refused(lambda: load_urdf(write(tmp_path, text, "m.urdf")), "joint 'wheel'",
+            "body 'ph'", "massless", "GIM is singular")
+
+
+def test_a_floating_massless_base_is_named_not_the_last_body(tmp_path):
+    """A massless floating base whose one child turns on its own joint: the base moves without
+    moving any mass. The error names the free joint and the massless base (the first pivot
+    that vanishes from the tip); before, NaN pivots made every DOF look bad and the last joint
+    and its 1.5 kg body were blamed."""
+    text = ('<robot name="fl"><link name="base"/>' + _link("arm", 2.2, 0.1, "0.3 0 0")
+            + _link("leg", 1.5, 0.1, "0 0 -0.3") +
+            '<joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>'
+            '<axis xyz="0 0 1"/></joint><joint name="hip" type="revolute"><parent link="arm"/>'
+            '<child link="leg"/><origin xyz="0 0.2 0"/><axis xyz="0 1 0"/></joint></robot>')
+    err = refused(lambda: load_urdf(write(tmp_path, text, "fl.urdf"), floating=True),
+                  "joint 'base_free'", "body 'base' is massless", "('shoulder')",
+                  "GIM is singular")
+    assert "'leg'" not in str(err) and "'hip'" not in str(err)
+    load_urdf(write(tmp_path, text.replace('<link name="base"/>', _link("base", 3, 0.05)),
+                    "ok.urdf"), floating=True)  # with a mass of its own it floats
+
+
+def test_an_undeclared_prefix_in_an_element_not_read_does_not_stop_a_load(tmp_path):
+    """robot-assets' fetch.urdf: ``<sensor:camera>`` inside <gazebo>, its prefix never declared
+    (ElementTree: "unbound prefix"). Read as urdfdom reads it (no namespaces): one line of what is
+    not read. XML that is not well-formed is still refused."""
+    text = urdf(more='<gazebo reference="arm"><sensor:camera name="c"><sensor:x a:b="1"/>'
+                     '</sensor:camera></gazebo>')
+    model = load_urdf(write(tmp_path, text, "r.urdf"), strict=True)
+    assert model.notes == ("not read (no effect on the motion): 1 <gazebo>",)
+    refused(lambda: load_urdf(write(tmp_path, text.replace("</gazebo>", ""), "bad.urdf")),
+            "<xml>", "not well-formed XML", "mismatched tag")
+
+
+@pytest.mark.engine
+def test_a_pid_plugin_actuator_is_announced_as_pushing_at_zero_control(tmp_path):
+    """shadow_dexee's actuators are mujoco.pid plugins: a servo that pushes at ctrl 0 (MuJoCo's
+    actuator force at ctrl 0 and q != 0 is not zero), so it is announced as acting (strict=True
+    refuses it), not as an input."""
+    mujoco = pytest.importorskip("mujoco")
+    extra = ('<extension><plugin plugin="mujoco.pid"><instance name="pid"><config key="kp" '
+             'value="2"/></instance></plugin></extension><actuator><plugin name="servo" '
+             'plugin="mujoco.pid" instance="pid" joint="elbow" actdim="0"/></actuator>')
+    path = write(tmp_path, mjcf_pendulum(extra=extra), "p.xml")
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    d.qpos[:] = [0.0, 0.3]
+    mujoco.mj_forward(m, d)
+    assert d.ctrl[0] == 0 and abs(d.actuator_force[0]) > 0.1  # it pushes at ctrl 0
+    model = load_mjcf(path)
+    notes_with(model, "actuator 'servo': plugin = pid dropped", "pushes even at ctrl 0")
+    assert not any("an input" in n for n in model.notes)
+    refused(lambda: load_mjcf(path, strict=True), "actuator 'servo'.plugin", "ctrl 0")
+
+
+FRAMED = """<mujoco><worldbody><site name="on_world" pos="1 0 0"/>
+<body name="torso" pos="0 0 1.25"><joint name="rootx" type="slide" axis="1 0 0"/>
+ <joint name="rooty" axis="0 1 0" pos="0 0 0.1"/>
+ <geom type="capsule" fromto="0 0 0.2 0 0 -0.2" size="0.05"/>
+ <body name="leg" pos="0.1 0 -0.6" euler="10 20 30">
+  <joint name="knee" axis="0.3 1 0.2" pos="0 0 0.25"/>
+  <geom type="capsule" fromto="0 0 0.25 0 0.1 -0.25" size="0.04"/>
+  <site name="ankle" pos="0.05 0.02 -0.25" euler="30 -40 70"/>
+  <body name="foot" pos="0.1 0 -0.3" quat="0.9 0.1 0.3 0.2"><geom type="box" size="0.1 0.05 0.02"/>
+   <site name="toe" pos="0.1 0 0"/>
+   <body name="heel" pos="-0.1 0 0" euler="0 0 40"><geom type="sphere" size="0.02"/>
+    <site name="heel_pad" pos="0 0.01 -0.02" euler="5 0 0"/></body></body></body>
+ <body name="arm" pos="0 0.2 0.1"><joint name="a1" axis="1 0 0" pos="0.02 0 0.05"/>
+  <joint name="a2" axis="0 0 1" pos="0.05 0.03 0"/><geom type="capsule" fromto="0 0 0 0.3 0 0"
+  size="0.03"/><site name="arm" pos="0.3 0 0" quat="0.5 0.5 0.5 0.5"/></body>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("seed", range(3))
+def test_sites_and_bodies_are_frames_where_mujoco_puts_them(tmp_path, seed):
+    """Every body's origin (a body's name: MuJoCo's xpos and xmat, also where a joint's ``pos``
+    moved the body's frame to its anchor, as the hopper's leg, or the body was fused into its
+    parent, as the jointless foot and heel) and every site (a frame by its name, ``arm_site``
+    where a body is named ``arm``: site_xpos, site_xmat): frame_motion's position, rotation,
+    velocity and angular velocity against mj_objectVelocity, acceleration and angular
+    acceleration against mj_objectAcceleration after mj_rnePostConstraint (whose linear part is
+    the acceleration minus gravity), at random states with the core's qdd."""
+    mujoco = pytest.importorskip("mujoco")
+    path = write(tmp_path, FRAMED, "framed.xml")
+    model = load_mjcf(path)
+    assert "on_world" not in model.frames  # a site on the world does not move: not read
+    notes_with(model, "not read (no effect on the motion)", "1 sites on the world")
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(stable_seed("frames", seed))
+    q = model.initial() + rng.normal(scale=0.5, size=model.n_q)
+    v = rng.normal(size=model.n_v)
+    qdd = forward_dynamics(model, q, v)
+    d.qpos[:], d.qvel[:] = q, v
+    mujoco.mj_forward(m, d)
+    d.qacc[:] = qdd
+    mujoco.mj_rnePostConstraint(m, d)
+    obj, res = mujoco.mjtObj, np.zeros(6)
+    objects = [(obj.mjOBJ_XBODY, b, mujoco.mj_id2name(m, obj.mjOBJ_BODY, b), d.xpos[b],
+                d.xmat[b]) for b in range(1, m.nbody)]
+    objects += [(obj.mjOBJ_SITE, i, mujoco.mj_id2name(m, obj.mjOBJ_SITE, i), d.site_xpos[i],
+                 d.site_xmat[i]) for i in range(1, m.nsite)]
+    assert len(objects) == 9  # 5 bodies, 4 sites
+    for kind, i, name, xpos, xmat in objects:
+        frame = f"{name}_site" if kind == obj.mjOBJ_SITE and name == "arm" else name
+        f = redysim.frame_motion(model, q, v, qdd, frame=frame)
+        mujoco.mj_objectVelocity(m, d, kind, i, res, 0)
+        vel = res.copy()
+        mujoco.mj_objectAcceleration(m, d, kind, i, res, 0)
+        acc = res.copy()
+        for ours, theirs in ((f.position, xpos), (f.rotation, xmat.reshape(3, 3)),
+                             (f.angular_velocity, vel[:3]), (f.velocity, vel[3:]),
+                             (f.angular_acceleration, acc[:3]),
+                             (f.acceleration - model.gravity, acc[3:])):
+            np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12, err_msg=frame)
+    leg = redysim.frame_motion(model, model.initial(), np.zeros(model.n_v), frame="leg")
+    np.testing.assert_allclose(leg.position, [0.1, 0, 0.65], atol=1e-15)  # not the knee's anchor

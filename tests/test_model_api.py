@@ -93,6 +93,68 @@ def test_frame_motion_is_the_derivative_of_the_frames_position(seed):
                                rtol=0, atol=1e-13)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_frames_axes_and_angular_motion_are_the_derivatives_of_its_rotation(seed):
+    """frame_motion's rotation is its body's (rbda's plain kinematics) times the frame's own axes;
+    its angular velocity w is what turns it, dR/dt = [w]x R, and its angular acceleration the
+    derivative of w: central differences along the motion (dq/dt from v, dv/dt = qdd), on a
+    random tree with a free base and on a frame of a body fused by a fixed joint."""
+    from redysim.model.tree import quaternion_matrix
+
+    rng = np.random.default_rng(200 + seed)
+    model = random_tree(seed, n_bodies=7)
+    body = int(rng.integers(model.n_bodies))
+    quat = rng.normal(size=4)
+    axes = quaternion_matrix(*(quat / np.linalg.norm(quat)))
+    model = Model.build(*_parts(model), gravity=tuple(model.gravity),
+                        frames={"probe": (body, tuple(rng.normal(size=3)))},
+                        frame_rotations={"probe": axes})
+    q, v = random_configuration(rng, model), rng.normal(size=model.n_v)
+    qdd = forward_dynamics(model, q, v)
+    m = frame_motion(model, q, v, qdd, frame="probe")
+    np.testing.assert_allclose(m.rotation, _rotation(model, q, body) @ axes, rtol=0, atol=1e-14)
+    qdot, h = configuration_rate(model, q, v), 1e-5
+
+    def at(s):
+        return frame_motion(model, q + s * qdot, v + s * qdd, frame="probe")
+
+    dR = (at(h).rotation - at(-h).rotation) / (2 * h)
+    W = dR @ m.rotation.T  # [w]x
+    w = np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / 2
+    wd = (at(h).angular_velocity - at(-h).angular_velocity) / (2 * h)
+    scale = 1 + np.abs(m.angular_velocity).max() + np.abs(m.angular_acceleration).max()
+    np.testing.assert_allclose(m.angular_velocity, w, rtol=0, atol=1e-7 * scale)
+    np.testing.assert_allclose(m.angular_acceleration, wd, rtol=0, atol=1e-7 * scale)
+    # a body's name: its own axes; no qdd, no angular acceleration
+    origin = frame_motion(model, q, v, frame=model.body_names[body])
+    np.testing.assert_allclose(origin.rotation, _rotation(model, q, body), rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(origin.angular_velocity, m.angular_velocity)
+    assert origin.acceleration is None and origin.angular_acceleration is None
+
+
+def test_a_frame_on_a_fused_body_keeps_that_bodys_axes():
+    """A frame given on a body that a fixed joint fuses into its parent keeps the fused body's
+    axes (its placement's rotation, composed with the frame's own), and its point its place."""
+    from redysim.model.tree import Body, TreeJoint
+
+    R_fix = frame_R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # z, 90 deg
+    bodies = [Body("a", 1.0, (0.1, 0, 0), ((0.01, 0, 0), (0, 0.02, 0), (0, 0, 0.03))),
+              Body("b", 0.5, (0, 0, 0), ((0.01, 0, 0), (0, 0.01, 0), (0, 0, 0.01)))]
+    joints = [TreeJoint("j", "R", (0.0, 1.0, 0.0)),
+              TreeJoint("w", "fixed", rotation=tuple(map(tuple, R_fix)), translation=(0.3, 0, 0))]
+    model = Model.build(bodies, joints, [-1, 0], frames={"tool": (1, (0.0, 0.2, 0.0)),
+                                                        "flange": (1, (0.0, 0.0, 0.0))},
+                        frame_rotations={"tool": frame_R})
+    q = np.array([0.4])
+    Ra = _rotation(model, q, 0)
+    tool = frame_motion(model, q, [0.0], frame="tool")
+    np.testing.assert_allclose(tool.rotation, Ra @ R_fix @ frame_R, atol=1e-15)
+    np.testing.assert_allclose(tool.position, Ra @ (np.array([0.3, 0, 0]) + R_fix @ [0, 0.2, 0]),
+                               atol=1e-15)
+    np.testing.assert_allclose(frame_motion(model, q, [0.0], frame="flange").rotation,
+                               Ra @ R_fix, atol=1e-15)
+
+
 def _parts(model: Model):
     """Bodies, joints, parents that rebuild ``model`` (no fixed joints left to fuse)."""
     from redysim.model.tree import Body, TreeJoint

@@ -882,28 +882,51 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     return p if grad is None else (p, grad)
 
 
-class Tip(NamedTuple):
-    """Position, velocity and acceleration of a point fixed in a body (world frame): the tip of
-    a chain (the distal end of its last link), or a model's named frame."""
-
+class _Point(NamedTuple):
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray | None
 
 
+class Tip(_Point):
+    """The motion of a frame fixed in a body (world frame): the tip of a chain (the distal end
+    of its last link), a model's named frame or a body's origin. As a tuple, its point's
+    ``position`` [m], ``velocity`` [m/s] and ``acceleration`` [m/s^2] (None without qdd), as it
+    always was (``p, v, a = tip(...)``); besides, as attributes, its axes: ``rotation`` (3, 3),
+    the frame's axes as columns in world coordinates (MuJoCo's xmat / site_xmat),
+    ``angular_velocity`` [rad/s] and ``angular_acceleration`` [rad/s^2] (None without qdd), the
+    body's, in world coordinates."""
+
+    rotation: np.ndarray | None
+    angular_velocity: np.ndarray | None
+    angular_acceleration: np.ndarray | None
+
+    def __new__(cls, position, velocity, acceleration, rotation=None, angular_velocity=None,
+                angular_acceleration=None):
+        self = super().__new__(cls, position, velocity, acceleration)
+        self.rotation = rotation
+        self.angular_velocity = angular_velocity
+        self.angular_acceleration = angular_acceleration
+        return self
+
+
 TIP = "tip"  # the frame of a chain's tip (a Chain names it so)
 
 
-def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray]:
-    """(body index, point in the body's frame) of ``frame``: a frame of the model
-    (``Model.frames``; a chain has ``"tip"``) or a body (its origin, the joint's centre).
-    Raises FieldError naming the frame and listing the known ones."""
+def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray, np.ndarray | None]:
+    """(body index, point in the body's frame, the frame's axes in the body's frame or None for
+    the body's own) of ``frame``: a frame of the model (``Model.frames``; a chain has ``"tip"``,
+    an MJCF model its sites, and its bodies whose origin the importer moved) or a body (its
+    origin). Raises FieldError naming the frame and listing the known ones."""
     if isinstance(frame, str) and frame in model.frames:
         b, point = model.frames[frame]
-        return int(b), np.asarray(point, dtype=float)
+        axes = model.frame_rotations.get(frame)
+        return int(b), np.asarray(point, dtype=float), \
+            None if axes is None else np.asarray(axes, dtype=float)
     if isinstance(frame, str) and frame in model.body_names:
-        return model.body_names.index(frame), np.zeros(3)
-    known = [*model.frames, *model.body_names[:10]]
+        return model.body_names.index(frame), np.zeros(3), None
+    frames = list(model.frames)
+    known = [*frames[:10], *(["..."] if len(frames) > 10 else []), *model.body_names[:10]]
     if model.n_bodies > 10:
         known += ["...", model.body_names[-1]]
     where = "tip" if frame == TIP else "frame"
@@ -915,14 +938,17 @@ def _frame_point(model: Model, frame: str) -> tuple[int, np.ndarray]:
 
 def frame_motion(model: Model, q, v, qdd=None, *, frame: str,
                  ws: Workspace | None = None) -> Tip:
-    """A point's motion in the world frame: position [m], velocity [m/s] and, given qdd,
-    acceleration [m/s^2] of ``frame``: a frame of the model (``Model.frames``: a chain's
-    ``"tip"``, an MJCF site) or a body's name (its origin). Raises FieldError for an unknown
-    frame, StateError for a bad state."""
+    """A frame's motion in the world frame (:class:`Tip`): its point's position [m], velocity
+    [m/s] and, given qdd, acceleration [m/s^2]; its axes (``rotation``), angular velocity
+    [rad/s] and, given qdd, angular acceleration [rad/s^2]. ``frame``: a frame of the model
+    (``Model.frames``: a chain's ``"tip"``, an MJCF site) or a body's name: its origin as the
+    file defines it (an MJCF body's, MuJoCo's xpos and xmat, also where the importer placed the
+    body's frame at its joint's anchor or fused the body into its parent). Raises FieldError for
+    an unknown frame, StateError for a bad state."""
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     qdd = check_state(model, "qdd", qdd, optional=True)
-    k, point = _frame_point(model, frame)
+    k, point, axes = _frame_point(model, frame)
     ws = _ws(model, ws)
     _run_kinematics(model, ws, q, v, ws.zeros if qdd is None else qdd, ws.no_accel)
     r = _arm(ws.oR[k], point)
@@ -937,7 +963,8 @@ def frame_motion(model: Model, q, v, qdd=None, *, frame: str,
     if not (np.isfinite(vel).all() and (acc is None or np.isfinite(acc).all())):
         raise overflow_error("the tip's motion" if frame == TIP else f"the motion of {frame!r}",
                              q=q, v=v, qdd=qdd)
-    return Tip(pos, vel, acc)
+    rot = ws.oR[k].copy() if axes is None else ws.oR[k] @ axes
+    return Tip(pos, vel, acc, rot, w.copy(), None if qdd is None else ws.td[k, :3].copy())
 
 
 def _arm(oR: np.ndarray, point: np.ndarray) -> np.ndarray:

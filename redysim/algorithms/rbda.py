@@ -25,7 +25,6 @@ References:
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -242,19 +241,60 @@ def articulated(model: Model, q, v, tau=None) -> tuple[np.ndarray, Articulated]:
     return vdot, Articulated(Ihat, Psihat, phitil)
 
 
-MASSLESS_TOL = 1e-12  # an articulated inertia below this (relative to the largest) is none
+MASSLESS_TOL = 1e-12  # a pivot below this, relative to what it is computed from, is none
+
+
+def pivots(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """RGE-A's pivots at the neutral configuration (the D of I = U D U^T, one per DOF, as
+    :func:`articulated` eliminates them) and, for each, the scale of what it is computed from:
+    the largest entry of the block its axis reads (the moment block for a rotation, the mass
+    block for a translation) of its body's articulated mass as gathered, before any of the
+    body's own axes is eliminated (armature added to both). A pivot of a massless joint is then
+    zero or round-off of this scale, whatever the rest of the model weighs; a placeholder's tiny
+    inertia (1e-10) is a pivot of its own scale. A pivot after a failed one is NaN or noise."""
+    nb, n = model.n_bodies, model.n_v
+    kin = kinematics(model, model.neutral(), np.zeros(n))
+    Mhat = np.zeros((nb, 6, 6))
+    D, scale = np.zeros(n), np.zeros(n)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero pivots looked for
+        for k in range(nb - 1, -1, -1):  # children before parents
+            Mhat[k] += body_mass(model, k, kin.R[k])
+            gathered = np.abs(Mhat[k])
+            for j in range(model.joint_voff[k + 1] - 1, model.joint_voff[k] - 1, -1):
+                s = kin.S[:, j]
+                block = gathered[:3, :3] if np.any(s[:3]) else gathered[3:, 3:]
+                scale[j] = float(np.max(block)) + model.armature[j]
+                Psi = Mhat[k] @ s
+                D[j] = s @ Psi + model.armature[j]
+                Mhat[k] -= np.outer(Psi / D[j], Psi)
+                Mhat[k] = 0.5 * (Mhat[k] + Mhat[k].T)
+            p = model.parent[k]
+            if p >= 0:
+                A = shift(kin.O[k] - kin.O[p])
+                Mhat[p] += A.T @ Mhat[k] @ A
+    return D, scale
+
+
+def singular_axes(model: Model, pivoted: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> np.ndarray:
+    """The DOFs whose pivot (:func:`pivots`, or ``pivoted``: its result) is zero, not finite,
+    or round-off of what it is computed from (at most MASSLESS_TOL of it), in elimination order
+    (from the tip: the first is the one that makes the GIM singular; those after it inherit its
+    NaN)."""
+    D, scale = pivots(model) if pivoted is None else pivoted
+    with np.errstate(invalid="ignore"):
+        bad = ~(D > MASSLESS_TOL * scale) | ~np.isfinite(D)
+    return np.flatnonzero(bad)[::-1]
 
 
 def massless_axis(model: Model) -> int | None:
-    """The last DOF (in elimination order, from the tip) whose articulated inertia vanishes at
-    the neutral configuration: a joint that moves nothing with inertia about its axis (a
-    massless body at its end), so the GIM is singular. None when there is none."""
-    q = model.neutral()
-    with np.errstate(divide="ignore", invalid="ignore"):  # a zero pivot is what is looked for
-        _, art = articulated(model, q, np.zeros(model.n_v))
-    scale = max(float(np.max(np.abs(art.Ihat))), math.ulp(1.0))
-    bad = np.flatnonzero(~(art.Ihat > MASSLESS_TOL * scale))
-    return int(bad.max()) if bad.size else None
+    """The first DOF in elimination order (from the tip) whose pivot vanishes at the neutral
+    configuration (:func:`singular_axes`): a joint that moves nothing with inertia about its
+    axis (a massless body at its end, or a massless body its children move freely on), so the
+    GIM is singular. None when there is none. A tiny but positive inertia (a placeholder link)
+    is no vanishing pivot: its pivot is its own inertia."""
+    bad = singular_axes(model)
+    return int(bad[0]) if bad.size else None
 
 
 def energy(model: Model, q, v) -> tuple[float, float]:

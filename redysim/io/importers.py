@@ -9,7 +9,11 @@ inertias are taken as the file gives them (real robot files break the triangle i
 rounding; a link of mass 0 keeps its rotational inertia, as Pinocchio reads it), rotations from
 ``rpy`` as urdfdom's, Rz(yaw) Ry(pitch) Rx(roll); gravity -9.81 along z (URDF has none; robots
 are described z up). A root link named ``world`` is the world, as MuJoCo and Gazebo read it.
-Refused, naming the file and the element: not well-formed XML, a link or joint name used twice,
+The XML is read as urdfdom reads it (no namespace processing), so an undeclared prefix in an
+element redysim does not read (``<sensor:camera>`` in ``<gazebo>``) stops nothing. A placeholder
+link (tiny but positive mass and inertia, Gazebo's 1e-10) is loaded as written, announced when
+its pivot is below 1e-12 of the largest. Refused, naming the file and the element: not
+well-formed XML, a link or joint name used twice,
 a joint whose parent or child link does not exist, a link that is the child of two joints or a
 cycle of joints (a kinematic loop), two root links, a planar joint, a floating joint below a
 link that moves, a malformed number, an <inertial> without its <mass> or <inertia> (urdfdom
@@ -31,7 +35,10 @@ massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed
 P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
--a_n. Equalities are held exactly (MuJoCo's softness announced), by default
+-a_n; a frame by the body's name keeps its origin where the file puts it (also for a jointless
+body, fused into its parent), so ``frame_motion(frame=body)`` is MuJoCo's xpos and xmat, and
+every named site on a moving body is a frame with its axes (``Model.frame_rotations``).
+Equalities are held exactly (MuJoCo's softness announced), by default
 (``equality="close"``): a joint equality of degree 1 between two hinge or slide joints is a
 coupling of the model (:class:`~redysim.model.tree.Coupling`; a chain of them composed onto its
 first leader), as is a tendon equality of one fixed tendon of two joints; a ``connect`` or
@@ -52,18 +59,22 @@ the value, e.g. ``joint 'knee': damping = 0.5 dropped (no joint damping in the c
 damping, armature, stiffness (with springref), frictionloss, limits (MJCF ``range``, URDF
 ``<limit lower upper>``), URDF ``<dynamics>``, body ``gravcomp``, fluid forces (``density``,
 ``viscosity``), tendons, actuators with a force at ctrl 0 (a position or velocity servo),
-contact geometry (MJCF geoms that can touch one another, URDF ``<collision>``), flex and
-plugins. ``strict=True`` refuses each of these instead (ModelFileError naming the element and
-attribute), except what the caller chose to drop by name (``mimic="independent"``,
-``equality="drop"``). Things that do not act on the motion are one summary line: visual
-geometry, materials, sites, cameras, lights, sensors, keyframes, transmissions, Gazebo tags,
-a URDF joint's effort and velocity bounds (tau is the caller's), actuators without a force at
-ctrl 0 (a motor: give its force as tau).
+contact geometry (MJCF geoms that can touch one another, URDF ``<collision>``), flex,
+plugins and plugin actuators (a PID servo pushes at ctrl 0). ``strict=True`` refuses each of
+these instead (ModelFileError naming the element and attribute), except what the caller chose
+to drop by name (``mimic="independent"``, ``equality="drop"``). Things that do not act on the
+motion are one summary line: visual geometry, materials, sites on the world, cameras, lights,
+sensors, keyframes, transmissions, Gazebo tags, a URDF joint's effort and velocity bounds (tau
+is the caller's), actuators without a force at ctrl 0 (a motor: give its force as tau).
 
 ``floating=True``: a URDF's root link (the link fixed to a root link named ``world``), or the
 one MJCF root body without joints, gets a free joint, its pose in the file the initial q; a
 file whose root already floats is taken as it is; an MJCF root body that already moves on other
 joints, or several jointless roots, are refused by name.
+
+**A singular GIM** is refused naming the first joint, from the tip, whose pivot vanishes at the
+neutral configuration (:func:`redysim.algorithms.rbda.singular_axes`: zero, not finite, or
+round-off of the articulated mass it is computed from) and the massless body that makes it so.
 """
 
 from __future__ import annotations
@@ -486,6 +497,29 @@ def _urdf_mimics(src: str, root, mimic: str) -> list[Coupling]:
     return out
 
 
+def _read_xml(src: str, path: Path) -> ET.Element:
+    """A URDF's element tree as urdfdom reads it (TinyXML: no namespace processing), so a prefix
+    never declared (``<sensor:camera>`` inside ``<gazebo>``, where Gazebo's old files put them)
+    stays part of the name of an element redysim does not read, instead of stopping the load as
+    ElementTree's "unbound prefix". Refuses XML that is not well-formed."""
+    import xml.parsers.expat
+
+    builder = ET.TreeBuilder()
+    parser = xml.parsers.expat.ParserCreate()  # no namespace_separator: names as written
+    parser.buffer_text = True
+    parser.StartElementHandler = builder.start
+    parser.EndElementHandler = builder.end
+    parser.CharacterDataHandler = builder.data
+    try:
+        with open(path, "rb") as fh:
+            parser.ParseFile(fh)
+        return builder.close()
+    except xml.parsers.expat.ExpatError as exc:
+        raise ModelFileError(src, "<xml>", None, f"not well-formed XML: {exc}") from None
+    except OSError as exc:
+        raise ModelFileError(src, "<file>", None, f"cannot be read: {exc}") from None
+
+
 def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
               strict: bool = False) -> Model:
     """A URDF's tree, gravity -9.81 along z (module doc).
@@ -501,10 +535,7 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
     _check_choice(src, "mimic", mimic, MIMIC)
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise ModelFileError(src, "<xml>", None, f"not well-formed XML: {exc}") from None
+    root = _read_xml(src, path)
     if root.tag != "robot":
         raise ModelFileError(src, f"<{root.tag}>", None, "a URDF's root element is <robot>")
     links, children, base = _urdf_graph(src, root)
@@ -761,7 +792,31 @@ def _mjcf_tree(mj, m, src):
                            tuple(map(tuple, inertia)), physical=False))
         ours[b] = len(bodies) - 1
         shift[b] = anchor
-    return bodies, joints, parents
+    return bodies, joints, parents, _mjcf_frames(mj, m, ours, shift)
+
+
+def _mjcf_frames(mj, m, ours: dict, shift: dict) -> tuple[dict, dict]:
+    """The frames of an MJCF model (``Model.frames`` and ``Model.frame_rotations``): a body whose
+    origin is not its body's origin here (its frame moved to its last joint's anchor, or the
+    body fused into its parent by a weld) by its name, at its origin (MuJoCo's xpos, xmat); every
+    named site on a moving body by its name (``f"{name}_site"`` if a body has that name), with
+    its axes (site_xmat)."""
+    frames: dict[str, tuple[int, tuple]] = {}
+    axes: dict[str, tuple] = {}
+    names = {_name(mj, m, "body", b) for b in range(m.nbody)}
+    for b in range(1, m.nbody):
+        if np.any(shift[b]) or not int(m.body_jntnum[b]):
+            frames[_name(mj, m, "body", b)] = (ours[b], tuple(map(float, -shift[b])))
+    for i in range(m.nsite):
+        name = mj.mj_id2name(m, mj.mjtObj.mjOBJ_SITE, i)
+        b = int(m.site_bodyid[i])
+        if not name or ours[b] < 0:
+            continue  # unnamed, or on the world: nothing to observe
+        name = f"{name}_site" if name in names else name
+        frames[name] = (ours[b], tuple(map(float, np.asarray(m.site_pos[i]) - shift[b])))
+        axes[name] = tuple(map(tuple, quaternion_matrix(
+            *(m.site_quat[i] / np.linalg.norm(m.site_quat[i])))))
+    return frames, axes
 
 
 def _mjcf_unread(mj, m, report: _Report) -> None:
@@ -850,12 +905,15 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
     # actuators: a force at ctrl 0 acts (a position servo is a spring); a motor is an input
     acting: list[tuple[str, list[float] | str]] = []
     inputs: list[tuple[str, None]] = []
+    plugins: list[tuple[str, str]] = []  # (actuator, its plugin instance)
     if not off["ACTUATION"]:
         for a in range(m.nu):
             if m.opt.disableactuator & (1 << int(m.actuator_group[a])):
                 continue
             name = _name(mj, m, "actuator", a)
-            if int(m.actuator_biastype[a]) and np.any(m.actuator_biasprm[a]):
+            if int(m.actuator_plugin[a]) >= 0:  # its force is the plugin's: a PID pushes at 0
+                plugins.append((name, _name(mj, m, "plugin", int(m.actuator_plugin[a]))))
+            elif int(m.actuator_biastype[a]) and np.any(m.actuator_biasprm[a]):
                 acting.append((name, [float(x) for x in
                                       np.trim_zeros(np.asarray(m.actuator_biasprm[a]), "b")]))
             elif np.any(m.actuator_damping[a]) or np.any(m.actuator_dampingpoly[a]) \
@@ -867,6 +925,9 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
                 inputs.append((name, None))
     report.drop("actuator", acting, "biasprm", "a force even at ctrl 0 (a position or velocity "
                 "servo is a spring or a damper); the core takes tau as given")
+    report.drop("actuator", plugins, "plugin", "a plugin actuator's force is the plugin's "
+                "(mujoco.pid: a PID servo towards ctrl) and pushes even at ctrl 0, like a "
+                "position servo; the core takes tau as given")
     report.drop("actuator", inputs, "force", "an input: give it as tau", motion=False)
 
     if constraint and not off["CONTACT"]:
@@ -875,7 +936,8 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
                 "elasticity and contacts", "deformable bodies: the core's bodies are rigid")
     report.drop("plugin", [(_name(mj, m, "plugin", i), None) for i in range(m.nplugin)],
                 "forces", "a plugin's forces are not modelled in the core")
-    for what, n in (("sites", m.nsite), ("cameras", m.ncam), ("lights", m.nlight),
+    world_sites = int(np.sum(np.asarray(m.site_bodyid) == 0))
+    for what, n in (("sites on the world", world_sites), ("cameras", m.ncam), ("lights", m.nlight),
                     ("sensors", m.nsensor), ("materials", m.nmat), ("textures", m.ntex),
                     ("skins", m.nskin), ("keyframes (the initial q is qpos0)", m.nkey)):
         report.unread_count(what, n)
@@ -1269,13 +1331,14 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     _check_choice(src, "equality", equality, EQUALITY)
     mj = _mujoco(path)
     m = _compile_mjcf(mj, path, floating)
-    bodies, joints, parents = _mjcf_tree(mj, m, src)
+    bodies, joints, parents, (frames, axes) = _mjcf_tree(mj, m, src)
     report = _Report(src)
     couplings, closures = _mjcf_equality(mj, m, src, report, equality)
     _mjcf_unread(mj, m, report)
     gravity = (0.0, 0.0, 0.0) if m.opt.disableflags & mj.mjtDisableBit.mjDSBL_GRAVITY else \
         tuple(float(g) for g in m.opt.gravity)
-    model = _finish(bodies, joints, parents, gravity, path.stem, src, report.notes(strict))
+    model = _finish(bodies, joints, parents, gravity, path.stem, src, report.notes(strict),
+                    frames=frames, frame_rotations=axes)
     if couplings:
         model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))
@@ -1294,28 +1357,100 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
 
 
 # --------------------------------------------------------------------------- the tree
-def _finish(bodies, joints, parents, gravity, name, src, notes) -> Model:
-    """Build the Model (bodies fixed to the world dropped), check that every joint has inertia
-    to move, record what the importer dropped."""
-    bodies, joints, parents, _ = drop_world_fixed(bodies, joints, parents)
+def _finish(bodies, joints, parents, gravity, name, src, notes, *, frames=None,
+            frame_rotations=None) -> Model:
+    """Build the Model (bodies fixed to the world dropped, with their frames), check that every
+    joint has inertia to move, record what the importer dropped."""
+    bodies, joints, parents, kept = drop_world_fixed(bodies, joints, parents)
     if not bodies:
         raise ModelFileError(src, "<model>", None, "no body moves: every joint is fixed")
-    model = Model.build(bodies, joints, parents, gravity=gravity, name=name, source=src)
-    _check_inertia_to_move(model, src)
-    object.__setattr__(model, "notes", tuple(notes))
+    frames = {f: (kept[b], pt) for f, (b, pt) in (frames or {}).items() if b in kept}
+    frame_rotations = {f: R for f, R in (frame_rotations or {}).items() if f in frames}
+    model = Model.build(bodies, joints, parents, gravity=gravity, name=name, source=src,
+                        frames=frames, frame_rotations=frame_rotations)
+    placeholders = _check_inertia_to_move(model, src)
+    object.__setattr__(model, "notes", (*notes, *placeholders))
     return model
 
 
-def _check_inertia_to_move(model: Model, src: str) -> None:
-    """Refuse a model whose GIM is singular at the neutral configuration, naming the joint:
-    a massless body at the end of a joint (its subtree has no inertia about the joint's axis)."""
-    from redysim.algorithms.rbda import massless_axis
+def _check_inertia_to_move(model: Model, src: str) -> list[str]:
+    """Refuse a model whose GIM is singular at the neutral configuration, naming the first
+    joint whose pivot vanishes in elimination order (from the tip, :func:`rbda.singular_axes
+    <redysim.algorithms.rbda.singular_axes>`) and the massless body that makes it so; a tiny but
+    positive inertia (a placeholder link: Gazebo's 1e-10 kg) is loaded, and announced in the
+    notes returned when its pivot is below MASSLESS_TOL of the largest."""
+    from redysim.algorithms.rbda import MASSLESS_TOL, pivots, singular_axes
 
-    j = massless_axis(model)
-    if j is not None:
+    pivoted = pivots(model)
+    bad = singular_axes(model, pivoted)
+    if bad.size:
+        j = int(bad[0])
         k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
         raise ModelFileError(src, f"joint {model.joint_names[k]!r}", None,
-                             f"moves body {model.body_names[k]!r} and what it carries, which "
-                             f"have no inertia about its axis {j - int(model.joint_voff[k])}: a "
-                             "massless body at the end of a joint; give it an <inertial> or "
-                             "fix the joint")
+                             _singular_text(model, k, j - int(model.joint_voff[k])))
+    D = pivoted[0]
+    largest = float(np.max(D)) if D.size else 0.0
+    small = np.flatnonzero(D < MASSLESS_TOL * largest)
+    notes = []
+    for j in small[::-1][:LISTED]:
+        k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
+        what = "inertia" if model.dof_kind[j] != KIND_CODES["P"] else "mass"
+        notes.append(f"joint {model.joint_names[k]!r}: moves {_carried(model, k)} with "
+                     f"{what} {float(D[j]):.3g} about its axis {j - int(model.joint_voff[k])}, "
+                     f"{float(D[j]) / largest:.2g} of the largest (a placeholder's?): loaded as "
+                     "written (its pivot is finite); its accelerations are as ill-conditioned "
+                     "as that ratio")
+    if small.size > LISTED:
+        notes.append(f"and {small.size - LISTED} more joints whose pivot is below "
+                     f"{MASSLESS_TOL:g} of the largest (placeholders?), loaded as written")
+    return notes
+
+
+def _subtree(model: Model, k: int) -> list[int]:
+    """Body k and its descendants (parents come before children)."""
+    inside = {k}
+    for b in range(k + 1, model.n_bodies):
+        if int(model.parent[b]) in inside:
+            inside.add(b)
+    return sorted(inside)
+
+
+def _massless(model: Model, b: int) -> bool:
+    return model.mass[b] == 0 and not np.any(model.inertia_com[b])
+
+
+def _carried(model: Model, k: int) -> str:
+    """Body k, with what it carries: 'link 'a' (1e-10 kg)' or 'links 'a' and 3 more (...)'."""
+    sub = _subtree(model, k)
+    mass = float(sum(model.mass[b] for b in sub))
+    head = f"body {model.body_names[k]!r}"
+    return head + (f" ({mass:.3g} kg)" if len(sub) == 1 else
+                   f" and {len(sub) - 1} bodies it carries ({mass:.3g} kg in all)")
+
+
+def _singular_text(model: Model, k: int, axis: int) -> str:
+    """Why joint k's axis has no inertia to move: the massless body responsible."""
+    name = repr(model.body_names[k])
+    kids = [b for b in range(k + 1, model.n_bodies) if int(model.parent[b]) == k]
+    if _massless(model, k) and kids and model.joint_types[k] == FREE:
+        joints = ", ".join(repr(model.joint_names[b]) for b in kids[:LISTED])
+        return (f"its body {name} is massless and floats: what it carries turns on its own "
+                f"joints ({joints}), so the base moves without moving any mass (axis {axis} of "
+                f"the free joint, in elimination order the first pivot that vanishes): the GIM "
+                f"is singular; give body {name} an <inertial> (mass and inertia)")
+    if _massless(model, k) and kids:
+        joints = ", ".join(repr(model.joint_names[b]) for b in kids[:LISTED])
+        return (f"moves body {name}, which is massless, and what it carries turns on its own "
+                f"joints ({joints}) without moving about axis {axis}: no inertia about it, the "
+                f"GIM is singular; give body {name} an <inertial> or fix the joint")
+    sub = _subtree(model, k)
+    if all(_massless(model, b) for b in sub):
+        what = "which is" if len(sub) == 1 else "and what it carries, which are"
+        about = "mass along" if model.dof_kind[int(model.joint_voff[k]) + axis] == \
+            KIND_CODES["P"] else "inertia about"
+        return (f"moves body {name} {what} massless: no {about} its axis {axis} (a "
+                f"massless body at the end of a joint), the GIM is singular; give body {name} "
+                "an <inertial> or fix the joint")
+    return (f"moves {_carried(model, k)}, which have no inertia about its axis {axis} (their "
+            "mass lies on the axis, without rotational inertia about it): the GIM is "
+            f"singular; give body {name} a rotational inertia or fix the joint")

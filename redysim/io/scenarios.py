@@ -23,7 +23,8 @@ A scenario is any of:
                  from the loops)
     [simulation] t_end, sample_interval, integrator, rtol, atol, h
     [observe]    frames = [...]: frames of the model (``Model.frames``; a linkage's named points,
-                 "coupler.P"), body names (their origins), or points named here, points =
+                 "coupler.P"; an MJCF file's sites), body names (their origins as the file
+                 defines them), or points named here, points =
                  {name = {body = "...", at = [x, y, z]}} (a point of a body's frame [m]); the
                  first is the observed path that runs compare (the rope's "tip")
 

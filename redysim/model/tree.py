@@ -184,7 +184,11 @@ class Model:
         dof_kind, dof_axis, dof_u: (n_v,) as a Chain's, with BALL for a free joint's rotation.
         mass, com, inertia_com, inertia_O, mass_com: per body, as a Chain's per link.
         gravity:          (3,) world gravity [m/s^2].
-        frames:           name -> (body, point in its frame): points of interest (a chain's tip).
+        frames:           name -> (body, point in its frame): points of interest (a chain's tip,
+                          an MJCF site, an MJCF body whose origin is not its body's here).
+        frame_rotations:  name -> (3, 3) rotation of a frame's axes in its body's frame, for
+                          frames that have axes of their own (an MJCF site); a frame not listed
+                          has its body's axes.
         notes:            what the model's file holds and the model does not, one line each
                           (:mod:`redysim.io.importers`: dropped attributes, things not read).
         cuts:             the cut joints that close the model's loops (:meth:`with_cuts`; none
@@ -229,6 +233,7 @@ class Model:
     mass_com: np.ndarray
     gravity: np.ndarray
     frames: Mapping[str, tuple[int, tuple[float, float, float]]] = field(default_factory=dict)
+    frame_rotations: Mapping[str, tuple] = field(default_factory=dict)  # name -> 3 x 3 rows
     notes: tuple[str, ...] = ()  # what the file holds and the model does not, one line each
     initial_q: np.ndarray | None = None  # a configuration the file gives (MJCF's qpos0)
     cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
@@ -252,10 +257,12 @@ class Model:
               gravity: Sequence[float] | np.ndarray = (0.0, -STANDARD_GRAVITY, 0.0),
               name: str = "model",
               frames: Mapping[str, tuple[int, Sequence[float]]] | None = None,
+              frame_rotations: Mapping[str, Sequence] | None = None,
               source: str = "model", armature=None) -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
         ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here.
         ``armature``: as :meth:`with_armature` takes it (of the built model's joints).
+        ``frame_rotations``: the axes of some of the ``frames`` (a rotation in the body's frame).
         Raises CaseError naming ``source``, the field (a body or joint by its name and index:
         ``body 'arm' (bodies[1]).mass``, ``joint 'elbow' (joints[1]).axis``) and the value."""
         nb = len(bodies)
@@ -305,6 +312,11 @@ class Model:
             if not 0 <= fb < nb:
                 _fail(source, f"frames.{fname}", fb, f"body index must be in 0..{nb - 1}")
             check_vector(source, f"frames.{fname}", fp, 3)
+        frame_axes = {}
+        for fname, R_f in (frame_rotations or {}).items():
+            if fname not in points:
+                _fail(source, f"frame_rotations.{fname}", None, "no such frame in frames")
+            frame_axes[fname] = _rotation(source, f"frame_rotations.{fname}", R_f)
 
         # fuse fixed joints, children after parents: body k moves into its (kept) ancestor
         into = list(range(nb))  # the kept body each body ends in
@@ -338,6 +350,11 @@ class Model:
                 new_p.append(to_kept_R[pk] @ plp[k] + to_kept_p[pk])
         kept_frames = {fname: (index[into[fb]], tuple(to_kept_R[fb] @ fp + to_kept_p[fb]))
                        for fname, (fb, fp) in points.items()}
+        kept_axes = {}  # a frame's axes: its own, or its body's where that body is fused
+        for fname, (fb, _) in points.items():
+            R_f = to_kept_R[fb] @ frame_axes.get(fname, np.eye(3))
+            if fname in frame_axes or np.abs(R_f - np.eye(3)).max() > 0:
+                kept_axes[fname] = tuple(map(tuple, R_f))
 
         # per-DOF tables
         qoff, voff, kinds, codes, units = [0], [0], [], [], []
@@ -389,7 +406,7 @@ class Model:
             mass=_readonly(m), com=_readonly(c), inertia_com=_readonly(I_c),
             inertia_O=_readonly(I_O), mass_com=_readonly(m[:, None] * c),
             gravity=_readonly(check_vector(source, "gravity", gravity, 3)),
-            frames=kept_frames,
+            frames=kept_frames, frame_rotations=kept_axes,
             armature=armature_values(source, armature, voff[-1], [jname[k] for k in kept],
                                      voff))
 
@@ -567,10 +584,12 @@ class Model:
         if not bodies:
             _fail(where, "values", sorted(values), "every joint is locked: nothing moves")
         frames = {f: (kept[b], tuple(pt)) for f, (b, pt) in self.frames.items() if b in kept}
+        axes = {f: R_f for f, R_f in self.frame_rotations.items() if f in frames}
         armature = {name: tuple(self.armature[self.joint_voff[k]:self.joint_voff[k + 1]])
                     for k, name in enumerate(self.joint_names) if name not in values}
         out = Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
                           name=f"{self.name} ({len(values)} joints locked)", frames=frames,
+                          frame_rotations=axes,
                           source=where, armature=armature)
         return out.with_couplings(self.couplings, source=where) if self.couplings else out
 
