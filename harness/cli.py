@@ -404,6 +404,9 @@ def _check_out(out: Path) -> None:
         if importlib.util.find_spec(package) is None:
             raise SettingsError(SOURCE, "--out", str(out), "saving " +
                                 needs_extra(package, EXTRA_OF[package]))
+    from redysim.harness.store import check_writable
+
+    check_writable(out.parent, what=f"folder of {out.name}")
 
 
 def needs_extra(package: str, extra: str) -> str:
@@ -665,8 +668,13 @@ def print_run(summary: dict, samples: list[tuple]) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
-    from redysim.harness.store import parquet_files
-    from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
+    from redysim.harness.sweep import (
+        MANIFEST_DIR,
+        RUNS_FILE,
+        SAMPLES_FILE,
+        load_sweep,
+        run_sweep,
+    )
 
     if args.dask and args.workers is not None:
         raise SettingsError(SOURCE, "--workers", args.workers, "sets the local process pool; "
@@ -676,7 +684,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
                             "folder")
-    done = parquet_files(out / RUNS_DIR).keys() & {s.run_id for s in sweep.specs}
+    # (a folder it cannot write: refused by run_sweep before any run, unless finished there)
+    done = ({p.stem for p in (out / MANIFEST_DIR).glob("*.json")}
+            & {s.run_id for s in sweep.specs})  # (each checked against its files by the sweep)
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
         print(f"{sweep.name}: {sweep.description}")
