@@ -111,7 +111,10 @@ h) multiply into runs; see sweeps/smoke.toml (the repository's sweeps/ comes wit
 the package data redysim.sweep_files). Needs the 'harness' extra. Each finished run is saved at
 once under OUT/runs/ and OUT/samples/; at the end everything is gathered into OUT/runs.parquet
 and OUT/samples.parquet. Started again, a sweep skips the runs it has finished, so an
-interrupted sweep (even a killed one) resumes where it stopped.
+interrupted sweep (even a killed one) resumes where it stopped. OUT/manifest/ lists each
+finished run's files with their SHA-256: a file deleted, damaged or replaced is said and its
+run done again. A finished sweep run again writes nothing; an OUT that cannot be written is
+refused before any run, unless every run in it is finished (then it is read as it is).
 
 examples:
   redysim sweep sweeps/smoke.toml
@@ -668,6 +671,7 @@ def print_run(summary: dict, samples: list[tuple]) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
+    from redysim.harness.store import writable
     from redysim.harness.sweep import (
         MANIFEST_DIR,
         RUNS_FILE,
@@ -690,8 +694,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
         print(f"{sweep.name}: {sweep.description}")
-    print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; "
-          f"running the rest on {where}", flush=True)
+    rest = (f"running the rest on {where}" if writable(out) else
+            "a folder it cannot write: read as it is if every run is finished there")
+    print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; {rest}",
+          flush=True)
     runs = run_sweep(sweep.specs, out, name=sweep.name, workers=args.workers, dask=args.dask,
                      progress=args.progress, reference=sweep.reference,
                      retry_failed=args.retry_failed)
