@@ -175,7 +175,8 @@ def _refuse_other(path: Path, ck: dict, now: dict) -> None:
 def set_aside_other(path: Path) -> Path:
     """Rename a checkpoint of another run (and the one before it) beside it, as
     ``checkpoint.aside-<UTC time>.npz`` (``.prev`` before ``.npz`` for the earlier one): kept,
-    never resumed. Returns the new name of the checkpoint."""
+    never resumed; its manifest too (``.manifest.json``), so that the new run's own is the
+    only one. Returns the new name of the checkpoint."""
     stamp = time.strftime("%Y%m%dT%H%M%S", time.gmtime())
     moved = path.with_name(f"checkpoint.aside-{stamp}.npz")
     k = 1
@@ -185,6 +186,9 @@ def set_aside_other(path: Path) -> Path:
     prev = path.with_name(PREVIOUS)
     if prev.exists():
         prev.replace(moved.with_suffix(".prev.npz"))
+    manifest = path.with_name(MANIFEST)
+    if manifest.exists():
+        manifest.replace(moved.with_suffix(".manifest.json"))
     path.replace(moved)
     return moved
 
