@@ -671,14 +671,8 @@ def print_run(summary: dict, samples: list[tuple]) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
-    from redysim.harness.store import writable
-    from redysim.harness.sweep import (
-        MANIFEST_DIR,
-        RUNS_FILE,
-        SAMPLES_FILE,
-        load_sweep,
-        run_sweep,
-    )
+    from redysim.harness.store import parquet_files, writable
+    from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
 
     if args.dask and args.workers is not None:
         raise SettingsError(SOURCE, "--workers", args.workers, "sets the local process pool; "
@@ -689,8 +683,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
                             "folder")
     # (a folder it cannot write: refused by run_sweep before any run, unless finished there)
-    done = ({p.stem for p in (out / MANIFEST_DIR).glob("*.json")}
-            & {s.run_id for s in sweep.specs})  # (each checked against its files by the sweep)
+    # (as recorded: the sweep checks each against its manifest, and says what it redoes)
+    done = parquet_files(out / RUNS_DIR).keys() & {s.run_id for s in sweep.specs}
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
         print(f"{sweep.name}: {sweep.description}")
