@@ -111,7 +111,10 @@ h) multiply into runs; see sweeps/smoke.toml (the repository's sweeps/ comes wit
 the package data redysim.sweep_files). Needs the 'harness' extra. Each finished run is saved at
 once under OUT/runs/ and OUT/samples/; at the end everything is gathered into OUT/runs.parquet
 and OUT/samples.parquet. Started again, a sweep skips the runs it has finished, so an
-interrupted sweep (even a killed one) resumes where it stopped.
+interrupted sweep (even a killed one) resumes where it stopped. OUT/manifest/ lists each
+finished run's files with their SHA-256: a file deleted, damaged or replaced is said and its
+run done again. A finished sweep run again writes nothing; an OUT that cannot be written is
+refused before any run, unless every run in it is finished (then it is read as it is).
 
 examples:
   redysim sweep sweeps/smoke.toml
@@ -139,12 +142,14 @@ tolerance, and the command that runs the advised model.
 Any rope case (a case name or your own case file): the study is run for it, here, and stopped
 once the answer is known: your model by DOP853 at 1e-10 (the reference) and every coarser model
 (link counts that divide yours) by ode45 at 1e-8; the reference's own error by Richardson where
-the observed order is steady, else against the rope at twice your links; between the last count
-that misses the tolerance and the first that meets it, the rope rebuilt at other counts
-(bisected; a straight rope's file); then every setting on the least count within the tolerance,
-the coarsest divisor within it and your own model. The advice is checked by running
-it again. Runs are cached in --out (default results/advise/CASE): ask again, with another
-tolerance too, and only what is new runs.
+the observed order is steady, else against the rope at twice your links. Searched: every count
+between the finest divisor that misses the tolerance and the coarsest count that meets it (the
+coarsest divisor that meets it, or your own count when none does), by bisection on the rope
+rebuilt at each count tried (a straight rope's file; a rope that starts bent is searched over
+divisors only, and says so); then every setting on the least count within the tolerance, the
+coarsest divisor within it and your own model. The advice is checked by running it again.
+Runs are cached in --out (default results/advise/CASE): ask again, with another tolerance too,
+and only what is new runs.
 
 A robot's scenario (a scenario's name or file, or a robot file): which joints can be locked at
 their initial values (their bodies fused) with the path of --observe (default: the scenario's
@@ -402,6 +407,9 @@ def _check_out(out: Path) -> None:
         if importlib.util.find_spec(package) is None:
             raise SettingsError(SOURCE, "--out", str(out), "saving " +
                                 needs_extra(package, EXTRA_OF[package]))
+    from redysim.harness.store import check_writable
+
+    check_writable(out.parent, what=f"folder of {out.name}")
 
 
 def needs_extra(package: str, extra: str) -> str:
@@ -663,7 +671,7 @@ def print_run(summary: dict, samples: list[tuple]) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
-    from redysim.harness.store import parquet_files
+    from redysim.harness.store import parquet_files, writable
     from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
 
     if args.dask and args.workers is not None:
@@ -674,12 +682,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
                             "folder")
+    # (a folder it cannot write: refused by run_sweep before any run, unless finished there)
+    # (as recorded: the sweep checks each against its manifest, and says what it redoes)
     done = parquet_files(out / RUNS_DIR).keys() & {s.run_id for s in sweep.specs}
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
         print(f"{sweep.name}: {sweep.description}")
-    print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; "
-          f"running the rest on {where}", flush=True)
+    rest = (f"running the rest on {where}" if writable(out) else
+            "a folder it cannot write: read as it is if every run is finished there")
+    print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; {rest}",
+          flush=True)
     runs = run_sweep(sweep.specs, out, name=sweep.name, workers=args.workers, dask=args.dask,
                      progress=args.progress, reference=sweep.reference,
                      retry_failed=args.retry_failed)

@@ -51,10 +51,19 @@ from redysim.integrators.explicit import (
 from .cli import positive, time_to_go
 from .provenance import code_digest, peak_rss_mib, reset_peak_rss
 from .reference import results_dir
-from .store import write_npz_atomic
+from .store import (
+    check_writable,
+    read_json,
+    sha256_file,
+    writable,
+    write_json_atomic,
+    write_npz_atomic,
+)
 
 CHECKPOINT = "checkpoint.npz"
 PREVIOUS = "checkpoint.prev.npz"  # the checkpoint before the last, kept in case it is damaged
+MANIFEST = "manifest.json"  # the checkpoints written, their SHA-256, the run's t and status
+FINISHED = ("done", "failed")  # a checkpoint's status that is the run's record: never rewritten
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
 SAMPLE_FIELDS = ("t", "tip_x", "tip_y", "tip_z", "E", "delta_M")
 INTEGRATORS = (*TABLEAU_NAMES, *IMPLICIT)  # ours (their state can be saved)
@@ -86,6 +95,19 @@ def save_checkpoint(path: Path, solver: OdeSolver, samples: list, meta: dict) ->
                      rejected=st.counters.rejected, nfev=st.counters.nfev,
                      samples=np.array(samples, dtype=float).reshape(-1, len(SAMPLE_FIELDS)),
                      **{k: np.asarray(v) for k, v in meta.items()})
+    files = {p.name: sha256_file(p) for p in (path, path.with_name(PREVIOUS)) if p.exists()}
+    write_json_atomic({"files": files, "t": float(st.t),
+                       "status": str(meta.get("status", "in progress"))},
+                      path.with_name(MANIFEST))
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """The long run's manifest in ``folder`` (:data:`MANIFEST`), or None: none, or unreadable."""
+    try:
+        m = read_json(folder / MANIFEST)
+        return m if isinstance(m, dict) and isinstance(m.get("files"), dict) else None
+    except (OSError, ValueError):
+        return None
 
 
 def _read(path: Path) -> dict:
@@ -100,13 +122,22 @@ def _read(path: Path) -> dict:
 def load_checkpoint(path: Path, *, repair: bool = False, log=print) -> dict | None:
     """The checkpoint at ``path`` (a dict of its arrays), or None when there is none.
 
-    A checkpoint that cannot be read (truncated, corrupted, not ours) is skipped for the
-    previous one beside it, if that one reads; with ``repair`` the damaged file is also moved
-    aside (``<name>.damaged-<time>``), and ``log`` says what happened either way."""
+    A checkpoint that cannot be read (truncated, corrupted, not ours) or is not one the
+    folder's manifest recorded (:data:`MANIFEST`, by SHA-256) is skipped for the previous one
+    beside it, if that one reads; with ``repair`` the damaged file is also moved aside
+    (``<name>.damaged-<time>``), and ``log`` says what happened either way; a checkpoint the
+    manifest lists but that is missing is said too."""
+    manifest = read_manifest(path.parent)
+    known = set(manifest["files"].values()) if manifest else None
     for candidate in (path, path.with_name(PREVIOUS)):
         if not candidate.exists():
+            if manifest and candidate.name in manifest["files"]:
+                log(f"{candidate} is missing (listed in {path.parent / MANIFEST})")
             continue
         try:
+            if known is not None and sha256_file(candidate) not in known:
+                raise ValueError(f"not a checkpoint {MANIFEST} recorded (its SHA-256 differs: "
+                                 "changed, or written as the run was stopped)")
             return _read(candidate)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             what = f"{candidate} could not be read ({type(exc).__name__}: {str(exc)[:200]})"
@@ -144,7 +175,8 @@ def _refuse_other(path: Path, ck: dict, now: dict) -> None:
 def set_aside_other(path: Path) -> Path:
     """Rename a checkpoint of another run (and the one before it) beside it, as
     ``checkpoint.aside-<UTC time>.npz`` (``.prev`` before ``.npz`` for the earlier one): kept,
-    never resumed. Returns the new name of the checkpoint."""
+    never resumed; its manifest too (``.manifest.json``), so that the new run's own is the
+    only one. Returns the new name of the checkpoint."""
     stamp = time.strftime("%Y%m%dT%H%M%S", time.gmtime())
     moved = path.with_name(f"checkpoint.aside-{stamp}.npz")
     k = 1
@@ -154,6 +186,9 @@ def set_aside_other(path: Path) -> Path:
     prev = path.with_name(PREVIOUS)
     if prev.exists():
         prev.replace(moved.with_suffix(".prev.npz"))
+    manifest = path.with_name(MANIFEST)
+    if manifest.exists():
+        manifest.replace(moved.with_suffix(".manifest.json"))
     path.replace(moved)
     return moved
 
@@ -208,23 +243,38 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
            "t_end": t_end, "sample": interval, **how}
     kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
           dict(rtol=how["rtol"], atol=how["atol"]))
-    ck = load_checkpoint(path, repair=True, log=log)
+    can_write = writable(path.parent)  # (a finished run is read from a folder it cannot write)
+    ck = load_checkpoint(path, repair=can_write, log=log)
     state, samples, cpu_prev, wall_prev = None, [], 0.0, 0.0
+    before = {"newton": 0, "krylov": 0, "peak_rss_mib": 0.0}  # the sessions' before this one
     if ck is not None:
         try:
             _refuse_other(path, ck, now)
         except OtherRunError as exc:
             if not set_aside:
                 raise
+            check_writable(path.parent)
             reason = str(exc).split("; use another --out")[0]
             log(f"{reason}: set aside as {set_aside_other(path).name}; starting over")
             ck = None
+    elif (manifest := read_manifest(path.parent)) is not None and manifest["files"]:
+        raise LongrunError(f"{path.parent / MANIFEST} lists the checkpoints of this run (t = "
+                           f"{manifest.get('t', 0.0):.6g} s, {manifest.get('status', '')}), "
+                           "but none of them can be read there: its record is lost, not "
+                           f"started over unasked; to start over, delete {MANIFEST} (or give "
+                           "another --out)")
+    if ck is not None and str(ck.get("status", "")) in FINISHED:
+        log(f"{case.name}: finished already ({ck['status']} at t = {float(ck['t']):.6g} s); "
+            f"its record in {path} is kept as it is (another --out runs it again)")
+        return ck
+    check_writable(path.parent)  # before any step: a run that cannot be saved is not begun
     if ck is not None:
         samples = [tuple(r) for r in ck["samples"]]
         state = SolverState(float(ck["t"]), ck["y"], ck["f"], float(ck["h"]),
                             Counters(int(ck["steps"]), int(ck["rejected"]), int(ck["nfev"])),
                             sampled_until=samples[-1][0] if samples else None)
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
+        before = {k: ck[k].item() if k in ck else v for k, v in before.items()}
     def record(s):  # every sample: t, tip position, E, delta_M
         p = tip(chain, s.q, s.v, ws=s.ws).position
         samples.append((s.t, *p, s.E, (s.E - E0) / chain.total_mass))
@@ -253,9 +303,11 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
         return {**now, "E0": E0, "mass": chain.total_mass,
                 "cpu_s": cpu_prev + time.process_time() - cpu0,
                 "wall_s": wall_prev + time.perf_counter() - wall0,
-                "peak_rss_mib": peak_rss_mib(),
-                # the implicit midpoint's Newton and GMRES iterations (this session's)
-                "newton": getattr(solver, "newton", 0), "krylov": getattr(solver, "krylov", 0)}
+                # the run's peak over its sessions, and the implicit midpoint's Newton and
+                # GMRES iterations summed over them (a resumed session's own started at 0)
+                "peak_rss_mib": max(float(before["peak_rss_mib"]), peak_rss_mib()),
+                "newton": int(before["newton"]) + getattr(solver, "newton", 0),
+                "krylov": int(before["krylov"]) + getattr(solver, "krylov", 0)}
 
     def on_step(s):
         wall = time.perf_counter()
@@ -346,7 +398,7 @@ def main(argv=None) -> int:
                  integrator=args.integrator, rtol=args.rtol, atol=args.atol, h=args.h,
                  sample=args.sample, stop_after_s=args.stop_after,
                  log=lambda m: print(m, flush=True), names=FLAGS, set_aside=args.set_aside)
-    except (RedysimError, FileNotFoundError) as exc:
+    except (RedysimError, FileNotFoundError) as exc:  # FolderError: a folder it cannot write
         err(f"longrun: error: {exc}")
         return EXIT_USAGE
     except KeyboardInterrupt:

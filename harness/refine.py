@@ -503,8 +503,9 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
        (:func:`three_level_order`) give the rest of the way to the converged path; else unknown
        (said). A study whose errors do not fall with the links, or whose three finest models
        show no positive order, does not converge (a singular scene): said, no advice.
-    3. The coarsest level whose model error is within ``tol`` less the reference's; between it
-       and the next coarser level (which is not), the rope rebuilt at other counts, bisected
+    3. The coarsest level whose model error is within ``tol`` less the reference's (the user's
+       own model when no coarser level is); between it and the next coarser level (which is
+       not), the rope rebuilt at other counts, bisected
        (ode45 at 1e-8; a straight rope's file only: :func:`redysim.io.cases.rebuild_problem`)
        down to the least count that is; that count, the level, and the user's own model at
        every setting of OWN_INTEGRATORS x OWN_RTOLS;
@@ -573,11 +574,11 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     # the coarsest level within the budget and the next finer one (the user's model when none
     # is): a finer model at a looser setting can be the cheaper
     # (and the user's own model, for what the advice saves)
+    # (the user's model meets it when no coarser divisor does: the search then runs between
+    # the finest divisor and the user's count, which it did not before)
     meeting = [d["links"] for d in lv if d["tip_err"] <= budget]
-    chosen, searched = [nl], []
-    if meeting:
-        chosen, searched = _counts_to_try(case, lv, meeting[0], budget, specs, base, out, name,
-                                          workers, notes, log)
+    chosen, searched = _counts_to_try(case, lv, meeting[0] if meeting else nl, budget, specs,
+                                      base, out, name, workers, notes, log)
     log(f"advise: settings on {', '.join(map(str, chosen))} links "
         f"({len(OWN_INTEGRATORS) * len(OWN_RTOLS)} each)")
     specs += [RunSpec(**base, links=0 if n == nl else n, integrator=i, rtol=r, atol=r * 1e-2)
@@ -635,11 +636,12 @@ def _reference_error(path: str, case, study, lv, orders, steady: bool, log
 def _counts_to_try(case, lv, first: int, budget: float, specs: list, base: dict, out: Path,
                    name: str, workers, notes: list, log) -> tuple[list[int], list[dict]]:
     """The link counts whose settings are tried (:func:`_own_study`, step 3): the coarsest
-    level within the budget (``first``) and the next finer one (the user's model when none is:
-    a finer model at a looser setting can be the cheaper) and the user's own; between ``first``
-    and the next coarser level, the rope rebuilt at each count, bisected, down to the least that
-    meets the budget. Returns (counts, the rebuilt counts' errors); ``specs`` grows with the
-    rebuilt runs, ``notes`` with why a search stopped or was not made."""
+    level within the budget (``first``; the user's own count when no coarser divisor is) and the
+    next finer one (the user's model when none is: a finer model at a looser setting can be the
+    cheaper) and the user's own; between ``first`` and the next coarser level, the rope rebuilt
+    at each count, bisected, down to the least that meets the budget. Returns (counts, the
+    rebuilt counts' errors); ``specs`` grows with the rebuilt runs, ``notes`` with why a search
+    stopped or was not made."""
     from redysim.io.cases import rebuild_problem
 
     from .spec import RunSpec

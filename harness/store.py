@@ -14,12 +14,16 @@ killed mid-write (``kill -9``) leaves at most a stray temporary file, named
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import io
 import json
 import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
+
+from redysim.errors import RedysimError
 
 if TYPE_CHECKING:  # pandas is imported by the functions that read or write tables
     import pandas as pd
@@ -54,13 +58,84 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> Path:
-    """Call ``write(fh)`` on a temporary file beside ``path``, then rename it onto ``path``."""
+class FolderError(RedysimError, OSError):
+    """A results folder or file that cannot be written: the message names it, the system's
+    reason and what to do. An OSError too, so that code which handles a failed write still
+    does."""
+
+
+def _cannot_write(path: Path, exc: OSError, what: str, flag: str | None) -> FolderError:
+    given = f"{flag} " if flag else ""
+    reason = exc.strerror or type(exc).__name__
+    return FolderError(f"{given}{str(path)!r}: the {what} cannot be written ({reason}: "
+                       f"{exc.filename or path}); make it writable, or give another "
+                       f"{flag or 'folder (--out)'}")
+
+
+def check_writable(folder: str | os.PathLike, *, what: str = "results folder",
+                   flag: str | None = "--out") -> Path:
+    """Make ``folder`` (and its parents) if it is not there, then create and remove a file in
+    it: called before any run, so that no computation is lost to a folder it cannot be saved
+    in. Raises :class:`FolderError` naming the folder (and ``flag``, the option that gave it),
+    why, and what to do."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise FolderError(f"{(flag + ' ') if flag else ''}{str(folder)!r}: is a file, not a "
+                          f"folder; give a folder for the {what}")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=f"{TEMP_PREFIX}probe.{os.getpid()}.",
+                                     suffix=TEMP_SUFFIX)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise _cannot_write(folder, exc, what, flag) from None
+    return folder
+
+
+def writable(folder: str | os.PathLike) -> bool:
+    """Whether :func:`check_writable` would pass (``folder`` made if missing)."""
+    try:
+        check_writable(folder)
+    except FolderError:
+        return False
+    return True
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """The SHA-256 of a file's bytes, in hex."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None], *,
+                  if_changed: bool = False) -> Path:
+    """Call ``write(fh)`` on a temporary file beside ``path``, then rename it onto ``path``.
+    ``if_changed``: leave ``path`` untouched when it already holds those bytes (a finished
+    sweep read again rewrites nothing, and so can be read from a folder it cannot write). A
+    file that cannot be written raises :class:`FolderError` naming it."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # the writer's pid in the name: remove_temp_files leaves a live writer's file alone
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{TEMP_PREFIX}{path.name}.{os.getpid()}.",
-                               suffix=TEMP_SUFFIX)
+    if if_changed:
+        buf = io.BytesIO()
+        write(buf)
+        data = buf.getvalue()
+        with contextlib.suppress(OSError):
+            if path.stat().st_size == len(data) and path.read_bytes() == data:
+                return path
+
+        def write(fh, data=data):
+            fh.write(data)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # the writer's pid in the name: remove_temp_files leaves a live writer's file alone
+        fd, tmp = tempfile.mkstemp(dir=path.parent,
+                                   prefix=f"{TEMP_PREFIX}{path.name}.{os.getpid()}.",
+                                   suffix=TEMP_SUFFIX)
+    except OSError as exc:
+        raise _cannot_write(path, exc, "file", None) from None
     try:
         os.fchmod(fd, FILE_MODE)
         with os.fdopen(fd, "wb") as fh:
@@ -68,17 +143,22 @@ def _write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, FolderError):
+            raise _cannot_write(path, exc, "file", None) from None
         raise
     _fsync_dir(path.parent)
     return path
 
 
-def write_parquet_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
-    """Write ``df`` (without its index) to the Parquet file ``path`` atomically."""
-    return _write_atomic(path, lambda fh: df.to_parquet(fh, engine="pyarrow", index=False))
+def write_parquet_atomic(df: pd.DataFrame, path: str | os.PathLike, *,
+                         if_changed: bool = False) -> Path:
+    """Write ``df`` (without its index) to the Parquet file ``path`` atomically (``if_changed``:
+    see :func:`_write_atomic`)."""
+    return _write_atomic(path, lambda fh: df.to_parquet(fh, engine="pyarrow", index=False),
+                         if_changed=if_changed)
 
 
 def write_csv_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
@@ -86,14 +166,14 @@ def write_csv_atomic(df: pd.DataFrame, path: str | os.PathLike) -> Path:
     return _write_atomic(path, lambda fh: fh.write(df.to_csv(index=False).encode("utf-8")))
 
 
-def write_text_atomic(text: str, path: str | os.PathLike) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    return _write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))
+def write_text_atomic(text: str, path: str | os.PathLike, *, if_changed: bool = False) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically (``if_changed``: see :func:`_write_atomic`)."""
+    return _write_atomic(path, lambda fh: fh.write(text.encode("utf-8")), if_changed=if_changed)
 
 
-def write_json_atomic(obj: Any, path: str | os.PathLike) -> Path:
+def write_json_atomic(obj: Any, path: str | os.PathLike, *, if_changed: bool = False) -> Path:
     """Write ``obj`` as indented JSON to ``path`` atomically."""
-    return write_text_atomic(json.dumps(obj, indent=1) + "\n", path)
+    return write_text_atomic(json.dumps(obj, indent=1) + "\n", path, if_changed=if_changed)
 
 
 def write_npz_atomic(path: str | os.PathLike, **arrays) -> Path:

@@ -46,11 +46,17 @@ runs everything again instead of mixing results of two versions.
 
     sweep.json                   the plan: name, source and every planned run (atomically)
     runs/<run_id>.parquet        a finished run's summary row, written as soon as it finishes
-    samples/<run_id>.parquet     its samples (written first: the summary row marks a run done)
+    samples/<run_id>.parquet     its samples (written first)
+    manifest/<run_id>.json       the run's files and their SHA-256 (written last: it marks the
+                                 run done)
     runs.parquet, samples.parquet  everything, in plan order (:func:`collect`)
 
 Every file is written atomically (:mod:`redysim.harness.store`), so a sweep killed at any moment
-(even ``kill -9``) and started again skips the runs it finished and redoes only those in flight. At
+(even ``kill -9``) and started again skips the runs it finished and redoes only those in flight.
+A finished run whose files are not those its manifest lists (one deleted, or changed) is said on
+stderr and done again; a finished sweep read again rewrites nothing. A folder that cannot be
+written is refused by name (:class:`redysim.harness.store.FolderError`) before any run, unless
+every run in it is finished: then it is read as it is. At
 most ``workers`` runs are in flight on the local pool. A run that fails is a row with ``status =
 "failed"`` and its ``reason``; so is a run whose worker raised or died.
 """
@@ -104,11 +110,14 @@ from .spec import (
 from .store import (
     FILE_MODE,
     PARQUET_SUFFIX,
+    FolderError,
     parquet_files,
     parquet_metadata,
     read_json,
     read_parquet,
     remove_temp_files,
+    sha256_file,
+    writable,
     write_json_atomic,
     write_parquet_atomic,
 )
@@ -144,6 +153,7 @@ CLAIMS_DIR = ".claims"  # one lock file per run in flight (Claims)
 DAMAGED_DIR = "damaged"  # result files that could not be read, kept for a look
 RUNS_DIR = "runs"
 SAMPLES_DIR = "samples"
+MANIFEST_DIR = "manifest"  # manifest/<run_id>.json: a finished run's files and their SHA-256
 RUNS_FILE = "runs.parquet"
 SAMPLES_FILE = "samples.parquet"
 
@@ -581,18 +591,14 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(str(out), "<results folder>", None, "is a file, not a folder")
-    write_json_atomic({"name": name, "n_runs": len(specs),
-                       "runs": [{"run_id": s.run_id, "label": s.label, **s.to_dict()}
-                                for s in specs]}, out / PLAN_FILE)
-    for sub in (RUNS_DIR, SAMPLES_DIR):
-        (out / sub).mkdir(parents=True, exist_ok=True)
-        remove_temp_files(out / sub)
+    repair = writable(out)  # (a folder it cannot write is read only if every run is finished)
 
     def finished(spec: RunSpec) -> str | None:
-        """'ok', 'failed' (a result), or None (not run, damaged, stopped by a wall-clock
-        limit, or to be run again)."""
-        row = _read_run(out, spec.run_id)
-        if row is None or not _samples_readable(out, spec.run_id):
+        """'ok', 'failed' (a result), or None (not run, damaged, missing a file, stopped by a
+        wall-clock limit, or to be run again)."""
+        row = _read_run(out, spec.run_id, repair=repair)
+        if (row is None or not _samples_readable(out, spec.run_id, repair=repair)
+                or not _manifest_holds(out, spec.run_id, row, repair=repair)):
             return None
         if row["status"] == "ok":
             return "ok"
@@ -603,6 +609,24 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     status = {s.run_id: finished(s) for s in specs}
     pending = [s for s in specs if status[s.run_id] is None]
     failed = sum(v == "failed" for v in status.values())
+    plan = {"name": name, "n_runs": len(specs),
+            "runs": [{"run_id": s.run_id, "label": s.label, **s.to_dict()} for s in specs]}
+    if not repair:
+        if pending:
+            from .store import check_writable
+
+            try:
+                check_writable(out)
+            except FolderError as exc:
+                raise FolderError(f"{exc} ({len(pending)} of the sweep's {len(specs)} runs are "
+                                  "not finished there; nothing was run)") from None
+        runs = collect(out, plan=plan)  # finished: read as it is (it writes only what changed)
+        runs.attrs["ran"] = 0
+        return runs
+    write_json_atomic(plan, out / PLAN_FILE, if_changed=True)
+    for sub in (RUNS_DIR, SAMPLES_DIR):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+        remove_temp_files(out / sub)
     if reference and pending:
         from .reference import ensure_references
 
@@ -637,8 +661,9 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     return runs
 
 
-def _read_run(out: Path, run_id: str) -> dict | None:
-    """A finished run's summary row, or None: not there, or damaged (then moved aside)."""
+def _read_run(out: Path, run_id: str, *, repair: bool = True) -> dict | None:
+    """A finished run's summary row, or None: not there, or damaged (then moved aside, unless
+    not ``repair``)."""
     path = out / RUNS_DIR / f"{run_id}{PARQUET_SUFFIX}"
     if not path.is_file():
         return None
@@ -648,8 +673,62 @@ def _read_run(out: Path, run_id: str) -> dict | None:
             raise ValueError(f"{len(rows)} rows, columns {sorted(rows[0]) if rows else []}")
         return rows[0]
     except Exception as exc:  # a truncated, empty or foreign file: pyarrow's errors vary
-        set_aside(path, exc)
+        if repair:
+            set_aside(path, exc)
         return None
+
+
+def _files_of(out: Path, run_id: str) -> list[Path]:
+    """A stored run's result files: its summary row and, if it has them, its samples."""
+    files = [out / SAMPLES_DIR / f"{run_id}{PARQUET_SUFFIX}",
+             out / RUNS_DIR / f"{run_id}{PARQUET_SUFFIX}"]
+    return [f for f in files if f.is_file()]
+
+
+def _write_manifest(out: Path, run_id: str) -> None:
+    """Record a stored run's files and their SHA-256 (:data:`MANIFEST_DIR`): the run is done."""
+    files = {f.relative_to(out).as_posix(): sha256_file(f) for f in _files_of(out, run_id)}
+    write_json_atomic({"run_id": run_id, "files": files},
+                      out / MANIFEST_DIR / f"{run_id}.json")
+
+
+def _manifest_holds(out: Path, run_id: str, row: dict, *, repair: bool = True) -> bool:
+    """Whether a run's files are those its manifest lists, by SHA-256. A file missing is said on
+    stderr, one changed is set aside (:func:`set_aside`; not when not ``repair``): its run is
+    done again either way. A run stored without a manifest (its sweep killed between its summary
+    row and its manifest) is taken if an "ok" run has its samples, and its manifest written."""
+    path = out / MANIFEST_DIR / f"{run_id}.json"
+    if not path.is_file():
+        if row["status"] == "ok" and not (out / SAMPLES_DIR / f"{run_id}.parquet").is_file():
+            print(f"redysim: {out / SAMPLES_DIR / f'{run_id}.parquet'} is missing (run "
+                  f"{row.get('label', run_id)} is recorded ok); its run will be done again",
+                  file=sys.stderr)
+            return False
+        if repair:
+            _write_manifest(out, run_id)
+        return True
+    try:
+        files = read_json(path)["files"]
+        if not isinstance(files, dict):
+            raise ValueError(f"'files' is {type(files).__name__}, not a table")
+    except Exception as exc:  # truncated or foreign: the run's files are not known
+        if repair:
+            set_aside(path, exc)
+        return False
+    for name, digest in files.items():
+        f = out / name
+        if not f.is_file():
+            print(f"redysim: {f} is missing (listed in {path} as a finished run's file); its "
+                  "run will be done again", file=sys.stderr)
+            return False
+        if sha256_file(f) != digest:
+            if repair:
+                set_aside(f, ValueError(f"its SHA-256 is not the one {path} recorded"))
+            else:
+                print(f"redysim: {f} is not the file {path} recorded (SHA-256)",
+                      file=sys.stderr)
+            return False
+    return True
 
 
 def set_aside(path: Path, exc: BaseException) -> Path | None:
@@ -669,8 +748,12 @@ def _store(out: Path, spec: RunSpec, summary: dict, samples: pd.DataFrame | None
     """Write one finished run: its samples first, then the summary row that marks it done."""
     if samples is not None:
         write_parquet_atomic(samples, out / SAMPLES_DIR / f"{spec.run_id}.parquet")
+    else:  # a samples file of an earlier try of this run is not this one's
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(out / SAMPLES_DIR / f"{spec.run_id}.parquet")
     summary = {"transient": False, **summary}
     write_parquet_atomic(pd.DataFrame([summary]), out / RUNS_DIR / f"{spec.run_id}.parquet")
+    _write_manifest(out, spec.run_id)
 
 
 def _init_worker(parent: int) -> None:
@@ -911,39 +994,44 @@ def _dask_results(work: _Work, address: str,
 
 
 # --------------------------------------------------------------------------- results
-def collect(out_dir: str | os.PathLike) -> pd.DataFrame:
-    """Consolidate ``out_dir``'s finished runs into runs.parquet and samples.parquet.
+def collect(out_dir: str | os.PathLike, *, plan: dict | None = None) -> pd.DataFrame:
+    """Consolidate ``out_dir``'s finished runs into runs.parquet and samples.parquet (each
+    written only when it changes).
 
-    Rows follow the plan's order (sweep.json; run_id order without one), so the tables do not
-    depend on which run finished first. Runs not in the plan (left by an earlier version of the
-    sweep) are left out; planned runs not yet finished are simply absent. Returns the runs.
+    Rows follow the plan's order (``plan``, else sweep.json; run_id order without one), so the
+    tables do not depend on which run finished first. Runs not in the plan (left by an earlier
+    version of the sweep) are left out; planned runs not yet finished are simply absent.
+    Returns the runs.
     """
     out = Path(out_dir)
     run_files = parquet_files(out / RUNS_DIR)
     sample_files = parquet_files(out / SAMPLES_DIR)
-    plan = out / PLAN_FILE
-    order = [r["run_id"] for r in read_json(plan)["runs"]] if plan.exists() else list(run_files)
+    plan_file = out / PLAN_FILE
+    if plan is None and plan_file.exists():
+        plan = read_json(plan_file)
+    order = [r["run_id"] for r in plan["runs"]] if plan is not None else list(run_files)
     ids = [run_id for run_id in order if run_id in run_files]
     rows = {i: row for i in ids if (row := _read_run(out, i)) is not None}
     runs = pd.DataFrame([rows[i] for i in ids if i in rows])
     samples = _concat(frame for i in ids if i in rows and i in sample_files
                       if (frame := _read_samples(sample_files[i])) is not None)
-    write_parquet_atomic(samples, out / SAMPLES_FILE)
-    write_parquet_atomic(runs, out / RUNS_FILE)
+    write_parquet_atomic(samples, out / SAMPLES_FILE, if_changed=True)
+    write_parquet_atomic(runs, out / RUNS_FILE, if_changed=True)
     return runs
 
 
-def _samples_readable(out: Path, run_id: str) -> bool:
+def _samples_readable(out: Path, run_id: str, *, repair: bool = True) -> bool:
     """False when a run's samples file exists but its Parquet footer cannot be read (then both
-    its files are set aside, and the run is not done); True otherwise (a run whose worker died
-    has no samples file)."""
+    its files are set aside, unless not ``repair``, and the run is not done); True otherwise (a
+    run whose worker died has no samples file)."""
     path = out / SAMPLES_DIR / f"{run_id}{PARQUET_SUFFIX}"
     if not path.is_file():
         return True
     try:
         parquet_metadata(path)
     except Exception as exc:  # pyarrow's errors for a damaged file vary
-        _set_aside_run(path, exc)
+        if repair:
+            _set_aside_run(path, exc)
         return False
     return True
 

@@ -89,6 +89,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     name = "".join(c if c.isalnum() or c in "-_." else "_" for c in scn.name)
     out = args.out or Path("results") / "compare" / name
+    from redysim.harness.store import check_writable
+
+    check_writable(out, flag="--out" if args.out else None)  # before any engine runs
     html, pdf = compare(args.model, out, options=options, t_end=args.t_end or 0.0,
                         workers=args.workers, engines=args.engines, progress=args.progress,
                         log=lambda msg: print(msg, file=sys.stderr, flush=True))

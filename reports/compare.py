@@ -413,7 +413,7 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
             log=print) -> tuple[Path, Path]:
     """Run the comparison of ``target`` into ``out`` and write its page (module docstring)."""
     from redysim.harness.reference import compute_reference
-    from redysim.harness.store import write_text_atomic
+    from redysim.harness.store import check_writable, write_text_atomic
     from redysim.harness.sweep import run_sweep
     from redysim.io.scenarios import load_scenario
 
@@ -422,6 +422,7 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
 
     options = options or {}
     scn = load_scenario(target, options=options)
+    check_writable(out, flag=None)  # before any engine runs: its pages and runs go there
     horizon = t_end or scn.t_end
     sample = scn.sample_for(horizon)
     log(f"compare: {scn.name}: single-state agreement in every engine")

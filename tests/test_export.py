@@ -537,3 +537,52 @@ def test_a_closed_mechanism_is_refused_by_name(export):
     with pytest.raises(ExportError, match=r"cuts = \['coupler-rocker pin'\]: a closed "
                                           r"mechanism.*model.with_cuts\(\(\)\)"):
         export(model)
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("mix", [("P",), ("R", "P"), ("R", "P", "U")], ids="".join)
+def test_a_urdf_export_is_read_by_urdfdom_mujoco_and_redysim_with_the_same_dynamics(tmp_path,
+                                                                                       mix):
+    """Chains with prismatic joints (about random axes): urdfdom, Pinocchio's reader, refused
+    every such file (URDF requires a <limit> on a prismatic joint). Each of the three readers'
+    GIM and qdd at a random state, against the original model's: Pinocchio's CRBA and ABA,
+    MuJoCo's mj_fullM and qacc (its own URDF reader), and redysim's importer."""
+    pinocchio = pytest.importorskip("pinocchio")
+    rng = np.random.default_rng(stable_seed("export-urdf-readers", mix))
+    chain = random_chain(rng, 6, mix)
+    q, qd, _ = random_state(rng, chain, "wide")
+    M0, a0 = mass_matrix(chain, q), forward_dynamics(chain, q, qd)
+    text = to_urdf(chain)
+    assert text.count("<limit ") == text.count('type="prismatic"') > 0
+    # urdfdom (Pinocchio): a continuous joint's q is (cos, sin)
+    pm = pinocchio.buildModelFromXML(text)
+    assert pm.nv == chain.n_dof
+    qp = np.concatenate([[np.cos(x), np.sin(x)] if jm.nq == 2 else [x]
+                         for jm, x in zip(list(pm.joints)[1:], q, strict=True)])
+    pd = pm.createData()
+    Mp = pinocchio.crba(pm, pd, qp)
+    Mp = np.triu(Mp) + np.triu(Mp, 1).T
+    assert rel(Mp, M0) < TOL
+    assert rel(pinocchio.aba(pm, pm.createData(), qp, qd, np.zeros(pm.nv)), a0) < \
+        _mujoco_tol(M0)
+    # MuJoCo's URDF reader; it refuses a U joint's massless link between the two axes (to_mjcf,
+    # the format for MuJoCo, merges it into the next body)
+    if "U" in mix:
+        with pytest.raises(ValueError, match="mass and inertia of moving bodies"):
+            mujoco.MjModel.from_xml_string(text)
+    else:
+        m = mujoco.MjModel.from_xml_string(text)
+        d = mujoco.MjData(m)
+        d.qpos[:], d.qvel[:] = q, qd
+        mujoco.mj_forward(m, d)
+        Mm = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, Mm)
+        assert rel(Mm, M0) < TOL
+        assert rel(d.qacc, a0) < _mujoco_tol(M0)
+    # redysim's own reader: the wide limits are announced as dropped, the dynamics the same
+    path = tmp_path / "chain.urdf"
+    path.write_text(text)
+    back = load_model(path)
+    assert any("limit" in note for note in back.notes)
+    assert rel(mass_matrix(back, q), M0) < TOL
+    assert rel(forward_dynamics(back, q, qd), a0) < TOL

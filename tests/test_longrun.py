@@ -215,3 +215,38 @@ def test_a_long_run_records_its_own_peak_rss_not_its_parents(tmp_path):
     del ballast
     child = float(load_checkpoint(out / CHECKPOINT)["peak_rss_mib"])
     assert child < parent - 500, (child, parent)
+
+
+def test_a_finished_long_run_run_again_keeps_its_record(tmp_path):
+    """Run again, a finished long run rewrote its checkpoint: the peak memory of a session that
+    did nothing and Newton/GMRES counts of 0 over the run's own. Now its record is kept, byte
+    for byte; and a resumed run's counts are the sum of its sessions'."""
+    out = tmp_path / "out"
+    kw = dict(t_end=0.02, integrator="implicit", sample=0.01, out=out, log=quiet)
+    whole = run(CASE, every_s=1e9, **{**kw, "out": tmp_path / "whole"})
+    assert int(whole["newton"]) > 0 and int(whole["krylov"]) > 0
+    stopped = run(CASE, every_s=0.0, stop_after_s=0.0, **kw)
+    assert str(stopped["status"]) == "stopped" and float(stopped["t"]) < 0.02
+    done = run(CASE, every_s=1e9, **kw)
+    assert str(done["status"]) == "done"
+    for key in ("newton", "krylov", "steps", "nfev"):  # the two sessions: the whole run's
+        assert int(done[key]) == int(whole[key]), key
+    record = (out / CHECKPOINT).read_bytes()
+    said = []
+    again = run(CASE, every_s=1e9, **{**kw, "log": said.append})
+    assert (out / CHECKPOINT).read_bytes() == record
+    assert int(again["newton"]) == int(done["newton"]) > 0
+    assert float(again["peak_rss_mib"]) == float(done["peak_rss_mib"])
+    assert any("finished already" in m for m in said), said
+
+
+def test_a_long_runs_missing_checkpoints_are_refused_by_name(tmp_path):
+    """Its checkpoints deleted, a long run started over from t = 0 without a word; its manifest
+    now tells: refused, naming the manifest and what to do."""
+    out = tmp_path / "out"
+    run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)
+    (out / CHECKPOINT).unlink()
+    (out / PREVIOUS).unlink(missing_ok=True)
+    with pytest.raises(LongrunError, match=r"manifest.json lists the checkpoints of this run.*"
+                                           r"delete manifest.json"):
+        run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)

@@ -446,3 +446,35 @@ def test_the_adaptive_table_marks_the_best_static_model_and_adaptive_runs_short_
             return None
 
     assert adaptive_table(Empty()).not_run and adaptive_figure(Empty()).not_run
+
+
+def test_the_search_runs_when_no_divisor_meets_the_tolerance(tmp_path):
+    """An 8-link rope whose divisors (4 and 2 links) both miss the budget: the counts between 4
+    and 8 are searched (they were not: the advice was the user's 8 links), and the advice is a
+    rebuilt count under 8 whose model error, measured by the study, is within the budget; its
+    path, simulated afresh through the public API, is within the budget of the user's model by
+    DOP853 at 1e-10."""
+    case = tmp_path / "r8.toml"
+    case.write_text(SMALL_FALL)
+    tol = 1.5e-3
+    st = refine.own_study(case, tol, tmp_path / "study", workers=1, progress=False,
+                          log=lambda *_: None, check=False)
+    budget = tol - st.ref_error
+    levels = {d["links"]: d["tip_err"] for d in st.conv["levels"]}
+    assert set(levels) == {2, 4} and min(levels.values()) > budget  # no divisor meets it
+    assert st.searched and all(4 < d["links"] < 8 for d in st.searched)
+    a = st.advice
+    assert a is not None and 4 < a.links < 8
+    assert a.links in {d["links"] for d in st.searched if d["tip_err"] <= budget}
+    from redysim.harness.run import coarse_case
+    from redysim.simulation import frame_observer, simulator
+
+    def tips(model, integrator, rtol):
+        sim = simulator(model.chain, 0.1, q0=model.q0, v0=model.v0, integrator=integrator,
+                        rtol=rtol, atol=rtol * 1e-2, sample=0.02,
+                        observe={"tip": frame_observer(model.chain, "tip")})
+        return sim.run().observed["tip"][:, :3]
+
+    own = redysim.load_case(case)
+    got = tips(coarse_case(own, a.links)[0], a.integrator, a.rtol)
+    assert np.linalg.norm(got - tips(own, "dop853", 1e-10), axis=1).max() <= budget

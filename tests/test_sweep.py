@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import random
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -750,3 +751,112 @@ def test_sweep_inputs_that_crashed_now_fail_with_a_named_error(tmp_path, capsys,
                  "tcp://127.0.0.1:9"]) == 2
     assert time.monotonic() - t0 < 20
     assert "no Dask scheduler answered" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- (e) what is kept
+def _mtimes(folder: Path) -> dict:
+    return {p.relative_to(folder): p.stat().st_mtime_ns for p in folder.rglob("*")
+            if p.is_file()}
+
+
+def test_a_finished_runs_deleted_samples_file_is_said_and_its_run_done_again(tmp_path, capsys):
+    """A finished run whose samples file was deleted: the sweep said nothing, counted it done,
+    and its samples.parquet lacked the run."""
+    out = tmp_path / "out"
+    specs = TINY[:2]
+    run_sweep(specs, out, progress=False)
+    victim = out / SAMPLES_DIR / f"{specs[1].run_id}.parquet"
+    victim.unlink()
+    runs = run_sweep(specs, out, progress=False)
+    assert runs.attrs["ran"] == 1 and (runs["status"] == "ok").all()
+    assert f"{victim} is missing" in capsys.readouterr().err
+    assert read_parquet(out / SAMPLES_FILE)["run_id"].nunique() == 2  # (it held 1)
+    assert run_sweep(specs, out, progress=False).attrs["ran"] == 0
+
+
+def test_a_result_file_replaced_by_another_readable_one_is_caught_by_its_digest(tmp_path,
+                                                                                 capsys):
+    """A samples file swapped for another run's (valid Parquet, so readable): the manifest's
+    SHA-256 tells, the file is set aside and the run done again."""
+    out = tmp_path / "out"
+    specs = TINY[:2]
+    run_sweep(specs, out, progress=False)
+    a, b = (out / SAMPLES_DIR / f"{s.run_id}.parquet" for s in specs)
+    a.write_bytes(b.read_bytes())
+    runs = run_sweep(specs, out, progress=False)
+    assert runs.attrs["ran"] == 1
+    assert "SHA-256" in capsys.readouterr().err and list((out / DAMAGED_DIR).iterdir())
+    table = read_parquet(out / SAMPLES_FILE)
+    assert table["run_id"].nunique() == 2
+    assert sorted(table.groupby("run_id").size()) == sorted(runs["n_samples"])
+
+
+def test_a_finished_sweep_run_again_rewrites_nothing(tmp_path):
+    out = tmp_path / "out"
+    run_sweep(TINY[:2], out, progress=False)
+    before = _mtimes(out)
+    assert run_sweep(TINY[:2], out, progress=False).attrs["ran"] == 0
+    assert _mtimes(out) == before
+
+
+def _as_a_user_who_cannot_write(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    """The redysim command in a process that file permissions bind: root's overriding of them
+    (CAP_DAC_OVERRIDE) dropped, so that a folder without write permission is one."""
+    cmd = [PYTHON, "-m", "redysim.reports.commands", *argv]
+    if os.geteuid() == 0:
+        cmd = ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", *cmd]
+    return subprocess.run(cmd, cwd=cwd, env=subprocess_env(), capture_output=True, text=True,
+                          timeout=300)
+
+
+def _read_only(folder: Path) -> None:
+    for p in [folder, *folder.rglob("*")]:
+        p.chmod(0o555 if p.is_dir() else 0o444)
+
+
+@pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
+                    reason="as root, a read-only folder needs setpriv to drop the override")
+def test_a_folder_that_cannot_be_written_is_refused_by_name_before_any_run(tmp_path):
+    """simulate --out, sweep, longrun and compare into a read-only folder printed a traceback
+    (PermissionError from the atomic writer); a finished sweep there was read, but sweep.json
+    rewritten. Now: each refused, naming the folder, why and what to do, before any run; the
+    finished sweep read as it is, nothing written."""
+    path = write(tmp_path, """
+        [sweep]
+        name = "ro"
+        cases = ["STUDY-R3"]
+        t_end = 0.05
+        sample = 0.05
+        """)
+    done = tmp_path / "done"
+    assert main(["sweep", str(path), "--out", str(done), "--no-progress"]) == 0
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    _read_only(ro)
+    _read_only(done)
+    before = _mtimes(done)
+    try:
+        for argv in (["sweep", str(path), "--out", str(ro), "--no-progress"],
+                     ["simulate", "STUDY-R3", "--t-end", "0.05", "--out", str(ro / "s.parquet")],
+                     ["compare", "STUDY-R3", "--out", str(ro / "cmp"), "--no-progress"]):
+            res = _as_a_user_who_cannot_write(argv, tmp_path)
+            assert res.returncode == 2, (argv, res.stderr)
+            assert "Traceback" not in res.stderr and "cannot be written" in res.stderr
+            assert str(ro) in res.stderr and "--out" in res.stderr, res.stderr
+        res = subprocess.run(
+            ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner"]
+            * (os.geteuid() == 0) + [PYTHON, "-m", "redysim.harness.longrun", "STUDY-R3",
+                                     "--t-end", "0.05", "--out", str(ro / "long")],
+            cwd=tmp_path, env=subprocess_env(), capture_output=True, text=True, timeout=300)
+        assert res.returncode == 2 and "Traceback" not in res.stderr
+        assert str(ro / "long") in res.stderr and "cannot be written" in res.stderr
+        assert not list(ro.iterdir())
+        res = _as_a_user_who_cannot_write(["sweep", str(path), "--out", str(done),
+                                           "--no-progress"], tmp_path)
+        assert res.returncode == 0, res.stderr
+        assert "1 ok, 0 failed, 0 run by this sweep" in res.stdout
+        assert _mtimes(done) == before
+    finally:
+        for folder in (ro, done):
+            for p in [folder, *folder.rglob("*")]:
+                p.chmod(0o755 if p.is_dir() else 0o644)

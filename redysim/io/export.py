@@ -52,7 +52,15 @@ included), a floating model whose gravity is not along -z (turning the world wou
 free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
 readers take a link of that name as the world itself), repeated link or joint names, and
 armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia). URDF holds no
-initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only.
+initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only. A
+prismatic joint gets the ``<limit>`` the URDF specification requires of it (urdfdom, the reader
+of Pinocchio and ROS, refuses the file without one), written wide (:data:`URDF_WIDE_LIMIT`:
++-1e9 m, and effort and velocity 1e9), never reached, and said so in an XML comment; a model
+holds no joint limits (the importers announce the ones they drop), so none is lost. Revolute
+axes are ``continuous``, which takes none. Every file is read by urdfdom (Pinocchio's
+``buildModelFromXML``) and redysim's own reader with the model's dynamics, and by MuJoCo's URDF
+reader unless it has a U or S joint, whose massless links between axes MuJoCo's compiler refuses
+(export to MJCF for MuJoCo: :func:`to_mjcf` merges them) (``tests/test_export.py``).
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
 is written without recursion, so a model of any depth is written (or refused) at once.
@@ -84,6 +92,10 @@ MJCF_HARD_SOLIMP = "0.9999 0.9999 0.001 0.5 2"  # a coupling's equality: MuJoCo'
 TRIANGLE_RTOL = 1e-12  # a principal moment above the sum of the others by round-off (a lamina)
 GRAVITY_RTOL = 1e-14  # |g| = 9.81 to round-off, for URDF
 URDF_ROOT = "world"
+# A prismatic joint's <limit>, which the URDF specification requires (urdfdom, Pinocchio's reader,
+# refuses the joint without one) and a Model does not hold: written wide, never reached (lower
+# and upper in metres, effort in newtons, velocity in m/s), and said so in the file
+URDF_WIDE_LIMIT = 1e9
 
 
 class ExportError(FieldError):
@@ -504,6 +516,13 @@ def to_urdf(model: Model) -> str:
         root.append(ET.Comment(
             "URDF holds no initial configuration; the model's (initial_q): "
             f"{_vec(model.initial_q)}"))
+    if any(kind == "slide" for k in range(model.n_bodies) if model.joint_types[k] != FREE
+           for kind, _, _ in _axes(model, k)):
+        root.append(ET.Comment(
+            "URDF requires a <limit> on a prismatic joint and the model has no joint limits: "
+            f"each is written wide (lower {_num(-URDF_WIDE_LIMIT)}, upper "
+            f"{_num(URDF_WIDE_LIMIT)} m, effort {_num(URDF_WIDE_LIMIT)} N, velocity "
+            f"{_num(URDF_WIDE_LIMIT)} m/s), never reached: the motion is the model's."))
     if not free:
         ET.SubElement(root, "link", name=URDF_ROOT)
 
@@ -526,6 +545,9 @@ def to_urdf(model: Model) -> str:
         ET.SubElement(el, "parent", link=parent)
         ET.SubElement(el, "child", link=child)
         ET.SubElement(el, "axis", xyz=_vec(axis))
+        if kind == "prismatic":  # required by URDF; the model has none: wide (URDF_WIDE_LIMIT)
+            ET.SubElement(el, "limit", lower=_num(-URDF_WIDE_LIMIT), upper=_num(URDF_WIDE_LIMIT),
+                          effort=_num(URDF_WIDE_LIMIT), velocity=_num(URDF_WIDE_LIMIT))
         if name in mimics:  # a coupling: q = multiplier q_joint + offset
             c = mimics[name]
             ET.SubElement(el, "mimic", joint=c.leader, multiplier=_num(c.multiplier),
