@@ -262,11 +262,21 @@ class Model:
         """The armature and the passive elements checked (or zeros when none is given): finite,
         >= 0 but for spring_ref, one number per velocity coordinate (gravcomp: per body); no
         spring on a free joint."""
+        zeros: dict[int, np.ndarray] = {}  # one read-only zeros per length, shared
         for key, n in (("armature", self.n_v), ("damping", self.n_v), ("stiffness", self.n_v),
                        ("spring_ref", self.n_v), ("gravcomp", self.n_bodies)):
             value = getattr(self, key)
-            object.__setattr__(self, key, check_armature(
-                self.name, key, np.zeros(n) if value is None else value, n))
+            if value is None:
+                if n not in zeros:
+                    zeros[n] = _readonly(np.zeros(n))
+                object.__setattr__(self, key, zeros[n])
+            elif not (isinstance(value, np.ndarray) and value.dtype == np.float64
+                      and not value.flags.writeable and value.shape == (n,)
+                      and (key == "spring_ref" or not (value < 0).any())
+                      and np.isfinite(value).all()):  # (a checked one is kept, not copied)
+                object.__setattr__(self, key, check_armature(self.name, key, value, n))
+        if not self.stiffness.any() or FREE not in self.joint_types:
+            return  # (a long chain's construction pays no loop over its joints)
         for k, t in enumerate(self.joint_types):
             sl = slice(self.joint_voff[k], self.joint_voff[k + 1])
             if t == FREE and np.any(self.stiffness[sl]):
