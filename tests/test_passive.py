@@ -247,6 +247,8 @@ def test_the_model_holds_them_checked_kept_and_carried():
         with pytest.raises(CaseError, match=match):
             arm(**kw)
     assert arm(spring_ref=-1.0).spring_ref.tolist() == [-1.0] * 3  # a rest may be negative
+    with pytest.raises(CaseError, match="coarse-graining does not carry joint damping"):
+        redysim.coarsen(arm(damping=0.1), 3)  # refused, not dropped
 
 
 def test_a_run_applies_the_models_own_and_the_settings_add_to_them():
