@@ -42,7 +42,7 @@ _WHERE = {
     **dict.fromkeys(("Body", "Chain", "Coupling", "CutJoint", "Model", "TreeJoint"), "model.tree"),
     **dict.fromkeys(("Integrator", "Simulation", "Simulator", "simulate", "simulate_batch"),
                     "simulation"),
-    "System": "algorithms.system",
+    **dict.fromkeys(("System", "passive_forces"), "algorithms.system"),
     "ClosedLoops": "algorithms.loops",
     **dict.fromkeys(("Coarsening", "coarsen"), "algorithms.coarse"),
     **dict.fromkeys(("Linkage", "load_linkage"), "io.linkage_files"),

@@ -183,6 +183,11 @@ class NativeStepper:
         return None
 
     def solver(self, system, t0: float, y0, t_end: float, state=None) -> EngineStepper:
+        why = self.engine.no_native_passive()
+        if why:
+            raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
+                                why + ": run it through redysim's integrators (ode45, dop853, "
+                                "rk4, ...), which apply them around the engine's qdd")
         added = getattr(system, "additions", [])
         if added:  # the engine steps its own model: nothing of ours reaches it
             raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
@@ -518,6 +523,12 @@ class Engine(EnginePackage):
     # reason: never dropped silently)
     holds_armature: ClassVar[str] = ""
     no_armature: ClassVar[str] = "no joint armature built in this adapter"
+    # how the engine's own integrators hold a model's passive elements (Model.damping,
+    # stiffness with spring_ref, gravcomp: forces of the model, not additions of a run); "" when
+    # they cannot (its native stepping then refuses such a model, naming them: never dropped).
+    # Its qdd stays the rigid body's map tau -> qdd, as the core's forward_dynamics; a run
+    # through redysim's integrators applies them around it (System)
+    holds_passive: ClassVar[str] = ""
 
     def __init__(self, model: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
@@ -758,6 +769,17 @@ class Engine(EnginePackage):
         """World position (3,) of the frame "tip" (a chain's distal end)."""
         return self.position(q, "tip")
 
+    def no_native_passive(self) -> str:
+        """Why the engine's own integrators cannot step this model ("" when they can): it has
+        passive elements (:attr:`Model.damping`, ...) the engine's native model does not hold
+        (:attr:`holds_passive`)."""
+        m = self.model
+        if self.holds_passive or not m.has_passive:
+            return ""
+        held = [key for key in ("damping", "stiffness", "gravcomp") if np.any(getattr(m, key))]
+        return (f"{self.name}'s own integrators step its model, which does not hold the "
+                f"model's {', '.join(held)} (its qdd is the rigid body's, tau -> qdd)")
+
     def stepper(self, name: str | None = None, *, h: float | None = None,
                 rtol: float | None = None, atol: float | None = None) -> NativeStepper:
         """The engine's own integrator ``name`` (None: its default) as a run's stepper
@@ -829,6 +851,9 @@ class Engine(EnginePackage):
                 f"model's couplings ({', '.join(c.follower for c in self.model.couplings)} "
                 f"follow others): {self.no_couplings}; run its qdd, which does, in redysim's "
                 f"integrators (--integrator ode45)")
+        why = self.no_native_passive()
+        if why:
+            raise ValueError(why)
         if info.adaptive:
             if rtol is None or not (math.isfinite(rtol) and rtol > 0):
                 raise ValueError(f"{self.name} integrator {info.name!r} is adaptive: give "

@@ -24,7 +24,13 @@ What the model contains and why (docs/design.md, "Reference engines"):
   and slides' ``qpos0`` are left at their zero/off defaults and asserted zero after compile;
   then the model's armature (``Model.armature``) is written into ``dof_armature`` (MuJoCo's dof
   of each of the core's velocity slots) and ``mj_setConst`` recomputes what depends on it
-  (``dof_M0``); MuJoCo's M and its ``mj_energyVel`` include it.
+  (``dof_M0``); MuJoCo's M and its ``mj_energyVel`` include it. The model's passive elements
+  (``Model.damping``, ``stiffness`` with ``spring_ref``, ``gravcomp``) are MuJoCo's own
+  ``dof_damping``, ``jnt_stiffness`` with ``qpos_spring`` (written after compiling) and body
+  ``gravcomp`` (in the spec: MuJoCo counts the compensated bodies when it compiles); they act
+  only in its own stepping, which switches the SPRING and DAMPER stages on (``sim_reset``):
+  ``qdd``, M and the bias stay the rigid body's, as the core's forward dynamics, and a run
+  through redysim's integrators applies them around ``qdd`` (``System``).
 - ``compiler.balanceinertia`` only when a body's inertia violates the triangle inequality (the
   paper's rod model does; docs/design.md, "Chain conventions"); the exact principal moments are
   then written back into ``model.body_inertia`` after compiling.
@@ -167,6 +173,8 @@ class MuJoCo(Engine):
     integrators = {name: entry[0] for name, entry in _INTEGRATORS.items()}
     depth_limited = True
     holds_armature = "dof_armature, then mj_setConst"
+    holds_passive = ("dof_damping, jnt_stiffness, qpos_spring and body_gravcomp, its SPRING and "
+                     "DAMPER stages switched on for its own stepping only")
 
     @classmethod
     def unsupported(cls, model, joints):
@@ -237,6 +245,9 @@ class MuJoCo(Engine):
     def _compile(self):
         """Compile ``self.spec`` (built by ``_build``) and map the core's slots to MuJoCo's."""
         m = self.model
+        if np.any(m.gravcomp):  # before compiling: MuJoCo counts the compensated bodies then
+            for k in range(m.n_bodies):
+                self.spec.body(f"b{k}").gravcomp = float(m.gravcomp[k])
         model = self.spec.compile()
         self.body_ids = [model.body(f"b{k}").id for k in range(m.n_bodies)]
         model.body_inertia[self.body_ids] = self.principal  # exact moments (balanceinertia)
@@ -264,6 +275,18 @@ class MuJoCo(Engine):
         if np.any(m.armature):  # per MuJoCo dof; mj_setConst recomputes dof_M0 from it
             model.dof_armature[self.eidx] = m.armature
             self.lib.mj_setConst(model, self.mjdata)
+        # the passive elements, which act only when the native stepping switches the SPRING and
+        # DAMPER stages on (qdd, M, bias stay the rigid body's: the flags off)
+        self._rigid_flags = int(model.opt.disableflags)
+        self._passive_flags = self._rigid_flags
+        if m.has_passive:
+            DS = self.lib.mjtDisableBit
+            model.dof_damping[self.eidx] = m.damping
+            jnt = model.dof_jntid[self.eidx]
+            sprung = m.stiffness > 0
+            model.jnt_stiffness[jnt[sprung]] = m.stiffness[sprung]
+            model.qpos_spring[model.jnt_qposadr[jnt[sprung]]] = m.spring_ref[sprung]
+            self._passive_flags &= ~(int(DS.mjDSBL_SPRING) | int(DS.mjDSBL_DAMPER))
         if model.nv != m.n_v or model.nq != m.n_q:
             raise AssertionError(f"model has nq={model.nq}, nv={model.nv}; the tree "
                                  f"{m.n_q}, {m.n_v}")
@@ -277,6 +300,8 @@ class MuJoCo(Engine):
         return qe, []
 
     def _forward(self, qe, y, tau_e=None):
+        if self.mjmodel.opt.disableflags != self._rigid_flags:  # after a native run
+            self.mjmodel.opt.disableflags = self._rigid_flags
         d = self.mjdata
         d.qpos[:] = qe
         d.qvel[:] = y
@@ -314,6 +339,7 @@ class MuJoCo(Engine):
     def _sim_reset(self, q0, v0, h):
         m, d = self.mjmodel, self.mjdata
         m.opt.timestep = h
+        m.opt.disableflags = self._passive_flags  # the model's own passive elements act
         m.opt.integrator = int(getattr(self.lib.mjtIntegrator,
                                        _INTEGRATORS[self.sim_integrator.name][1]))
         self.lib.mj_resetData(m, d)

@@ -19,7 +19,7 @@ from conftest import rel, stable_seed
 from test_trees import random_configuration
 
 import redysim
-from redysim import forward_dynamics, inverse_dynamics, mass_matrix, rbda
+from redysim import forward_dynamics, inverse_dynamics, mass_matrix, passive_forces, rbda
 from redysim.errors import CaseError, FieldError
 from redysim.io.importers import MJCF_MAX_DEPTH, ModelFileError, load_mjcf, load_urdf
 from redysim.io.kinds import load_model
@@ -35,17 +35,19 @@ def write(tmp_path, text, name):
 
 def mujoco_truth(path, q, v, tau, set_aside=False):
     """MuJoCo's qacc and mass matrix of the file at (qpos, qvel, qfrc_applied), its contacts and
-    constraints off (what the tree holds: its honoured dynamics). ``set_aside``: also what an
-    importer announces as dropped: springs, dampers (with them gravity compensation and fluid
-    forces), actuators, equality constraints and armature."""
+    constraints off (what the tree holds: its honoured dynamics, the joints' passive forces
+    included). ``set_aside``: also what an importer announces as dropped: actuators, equality
+    constraints, tendons' springs and dampers, fluid forces, nonlinear damping and springs."""
     mujoco = pytest.importorskip("mujoco")
     m = mujoco.MjModel.from_xml_path(str(path))
     off = mujoco.mjtDisableBit
     m.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT
     if set_aside:
-        m.opt.disableflags |= off.mjDSBL_SPRING | off.mjDSBL_DAMPER | off.mjDSBL_ACTUATION | \
-            off.mjDSBL_EQUALITY
-        m.dof_armature[:] = 0.0
+        m.opt.disableflags |= off.mjDSBL_ACTUATION | off.mjDSBL_EQUALITY
+        for name in ("tendon_stiffness", "tendon_damping", "tendon_stiffnesspoly",
+                     "tendon_dampingpoly", "dof_dampingpoly", "jnt_stiffnesspoly"):
+            getattr(m, name)[:] = 0.0
+        m.opt.density = m.opt.viscosity = 0.0
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, v, tau
     mujoco.mj_forward(m, d)
@@ -63,7 +65,7 @@ def assert_agrees_with_mujoco(path, model, seed, states=5, tol=1e-12, set_aside=
         v, tau = rng.normal(size=model.n_v), rng.normal(size=model.n_v)
         qacc, M = mujoco_truth(path, q, v, tau, set_aside)
         worst = max(worst, rel(mass_matrix(model, q), M),
-                    rel(forward_dynamics(model, q, v, tau), qacc))
+                    rel(forward_dynamics(model, q, v, tau + passive_forces(model, q, v)), qacc))
     assert worst < tol, worst
 
 
@@ -236,15 +238,15 @@ def test_mujocos_humanoid_is_honoured_and_its_dropped_attributes_announced():
     refused ("a joint away from its body's origin is not read yet")."""
     model = load_model(HUMANOID)
     assert (model.n_q, model.n_v) == (28, 27)
-    notes_with(model, "joint damping dropped", "'abdomen_z' = 5", "(21 joints)")
-    notes_with(model, "joint stiffness dropped", "'abdomen_z' = 20 (springref 0)")
-    notes_with(model, "joint armature dropped", "'abdomen_z' = 0.01")
+    assert not any(key in n for n in model.notes for key in ("damping", "stiffness", "armature"))
+    k = model.joint_voff[model.joint_names.index("abdomen_z")]
+    assert (model.damping[k], model.stiffness[k], model.armature[k]) == (5, 20, 0.01)
     notes_with(model, "joint range dropped", "'abdomen_z' = [-0.785398, 0.785398]")
     notes_with(model, "tendon range dropped", "'hamstring_right' = [-0.3, 2]")
     notes_with(model, "actuator force dropped (an input: give it as tau)", "(21 actuators)")
     notes_with(model, "body contact geometry dropped", "(13 bodies)")
-    refused(lambda: load_model(HUMANOID, strict=True), "joint 'abdomen_z'.damping",
-            "20 more joints")
+    refused(lambda: load_model(HUMANOID, strict=True), "joint 'abdomen_z'.range",
+            "more joints")
     assert_agrees_with_mujoco(HUMANOID, model, stable_seed("humanoid"), states=8,
                               set_aside=True)
 
@@ -420,23 +422,12 @@ def mjcf_pendulum(joint_attrs="", body_attrs="", option="", extra="", flags=""):
 
 ANNOUNCED_MJCF = [
     # (id, file, field of the strict refusal, value, the note)
-    ("damping", mjcf_pendulum('damping="0.5"'), "joint 'shoulder'.damping", 0.5,
-     "joint 'shoulder': damping = 0.5 dropped (no joint damping in the core)"),
-    ("armature", mjcf_pendulum('armature="0.01"'), "joint 'shoulder'.armature", 0.01,
-     "joint 'shoulder': armature = 0.01 dropped (no rotor inertia in the core)"),
-    ("stiffness", mjcf_pendulum('stiffness="2" springref="10"'), "joint 'shoulder'.stiffness",
-     "2 (springref 0.174533)",
-     "joint 'shoulder': stiffness = 2 (springref 0.174533) dropped (no joint springs in the "
-     "core)"),
     ("frictionloss", mjcf_pendulum('frictionloss="0.3"'), "joint 'shoulder'.frictionloss", 0.3,
      "joint 'shoulder': frictionloss = 0.3 dropped (no joint friction in the core)"),
     ("range", mjcf_pendulum('range="-30 45"'), "joint 'shoulder'.range",
      [-0.5235987755982988, 0.7853981633974483],
      "joint 'shoulder': range = [-0.523599, 0.785398] dropped (no joint limits in the core: the "
      "joint moves through them)"),
-    ("gravcomp", mjcf_pendulum(body_attrs='gravcomp="1"'), "body 'upper'.gravcomp", 1.0,
-     "body 'upper': gravcomp = 1 dropped (no gravity compensation in the core: the body "
-     "falls)"),
     ("density", mjcf_pendulum(option='density="1.2"'), "<option>.density", 1.2,
      "<option>: density = 1.2 dropped (no fluid forces in the core)"),
     ("viscosity", mjcf_pendulum(option='viscosity="0.002"'), "<option>.viscosity", 0.002,
@@ -499,7 +490,8 @@ def test_an_attribute_mujoco_disables_is_no_news(tmp_path, attrs, flag):
     """Only values that act are announced: a flag that switches them off in MuJoCo silences
     them (strict=True then loads the file)."""
     path = write(tmp_path, mjcf_pendulum(attrs, flags=f"<flag {flag}/>"), "p.xml")
-    assert only_unread(load_model(path, strict=True))
+    model = load_model(path, strict=True)
+    assert only_unread(model) and not model.has_passive
 
 
 @pytest.mark.engine
@@ -517,7 +509,8 @@ def test_gravcomp_and_fluid_forces_follow_mujocos_flags(tmp_path):
         d.qpos[:], d.qvel[:] = 0.4, 1.0
         mujoco.mj_forward(m, d)
         assert np.all(d.qfrc_passive == 0)
-        assert only_unread(load_model(path, strict=True))
+        model = load_model(path, strict=True)
+        assert only_unread(model) and not model.has_passive
 
 
 @pytest.mark.engine
@@ -703,12 +696,12 @@ def test_flex_and_plugins_are_announced(tmp_path):
 def test_many_joints_are_listed_abbreviated(tmp_path):
     """A note lists the joints concerned with their values, the first few then 'and N more'."""
     bodies = "".join(f'<body name="b{i}" pos="0.1 0 0"><joint name="j{i}" axis="0 1 0" '
-                     f'damping="{i + 1}"/><geom size="0.02" mass="1" contype="0" '
+                     f'frictionloss="{i + 1}"/><geom size="0.02" mass="1" contype="0" '
                      'conaffinity="0"/>' for i in range(9)) + "</body>" * 9
     path = write(tmp_path, f"<mujoco><worldbody>{bodies}</worldbody></mujoco>", "many.xml")
-    notes_with(load_model(path), "joint damping dropped (no joint damping in the core): "
+    notes_with(load_model(path), "joint frictionloss dropped (no joint friction in the core): "
                "'j0' = 1, 'j1' = 2, 'j2' = 3, 'j3' = 4, 'j4' = 5, 'j5' = 6 and 3 more (9 joints)")
-    refused(lambda: load_model(path, strict=True), "joint 'j0'.damping", "8 more joints")
+    refused(lambda: load_model(path, strict=True), "joint 'j0'.frictionloss", "8 more joints")
 
 
 # --------------------------------------------------------------------------- MJCF: floating
@@ -766,8 +759,6 @@ def urdf(joint_extra="", link_extra="", more=""):
 
 
 ANNOUNCED_URDF = [
-    ("damping", urdf('<dynamics damping="0.5"/>'), "joint 'j1'.<dynamics> damping", 0.5,
-     "joint 'j1': <dynamics> damping = 0.5 dropped (no joint damping in the core)"),
     ("friction", urdf('<dynamics friction="0.2"/>'), "joint 'j1'.<dynamics> friction", 0.2,
      "joint 'j1': <dynamics> friction = 0.2 dropped (no joint friction in the core)"),
     ("limit", urdf('<limit lower="-1" upper="2" effort="10" velocity="3"/>'),

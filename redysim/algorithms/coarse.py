@@ -158,6 +158,11 @@ def coarsen(chain: Model, k: int | None = None, *, links: int | None = None,
     chain."""
     chain = chain_of(chain)
     where = f"{chain.name}.coarsen"
+    if chain.has_passive:  # (a lumped link has one gravcomp; a coarse joint, one damper)
+        raise CaseError(where, "model", "damping/stiffness/gravcomp", "coarse-graining does not "
+                        "carry joint damping, springs or gravity compensation yet: coarsen "
+                        "chain.without_passive() and give the coarse chain its own "
+                        "(with_passive)")
     nl = chain.n_links
     if (k is None) == (links is None):
         raise CaseError(where, "k/links", (k, links), "give exactly one of k and links")

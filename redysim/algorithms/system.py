@@ -61,6 +61,14 @@ class System:
     instead of the core's forward dynamics by ``method`` ("rge-a", "ge-n", "rge-n"); with loops,
     the constrained accelerations. ``source`` names the caller in messages.
 
+    The model's own passive elements (:attr:`Model.damping`, :attr:`Model.stiffness` with
+    :attr:`Model.spring_ref`, :attr:`Model.gravcomp`: its file's) are always applied; the settings
+    add to them (``damping`` and ``gravcomp`` add to the model's coefficients; ``stiffness``
+    with ``spring_ref`` is a second spring on each joint, the two summed as one of stiffness
+    k1 + k2 at rest (k1 r1 + k2 r2) / (k1 + k2), each one's potential counted in the energy).
+    A run without them: ``System(model.without_passive())``. :attr:`additions` lists the
+    settings only (an engine holds the model's own in its model).
+
     Bad settings raise :class:`~redysim.errors.SettingsError` naming them.
     """
 
@@ -82,13 +90,35 @@ class System:
             raise SettingsError(source, "loops", type(loops).__name__, "must be the "
                                 "ClosedLoops of the model simulated (ClosedLoops(model, cuts))")
         self.loops = loops
-        self.damping = _per_dof(source, "damping", damping, self.n_v,
-                                "the viscous torque -damping * v at every joint [N m s] (0: none)")
-        self.stiffness = _per_dof(source, "stiffness", 0.0 if stiffness is None else stiffness,
-                                  self.n_v, "a joint spring's torque -stiffness (q - spring_ref) "
-                                  "[N m / rad] (0: none)")
-        self.spring_ref = np.zeros(self.n_v) if spring_ref is None else _vector(
+        added_damping = _per_dof(source, "damping", damping, self.n_v, "the viscous torque "
+                                 "-damping * v at every joint [N m s] (0: none)")
+        added_stiffness = _per_dof(source, "stiffness", 0.0 if stiffness is None else stiffness,
+                                   self.n_v, "a joint spring's torque -stiffness (q - "
+                                   "spring_ref) [N m / rad] (0: none)")
+        added_ref = np.zeros(self.n_v) if spring_ref is None else _vector(
             source, "spring_ref", spring_ref, self.n_v)
+        self._added = {"damping": bool(added_damping.any()),
+                       "stiffness": bool(added_stiffness.any()),
+                       "gravcomp": gravcomp is not None and bool(np.any(_gravcomp_factors(
+                           source, model, gravcomp))),
+                       "body_forces": len(body_forces) > 0}
+        # the model's own first, then the settings' (a model without them: the settings' bits)
+        self.damping = (model.damping + added_damping) if model.damping.any() else added_damping
+        # the springs, each (stiffness, rest) kept for the energy; summed as one for the force
+        self.springs = [(k, r) for k, r in ((model.stiffness, model.spring_ref),
+                                            (added_stiffness, added_ref)) if k.any()]
+        if len(self.springs) == 2:
+            k1, r1 = self.springs[0]
+            k2, r2 = self.springs[1]
+            self.stiffness = k1 + k2
+            with np.errstate(invalid="ignore", divide="ignore"):
+                self.spring_ref = np.where(self.stiffness > 0, (k1 * r1 + k2 * r2)
+                                           / self.stiffness, 0.0)
+        elif self.springs:
+            self.stiffness, self.spring_ref = (np.array(a, dtype=float)
+                                               for a in self.springs[0])
+        else:
+            self.stiffness, self.spring_ref = added_stiffness, added_ref
         self.tip_force = _tip_force(source, model, tip_force)
         self.body, self.force, self.point = _body_forces(source, model, body_forces, gravcomp)
         self.ws = Workspace(model)  # the derivative's, and between steps the samples'
@@ -166,9 +196,10 @@ class System:
         """What this system adds to its model's own dynamics, by setting name (an engine's own
         stepper, which steps the engine's model, refuses them)."""
         return [name for name, on in (
-            ("tau", self.tau is not None), ("damping", self.damping.any()),
-            ("stiffness", self.stiffness.any()), ("tip_force", self.tip_force is not None),
-            ("body_forces", self.body.size > 0), ("loops", self.loops is not None)) if on]
+            ("tau", self.tau is not None), ("damping", self._added["damping"]),
+            ("stiffness", self._added["stiffness"]), ("tip_force", self.tip_force is not None),
+            ("body_forces", self._added["body_forces"]), ("gravcomp", self._added["gravcomp"]),
+            ("loops", self.loops is not None)) if on]
 
     # ----------------------------------------------------------------------- the contract
     def derivative(self, t: float, y: np.ndarray, out: np.ndarray) -> None:
@@ -273,9 +304,9 @@ class System:
         if self.body.size:  # -f . p of each constant force, p from the same kinematics pass
             p = ws.oO[self.body] + np.einsum("kij,kj->ki", ws.oR[self.body], self.point)
             E -= float(np.sum(self.force * p))
-        if self.stiffness.any():
-            dq = np.asarray(q)[self._q_of_v] - self.spring_ref
-            E += 0.5 * float(np.sum(self.stiffness * dq * dq))
+        for k, r in self.springs:  # each spring's own potential (module docstring)
+            dq = np.asarray(q)[self._q_of_v] - r
+            E += 0.5 * float(np.sum(k * dq * dq))
         return E, com
 
     # ----------------------------------------------------------------------- a run's start
@@ -379,19 +410,10 @@ def _body_forces(source: str, model: Model, body_forces, gravcomp
         body.append(names.index(name))
         force.append(_vector(source, f"body_forces[{i}].force", f, 3, "axis"))
         point.append(_vector(source, f"body_forces[{i}].point", x, 3, "axis"))
+    factors = np.asarray(model.gravcomp, dtype=float)  # the model's own, then the setting's
     if gravcomp is not None:
-        if isinstance(gravcomp, dict):
-            unknown = [b for b in gravcomp if b not in names]
-            if unknown:
-                raise SettingsError(source, "gravcomp", unknown[0], f"no such body; "
-                                    f"{model.name!r} has {', '.join(names[:12])}"
-                                    + (", ..." if len(names) > 12 else ""))
-            factors = np.array([float(gravcomp.get(b, 0.0)) for b in names])
-        else:
-            factors = _per_dof(source, "gravcomp", gravcomp, model.n_bodies,
-                               "the fraction of a body's weight held up", per="body")
-        if not np.isfinite(factors).all():
-            raise SettingsError(source, "gravcomp", gravcomp, "must be finite")
+        factors = factors + _gravcomp_factors(source, model, gravcomp)
+    if factors.any():
         mass = np.asarray(model.mass, dtype=float)
         g = np.asarray(model.gravity, dtype=float)
         for k in np.flatnonzero((factors != 0.0) & (mass > 0.0)):
@@ -400,6 +422,42 @@ def _body_forces(source: str, model: Model, body_forces, gravcomp
             point.append(np.asarray(model.mass_com[k], dtype=float) / mass[k])
     return (np.array(body, dtype=np.int64), np.array(force, dtype=float).reshape(-1, 3),
             np.array(point, dtype=float).reshape(-1, 3))
+
+
+def _gravcomp_factors(source: str, model: Model, gravcomp) -> np.ndarray:
+    """The (nb,) fractions of a ``gravcomp`` setting (a number, one per body, or body name ->
+    fraction), SettingsError naming a bad one."""
+    names = list(model.body_names)
+    if isinstance(gravcomp, dict):
+        unknown = [b for b in gravcomp if b not in names]
+        if unknown:
+            raise SettingsError(source, "gravcomp", unknown[0], f"no such body; "
+                                f"{model.name!r} has {', '.join(names[:12])}"
+                                + (", ..." if len(names) > 12 else ""))
+        factors = np.array([float(gravcomp.get(b, 0.0)) for b in names])
+    else:
+        factors = _per_dof(source, "gravcomp", gravcomp, model.n_bodies,
+                           "the fraction of a body's weight held up", per="body")
+    if not np.isfinite(factors).all():
+        raise SettingsError(source, "gravcomp", gravcomp, "must be finite")
+    return factors
+
+
+def passive_forces(model: Model, q, v) -> np.ndarray:
+    """The model's own passive generalized forces at (q, v) (n_v,): -damping v - stiffness (q -
+    spring_ref) + J^T of each body's held-up weight gravcomp m (-g) at its centre of mass
+    (:attr:`Model.damping`, ...; MuJoCo's ``qfrc_passive`` without fluid forces), from the very
+    function a run's steps call (:class:`System`), so in the same bits. Zeros for a model without
+    them. Raises StateError for a bad state (naming it)."""
+    if not isinstance(model, Model):
+        raise TypeError(f"passive_forces takes a redysim.Model (a Chain is one), not "
+                        f"{type(model).__name__}")
+    q, v = check_state(model, "q", q), check_state(model, "v", v)
+    if not model.has_passive:
+        return np.zeros(model.n_v)
+    system = System(model, source="passive_forces")
+    out = system.forces(0.0, q, v)
+    return np.zeros(model.n_v) if out is None else out
 
 
 def _tip_force(source: str, model: Model, tip_force):

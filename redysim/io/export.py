@@ -15,10 +15,11 @@ may break by an ulp, get their largest set to the sum of the others), gravity as
 gravity>``, a coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's
 y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest), a joint's
 armature (:attr:`Model.armature`) as its ``armature`` (a free joint's, when its six are one
-number, on a ``<joint type="free">``; else refused). No geometry, so no contacts; no damping or
-limits. MuJoCo composes a body's joints one after the
-other, each about its own anchor ``pos`` and ``axis``, fixed in the
-body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
+number, on a ``<joint type="free">``; else refused), its damping, stiffness and spring_ref
+(:attr:`Model.damping`, ...) as ``damping``, ``stiffness`` and ``springref``, a body's
+:attr:`Model.gravcomp` as its ``gravcomp``. No geometry, so no contacts; no limits. MuJoCo
+composes a body's joints one after the other, each about its own anchor ``pos`` and ``axis``,
+fixed in the body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
 
 - A massless body (mass 0, inertia 0) with exactly one child is merged into that child, which
   MuJoCo requires (a moving body needs mass): P1 J1(q1) P2 J2(q2) = (P1 P2) [Q^-1 J1(q1) Q]
@@ -51,7 +52,9 @@ functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s
 included), a floating model whose gravity is not along -z (turning the world would change its
 free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
 readers take a link of that name as the world itself), repeated link or joint names, and
-armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia). URDF holds no
+armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia), joint springs
+and gravity compensation (no field either; a joint's damping is its ``<dynamics damping>``, a
+free joint's refused as the free joint is left out). URDF holds no
 initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only. A
 prismatic joint gets the ``<limit>`` the URDF specification requires of it (urdfdom, the reader
 of Pinocchio and ROS, refuses the file without one), written wide (:data:`URDF_WIDE_LIMIT`:
@@ -378,11 +381,17 @@ def to_mjcf(model: Model) -> str:
     armature = {name: float(model.armature[j]) for k in range(model.n_bodies)
                 if model.joint_types[k] != FREE
                 for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True)}
+    per_axis = {key: {name: float(getattr(model, key)[j]) for k in range(model.n_bodies)
+                      if model.joint_types[k] != FREE
+                      for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k),
+                                                 strict=True)}
+                for key in ("damping", "stiffness", "spring_ref")}
     for k in range(model.n_bodies):
-        a = model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]
-        if model.joint_types[k] == FREE and np.any(a != a[0]):
-            raise ExportError(source, f"joint {model.joint_names[k]!r}.armature", _plain(a),
-                              "MJCF gives a free joint one armature for its six DOFs")
+        for key in ("armature", "damping"):
+            a = getattr(model, key)[model.joint_voff[k]:model.joint_voff[k + 1]]
+            if model.joint_types[k] == FREE and np.any(a != a[0]):
+                raise ExportError(source, f"joint {model.joint_names[k]!r}.{key}", _plain(a),
+                                  f"MJCF gives a free joint one {key} for its six DOFs")
     root = ET.Element("mujoco", model=model.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(root, "option", gravity=_vec(model.gravity))
@@ -398,9 +407,10 @@ def to_mjcf(model: Model) -> str:
             body = ET.SubElement(parent, "body", name=model.body_names[k],
                                  pos=_vec(q0[qs:qs + 3]), quat=_vec(quat))
             free_armature = float(model.armature[model.joint_voff[k]])
-            if free_armature:
+            free_damping = float(model.damping[model.joint_voff[k]])
+            if free_armature or free_damping:
                 ET.SubElement(body, "joint", name=model.joint_names[k], type="free",
-                              armature=_num(free_armature))
+                              armature=_num(free_armature), damping=_num(free_damping))
             else:
                 ET.SubElement(body, "freejoint", name=model.joint_names[k])
         else:
@@ -413,7 +423,14 @@ def to_mjcf(model: Model) -> str:
                     attrs["ref"] = _num(ref)
                 if armature[name]:
                     attrs["armature"] = _num(armature[name])
+                if per_axis["damping"][name]:
+                    attrs["damping"] = _num(per_axis["damping"][name])
+                if per_axis["stiffness"][name]:  # springref in qpos, which is q
+                    attrs["stiffness"] = _num(per_axis["stiffness"][name])
+                    attrs["springref"] = _num(per_axis["spring_ref"][name])
                 ET.SubElement(body, "joint", attrs)
+        if model.gravcomp[k]:
+            body.set("gravcomp", _num(model.gravcomp[k]))
         ET.SubElement(body, "inertial", inertials[i])
         elements.append(body)
     if model.couplings:  # MuJoCo's y - y0 = a0 + a1 (x - x0), y0 and x0 the joints' refs
@@ -483,6 +500,22 @@ def to_urdf(model: Model) -> str:
         raise ExportError(source, f"joint {model.joint_names[k]!r}.armature",
                           float(model.armature[j]), "URDF has no field for a joint's own "
                           "inertia (armature); export to MJCF, which has one")
+    for key, what in (("stiffness", "a joint spring"), ("gravcomp", "gravity compensation")):
+        if np.any(getattr(model, key)):
+            i = int(np.flatnonzero(getattr(model, key))[0])
+            k = i if key == "gravcomp" else \
+                int(np.searchsorted(model.joint_voff, i, side="right") - 1)
+            where = f"body {model.body_names[k]!r}" if key == "gravcomp" else \
+                f"joint {model.joint_names[k]!r}"
+            raise ExportError(source, f"{where}.{key}", float(getattr(model, key)[i]),
+                              f"URDF has no field for {what}; export to MJCF, which has one")
+    for k, t in enumerate(model.joint_types):
+        if t == FREE and np.any(model.damping[model.joint_voff[k]:model.joint_voff[k + 1]]):
+            raise ExportError(source, f"joint {model.joint_names[k]!r}.damping",
+                              _plain(model.damping[model.joint_voff[k]:
+                                                   model.joint_voff[k + 1]]),
+                              "URDF leaves the free joint out (load with floating=True), and "
+                              "its damping with it; export to MJCF, which holds it")
     free = [k for k, t in enumerate(model.joint_types) if t == FREE]
     roots = [k for k in range(model.n_bodies) if model.parent[k] < 0]
     if free and len(roots) > 1:
@@ -539,7 +572,7 @@ def to_urdf(model: Model) -> str:
 
     mimics = {c.follower: c for c in model.couplings}
 
-    def joint(name, kind, parent, child, xyz, R, axis):
+    def joint(name, kind, parent, child, xyz, R, axis, damping=0.0):
         el = ET.SubElement(root, "joint", name=name, type=kind)
         ET.SubElement(el, "origin", xyz=_vec(xyz), rpy=_vec(_rpy(R)))
         ET.SubElement(el, "parent", link=parent)
@@ -548,6 +581,8 @@ def to_urdf(model: Model) -> str:
         if kind == "prismatic":  # required by URDF; the model has none: wide (URDF_WIDE_LIMIT)
             ET.SubElement(el, "limit", lower=_num(-URDF_WIDE_LIMIT), upper=_num(URDF_WIDE_LIMIT),
                           effort=_num(URDF_WIDE_LIMIT), velocity=_num(URDF_WIDE_LIMIT))
+        if damping:
+            ET.SubElement(el, "dynamics", damping=_num(damping))
         if name in mimics:  # a coupling: q = multiplier q_joint + offset
             c = mimics[name]
             ET.SubElement(el, "mimic", joint=c.leader, multiplier=_num(c.multiplier),
@@ -566,12 +601,13 @@ def to_urdf(model: Model) -> str:
         else:
             parent = model.body_names[model.parent[k]]
         axes = _axes(model, k)
-        for i, ((kind, u, _), jname) in enumerate(zip(axes, _axis_names(model, k),
+        for i, ((kind, u, j), jname) in enumerate(zip(axes, _axis_names(model, k),
                                                       strict=True)):
             last = i == len(axes) - 1
             child = name if last else f"{name}_axis{i}"
             link(child, k if last else None)
             joint(jname, "prismatic" if kind == "slide" else "continuous", parent, child,
-                  xyz if i == 0 else (0, 0, 0), R if i == 0 else np.eye(3), u)
+                  xyz if i == 0 else (0, 0, 0), R if i == 0 else np.eye(3), u,
+                  float(model.damping[j]))
             parent = child
     return _xml(root)

@@ -22,7 +22,9 @@ offset) is a coupling of the model (:class:`~redysim.model.tree.Coupling`; a mim
 composed onto the first leader), as Pinocchio's ``mimic=True`` reads it: the default,
 ``mimic="couple"``; ``mimic="independent"`` lets it move on its own (announced; what
 Pinocchio's and MuJoCo's URDF readers do by default), ``mimic="refuse"`` refuses it. A mimic on
-a fixed joint moves nothing and is announced.
+a fixed joint moves nothing and is announced. A joint's ``<dynamics damping>`` is the model's
+(:attr:`Model.damping`; a floating joint's announced); armature, which URDF has no tag for, is
+``load_urdf(..., armature=)``'s.
 
 **MJCF** is compiled by MuJoCo first (``mujoco.MjSpec``; the ``models`` extra installs it),
 because a file's meaning is its compiler's: inertias from geometry, default classes, angles in
@@ -51,13 +53,22 @@ cannot hold (a polynomial of degree > 1, a cycle of equalities, a joint that fol
 flex's, redundant loop equations, loops on a model with a free joint) naming the
 ``<equality>``, a file nested deeper than MuJoCo's XML reader takes (:data:`MJCF_MAX_DEPTH`
 elements), and what MuJoCo's compiler refuses (its message kept, the element named).
+The passive elements are the model's, as MuJoCo applies them
+with its disable flags: ``armature`` (``dof_armature``, :attr:`Model.armature`), ``damping``
+(``dof_damping``, unless DAMPER is off), ``stiffness`` with ``springref`` on hinges and slides
+(``jnt_stiffness`` and ``qpos_spring``, unless SPRING is off), body ``gravcomp`` (unless gravity
+is off or zero, or SPRING and DAMPER both are: MuJoCo's mj_passive then computes nothing); a
+jointless body fused into its parent with another gravcomp fraction is refused by name.
 
 **Honoured, announced or refused.** Every attribute of a file that changes the motion is
 honoured, refused, or announced: a line of :attr:`Model.notes` names the element, its name and
-the value, e.g. ``joint 'knee': damping = 0.5 dropped (no joint damping in the core)``. Announced
-(only values that act: a zero damping, or one MuJoCo's flags disable, is no news): joint
-damping, armature, stiffness (with springref), frictionloss, limits (MJCF ``range``, URDF
-``<limit lower upper>``), URDF ``<dynamics>``, body ``gravcomp``, fluid forces (``density``,
+the value, e.g. ``joint 'knee': frictionloss = 0.3 dropped (no joint friction in the core)``.
+Announced (only values that act: a zero, or one MuJoCo's flags disable, is no news): the
+nonlinear terms of damping and springs (``dampingpoly``, ``stiffnesspoly``), a free joint's
+spring, ``springyield``, ``actuatorgravcomp`` (MuJoCo routes that share of gravity compensation
+through the clamped actuator force; the core applies it whole), frictionloss, limits (MJCF
+``range``, URDF ``<limit lower upper>``), URDF ``<dynamics friction>`` and a floating joint's
+damping, fluid forces (``density``,
 ``viscosity``), tendons, actuators with a force at ctrl 0 (a position or velocity servo),
 contact geometry (MJCF geoms that can touch one another, URDF ``<collision>``), flex,
 plugins and plugin actuators (a PID servo pushes at ctrl 0). ``strict=True`` refuses each of
@@ -402,9 +413,11 @@ def _reach(roots, children) -> set:
     return reached
 
 
-def _urdf_unread(report: _Report, root, mimic: str) -> None:
-    """What the URDF holds that the tree does not: announced (dynamics, limits, collision
-    geometry) or counted as not read."""
+def _urdf_unread(report: _Report, root, mimic: str) -> dict[str, float]:
+    """What the URDF holds that the tree does not: announced (friction, limits, collision
+    geometry) or counted as not read; returns the joints' ``<dynamics damping>`` (joint name ->
+    coefficient), which the model holds (a floating joint's is announced: URDF gives one number
+    for six coordinates of two units)."""
     damping: list[tuple[str, float]] = []
     friction: list[tuple[str, float]] = []
     limits, collision, mimics = [], [], []
@@ -437,7 +450,10 @@ def _urdf_unread(report: _Report, root, mimic: str) -> None:
     report.drop("joint", mimics, "mimic", "it moves independently: mimic='independent'"
                 if mimic == "independent" else "a fixed joint moves nothing to couple",
                 motion=False)
-    report.drop("joint", damping, "<dynamics> damping", "no joint damping in the core")
+    types = {j.get("name"): j.get("type") for j in root.findall("joint")}
+    report.drop("joint", [(n, x) for n, x in damping if types[n] == "floating"],
+                "<dynamics> damping", "one number for a floating joint's six coordinates (m/s "
+                "and rad/s): give the model's damping with Model.with_passive")
     report.drop("joint", friction, "<dynamics> friction", "no joint friction in the core")
     report.drop("joint", limits, "<limit> lower, upper", "no joint limits in the core: the "
                 "joint moves through them")
@@ -448,6 +464,7 @@ def _urdf_unread(report: _Report, root, mimic: str) -> None:
     for element in root:
         if element.tag not in ("link", "joint"):
             report.unread_count(f"<{element.tag}>", 1)
+    return {n: x for n, x in damping if types[n] in ("revolute", "continuous", "prismatic")}
 
 
 def _urdf_mimics(src: str, root, mimic: str) -> list[Coupling]:
@@ -521,16 +538,19 @@ def _read_xml(src: str, path: Path) -> ET.Element:
 
 
 def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
-              strict: bool = False) -> Model:
-    """A URDF's tree, gravity -9.81 along z (module doc).
+              strict: bool = False, armature=None) -> Model:
+    """A URDF's tree, gravity -9.81 along z (module doc), with its joints' ``<dynamics
+    damping>`` (:attr:`Model.damping`).
 
     ``floating``: the root link gets a free joint (a legged or flying robot; initial q its
     pose at the origin), else it is fixed to the world. ``mimic``: "couple" (the default) a
     mimic joint to its leader (:attr:`Model.couplings`), let it move "independent"ly
     (announced), or "refuse" it. ``strict``: refuse, instead of
     announcing in :attr:`Model.notes`, what would change the motion and the core does not
-    model (damping, friction, limits, collision geometry). Raises ModelFileError naming the
-    file, the element (``joint 'elbow'``, ``link 'base'``) and the value."""
+    model (friction, limits, collision geometry). ``armature``: the joints' own inertia, which
+    URDF has no tag for (:meth:`Model.with_armature`'s values: a number, n_v numbers, or joint
+    name -> value). Raises ModelFileError naming the file, the element (``joint 'elbow'``,
+    ``link 'base'``) and the value."""
     path = Path(path)
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
@@ -541,7 +561,7 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
     links, children, base = _urdf_graph(src, root)
     couplings = _urdf_mimics(src, root, mimic)
     report = _Report(src)
-    _urdf_unread(report, root, mimic)
+    damping = _urdf_unread(report, root, mimic)
 
     # floating: the root link floats; a root link named "world" is the world (as MuJoCo and
     # Gazebo read it): the one link fixed to it floats
@@ -619,6 +639,11 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
 
     model = _finish(bodies, joints, parents, URDF_GRAVITY, root.get("name") or path.stem, src,
                     report.notes(strict))
+    damping = {n: x for n, x in damping.items() if n in model.joint_names}
+    if damping:
+        model = model.with_passive(damping=damping, source=src)
+    if armature is not None:
+        model = model.with_armature(armature, source=src)
     if couplings:
         model = model.with_couplings(couplings, source=src)
     if free_poses:
@@ -731,9 +756,10 @@ def _rotation_about(u, angle) -> np.ndarray:
     return joint_transform([(KIND_CODES["R"], np.asarray(u, dtype=float))], [angle])[0]
 
 
-def _mjcf_tree(mj, m, src):
+def _mjcf_tree(mj, m, src, gravcomp=False):
     """Bodies, joints and parents of a compiled MjModel (module doc: a body's joints become a
-    chain of massless bodies, its frame at the last joint's anchor, refs folded in)."""
+    chain of massless bodies, its frame at the last joint's anchor, refs folded in); with
+    ``gravcomp`` (MuJoCo applies it: :func:`_mjcf_acting`), each body's ``gravcomp``."""
     JNT = mj.mjtJoint
     bodies, joints, parents = [], [], []
     ours = {0: -1}  # MuJoCo's body id -> our index of it (its last body); the world is -1
@@ -789,7 +815,8 @@ def _mjcf_tree(mj, m, src):
         inertia = R_i @ np.diag(m.body_inertia[b]) @ R_i.T
         bodies.append(Body(name, float(m.body_mass[b]),
                            tuple(map(float, np.asarray(m.body_ipos[b]) - anchor)),
-                           tuple(map(tuple, inertia)), physical=False))
+                           tuple(map(tuple, inertia)), physical=False,
+                           gravcomp=float(m.body_gravcomp[b]) if gravcomp else 0.0))
         ours[b] = len(bodies) - 1
         shift[b] = anchor
     return bodies, joints, parents, _mjcf_frames(mj, m, ours, shift)
@@ -819,6 +846,43 @@ def _mjcf_frames(mj, m, ours: dict, shift: dict) -> tuple[dict, dict]:
     return frames, axes
 
 
+def _mjcf_acting(mj, m) -> dict[str, bool]:
+    """Which passive elements MuJoCo applies, by its disable flags: ``damping`` (not DAMPER),
+    ``stiffness`` (not SPRING), ``gravcomp`` (gravity on and not zero, and not both SPRING and
+    DAMPER off: then mj_passive computes nothing at all)."""
+    DS = mj.mjtDisableBit
+    off = m.opt.disableflags
+    spring, damper = not off & DS.mjDSBL_SPRING, not off & DS.mjDSBL_DAMPER
+    gravity = not off & DS.mjDSBL_GRAVITY and bool(np.any(m.opt.gravity))
+    return {"damping": bool(damper), "stiffness": bool(spring),
+            "gravcomp": bool(gravity and (spring or damper))}
+
+
+def _mjcf_passive(mj, m, model: Model) -> dict:
+    """The joints' armature, damping, stiffness and springref of a compiled MjModel, per joint
+    name (as :meth:`Model.with_armature` and :meth:`Model.with_passive` take them), those
+    MuJoCo's flags disable left out; q is qpos, so a springref is ``qpos_spring``."""
+    JNT = mj.mjtJoint
+    acting = _mjcf_acting(mj, m)
+    out: dict[str, dict[str, object]] = {"armature": {}, "damping": {}, "stiffness": {},
+                                         "spring_ref": {}}
+    for j in range(m.njnt):
+        name = _name(mj, m, "joint", j)
+        if name not in model.joint_names:
+            continue
+        k = model.joint_names.index(name)
+        width = int(model.joint_voff[k + 1] - model.joint_voff[k])
+        d0 = int(m.jnt_dofadr[j])
+        dofs = slice(d0, d0 + width)
+        out["armature"][name] = tuple(float(x) for x in m.dof_armature[dofs])
+        if acting["damping"]:
+            out["damping"][name] = tuple(float(x) for x in m.dof_damping[dofs])
+        if acting["stiffness"] and int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE):
+            out["stiffness"][name] = float(m.jnt_stiffness[j])
+            out["spring_ref"][name] = float(m.qpos_spring[m.jnt_qposadr[j]])
+    return out
+
+
 def _mjcf_unread(mj, m, report: _Report) -> None:
     """Announce what the compiled model holds that the tree does not (only values that act,
     MuJoCo's disable flags considered)."""
@@ -839,42 +903,46 @@ def _mjcf_unread(mj, m, report: _Report) -> None:
         extra = [float(x) for x in np.trim_zeros(np.ravel(np.asarray(poly, dtype=float)), "b")]
         return vals[0] if len(vals) == 1 and not extra else vals + extra
 
-    damping, armature, friction, stiffness, yields, limits, frc = [], [], [], [], [], [], []
+    friction, yields, limits, frc, polys, free_springs, actgc = [], [], [], [], [], [], []
+    gravcomp = _mjcf_acting(mj, m)["gravcomp"] and bool(np.any(m.body_gravcomp))
     for j in range(m.njnt):
         name = _name(mj, m, "joint", j)
         d0 = int(m.jnt_dofadr[j])
         dofs = slice(d0, d0 + ndof[int(m.jnt_type[j])])
-        if not off["DAMPER"] and (np.any(m.dof_damping[dofs]) or np.any(m.dof_dampingpoly[dofs])):
-            damping.append((name, value(m.dof_damping[dofs], m.dof_dampingpoly[dofs])))
-        if np.any(m.dof_armature[dofs]):
-            armature.append((name, value(m.dof_armature[dofs])))
+        if not off["DAMPER"] and np.any(m.dof_dampingpoly[dofs]):
+            polys.append((name, "dampingpoly", value(m.dof_dampingpoly[dofs])))
         if constraint and not off["FRICTIONLOSS"] and np.any(m.dof_frictionloss[dofs]):
             friction.append((name, value(m.dof_frictionloss[dofs])))
-        if not off["SPRING"] and (m.jnt_stiffness[j] or np.any(m.jnt_stiffnesspoly[j])):
-            k = value(m.jnt_stiffness[j], m.jnt_stiffnesspoly[j])
-            if int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE):
-                k = f"{_fmt(k)} (springref {_fmt(m.qpos_spring[m.jnt_qposadr[j]])})"
-            stiffness.append((name, k))
-            if m.jnt_springyield[j]:
-                yields.append((name, float(m.jnt_springyield[j])))
+        if not off["SPRING"] and np.any(m.jnt_stiffnesspoly[j]):
+            polys.append((name, "stiffnesspoly", value(m.jnt_stiffnesspoly[j])))
+        if not off["SPRING"] and m.jnt_stiffness[j] and \
+                int(m.jnt_type[j]) not in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE):
+            free_springs.append((name, float(m.jnt_stiffness[j])))
+        if not off["SPRING"] and (m.jnt_stiffness[j] or np.any(m.jnt_stiffnesspoly[j])) \
+                and m.jnt_springyield[j]:
+            yields.append((name, float(m.jnt_springyield[j])))
         if constraint and not off["LIMIT"] and m.jnt_limited[j]:
             limits.append((name, [float(x) for x in m.jnt_range[j]]))
         if m.nu and m.jnt_actfrclimited[j]:
             frc.append((name, [float(x) for x in m.jnt_actfrcrange[j]]))
-    report.drop("joint", damping, "damping", "no joint damping in the core")
-    report.drop("joint", armature, "armature", "no rotor inertia in the core")
+        if gravcomp and m.jnt_actgravcomp[j]:
+            actgc.append((name, True))
+    for key in ("dampingpoly", "stiffnesspoly"):
+        report.drop("joint", [(n, v) for n, k, v in polys if k == key], key, "the core's "
+                    "damping and springs are linear: the nonlinear terms are left out, the "
+                    "linear one kept")
+    report.drop("joint", free_springs, "stiffness", "the core's springs act on hinge and slide "
+                "joints; a free joint's spring is left out")
+    report.drop("joint", actgc, "actuatorgravcomp", "MuJoCo routes this joint's gravity "
+                "compensation through its actuator force (clamped by actuatorfrcrange, none "
+                "when actuation is disabled); the core applies it whole, as a passive force")
     report.drop("joint", friction, "frictionloss", "no joint friction in the core")
-    report.drop("joint", stiffness, "stiffness", "no joint springs in the core")
-    report.drop("joint", yields, "springyield", "no joint springs in the core")
+    report.drop("joint", yields, "springyield", "the core's springs do not yield")
     report.drop("joint", limits, "range", "no joint limits in the core: the joint moves "
                 "through them")
     report.drop("joint", frc, "actuatorfrcrange", "bounds actuator forces; the core takes tau "
                 "as given", motion=False)
 
-    gravity = not off["GRAVITY"] and np.any(m.opt.gravity)
-    report.drop("body", [(_name(mj, m, "body", int(b)), float(m.body_gravcomp[b]))
-                         for b in np.flatnonzero(m.body_gravcomp) if gravity and passive],
-                "gravcomp", "no gravity compensation in the core: the body falls")
     report.drop("body", [(_name(mj, m, "body", int(b)), None)
                          for b in np.flatnonzero(m.body_mocapid >= 0)], "mocap",
                 "held at its file pose: the core has no mocap bodies", motion=False)
@@ -1331,7 +1399,8 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     _check_choice(src, "equality", equality, EQUALITY)
     mj = _mujoco(path)
     m = _compile_mjcf(mj, path, floating)
-    bodies, joints, parents, (frames, axes) = _mjcf_tree(mj, m, src)
+    bodies, joints, parents, (frames, axes) = _mjcf_tree(mj, m, src,
+                                                         _mjcf_acting(mj, m)["gravcomp"])
     report = _Report(src)
     couplings, closures = _mjcf_equality(mj, m, src, report, equality)
     _mjcf_unread(mj, m, report)
@@ -1339,6 +1408,9 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
         tuple(float(g) for g in m.opt.gravity)
     model = _finish(bodies, joints, parents, gravity, path.stem, src, report.notes(strict),
                     frames=frames, frame_rotations=axes)
+    passive = _mjcf_passive(mj, m, model)
+    model = model.with_armature(passive.pop("armature"), source=src).with_passive(
+        **passive, source=src)
     if couplings:
         model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))

@@ -337,14 +337,16 @@ def by_suffix(path: str | os.PathLike) -> bool:
 
 
 def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = "couple",
-               equality: str = "close", strict: bool = False) -> Model:
+               equality: str = "close", strict: bool = False, armature=None) -> Model:
     """The model in ``path``, read as its kind reads it (:data:`KINDS`): ``.urdf``
     (:func:`~redysim.io.importers.load_urdf`: ``floating``, ``mimic``, ``strict``), MJCF ``.xml``
     (:func:`~redysim.io.importers.load_mjcf`: ``floating``, ``equality``, ``strict``), a
     protein ``.toml`` (:mod:`redysim.io.proteins`: ``floating=True`` frees its first residue),
     a robot ``.toml`` (a DH table, :mod:`redysim.io.dh`) or a case ``.toml`` (its chain), whose
     base is the world: ``floating=True`` is refused for them; a linkage or scenario file is
-    refused, naming its own loader. Raises FileNotFoundError, ModelFileError or CaseError."""
+    refused, naming its own loader. ``armature``: the joints' own inertia, replacing the file's
+    (a URDF has no tag for it; :meth:`Model.with_armature`'s values: a number, n_v numbers, or
+    joint name -> value). Raises FileNotFoundError, ModelFileError or CaseError."""
     p = Path(path)
     src = str(p)
     args = _loader_args(src, floating=floating, mimic=mimic, equality=equality, strict=strict)
@@ -354,4 +356,5 @@ def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = 
     if kind is None:
         known = list(dict.fromkeys(s for k in KINDS for s in k.suffixes))
         raise ModelFileError(src, "<file>", p.suffix.lower(), f"a model file is {either(known)}")
-    return kind.model(p, **args)
+    model = kind.model(p, **args)
+    return model if armature is None else model.with_armature(armature, source=src)

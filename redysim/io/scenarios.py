@@ -138,11 +138,12 @@ class Scenario:
     @property
     def momentum_kept(self) -> bool:
         """Whether the angular momentum about the centre of mass is constant: a floating system
-        (a free root joint) under no force but uniform gravity (no tip force, damping or
-        loops)."""
+        (a free root joint) under no force but uniform gravity (no tip force, damping, loops or
+        gravity compensation, an external force; the model's joint damping and springs are
+        internal)."""
         m = self.model
         return bool(m.joint_types and m.joint_types[0] == FREE and self.tip_force is None
-                    and not self.damping and not m.cuts)
+                    and not self.damping and not m.cuts and not np.any(m.gravcomp))
 
     @property
     def frame(self) -> str:

@@ -32,7 +32,7 @@ import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import ClassVar, NoReturn
+from typing import Any, ClassVar, NoReturn
 
 import numpy as np
 
@@ -68,7 +68,8 @@ class Body:
 
     ``physical``: the inertia must satisfy the triangle inequality (see :class:`redysim.Link`).
     A body may be massless (mass 0, zero inertia), e.g. a frame between two joints, as long as
-    something it carries gives every joint axis inertia to move.
+    something it carries gives every joint axis inertia to move. ``gravcomp``: the fraction of
+    its weight held up at its centre of mass (MuJoCo's body ``gravcomp``; :attr:`Model.gravcomp`).
     """
 
     name: str
@@ -76,6 +77,7 @@ class Body:
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     inertia: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 3
     physical: bool = True
+    gravcomp: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -204,6 +206,19 @@ class Model:
                           (:meth:`with_armature`, or ``armature=`` to the constructors). Every
                           transformation keeps it (:meth:`with_cuts`, :meth:`with_couplings`,
                           :attr:`free_tree`, :meth:`locked`).
+        damping, stiffness, spring_ref: (n_v,) the joints' passive forces as the model's file
+                          gives them (MuJoCo's ``dof_damping``, ``jnt_stiffness`` and
+                          ``qpos_spring``, a URDF's ``<dynamics damping>``): a viscous force
+                          -damping v [N m s / rad, N s / m] and a spring's -stiffness (q -
+                          spring_ref) [N m / rad, N / m] on each velocity coordinate (no spring
+                          on a free joint's); zeros unless given (:meth:`with_passive`).
+        gravcomp:         (nb,) the fraction of each body's weight held up at its centre of mass
+                          (MuJoCo's body ``gravcomp``), zeros unless given. These four are forces,
+                          not inertia: :func:`redysim.forward_dynamics` stays the rigid body's map
+                          tau -> qdd and :meth:`energy` its T + V; :func:`redysim.passive_forces`
+                          gives them, and a run (:class:`redysim.algorithms.system.System`,
+                          :func:`redysim.simulate`) applies them (:meth:`without_passive`: a
+                          model without them). Kept as armature is.
 
     A model also carries its own scratch: a dynamics function called without ``ws=`` uses the
     calling thread's :class:`~redysim.algorithms.workspace.Workspace` of the model, made on the
@@ -239,17 +254,41 @@ class Model:
     cuts: tuple = ()  # the cut joints that close its loops (CutJoint)
     couplings: tuple = ()  # joints that follow others (Coupling: a URDF mimic joint)
     armature: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
+    damping: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
+    stiffness: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
+    spring_ref: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
+    gravcomp: np.ndarray = None  # type: ignore[assignment]  # (nb,); None given: zeros
     # The per-thread workspaces (a threading.local), in the instance's __dict__ once made
     # (redysim.algorithms.workspace.model_workspace); declared here for the type checker only (a
     # ClassVar is no dataclass field, and the class itself has no such attribute).
     _thread_workspaces: ClassVar[threading.local]
 
     def __post_init__(self) -> None:
-        """The armature checked (or zeros when none is given): finite and >= 0, one number per
-        velocity coordinate."""
-        object.__setattr__(self, "armature", check_armature(
-            self.name, "armature", np.zeros(self.n_v) if self.armature is None
-            else self.armature, self.n_v))
+        """The armature and the passive elements checked (or zeros when none is given): finite,
+        >= 0 but for spring_ref, one number per velocity coordinate (gravcomp: per body); no
+        spring on a free joint."""
+        zeros: dict[int, np.ndarray] = {}  # one read-only zeros per length, shared
+        for key, n in (("armature", self.n_v), ("damping", self.n_v), ("stiffness", self.n_v),
+                       ("spring_ref", self.n_v), ("gravcomp", self.n_bodies)):
+            value = getattr(self, key)
+            if value is None:
+                if n not in zeros:
+                    zeros[n] = _readonly(np.zeros(n))
+                object.__setattr__(self, key, zeros[n])
+            elif not (isinstance(value, np.ndarray) and value.dtype == np.float64
+                      and not value.flags.writeable and value.shape == (n,)
+                      and (key == "spring_ref" or not (value < 0).any())
+                      and np.isfinite(value).all()):  # (a checked one is kept, not copied)
+                object.__setattr__(self, key, check_armature(self.name, key, value, n))
+        if not self.stiffness.any() or FREE not in self.joint_types:
+            return  # (a long chain's construction pays no loop over its joints)
+        for k, t in enumerate(self.joint_types):
+            sl = slice(self.joint_voff[k], self.joint_voff[k + 1])
+            if t == FREE and np.any(self.stiffness[sl]):
+                _fail(self.name, f"stiffness[{int(self.joint_voff[k])}]",
+                      self.stiffness[sl].tolist(), f"joint {self.joint_names[k]!r} is a free "
+                      "joint: the core's springs act on joints whose coordinates are their "
+                      "velocities'")
 
     # ----------------------------------------------------------------------- building
     @classmethod
@@ -258,10 +297,14 @@ class Model:
               name: str = "model",
               frames: Mapping[str, tuple[int, Sequence[float]]] | None = None,
               frame_rotations: Mapping[str, Sequence] | None = None,
-              source: str = "model", armature=None) -> Model:
+              source: str = "model", armature=None, damping=None, stiffness=None,
+              spring_ref=None) -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
-        ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here.
-        ``armature``: as :meth:`with_armature` takes it (of the built model's joints).
+        ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here (a
+        body's ``gravcomp`` with it: a fused body with mass whose gravcomp differs from its
+        parent's is refused, as one fraction at the fused centre of mass could not hold both).
+        ``armature``, ``damping``, ``stiffness``, ``spring_ref``: as :meth:`with_armature` and
+        :meth:`with_passive` take them (of the built model's joints).
         ``frame_rotations``: the axes of some of the ``frames`` (a rotation in the body's frame).
         Raises CaseError naming ``source``, the field (a body or joint by its name and index:
         ``body 'arm' (bodies[1]).mass``, ``joint 'elbow' (joints[1]).axis``) and the value."""
@@ -271,7 +314,7 @@ class Model:
         if len(joints) != nb or len(parents) != nb:
             _fail(source, "joints/parents", (len(joints), len(parents)),
                   f"need one joint and one parent per body ({nb} bodies)")
-        body_name, mass, com, inertia = [], [], [], []
+        body_name, mass, com, inertia, gravcomp = [], [], [], [], []
         jname, jtype, axes, par, plR, plp = [], [], [], [], [], []
         for k, (b, j, p) in enumerate(zip(bodies, joints, parents, strict=True)):
             if not isinstance(b, Body):
@@ -285,6 +328,8 @@ class Model:
             m_k = check_positive(source, f"{where}.mass", b.mass, allow_zero=True)
             c = check_vector(source, f"{where}.com", b.com, 3)
             I_c = check_inertia(source, f"{where}.inertia", b.inertia, physical=b.physical)
+            gravcomp.append(float(check_armature(source, f"{where}.gravcomp", [b.gravcomp],
+                                                 1)[0]))
             if j.type not in TREE_JOINT_TYPES:
                 _fail(source, f"{jwhere}.type", j.type,
                       f"unknown joint type; known: {', '.join(TREE_JOINT_TYPES)}")
@@ -329,6 +374,13 @@ class Model:
                 _fail(source, f"joint {jname[k]!r} (joints[{k}]).type", FIXED, "a body fixed to "
                       "the base does not move: leave it out (or give the model a frame for it)")
             a = into[par[k]]
+            if mass[k] > 0 and gravcomp[k] != gravcomp[a]:
+                if mass[a] > 0:
+                    _fail(source, f"body {body_name[k]!r} (bodies[{k}]).gravcomp", gravcomp[k],
+                          f"its fixed joint fuses it into body {body_name[a]!r}, whose gravcomp "
+                          f"is {gravcomp[a]:g}: one body holds one fraction of its weight up "
+                          "(give both the same)")
+                gravcomp[a] = gravcomp[k]  # a massless body takes its fused child's
             R = to_kept_R[par[k]] @ plR[k]
             p = to_kept_R[par[k]] @ plp[k] + to_kept_p[par[k]]
             into[k], to_kept_R[k], to_kept_p[k] = a, R, p
@@ -408,7 +460,14 @@ class Model:
             gravity=_readonly(check_vector(source, "gravity", gravity, 3)),
             frames=kept_frames, frame_rotations=kept_axes,
             armature=armature_values(source, armature, voff[-1], [jname[k] for k in kept],
-                                     voff))
+                                     voff),
+            damping=armature_values(source, damping, voff[-1], [jname[k] for k in kept], voff,
+                                    "damping"),
+            stiffness=armature_values(source, stiffness, voff[-1], [jname[k] for k in kept],
+                                      voff, "stiffness"),
+            spring_ref=armature_values(source, spring_ref, voff[-1],
+                                       [jname[k] for k in kept], voff, "spring_ref"),
+            gravcomp=_readonly(np.array([gravcomp[k] for k in kept], dtype=float)))
 
     def with_cuts(self, cuts: Sequence, *, source: str | None = None) -> Model:
         """The model with these cut joints (:class:`CutJoint`: each keeps a point
@@ -485,6 +544,43 @@ class Model:
         where = source or f"{self.name}.with_armature"
         return dataclasses.replace(self, armature=armature_values(
             where, armature, self.n_v, self.joint_names, self.joint_voff))
+
+    def with_passive(self, *, damping=None, stiffness=None, spring_ref=None, gravcomp=None,
+                     source: str | None = None) -> Model:
+        """The model with these passive elements (:attr:`damping`, :attr:`stiffness`,
+        :attr:`spring_ref`, :attr:`gravcomp`); each one given replaces the model's, the others
+        are kept. ``damping``, ``stiffness``, ``spring_ref``: as :meth:`with_armature` takes
+        armature (a number, n_v numbers, or joint name -> value(s)); ``gravcomp``: a number, one
+        per body, or body name -> fraction. Raises CaseError naming the field and the value
+        (not finite, negative but for spring_ref, a wrong count, an unknown joint or body, a
+        spring on a free joint)."""
+        import dataclasses
+
+        where = source or f"{self.name}.with_passive"
+        changes: dict[str, Any] = {
+            key: armature_values(where, value, self.n_v, self.joint_names, self.joint_voff, key)
+            for key, value in (("damping", damping), ("stiffness", stiffness),
+                               ("spring_ref", spring_ref)) if value is not None}
+        if gravcomp is not None:
+            changes["gravcomp"] = gravcomp_values(where, gravcomp, self.body_names)
+        return dataclasses.replace(self, **changes) if changes else self
+
+    def without_passive(self) -> Model:
+        """The model without damping, springs and gravity compensation (:meth:`with_passive`
+        with zeros): a run of it is the rigid body's alone (armature, an inertia, is kept)."""
+        import dataclasses
+
+        if not self.has_passive:
+            return self
+        zeros = _readonly(np.zeros(self.n_v))
+        return dataclasses.replace(self, damping=zeros, stiffness=zeros, spring_ref=zeros,
+                                   gravcomp=_readonly(np.zeros(self.n_bodies)))
+
+    @property
+    def has_passive(self) -> bool:
+        """Whether the model has damping, springs or gravity compensation (a spring_ref alone,
+        without stiffness, acts on nothing)."""
+        return bool(np.any(self.damping) or np.any(self.stiffness) or np.any(self.gravcomp))
 
     @cached_property
     def coupling_index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -564,7 +660,8 @@ class Model:
         bodies, joints = [], []
         for k in range(self.n_bodies):
             bodies.append(Body(self.body_names[k], float(self.mass[k]), tuple(self.com[k]),
-                               tuple(map(tuple, self.inertia_com[k])), physical=False))
+                               tuple(map(tuple, self.inertia_com[k])), physical=False,
+                               gravcomp=float(self.gravcomp[k])))
             R, p, jt, name = self.placement_R[k], self.placement_p[k], self.joint_types[k], \
                 self.joint_names[k]
             sl = slice(self.joint_voff[k], self.joint_voff[k + 1])
@@ -585,12 +682,14 @@ class Model:
             _fail(where, "values", sorted(values), "every joint is locked: nothing moves")
         frames = {f: (kept[b], tuple(pt)) for f, (b, pt) in self.frames.items() if b in kept}
         axes = {f: R_f for f, R_f in self.frame_rotations.items() if f in frames}
-        armature = {name: tuple(self.armature[self.joint_voff[k]:self.joint_voff[k + 1]])
-                    for k, name in enumerate(self.joint_names) if name not in values}
+        per_joint = {key: {name: tuple(getattr(self, key)[self.joint_voff[k]:
+                                                          self.joint_voff[k + 1]])
+                           for k, name in enumerate(self.joint_names) if name not in values}
+                     for key in ("armature", "damping", "stiffness", "spring_ref")}
         out = Model.build(bodies, joints, parents, gravity=tuple(self.gravity),
                           name=f"{self.name} ({len(values)} joints locked)", frames=frames,
                           frame_rotations=axes,
-                          source=where, armature=armature)
+                          source=where, **per_joint)
         return out.with_couplings(self.couplings, source=where) if self.couplings else out
 
     # ----------------------------------------------------------------------- derived facts
@@ -726,8 +825,10 @@ class Model:
         for key, value in state.items():
             object.__setattr__(self, key,
                                _readonly(value) if isinstance(value, np.ndarray) else value)
-        if state.get("armature") is None:  # pickled before models had one
-            object.__setattr__(self, "armature", _readonly(np.zeros(self.n_v)))
+        for key in ("armature", "damping", "stiffness", "spring_ref", "gravcomp"):
+            if state.get(key) is None:  # pickled before models had one
+                n = self.n_bodies if key == "gravcomp" else self.n_v
+                object.__setattr__(self, key, _readonly(np.zeros(n)))
 
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, bodies={self.n_bodies}, n_q={self.n_q}, n_v={self.n_v}, "
@@ -912,26 +1013,63 @@ class _Numbered(Sequence):
         return f"({self[0]!r}, ..., {self[self.n - 1]!r})" if self.n > 2 else repr(tuple(self))
 
 
+MEANING = {  # what each per-coordinate (gravcomp: per-body) value of a Model is, for messages
+    "armature": "a joint's own inertia: kg m^2 about a rotation, kg along a translation",
+    "damping": "a joint's viscous damping: N m s / rad about a rotation, N s / m along a "
+               "translation",
+    "stiffness": "a joint spring's stiffness: N m / rad about a rotation, N / m along a "
+                 "translation",
+    "spring_ref": "a joint spring's rest position [rad or m]",
+    "gravcomp": "the fraction of a body's weight held up at its centre of mass",
+}
+
+
 def check_armature(source: str, field_name: str, value, n_v: int) -> np.ndarray:
-    """``value`` as a read-only (n_v,) array of finite numbers >= 0, or CaseError naming
-    ``field_name`` and the value."""
+    """``value`` as a read-only (n_v,) array of finite numbers, >= 0 unless ``field_name`` names
+    a spring_ref, or CaseError naming ``field_name`` and the value (the armature's, and the
+    passive elements' check: :data:`MEANING`)."""
+    key = field_name.rsplit(".", 1)[-1].split("[")[0]
+    per = "per body" if key == "gravcomp" else "per velocity coordinate (n_v)"
     a = numeric_array(value)
     if a is None or a.shape != (n_v,):
-        _fail(source, field_name, value, f"must be {n_v} numbers, one per velocity coordinate "
-              "(n_v)" if a is not None else "must be numbers")
-    bad = ~(np.isfinite(a) & (a >= 0.0))
+        _fail(source, field_name, _plain(value), f"must be {n_v} numbers, one {per}"
+              if a is not None else "must be numbers")
+    bad = ~np.isfinite(a) if key == "spring_ref" else ~(np.isfinite(a) & (a >= 0.0))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        _fail(source, f"{field_name}[{i}]", float(a[i]), "must be finite and >= 0 (a joint's "
-              "own inertia: kg m^2 about a rotation, kg along a translation)")
+        _fail(source, f"{field_name}[{i}]", float(a[i]), "must be finite"
+              + ("" if key == "spring_ref" else " and >= 0") + f" ({MEANING.get(key, key)})")
     return _readonly(a)
 
 
+def gravcomp_values(source: str, value, body_names: Sequence[str]) -> np.ndarray:
+    """The (nb,) gravcomp of :meth:`Model.with_passive`'s ``value``: a number (every body's),
+    one per body, or a mapping body name -> fraction (bodies not named: 0), checked."""
+    nb = len(body_names)
+    if isinstance(value, Mapping):
+        out = np.zeros(nb)
+        for name, x in value.items():
+            if name not in body_names:
+                shown = ", ".join(body_names[i] for i in range(min(12, nb)))
+                _fail(source, "gravcomp", name, "no such body; bodies: " + shown
+                      + (", ..." if nb > 12 else ""))
+            a = numeric_array(x)
+            if a is None or a.shape != ():
+                _fail(source, f"gravcomp[{name!r}]", _plain(x), "must be one number")
+            out[body_names.index(name)] = float(a)
+        return check_armature(source, "gravcomp", out, nb)
+    a = numeric_array(value)
+    if a is not None and a.shape == ():
+        a = np.full(nb, float(a))
+    return check_armature(source, "gravcomp", value if a is None else a, nb)
+
+
 def armature_values(source: str, value, n_v: int, joint_names: Sequence[str],
-                    joint_voff) -> np.ndarray:
+                    joint_voff, key: str = "armature") -> np.ndarray:
     """The (n_v,) armature of :meth:`Model.with_armature`'s ``value`` (None: zeros; a number:
     every coordinate's; n_v numbers; a mapping joint name -> a number for each of its axes, or
-    one per axis), checked (:func:`check_armature`)."""
+    one per axis), checked (:func:`check_armature`); ``key``: which per-coordinate value it is
+    (armature, damping, stiffness, spring_ref), for the checks and messages."""
     if value is None:
         return _readonly(np.zeros(n_v))
     if isinstance(value, Mapping):
@@ -941,20 +1079,20 @@ def armature_values(source: str, value, n_v: int, joint_names: Sequence[str],
                 k = joint_names.index(name)
             except ValueError:
                 shown = ", ".join(joint_names[i] for i in range(min(12, len(joint_names))))
-                _fail(source, "armature", name, "no such joint; joints: " + shown
+                _fail(source, key, name, "no such joint; joints: " + shown
                       + (", ..." if len(joint_names) > 12 else ""))
             width = int(joint_voff[k + 1] - joint_voff[k])
             a = numeric_array(x)
             if a is None or a.shape not in ((), (width,)):
-                _fail(source, f"armature[{name!r}]", x, f"joint {name!r} has {width} "
+                _fail(source, f"{key}[{name!r}]", x, f"joint {name!r} has {width} "
                       f"velocity coordinate{'s' if width != 1 else ''}: give one number for "
                       f"each, or one for all")
             out[joint_voff[k]:joint_voff[k + 1]] = a
-        return check_armature(source, "armature", out, n_v)
+        return check_armature(source, key, out, n_v)
     a = numeric_array(value)
     if a is not None and a.shape == ():
         a = np.full(n_v, float(a))
-    return check_armature(source, "armature", value if a is None else a, n_v)
+    return check_armature(source, key, value if a is None else a, n_v)
 
 
 @dataclass(frozen=True, eq=False)
