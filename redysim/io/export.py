@@ -5,20 +5,21 @@ for MJCF) with the same GIM and qdd to round-off as functions of q, or refuses t
 :class:`ExportError` naming the body, link or joint, the value and what the format (or its
 reader) cannot hold. ``tests/test_export.py`` checks both on every shipped case.
 
-:func:`to_mjcf` writes MuJoCo's MJCF: nested ``<body>`` elements placed by ``pos`` and
-``xyaxes`` (the rotation's first two columns), the joint's elementary axes as ``hinge`` and
-``slide`` joints in order, a free joint as ``<freejoint/>`` whose body's ``pos`` and ``quat`` are
+:func:`to_mjcf` writes MuJoCo's MJCF: nested ``<body>`` elements placed by ``pos`` and ``xyaxes``
+(the rotation's first two columns), the joint's elementary axes as ``hinge`` and ``slide`` joints in
+order, a ball joint as a ``ball`` joint at its anchor (its initial quaternion must be the identity:
+MJCF's ball has no ``ref``), a free joint as ``<freejoint/>`` whose body's ``pos`` and ``quat`` are
 the model's initial pose (:meth:`Model.initial`; MuJoCo's qpos0), the inertia as ``<inertial>``
 (mass, COM, principal moments ``diaginertia`` and, unless the tensor is diagonal, their axes
-``quat``: MuJoCo checks A + B >= C on principal moments strictly, so a lamina's, which round-off
-may break by an ulp, get their largest set to the sum of the others), gravity as ``<option
-gravity>``, a coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's
-y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest), a joint's
-armature (:attr:`Model.armature`) as its ``armature`` (a free joint's, when its six are one
-number, on a ``<joint type="free">``; else refused). No geometry, so no contacts; no damping or
-limits. MuJoCo composes a body's joints one after the
-other, each about its own anchor ``pos`` and ``axis``, fixed in the
-body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
+``quat``: MuJoCo checks A + B >= C on principal moments strictly, so a lamina's, which round-off may
+break by an ulp, get their largest set to the sum of the others), gravity as ``<option gravity>``, a
+coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's y - y0 = a0 + a1
+(x - x0) about the joints' refs; solimp at MuJoCo's hardest), a joint's armature
+(:attr:`Model.armature`) as its ``armature`` (a free joint's, when its six are one number, on a
+``<joint type="free">``; a ball's when its three are one number; else refused). No geometry, so no
+contacts; no damping or limits. MuJoCo composes a body's joints one after the other, each about its
+own anchor ``pos`` and ``axis``, fixed in the body's frame: body pose = P * prod_i [T(a_i) Rot(u_i,
+q_i - ref_i) T(-a_i)]. So:
 
 - A massless body (mass 0, inertia 0) with exactly one child is merged into that child, which
   MuJoCo requires (a moving body needs mass): P1 J1(q1) P2 J2(q2) = (P1 P2) [Q^-1 J1(q1) Q]
@@ -30,13 +31,13 @@ body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)]. So:
   is the model's q.
 
 Refused (:class:`ExportError`), because MuJoCo's compiler or reader refuses the file: a massless
-body with no child or several children, or a massless free body; a merged body with more than
-6 DOFs; a body with mass 0 but
-rotational inertia; a mass or principal moment below MuJoCo's ``mjMINVAL`` = 1e-15 (a point
-mass, a bar with no radius); principal moments that break the triangle inequality A + B >= C
-(the paper's ``rod`` model) by more than round-off; bodies nested deeper than
-:data:`MJCF_MAX_DEPTH` (MuJoCo's XML reader refuses deeper elements); a body named ``world`` or
-repeated body or joint names.
+body with no child or several children, or a massless free body; a merged body with more than 6
+DOFs; a body with mass 0 but rotational inertia; a ball joint followed, within merged massless
+bodies, by a rotated placement or a hinge (MuJoCo's ball turns the body's own axes: its qpos would
+differ); a mass or principal moment below MuJoCo's ``mjMINVAL`` = 1e-15 (a point mass, a bar with no
+radius); principal moments that break the triangle inequality A + B >= C (the paper's ``rod`` model)
+by more than round-off; bodies nested deeper than :data:`MJCF_MAX_DEPTH` (MuJoCo's XML reader
+refuses deeper elements); a body named ``world`` or repeated body or joint names.
 
 :func:`to_urdf` writes URDF: one ``<link>`` per body and one ``<joint>`` per elementary axis
 from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
@@ -51,7 +52,8 @@ functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s
 included), a floating model whose gravity is not along -z (turning the world would change its
 free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
 readers take a link of that name as the world itself), repeated link or joint names, and
-armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia). URDF holds no
+armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia) and a ball joint
+(URDF has none). URDF holds no
 initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only.
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
@@ -70,7 +72,7 @@ import numpy as np
 from redysim.errors import FieldError
 from redysim.io.importers import URDF_GRAVITY
 from redysim.model.parts import KIND_CODES
-from redysim.model.tree import BALL, FREE, Model, joint_transform
+from redysim.model.tree import BALL, BALL_JOINT, FREE, Model, joint_transform
 
 PRISMATIC = KIND_CODES["P"]
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the least mass and principal moment of a moving body
@@ -127,10 +129,11 @@ def _axes(model: Model, k: int) -> list[tuple[str, np.ndarray, int]]:
 
 def _axis_names(model: Model, k: int) -> list[str]:
     """The file's name of each elementary axis of joint k: the joint's own name for one axis (or
-    a free joint), ``<joint>_<i>`` for a U or S joint's."""
+    a free or ball joint), ``<joint>_<i>`` for a U or S joint's."""
     n = int(model.joint_voff[k + 1] - model.joint_voff[k])
     name = model.joint_names[k]
-    return [name] if n == 1 or model.joint_types[k] == FREE else [f"{name}_{i}" for i in range(n)]
+    return [name] if n == 1 or model.joint_types[k] in (FREE, BALL_JOINT) else \
+        [f"{name}_{i}" for i in range(n)]
 
 
 def _joint_names(model: Model, free: bool = True) -> list[tuple[str, str]]:
@@ -301,6 +304,10 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
     factors: list[list[Any]] = []
     for k in group:
         factors.append(["X", (model.placement_R[k], model.placement_p[k])])
+        if model.joint_types[k] == BALL_JOINT:  # about its anchor, in the body's own frame
+            factors.append(["J", "ball", None, model.joint_names[k], 0.0])
+            factors.append(["X", (np.eye(3), np.zeros(3))])
+            continue
         for (kind, u, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True):
             r = float(q0[j + model.joint_qoff[k] - model.joint_voff[k]])
             factors.append(["J", kind, u, name, r])
@@ -318,7 +325,16 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
             continue
         _, kind, u, name, r = f
         RQ, pQ = suffix
-        anchor = -RQ.T @ pQ if kind == "hinge" else np.zeros(3)
+        anchor = -RQ.T @ pQ if kind != "slide" else np.zeros(3)
+        if kind == "ball":
+            if np.any(RQ != np.eye(3)):  # Q^-1 J(q) Q is a ball whose quaternion is not q
+                raise ExportError("to_mjcf", f"joint {name!r}", None, "a ball joint followed, "
+                                  "in the massless bodies merged into one MJCF body, by a "
+                                  "rotated placement or a hinge: MuJoCo turns a ball about the "
+                                  "body's own axes, so its qpos would not be the model's q; "
+                                  "give the massless body a mass")
+            joints.append((kind, name, None, anchor, r))
+            continue
         joints.append((kind, name, RQ.T @ u, anchor, r))
     return suffix, joints[::-1]
 
@@ -341,10 +357,11 @@ def to_mjcf(model: Model) -> str:
     q0 = model.initial()
     for g in groups:
         dofs = [(n, k) for k in g for n in _axis_names(model, k)]
-        if len(dofs) > MJCF_MAX_DOFS:
+        n_dofs = sum(int(model.joint_voff[k + 1] - model.joint_voff[k]) for k in g)
+        if n_dofs > MJCF_MAX_DOFS:
             merged = ", ".join(repr(model.body_names[k]) for k in g[:-1])
             raise ExportError(source, f"body {model.body_names[g[-1]]!r}", None,
-                              f"would carry {len(dofs)} DOFs: the massless bodies {merged} "
+                              f"would carry {n_dofs} DOFs: the massless bodies {merged} "
                               "merged into it (MuJoCo "
                               f"refuses a moving body without mass) bring joints "
                               f"{', '.join(repr(n) for n, _ in dofs)}, and MuJoCo's compiler "
@@ -364,13 +381,22 @@ def to_mjcf(model: Model) -> str:
                               "with mujoco 4.0); export to URDF, which is flat")
 
     armature = {name: float(model.armature[j]) for k in range(model.n_bodies)
-                if model.joint_types[k] != FREE
+                if model.joint_types[k] not in (FREE, BALL_JOINT)
                 for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True)}
     for k in range(model.n_bodies):
         a = model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]
-        if model.joint_types[k] == FREE and np.any(a != a[0]):
+        if model.joint_types[k] in (FREE, BALL_JOINT) and np.any(a != a[0]):
             raise ExportError(source, f"joint {model.joint_names[k]!r}.armature", _plain(a),
-                              "MJCF gives a free joint one armature for its six DOFs")
+                              f"MJCF gives a {model.joint_types[k]} joint one armature for its "
+                              f"{a.shape[0]} DOFs")
+        if model.joint_types[k] == BALL_JOINT:
+            armature[model.joint_names[k]] = float(a[0])
+            qs = int(model.joint_qoff[k])
+            if np.any(q0[qs:qs + 4] / np.linalg.norm(q0[qs:qs + 4]) != (1.0, 0.0, 0.0, 0.0)):
+                raise ExportError(source, f"joint {model.joint_names[k]!r}", _plain(q0[qs:qs + 4]),
+                                  "an initial quaternion (Model.initial) other than the "
+                                  "identity: MJCF's ball joint has no ref (its qpos0 is the "
+                                  "identity), so the file would hold another q")
     root = ET.Element("mujoco", model=model.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(root, "option", gravity=_vec(model.gravity))
@@ -396,7 +422,9 @@ def to_mjcf(model: Model) -> str:
             body = ET.SubElement(parent, "body", name=model.body_names[k], pos=_vec(pos),
                                  xyaxes=_vec([*R[:, 0], *R[:, 1]]))
             for kind, name, axis, anchor, ref in joints:
-                attrs = {"name": name, "type": kind, "axis": _vec(axis), "pos": _vec(anchor)}
+                attrs = {"name": name, "type": kind, "pos": _vec(anchor)}
+                if axis is not None:  # (a ball has none)
+                    attrs["axis"] = _vec(axis)
                 if ref:
                     attrs["ref"] = _num(ref)
                 if armature[name]:
@@ -471,6 +499,12 @@ def to_urdf(model: Model) -> str:
         raise ExportError(source, f"joint {model.joint_names[k]!r}.armature",
                           float(model.armature[j]), "URDF has no field for a joint's own "
                           "inertia (armature); export to MJCF, which has one")
+    balls = [k for k, t in enumerate(model.joint_types) if t == BALL_JOINT]
+    if balls:
+        raise ExportError(source, f"joint {model.joint_names[balls[0]]!r}.type", BALL_JOINT,
+                          "URDF has no ball (spherical) joint, and three revolute joints in "
+                          "its place would have other coordinates than its quaternion; export "
+                          "to MJCF, which has one")
     free = [k for k, t in enumerate(model.joint_types) if t == FREE]
     roots = [k for k in range(model.n_bodies) if model.parent[k] < 0]
     if free and len(roots) > 1:
