@@ -143,6 +143,8 @@ class DART(Engine):
     module = "dartpy"
     no_armature = ("dartpy 6.20 exposes no joint armature (a DOF's damping, spring stiffness "
                    "and rest position, nothing on its inertia)")
+    no_ball = ("DART's BallJoint has exponential-map coordinates; their conversion from the "
+               "core's quaternion is not built in this adapter")
     integrator = "semi-implicit-euler"
     integrators = {"semi-implicit-euler": NativeIntegrator(
         "semi-implicit-euler", False, "World.step at World.setTimeStep(h)",

@@ -215,6 +215,8 @@ class Drake(DrakePackage, Engine):
         name: NativeIntegrator(name, adaptive, _what(scheme, adaptive), note)
         for name, scheme, adaptive, _, note in _SCHEMES}
     holds_armature = "a JointActuator's rotor inertia, gear ratio 1, per 1-DOF joint"
+    no_ball = ("Drake's BallRpyJoint has roll-pitch-yaw coordinates, singular at pitch +-90 "
+               "degrees, so it cannot stand in exactly for the core's quaternion")
     # the simulator Context's cache (Drake's default: on); False disables it (module docstring:
     # the FSAL integrators' stale cache after a rejected step), at ~6x the cost a derivative
     sim_caching: bool = True

@@ -333,6 +333,8 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
+    no_ball = ("Exudyn 1.13's ObjectKinematicTree has revolute and prismatic joints only (no "
+               "spherical joint)")
     integrator = "rk44"
     integrators = NATIVE
 
