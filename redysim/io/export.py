@@ -327,11 +327,14 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
         RQ, pQ = suffix
         anchor = -RQ.T @ pQ if kind != "slide" else np.zeros(3)
         if kind == "ball":
-            if np.any(RQ != np.eye(3)):  # Q^-1 J(q) Q is a ball whose quaternion is not q
+            # Q^-1 J(q) Q is a ball whose quaternion is not q; and MuJoCo's compiler refuses a
+            # rotation after a ball in one body ("ball followed by rotation")
+            if np.any(RQ != np.eye(3)) or any(j[0] != "slide" for j in joints):
                 raise ExportError("to_mjcf", f"joint {name!r}", None, "a ball joint followed, "
                                   "in the massless bodies merged into one MJCF body, by a "
-                                  "rotated placement or a hinge: MuJoCo turns a ball about the "
-                                  "body's own axes, so its qpos would not be the model's q; "
+                                  "rotated placement, a hinge or a ball: MuJoCo turns a ball "
+                                  "about the body's own axes (its qpos would not be the "
+                                  "model's q) and refuses a rotation after a ball in one body; "
                                   "give the massless body a mass")
             joints.append((kind, name, None, anchor, r))
             continue
