@@ -23,6 +23,7 @@ from redysim import (
     SettingsError,
     StateError,
     energy,
+    evaluator,
     forward_dynamics,
     inverse_dynamics,
     mass_matrix,
@@ -137,7 +138,7 @@ def test_identities_with_ball_joints(name):
 
 def test_a_batch_of_ball_jointed_states_is_its_single_calls():
     """Forward dynamics of 40 states at once (the SIMD tiles of a tree, and row by row) against
-    one call each."""
+    one call each; the evaluator's (the lean entries) in the bits of the public functions."""
     model = ball_robot()
     rng = np.random.default_rng(stable_seed("ball-batch"))
     Q, V, T = (np.array(x) for x in zip(*(random_state(rng, model) for _ in range(40)),
@@ -145,6 +146,9 @@ def test_a_batch_of_ball_jointed_states_is_its_single_calls():
     want = np.array([forward_dynamics(model, Q[i], V[i], T[i]) for i in range(40)])
     assert rel(forward_dynamics(model, Q, V, T), want) < 1e-12
     assert np.array_equal(forward_dynamics(model, Q, V, T, simd=False), want)
+    fd, inv = evaluator(model), evaluator(model, "inverse_dynamics")
+    assert np.array_equal(fd(Q[0], V[0], T[0]), want[0])
+    assert np.array_equal(inv(Q[0], V[0], want[0]), inverse_dynamics(model, Q[0], V[0], want[0]))
 
 
 def test_the_quaternion_moves_as_q_times_the_angular_velocity():
