@@ -318,7 +318,7 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
                 last_x[1] = _compose(last_x[1], Jr)
             factors.append(["X", (np.eye(3), np.zeros(3))])
     suffix = (np.eye(3), np.zeros(3))  # Q_i: the transforms after axis i
-    joints = []
+    joints: list[tuple[str, str, np.ndarray | None, np.ndarray, float]] = []
     for f in reversed(factors):
         if f[0] == "X":
             suffix = _compose(f[1], suffix)
