@@ -590,7 +590,7 @@ def print_scenario(scn, given: str) -> None:
     """A scenario's model as a few lines: bodies, coordinates, mass, base, loops, and what its
     file holds that the model does not (``Model.notes``: never dropped in silence)."""
     m = scn.model
-    base = "floating base" if m.quaternions.size else "fixed base"
+    base = "floating base" if "free" in m.joint_types else "fixed base"
     print(f"{m.name}   ({given}: {m.n_bodies} bodies, n_q = {m.n_q}, n_v = {m.n_v}, "
           f"{m.total_mass:.6g} kg, {base})")
     print(f"  scenario      {scn.description or scn.name}; observed: {', '.join(scn.observe)}")

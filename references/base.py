@@ -80,7 +80,7 @@ from redysim.errors import SettingsError
 from redysim.integrators.explicit import check_settings, sample_times
 from redysim.integrators.protocol import Counters, IntegrationError, OdeSolver
 from redysim.model.parts import KIND_CODES
-from redysim.model.tree import FREE, quaternion_matrix
+from redysim.model.tree import BALL_JOINT, FREE, quaternion_matrix
 
 LIMITS_FILE = Path(__file__).with_name("limits.toml")
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}  # the core's dof_kind codes
@@ -324,8 +324,8 @@ def axis(kind: str, u) -> Axis:
 
 
 class JointAxes(NamedTuple):
-    """Body k's joint: its type (R, P, U, S or free), its elementary axes in order (none for a
-    free joint), the parent body (-1: the world), the placement (R (3, 3), p (3,)) of the
+    """Body k's joint: its type (R, P, U, S, ball or free), its elementary axes in order (none for
+    a free or ball joint), the parent body (-1: the world), the placement (R (3, 3), p (3,)) of the
     joint's frame in the parent's frame, and the joint's and the body's names."""
 
     type: str
@@ -338,8 +338,8 @@ class JointAxes(NamedTuple):
 
     def describe(self) -> str:
         """E.g. "U = R about +y then R about +z", "free"."""
-        if self.type == FREE:
-            return "free"
+        if self.type in (FREE, BALL_JOINT):
+            return self.type
         return f"{self.type} = " + " then ".join(a.describe() for a in self.axes)
 
     def where(self) -> str:
@@ -355,7 +355,7 @@ def joint_axes(model: Model | Case | Chain) -> list[JointAxes]:
     out = []
     for k, jtype in enumerate(model.joint_types):
         axes = []
-        if jtype != FREE:
+        if jtype not in (FREE, BALL_JOINT):
             for i in range(int(model.joint_voff[k]), int(model.joint_voff[k + 1])):
                 kind = KIND_NAMES.get(int(model.dof_kind[i]))  # R or P; a BALL is not one
                 if kind is None:
@@ -529,6 +529,11 @@ class Engine(EnginePackage):
     # Its qdd stays the rigid body's map tau -> qdd, as the core's forward_dynamics; a run
     # through redysim's integrators applies them around it (System)
     holds_passive: ClassVar[str] = ""
+    # how the engine builds a ball joint (q a unit quaternion (w, x, y, z), v the body's
+    # angular velocity in its own frame); "" when it cannot (limits then refuses a model with
+    # one, naming the joint and this reason)
+    holds_ball: ClassVar[str] = ""
+    no_ball: ClassVar[str] = "no ball joint built in this adapter"
 
     def __init__(self, model: Model | Case | Chain, *, check_limits: bool = True):
         self.lib = import_engine(self.name, self.package, self.module)
@@ -541,8 +546,11 @@ class Engine(EnginePackage):
         self.joints = joint_axes(m)
         self.free = [(k, int(m.joint_qoff[k]), int(m.joint_voff[k]))
                      for k, j in enumerate(self.joints) if j.type == FREE]
-        # the coordinates of the joints that are not free: the same numbers in q and in v
-        jointed = [k for k, j in enumerate(self.joints) if j.type != FREE]
+        self.balls = [(k, int(m.joint_qoff[k]), int(m.joint_voff[k]))
+                      for k, j in enumerate(self.joints) if j.type == BALL_JOINT]
+        # the coordinates of the joints that are neither free nor ball: the same numbers in q
+        # and in v
+        jointed = [k for k, j in enumerate(self.joints) if j.type not in (FREE, BALL_JOINT)]
         self._qslots = np.array([i for k in jointed
                                  for i in range(m.joint_qoff[k], m.joint_qoff[k + 1])], dtype=int)
         self._vslots = np.array([i for k in jointed
@@ -552,7 +560,8 @@ class Engine(EnginePackage):
         self._build()
         # the engine's coordinates are the core's: nothing to convert (every chain, every engine)
         qidx = getattr(self, "qidx", None)
-        self.identity = (not self.free and bool(np.array_equal(self.eidx, np.arange(m.n_v)))
+        self.identity = (not self.free and not self.balls
+                         and bool(np.array_equal(self.eidx, np.arange(m.n_v)))
                          and (qidx is None or bool(np.array_equal(qidx, np.arange(m.n_q)))))
 
     # ----------------------------------------------------------------------- limits
@@ -576,6 +585,10 @@ class Engine(EnginePackage):
             joints = joint_axes(model)
         except ValueError as exc:
             return Limits(False, f"{cls.name}: {exc}")
+        balls = [j for j in joints if j.type == BALL_JOINT]
+        if balls and not cls.holds_ball:
+            return Limits(False, f"{cls.name}: {balls[0].where()}: a ball joint, which this "
+                                 f"engine does not build: {cls.no_ball}")
         why = cls.unsupported(model, joints)
         if why:
             return Limits(False, f"{cls.name}: {why}")

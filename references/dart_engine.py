@@ -146,6 +146,8 @@ class DART(Engine):
     no_couplings = ("DART's mimic joints are out of reach from Python: dartpy 6.20 binds "
                     "Joint.setActuatorType(MIMIC) but not setMimicJoint (no such method on "
                     "dartpy.dynamics.Joint, checked), so a MIMIC joint has no leader")
+    no_ball = ("DART's BallJoint has exponential-map coordinates; their conversion from the "
+               "core's quaternion is not built in this adapter")
     integrator = "semi-implicit-euler"
     integrators = {"semi-implicit-euler": NativeIntegrator(
         "semi-implicit-euler", False, "World.step at World.setTimeStep(h)",

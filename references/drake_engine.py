@@ -220,6 +220,8 @@ class Drake(DrakePackage, Engine):
                     "this adapter's plant is continuous (time_step = 0), where the plant takes "
                     "it and then EvalTimeDerivatives raises 'Continuous time does not support "
                     "constraints' (Drake, measured)")
+    no_ball = ("Drake's BallRpyJoint has roll-pitch-yaw coordinates, singular at pitch +-90 "
+               "degrees, so it cannot stand in exactly for the core's quaternion")
     # the simulator Context's cache (Drake's default: on); False disables it (module docstring:
     # the FSAL integrators' stale cache after a rejected step), at ~6x the cost a derivative
     sim_caching: bool = True

@@ -344,6 +344,8 @@ class Exudyn(Engine):
     no_couplings = ("Exudyn's explicit solvers (rk44, its default, and the rest) abort on a "
                     "constraint; its implicit ones (generalized-alpha, trapezoidal) hold the "
                     "CoordinateConstraints")
+    no_ball = ("Exudyn 1.13's ObjectKinematicTree has revolute and prismatic joints only (no "
+               "spherical joint)")
     integrator = "rk44"
     integrators = NATIVE
 

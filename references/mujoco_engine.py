@@ -46,7 +46,9 @@ What the model contains and why (docs/design.md, "Reference engines"):
 MuJoCo numbers bodies and DOF depth-first; the adapter maps them to the Model's order by joint
 name (a chain's order is MuJoCo's). Free joint: MuJoCo's free joint IS the core's convention
 (q = position, quaternion w first; v = world linear velocity of the origin, body-frame angular
-velocity), so B = 1, c = 0 (``redysim.references.base``): no conversion but the order.
+velocity), so B = 1, c = 0 (``redysim.references.base``): no conversion but the order. A ball
+joint is MuJoCo's ``mjJNT_BALL`` at the body's origin (qpos w, x, y, z; qvel the body-frame
+angular velocity relative to the parent): the core's, no conversion but the order.
 
 ``qdd`` is ``mj_forward``'s ``qacc`` with ``qfrc_applied = tau``; ``mass_matrix`` is ``mj_fullM``;
 ``bias`` is ``-qfrc_bias``; ``energy`` is ``mj_energyPos``/``mj_energyVel``'s (V, T), reordered;
@@ -98,7 +100,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from redysim.model.tree import FREE
+from redysim.model.tree import BALL_JOINT, FREE
 
 from .base import Engine, NativeIntegrator
 
@@ -175,6 +177,7 @@ class MuJoCo(Engine):
     holds_armature = "dof_armature, then mj_setConst"
     holds_passive = ("dof_damping, jnt_stiffness, qpos_spring and body_gravcomp, its SPRING and "
                      "DAMPER stages switched on for its own stepping only")
+    holds_ball = "mjJNT_BALL: MuJoCo's ball is the core's (qpos w, x, y, z; qvel body-frame)"
 
     @classmethod
     def unsupported(cls, model, joints):
@@ -219,6 +222,10 @@ class MuJoCo(Engine):
             if joint.type == FREE:
                 j = body.add_freejoint()
                 j.name = f"j{k}_free"
+            if joint.type == BALL_JOINT:  # at the body's origin, about its own axes
+                j = body.add_joint()
+                j.name = f"j{k}_ball"
+                j.type = mj.mjtJoint.mjJNT_BALL
             for i, axis in enumerate(joint.axes):
                 j = body.add_joint()
                 j.name = f"j{k}_{i}"
@@ -263,6 +270,11 @@ class MuJoCo(Engine):
                 self.qidx[qs:qs + 7] = mj_joint.qposadr[0] + np.arange(7)
                 self.eidx[vs:vs + 6] = mj_joint.dofadr[0] + np.arange(6)
                 continue
+            if joint.type == BALL_JOINT:
+                mj_joint = model.joint(f"j{k}_ball")
+                self.qidx[qs:qs + 4] = mj_joint.qposadr[0] + np.arange(4)
+                self.eidx[vs:vs + 3] = mj_joint.dofadr[0] + np.arange(3)
+                continue
             for i, axis in enumerate(joint.axes):
                 mj_joint = model.joint(f"j{k}_{i}")
                 # the compiled axis is the model's (MuJoCo normalises it: a unit vector stays
@@ -295,6 +307,8 @@ class MuJoCo(Engine):
         q = q.copy()
         for _, qs, _ in self.free:
             q[qs + 3:qs + 7] /= np.linalg.norm(q[qs + 3:qs + 7])
+        for _, qs, _ in self.balls:
+            q[qs:qs + 4] /= np.linalg.norm(q[qs:qs + 4])
         qe = np.empty(self.model.n_q)
         qe[self.qidx] = q
         return qe, []

@@ -29,7 +29,9 @@ about -z is never built as RZ). In ``pinocchio-aba`` and ``pinocchio-crba`` two 
 orthogonal revolute axes (U, and the U part of S) are one ``JointModelUniversal(u1, u2)``
 instead, which rotates about u1 and then the rotated u2, as the core does. A prismatic joint
 moves its frame, and so the body and everything after it, by u q along the axis, as in the
-core. A free joint is one ``JointModelFreeFlyer`` at the identity placement. Body inertias
+core. A free joint is one ``JointModelFreeFlyer`` at the identity placement; a ball joint one
+``JointModelSpherical`` (its q the quaternion (x, y, z, w), w last: reordered; its v the body's
+angular velocity relative to its parent in the body's frame, the core's). Body inertias
 ``pin.Inertia(m, c, I_C)`` (about the COM) on the joint of the body's last axis; gravity
 ``model.gravity.linear = model.gravity``. Pinocchio models have no contacts, collision or visual
 geometry unless asked for; joint limits, damping, friction and effort/velocity limits are left
@@ -74,7 +76,7 @@ from typing import ClassVar
 import numpy as np
 
 from redysim.algorithms.rbda import quaternion_matrix
-from redysim.model.tree import FREE
+from redysim.model.tree import BALL_JOINT, FREE
 
 from .base import Engine, FreeBlock, depth_first
 
@@ -121,6 +123,8 @@ class PinocchioEngine(Engine):
                      "trajectory would be an adapter's integrator, not Pinocchio's")
     universal: ClassVar[str] = "universal"
     holds_armature = "pm.armature, which aba, crba and rnea add"
+    holds_ball = ("JointModelSpherical: q its quaternion (x, y, z, w), v the body-frame angular "
+                  "velocity, as the core's")
 
     @classmethod
     def unsupported(cls, model, joints):
@@ -163,6 +167,8 @@ class PinocchioEngine(Engine):
             placement = pin.SE3(joint.R, joint.p)
             if joint.type == FREE:
                 models = [pin.JointModelFreeFlyer()]
+            elif joint.type == BALL_JOINT:
+                models = [pin.JointModelSpherical()]
             else:
                 models = _joint_models(pin, joint.axes, self.universal)
             for i, jm in enumerate(models):
@@ -233,6 +239,9 @@ class PinocchioEngine(Engine):
             c = np.zeros(6)
             c[:3] = R @ np.cross(w, v_local)
             blocks.append(FreeBlock(vs, B, c))
+        for _, qs, _ in self.balls:  # v is Pinocchio's as it is; its quaternion is w last
+            quat = q[qs:qs + 4] / np.linalg.norm(q[qs:qs + 4])
+            q[qs:qs + 4] = [quat[1], quat[2], quat[3], quat[0]]
         qp = np.empty(self.model.n_q)
         qp[self.qidx] = q
         return qp, blocks

@@ -589,15 +589,13 @@ def test_a_motor_is_an_input_and_visual_things_are_one_line(tmp_path):
 
 @pytest.mark.engine
 @pytest.mark.parametrize("body, field, fragment", [
-    ('<body name="a"><joint name="h" type="ball"/><geom size=".1"/></body>', "joint 'h'.type",
-     "write it as three hinges"),
     ('<body name="a"><joint name="h"/><geom size=".1"/><body name="b" pos="0.3 0 0">'
      '<freejoint name="f"/><geom size=".1"/></body></body>', "body 'b' (line 1)",
      "free joint can only be used on top level"),
 ])
 def test_joints_the_tree_cannot_hold_are_refused(tmp_path, body, field, fragment):
-    """A ball joint (its quaternion has no counterpart in the core) and a free joint below the
-    root (MuJoCo's compiler refuses it: its message kept, the body named)."""
+    """A free joint below the root (MuJoCo's compiler refuses it: its message kept, the body
+    named). (A ball joint is read: tests/test_ball.py.)"""
     path = write(tmp_path, f"<mujoco><worldbody>{body}</worldbody></mujoco>", "j.xml")
     refused(lambda: load_model(path), field, fragment)
 

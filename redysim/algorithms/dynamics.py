@@ -49,8 +49,7 @@ from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace, model_workspace
 from redysim.errors import CaseError, FieldError, StateError
 from redysim.model.parts import NUMERIC_KINDS
-from redysim.model.tree import FREE as FREE_JOINT
-from redysim.model.tree import Model
+from redysim.model.tree import QUATERNION_JOINTS, Model
 
 FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
@@ -686,15 +685,15 @@ def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False,
     for name, x in (("q", q), ("v", v), ("tau", tau)):
         if x is not None:
             require_finite(name, np.asarray(x, dtype=float))
-    # each free joint's quaternion, normalised by the kernels: zero is no rotation
-    free = [name for name, kind in zip(model.joint_names, model.joint_types, strict=True)
-            if kind == "free"]
-    for name, i in zip(free, model.quaternions.tolist(), strict=True):
+    # each free or ball joint's quaternion, normalised by the kernels: zero is no rotation
+    free = [(kind, name) for name, kind in zip(model.joint_names, model.joint_types, strict=True)
+            if kind in QUATERNION_JOINTS]
+    for (kind, name), i in zip(free, model.quaternions.tolist(), strict=True):
         w = np.asarray(q, dtype=float)[i:i + 4]
         with np.errstate(over="ignore", divide="ignore"):
             if not np.isfinite(np.float64(2.0) / (w @ w)):
                 return StateError(
-                    f"q[{i}:{i + 4}] = {w.tolist()}: the quaternion (w, x, y, z) of free joint "
+                    f"q[{i}:{i + 4}] = {w.tolist()}: the quaternion (w, x, y, z) of {kind} joint "
                     f"{name!r} is zero or too small to normalise (its squared norm underflows): "
                     "it must be a rotation, e.g. [1, 0, 0, 0]")
     if gim is None:
@@ -851,14 +850,14 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     """p = I(q) v, the generalized momentum (dT/dv), by one kinematics pass and one backward
     pass (:mod:`redysim.algorithms._kernels.momentum`); with ``gradient``, (p, dL/dq): the
     Lagrangian's gradient in q at fixed v, dT/dq - dV/dq, so that along a motion under the
-    generalized forces tau, dp/dt = dL/dq + tau. O(n) both, no matrix formed. (A free
+    generalized forces tau, dp/dt = dL/dq + tau. O(n) both, no matrix formed. (A free or ball
     joint's q is a quaternion, not what its rates integrate to: its gradient is refused.)"""
     if model.cuts:
         raise closed_error(model, "generalized_momentum")
-    if gradient and FREE_JOINT in model.joint_types:
+    if gradient and set(QUATERNION_JOINTS) & set(model.joint_types):
         raise FieldError(f"model {model.name!r}", "gradient", True, "dL/dq is taken in the "
-                         "joint coordinates the rates integrate to; a free joint's quaternion "
-                         "is not one")
+                         "joint coordinates the rates integrate to; a free or ball joint's "
+                         "quaternion is not one")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     ws = _ws(model, ws)

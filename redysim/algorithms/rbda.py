@@ -12,7 +12,7 @@ Conventions (docs/design.md, "Chain conventions"): everything in the world frame
 t = [w; v] is body k's angular velocity and the velocity of its origin O_k; a wrench [n; f] is a
 moment about O_k and a force. Moving a twist from O_p to O_k is A = [[1, 0], [-C(r), 1]] with
 r = O_k - O_p; moving a wrench back is A^T. S (6, n_v): the motion-subspace columns, [e; 0] for a
-revolute axis e, [0; e] for a prismatic one, [R_k e_i; 0] for a free joint's rotation.
+revolute axis e, [0; e] for a prismatic one, [R_k e_i; 0] for a free or ball joint's rotation.
 M_k = [[I_O, C(m d)], [-C(m d), m 1]]: body k's extended mass matrix about O_k (Eq. 10a).
 A joint's own inertia (``model.armature``, one number per axis) adds to the joint-space inertia's
 diagonal: to the GIM, to each axis's pivot D = S^T Mhat S + armature, to the torques
@@ -98,11 +98,12 @@ def kinematics(model: Model, q, v, vdot=None, base_accel=None) -> Kinematics:
         rel = np.zeros(6)  # S_k v_k about the joint's origin
         for j in range(model.joint_voff[k], model.joint_voff[k + 1]):
             kind, u = model.dof_kind[j], model.dof_u[j]
-            if kind == BALL:  # a free joint's rotation: about the body's own axes
-                if j == model.joint_voff[k] + 3:  # the quaternion follows x, y, z in q
-                    qs = model.joint_qoff[k] + 3
+            if kind == BALL:  # a free or ball joint's rotation: about the body's own axes
+                first = 3 if model.joint_types[k] == "free" else 0  # (a free joint's x, y, z)
+                if j == model.joint_voff[k] + first:  # the quaternion, after x, y, z if any
+                    qs = model.joint_qoff[k] + first
                     Rk = Rk @ quaternion_matrix(*q[qs:qs + 4])
-                e = Rk[:, j - model.joint_voff[k] - 3]
+                e = Rk[:, j - model.joint_voff[k] - first]
                 S[:3, j] = e
             else:
                 e = Rk @ u
@@ -317,18 +318,20 @@ def frame_position(model: Model, q, name: str) -> np.ndarray:
 
 def configuration_rate(model: Model, q, v) -> np.ndarray:
     """dq/dt (n_q,) from v (n_v,): v itself for R and P coordinates; for a free joint the world
-    velocity and q (x) [0; w_body] / 2."""
+    velocity and q (x) [0; w_body] / 2; for a ball joint q (x) [0; w_body] / 2."""
     qdot = np.empty(model.n_q)
     for k in range(model.n_bodies):
         qs, vs = model.joint_qoff[k], model.joint_voff[k]
-        if model.joint_types[k] == "free":
-            qw, qx, qy, qz = q[qs + 3:qs + 7]
-            wx, wy, wz = v[vs + 3:vs + 6]
-            qdot[qs:qs + 3] = v[vs:vs + 3]
-            qdot[qs + 3:qs + 7] = 0.5 * np.array([-qx * wx - qy * wy - qz * wz,
-                                                  qw * wx + qy * wz - qz * wy,
-                                                  qw * wy - qx * wz + qz * wx,
-                                                  qw * wz + qx * wy - qy * wx])
+        if model.joint_types[k] in ("free", "ball"):
+            if model.joint_types[k] == "free":
+                qdot[qs:qs + 3] = v[vs:vs + 3]
+                qs, vs = qs + 3, vs + 3
+            qw, qx, qy, qz = q[qs:qs + 4]
+            wx, wy, wz = v[vs:vs + 3]
+            qdot[qs:qs + 4] = 0.5 * np.array([-qx * wx - qy * wy - qz * wz,
+                                              qw * wx + qy * wz - qz * wy,
+                                              qw * wy - qx * wz + qz * wx,
+                                              qw * wz + qx * wy - qy * wx])
         else:
             qdot[qs:model.joint_qoff[k + 1]] = v[vs:model.joint_voff[k + 1]]
     return qdot

@@ -8,8 +8,8 @@ projection after a step, and, when the physics is compiled, its compiled contrac
 Python methods here call too: a force or a constraint is written once, and both steppers see it
 in the same bits.
 
-The state is y = (q, v); dq/dt = v, but a free joint's quaternion, which moves as q (x) [0;
-w_body] / 2 and is projected back onto the unit sphere after every step (the kernels read a
+The state is y = (q, v); dq/dt = v, but a free or ball joint's quaternion, which moves as q (x)
+[0; w_body] / 2 and is projected back onto the unit sphere after every step (the kernels read a
 quaternion's direction only, so a stage's slightly-off one is harmless). Forces: viscous joint
 damping, joint springs, a constant force at a chain's tip, and a Python function ``tau(t, q,
 v)`` of the caller's; constraints: the model's couplings (mimic joints) and closed loops. The
@@ -35,7 +35,7 @@ from redysim.algorithms.dynamics import (
 from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import SettingsError, StateError
-from redysim.model.tree import FREE, Model
+from redysim.model.tree import BALL_JOINT, FREE, QUATERNION_JOINTS, Model
 
 QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
 NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
@@ -124,8 +124,12 @@ class System:
         self.ws = Workspace(model)  # the derivative's, and between steps the samples'
         self._layout_free_joints()
         if (self._q_of_v[self.stiffness > 0] < 0).any():
-            raise SettingsError(source, "stiffness", "free joint", "springs act on joints "
-                                "whose coordinates are their velocities', not on a free joint")
+            i = int(np.flatnonzero((self._q_of_v < 0) & (self.stiffness > 0))[0])
+            k = int(np.searchsorted(model.joint_voff, i, side="right")) - 1
+            raise SettingsError(source, "stiffness", f"{model.joint_types[k]} joint "
+                                f"{model.joint_names[k]!r}", "springs act on joints whose "
+                                "coordinates are their velocities', not on a free or ball "
+                                "joint (its q is a quaternion)")
         self.worst = np.zeros(3)  # [quaternion, residual q, residual v] met before projections
         self.couplings = (K.couplings_of(model, Workspace(model.free_tree)) if model.couplings
                           else K.no_couplings())
@@ -138,24 +142,29 @@ class System:
 
     # ----------------------------------------------------------------------- assembly
     def _layout_free_joints(self) -> None:
-        """Each free joint's q slot of x and v slot of its linear velocity; every other
-        coordinate's q and v slots (dq/dt = v there)."""
+        """Each free joint's q slot of x and v slot of its linear velocity, each ball joint's q
+        slot of its quaternion's w and v slot of w_x; every other coordinate's q and v slots
+        (dq/dt = v there)."""
         m = self.model
         qoff, voff = m.joint_qoff, m.joint_voff
         free = [(int(qoff[k]), int(voff[k])) for k, t in enumerate(m.joint_types) if t == FREE]
+        ball = [(int(qoff[k]), int(voff[k])) for k, t in enumerate(m.joint_types)
+                if t == BALL_JOINT]
         plain_q: list[int] = []
         plain_v: list[int] = []
         for k in range(qoff.shape[0] - 1):
-            if (int(qoff[k]), int(voff[k])) not in free:
+            if m.joint_types[k] not in QUATERNION_JOINTS:
                 plain_q.extend(range(qoff[k], qoff[k + 1]))
                 plain_v.extend(range(voff[k], voff[k + 1]))
-        self.free = free
+        self.free = free + ball  # the joints whose q moves otherwise than v
         self.free_q = np.array([qs for qs, _ in free], dtype=np.int64)
         self.free_v = np.array([vs for _, vs in free], dtype=np.int64)
-        none = not free  # without free joints the arrays stay empty: dq/dt = v
+        self.ball_q = np.array([qs for qs, _ in ball], dtype=np.int64)
+        self.ball_v = np.array([vs for _, vs in ball], dtype=np.int64)
+        none = not self.free  # without free and ball joints the arrays stay empty: dq/dt = v
         self.plain_q = np.array([] if none else plain_q, dtype=np.int64)
         self.plain_v = np.array([] if none else plain_v, dtype=np.int64)
-        # each velocity coordinate's configuration slot (for springs; -1 on a free joint)
+        # each velocity coordinate's configuration slot (for springs; -1 on a free or ball joint)
         self._q_of_v = np.full(self.n_v, -1, dtype=np.int64)
         self._q_of_v[plain_v] = plain_q
 
@@ -176,7 +185,8 @@ class System:
             self._q_of_v.copy() if springs else np.zeros(0, dtype=np.int64),
             self.body, self.force, self.point,
             np.zeros((m.n_bodies if self.body.size else 0, 6)), np.zeros(3),
-            self.plain_q, self.plain_v, self.free_q, self.free_v, self.worst)
+            self.plain_q, self.plain_v, self.free_q, self.free_v, self.ball_q, self.ball_v,
+            self.worst)
 
     def _extras(self) -> K.Extras | None:
         """What only some systems have, or None (module docstring of the kernels)."""
@@ -232,7 +242,8 @@ class System:
         if self.model.couplings:
             K.project_couplings(self.couplings, nq, y, worst[1:])
         if self.free:
-            K.project_quaternions(self.free_q, y, worst)
+            K.project_quaternions(self.free_q, 3, y, worst)
+            K.project_quaternions(self.ball_q, 0, y, worst)
 
     # ----------------------------------------------------------------------- the pieces
     def forces(self, t: float, q, v) -> np.ndarray | None:
@@ -280,7 +291,8 @@ class System:
             out[:nq] = y[nq:]
         else:
             K.configuration_rate(nq, self.plain_q, self.plain_v, self.free_q, self.free_v,
-                                 np.ascontiguousarray(y, dtype=float), out)
+                                 self.ball_q, self.ball_v, np.ascontiguousarray(y, dtype=float),
+                                 out)
 
     def qdd(self, t: float, q, v) -> np.ndarray:
         """The accelerations at (t, q, v) (n_v,): the derivative's."""
@@ -313,8 +325,8 @@ class System:
     def initial_state(self, q0=None, v0=None, *, second_order: bool = False) -> np.ndarray:
         """y0 = (q0, v0), checked (StateError naming what is wrong) and projected onto the
         constraints: q0 by default the model's own configuration (:meth:`Model.initial`), v0
-        zeros. A free joint's quaternion must be of unit norm within QUATERNION_TOL (then it is
-        normalised); a closed mechanism's q0 near its loops. ``second_order``: refuse a system
+        zeros. A free or ball joint's quaternion must be of unit norm within QUATERNION_TOL (then
+        it is normalised); a closed mechanism's q0 near its loops. ``second_order``: refuse a system
         whose dq/dt is not v (a stepper for y = (q, v), dq/dt = v)."""
         model = self.model
         q0 = check_state(model, "q", model.initial() if q0 is None else q0)
@@ -325,8 +337,8 @@ class System:
             check_coupled(model, "q", q0)
             check_coupled(model, "v", v0)
         for k, t in enumerate(model.joint_types):
-            if t == FREE:  # its quaternion, before any projection: the norm as given
-                i = int(model.joint_qoff[k]) + 3
+            if t in QUATERNION_JOINTS:  # its quaternion, before any projection: the norm as given
+                i = int(model.joint_qoff[k]) + (3 if t == FREE else 0)
                 norm = math.sqrt(float(q0[i:i + 4] @ q0[i:i + 4]))
                 if not abs(norm - 1.0) <= QUATERNION_TOL:
                     raise StateError(f"q0[{i}:{i + 4}], the quaternion (w, x, y, z) of joint "
@@ -334,8 +346,8 @@ class System:
                                      "unit quaternion")
         if second_order and self.free:
             raise SettingsError(self.source, "integrator", "implicit", "steps systems whose "
-                                "dq/dt is v; a free joint's quaternion moves otherwise: use "
-                                "ode45 or dop853")
+                                "dq/dt is v; a free or ball joint's quaternion moves "
+                                "otherwise: use ode45 or dop853")
         y0 = np.concatenate((q0, v0))
         self.project(y0, record=False)
         return y0

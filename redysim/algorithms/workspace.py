@@ -33,7 +33,7 @@ from redysim.algorithms._kernels.bundles import (
 from redysim.algorithms._kernels.joints import BALL
 from redysim.algorithms.dh_form import dh_constants
 from redysim.errors import FieldError
-from redysim.model.tree import FREE, THREAD_WORKSPACES, Model
+from redysim.model.tree import THREAD_WORKSPACES, Model
 
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
 
@@ -62,10 +62,12 @@ def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int
 def tree_tables(model: Model) -> dict:
     """The :class:`~redysim.algorithms._kernels.bundles.Tree` fields of a model, as numpy arrays
     (plus ``n_q``). A serial chain (parent k - 1, every joint placed along its parent's x, no free
-    joint: every :class:`~redysim.model.tree.Chain`) is ``serial``, its tree tables empty."""
+    or ball joint: every :class:`~redysim.model.tree.Chain`) is ``serial``, its tree tables
+    empty."""
     m = model
     nb = m.n_bodies
-    serial = m.is_chain and not m.placement_code.any() and FREE not in m.joint_types
+    # (a free or ball joint's quaternion is read through the tree's qshift: not serial)
+    serial = m.is_chain and not m.placement_code.any() and not (m.dof_kind == BALL).any()
     parent = np.asarray(m.parent)
     # a body gathers when a child does not follow it directly (its parent is not k - 1)
     needs = np.zeros(nb, dtype=bool)

@@ -5,9 +5,10 @@ for MJCF) with the same GIM and qdd to round-off as functions of q, or refuses t
 :class:`ExportError` naming the body, link or joint, the value and what the format (or its
 reader) cannot hold. ``tests/test_export.py`` checks both on every shipped case.
 
-:func:`to_mjcf` writes MuJoCo's MJCF: nested ``<body>`` elements placed by ``pos`` and
-``xyaxes`` (the rotation's first two columns), the joint's elementary axes as ``hinge`` and
-``slide`` joints in order, a free joint as ``<freejoint/>`` whose body's ``pos`` and ``quat`` are
+:func:`to_mjcf` writes MuJoCo's MJCF: nested ``<body>`` elements placed by ``pos`` and ``xyaxes``
+(the rotation's first two columns), the joint's elementary axes as ``hinge`` and ``slide`` joints in
+order, a ball joint as a ``ball`` joint at its anchor (its initial quaternion must be the identity:
+MJCF's ball has no ``ref``), a free joint as ``<freejoint/>`` whose body's ``pos`` and ``quat`` are
 the model's initial pose (:meth:`Model.initial`; MuJoCo's qpos0), the inertia as ``<inertial>``
 (mass, COM, principal moments ``diaginertia`` and, unless the tensor is diagonal, their axes
 ``quat``: MuJoCo checks A + B >= C on principal moments strictly, so a lamina's, which round-off
@@ -15,7 +16,8 @@ may break by an ulp, get their largest set to the sum of the others), gravity as
 gravity>``, a coupling (:attr:`Model.couplings`) as a joint ``<equality>`` of degree 1 (MuJoCo's
 y - y0 = a0 + a1 (x - x0) about the joints' refs; solimp at MuJoCo's hardest), a joint's
 armature (:attr:`Model.armature`) as its ``armature`` (a free joint's, when its six are one
-number, on a ``<joint type="free">``; else refused), its damping, stiffness and spring_ref
+number, on a ``<joint type="free">``; a ball's when its three are one number; else
+refused), its damping, stiffness and spring_ref
 (:attr:`Model.damping`, ...) as ``damping``, ``stiffness`` and ``springref``, a body's
 :attr:`Model.gravcomp` as its ``gravcomp``. No geometry, so no contacts; no limits. MuJoCo
 composes a body's joints one after the other, each about its own anchor ``pos`` and ``axis``,
@@ -31,13 +33,13 @@ fixed in the body's frame: body pose = P * prod_i [T(a_i) Rot(u_i, q_i - ref_i) 
   is the model's q.
 
 Refused (:class:`ExportError`), because MuJoCo's compiler or reader refuses the file: a massless
-body with no child or several children, or a massless free body; a merged body with more than
-6 DOFs; a body with mass 0 but
-rotational inertia; a mass or principal moment below MuJoCo's ``mjMINVAL`` = 1e-15 (a point
-mass, a bar with no radius); principal moments that break the triangle inequality A + B >= C
-(the paper's ``rod`` model) by more than round-off; bodies nested deeper than
-:data:`MJCF_MAX_DEPTH` (MuJoCo's XML reader refuses deeper elements); a body named ``world`` or
-repeated body or joint names.
+body with no child or several children, or a massless free body; a merged body with more than 6
+DOFs; a body with mass 0 but rotational inertia; a ball joint followed, within merged massless
+bodies, by a rotated placement or a hinge (MuJoCo's ball turns the body's own axes: its qpos would
+differ); a mass or principal moment below MuJoCo's ``mjMINVAL`` = 1e-15 (a point mass, a bar with no
+radius); principal moments that break the triangle inequality A + B >= C (the paper's ``rod`` model)
+by more than round-off; bodies nested deeper than :data:`MJCF_MAX_DEPTH` (MuJoCo's XML reader
+refuses deeper elements); a body named ``world`` or repeated body or joint names.
 
 :func:`to_urdf` writes URDF: one ``<link>`` per body and one ``<joint>`` per elementary axis
 from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
@@ -54,7 +56,7 @@ free joint's coordinates), a floating model with another root, a body named ``wo
 readers take a link of that name as the world itself), repeated link or joint names, and
 armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia), joint springs
 and gravity compensation (no field either; a joint's damping is its ``<dynamics damping>``, a
-free joint's refused as the free joint is left out). URDF holds no
+free joint's refused as the free joint is left out) and a ball joint (URDF has none). URDF holds no
 initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only. A
 prismatic joint gets the ``<limit>`` the URDF specification requires of it (urdfdom, the reader
 of Pinocchio and ROS, refuses the file without one), written wide (:data:`URDF_WIDE_LIMIT`:
@@ -81,7 +83,7 @@ import numpy as np
 from redysim.errors import FieldError
 from redysim.io.importers import URDF_GRAVITY
 from redysim.model.parts import KIND_CODES
-from redysim.model.tree import BALL, FREE, Model, joint_transform
+from redysim.model.tree import BALL, BALL_JOINT, FREE, Model, joint_transform
 
 PRISMATIC = KIND_CODES["P"]
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the least mass and principal moment of a moving body
@@ -142,10 +144,11 @@ def _axes(model: Model, k: int) -> list[tuple[str, np.ndarray, int]]:
 
 def _axis_names(model: Model, k: int) -> list[str]:
     """The file's name of each elementary axis of joint k: the joint's own name for one axis (or
-    a free joint), ``<joint>_<i>`` for a U or S joint's."""
+    a free or ball joint), ``<joint>_<i>`` for a U or S joint's."""
     n = int(model.joint_voff[k + 1] - model.joint_voff[k])
     name = model.joint_names[k]
-    return [name] if n == 1 or model.joint_types[k] == FREE else [f"{name}_{i}" for i in range(n)]
+    return [name] if n == 1 or model.joint_types[k] in (FREE, BALL_JOINT) else \
+        [f"{name}_{i}" for i in range(n)]
 
 
 def _joint_names(model: Model, free: bool = True) -> list[tuple[str, str]]:
@@ -316,6 +319,10 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
     factors: list[list[Any]] = []
     for k in group:
         factors.append(["X", (model.placement_R[k], model.placement_p[k])])
+        if model.joint_types[k] == BALL_JOINT:  # about its anchor, in the body's own frame
+            factors.append(["J", "ball", None, model.joint_names[k], 0.0])
+            factors.append(["X", (np.eye(3), np.zeros(3))])
+            continue
         for (kind, u, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True):
             r = float(q0[j + model.joint_qoff[k] - model.joint_voff[k]])
             factors.append(["J", kind, u, name, r])
@@ -326,14 +333,26 @@ def _mjcf_body(model: Model, group: list[int], q0: np.ndarray):
                 last_x[1] = _compose(last_x[1], Jr)
             factors.append(["X", (np.eye(3), np.zeros(3))])
     suffix = (np.eye(3), np.zeros(3))  # Q_i: the transforms after axis i
-    joints = []
+    joints: list[tuple[str, str, np.ndarray | None, np.ndarray, float]] = []
     for f in reversed(factors):
         if f[0] == "X":
             suffix = _compose(f[1], suffix)
             continue
         _, kind, u, name, r = f
         RQ, pQ = suffix
-        anchor = -RQ.T @ pQ if kind == "hinge" else np.zeros(3)
+        anchor = -RQ.T @ pQ if kind != "slide" else np.zeros(3)
+        if kind == "ball":
+            # Q^-1 J(q) Q is a ball whose quaternion is not q; and MuJoCo's compiler refuses a
+            # rotation after a ball in one body ("ball followed by rotation")
+            if np.any(RQ != np.eye(3)) or any(j[0] != "slide" for j in joints):
+                raise ExportError("to_mjcf", f"joint {name!r}", None, "a ball joint followed, "
+                                  "in the massless bodies merged into one MJCF body, by a "
+                                  "rotated placement, a hinge or a ball: MuJoCo turns a ball "
+                                  "about the body's own axes (its qpos would not be the "
+                                  "model's q) and refuses a rotation after a ball in one body; "
+                                  "give the massless body a mass")
+            joints.append((kind, name, None, anchor, r))
+            continue
         joints.append((kind, name, RQ.T @ u, anchor, r))
     return suffix, joints[::-1]
 
@@ -356,10 +375,11 @@ def to_mjcf(model: Model) -> str:
     q0 = model.initial()
     for g in groups:
         dofs = [(n, k) for k in g for n in _axis_names(model, k)]
-        if len(dofs) > MJCF_MAX_DOFS:
+        n_dofs = sum(int(model.joint_voff[k + 1] - model.joint_voff[k]) for k in g)
+        if n_dofs > MJCF_MAX_DOFS:
             merged = ", ".join(repr(model.body_names[k]) for k in g[:-1])
             raise ExportError(source, f"body {model.body_names[g[-1]]!r}", None,
-                              f"would carry {len(dofs)} DOFs: the massless bodies {merged} "
+                              f"would carry {n_dofs} DOFs: the massless bodies {merged} "
                               "merged into it (MuJoCo "
                               f"refuses a moving body without mass) bring joints "
                               f"{', '.join(repr(n) for n, _ in dofs)}, and MuJoCo's compiler "
@@ -379,19 +399,31 @@ def to_mjcf(model: Model) -> str:
                               "with mujoco 4.0); export to URDF, which is flat")
 
     armature = {name: float(model.armature[j]) for k in range(model.n_bodies)
-                if model.joint_types[k] != FREE
+                if model.joint_types[k] not in (FREE, BALL_JOINT)
                 for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k), strict=True)}
     per_axis = {key: {name: float(getattr(model, key)[j]) for k in range(model.n_bodies)
-                      if model.joint_types[k] != FREE
+                      if model.joint_types[k] not in (FREE, BALL_JOINT)
                       for (_, _, j), name in zip(_axes(model, k), _axis_names(model, k),
                                                  strict=True)}
                 for key in ("damping", "stiffness", "spring_ref")}
     for k in range(model.n_bodies):
         for key in ("armature", "damping"):
             a = getattr(model, key)[model.joint_voff[k]:model.joint_voff[k + 1]]
-            if model.joint_types[k] == FREE and np.any(a != a[0]):
+            if model.joint_types[k] in (FREE, BALL_JOINT) and np.any(a != a[0]):
                 raise ExportError(source, f"joint {model.joint_names[k]!r}.{key}", _plain(a),
-                                  f"MJCF gives a free joint one {key} for its six DOFs")
+                                  f"MJCF gives a {model.joint_types[k]} joint one {key} for its "
+                                  f"{a.shape[0]} DOFs")
+        if model.joint_types[k] == BALL_JOINT:
+            v0, name = int(model.joint_voff[k]), model.joint_names[k]
+            armature[name] = float(model.armature[v0])
+            per_axis["damping"][name] = float(model.damping[v0])
+            per_axis["stiffness"][name] = per_axis["spring_ref"][name] = 0.0  # (none: Model)
+            qs = int(model.joint_qoff[k])
+            if np.any(q0[qs:qs + 4] / np.linalg.norm(q0[qs:qs + 4]) != (1.0, 0.0, 0.0, 0.0)):
+                raise ExportError(source, f"joint {model.joint_names[k]!r}", _plain(q0[qs:qs + 4]),
+                                  "an initial quaternion (Model.initial) other than the "
+                                  "identity: MJCF's ball joint has no ref (its qpos0 is the "
+                                  "identity), so the file would hold another q")
     root = ET.Element("mujoco", model=model.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
     ET.SubElement(root, "option", gravity=_vec(model.gravity))
@@ -418,7 +450,9 @@ def to_mjcf(model: Model) -> str:
             body = ET.SubElement(parent, "body", name=model.body_names[k], pos=_vec(pos),
                                  xyaxes=_vec([*R[:, 0], *R[:, 1]]))
             for kind, name, axis, anchor, ref in joints:
-                attrs = {"name": name, "type": kind, "axis": _vec(axis), "pos": _vec(anchor)}
+                attrs = {"name": name, "type": kind, "pos": _vec(anchor)}
+                if axis is not None:  # (a ball has none)
+                    attrs["axis"] = _vec(axis)
                 if ref:
                     attrs["ref"] = _num(ref)
                 if armature[name]:
@@ -516,6 +550,12 @@ def to_urdf(model: Model) -> str:
                                                    model.joint_voff[k + 1]]),
                               "URDF leaves the free joint out (load with floating=True), and "
                               "its damping with it; export to MJCF, which holds it")
+    balls = [k for k, t in enumerate(model.joint_types) if t == BALL_JOINT]
+    if balls:
+        raise ExportError(source, f"joint {model.joint_names[balls[0]]!r}.type", BALL_JOINT,
+                          "URDF has no ball (spherical) joint, and three revolute joints in "
+                          "its place would have other coordinates than its quaternion; export "
+                          "to MJCF, which has one")
     free = [k for k, t in enumerate(model.joint_types) if t == FREE]
     roots = [k for k in range(model.n_bodies) if model.parent[k] < 0]
     if free and len(roots) > 1:

@@ -28,13 +28,16 @@ a fixed joint moves nothing and is announced. A joint's ``<dynamics damping>`` i
 
 **MJCF** is compiled by MuJoCo first (``mujoco.MjSpec``; the ``models`` extra installs it),
 because a file's meaning is its compiler's: inertias from geometry, default classes, angles in
-degrees, ``ref`` and ``springref``. The tree is read from the compiled model: hinge, slide and
-free joints; a joint's anchor (``pos``) and reference (``ref``) as MuJoCo moves the body:
-pose = P_body prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)] (a slide: T(u_i (q_i - ref_i))),
+degrees, ``ref`` and ``springref``. The tree is read from the compiled model: hinge, slide, ball
+and free joints; a joint's anchor (``pos``) and reference (``ref``) as MuJoCo moves the body:
+pose = P_body prod_i [T(a_i) Rot(u_i, q_i - ref_i) T(-a_i)] (a slide: T(u_i (q_i - ref_i)); a
+ball: T(a_i) Rot(q_i) T(-a_i), its quaternion q_i (w, x, y, z) MuJoCo's qpos, its velocity the
+body's angular velocity in its own frame, MuJoCo's qvel; a ball has no ``ref``),
 so that q is MuJoCo's qpos and :meth:`Model.initial` its qpos0; ``<flag gravity="disable"/>``.
 A body with several joints, or a joint away from its body's origin, becomes a chain: one
 massless body named ``f"{body}_{joint}"`` per joint but the last, joint 1 placed at
-P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a slide:
+P_body T(a_1) Rot(u_1, -ref_1), joint i > 1 at T(a_i - a_(i-1)) Rot(u_i, -ref_i) (a ball:
+T(a_i - a_(i-1)); a slide:
 T(-ref_i u_i), its anchor the previous one's), and the body's own frame at its last joint's
 anchor a_n: its centre of mass is ``ipos - a_n`` there, its children and frames are shifted by
 -a_n; a frame by the body's name keeps its origin where the file puts it (also for a jointless
@@ -48,7 +51,7 @@ first leader), as is a tendon equality of one fixed tendon of two joints; a ``co
 :attr:`Model.cuts`: :class:`redysim.ClosedLoops` and :func:`redysim.simulate` close it; a
 connect of a mechanism moving in a plane keeps its two in-plane equations, a 'planar' or
 'plane' cut). ``equality="refuse"`` refuses a loop closure, ``equality="drop"`` drops every
-equality (announced). Refused: a ball joint, a free joint below the root, an equality the core
+equality (announced). Refused: a free joint below the root, an equality the core
 cannot hold (a polynomial of degree > 1, a cycle of equalities, a joint that follows two, a
 flex's, redundant loop equations, loops on a model with a free joint) naming the
 ``<equality>``, a file nested deeper than MuJoCo's XML reader takes (:data:`MJCF_MAX_DEPTH`
@@ -103,6 +106,7 @@ import numpy as np
 from redysim.errors import CaseError, ModelFileError, StateError
 from redysim.model.parts import KIND_CODES, check_inertia, check_positive
 from redysim.model.tree import (
+    BALL_JOINT,
     FIXED,
     FREE,
     Body,
@@ -783,11 +787,14 @@ def _mjcf_tree(mj, m, src, gravcomp=False):
                                          "<worldbody>)")
                 specs.append((FREE, None, jname, None, None))
                 continue
+            if jtype == JNT.mjJNT_BALL:  # T(a_i - a_(i-1)): its quaternion turns the body
+                a = np.array(m.jnt_pos[j], dtype=float)  # about its anchor (no ref: qpos0 is
+                specs.append((BALL_JOINT, None, jname, np.eye(3), a - anchor))  # the identity)
+                anchor = a
+                continue
             if jtype not in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE):
-                raise ModelFileError(src, f"joint {jname!r}.type", "ball", "unsupported joint "
-                                     "type (hinge, slide and free are read): a ball joint's "
-                                     "quaternion has no counterpart in the core; write it as "
-                                     "three hinges")
+                raise ModelFileError(src, f"joint {jname!r}.type", int(jtype), "unsupported "
+                                     "joint type (hinge, slide, ball and free are read)")
             u = np.array(m.jnt_axis[j], dtype=float)
             ref = float(m.qpos0[m.jnt_qposadr[j]])
             if jtype == JNT.mjJNT_HINGE:  # T(a_i - a_(i-1)) Rot(u, -ref)

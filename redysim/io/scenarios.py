@@ -78,7 +78,7 @@ from redysim.io.cases import (
     read_toml,
 )
 from redysim.io.kinds import KINDS, Loaded, ScenarioKind, by_suffix, either, kind_of
-from redysim.model.tree import FREE, Model
+from redysim.model.tree import FREE, QUATERNION_JOINTS, Model
 
 SCENARIOS_DIR = Path(CASES_DIR) / "scenarios"
 ROBOT_DATA = "example-robot-data:"  # a model file of the example-robot-data package
@@ -308,7 +308,7 @@ def load_scenario(name_or_path: str | os.PathLike, *,
     v0 = np.zeros(model.n_v)
     description = f"a passive motion of {path.name} from its file's configuration, at rest"
     weightless = not np.any(model.gravity)
-    if model.quaternions.size or weightless:  # at rest it would fall as one piece, or stay
+    if FREE in model.joint_types or weightless:  # at rest it would fall as one piece, or stay
         q0, v0 = _random(source, model, {"seed": FLOATING_SEED, "v": FLOATING_V}, q0, v0)
         description = (f"{path.name} "
                        f"{'moving freely' if weightless else 'tumbling in free fall'}"
@@ -455,8 +455,8 @@ def _initial(source: str, model: Model, idoc: dict, loaded: Loaded
     if "random" in idoc:
         q0, v0 = _random(source, model, idoc["random"], q0, v0)
     for k, t in enumerate(model.joint_types):
-        if t == FREE:
-            i = int(model.joint_qoff[k]) + 3
+        if t in QUATERNION_JOINTS:
+            i = int(model.joint_qoff[k]) + (3 if t == FREE else 0)
             norm = float(np.linalg.norm(q0[i:i + 4]))
             if abs(norm - 1.0) > QUATERNION_TOL:
                 raise CaseError(source, f"initial.q[{i}:{i + 4}]", q0[i:i + 4].tolist(),
@@ -530,7 +530,7 @@ def _random(source, model: Model, spec, q0, v0) -> tuple[np.ndarray, np.ndarray]
     q0, v0 = q0.copy(), v0.copy()
     free_q: set[int] = set()
     for k, t in enumerate(model.joint_types):
-        if t == FREE:
+        if t in QUATERNION_JOINTS:  # (a quaternion is not perturbed coordinate-wise)
             free_q.update(range(int(model.joint_qoff[k]), int(model.joint_qoff[k + 1])))
     dq = rng.uniform(-1.0, 1.0, model.n_q) * amp["q"]
     for i in range(model.n_q):

@@ -15,13 +15,17 @@ each in the frame the axes before it leave) and two more:
   unit quaternion (n_q = 7); velocity v = (v_x, v_y, v_z, w_x, w_y, w_z): the body origin's
   velocity in the world frame and the body's angular velocity in its own frame (n_v = 6): the
   convention of MuJoCo's free joint. dq/dt = (v_world, q (x) [0; w_body] / 2).
+- ``ball``: a spherical joint, the free joint's rotation alone (MuJoCo's ``ball``), anywhere in
+  the tree: q = (qw, qx, qy, qz), a unit quaternion turning the joint frame into the body's
+  (n_q = 4); v = (w_x, w_y, w_z), the body's angular velocity relative to its parent, in the
+  body's own frame (n_v = 3); dq/dt = q (x) [0; w] / 2.
 
 Everything a chain is, a tree is: a :class:`~redysim.model.tree.Chain` is a Model (parent k - 1,
 each joint placed at the parent's length along its x axis).
 
 Per-DOF tables follow the chain's (``dof_kind``, ``dof_axis``, ``dof_u``) over the n_v velocity
-coordinates, with a third kind, ``BALL`` (the three rotational DOF of a free joint, about the
-body's own axes). ``joint_qoff`` and ``joint_voff`` give each joint's first configuration and
+coordinates, with a third kind, ``BALL`` (the three rotational DOF of a free or ball joint, about
+the body's own axes). ``joint_qoff`` and ``joint_voff`` give each joint's first configuration and
 velocity coordinate.
 """
 
@@ -51,9 +55,10 @@ from redysim.model.parts import (
     numeric_array,
 )
 
-BALL = 2  # dof_kind of a free joint's rotational DOF (about the body's own x, y, z)
-FREE, FIXED = "free", "fixed"
-TREE_JOINT_TYPES = (*JOINT_TYPES, FREE, FIXED)
+BALL = 2  # dof_kind of a free or ball joint's rotational DOF (about the body's own x, y, z)
+FREE, FIXED, BALL_JOINT = "free", "fixed", "ball"
+TREE_JOINT_TYPES = (*JOINT_TYPES, FREE, FIXED, BALL_JOINT)
+QUATERNION_JOINTS = (FREE, BALL_JOINT)  # joints whose q holds a unit quaternion (w, x, y, z)
 ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a placement rotation given by the user
 THREAD_WORKSPACES = "_thread_workspaces"  # a model's per-thread workspaces (Model.__getstate__)
 
@@ -183,7 +188,8 @@ class Model:
         placement_code:   (nb,) 0 when the rotation is the identity and the translation lies
                           along the parent's x (a chain's link), 1 otherwise.
         joint_qoff, joint_voff: (nb + 1,) first configuration / velocity coordinate of joint k.
-        dof_kind, dof_axis, dof_u: (n_v,) as a Chain's, with BALL for a free joint's rotation.
+        dof_kind, dof_axis, dof_u: (n_v,) as a Chain's, with BALL for a free or ball joint's
+                          rotation.
         mass, com, inertia_com, inertia_O, mass_com: per body, as a Chain's per link.
         gravity:          (3,) world gravity [m/s^2].
         frames:           name -> (body, point in its frame): points of interest (a chain's tip,
@@ -284,9 +290,9 @@ class Model:
             return  # (a long chain's construction pays no loop over its joints)
         for k, t in enumerate(self.joint_types):
             sl = slice(self.joint_voff[k], self.joint_voff[k + 1])
-            if t == FREE and np.any(self.stiffness[sl]):
+            if t in (FREE, BALL_JOINT) and np.any(self.stiffness[sl]):
                 _fail(self.name, f"stiffness[{int(self.joint_voff[k])}]",
-                      self.stiffness[sl].tolist(), f"joint {self.joint_names[k]!r} is a free "
+                      self.stiffness[sl].tolist(), f"joint {self.joint_names[k]!r} is a {t} "
                       "joint: the core's springs act on joints whose coordinates are their "
                       "velocities'")
 
@@ -346,7 +352,7 @@ class Model:
             inertia.append(I_c)
             jname.append(str(j.name))
             jtype.append(j.type)
-            axes.append(None if j.type in (FREE, FIXED) else
+            axes.append(None if j.type in (FREE, FIXED, BALL_JOINT) else
                         Joint(j.type, j.axis).axes(source, jwhere))
             par.append(int(p))
             plR.append(_rotation(source, f"{jwhere}.rotation", j.rotation))
@@ -423,8 +429,16 @@ class Model:
                 qoff.append(qoff[-1] + 7)
                 voff.append(voff[-1] + 6)
                 continue
+            if jtype[k] == BALL_JOINT:  # the free joint's rotation alone
+                for i in range(3):
+                    kinds.append(BALL)
+                    codes.append(i)
+                    units.append(np.eye(3)[i])
+                qoff.append(qoff[-1] + 4)
+                voff.append(voff[-1] + 3)
+                continue
             axes_k = axes[k]
-            assert axes_k is not None  # None only for free and fixed joints, neither here
+            assert axes_k is not None  # None only for free, ball and fixed joints: none here
             for kind, u in axes_k:
                 kinds.append(KIND_CODES[kind])
                 codes.append(next((i for i in range(3) if np.array_equal(u, np.eye(3)[i])),
@@ -629,8 +643,9 @@ class Model:
         Pinocchio's ``buildReducedModel``): each becomes a fixed joint placed where its motion
         at those values leaves its body, fused into its parent (a body so welded to the world
         is left out). ``values``: a mapping joint name -> its coordinate (R, P) or coordinates
-        (U: 2, S: 3, free: the 7 of q). Raises CaseError naming ``values`` when it is not such a
-        mapping, an unknown joint, or a value that is not the joint's count of finite numbers."""
+        (U: 2, S: 3, ball: the 4 of its quaternion, free: the 7 of q). Raises CaseError naming
+        ``values`` when it is not such a mapping, an unknown joint, or a value that is not the
+        joint's count of finite numbers."""
         where = f"{self.name}.locked"
         coupled = {n for c in self.couplings for n in (c.follower, c.leader)}
         if isinstance(values, Mapping) and coupled & set(values):
@@ -669,6 +684,8 @@ class Model:
                 x = np.atleast_1d(np.asarray(values[name], dtype=float))
                 if jt == FREE:
                     Rj, pj = quaternion_matrix(*(x[3:7] / np.linalg.norm(x[3:7]))), x[:3]
+                elif jt == BALL_JOINT:
+                    Rj, pj = quaternion_matrix(*(x / np.linalg.norm(x))), np.zeros(3)
                 else:
                     Rj, pj = joint_transform(list(zip(self.dof_kind[sl], self.dof_u[sl],
                                                       strict=True)), x)
@@ -699,12 +716,12 @@ class Model:
 
     @cached_property
     def n_q(self) -> int:
-        """Length of the configuration q (7 per free joint)."""
+        """Length of the configuration q (7 per free joint, 4 per ball joint)."""
         return int(self.joint_qoff[-1])
 
     @cached_property
     def n_v(self) -> int:
-        """Length of the velocity v (6 per free joint)."""
+        """Length of the velocity v (6 per free joint, 3 per ball joint)."""
         return int(self.joint_voff[-1])
 
     @property
@@ -795,9 +812,19 @@ class Model:
 
     @cached_property
     def quaternions(self) -> np.ndarray:
-        """Index in q of the first (w) component of each free joint's quaternion."""
-        return np.array([self.joint_qoff[k] + 3 for k, t in enumerate(self.joint_types)
-                         if t == FREE], dtype=np.int64)
+        """Index in q of the first (w) component of each free or ball joint's quaternion, in
+        joint order."""
+        return np.array([self.joint_qoff[k] + (3 if t == FREE else 0)
+                         for k, t in enumerate(self.joint_types) if t in QUATERNION_JOINTS],
+                        dtype=np.int64)
+
+    @cached_property
+    def quaternion_rates(self) -> tuple[tuple[int, int], ...]:
+        """(q index of the quaternion's w, v index of its angular velocity) of each free or ball
+        joint, in joint order: dq/dt there is q (x) [0; w] / 2."""
+        return tuple((int(self.joint_qoff[k]) + (3 if t == FREE else 0),
+                      int(self.joint_voff[k]) + (3 if t == FREE else 0))
+                     for k, t in enumerate(self.joint_types) if t in QUATERNION_JOINTS)
 
     def neutral(self) -> np.ndarray:
         """The configuration with every joint at zero and every quaternion the identity (a

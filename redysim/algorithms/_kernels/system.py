@@ -7,7 +7,8 @@ The contract every stepper calls (:mod:`.rk_run` in compiled code; :class:`redys
     project_step(sd, extras, y) -> int           y moved back onto the constraints after a step
                                                  (OK, or a status the Python side explains)
 
-for y = (q, v): dq/dt = v, but a free joint's quaternion, which moves as q (x) [0; w] / 2; dv/dt =
+for y = (q, v): dq/dt = v, but a free or ball joint's quaternion, which moves as q (x) [0; w] / 2;
+dv/dt =
 qdd(q, v, tau) from the tree's forward-dynamics entry (:mod:`.entry`: RGE-A, the planar or the DH
 kernel), with the loops closed (:mod:`.constraints`) and the couplings kept (Featherstone's
 method, :func:`couple_qdd`). The generalized forces tau are assembled in one place,
@@ -28,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from redysim._jit import jit_borrowed, jit_exact
+from redysim._jit import inline, jit_borrowed, jit_exact
 
 from .batch import dh_call as _dh
 from .batch import planar_call as _planar
@@ -55,9 +56,11 @@ class SystemData(NamedTuple):
     (m, 3) act on, at points ``point`` (m, 3) in the bodies' frames, ``wrench`` (nb, 6) their
     work array (all empty: none); ``base0`` (3,) zeros, the base at rest for a position pass.
     Free joints: each one's q slot of x in ``free_q``, its v slot
-    of the linear velocity in ``free_v``; every other coordinate q[plain_q[i]] moves as
-    v[plain_v[i]] (both empty without free joints: dq/dt = v). ``worst`` (3,): the largest
-    | |quaternion| - 1 |, |loop or coupling residual in q| and |in v| met before a projection."""
+    of the linear velocity in ``free_v``; ball joints: each one's q slot of its quaternion's w
+    in ``ball_q``, its v slot of w_x in ``ball_v``; every other coordinate q[plain_q[i]] moves
+    as v[plain_v[i]] (all empty without free and ball joints: dq/dt = v). ``worst`` (3,): the
+    largest | |quaternion| - 1 |, |loop or coupling residual in q| and |in v| met before a
+    projection."""
 
     kind: int
     fdata: np.ndarray
@@ -81,6 +84,8 @@ class SystemData(NamedTuple):
     plain_v: np.ndarray
     free_q: np.ndarray
     free_v: np.ndarray
+    ball_q: np.ndarray
+    ball_v: np.ndarray
     worst: np.ndarray
 
 
@@ -261,31 +266,42 @@ def derivative(sd, extras, t, y, out):
         flag = _dh(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
     if extras is not None and extras.couplings.fv.shape[0] != 0 and flag == 0.0:
         flag = couple_qdd(extras.couplings, q, qdd)
-    if sd.free_q.shape[0] == 0:
+    if sd.free_q.shape[0] == 0 and sd.ball_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]
     else:
-        configuration_rate(nq, sd.plain_q, sd.plain_v, sd.free_q, sd.free_v, y, out)
+        configuration_rate(nq, sd.plain_q, sd.plain_v, sd.free_q, sd.free_v, sd.ball_q,
+                           sd.ball_v, y, out)
     return flag == 0.0
 
 
 @jit_borrowed
-def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
+def configuration_rate(nq, plain_q, plain_v, free_q, free_v, ball_q, ball_v, y, out):
     """dq/dt into out[:nq] for y = (q, v) with free joints (``free_q``: each one's q slot of x,
-    ``free_v`` its v slot of the linear velocity): v_world and q (x) [0; w] / 2, every other
-    coordinate q[plain_q[i]] moving as v[plain_v[i]]."""
+    ``free_v`` its v slot of the linear velocity): v_world and q (x) [0; w] / 2; with ball
+    joints (``ball_q``: each one's q slot of w, ``ball_v`` its v slot of w_x): q (x) [0; w] / 2;
+    every other coordinate q[plain_q[i]] moving as v[plain_v[i]]."""
     for i in range(plain_q.shape[0]):
         out[plain_q[i]] = y[nq + plain_v[i]]
     for j in range(free_q.shape[0]):
         qs, vs = free_q[j], nq + free_v[j]
         for k in range(3):
             out[qs + k] = y[vs + k]
-        qw, qx, qy, qz = y[qs + 3], y[qs + 4], y[qs + 5], y[qs + 6]
-        wx, wy, wz = y[vs + 3], y[vs + 4], y[vs + 5]
-        out[qs + 3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
-        out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
-        out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
-        out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+        quaternion_rate(qs + 3, vs + 3, y, out)
+    for j in range(ball_q.shape[0]):
+        quaternion_rate(ball_q[j], nq + ball_v[j], y, out)
+
+
+@inline
+def quaternion_rate(i, w, y, out):
+    """out[i:i + 4] = q (x) [0; w] / 2 for the quaternion (w, x, y, z) at y[i] and the body's
+    own angular velocity at y[w]."""
+    qw, qx, qy, qz = y[i], y[i + 1], y[i + 2], y[i + 3]
+    wx, wy, wz = y[w], y[w + 1], y[w + 2]
+    out[i] = 0.5 * (-qx * wx - qy * wy - qz * wz)
+    out[i + 1] = 0.5 * (qw * wx + qy * wz - qz * wy)
+    out[i + 2] = 0.5 * (qw * wy - qx * wz + qz * wx)
+    out[i + 3] = 0.5 * (qw * wz + qx * wy - qy * wx)
 
 
 @jit_borrowed
@@ -347,7 +363,8 @@ def project(sd, extras, y, worst):
             return status
     if extras is not None:
         project_couplings(extras.couplings, nq, y, worst[RESIDUAL_Q:])
-    project_quaternions(sd.free_q, y, worst)
+    project_quaternions(sd.free_q, 3, y, worst)
+    project_quaternions(sd.ball_q, 0, y, worst)
     return OK
 
 
@@ -376,11 +393,12 @@ def project_couplings(cp, nq, y, worst):
 
 
 @jit_borrowed
-def project_quaternions(free_q, y, worst):
-    """Each free joint's quaternion divided by its norm, in place; the largest | |q| - 1 | met
+def project_quaternions(slots, shift, y, worst):
+    """Each quaternion, at y[slots[j] + shift] (a free joint's: its q slot of x and 3; a ball
+    joint's: its slot of w and 0), divided by its norm, in place; the largest | |q| - 1 | met
     into worst[0]."""
-    for j in range(free_q.shape[0]):
-        i = free_q[j] + 3
+    for j in range(slots.shape[0]):
+        i = slots[j] + shift
         norm = math.sqrt(y[i] * y[i] + y[i + 1] * y[i + 1] + y[i + 2] * y[i + 2]
                          + y[i + 3] * y[i + 3])
         e = abs(norm - 1.0)
