@@ -48,7 +48,8 @@ M_TOL, QACC_TOL = 1e-12, 1e-9
 # of these words is a piece of dynamics dropped
 ALLOWED = ("frictionloss", "contact", "collision", "fluid", "density", "viscosity", "plugin",
            "actuator", "does not act", "do not act", "limit", "range", "sensor", "visual",
-           "no effect", "not read", "solref")  # solref: MuJoCo's softness, where the core is exact
+           "no effect", "not read", "solref",  # solref: MuJoCo's softness, where the core is exact
+           "in-plane equations")  # a planar loop closed by its independent equations
 
 
 # --------------------------------------------------------------------------- stubs
@@ -165,8 +166,11 @@ def _state(rng, model, system, first: bool):
             if t == "free":
                 x, y, z, w = Rotation.random(random_state=rng).as_quat()
                 q[qs:qs + 7] = [*(q[qs:qs + 3] + rng.normal(size=3)), w, x, y, z]
-            elif t == "ball":
-                x, y, z, w = Rotation.random(random_state=rng).as_quat()
+            elif t == "ball":  # (near its start on a closed mechanism, whose loops it moves)
+                turn = Rotation.from_rotvec(rng.normal(scale=0.05, size=3)) if model.cuts \
+                    else Rotation.random(random_state=rng)
+                w0, x0, y0, z0 = q[qs:qe]
+                x, y, z, w = (Rotation.from_quat([x0, y0, z0, w0]) * turn).as_quat()
                 q[qs:qe] = [w, x, y, z]
             else:
                 q[qs:qe] += rng.normal(scale=0.05 if model.cuts else 0.3, size=qe - qs)
@@ -174,8 +178,9 @@ def _state(rng, model, system, first: bool):
     tau = rng.normal(size=model.n_v)
     if model.couplings:
         q, v = model.couple(q, v)
-    if system.loops is not None:  # onto the loops (Newton from the moved q)
-        q, v, _, _ = system.loops.project(q, v)
+    if system.loops is not None:  # onto the loops (Newton from the moved q, a few rounds)
+        for _ in range(4):
+            q, v, _, _ = system.loops.project(q, v)
     y = system.initial_state(q, v) if (model.cuts or model.couplings) else np.concatenate((q, v))
     return y[:model.n_q], y[model.n_q:], tau
 

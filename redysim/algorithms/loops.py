@@ -61,6 +61,7 @@ REGULAR_NEAR = 1e-8
 NEAR_CHANGE_POINT = 1e-6  # a run that met J X this near singular passed near a change point
 PROJECTION_TOL = 1e-12  # |phi| (m) the position projection aims at, relative to the model's size
 PROJECTION_ITERATIONS = 8
+PROJECTION_HALVINGS = 6  # a Newton step far from the loops halved at most this often (numpy path)
 
 
 class ClosedLoops:
@@ -78,9 +79,6 @@ class ClosedLoops:
             raise CaseError(source, "model", type(model).__name__, "must be a redysim.Model")
         if cuts is None:  # the model's own (Model.with_cuts)
             cuts = model.cuts
-        if FREE in model.joint_types:
-            raise CaseError(source, "model", model.name, "loops on a model with a free joint are "
-                            "not supported yet (its quaternion has 4 coordinates for 3 DOF)")
         check_cuts(model, cuts, source)
         self.model, self.cuts = model, tuple(cuts)
         # the open tree: redysim.forward_dynamics refuses a model with cuts (it would answer for
@@ -99,8 +97,11 @@ class ClosedLoops:
         # the compiled functions' bundle; None for a coupled tree, whose qdd is its couplings'
         # (numpy path)
         # (numpy path), as is one with a 'plane' cut (the compiled functions have none)
-        self.bundle = None if model.couplings or any(c.kind == "plane" for c in self.cuts) \
-            else self._bundle()
+        # and for a tree with quaternions (free or ball joints: q moves along v by the joints'
+        # rates, :meth:`_moved`, which the compiled projection does not do)
+        self._rate = _rate_layout(model)
+        self.bundle = None if (model.couplings or any(c.kind == "plane" for c in self.cuts)
+                               or self._rate is not None) else self._bundle()
 
     def _bundle(self):
         """The compiled functions' bundle (:class:`redysim.algorithms._kernels.constraints.Loops`):
@@ -246,6 +247,40 @@ class ClosedLoops:
                     out.append(x)
         return (np.concatenate(phi), np.vstack(J), np.concatenate(Jv), np.concatenate(Jdv))
 
+    def _newton_step(self, q, v, phi, step, J):
+        """(q, phi, J) after the projection's Newton step ``step`` (velocity space), halved
+        while it does not shrink |phi|; where no halving does (a body of almost no inertia
+        about an axis the loops barely see, as a rod spinning about its length, makes the
+        mass-weighted step large and its second-order change of phi larger than phi), the
+        least-squares step -J^T (J J^T)^-1 phi instead, which moves every coordinate alike."""
+        worst = np.abs(phi).max()
+        for attempt in range(2):
+            for _ in range(PROJECTION_HALVINGS):
+                q_new = self._moved(q, step)
+                phi_new, J_new, _, _ = self.evaluate(q_new, v)
+                if np.abs(phi_new).max() < worst:
+                    return q_new, phi_new, J_new
+                step = 0.5 * step
+            if attempt == 0:
+                step = -(J.T @ np.linalg.lstsq(J @ J.T, phi, rcond=None)[0])
+        return q_new, phi_new, J_new
+
+    def _moved(self, q, dv):
+        """q moved by the velocity-space step dv: q + dv where dq/dt = v; a free or ball joint's
+        position by dv's linear part and its quaternion by q (x) [0; w] / 2, then normalised (a
+        first-order move: the projection's Newton steps converge on it)."""
+        if self._rate is None:
+            return q + dv
+        from redysim.algorithms._kernels.system import configuration_rate
+
+        nq = q.shape[0]
+        rate = np.empty(nq)
+        configuration_rate(nq, *self._rate[:6], np.concatenate((q, dv)), rate)
+        q = q + rate
+        for i in self._rate[6]:  # each quaternion's w slot: back onto the unit sphere
+            q[i:i + 4] /= np.linalg.norm(q[i:i + 4])
+        return q
+
     def residuals(self, q, v) -> tuple[float, float]:
         """(max |phi| [m], max |J v| [m/s]): how far (q, v) is off the loops."""
         phi, _, Jv, _ = self.evaluate(q, v)
@@ -369,8 +404,32 @@ class ClosedLoops:
             if np.abs(phi).max() <= PROJECTION_TOL * self.size:
                 break
             X = self._mobility(q, J)
-            q -= X @ self._solve(J @ X, phi, q)
-            phi, J, _, _ = self.evaluate(q, v)
+            q, phi, J = self._newton_step(q, v, phi, -(X @ self._solve(J @ X, phi, q)), J)
         X = self._mobility(q, J)
         v -= X @ self._solve(J @ X, J @ v, q)
         return q, v, before[0], before[1]
+
+
+def _rate_layout(model: Model):
+    """The index arrays of :func:`redysim.algorithms._kernels.system.configuration_rate` for a
+    model with free or ball joints, and each quaternion's q slot last; None without them."""
+    from redysim.model.tree import BALL_JOINT
+
+    if not any(t in (FREE, BALL_JOINT) for t in model.joint_types):
+        return None
+    plain_q, plain_v, free_q, free_v, ball_q, ball_v, quats = [], [], [], [], [], [], []
+    for k, t in enumerate(model.joint_types):
+        qs, vs = int(model.joint_qoff[k]), int(model.joint_voff[k])
+        if t == FREE:
+            free_q.append(qs)
+            free_v.append(vs)
+            quats.append(qs + 3)
+        elif t == BALL_JOINT:
+            ball_q.append(qs)
+            ball_v.append(vs)
+            quats.append(qs)
+        else:
+            plain_q.extend(range(qs, int(model.joint_qoff[k + 1])))
+            plain_v.extend(range(vs, int(model.joint_voff[k + 1])))
+    return tuple(np.array(a, dtype=np.int64)
+                 for a in (plain_q, plain_v, free_q, free_v, ball_q, ball_v, quats))

@@ -53,7 +53,7 @@ connect of a mechanism moving in a plane keeps its two in-plane equations, a 'pl
 'plane' cut). ``equality="refuse"`` refuses a loop closure, ``equality="drop"`` drops every
 equality (announced). Refused: a free joint below the root, an equality the core
 cannot hold (a polynomial of degree > 1, a cycle of equalities, a joint that follows two, a
-flex's, redundant loop equations, loops on a model with a free joint) naming the
+flex's, redundant loop equations) naming the
 ``<equality>``, a file nested deeper than MuJoCo's XML reader takes (:data:`MJCF_MAX_DEPTH`
 elements), and what MuJoCo's compiler refuses (its message kept, the element named).
 The passive elements are the model's, as MuJoCo applies them
@@ -1272,18 +1272,13 @@ def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
                ) -> tuple[list[CutJoint], list[str]]:
     """The cut joints of the loop closures, in the model's bodies (a MuJoCo body fused into
     an ancestor or the world, its points and frames carried there through the poses at qpos0);
-    ModelFileError naming the equality for a closure of the world to itself, a model with a
-    free joint, or equations that are redundant (a point closure of a mechanism that moves in
+    ModelFileError naming the equality for a closure of the world to itself, or equations
+    that are redundant (a point closure of a mechanism that moves in
     a plane: 2 independent equations of 3; one in the world's xy plane becomes a 'planar'
     cut). Also a note for each closure open at qpos0 (MuJoCo pulls it shut softly)."""
     from redysim.algorithms import rbda
     from redysim.algorithms.loops import ClosedLoops
 
-    if FREE in model.joint_types:
-        c = closures[0]
-        raise ModelFileError(src, f"equality {c.name!r}", c.what, "a loop closure on a model "
-                             "with a free joint, which the core's closed loops do not support "
-                             "yet; load with equality='drop' to drop it")
     d = mj.MjData(m)
     d.qpos[:] = m.qpos0
     mj.mj_kinematics(m, d)
