@@ -13,7 +13,9 @@ moved by N(0, 0.3), free joints to random poses, v and tau N(0, 1), all moved on
 couplings and loops by the core): the mass matrix (``mj_fullM``, armature included) and the
 accelerations of the *smooth* dynamics: MuJoCo's ``qacc`` with contacts, limits, frictionloss and
 actuation off and fluid forces zero (what the core announces and does not simulate), its
-passive forces (damping, springs, gravity compensation) on. A model whose file has equality
+passive forces (damping, springs, gravity compensation) on; a joint's gravity compensation that
+MuJoCo routes through its actuator (``actuatorgravcomp``, clamped by ``actuatorfrcrange``) added
+whole, as the core applies it (and announces). A model whose file has equality
 constraints (joint couplings, ``connect``, ``weld``) holds them softly in MuJoCo
 (solref/solimp) and exactly in the core, so MuJoCo's side is then its dynamics with the
 constraints made exact, by Gauss's principle on MuJoCo's own quantities: qacc = a - M^-1 J^T
@@ -146,6 +148,8 @@ def mujoco_truth(mujoco, m, q, v, tau) -> tuple[np.ndarray, np.ndarray]:
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, M)
     f = tau + d.qfrc_passive - d.qfrc_bias
+    routed = np.flatnonzero(m.jnt_actgravcomp[m.dof_jntid])  # actuatorgravcomp: the actuators'
+    f[routed] += d.qfrc_gravcomp[routed]  # (off here) gravity compensation, whole, as the core's
     a = np.linalg.solve(M, f)
     if J.shape[0]:
         b = J @ a + _jdot_v(mujoco, m, d, q, v)

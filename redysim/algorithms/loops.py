@@ -326,7 +326,7 @@ class ClosedLoops:
         directions): the redundancy at q is then a change point's, not the cuts' own."""
         dq = np.random.default_rng(CHANGE_POINT_SEED).uniform(-1.0, 1.0, self.model.n_v)
         dq *= CHANGE_POINT_STEP * np.where(self.model.dof_kind == 1, self.size, 1.0)
-        near = self.model.couple(np.asarray(q, dtype=float) + dq)  # on the couplings
+        near = self.model.couple(self._moved(np.asarray(q, dtype=float), dq))  # on the couplings
         J = self.evaluate(near, self._zeros)[1]
         s = np.linalg.svd(J @ self._mobility(near, J), compute_uv=False)
         return bool(s[0] > 0 and s[-1] > REGULAR_NEAR * s[0])
