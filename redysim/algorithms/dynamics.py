@@ -400,10 +400,12 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     strided) after numba refuses their types, a slower path.
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
-    model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion, by Featherstone's
-    method on the tree (1 + len(couplings) tree calls; with RGE-A on a spatial tree in compiled
-    code, as a simulation's steps, else in Python; no batch kernels); q and v must keep its
-    couplings (StateError otherwise: ``model.couple(q, v)`` sets them).
+    model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion: with RGE-A on a
+    spatial tree, the couplings in RGE-A's recursion, in compiled code (the tree's call, a sweep
+    of each coupling's paths to the root and one more forward pass: O(n); batches row by row, no
+    SIMD tiles); else by Featherstone's method on the tree in Python (1 + len(couplings) tree
+    calls). q and v must keep its couplings (StateError otherwise: ``model.couple(q, v)`` sets
+    them).
     """
     ws = _ws(model, ws)
     if model.cuts or model.couplings:

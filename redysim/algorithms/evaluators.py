@@ -61,7 +61,11 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     functions take it (False: the general kernels on a robot in DH form).
 
     Refuses (FieldError) something that is not a Model and an unknown ``kind``, and (CaseError)
-    a model with cut joints, as the public functions refuse it. Building one compiles its
+    a model with cut joints, as the public functions refuse it. A coupled model
+    (:meth:`~redysim.Model.with_couplings`): forward dynamics keeps its couplings (a lean entry
+    with them in RGE-A's recursion, on a spatial tree; a state off them goes to the checked
+    path, which names the joint); its inverse dynamics, and a planar one's, is the checked
+    path. Building one compiles its
     kernel on first use in a process (loaded from numba's disk cache after that) and allocates
     the evaluator's scratch (a :class:`~redysim.algorithms.workspace.Workspace`, ~380 bytes a
     DOF), kept as long as the evaluator is.
