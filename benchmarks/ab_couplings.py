@@ -5,10 +5,10 @@
 
 For each robot with mimic joints (the Menagerie Panda, whose two fingers are coupled, when
 ``DIR/franka_emika_panda/panda.xml`` exists (``--menagerie`` or ``$MENAGERIE``: a checkout of
-mujoco_menagerie), else example-robot-data's Panda URDF; example-robot-data's Talos ``talos_full_v2.urdf``, 12 mimic
-joints in its grippers, on a free base) the coupled Model and the same Model without its
-couplings (``model.tree``) are timed by turns, on one state that keeps the couplings, per
-call through:
+mujoco_menagerie), else example-robot-data's Panda URDF; example-robot-data's Talos
+``talos_full_v2.urdf``, 12 mimic joints in its grippers, on a free base) the coupled Model and
+the same Model without its couplings (``model.tree``) are timed by turns, on one state that
+keeps the couplings, per call through:
 
 - ``forward_dynamics(model, q, v, tau, ws=ws, out=out)``: the public door's hot path;
 - ``redysim.evaluator(model)``: the evaluator's builtin (``fd(q, v, tau, out)``);
@@ -141,8 +141,8 @@ def main() -> None:
                     best[key] = min(best[key], per_call(fn, calls) / per)
             print(f"  {door:28s} {best['c']:9.3f} {best['u']:10.3f} "
                   f"{best['c'] / best['u']:7.2f}")
-        print(f"  (qdd's followers on their leaders: "
-              f"{np.abs(qdd[model.coupling_index[2]] - model.coupling_index[4] * qdd[model.coupling_index[3]]).max():.1e})")
+        _, _, fv, lv, m, _ = model.coupling_index
+        print(f"  (qdd's followers on their leaders: {np.abs(qdd[fv] - m * qdd[lv]).max():.1e})")
 
 
 if __name__ == "__main__":

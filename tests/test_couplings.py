@@ -277,8 +277,7 @@ def test_export_writes_the_couplings_back(tmp_path):
         bodies.append(redysim.Body(f"b{k}", 1.0 + k / 5, tuple(rng.normal(scale=0.1, size=3)),
                                    ((0.2, 0.01, 0.0), (0.01, 0.3, 0.0), (0.0, 0.0, 0.4))))
         joints.append(redysim.TreeJoint(f"j{k}", "RP"[k % 2], tuple(rng.normal(size=3)),
-                                        translation=(0.0, 0.0, 0.0) if t == "free" else
-                                        tuple(rng.normal(scale=0.3, size=3))))
+                                        translation=tuple(rng.normal(scale=0.3, size=3))))
     model = redysim.Model.build(bodies, joints, [-1, 0, 1, 1, 3, 0],
                                 gravity=(0.0, 0.0, -9.81)).with_couplings(
         [Coupling("j2", "j1", -1.5, 0.1), Coupling("j5", "j3", 0.5, 0.0)])

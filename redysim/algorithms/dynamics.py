@@ -25,6 +25,7 @@ from redysim.algorithms._kernels import batch as _batch
 from redysim.algorithms._kernels import couplings as _couplings
 from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms._kernels import tiles as _tiles
+from redysim.algorithms._kernels.couplings import COUPLED as _COUPLED
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
 from redysim.algorithms._kernels.energy import energy as _energy
 from redysim.algorithms._kernels.entry import DH as _DH
@@ -32,7 +33,6 @@ from redysim.algorithms._kernels.entry import DH_INVERSE as _DH_INVERSE
 from redysim.algorithms._kernels.entry import PLANAR as _PLANAR
 from redysim.algorithms._kernels.entry import RGE_A as _RGE_A
 from redysim.algorithms._kernels.entry import SIZE_MISMATCH
-from redysim.algorithms._kernels.couplings import COUPLED as _COUPLED
 from redysim.algorithms._kernels.gim import gim_composite
 from redysim.algorithms._kernels.inverse_dynamics import rnea_backward
 from redysim.algorithms._kernels.kinematics import kinematics as _kinematics

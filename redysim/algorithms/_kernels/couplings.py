@@ -47,7 +47,7 @@ from redysim._jit import EntryPoint, inline, jit_borrowed
 
 from .bundles import H_NB, H_NQ, H_NV
 from .constraints import solve_small
-from .entry import RGE_A_CALLEES, SIZE_MISMATCH, F_BASE_ACCEL, F_ZEROS, bundles
+from .entry import F_BASE_ACCEL, F_ZEROS, RGE_A_CALLEES, SIZE_MISMATCH, bundles
 from .kinematics import kinematics
 from .rge_a import rge_a_backward, rge_a_forward
 
