@@ -219,7 +219,7 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
                      ws: Workspace | None = None) -> np.ndarray:
     """qdd of a coupled model (:meth:`Model.with_couplings`), its state checked: with RGE-A on a
     spatial tree, in RGE-A's recursion on the workspace (``ws``, or the thread's:
-    :func:`redysim.algorithms._kernels.couplings.couple_step`); else by Featherstone's method on
+    :func:`redysim.algorithms._kernels.couplings.coupled_qdd`); else by Featherstone's method on
     the tree: qdd0 the tree's, X = M^-1 J^T by the tree's forward dynamics with no gravity and no
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the

@@ -19,9 +19,10 @@ and each follower's qdd set to m times its leader's (the solve leaves rounding).
 pass and the short path sweeps more than the tree's call, where the method this replaces ran
 one whole call of the tree per coupling (docs/design.md, "Coupled joints").
 
-:func:`couple_step` is the one implementation: the public entry (:func:`coupled_entry`), the
-evaluator's lean entries (:mod:`.lean`), batches (:func:`coupled_rows`) and a run's compiled
-derivative (:func:`.system.derivative`) call it after the tree's passes, on the same workspace.
+:func:`couple_step` is the one implementation, inlined where the tree's passes were just run on
+the same bundles: :func:`coupled_qdd` (which the public entry :func:`coupled_entry`, batches
+:func:`coupled_rows` and a run's compiled derivative :func:`.system.derivative` call) and the
+evaluator's lean entries (:mod:`.lean`).
 
 Layout. A coupled model's workspace (:class:`redysim.algorithms.workspace.Workspace`, a model
 with couplings that is not planar) appends to its packed arrays, after the tree's (whose header
@@ -35,7 +36,7 @@ does not see them, so every other kernel reads the arrays as before):
 - floats: ``m`` (k), ``offset`` (k), the tolerance of a state's check (relative, as
   :data:`redysim.algorithms.dynamics.COUPLING_TOL`), 3 zeros (a base at rest).
 - scratch: ``Y`` (k, n_v), ``Z`` = D^-1 Y (k, n_v) on the paths, ``A`` (k, k), ``lam`` (k),
-  ``E`` (n_b, 6) the wrenches handed to the parents, ``delta`` (n_v).
+  ``E`` (n_b, 6) the wrenches handed to the parents, ``delta`` (n_v); flat, row by row.
 """
 
 from __future__ import annotations
@@ -46,8 +47,7 @@ from numba import types
 from redysim._jit import EntryPoint, inline, jit_borrowed
 
 from .bundles import H_NB, H_NQ, H_NV
-from .constraints import solve_small
-from .entry import F_BASE_ACCEL, F_ZEROS, RGE_A_CALLEES, SIZE_MISMATCH, bundles
+from .entry import F_BASE_ACCEL, F_ZEROS, SIZE_MISMATCH, bundles
 from .kinematics import kinematics
 from .rge_a import rge_a_backward, rge_a_forward
 
@@ -90,7 +90,8 @@ def coupling_tail(model, parent, joint_voff, serial: bool, tol: float, f_at: int
 
 @inline
 def _tail(fdata, idata, scratch):
-    """The couplings' segments of a workspace's packed arrays, as views (module docstring)."""
+    """The couplings' segments of a workspace's packed arrays, as flat views (module docstring;
+    no reshape, whose strides numba gets from a C helper at a cost per call)."""
     c0 = idata[idata.shape[0] - 1]
     k, fo, so, nbp, ndp = idata[c0], idata[c0 + 1], idata[c0 + 2], idata[c0 + 3], idata[c0 + 4]
     nv, nb = idata[H_NV], idata[H_NB]
@@ -105,17 +106,14 @@ def _tail(fdata, idata, scratch):
     dofs = idata[i + k + 1:i + k + 1 + ndp]
     m, off, tol, base0 = (fdata[fo:fo + k], fdata[fo + k:fo + 2 * k], fdata[fo + 2 * k],
                           fdata[fo + 2 * k + 1:fo + 2 * k + 4])
-    Y = scratch[so:so + k * nv].reshape((k, nv))
-    so += k * nv
-    Z = scratch[so:so + k * nv].reshape((k, nv))
-    so += k * nv
-    A = scratch[so:so + k * k].reshape((k, k))
-    so += k * k
-    lam = scratch[so:so + k]
-    so += k
-    E = scratch[so:so + 6 * nb].reshape((nb, 6))
-    so += 6 * nb
-    delta = scratch[so:so + nv]
+    Y = scratch[so:so + k * nv]  # (k, nv) row by row, as Z
+    Z = scratch[so + k * nv:so + 2 * k * nv]
+    so += 2 * k * nv
+    A = scratch[so:so + k * k]  # (k, k)
+    lam = scratch[so + k * k:so + k * k + k]
+    so += k * k + k
+    E = scratch[so:so + 6 * nb]  # (nb, 6)
+    delta = scratch[so + 6 * nb:so + 6 * nb + nv]
     return (k, fq, lq, fv, lv, boff, bodies, doff, dofs, m, off, tol, base0, Y, Z, A, lam, E,
             delta)
 
@@ -136,37 +134,63 @@ def on_couplings(fdata, idata, scratch, q, v):
     return True
 
 
-@jit_borrowed
-def couple_step(fdata, idata, scratch, qdd):
+@inline
+def _solve(A, b, k):
+    """A x = b for a k x k A (flat, row by row) by Gaussian elimination with partial pivoting,
+    in place (as :func:`.constraints.solve_small`, on a flat A)."""
+    for c in range(k):
+        p = c
+        for r in range(c + 1, k):
+            if abs(A[r * k + c]) > abs(A[p * k + c]):
+                p = r
+        if p != c:
+            for j in range(k):
+                A[c * k + j], A[p * k + j] = A[p * k + j], A[c * k + j]
+            b[c], b[p] = b[p], b[c]
+        for r in range(c + 1, k):
+            f = A[r * k + c] / A[c * k + c]
+            for j in range(c + 1, k):
+                A[r * k + j] = A[r * k + j] - f * A[c * k + j]
+            b[r] = b[r] - f * b[c]
+    for c in range(k - 1, -1, -1):
+        x = b[c]
+        for j in range(c + 1, k):
+            x = x - A[c * k + j] * b[j]
+        b[c] = x / A[c * k + c]
+
+
+@inline
+def couple_step(tree, s, fdata, idata, scratch, qdd):
     """The tree's qdd (in place), just computed by RGE-A's three passes on this workspace's
-    packed arrays, made the coupled motion's (module docstring). Returns 0.0, or NaN when some
-    qdd is not finite (a singular J M^-1 J^T included)."""
+    bundles ``tree``, ``s`` (of its packed arrays), made the coupled motion's (module
+    docstring). Returns 0.0, or NaN when some qdd is not finite (a singular J M^-1 J^T
+    included). Inlined into each caller (:func:`coupled_qdd`, the lean entries), which hand it
+    the bundles they made."""
     (k, fq, lq, fv, lv, boff, bodies, doff, dofs, m, off, tol, base0, Y, Z, A, lam, E,
      delta) = _tail(fdata, idata, scratch)
-    tree, s = bundles(fdata, idata, scratch)
     serial = tree.serial != 0
     parent, voff, oO, oP, Ihat, Psihat = tree.parent, tree.joint_voff, s.oO, s.oP, s.Ihat, s.Psihat
     nv = qdd.shape[0]
-    for c in range(k):
-        for j in range(nv):
-            Y[c, j] = 0.0
+    for j in range(k * nv):
+        Y[j] = 0.0
     # each column y_c = U^-1 (e_f - m e_l) on its path, children before parents
     for c in range(k):
-        f, ld, mc = fv[c], lv[c], m[c]
+        f, ld, mc, row = fv[c], lv[c], m[c], c * nv
         for i in range(boff[c], boff[c + 1]):
             for r in range(6):
-                E[bodies[i], r] = 0.0
+                E[6 * bodies[i] + r] = 0.0
         for i in range(boff[c], boff[c + 1]):
             b = bodies[i]
-            e0, e1, e2, e3, e4, e5 = E[b, 0], E[b, 1], E[b, 2], E[b, 3], E[b, 4], E[b, 5]
+            e0, e1, e2 = E[6 * b], E[6 * b + 1], E[6 * b + 2]
+            e3, e4, e5 = E[6 * b + 3], E[6 * b + 4], E[6 * b + 5]
             for j in range(voff[b + 1] - 1, voff[b] - 1, -1):
                 rhs = 1.0 if j == f else 0.0
                 if j == ld:
                     rhs = rhs - mc
                 ph = rhs - (oP[j, 0] * e0 + oP[j, 1] * e1 + oP[j, 2] * e2
                             + oP[j, 3] * e3 + oP[j, 4] * e4 + oP[j, 5] * e5)
-                Y[c, j] = ph
-                Z[c, j] = ph / Ihat[j]
+                Y[row + j] = ph
+                Z[row + j] = ph / Ihat[j]
                 e0 += Psihat[j, 0] * ph
                 e1 += Psihat[j, 1] * ph
                 e2 += Psihat[j, 2] * ph
@@ -176,23 +200,23 @@ def couple_step(fdata, idata, scratch, qdd):
             p = b - 1 if serial else parent[b]
             if p >= 0:  # to the parent's origin, a = O_p - O_b: n <- n - a x f
                 a0, a1, a2 = oO[p, 0] - oO[b, 0], oO[p, 1] - oO[b, 1], oO[p, 2] - oO[b, 2]
-                E[p, 0] += e0 - (a1 * e5 - a2 * e4)
-                E[p, 1] += e1 - (a2 * e3 - a0 * e5)
-                E[p, 2] += e2 - (a0 * e4 - a1 * e3)
-                E[p, 3] += e3
-                E[p, 4] += e4
-                E[p, 5] += e5
+                E[6 * p] += e0 - (a1 * e5 - a2 * e4)
+                E[6 * p + 1] += e1 - (a2 * e3 - a0 * e5)
+                E[6 * p + 2] += e2 - (a0 * e4 - a1 * e3)
+                E[6 * p + 3] += e3
+                E[6 * p + 4] += e4
+                E[6 * p + 5] += e5
     # A = Y^T D^-1 Y (column c's path holds every DOF where z_c is not zero), A lam = -J qdd0
     for c in range(k):
         for d in range(c, k):
             acc = 0.0
             for i in range(doff[c], doff[c + 1]):
                 j = dofs[i]
-                acc += Z[c, j] * Y[d, j]
-            A[c, d] = acc
-            A[d, c] = acc
+                acc += Z[c * nv + j] * Y[d * nv + j]
+            A[c * k + d] = acc
+            A[d * k + c] = acc
         lam[c] = -(qdd[fv[c]] - m[c] * qdd[lv[c]])
-    solve_small(A, lam, k)
+    _solve(A, lam, k)
     # qdd += U^-T (D^-1 Y lam): RGE-A's forward pass on phitil = Z lam, zero base acceleration
     # and zero twist-rates (the passes' own c_k, no longer needed, are cleared)
     phitil, td = s.phitil, s.td
@@ -202,7 +226,7 @@ def couple_step(fdata, idata, scratch, qdd):
         x = lam[c]
         for i in range(doff[c], doff[c + 1]):
             j = dofs[i]
-            phitil[j] += Z[c, j] * x
+            phitil[j] += Z[c * nv + j] * x
     for b in range(td.shape[0]):
         for r in range(6):
             td[b, r] = 0.0
@@ -216,25 +240,36 @@ def couple_step(fdata, idata, scratch, qdd):
     return bad
 
 
+@jit_borrowed
+def coupled_qdd(fdata, idata, scratch, q, v, tau, qdd):
+    """qdd of a coupled model on its workspace's packed arrays (no check of the lengths or that
+    the state keeps the couplings): RGE-A's three passes as :func:`.entry.rge_a_entry` runs
+    them, then :func:`couple_step` (what a coupled system's derivative, the public entry and
+    batches run). Returns 0.0, or NaN when some qdd is not finite."""
+    h = idata
+    tree, s = bundles(fdata, idata, scratch)
+    base_accel = fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3]
+    zeros = fdata[h[F_ZEROS]:h[F_ZEROS] + h[H_NV]]
+    kinematics(tree, q, v, zeros, base_accel, s, True)
+    rge_a_backward(tree, s, tau)
+    bad = rge_a_forward(tree, s, base_accel, qdd)
+    if bad != 0.0:
+        return bad
+    return couple_step(tree, s, fdata, idata, scratch, qdd)
+
+
 def coupled_entry(fdata, idata, q, qd, tau, scratch, qdd):
     """A coupled model's qdd on its workspace's packed arrays: :func:`.entry.rge_a_entry`'s
-    checks and passes, then :func:`couple_step`. Returns 0.0, NaN (not finite), SIZE_MISMATCH
-    or OFF_COUPLINGS (q or v off the couplings), having written nothing in the last two."""
+    checks, the state's against the couplings, then :func:`coupled_qdd`. Returns 0.0, NaN (not
+    finite), SIZE_MISMATCH or OFF_COUPLINGS (q or v off the couplings), having written nothing
+    in the last two."""
     h = idata
     nv = h[H_NV]
     if q.shape[0] != h[H_NQ] or qd.shape[0] != nv or tau.shape[0] != nv or qdd.shape[0] != nv:
         return SIZE_MISMATCH
     if not on_couplings(fdata, idata, scratch, q, qd):
         return OFF_COUPLINGS
-    tree, s = bundles(fdata, idata, scratch)
-    base_accel = fdata[h[F_BASE_ACCEL]:h[F_BASE_ACCEL] + 3]
-    zeros = fdata[h[F_ZEROS]:h[F_ZEROS] + nv]
-    kinematics(tree, q, qd, zeros, base_accel, s, True)
-    rge_a_backward(tree, s, tau)
-    bad = rge_a_forward(tree, s, base_accel, qdd)
-    if bad != 0.0:
-        return bad
-    return couple_step(fdata, idata, scratch, qdd)
+    return coupled_qdd(fdata, idata, scratch, q, qd, tau, qdd)
 
 
 coupled_call = jit_borrowed(coupled_entry)
@@ -256,4 +291,4 @@ _F1 = types.Array(types.float64, 1, "C")
 _I1 = types.Array(types.int64, 1, "C")
 _RO = types.Array(types.float64, 1, "C", readonly=True)
 COUPLED = EntryPoint(coupled_entry, types.float64(_F1, _I1, _RO, _RO, _RO, _F1, _F1),
-                     (*RGE_A_CALLEES, (couple_step, (_F1, _I1, _F1, _F1))))
+                     ((coupled_qdd, (_F1, _I1, _F1, _RO, _RO, _RO, _F1)),))

@@ -10,7 +10,7 @@ The contract every stepper calls (:mod:`.rk_run` in compiled code; :class:`redys
 for y = (q, v): dq/dt = v, but a free joint's quaternion, which moves as q (x) [0; w] / 2; dv/dt =
 qdd(q, v, tau) from the tree's forward-dynamics entry (:mod:`.entry`: RGE-A, the planar or the DH
 kernel), with the loops closed (:mod:`.constraints`) and the couplings kept in RGE-A's
-recursion (:func:`.couplings.couple_step`). The generalized forces tau are assembled in one place,
+recursion (:func:`.couplings.coupled_qdd`). The generalized forces tau are assembled in one place,
 :func:`generalized_forces`: a constant force at a chain's tip, constant world forces at points
 of bodies (gravity compensation is one), viscous joint damping and joint springs. A new force is
 one term there; a new constraint one step in :func:`derivative` and :func:`project`.
@@ -34,7 +34,7 @@ from .batch import dh_call as _dh
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
 from .constraints import OK, Loops, loops_project, loops_qdd
-from .couplings import couple_step
+from .couplings import coupled_qdd
 from .entry import bundles
 from .kinematics import kinematics
 from .planar import planar_tip_torques
@@ -88,7 +88,7 @@ class SystemData(NamedTuple):
 class Couplings(NamedTuple):
     """A coupled model's couplings (q_f = m q_l + offset, mimic joints), for the projection after
     a step (:func:`project_couplings`) and to say that the derivative couples the tree's qdd
-    (:func:`.couplings.couple_step`, on the system's workspace, whose packed arrays hold the
+    (:func:`.couplings.coupled_qdd`, on the system's workspace, whose packed arrays hold the
     couplings' own segments); every array empty for a model without couplings. ``fq``, ``lq``,
     ``fv``, ``lv``: each coupling's follower's and leader's q and v slots; ``m``, ``off``:
     multiplier and offset."""
@@ -242,14 +242,14 @@ def derivative(sd, extras, t, y, out):
     tau = sd.tau if generalized_forces(sd, extras, t, q, v, sd.tau) else sd.zeros
     if extras is not None and extras.loops.ckind.shape[0] != 0:
         flag = 0.0 if loops_qdd(extras.loops, q, v, tau, qdd) == OK else 1.0
+    elif extras is not None and extras.couplings.fv.shape[0] != 0:  # (RGE-A: not planar)
+        flag = coupled_qdd(sd.fdata, sd.idata, sd.scratch, q, v, tau, qdd)
     elif sd.kind == RGE_A:
         flag = _rge_a(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
     elif sd.kind == PLANAR:
         flag = _planar(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
     else:
         flag = _dh(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
-    if extras is not None and extras.couplings.fv.shape[0] != 0 and flag == 0.0:
-        flag = couple_step(sd.fdata, sd.idata, sd.scratch, qdd)
     if sd.free_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]
@@ -275,17 +275,6 @@ def configuration_rate(nq, plain_q, plain_v, free_q, free_v, y, out):
         out[qs + 4] = 0.5 * (qw * wx + qy * wz - qz * wy)
         out[qs + 5] = 0.5 * (qw * wy - qx * wz + qz * wx)
         out[qs + 6] = 0.5 * (qw * wz + qx * wy - qy * wx)
-
-
-@jit_borrowed
-def coupled_qdd(fdata, idata, scratch, q, v, tau, qdd):
-    """qdd of a coupled model on its workspace's packed arrays: the tree's by RGE-A, then
-    :func:`.couplings.couple_step` (what :func:`derivative` does for a coupled system; no check
-    that the state keeps the couplings)."""
-    flag = _rge_a(fdata, idata, q, v, tau, scratch, qdd)
-    if flag == 0.0:
-        flag = couple_step(fdata, idata, scratch, qdd)
-    return flag
 
 
 # --------------------------------------------------------------------------- the projection
