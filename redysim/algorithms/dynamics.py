@@ -22,8 +22,10 @@ from numpy import ndarray
 
 from redysim._jit import JIT_ENABLED
 from redysim.algorithms._kernels import batch as _batch
+from redysim.algorithms._kernels import couplings as _couplings
 from redysim.algorithms._kernels import lean as _lean
 from redysim.algorithms._kernels import tiles as _tiles
+from redysim.algorithms._kernels.couplings import COUPLED as _COUPLED
 from redysim.algorithms._kernels.elimination import ge_n, rge_n
 from redysim.algorithms._kernels.energy import energy as _energy
 from redysim.algorithms._kernels.entry import DH as _DH
@@ -190,7 +192,7 @@ def _phi(model, ws, q, v, tau):
 # a microsecond a call but doubled a fresh install's first compile. The figures:
 # docs/notes/2026-11-evaluator-and-ladder.md)
 LEAN_INVERSE_MAX_DOF = 500
-COUPLING_TOL = 1e-9  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f| (and for v, qdd)
+COUPLING_TOL = _couplings.COUPLING_TOL  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f|
 
 
 def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
@@ -212,24 +214,12 @@ def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
                          "followers from their leaders)")
 
 
-def _coupling_scratch(model: Model):
-    """The calling thread's workspace of a coupled ``model`` and its couplings' bundle
-    (:class:`redysim.algorithms._kernels.system.Couplings`, with a workspace of the tree without
-    gravity), made on the thread's first call and kept beside its workspace."""
-    ws = _ws(model, None)
-    local = model._thread_workspaces
-    try:
-        return ws, local.couplings
-    except AttributeError:
-        from redysim.algorithms._kernels.system import couplings_of
-
-        local.couplings = couplings_of(model, Workspace(model.free_tree))
-        return ws, local.couplings
-
-
-def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.ndarray:
-    """qdd of a coupled model (:meth:`Model.with_couplings`), by Featherstone's method on the
-    tree: qdd0 the tree's, X = M^-1 J^T by the tree's forward dynamics with no gravity and no
+def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
+                     ws: Workspace | None = None) -> np.ndarray:
+    """qdd of a coupled model (:meth:`Model.with_couplings`), its state checked: with RGE-A on a
+    spatial tree, in RGE-A's recursion on the workspace (``ws``, or the thread's:
+    :func:`redysim.algorithms._kernels.couplings.coupled_qdd`); else by Featherstone's method on
+    the tree: qdd0 the tree's, X = M^-1 J^T by the tree's forward dynamics with no gravity and no
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
     couplings are linear, so Jdot v = 0)."""
@@ -238,17 +228,17 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out) -> np.nd
     tau = check_state(model, "tau", tau, optional=True)
     check_coupled(model, "q", q)
     check_coupled(model, "v", v)
-    if method == "rge-a" and not planar and not model.is_planar:
-        # in compiled code, as a simulation's right-hand side (the calling thread's scratch);
-        # where the result is not finite, the calls below say why
+    ws = _ws(model, ws)
+    if method == "rge-a" and not planar and ws.coupled:
+        # in compiled code, as a simulation's right-hand side; where the result is not finite,
+        # the calls below say why
         from redysim.algorithms._kernels.system import coupled_qdd
 
-        ws, cp = _coupling_scratch(model)
         res = np.empty(model.n_v) if out is None else out
         # writable arrays: a read-only one is another numba type (one compile more)
         a, b, t = (x if x.flags.writeable else x.copy()
                    for x in (q, v, ws.zeros if tau is None else tau))
-        if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, cp, a, b, t, res) == 0.0:
+        if coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, a, b, t, res) == 0.0:
             return res
     tree, free = model.tree, model.free_tree
     qdd = forward_dynamics(tree, q, v, tau, method, planar=planar)
@@ -409,15 +399,32 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     strided) after numba refuses their types, a slower path.
 
     A model with cut joints is refused (:class:`redysim.ClosedLoops` closes them). A coupled
-    model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion, by Featherstone's
-    method on the tree (1 + len(couplings) tree calls; with RGE-A on a spatial tree in compiled
-    code, as a simulation's steps, else in Python; no batch kernels); q and v must keep its
-    couplings (StateError otherwise: ``model.couple(q, v)`` sets them).
+    model (:meth:`Model.with_couplings`: mimic joints) gives its coupled motion: with RGE-A on a
+    spatial tree, the couplings in RGE-A's recursion, in compiled code (the tree's call, a sweep
+    of each coupling's paths to the root and one more forward pass: O(n); batches row by row, no
+    SIMD tiles); else by Featherstone's method on the tree in Python (1 + len(couplings) tree
+    calls). q and v must keep its couplings (StateError otherwise: ``model.couple(q, v)`` sets
+    them).
     """
     ws = _ws(model, ws)
     if model.cuts or model.couplings:
         if model.cuts:
             raise closed_error(model, "forward_dynamics")
+        if method == "rge-a" and not planar and ws.coupled:
+            # the hot path, as below: RGE-A and the couplings in its recursion, one compiled call
+            t = ws.zeros if tau is None else tau
+            if type(q) is ndarray and type(v) is ndarray and type(t) is ndarray:
+                if q.ndim == 2:
+                    return _coupled_batch(model, ws, q, v, tau, out, threads)
+                qdd = np.empty(model.n_v) if out is None else out
+                if type(qdd) is ndarray:
+                    try:
+                        flag = _COUPLED.compiled(ws.kernel_f, ws.kernel_i, q, v, t, ws.scratch,
+                                                 qdd)
+                    except TypeError:  # not all contiguous float64: the checked path
+                        flag = SIZE_MISMATCH
+                    if flag == 0.0:
+                        return qdd
         if _is_batch(q):
             Q = check_batch(model, "q", q, None)
             V = check_batch(model, "v", v, Q.shape[0])
@@ -428,12 +435,13 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                     T = np.broadcast_to(T, (Q.shape[0], model.n_v))
                 T = check_batch(model, "tau", T, Q.shape[0])
             res = np.array([_coupled_forward(model, Q[i], V[i], None if T is None else T[i],
-                                             method, planar, None) for i in range(Q.shape[0])])
+                                             method, planar, None, ws)
+                            for i in range(Q.shape[0])])
             if out is not None:
                 out[...] = res
                 return out
             return res
-        return _coupled_forward(model, q, v, tau, method, planar, out)
+        return _coupled_forward(model, q, v, tau, method, planar, out, ws)
     is_planar = model.is_planar
     if planar is None:
         planar = is_planar
@@ -651,6 +659,39 @@ def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True,
         t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
         try:
             forward_dynamics(model, Q[bad], V[bad], t, planar=planar, ws=ws, dh=use_dh)
+        except StateError as exc:
+            raise StateError(f"state {bad} of the batch (row {bad} of q and v): {exc}") from None
+        raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)
+    return out
+
+
+def _coupled_batch(model, ws, q, v, tau, out, threads) -> np.ndarray:
+    """A coupled model's batch (RGE-A on a spatial tree): the rows through the coupled entry
+    (:func:`redysim.algorithms._kernels.couplings.coupled_rows`, no SIMD tiles) on the threads
+    :func:`_run_rows` plans; the first row that fails (off the couplings, not finite) is then
+    run alone, which says why."""
+    Q = check_batch(model, "q", q, None)
+    B = Q.shape[0]
+    V = check_batch(model, "v", v, B)
+    if tau is None:
+        TAU = ws.zeros.reshape(1, -1)
+    else:  # (n_v,) for every state, or a row each
+        T = np.asarray(tau, dtype=float)
+        TAU = (check_state(model, "tau", T).reshape(1, -1) if T.shape == (model.n_v,)
+               else check_batch(model, "tau", T, B))
+    if out is None:
+        out = np.empty((B, model.n_v))
+    elif not (type(out) is ndarray and out.shape == (B, model.n_v) and out.dtype is FLOAT64
+              and out.flags.c_contiguous and out.flags.writeable):
+        res = _coupled_batch(model, ws, Q, V, TAU if TAU.shape[0] == B else TAU[0], None,
+                             threads)
+        out[...] = res
+        return out
+    bad = _run_rows(Q, model.n_v, threads, ws, _couplings.coupled_rows, out, V, TAU)
+    if bad >= 0:  # the single call of that row says why
+        t = TAU[0] if TAU.shape[0] == 1 else TAU[bad]
+        try:
+            out[bad] = _coupled_forward(model, Q[bad], V[bad], t, "rge-a", None, None, ws)
         except StateError as exc:
             raise StateError(f"state {bad} of the batch (row {bad} of q and v): {exc}") from None
         raise StateError(f"state {bad} of the batch: qdd not finite")  # (not reached)

@@ -61,7 +61,11 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     functions take it (False: the general kernels on a robot in DH form).
 
     Refuses (FieldError) something that is not a Model and an unknown ``kind``, and (CaseError)
-    a model with cut joints, as the public functions refuse it. Building one compiles its
+    a model with cut joints, as the public functions refuse it. A coupled model
+    (:meth:`~redysim.Model.with_couplings`): forward dynamics keeps its couplings (a lean entry
+    with them in RGE-A's recursion, on a spatial tree; a state off them goes to the checked
+    path, which names the joint); its inverse dynamics, and a planar one's, is the checked
+    path. Building one compiles its
     kernel on first use in a process (loaded from numba's disk cache after that) and allocates
     the evaluator's scratch (a :class:`~redysim.algorithms.workspace.Workspace`, ~380 bytes a
     DOF), kept as long as the evaluator is.
@@ -73,17 +77,14 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
         raise FieldError("evaluator", "kind", kind, f"must be one of {', '.join(KINDS)}")
     if model.cuts:
         raise closed_error(model, f"evaluator(kind={kind!r})")
-    if model.couplings:
-        raise FieldError("evaluator", "model", model.name, "a coupled model (its couplings: "
-                         f"{', '.join(c.follower for c in model.couplings)}): the lean entries "
-                         "run the tree's recursions only; call redysim.forward_dynamics or "
-                         "inverse_dynamics, which keep the couplings")
     ws = Workspace(model)
     serial = bool(ws.tree.serial)
     use_dh = use_dh_kernels(model, ws.dh, dh, model.is_planar)
     forward = kind == "forward_dynamics"
     if forward:
-        entry = (_lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
+        entry = ((_lean.FORWARD_COUPLED_CHAIN if serial else _lean.FORWARD_COUPLED_TREE)
+                 if ws.coupled else
+                 _lean.FORWARD_PLANAR if model.is_planar else _lean.FORWARD_DH if use_dh else
                  _lean.FORWARD_CHAIN if serial else _lean.FORWARD_TREE)
         checked, params, result = _checked_forward(model, use_dh), "q, v, tau=None, out=None", "qdd"
     else:
@@ -93,12 +94,15 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     doc = (f"{kind}({params})\n--\n\n{result} of {type(model).__name__.lower()} "
            f"{model.name!r}, bit for bit redysim.{kind}'s (redysim.evaluator).")
     checked.__name__ = checked.__qualname__ = kind  # (named in the errors it raises)
+    # a coupled model's lean entry: forward dynamics on a spatial tree (RGE-A with the couplings
+    # in its recursion); its inverse dynamics and a planar one's forward, the checked path
+    lean = not model.couplings or (forward and ws.coupled)
     builtin = (_binding.bind(entry, forward, ws, checked, model, kind, doc)
-               if _binding.BINDING_OK and JIT_ENABLED else None)
+               if lean and _binding.BINDING_OK and JIT_ENABLED else None)
     if builtin is not None:
         return builtin
-    # numba disabled, or NumPy's structs not as the binding reads them: the checked path, with
-    # the builtin's docstring and __self__
+    # numba disabled, NumPy's structs not as the binding reads them, or no lean entry for a
+    # coupled model: the checked path, with the builtin's docstring and __self__
     checked.__doc__ = doc.split("--\n\n", 1)[1]
     checked.__dict__["__self__"] = _binding.Bound.of_checked_path(model, kind)
     return checked

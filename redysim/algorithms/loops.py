@@ -417,7 +417,9 @@ def _rate_layout(model: Model):
 
     if not any(t in (FREE, BALL_JOINT) for t in model.joint_types):
         return None
-    plain_q, plain_v, free_q, free_v, ball_q, ball_v, quats = [], [], [], [], [], [], []
+    plain_q: list[int] = []
+    plain_v: list[int] = []
+    free_q, free_v, ball_q, ball_v, quats = [], [], [], [], []
     for k, t in enumerate(model.joint_types):
         qs, vs = int(model.joint_qoff[k]), int(model.joint_voff[k])
         if t == FREE:

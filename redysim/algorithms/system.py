@@ -131,8 +131,7 @@ class System:
                                 "coordinates are their velocities', not on a free or ball "
                                 "joint (its q is a quaternion)")
         self.worst = np.zeros(3)  # [quaternion, residual q, residual v] met before projections
-        self.couplings = (K.couplings_of(model, Workspace(model.free_tree)) if model.couplings
-                          else K.no_couplings())
+        self.couplings = K.couplings_of(model) if model.couplings else K.no_couplings()
         self.data, self.extras = self._data(), self._extras()
         compiled = (qdd is None and method == "rge-a" and tau is None
                     and (loops is None or getattr(loops, "bundle", None) is not None)
@@ -281,7 +280,7 @@ class System:
         elif model.couplings and self.method == "rge-a" and not model.is_planar:
             q, v = check_state(model, "q", q), check_state(model, "v", v)
             ws = self.ws
-            if K.coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, self.couplings, q, v,
+            if K.coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, q, v,
                              ws.zeros if tau is None else tau, out[nq:]) != 0.0:
                 # not finite: the checked path says why (or, finite there, is the answer)
                 out[nq:] = forward_dynamics(model, q, v, tau, self.method)

@@ -177,10 +177,23 @@ class Workspace:
                               np.float64, header)
         ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar, dh)},
                             np.int64, header, start=HEADER)  # after the header
-        self.scratch = np.empty(_layout(segment_sizes("scratch", sizes, planar, dh), header))
+        scratch_items = _layout(segment_sizes("scratch", sizes, planar, dh), header)
         # a thread's row of the SIMD tiles' buffer (tile_buffer), laid out as the others
         self._tile_items = _layout(segment_sizes("tiles", sizes, planar, dh), header)
         self.kernel_i = np.concatenate((header, ints_packed))
+        # a coupled model (not planar): the couplings' segments after the tree's, which RGE-A's
+        # entries do not see (redysim.algorithms._kernels.couplings)
+        self.coupled = bool(model.couplings) and not planar
+        if self.coupled:
+            from redysim.algorithms._kernels.couplings import COUPLING_TOL, coupling_tail
+
+            ints, floats, items = coupling_tail(
+                model, t["parent"], t["joint_voff"], bool(t["serial"]), COUPLING_TOL,
+                self.kernel_f.shape[0], self.kernel_i.shape[0], scratch_items)
+            self.kernel_f = np.concatenate((self.kernel_f, floats))
+            self.kernel_i = np.concatenate((self.kernel_i, ints))
+            scratch_items += items
+        self.scratch = np.empty(scratch_items)
         bundles = getattr(E.bundles, "py_func", E.bundles)  # (a plain function without numba)
         self.tree, self.s = bundles(self.kernel_f, self.kernel_i, self.scratch)
         s = self.s

@@ -47,6 +47,7 @@ from redysim._jit import LEAN_OPTIONS, EntryPoint, inline, inline_generated
 
 from . import entry as E
 from .bundles import DH_SCRATCH, H_NB, H_NQ, H_NV, Scratch, Tree, bundles_source
+from .couplings import couple_step, on_couplings
 from .dh import dh_forward_dynamics, dh_inverse_dynamics
 from .inverse_dynamics import rnea_backward
 from .kinematics import _kinematics
@@ -247,6 +248,43 @@ def forward_tree(q, v, tau, out, fdata, idata, scratch):
     return out
 
 
+@inline
+def _forward_coupled(q, v, tau, out, fdata, idata, scratch, serial):
+    """A coupled model (a workspace with the couplings' segments): the state's check against
+    its couplings, :func:`_forward`'s passes, then the couplings in RGE-A's recursion
+    (:func:`.couplings.couple_step`, inlined on the same bundles, as :func:`.couplings.
+    coupled_qdd` inlines it: the same bits)."""
+    h = idata
+    nv = h[H_NV]
+    if not (_plain(q, h[H_NQ]) and _plain(v, nv) and _plain(tau, nv) and _plain(out, nv)):
+        raise Refused()
+    if not on_couplings(fdata, idata, scratch, q, v):
+        raise Refused()  # the checked path names the joint
+    tree, s = bundles(fdata, idata, scratch)
+    base_accel = fdata[h[E.F_BASE_ACCEL]:h[E.F_BASE_ACCEL] + 3]
+    zeros = fdata[h[E.F_ZEROS]:h[E.F_ZEROS] + nv]
+    _kinematics(tree, q, v, zeros, base_accel, s, True, serial)
+    _rge_a_backward(tree, s, tau, serial)
+    if _rge_a_forward(tree, s, base_accel, out, serial) != 0.0:
+        raise Refused()  # some qdd is not finite
+    if couple_step(tree, s, fdata, idata, scratch, out) != 0.0:
+        raise Refused()
+
+
+def forward_coupled_chain(q, v, tau, out, fdata, idata, scratch):
+    """The coupled qdd into ``out``, a serial chain with couplings (module docstring)."""
+    _forward_coupled(as_array(q), as_array(v), as_array(tau), as_array(out), fdata, idata,
+                     scratch, True)
+    return out
+
+
+def forward_coupled_tree(q, v, tau, out, fdata, idata, scratch):
+    """The coupled qdd into ``out``, any tree with couplings (module docstring)."""
+    _forward_coupled(as_array(q), as_array(v), as_array(tau), as_array(out), fdata, idata,
+                     scratch, False)
+    return out
+
+
 _planar_entry = inline(E.planar_entry)
 
 
@@ -345,4 +383,6 @@ FORWARD_PLANAR = EntryPoint(forward_planar, SIGNATURE, E.PLANAR_CALLEES, options
 INVERSE_CHAIN = EntryPoint(inverse_chain, SIGNATURE, options=LEAN_OPTIONS)
 INVERSE_TREE = EntryPoint(inverse_tree, SIGNATURE, options=LEAN_OPTIONS)
 FORWARD_DH = EntryPoint(forward_dh, SIGNATURE, E.DH_CALLEES, options=LEAN_OPTIONS)
+FORWARD_COUPLED_CHAIN = EntryPoint(forward_coupled_chain, SIGNATURE, options=LEAN_OPTIONS)
+FORWARD_COUPLED_TREE = EntryPoint(forward_coupled_tree, SIGNATURE, options=LEAN_OPTIONS)
 INVERSE_DH = EntryPoint(inverse_dh, SIGNATURE, E.DH_INVERSE_CALLEES, options=LEAN_OPTIONS)

@@ -10,8 +10,8 @@ The contract every stepper calls (:mod:`.rk_run` in compiled code; :class:`redys
 for y = (q, v): dq/dt = v, but a free or ball joint's quaternion, which moves as q (x) [0; w] / 2;
 dv/dt =
 qdd(q, v, tau) from the tree's forward-dynamics entry (:mod:`.entry`: RGE-A, the planar or the DH
-kernel), with the loops closed (:mod:`.constraints`) and the couplings kept (Featherstone's
-method, :func:`couple_qdd`). The generalized forces tau are assembled in one place,
+kernel), with the loops closed (:mod:`.constraints`) and the couplings kept in RGE-A's
+recursion (:func:`.couplings.coupled_qdd`). The generalized forces tau are assembled in one place,
 :func:`generalized_forces`: a constant force at a chain's tip, constant world forces at points
 of bodies (gravity compensation is one), viscous joint damping and joint springs. A new force is
 one term there; a new constraint one step in :func:`derivative` and :func:`project`.
@@ -34,7 +34,8 @@ from redysim._jit import inline, jit_borrowed, jit_exact
 from .batch import dh_call as _dh
 from .batch import planar_call as _planar
 from .batch import rge_a_call as _rge_a
-from .constraints import OK, Loops, loops_project, loops_qdd, solve_small
+from .constraints import OK, Loops, loops_project, loops_qdd
+from .couplings import coupled_qdd
 from .entry import bundles
 from .kinematics import kinematics
 from .planar import planar_tip_torques
@@ -90,42 +91,30 @@ class SystemData(NamedTuple):
 
 
 class Couplings(NamedTuple):
-    """A coupled model's couplings (q_f = m q_l + offset, mimic joints), for qdd by
-    Featherstone's method on its tree (:func:`couple_qdd`) and for the projection after a step
-    (:func:`project_couplings`); every array empty for a model without couplings. ``fdata``,
-    ``idata``, ``scratch``: the tree without gravity's packed arrays (its qdd at v = 0 and tau = x
-    is M^-1 x); ``fq``, ``lq``, ``fv``, ``lv``: each coupling's follower's and leader's q and v
-    slots; ``m``, ``off``: multiplier and offset; work arrays ``zeros`` and ``row`` (n_v,), ``X``
-    (k, n_v) (M^-1 J^T's columns as rows), ``A`` (k, k)."""
+    """A coupled model's couplings (q_f = m q_l + offset, mimic joints), for the projection after
+    a step (:func:`project_couplings`) and to say that the derivative couples the tree's qdd
+    (:func:`.couplings.coupled_qdd`, on the system's workspace, whose packed arrays hold the
+    couplings' own segments); every array empty for a model without couplings. ``fq``, ``lq``,
+    ``fv``, ``lv``: each coupling's follower's and leader's q and v slots; ``m``, ``off``:
+    multiplier and offset."""
 
-    fdata: np.ndarray
-    idata: np.ndarray
-    scratch: np.ndarray
     fq: np.ndarray
     lq: np.ndarray
     fv: np.ndarray
     lv: np.ndarray
     m: np.ndarray
     off: np.ndarray
-    zeros: np.ndarray
-    row: np.ndarray
-    X: np.ndarray
-    A: np.ndarray
 
 
 def no_couplings() -> Couplings:
     """The empty bundle (a model without couplings)."""
     f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    return Couplings(f, i, f.copy(), i, i, i, i, f, f, f, f, np.zeros((0, 0)), np.zeros((0, 0)))
+    return Couplings(i, i, i, i, f, f)
 
 
-def couplings_of(model, free_ws) -> Couplings:
-    """The bundle of a coupled ``model`` (:meth:`redysim.Model.with_couplings`); ``free_ws``: a
-    Workspace of its tree without gravity (``model.free_tree``)."""
-    fq, lq, fv, lv, m, off = (np.array(a) for a in model.coupling_index)  # writable copies
-    k, n = fv.shape[0], model.n_v
-    return Couplings(free_ws.kernel_f, free_ws.kernel_i, free_ws.scratch, fq, lq, fv, lv, m, off,
-                     np.zeros(n), np.zeros(n), np.zeros((k, n)), np.zeros((k, k)))
+def couplings_of(model) -> Couplings:
+    """The bundle of a coupled ``model`` (:meth:`redysim.Model.with_couplings`)."""
+    return Couplings(*(np.array(a) for a in model.coupling_index))  # writable copies
 
 
 class Extras(NamedTuple):
@@ -258,14 +247,14 @@ def derivative(sd, extras, t, y, out):
     tau = sd.tau if generalized_forces(sd, extras, t, q, v, sd.tau) else sd.zeros
     if extras is not None and extras.loops.ckind.shape[0] != 0:
         flag = 0.0 if loops_qdd(extras.loops, q, v, tau, qdd) == OK else 1.0
+    elif extras is not None and extras.couplings.fv.shape[0] != 0:  # (RGE-A: not planar)
+        flag = coupled_qdd(sd.fdata, sd.idata, sd.scratch, q, v, tau, qdd)
     elif sd.kind == RGE_A:
         flag = _rge_a(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
     elif sd.kind == PLANAR:
         flag = _planar(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
     else:
         flag = _dh(sd.fdata, sd.idata, q, v, tau, sd.scratch, qdd)
-    if extras is not None and extras.couplings.fv.shape[0] != 0 and flag == 0.0:
-        flag = couple_qdd(extras.couplings, q, qdd)
     if sd.free_q.shape[0] == 0 and sd.ball_q.shape[0] == 0:
         for k in range(nq):
             out[k] = y[nq + k]
@@ -302,51 +291,6 @@ def quaternion_rate(i, w, y, out):
     out[i + 1] = 0.5 * (qw * wx + qy * wz - qz * wy)
     out[i + 2] = 0.5 * (qw * wy - qx * wz + qz * wx)
     out[i + 3] = 0.5 * (qw * wz + qx * wy - qy * wx)
-
-
-@jit_borrowed
-def couple_qdd(cp, q, qdd):
-    """The tree's qdd (in place) made the coupled motion's, by Featherstone's method: X = M^-1
-    J^T (one forward-dynamics call of the tree without gravity at v = 0 per coupling, J's rows
-    e_f - m e_l), (J X) lam = -J qdd by Gaussian elimination with partial pivoting, qdd + X lam,
-    then each follower's qdd set to m times its leader's (J qdd = 0: a linear coupling has no
-    Jdot v). Returns the entry's flag (0.0: finite)."""
-    k, n = cp.fv.shape[0], qdd.shape[0]
-    fv, lv, m, X, A, row = cp.fv, cp.lv, cp.m, cp.X, cp.A, cp.row
-    for j in range(k):
-        for r in range(n):
-            row[r] = 0.0
-        row[fv[j]] = 1.0
-        row[lv[j]] = -m[j]
-        flag = _rge_a(cp.fdata, cp.idata, q, cp.zeros, row, cp.scratch, X[j])
-        if flag != 0.0:
-            return flag
-    lam = row  # (reused: k <= n)
-    for i in range(k):
-        for j in range(k):
-            A[i, j] = X[j, fv[i]] - m[i] * X[j, lv[i]]
-        lam[i] = -(qdd[fv[i]] - m[i] * qdd[lv[i]])
-    solve_small(A, lam, k)
-    for j in range(k):
-        x = lam[j]
-        for r in range(n):
-            qdd[r] = qdd[r] + X[j, r] * x
-    bad = 0.0
-    for i in range(k):
-        qdd[fv[i]] = m[i] * qdd[lv[i]]
-    for r in range(n):
-        bad += qdd[r] * 0.0
-    return bad
-
-
-@jit_borrowed
-def coupled_qdd(fdata, idata, scratch, cp, q, v, tau, qdd):
-    """qdd of a coupled model: its tree's by the entry on its packed arrays, then
-    :func:`couple_qdd` (what :func:`derivative` does for a coupled system)."""
-    flag = _rge_a(fdata, idata, q, v, tau, scratch, qdd)
-    if flag == 0.0:
-        flag = couple_qdd(cp, q, qdd)
-    return flag
 
 
 # --------------------------------------------------------------------------- the projection
