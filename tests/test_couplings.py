@@ -202,7 +202,10 @@ def test_robots_with_mimic_joints_step_in_compiled_code_in_the_same_bits(file):
     rng = np.random.default_rng(stable_seed("mimic-compiled", file))
     q, v = model.couple(model.neutral(), 0.3 * rng.normal(size=model.n_v))
     a, _ = _compiled_and_python_runs(model, 0.2, q0=q, v0=v, rtol=1e-7, atol=1e-9)
-    assert np.abs(a.delta_M).max() < 1e-5
+    if model.damping.any():  # the file's joint damping (<dynamics damping>): E only falls
+        assert np.diff(a.delta_M).max() < 1e-9 and a.delta_M[-1] < 0
+    else:
+        assert np.abs(a.delta_M).max() < 1e-5
 
 
 def test_a_state_off_the_couplings_is_refused_by_name():
