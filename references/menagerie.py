@@ -51,7 +51,8 @@ M_TOL, QACC_TOL = 1e-12, 1e-9
 ALLOWED = ("frictionloss", "contact", "collision", "fluid", "density", "viscosity", "plugin",
            "actuator", "does not act", "do not act", "limit", "range", "sensor", "visual",
            "no effect", "not read", "solref",  # solref: MuJoCo's softness, where the core is exact
-           "in-plane equations")  # a planar loop closed by its independent equations
+           "in-plane equations",  # a planar loop closed by its independent equations
+           "mocap")  # a mocap body: held where the file puts it, an input like an actuator
 
 
 # --------------------------------------------------------------------------- stubs
