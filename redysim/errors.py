@@ -84,3 +84,9 @@ class ModelFileError(FieldError):
 class StateError(RedysimError, ValueError):
     """A state (q, v, qdd, tau) handed to a public function has the wrong size or is not finite,
     or the dynamics of a finite state are singular or overflow (the message says which)."""
+
+
+class ModelTypeError(CaseError, TypeError):
+    """Something that is not a :class:`redysim.Model` handed where a model is taken: a
+    TypeError (the wrong kind of argument), and a :class:`CaseError` naming the call and the
+    type given, as every refusal of a model."""

@@ -137,6 +137,11 @@ class Bound(tuple):
     def __repr__(self) -> str:
         return f"<redysim.evaluator {self.kind} of {self.model.name!r}>"
 
+    def __reduce__(self):
+        raise TypeError(f"cannot pickle {self!r}: evaluators are per process (compiled code "
+                        "and scratch bound at its address): make one in each process with "
+                        "redysim.evaluator(model), and send the model")
+
 
 def bind(entry, forward: bool, ws, checked, model, kind: str, doc: str):
     """The builtin calling ``entry`` (a :class:`redysim._jit.EntryPoint` of :mod:`.lean`) on
