@@ -101,7 +101,8 @@ def check_state(model: Model, name: str, x, *, optional: bool = False,
 
 
 def check_out(model: Model, out) -> np.ndarray:
-    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
+    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError
+    (:func:`redysim.model.door.out_vector`).
 
     The kernels index without bounds checks: a short or strided ``out`` would be written past
     its end, so it is refused here, never converted (a copy would not reach the caller).

@@ -38,15 +38,18 @@ def require_model(model, where: str):
 
 def plain_vector(x, n: int) -> bool:
     """True for what the kernels take as is: an ndarray (not a subclass) of shape (n,), native
-    float64, aligned, contiguous."""
+    float64, aligned, contiguous and writeable (a read-only array is another numba type: each
+    kernel would compile once more for it, so it is copied too)."""
     return (type(x) is np.ndarray and x.shape == (n,) and x.dtype is FLOAT64
-            and x.strides == FLOAT64_STRIDES and x.flags.aligned)
+            and x.strides == FLOAT64_STRIDES and x.flags.aligned and x.flags.writeable)
 
 
 def native(arr: np.ndarray) -> np.ndarray:
-    """``arr`` as C-contiguous, aligned, native-order float64 (a copy where it is not)."""
+    """``arr`` as C-contiguous, aligned, writeable, native-order float64 (a copy where it is
+    not)."""
     arr = np.asarray(arr, dtype=FLOAT64)  # (a big-endian float64 becomes native: a copy)
-    if arr.flags.c_contiguous and arr.flags.aligned and arr.dtype is FLOAT64:
+    if (arr.flags.c_contiguous and arr.flags.aligned and arr.flags.writeable
+            and arr.dtype is FLOAT64):
         return arr
     return np.array(arr, dtype=FLOAT64, order="C", copy=True)
 

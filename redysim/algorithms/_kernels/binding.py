@@ -138,9 +138,10 @@ class Bound(tuple):
         return f"<redysim.evaluator {self.kind} of {self.model.name!r}>"
 
     def __reduce__(self):
-        raise TypeError(f"cannot pickle {self!r}: evaluators are per process (compiled code "
-                        "and scratch bound at its address): make one in each process with "
-                        "redysim.evaluator(model), and send the model")
+        raise TypeError(f"cannot pickle {self!r}: evaluators are per process: make one in "
+                        "each (send the model, which pickles, and call redysim.evaluator(model) "
+                        "there; an evaluator is compiled code and scratch at this process's "
+                        "addresses)")
 
 
 def bind(entry, forward: bool, ws, checked, model, kind: str, doc: str):
