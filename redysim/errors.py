@@ -8,6 +8,7 @@
     a run's settings: integrator, tolerances, step, horizon, sampling |   +-- SweepError
     a sweep file (redysim.harness.sweep) |   +-- GatesError            the accuracy gates file
     (redysim.harness.gates) |   +-- ModelFileError        a URDF or MJCF file (redysim.io.importers)
+    |   +-- ModelTypeError (also a TypeError) not a redysim.Model where one is taken
     +-- StateError                a state (q, v, qdd, tau) handed to a dynamics function
 """
 
