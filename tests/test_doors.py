@@ -128,6 +128,26 @@ def test_messages_say_what_to_do(chain):
         integrate(lambda t, y: np.zeros(3), (0.0, 1.0), np.zeros(2))
 
 
+@pytest.mark.engine
+def test_two_hinges_on_one_axis_are_named_both(tmp_path):
+    """Two hinges of one MJCF body with the same axis and anchor: the error names both (the
+    second one as the field), not the massless body the importer puts between them."""
+    pytest.importorskip("mujoco")
+    from redysim.io.importers import ModelFileError, load_mjcf
+
+    path = tmp_path / "twohinge.xml"
+    path.write_text("""<mujoco model="twohinge"><worldbody>
+      <body name="armL" pos="0 0 1">
+        <joint name="l1" type="hinge" axis="0 1 0" pos="0.1 0 0"/>
+        <joint name="l2" type="hinge" axis="0 -1 0" pos="0.1 0 0"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/>
+      </body></worldbody></mujoco>""")
+    with pytest.raises(ModelFileError, match=r"joint 'l2': moves along the same axis through "
+                       r"the same point as joint 'l1'") as err:
+        load_mjcf(path)
+    assert "armL_l1" not in str(err.value)
+
+
 def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone():
     """A numba of another minor version: a warning naming it, no dispatch bypass, no lean
     entries (so no evaluator builtin), tiles without the noalias option; nothing compiled."""
