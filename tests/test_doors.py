@@ -148,6 +148,45 @@ def test_two_hinges_on_one_axis_are_named_both(tmp_path):
     assert "armL_l1" not in str(err.value)
 
 
+ROPE = """[case]
+name = "rope"
+description = "a straight rope released at an angle"
+[chain]
+links = {links}
+joint = "U"
+total_length = 1.0
+density = 7850.0
+radius = 0.01
+inertia = "rod"
+[initial]
+q = {q}
+v = {v}
+[simulation]
+t_end = 0.1
+"""
+
+
+def test_a_straight_rope_given_as_lists_rebuilds_at_any_count(tmp_path):
+    """A straight rope whose file lists its initial angles (the first joint's nonzero) rebuilt
+    at a count that does not divide its own (12 -> 5; `--links 5`): the rope a file with 5
+    links and the same first-joint state gives (before: "must be a list of 5 numbers, got
+    shape (24,)")."""
+    from redysim.io.cases import load_case, rebuilt_case
+
+    def rope(links, name):
+        q, v = [0.0] * (2 * links), [0.0] * (2 * links)
+        q[0], q[1], v[1] = 0.3, -0.1, 0.5
+        path = tmp_path / name
+        path.write_text(ROPE.format(links=links, q=q, v=v))
+        return load_case(path)
+
+    rebuilt = rebuilt_case(rope(12, "rope12.toml"), 5)
+    direct = rope(5, "rope5.toml")
+    assert np.array_equal(rebuilt.q0, direct.q0) and np.array_equal(rebuilt.v0, direct.v0)
+    assert np.array_equal(rebuilt.chain.length, direct.chain.length)
+    assert np.array_equal(rebuilt.chain.mass, direct.chain.mass)
+
+
 def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone():
     """A numba of another minor version: a warning naming it, no dispatch bypass, no lean
     entries (so no evaluator builtin), tiles without the noalias option; nothing compiled."""
