@@ -14,6 +14,7 @@ array. Budget: PROPERTY_EXAMPLES examples per test, derandomized; ~15 s in all o
 
 from __future__ import annotations
 
+import os
 import pickle
 import subprocess
 import sys
@@ -187,7 +188,7 @@ def test_a_straight_rope_given_as_lists_rebuilds_at_any_count(tmp_path):
     assert np.array_equal(rebuilt.chain.mass, direct.chain.mass)
 
 
-def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone():
+def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone(tmp_path):
     """A numba of another minor version: a warning naming it, no dispatch bypass, no lean
     entries (so no evaluator builtin), tiles without the noalias option; nothing compiled."""
     code = ("import warnings, numba\nnumba.__version__ = '0.99.0'\n"
@@ -200,8 +201,10 @@ def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone():
             "assert 'noalias' not in _jit.TILE_OPTIONS\n"
             "assert not lean.NUMPY_LAYOUT_OK and not binding.BINDING_OK\n"
             "assert _jit.unchecked_call(numba.njit('f8(f8)')(lambda x: x)) is None\n")
+    # the redysim this process imported, from anywhere (not the checkout the cwd would give)
+    env = {**os.environ, "PYTHONPATH": str(Path(redysim.__file__).resolve().parents[1])}
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         cwd=REPO, timeout=300)
+                         cwd=tmp_path, env=env, timeout=300)
     assert run.returncode == 0, run.stderr
     assert "0.68" in run.stdout and "internals" in run.stdout
 
