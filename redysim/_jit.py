@@ -14,6 +14,7 @@ does not depend on it: only one triangle of each symmetric block is ever compute
 
 from __future__ import annotations
 
+import warnings
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
@@ -22,6 +23,33 @@ from numba.core import cpu, options
 
 if TYPE_CHECKING:  # numba's stub type of njit(**options): a kernel is a Dispatcher of its function
     from numba.core.decorators import _JITWrapper
+
+# The numba versions whose internals redysim relies on were tested with (pyproject.toml pins
+# numba to them; requirements/constraints.txt holds the exact pin): the noalias option mapped
+# below, the dispatch bypass (unchecked_call), and the lean entries' unboxing and the
+# evaluator's builtin (redysim.algorithms._kernels.lean, .binding), built from numba's code
+# generation internals. On another numba these are off, by name, with a warning at import: the
+# checked dispatch everywhere (the same answers, slower small calls), tiles without noalias.
+KNOWN_NUMBA: tuple[tuple[int, int], ...] = ((0, 68),)
+
+
+def _numba_version(text: str) -> tuple[int, int]:
+    try:
+        major, minor = text.split(".")[:2]
+        return int(major), int(minor)
+    except ValueError:  # (a version string of another shape: unknown)
+        return (0, 0)
+
+
+NUMBA_VERSION: tuple[int, int] = _numba_version(numba.__version__)
+INTERNALS_OK: bool = NUMBA_VERSION in KNOWN_NUMBA
+if not INTERNALS_OK:
+    warnings.warn(f"redysim: numba {numba.__version__} is not a version whose internals redysim "
+                  f"was tested with ({', '.join(f'{a}.{b}' for a, b in KNOWN_NUMBA)}): its "
+                  "dispatch bypass, lean entries and evaluator builtin are off (the checked "
+                  "calls run instead: the same answers, slower small calls); install "
+                  "numba 0.68 (requirements/constraints.txt) for them", RuntimeWarning,
+                  stacklevel=2)
 
 # False under NUMBA_DISABLE_JIT: the kernels are then their Python source, and what exists in
 # compiled code only (the lean entries' intrinsics, a dispatcher's compiled wrapper) is not there
@@ -63,8 +91,11 @@ jit_exact: _JITWrapper = numba.njit(**EXACT_BORROWED_OPTIONS)
 # kernel is given is a distinct view of its thread's tile buffer (the Tiles bundle, its segments
 # laid out by the layout table) or a chain table it only reads; a bundle's arrays reach the compiled
 # function as pointer arguments of their own, so the flag covers them too.
-cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
-TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True)
+NOALIAS: bool = INTERNALS_OK and hasattr(options.TargetOptions, "Mapping")
+if NOALIAS:
+    cpu.CPUTargetOptions.noalias = options.TargetOptions.Mapping("noalias")
+TILE_OPTIONS: dict[str, Any] = dict(BORROWED_OPTIONS, noalias=True) if NOALIAS else dict(
+    BORROWED_OPTIONS)
 jit_tiles: _JITWrapper = numba.njit(**TILE_OPTIONS)
 
 
@@ -142,7 +173,9 @@ def unchecked_call(dispatcher):
     of its slot), unless the signature declares types whose unboxing checks them (the lean entries'
     vectors: ``redysim.algorithms._kernels.lean.CheckedVector``). None with ``NUMBA_DISABLE_JIT``
     (the kernel is then a plain function) or for a dispatcher without exactly one compiled
-    signature."""
+    signature, and on a numba whose internals are not known (:data:`INTERNALS_OK`)."""
+    if not INTERNALS_OK:
+        return None
     overloads = getattr(dispatcher, "overloads", None)
     if not overloads or len(overloads) != 1:
         return None

@@ -8,6 +8,7 @@
     a run's settings: integrator, tolerances, step, horizon, sampling |   +-- SweepError
     a sweep file (redysim.harness.sweep) |   +-- GatesError            the accuracy gates file
     (redysim.harness.gates) |   +-- ModelFileError        a URDF or MJCF file (redysim.io.importers)
+    |   +-- ModelTypeError (also a TypeError) not a redysim.Model where one is taken
     +-- StateError                a state (q, v, qdd, tau) handed to a dynamics function
 """
 
@@ -84,3 +85,9 @@ class ModelFileError(FieldError):
 class StateError(RedysimError, ValueError):
     """A state (q, v, qdd, tau) handed to a public function has the wrong size or is not finite,
     or the dynamics of a finite state are singular or overflow (the message says which)."""
+
+
+class ModelTypeError(CaseError, TypeError):
+    """Something that is not a :class:`redysim.Model` handed where a model is taken: a
+    TypeError (the wrong kind of argument), and a :class:`CaseError` naming the call and the
+    type given, as every refusal of a model."""

@@ -46,6 +46,7 @@ from redysim.integrators.explicit import (
 from redysim.integrators.implicit import TensionPreconditioner
 from redysim.integrators.implicit import compile_kernels as implicit_kernels
 from redysim.integrators.protocol import OdeSolver, SolverState
+from redysim.model import door
 from redysim.model.tree import Model
 
 DEFAULT_SAMPLES = 10  # samples over the horizon when no interval is given
@@ -554,9 +555,7 @@ def simulate(model: Model, t_end: float, *, q0=None, v0=None,
     ``max_cpu_s``, ...) and StateError for a bad q0 or v0.
     """
     _check_run_settings("simulate", progress=progress, max_cpu_s=max_cpu_s)  # before warm-up
-    if not isinstance(model, Model):
-        raise TypeError(f"simulate takes a redysim.Model (a Chain is one), not "
-                        f"{type(model).__name__}")
+    door.require_model(model, "simulate")
     return simulator(model, t_end, q0=q0, v0=v0, integrator=integrator, rtol=rtol, atol=atol,
                      h=h, sample=sample, loops=loops, damping=damping
                      ).run(progress=progress, max_cpu_s=max_cpu_s)
@@ -586,9 +585,7 @@ def simulate_batch(model: Model, t_end: float, *, q0, v0=None,
         if key not in BATCH_SETTINGS:
             raise SettingsError("simulate_batch", key, value, f"unknown setting; a batch takes "
                                 f"{', '.join(BATCH_SETTINGS)} (simulate's keywords)")
-    if not isinstance(model, Model):
-        raise TypeError(f"simulate_batch takes a redysim.Model (a Chain is one), not "
-                        f"{type(model).__name__}")
+    door.require_model(model, "simulate_batch")
     given = {"integrator": DEFAULT_METHOD, "rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL,
              "h": None, "sample": None, "damping": 0.0, "max_cpu_s": None, **settings}
     Integrator(given["integrator"], rtol=given["rtol"], atol=given["atol"], h=given["h"]).checked(

@@ -223,8 +223,9 @@ def test_a_model_and_its_workspaces_are_freed_together():
 
 @pytest.mark.parametrize("system", [None, "U10", object()])
 def test_something_that_is_not_a_model_is_named(system):
-    """As when the default call built a workspace a call: FieldError naming the argument."""
-    with pytest.raises(FieldError, match=r"Workspace: model = .*must be a redysim.Model"):
+    """FieldError (redysim.errors.ModelTypeError, a TypeError too) naming the call and the
+    argument: the public function's (the door's, redysim.model.door), or Workspace's."""
+    with pytest.raises(FieldError, match=r"forward_dynamics: model = .*must be a redysim.Model"):
         redysim.forward_dynamics(system, [0.0, 0.0], [0.0, 0.0])
     with pytest.raises(FieldError, match=r"Workspace: model = .*must be a redysim.Model"):
         model_workspace(system)

@@ -50,6 +50,7 @@ from redysim.algorithms.threads import (  # noqa: F401  (default_threads: re-exp
 from redysim.algorithms.vectors import cross
 from redysim.algorithms.workspace import Workspace, model_workspace
 from redysim.errors import CaseError, FieldError, StateError
+from redysim.model import door
 from redysim.model.parts import NUMERIC_KINDS
 from redysim.model.tree import QUATERNION_JOINTS, Model
 
@@ -57,9 +58,13 @@ FLOAT64, FLOAT64_STRIDES = np.dtype(np.float64), (8,)
 
 
 def _plain_vector(x, n: int) -> bool:
-    """True for a contiguous float64 ndarray of shape (n,): what the kernels take as is."""
-    return (type(x) is np.ndarray and x.shape == (n,) and x.dtype is FLOAT64
-            and x.strides == FLOAT64_STRIDES)
+    """True for a contiguous, aligned, native float64 ndarray of shape (n,): what the kernels
+    take as is (:func:`redysim.model.door.plain_vector`)."""
+    return door.plain_vector(x, n)
+
+
+def _owner(model: Model) -> str:
+    return f"{type(model).__name__.lower()} {model.name!r}"
 
 
 @overload
@@ -75,7 +80,7 @@ def check_state(model: Model, name: str, x, *, optional: bool,
 def check_state(model: Model, name: str, x, *, optional: bool = False,
                 finite: bool = True) -> np.ndarray | None:
     """Return ``x`` as a float vector of length n (``n_q`` for the configuration ``q``, else
-    ``n_v``), or raise StateError naming it.
+    ``n_v``), or raise StateError naming it (the door: :func:`redysim.model.door.vector`).
 
     ``finite=False`` skips the NaN/Inf scan (the hot path of :func:`forward_dynamics` checks its
     result instead and only then looks for the offending input).
@@ -85,55 +90,28 @@ def check_state(model: Model, name: str, x, *, optional: bool = False,
         if optional:
             return None
         raise StateError(f"{name} is required (a vector of {n} values)")
-    if _plain_vector(x, n):  # the hot path: as given
+    if door.plain_vector(x, n):  # the hot path: as given
         if finite:
             require_finite(name, x)
         return x
-    try:
-        arr = np.asarray(x)
-    except (TypeError, ValueError) as exc:  # ragged nesting
-        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector ({exc})") from None
-    if arr.dtype.kind not in NUMERIC_KINDS:  # strings, bools, complex, None/objects
-        raise StateError(f"{name} = {reprlib.repr(x)}: not a numeric vector (its entries are "
-                         f"{arr.dtype}; need int or float)")
-    arr = np.asarray(arr, dtype=float)
-    if arr.shape != (n,):
-        what = "configuration coordinates" if name == "q" else "DOF"
-        batch = (f" (q is one state; for a batch of states give q as (B, {model.n_q}) too)"
-                 if arr.ndim == 2 and name != "q" else "")
-        raise StateError(f"{name} has shape {arr.shape}; {type(model).__name__.lower()} "
-                         f"{model.name!r} has {n} {what}, so {name} must have shape ({n},)"
-                         + batch)
-    arr = np.ascontiguousarray(arr)
-    if finite:
-        require_finite(name, arr)
-    return arr
+    what = "configuration coordinates" if name == "q" else "DOF"
+    hint = ""
+    if name != "q" and _is_batch(x):
+        hint = f" (q is one state; for a batch of states give q as (B, {model.n_q}) too)"
+    return door.vector(name, x, n, owner=_owner(model), what=what, finite=finite, hint=hint)
 
 
 def check_out(model: Model, out) -> np.ndarray:
-    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError.
+    """``out`` as given if the kernels can write an (n,) float vector into it, else StateError
+    (:func:`redysim.model.door.out_vector`).
 
     The kernels index without bounds checks: a short or strided ``out`` would be written past
     its end, so it is refused here, never converted (a copy would not reach the caller).
     """
-    n = model.n_v
-    if out is None:
-        return np.empty(n)
-    if _plain_vector(out, n) and out.flags.writeable:
-        return out
-    what = (f"shape {out.shape}, dtype {out.dtype}, strides {out.strides}, "
-            f"writeable {out.flags.writeable}" if isinstance(out, np.ndarray)
-            else f"a {type(out).__name__}")
-    raise StateError(f"out ({what}) must be a writeable, contiguous float64 array of shape "
-                     f"({n},): {model.name!r} has {n} DOF")
+    return door.out_vector(out, model.n_v, owner=repr(model.name))
 
 
-def require_finite(name: str, arr: np.ndarray) -> None:
-    """Raise StateError naming the first NaN or Inf entry of ``arr``."""
-    if not np.isfinite(arr).all():
-        bad = np.flatnonzero(~np.isfinite(arr))
-        raise StateError(f"{name}[{bad[0]}] = {float(arr[bad[0]])!r}: not finite "
-                         f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
+require_finite = door.require_finite
 
 
 def overflow_error(what: str, **inputs) -> StateError:
@@ -144,13 +122,18 @@ def overflow_error(what: str, **inputs) -> StateError:
     return StateError(f"{what} is not finite for finite {names} ({sizes}): overflow?")
 
 
-def _ws(model: Model, ws: Workspace | None) -> Workspace:
+def _ws(model: Model, ws: Workspace | None, where: str = "dynamics") -> Workspace:
+    """The workspace of a call: ``ws``, checked, or the model's own for this thread. The door's
+    model check happens here off the hot path: only a Model has a thread's workspace to find
+    (forward_dynamics's first step), and a Workspace is made for a Model only."""
     if ws is None:  # the model's own workspace for this thread (model_workspace)
         try:
             return model._thread_workspaces.ws
         except AttributeError:
+            door.require_model(model, where)
             return model_workspace(model)
     if getattr(ws, "model", None) is not model:  # one attribute read on the hot path
+        door.require_model(model, where)
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
         raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another chain than "
@@ -234,7 +217,7 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
         # the calls below say why
         from redysim.algorithms._kernels.system import coupled_qdd
 
-        res = np.empty(model.n_v) if out is None else out
+        res = check_out(model, out)  # (compiled code writes it: the door's checks first)
         # writable arrays: a read-only one is another numba type (one compile more)
         a, b, t = (x if x.flags.writeable else x.copy()
                    for x in (q, v, ws.zeros if tau is None else tau))
@@ -305,6 +288,7 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
     function as they are (:func:`redysim.evaluator`'s inverse entry, the same passes and bits);
     anything else is checked and converted first.
     """
+    door.require_model(model, "inverse_dynamics")
     if model.cuts:
         raise closed_error(model, "inverse_dynamics")
     ws = _ws(model, ws)
@@ -344,6 +328,7 @@ def inverse_dynamics(model: Model, q, v, qdd, *, ws: Workspace | None = None,
 
 def phi(model: Model, q, v, tau=None, *, ws: Workspace | None = None) -> np.ndarray:
     """phi = tau - C(q, v) v - gravity terms (Eq. 12), the right-hand side of I qdd = phi."""
+    door.require_model(model, "phi")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     tau = check_state(model, "tau", tau, optional=True)
@@ -406,7 +391,7 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     calls). q and v must keep its couplings (StateError otherwise: ``model.couple(q, v)`` sets
     them).
     """
-    ws = _ws(model, ws)
+    ws = _ws(model, ws, "forward_dynamics")
     if model.cuts or model.couplings:
         if model.cuts:
             raise closed_error(model, "forward_dynamics")
@@ -524,7 +509,7 @@ def check_batch(model: Model, name: str, x, rows: int | None, *,
         raise StateError(f"{label} = {reprlib.repr(x)}: not a numeric array (its entries are "
                          f"{arr.dtype}; need int or float)")
     if arr.ndim == 2 and arr.shape[1] == n and (rows is None or arr.shape[0] == rows):
-        return np.ascontiguousarray(arr, dtype=np.float64)
+        return door.native(arr)
     what = "configuration coordinates" if name == "q" else "DOF"
     has = f"{type(model).__name__.lower()} {model.name!r} has {n} {what}"
     if rows is None:  # the batch's own rows: q
@@ -641,7 +626,7 @@ def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True,
     if out is None:
         out = np.empty((B, model.n_v))
     elif not (type(out) is ndarray and out.shape == (B, model.n_v) and out.dtype is FLOAT64
-              and out.flags.c_contiguous and out.flags.writeable):
+              and out.flags.c_contiguous and out.flags.aligned and out.flags.writeable):
         what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
                 else f"a {type(out).__name__}")
         raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
@@ -760,6 +745,7 @@ def _nonfinite_qdd(model, ws, planar, q, v, tau, gim=None, first=False,
 # --------------------------------------------------------------------------- GIM and factors
 def mass_matrix(model: Model, q, *, ws: Workspace | None = None) -> np.ndarray:
     """The GIM I(q) (n, n) from composite masses (Eq. 10a); exactly symmetric."""
+    door.require_model(model, "mass_matrix")
     q = check_state(model, "q", q)
     ws = _ws(model, ws)
     c = model
@@ -779,6 +765,7 @@ class UDU(NamedTuple):
 
 def udu_factors(model: Model, q, *, ws: Workspace | None = None) -> UDU:
     """The explicit analytic factors I = U D U^T of RGE-A (Appendix A.1), dense (n, n) arrays."""
+    door.require_model(model, "udu_factors")
     q = check_state(model, "q", q)
     ws = _ws(model, ws)
     c = model
@@ -837,6 +824,7 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
 # --------------------------------------------------------------------------- energy and tip
 def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, float]:
     """(T, V): kinetic and potential energy [J] (V = 0 with every COM at height y = 0)."""
+    door.require_model(model, "energy")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     ws = _ws(model, ws)
@@ -850,6 +838,8 @@ def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, f
 
 def delta_M(model: Model, q, v, E0: float, *, ws: Workspace | None = None) -> float:
     """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
+    door.require_model(model, "delta_M")
+    E0 = door.number("delta_M", "E0", E0)
     T, V = energy(model, q, v, ws=ws)
     return (T + V - E0) / model.total_mass
 
@@ -868,6 +858,7 @@ def momentum(model: Model, q, v, *, ws: Workspace | None = None) -> Momentum:
     v_k body k's centre of mass and its velocity, R_k its rotation and w_k its angular velocity,
     p = sum m_k v_k and h_G = sum (R_k I_k R_k^T w_k + m_k (c_k - G) x v_k). Without external
     forces (zero gravity, no loads) both are constant: the truths of a floating system."""
+    door.require_model(model, "momentum")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     ws = _ws(model, ws)
@@ -893,6 +884,7 @@ def generalized_momentum(model: Model, q, v, *, ws: Workspace | None = None,
     Lagrangian's gradient in q at fixed v, dT/dq - dV/dq, so that along a motion under the
     generalized forces tau, dp/dt = dL/dq + tau. O(n) both, no matrix formed. (A free or ball
     joint's q is a quaternion, not what its rates integrate to: its gradient is refused.)"""
+    door.require_model(model, "generalized_momentum")
     if model.cuts:
         raise closed_error(model, "generalized_momentum")
     if gradient and set(QUATERNION_JOINTS) & set(model.joint_types):
@@ -985,6 +977,7 @@ def frame_motion(model: Model, q, v, qdd=None, *, frame: str,
     file defines it (an MJCF body's, MuJoCo's xpos and xmat, also where the importer placed the
     body's frame at its joint's anchor or fused the body into its parent). Raises FieldError for
     an unknown frame, StateError for a bad state."""
+    door.require_model(model, "frame_motion")
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     qdd = check_state(model, "qdd", qdd, optional=True)
@@ -1020,6 +1013,7 @@ def tip(model: Model, q, v, qdd=None, *, ws: Workspace | None = None) -> Tip:
     """The tip: the frame ``"tip"`` (a chain's is the distal end of its last link): position,
     velocity and, given qdd, acceleration (:func:`frame_motion`; a model without such a frame
     raises FieldError naming the frames it has)."""
+    door.require_model(model, "tip")
     return frame_motion(model, q, v, qdd, frame=TIP, ws=ws)
 
 
@@ -1027,6 +1021,7 @@ def joint_positions(model: Model, q, *, ws: Workspace | None = None) -> np.ndarr
     """The joint origins, for plotting a shape: (nb, 3) the body origins (each body's frame sits
     on its joint: a chain's O_1..O_nl), then the frame ``"tip"``'s position when the model has
     one (a chain's distal end), in the world frame [m]."""
+    door.require_model(model, "joint_positions")
     q = check_state(model, "q", q)
     ws = _ws(model, ws)
     _run_kinematics(model, ws, q, ws.zeros, ws.zeros, ws.no_accel)

@@ -45,6 +45,7 @@ from redysim.algorithms.dynamics import (
 )
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import FieldError
+from redysim.model import door
 from redysim.model.tree import Model
 
 KINDS = ("forward_dynamics", "inverse_dynamics")
@@ -60,7 +61,8 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     given, else a new array; the same bits as the public function's. ``dh``: as the public
     functions take it (False: the general kernels on a robot in DH form).
 
-    Refuses (FieldError) something that is not a Model and an unknown ``kind``, and (CaseError)
+    Refuses (:class:`~redysim.errors.ModelTypeError`, a TypeError and a FieldError)
+    something that is not a Model, (FieldError) an unknown ``kind``, and (CaseError)
     a model with cut joints, as the public functions refuse it. A coupled model
     (:meth:`~redysim.Model.with_couplings`): forward dynamics keeps its couplings (a lean entry
     with them in RGE-A's recursion, on a spatial tree; a state off them goes to the checked
@@ -70,9 +72,7 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
     the evaluator's scratch (a :class:`~redysim.algorithms.workspace.Workspace`, ~380 bytes a
     DOF), kept as long as the evaluator is.
     """
-    if not isinstance(model, Model):
-        raise FieldError("evaluator", "model", type(model).__name__,
-                         "must be a redysim.Model (Chain.uniform, load_model(...), ...)")
+    door.require_model(model, "evaluator")
     if kind not in KINDS:
         raise FieldError("evaluator", "kind", kind, f"must be one of {', '.join(KINDS)}")
     if model.cuts:
@@ -93,7 +93,7 @@ def evaluator(model: Model, kind: str = "forward_dynamics", *,
         checked, params, result = _checked_inverse(model, use_dh), "q, v, qdd, out=None", "tau"
     doc = (f"{kind}({params})\n--\n\n{result} of {type(model).__name__.lower()} "
            f"{model.name!r}, bit for bit redysim.{kind}'s (redysim.evaluator).")
-    checked.__name__ = checked.__qualname__ = kind  # (named in the errors it raises)
+    checked.__name__ = kind  # (named in the errors it raises)
     # a coupled model's lean entry: forward dynamics on a spatial tree (RGE-A with the couplings
     # in its recursion); its inverse dynamics and a planar one's forward, the checked path
     lean = not model.couplings or (forward and ws.coupled)

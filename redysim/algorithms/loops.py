@@ -50,6 +50,7 @@ import numpy as np
 
 from redysim.algorithms.vectors import cross
 from redysim.errors import CaseError, StateError
+from redysim.model import door
 from redysim.model.tree import FREE, KINDS, CutJoint, Model, check_cuts
 
 SINGULAR = 1e-10  # smallest / largest singular value of J X below which the loops are redundant
@@ -75,8 +76,7 @@ class ClosedLoops:
         if not isinstance(source, str):
             raise CaseError("ClosedLoops", "source", source, "must be a string (where the "
                             "model and its cuts come from, for messages)")
-        if not isinstance(model, Model):
-            raise CaseError(source, "model", type(model).__name__, "must be a redysim.Model")
+        door.require_model(model, source)
         if cuts is None:  # the model's own (Model.with_cuts)
             cuts = model.cuts
         check_cuts(model, cuts, source)
@@ -141,6 +141,15 @@ class ClosedLoops:
             owners.extend([body] * len(js))
             body = int(m.parent[body])
         return np.array(axes, dtype=np.int64), np.array(owners, dtype=np.int64)
+
+    # ----------------------------------------------------------------------- the door
+    def _state(self, name: str, x, *, finite: bool = True) -> np.ndarray:
+        """``x`` checked at the door (:mod:`redysim.model.door`): a vector of the model's
+        ``n_q`` (q) or ``n_v`` values, as the kernels take it, or StateError naming it."""
+        model = self.model
+        n, what = (model.n_q, "configuration coordinates") if name == "q" else (model.n_v, "DOF")
+        return door.vector(name, x, n, owner=f"model {model.name!r} (closed loops)", what=what,
+                           finite=finite)
 
     # ----------------------------------------------------------------------- kinematics
     def _kinematics(self, q, v):
@@ -223,7 +232,7 @@ class ClosedLoops:
 
     def evaluate(self, q, v):
         """(phi (m,), J (m, n), J v (m,), Jdot v (m,)) at (q, v)."""
-        ws = self._kinematics(q, v)
+        ws = self._kinematics(self._state("q", q), self._state("v", v))
         phi, J, Jv, Jdv = [], [], [], []
         for i, (c, (pa, pb)) in enumerate(zip(self.cuts, self._paths, strict=True)):
             xa, va, aa = self._point(ws, c.body_a, c.point_a)
@@ -370,14 +379,15 @@ class ClosedLoops:
     def cut_points(self, q) -> list[tuple[np.ndarray, np.ndarray]]:
         """World positions (point a, point b) of every cut joint's two points at q (they meet,
         where a loop is closed, in the coordinates the cut constrains)."""
-        ws = self._kinematics(np.asarray(q, dtype=float), self._zeros)
+        ws = self._kinematics(self._state("q", q), self._zeros)
         return [(self._point(ws, c.body_a, c.point_a)[0], self._point(ws, c.body_b, c.point_b)[0])
                 for c in self.cuts]
 
     def check_start(self, q, tol: float = 1e-6) -> None:
         """Refuse a configuration that violates a loop by more than ``tol`` (relative to the
         model's size), naming the cut joint: a start to be projected is one near the loops."""
-        phi = self.evaluate(np.asarray(q, dtype=float), self._zeros)[0]
+        tol = door.number("check_start", "tol", tol)
+        phi = self.evaluate(q, self._zeros)[0]
         worst = int(np.argmax(np.abs(phi)))
         if abs(phi[worst]) > tol * self.size:
             cut = self.cuts[self.rows[worst][0]]
@@ -393,7 +403,7 @@ class ClosedLoops:
         call); where it fails, the same method in numpy says why."""
         from redysim.algorithms._kernels.constraints import OK, loops_project
 
-        q, v = np.array(q, dtype=float), np.array(v, dtype=float)
+        q, v = self._state("q", q).copy(), self._state("v", v).copy()
         met = np.zeros(2)
         q1, v1 = q.copy(), v.copy()
         if self.bundle is not None and loops_project(self.bundle, q1, v1, met) == OK:

@@ -35,6 +35,7 @@ from redysim.algorithms.dynamics import (
 from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import SettingsError, StateError
+from redysim.model import door
 from redysim.model.tree import BALL_JOINT, FREE, QUATERNION_JOINTS, Model
 
 QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
@@ -75,9 +76,7 @@ class System:
     def __init__(self, model: Model, *, damping=0.0, stiffness=None, spring_ref=None,
                  tip_force=None, body_forces=(), gravcomp=None, tau=None, potential=None,
                  loops=None, qdd=None, method: str = "rge-a", source: str = "simulate"):
-        if not isinstance(model, Model):
-            raise TypeError(f"{source} takes a redysim.Model (a Chain is one), not "
-                            f"{type(model).__name__}")
+        door.require_model(model, source)
         self.model, self.source = model, source
         self.n_q, self.n_v = model.n_q, model.n_v
         self.size = self.n_q + self.n_v

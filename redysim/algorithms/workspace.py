@@ -32,7 +32,7 @@ from redysim.algorithms._kernels.bundles import (
 )
 from redysim.algorithms._kernels.joints import BALL
 from redysim.algorithms.dh_form import dh_constants
-from redysim.errors import FieldError
+from redysim.model import door
 from redysim.model.tree import THREAD_WORKSPACES, Model
 
 ALIGN = 8  # every packed segment starts on a 64-byte boundary (8 doubles)
@@ -148,10 +148,7 @@ class Workspace:
     """
 
     def __init__(self, model: Model):
-        if not isinstance(model, Model):
-            raise FieldError("Workspace", "model", type(model).__name__,
-                             "must be a redysim.Model (Chain.build, Chain.uniform, "
-                             "load_case(...).chain, load_model(...))")
+        door.require_model(model, "Workspace")
         t = tree_tables(model)
         nb, n = t["mass"].shape[0], t["dof_kind"].shape[0]
         ng = int((t["gather"] >= 0).sum())

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redysim.errors import FieldError, SettingsError
+from redysim.errors import FieldError, SettingsError, StateError
 from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping pieces, importable from here too
     FINISH_SLACK,
     FIRST_REJECT_MIN,
@@ -64,6 +64,7 @@ from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping 
     as_function,
 )
 from redysim.integrators.protocol import hermite as _hermite
+from redysim.model import door
 
 # --------------------------------------------------------------------------- settings' ranges
 RTOL_MIN = 100 * float(np.finfo(float).eps)  # ode45 raises a smaller rtol to this (MATLAB)
@@ -659,6 +660,23 @@ def compile_kernels() -> None:
     solver.step(1e-3)
 
 
+def _check_rhs(rhs, t0: float, y0) -> None:
+    """Refuse, naming it, a y0 that is not a finite numeric vector, or an ``rhs`` that is not
+    callable or whose dy/dt at (t0, y0) is not of y0's shape: each would fail deep inside a
+    step ("operands could not be broadcast")."""
+    y = door.numeric("y0", y0)
+    if y.ndim != 1:
+        raise StateError(f"integrate: y0 has shape {y.shape}; it must be a vector (1-D)")
+    door.require_finite("y0", y.astype(float))
+    if not callable(rhs):
+        raise TypeError(f"integrate: rhs = {type(rhs).__name__}: must be a function "
+                        "rhs(t, y) -> dy/dt")
+    dy = np.shape(rhs(t0, y.astype(float)))
+    if dy != y.shape:
+        raise StateError(f"integrate: rhs(t0, y0) has shape {dy}; y0 has shape {y.shape}: "
+                         "rhs(t, y) must return dy/dt of y's shape")
+
+
 def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,
               rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
               hmax: float | None = None, t_eval=None, callback=None) -> Solution:
@@ -696,6 +714,8 @@ def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode
         if np.any(np.diff(t_eval) <= 0):
             raise ValueError("Values in t_eval are not properly sorted (they must increase "
                              "strictly)")
+    if not hasattr(rhs, "derivative"):  # a function: its answer's shape checked once, here
+        _check_rhs(rhs, t0, y0)
     cpu0, wall0 = time.process_time(), time.perf_counter()
     solver = make_solver(rhs, t0, y0, t1, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
     ts, ys = [], []

@@ -730,14 +730,25 @@ def rebuilt_case(case, links: int):
     if why:
         raise CaseError(str(getattr(case, "path", case.name)), "links", links,
                         f"does not divide the case's {case.chain.n_links} links, and {why}")
+    # the state as the rebuilt rope's: its first joint's coordinates and rates (a straight
+    # rope's only nonzero ones), the rest zero; a list in the file has the old count's length
+    chain = case.chain
+    first = {name: {"fill": 0.0, "set": [[k, float(x[k])] for k in range(int(off[1]))
+                                         if x[k]]}
+             for name, x, off in (("q", case.q0, chain.joint_qoff),
+                                  ("v", case.v0, chain.joint_voff))}
     return case_with_links(case.path, links, f"{case.name}@{links}",
-                           f"{case.path} (rebuilt at {links} links)")
+                           f"{case.path} (rebuilt at {links} links)", initial=first)
 
 
-def case_with_links(path, links: int, name: str, source: str) -> Case:
+def case_with_links(path, links: int, name: str, source: str, *,
+                    initial: dict | None = None) -> Case:
     """The case file at ``path`` read with its ``[chain] links`` set to ``links`` and its name
-    to ``name`` (the file itself unchanged); ``source`` names it in messages."""
+    to ``name`` (the file itself unchanged); ``source`` names it in messages. ``initial``: its
+    ``[initial]`` entries replaced by these (``q``, ``v``)."""
     doc = json.loads(json.dumps(read_toml(path)[0]))  # a deep copy
     doc["chain"]["links"] = int(links)
     doc["case"]["name"] = name
+    if initial:
+        doc.setdefault("initial", {}).update(initial)
     return case_from_dict(doc, source=source, path=Path(path))

@@ -1447,6 +1447,24 @@ def _finish(bodies, joints, parents, gravity, name, src, notes, *, frames=None,
     return model
 
 
+def _same_motion(model: Model, j: int) -> int | None:
+    """Another DOF whose motion (the unit twist of its axis, about the world origin, at the
+    neutral configuration) is DOF ``j``'s, up to its sign and size: two hinges on one axis
+    line, or two slides along one direction. None when there is none."""
+    from redysim.algorithms.rbda import kinematics
+
+    kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
+    body = np.searchsorted(model.joint_voff, np.arange(model.n_v), side="right") - 1
+    S = kin.S.copy()
+    S[3:] -= np.cross(S[:3].T, kin.O[body]).T  # each axis's twist about the world origin
+    unit = S / np.maximum(np.linalg.norm(S, axis=0), np.finfo(float).tiny)
+    for other in range(model.n_v):
+        if other != j and min(np.abs(unit[:, j] - unit[:, other]).max(),
+                              np.abs(unit[:, j] + unit[:, other]).max()) < 1e-9:
+            return other
+    return None
+
+
 def _check_inertia_to_move(model: Model, src: str) -> list[str]:
     """Refuse a model whose GIM is singular at the neutral configuration, naming the first
     joint whose pivot vanishes in elimination order (from the tip, :func:`rbda.singular_axes
@@ -1460,6 +1478,15 @@ def _check_inertia_to_move(model: Model, src: str) -> list[str]:
     if bad.size:
         j = int(bad[0])
         k = int(np.searchsorted(model.joint_voff, j, side="right") - 1)
+        twin = _same_motion(model, j)
+        if twin is not None:  # (the massless body between them is the importer's, not the file's)
+            k2 = int(np.searchsorted(model.joint_voff, twin, side="right") - 1)
+            a, b = sorted((model.joint_names[k], model.joint_names[k2]))
+            raise ModelFileError(src, f"joint {b!r}", None,
+                                 f"moves along the same axis through the same point as joint "
+                                 f"{a!r} (at the neutral configuration): one motion given twice, "
+                                 "so the joint-space inertia is singular; remove one of them, or "
+                                 "give it another axis or anchor (pos)")
         raise ModelFileError(src, f"joint {model.joint_names[k]!r}", None,
                              _singular_text(model, k, j - int(model.joint_voff[k])))
     D = pivoted[0]

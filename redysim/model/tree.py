@@ -41,6 +41,7 @@ from typing import Any, ClassVar, NoReturn
 import numpy as np
 
 from redysim.errors import CaseError
+from redysim.model import door
 from redysim.model.parts import (
     GENERAL_AXIS,
     JOINT_TYPES,
@@ -233,6 +234,9 @@ class Model:
     identity) or hashing, and neither pickles nor copies carry it (:meth:`__getstate__`): an
     unpickled or copied model makes its own.
     """
+
+    # what redysim.model.door.require_model looks for (the door imports no model class)
+    __redysim_model__: ClassVar[bool] = True
 
     name: str
     body_names: Sequence[str]  # a tuple; a Chain's numbered names hold no strings (_Numbered)
@@ -614,13 +618,15 @@ class Model:
     def couple(self, q, v=None):
         """(q, v) with every follower's coordinate and velocity set from its leader's
         (q_f = m q_l + offset, v_f = m v_l): copies; q alone when ``v`` is None. The identity
-        for a model without couplings."""
-        q = np.array(q, dtype=float)
+        for a model without couplings. StateError for a q or v of another length (or not
+        finite), as the dynamics functions refuse them."""
+        owner = f"{type(self).__name__.lower()} {self.name!r}"
+        q = door.vector("q", q, self.n_q, owner=owner, what="configuration coordinates").copy()
         fq, lq, fv, lv, m, off = self.coupling_index
         q[fq] = m * q[lq] + off
         if v is None:
             return q
-        v = np.array(v, dtype=float)
+        v = door.vector("v", v, self.n_v, owner=owner, what="DOF").copy()
         v[fv] = m * v[lv]
         return q, v
 

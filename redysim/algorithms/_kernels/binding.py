@@ -137,6 +137,12 @@ class Bound(tuple):
     def __repr__(self) -> str:
         return f"<redysim.evaluator {self.kind} of {self.model.name!r}>"
 
+    def __reduce__(self):
+        raise TypeError(f"cannot pickle {self!r}: evaluators are per process: make one in "
+                        "each (send the model, which pickles, and call redysim.evaluator(model) "
+                        "there; an evaluator is compiled code and scratch at this process's "
+                        "addresses)")
+
 
 def bind(entry, forward: bool, ws, checked, model, kind: str, doc: str):
     """The builtin calling ``entry`` (a :class:`redysim._jit.EntryPoint` of :mod:`.lean`) on

@@ -43,7 +43,7 @@ from numba.core.imputils import impl_ret_borrowed, lower_cast
 from numba.extending import NativeValue, box, intrinsic, register_model, unbox
 from numba.np.arrayobj import make_array, populate_array
 
-from redysim._jit import LEAN_OPTIONS, EntryPoint, inline, inline_generated
+from redysim._jit import INTERNALS_OK, LEAN_OPTIONS, EntryPoint, inline, inline_generated
 
 from . import entry as E
 from .bundles import DH_SCRATCH, H_NB, H_NQ, H_NV, Scratch, Tree, bundles_source
@@ -124,7 +124,8 @@ def _numpy_layout_ok() -> bool:
     return np.dtype(np.float64).num == NPY_DOUBLE and ro.flags.num & NPY_ARRAY_WRITEABLE == 0
 
 
-NUMPY_LAYOUT_OK: bool = _numpy_layout_ok()
+# (and numba's internals as this module builds on them: redysim._jit.INTERNALS_OK, by version)
+NUMPY_LAYOUT_OK: bool = INTERNALS_OK and _numpy_layout_ok()
 
 
 class CheckedVector(types.Array):

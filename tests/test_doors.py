@@ -1,0 +1,360 @@
+"""The door (redysim.model.door): every public function and method that takes a model, a state
+or a vector checks it before compiled code reads it (docs/design.md, "Checked at the door").
+
+First the families a hold-out battery found, one test each (each failed before the door):
+vectors of the wrong length read past their end (the loops' methods, Model.couple), a
+non-Model reaching the user as AttributeError, an unaligned vector after a big-endian one
+refused with numba's own message, messages that did not say what to do, and numba internals
+relied on without naming the versions known. Then the property over the public API
+(Hypothesis, a fixed seed): any argument of any shape, dtype, byte order, stride, alignment,
+length or value gives the documented answer (the same call's on a clean float64 copy) or a
+named error raised by redysim's own code, never another exception and never a read past an
+array. Budget: PROPERTY_EXAMPLES examples per test, derandomized; ~15 s in all on one core.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+import traceback
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import redysim
+from redysim import Chain, StateError
+from redysim.algorithms.linkages import four_bar
+from redysim.errors import CaseError, RedysimError
+from redysim.integrators.explicit import integrate
+
+REPO = Path(__file__).resolve().parents[1]
+SETTINGS = dict(deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+PROPERTY_EXAMPLES = 60
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return Chain.uniform(3, "R", mass=1.0)
+
+
+@pytest.fixture(scope="module")
+def crank_rocker():
+    fb = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0)
+    return fb.loops, fb.configuration(0.3)
+
+
+def unaligned(values) -> np.ndarray:
+    """A float64 view of ``values`` one byte into a buffer: not aligned."""
+    values = np.asarray(values, dtype=float)
+    buf = np.zeros(values.size * 8 + 1, dtype=np.uint8)
+    view = buf[1:].view(np.float64)
+    view[:] = values
+    assert not view.flags.aligned or not values.size  # (an empty view counts as aligned)
+    return view
+
+
+# --------------------------------------------------------------------------- the families
+def test_the_loops_methods_and_couple_refuse_a_vector_of_another_length(crank_rocker):
+    loops, q0 = crank_rocker
+    with pytest.raises(StateError, match=r"v has shape \(1,\).*must have shape \(3,\)"):
+        loops.project(q0, np.zeros(1))
+    with pytest.raises(StateError, match=r"q has shape \(1,\).*must have shape \(3,\)"):
+        loops.residuals(q0[:1], np.zeros(3))  # a view: its neighbours were read
+    with pytest.raises(StateError, match=r"q has shape \(2,\)"):
+        loops.cut_points(q0[:2])
+    five = Chain.uniform(5, "R", mass=1.0)
+    with pytest.raises(StateError, match=r"q has shape \(3,\).*must have shape \(5,\)"):
+        five.couple(np.zeros(3), np.zeros(5))
+    with pytest.raises(StateError, match=r"v has shape \(4,\)"):
+        five.couple(np.zeros(5), np.zeros(4))
+
+
+class NotAModel:
+    n_q = n_v = 3  # (even what looks like one)
+
+
+@pytest.mark.parametrize("name, args", [
+    ("forward_dynamics", 2), ("inverse_dynamics", 3), ("phi", 2), ("mass_matrix", 1),
+    ("udu_factors", 1), ("energy", 2), ("momentum", 2), ("generalized_momentum", 2),
+    ("joint_positions", 1), ("tip", 2), ("evaluator", 0), ("simulate", None)])
+def test_a_non_model_is_a_type_error_naming_the_call(name, args):
+    f = getattr(redysim, name)
+    for thing in (NotAModel(), "rope", None, np.zeros(3)):
+        call = ((lambda thing=thing: f(thing, 1.0)) if args is None else
+                (lambda thing=thing: f(thing, *[np.zeros(3)] * args)))
+        # a TypeError and a CaseError (redysim.errors.ModelTypeError) naming the call
+        with pytest.raises(TypeError, match=rf"^{name}: model = .*must be a redysim.Model"):
+            call()
+        with pytest.raises(CaseError):
+            call()
+    with pytest.raises(TypeError, match="frame_motion: model = .*must be a redysim.Model"):
+        redysim.frame_motion(NotAModel(), np.zeros(3), np.zeros(3), frame="tip")
+    with pytest.raises(TypeError, match="ClosedLoops: model = .*must be a redysim.Model"):
+        redysim.ClosedLoops(NotAModel(), [], source="ClosedLoops")
+
+
+def test_unaligned_and_big_endian_vectors_are_converted_or_refused_by_name(chain):
+    q = np.array([0.1, -0.2, 0.3])
+    v = np.array([0.5, 0.0, -1.0])
+    want = redysim.forward_dynamics(chain, q, v)
+    # a big-endian call first, then unaligned ones (the sequence that reached numba's dispatch)
+    assert np.array_equal(redysim.forward_dynamics(chain, q.astype(">f8"), v), want)
+    assert np.array_equal(redysim.forward_dynamics(chain, unaligned(q), unaligned(v)), want)
+    fd = redysim.evaluator(chain)
+    assert np.array_equal(fd(q.astype(">f8"), v), want)
+    assert np.array_equal(fd(unaligned(q), v), want)
+    with pytest.raises(StateError, match=r"out \(.*aligned False.*must be a writeable, aligned"):
+        redysim.forward_dynamics(chain, q, v, out=unaligned(np.zeros(3)))
+    tau = redysim.inverse_dynamics(chain, q, v, want)
+    assert np.array_equal(redysim.inverse_dynamics(chain, unaligned(q), v.astype(">f8"),
+                                                   unaligned(want)), tau)
+    batch = redysim.forward_dynamics(chain, np.tile(q, (3, 1)).astype(">f8"),
+                                     np.tile(v, (3, 1)), simd=False)
+    assert np.array_equal(batch, np.tile(want, (3, 1)))
+
+
+def test_messages_say_what_to_do(chain):
+    fd = redysim.evaluator(chain)
+    with pytest.raises(TypeError, match="evaluators are per process: make one in each"):
+        pickle.dumps(fd)
+    with pytest.raises(StateError, match=r"delta_M: E0 = '1.0': must be a number"):
+        redysim.delta_M(chain, np.zeros(3), np.zeros(3), "1.0")
+    with pytest.raises(StateError, match=r"rhs\(t0, y0\) has shape \(3,\); y0 has shape \(2,\)"):
+        integrate(lambda t, y: np.zeros(3), (0.0, 1.0), np.zeros(2))
+
+
+@pytest.mark.engine
+def test_two_hinges_on_one_axis_are_named_both(tmp_path):
+    """Two hinges of one MJCF body with the same axis and anchor: the error names both (the
+    second one as the field), not the massless body the importer puts between them."""
+    pytest.importorskip("mujoco")
+    from redysim.io.importers import ModelFileError, load_mjcf
+
+    path = tmp_path / "twohinge.xml"
+    path.write_text("""<mujoco model="twohinge"><worldbody>
+      <body name="armL" pos="0 0 1">
+        <joint name="l1" type="hinge" axis="0 1 0" pos="0.1 0 0"/>
+        <joint name="l2" type="hinge" axis="0 -1 0" pos="0.1 0 0"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/>
+      </body></worldbody></mujoco>""")
+    with pytest.raises(ModelFileError, match=r"joint 'l2': moves along the same axis through "
+                       r"the same point as joint 'l1'") as err:
+        load_mjcf(path)
+    assert "armL_l1" not in str(err.value)
+
+
+ROPE = """[case]
+name = "rope"
+description = "a straight rope released at an angle"
+[chain]
+links = {links}
+joint = "U"
+total_length = 1.0
+density = 7850.0
+radius = 0.01
+inertia = "rod"
+[initial]
+q = {q}
+v = {v}
+[simulation]
+t_end = 0.1
+"""
+
+
+def test_a_straight_rope_given_as_lists_rebuilds_at_any_count(tmp_path):
+    """A straight rope whose file lists its initial angles (the first joint's nonzero) rebuilt
+    at a count that does not divide its own (12 -> 5; `--links 5`): the rope a file with 5
+    links and the same first-joint state gives (before: "must be a list of 5 numbers, got
+    shape (24,)")."""
+    from redysim.io.cases import load_case, rebuilt_case
+
+    def rope(links, name):
+        q, v = [0.0] * (2 * links), [0.0] * (2 * links)
+        q[0], q[1], v[1] = 0.3, -0.1, 0.5
+        path = tmp_path / name
+        path.write_text(ROPE.format(links=links, q=q, v=v))
+        return load_case(path)
+
+    rebuilt = rebuilt_case(rope(12, "rope12.toml"), 5)
+    direct = rope(5, "rope5.toml")
+    assert np.array_equal(rebuilt.q0, direct.q0) and np.array_equal(rebuilt.v0, direct.v0)
+    assert np.array_equal(rebuilt.chain.length, direct.chain.length)
+    assert np.array_equal(rebuilt.chain.mass, direct.chain.mass)
+
+
+def test_an_unknown_numba_is_named_at_import_and_its_internals_left_alone(tmp_path):
+    """A numba of another minor version: a warning naming it, no dispatch bypass, no lean
+    entries (so no evaluator builtin), tiles without the noalias option; nothing compiled."""
+    code = ("import warnings, numba\nnumba.__version__ = '0.99.0'\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    warnings.simplefilter('always')\n"
+            "    from redysim import _jit\n"
+            "    from redysim.algorithms._kernels import lean, binding\n"
+            "print([str(x.message) for x in w if 'numba 0.99.0' in str(x.message)][0])\n"
+            "assert not _jit.INTERNALS_OK and not _jit.NOALIAS\n"
+            "assert 'noalias' not in _jit.TILE_OPTIONS\n"
+            "assert not lean.NUMPY_LAYOUT_OK and not binding.BINDING_OK\n"
+            "assert _jit.unchecked_call(numba.njit('f8(f8)')(lambda x: x)) is None\n")
+    # the redysim this process imported, from anywhere (not the checkout the cwd would give)
+    env = {**os.environ, "PYTHONPATH": str(Path(redysim.__file__).resolve().parents[1])}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=tmp_path, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "0.68" in run.stdout and "internals" in run.stdout
+
+
+# --------------------------------------------------------------------------- the property
+def _vector_like(draw, n: int):
+    """An argument where a vector of n values is taken: of any length, dtype, byte order,
+    stride, alignment and values, or not a vector at all."""
+    kind = draw(st.sampled_from(["contiguous", "float32", "int", ">f8", "strided", "unaligned",
+                                 "readonly", "2d", "list", "subclass", "other"]))
+    if kind == "other":
+        return draw(st.sampled_from([None, "1.0", 1.0, object(), NotAModel(), [[1.0], [2.0, 3.0]],
+                                     np.array(["a"] * n), np.zeros(n, dtype=complex),
+                                     np.zeros(n, dtype=bool)]))
+    length = draw(st.sampled_from([n, n, n, n - 1, n + 1, 0]))
+    value = st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, np.nan, np.inf, -np.inf,
+                                                             1e300, -1e300, 5e-324]))
+    values = np.array(draw(st.lists(value, min_size=length, max_size=length)), dtype=float)
+    if kind == "float32":
+        with np.errstate(over="ignore"):  # (1e300 becomes inf)
+            return values.astype(np.float32)
+    if kind == "int":
+        return np.nan_to_num(values, posinf=3.0, neginf=-3.0).clip(-3, 3).astype(np.int64)
+    if kind == ">f8":
+        return values.astype(">f8")
+    if kind == "strided":
+        wide = np.full(2 * length, 7.0)
+        wide[::2] = values
+        return wide[::2]
+    if kind == "unaligned":
+        return unaligned(values)
+    if kind == "readonly":
+        values.flags.writeable = False
+        return values
+    if kind == "2d":
+        return values[None, :]
+    if kind == "list":
+        return values.tolist()
+    if kind == "subclass":
+        return values.view(np.ma.MaskedArray if draw(st.booleans()) else np.recarray)
+    return values
+
+
+def _clean(x):
+    """What the call on a clean copy gets: a contiguous float64 copy of a numeric array."""
+    try:
+        arr = np.asarray(x)
+    except (TypeError, ValueError):
+        return x
+    if arr.dtype.kind not in "iuf" or isinstance(x, np.matrix):
+        return x
+    return np.array(arr, dtype=np.float64)
+
+
+PACKAGE = str(REPO / "redysim")
+
+
+def _outcome(call):
+    """("ok", result) or ("error", exception); any exception not raised on purpose by
+    redysim's own code (a numba dispatch error, an AttributeError, a broadcast error) fails."""
+    try:
+        return "ok", call()
+    except Exception as exc:  # noqa: BLE001 (the property: which exception)
+        where = traceback.extract_tb(exc.__traceback__)[-1].filename
+        ours = where.startswith(PACKAGE) and "_kernels" not in where
+        named = isinstance(exc, RedysimError) or (isinstance(exc, TypeError | ValueError)
+                                                  and ours)
+        assert named, f"{type(exc).__name__} from {where}: {exc}"
+        return "error", exc
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, list):
+        return all(_same(x, y) for x, y in zip(a, b, strict=True))
+    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
+def _check(call, args):
+    """The property for ``call(*args)`` against ``call(*clean args)``."""
+    messy = _outcome(lambda: call(*args))
+    clean = _outcome(lambda: call(*[_clean(a) for a in args]))
+    if messy[0] == "ok":
+        assert clean[0] == "ok", f"answered {messy[1]!r} where the clean copy raised {clean[1]}"
+        assert _same(messy[1], clean[1])
+    elif clean[0] == "ok":  # refused what converts: only for what is not numeric floats
+        assert isinstance(messy[1], StateError | TypeError | ValueError)
+
+
+FUNCTIONS = {  # name -> (call(model, *vectors), number of vectors: each q then n_v long)
+    "forward_dynamics": (lambda m, q, v, t: redysim.forward_dynamics(m, q, v, t), 3),
+    "forward_dynamics(out=)": (lambda m, q, v, o: redysim.forward_dynamics(m, q, v, out=o), 3),
+    "inverse_dynamics": (redysim.inverse_dynamics, 3),
+    "phi": (redysim.phi, 3),
+    "mass_matrix": (redysim.mass_matrix, 1),
+    "udu_factors": (lambda m, q: tuple(redysim.udu_factors(m, q)), 1),
+    "energy": (redysim.energy, 2),
+    "delta_M": (lambda m, q, v: redysim.delta_M(m, q, v, 0.5), 2),
+    "momentum": (lambda m, q, v: tuple(redysim.momentum(m, q, v)), 2),
+    "generalized_momentum": (redysim.generalized_momentum, 2),
+    "frame_motion": (lambda m, q, v, a: tuple(redysim.frame_motion(m, q, v, a, frame="tip")), 3),
+    "joint_positions": (redysim.joint_positions, 1),
+    "couple": (lambda m, q, v: m.couple(q, v), 2),
+}
+
+
+@settings(max_examples=PROPERTY_EXAMPLES, **SETTINGS)
+@given(data=st.data(), name=st.sampled_from(sorted(FUNCTIONS)))
+def test_any_argument_gets_the_answer_or_a_named_error(chain, data, name):
+    call, count = FUNCTIONS[name]
+    model = chain if name == "couple" or data.draw(st.integers(0, 9)) else data.draw(
+        st.sampled_from([NotAModel(), None, "chain", np.zeros(3)]))  # (couple: a method)
+    vectors = [_vector_like(data.draw, 3) for _ in range(count)]
+    _check(lambda m, *xs: call(m, *xs), [model, *vectors])
+
+
+@settings(max_examples=PROPERTY_EXAMPLES, **SETTINGS)
+@given(data=st.data(), kind=st.sampled_from(["forward_dynamics", "inverse_dynamics"]))
+def test_an_evaluator_takes_any_argument_as_its_public_function(chain, data, kind):
+    f = redysim.evaluator(chain, kind)
+    vectors = [_vector_like(data.draw, 3) for _ in range(3)]
+    if data.draw(st.booleans()):  # out=, as given: only a plain vector is written into
+        out = _vector_like(data.draw, 3)
+        messy = _outcome(lambda: f(*vectors, out=out))
+        if messy[0] == "ok":
+            assert messy[1] is out
+            assert _same(out, f(*[_clean(x) for x in vectors]))
+        return
+    _check(f, vectors)
+
+
+LOOP_METHODS = {
+    "forward_dynamics": (lambda lp, q, v, t: lp.forward_dynamics(q, v, t), 3),
+    "residuals": (lambda lp, q, v: lp.residuals(q, v), 2),
+    "project": (lambda lp, q, v: lp.project(q, v), 2),
+    "evaluate": (lambda lp, q, v: lp.evaluate(q, v), 2),
+    "cut_points": (lambda lp, q: lp.cut_points(q), 1),
+    "check_start": (lambda lp, q: lp.check_start(q), 1),
+}
+
+
+@settings(max_examples=PROPERTY_EXAMPLES, **SETTINGS)
+@given(data=st.data(), name=st.sampled_from(sorted(LOOP_METHODS)))
+def test_the_loops_take_any_argument_to_the_answer_or_a_named_error(crank_rocker, data, name):
+    loops, q0 = crank_rocker
+    call, count = LOOP_METHODS[name]
+    vectors = [_vector_like(data.draw, 3) for _ in range(count)]
+    if data.draw(st.booleans()) and isinstance(vectors[0], np.ndarray) \
+            and vectors[0].shape == (3,) and vectors[0].dtype.kind == "f":
+        vectors[0] = (q0 + 1e-3 * np.nan_to_num(vectors[0].astype(float), posinf=0,
+                                                neginf=0).clip(-1, 1)).astype(vectors[0].dtype)
+    _check(lambda *xs: call(loops, *xs), vectors)
