@@ -109,6 +109,7 @@ from redysim.model.tree import (
     BALL_JOINT,
     FIXED,
     FREE,
+    QUATERNION_JOINTS,
     Body,
     Coupling,
     CutJoint,
@@ -1450,7 +1451,8 @@ def _finish(bodies, joints, parents, gravity, name, src, notes, *, frames=None,
 def _same_motion(model: Model, j: int) -> int | None:
     """Another DOF whose motion (the unit twist of its axis, about the world origin, at the
     neutral configuration) is DOF ``j``'s, up to its sign and size: two hinges on one axis
-    line, or two slides along one direction. None when there is none."""
+    line, or two slides along one direction (free and ball joints' axes left out: theirs is a
+    massless body's case). None when there is none."""
     from redysim.algorithms.rbda import kinematics
 
     kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
@@ -1458,10 +1460,13 @@ def _same_motion(model: Model, j: int) -> int | None:
     S = kin.S.copy()
     S[3:] -= np.cross(S[:3].T, kin.O[body]).T  # each axis's twist about the world origin
     unit = S / np.maximum(np.linalg.norm(S, axis=0), np.finfo(float).tiny)
-    for other in range(model.n_v):
+    single = np.array([model.joint_types[int(k)] not in QUATERNION_JOINTS for k in body])
+    if not single[j]:  # (a free or ball joint's axes: a massless body, not a repeated joint)
+        return None
+    for other in np.flatnonzero(single):
         if other != j and min(np.abs(unit[:, j] - unit[:, other]).max(),
                               np.abs(unit[:, j] + unit[:, other]).max()) < 1e-9:
-            return other
+            return int(other)
     return None
 
 
