@@ -45,20 +45,20 @@ runs everything again instead of mixing results of two versions.
 :func:`run_sweep` writes into ``out_dir``::
 
     sweep.json                   the plan: name, source and every planned run (atomically)
-    runs/<run_id>.parquet        a finished run's summary row, written as soon as it finishes
-    samples/<run_id>.parquet     its samples (written first)
-    manifest/<run_id>.json       the run's files and their SHA-256 (written last: it marks the
-                                 run done)
+    samples/<run_id>.parquet     a finished run's samples (written first)
+    manifest/<run_id>.json       the run's files and their SHA-256 (written next)
+    runs/<run_id>.parquet        its summary row (moved into place last: it marks the run done)
     runs.parquet, samples.parquet  everything, in plan order (:func:`collect`)
 
 Every file is written atomically (:mod:`redysim.harness.store`), so a sweep killed at any moment
 (even ``kill -9``) and started again skips the runs it finished and redoes only those in flight.
-A finished run whose files are not those its manifest lists (one deleted, or changed) is said on
-stderr and done again; a finished sweep read again rewrites nothing. A folder that cannot be
-written is refused by name (:class:`redysim.harness.store.FolderError`) before any run, unless
-every run in it is finished: then it is read as it is. At
-most ``workers`` runs are in flight on the local pool. A run that fails is a row with ``status =
-"failed"`` and its ``reason``; so is a run whose worker raised or died.
+A finished run whose files are not those its manifest lists (one deleted, or changed), or whose
+manifest is missing or damaged, is said on stderr and done again; a finished sweep read again
+rewrites nothing. A folder that cannot be written is refused by name
+(:class:`redysim.harness.store.FolderError`) before any run, unless every run in it is
+finished: then it is read as it is. At most ``workers`` runs are in flight on the local pool.
+A run that fails is a row with ``status = "failed"`` and its ``reason``; so is a run whose
+worker raised or died.
 """
 
 from __future__ import annotations
@@ -153,6 +153,7 @@ CLAIMS_DIR = ".claims"  # one lock file per run in flight (Claims)
 DAMAGED_DIR = "damaged"  # result files that could not be read, kept for a look
 RUNS_DIR = "runs"
 SAMPLES_DIR = "samples"
+STAGED_SUFFIX = ".staged"  # a summary row written, to be moved into place after its manifest
 MANIFEST_DIR = "manifest"  # manifest/<run_id>.json: a finished run's files and their SHA-256
 RUNS_FILE = "runs.parquet"
 SAMPLES_FILE = "samples.parquet"
@@ -597,6 +598,11 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
         """'ok', 'failed' (a result), or None (not run, damaged, missing a file, stopped by a
         wall-clock limit, or to be run again)."""
         row = _read_run(out, spec.run_id, repair=repair)
+        if row is None and (out / MANIFEST_DIR / f"{spec.run_id}.json").is_file() and not (
+                out / RUNS_DIR / f"{spec.run_id}{PARQUET_SUFFIX}").exists():
+            print(f"redysim: {out / RUNS_DIR / f'{spec.run_id}{PARQUET_SUFFIX}'} is missing "
+                  f"(its manifest lists it: deleted, or its sweep stopped before moving it into "
+                  "place): its run will be done again", file=sys.stderr)
         if (row is None or not _samples_readable(out, spec.run_id, repair=repair)
                 or not _manifest_holds(out, spec.run_id, row, repair=repair)):
             return None
@@ -685,9 +691,13 @@ def _files_of(out: Path, run_id: str) -> list[Path]:
     return [f for f in files if f.is_file()]
 
 
-def _write_manifest(out: Path, run_id: str) -> None:
-    """Record a stored run's files and their SHA-256 (:data:`MANIFEST_DIR`): the run is done."""
-    files = {f.relative_to(out).as_posix(): sha256_file(f) for f in _files_of(out, run_id)}
+def _write_manifest(out: Path, run_id: str, staged: dict | None = None) -> None:
+    """Record a stored run's files and their SHA-256 (:data:`MANIFEST_DIR`): the run is done.
+    ``staged``: {final path: staged path} of files still to be moved into place."""
+    staged = staged or {}
+    files = {f.relative_to(out).as_posix(): sha256_file(f) for f in _files_of(out, run_id)
+             if f not in staged}
+    files.update({f.relative_to(out).as_posix(): sha256_file(tmp) for f, tmp in staged.items()})
     write_json_atomic({"run_id": run_id, "files": files},
                       out / MANIFEST_DIR / f"{run_id}.json")
 
@@ -695,18 +705,14 @@ def _write_manifest(out: Path, run_id: str) -> None:
 def _manifest_holds(out: Path, run_id: str, row: dict, *, repair: bool = True) -> bool:
     """Whether a run's files are those its manifest lists, by SHA-256. A file missing is said on
     stderr, one changed is set aside (:func:`set_aside`; not when not ``repair``): its run is
-    done again either way. A run stored without a manifest (its sweep killed between its summary
-    row and its manifest) is taken if an "ok" run has its samples, and its manifest written."""
+    done again either way, as is a run whose manifest is missing (a sweep writes it before the
+    summary row, so a row without one is not a finished run's) or cannot be read."""
     path = out / MANIFEST_DIR / f"{run_id}.json"
-    if not path.is_file():
-        if row["status"] == "ok" and not (out / SAMPLES_DIR / f"{run_id}.parquet").is_file():
-            print(f"redysim: {out / SAMPLES_DIR / f'{run_id}.parquet'} is missing (run "
-                  f"{row.get('label', run_id)} is recorded ok); its run will be done again",
-                  file=sys.stderr)
-            return False
-        if repair:
-            _write_manifest(out, run_id)
-        return True
+    if not path.is_file():  # (a sweep writes a run's manifest before its summary row)
+        print(f"redysim: {path} is missing (run {row.get('label', run_id)} is recorded "
+              f"{row['status']}, but without the record of its files): its run will be done "
+              "again", file=sys.stderr)
+        return False
     try:
         files = read_json(path)["files"]
         if not isinstance(files, dict):
@@ -745,15 +751,21 @@ def set_aside(path: Path, exc: BaseException) -> Path | None:
 
 
 def _store(out: Path, spec: RunSpec, summary: dict, samples: pd.DataFrame | None) -> None:
-    """Write one finished run: its samples first, then the summary row that marks it done."""
+    """Write one finished run: its samples first, then its summary row staged beside its place,
+    then its manifest (the files' SHA-256, the row's taken from the staged file), and last the
+    row moved into place. So a summary row is never there without its manifest: a row without
+    one was not written by a sweep that finished it (the manifest removed), and is redone."""
     if samples is not None:
         write_parquet_atomic(samples, out / SAMPLES_DIR / f"{spec.run_id}.parquet")
     else:  # a samples file of an earlier try of this run is not this one's
         with contextlib.suppress(FileNotFoundError):
             os.unlink(out / SAMPLES_DIR / f"{spec.run_id}.parquet")
     summary = {"transient": False, **summary}
-    write_parquet_atomic(pd.DataFrame([summary]), out / RUNS_DIR / f"{spec.run_id}.parquet")
-    _write_manifest(out, spec.run_id)
+    final = out / RUNS_DIR / f"{spec.run_id}.parquet"
+    staged = final.with_name(f".{final.name}{STAGED_SUFFIX}")
+    write_parquet_atomic(pd.DataFrame([summary]), staged)
+    _write_manifest(out, spec.run_id, staged={final: staged})
+    os.replace(staged, final)
 
 
 def _init_worker(parent: int) -> None:

@@ -791,6 +791,35 @@ def test_a_result_file_replaced_by_another_readable_one_is_caught_by_its_digest(
     assert sorted(table.groupby("run_id").size()) == sorted(runs["n_samples"])
 
 
+@pytest.mark.parametrize("damage", ["manifest deleted", "manifest damaged", "run deleted"])
+def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, damage):
+    """A hold-out battery: a finished run's summary row changed and its manifest deleted (or
+    made unreadable) was taken as finished, the changed row kept ("0 run by this sweep"; a
+    damaged manifest was even said to be redone); a deleted summary row was redone without a
+    word. A sweep writes a run's manifest before its summary row, so a row without a manifest
+    is not a finished run's: each is said and its run done again, the changed value gone."""
+    out = tmp_path / "out"
+    specs = TINY[:2]
+    run_sweep(specs, out, progress=False)
+    row = out / RUNS_DIR / f"{specs[1].run_id}.parquet"
+    manifest = out / "manifest" / f"{specs[1].run_id}.json"
+    table = read_parquet(row)
+    table["steps"] = 999999
+    table.to_parquet(row, index=False)
+    if damage == "manifest deleted":
+        manifest.unlink()
+    elif damage == "manifest damaged":
+        manifest.write_text('{"bad": 1')
+    else:
+        row.unlink()
+    runs = run_sweep(specs, out, progress=False)
+    assert runs.attrs["ran"] == 1 and (runs["status"] == "ok").all()
+    err = capsys.readouterr().err
+    assert ("is missing" in err or "could not be read" in err) and specs[1].run_id in err
+    assert (read_parquet(out / RUNS_FILE)["steps"] != 999999).all()
+    assert run_sweep(specs, out, progress=False).attrs["ran"] == 0
+
+
 def test_a_finished_sweep_run_again_rewrites_nothing(tmp_path):
     out = tmp_path / "out"
     run_sweep(TINY[:2], out, progress=False)
