@@ -601,9 +601,9 @@ def simulate_batch(model: Model, t_end: float, *, q0, v0=None,
             raise StateError(f"simulate_batch: {name} has shape {shape}: a batch needs "
                              f"(B, {n}), one initial state a row (for one motion, "
                              f"simulate(model, t_end, {name}=...))")
-    Q0 = check_batch(model, "q", q0, None)
+    Q0 = check_batch(model, "q", q0, None, label="simulate_batch: q0")
     V0 = np.zeros((Q0.shape[0], model.n_v)) if v0 is None else \
-        check_batch(model, "v", v0, Q0.shape[0])
+        check_batch(model, "v", v0, Q0.shape[0], label="simulate_batch: v0")
     out: list[Simulation | None] = [None] * Q0.shape[0]
 
     def rows(first, last, _own):
