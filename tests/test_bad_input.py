@@ -192,8 +192,8 @@ def test_forward_dynamics_refuses_an_out_it_cannot_write(out, kind):
     assert chain.is_planar == (kind == "planar")
     z = np.zeros(6)
     before = np.array(out, dtype=float, copy=True)
-    with pytest.raises(StateError, match=r"out \(.*\) must be a writeable, contiguous float64 "
-                                         r"array of shape \(6,\)"):
+    with pytest.raises(StateError, match=r"out \(.*\) must be a writeable, aligned, contiguous "
+                                         r"float64 array of shape \(6,\)"):
         forward_dynamics(chain, z, z, out=out)
     assert np.array_equal(np.array(out, dtype=float), before, equal_nan=True), "written into"
 

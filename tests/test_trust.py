@@ -223,9 +223,12 @@ def test_tolerances_given_to_a_fixed_step_integrator_on_a_robot_are_refused(caps
 # --------------------------------------------------------------------------- 3: notes printed
 def test_simulate_on_a_model_file_prints_what_was_dropped(robot_files, capsys):
     """Before: `redysim info` listed Model.notes and `redysim simulate` never did, so a URDF's
-    joint damping and friction vanished from a run without a word."""
-    notes = redysim.load_model(robot_files["urdf"]).notes
-    assert any("damping" in n for n in notes) and any("friction" in n for n in notes)
+    joint damping and friction vanished from a run without a word. (Its damping is now
+    simulated, Model.damping; its friction is still dropped, and said.)"""
+    model = redysim.load_model(robot_files["urdf"])
+    notes = model.notes
+    assert model.damping.any() and not any("damping" in n for n in notes)
+    assert any("friction" in n for n in notes)
     assert main(["simulate", robot_files["urdf"], "--t-end", "0.01"]) == 0
     out = capsys.readouterr().out
     assert "dropped       from the file, not simulated" in out
