@@ -410,6 +410,12 @@ def _check_out(out: Path) -> None:
     from redysim.harness.store import check_writable
 
     check_writable(out.parent, what=f"folder of {out.name}")
+    summary = out.with_suffix(".summary" + out.suffix)
+    for path in (out, summary):  # a file there that may not be written is not replaced
+        if path.exists() and not os.access(path, os.W_OK):
+            raise SettingsError(SOURCE, "--out", str(out), f"{str(path)!r} exists and may not "
+                                "be written (read-only): it is kept; give another --out, or "
+                                "make it writable")
 
 
 def needs_extra(package: str, extra: str) -> str:

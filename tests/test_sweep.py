@@ -844,6 +844,22 @@ def _read_only(folder: Path) -> None:
 
 
 @pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
+                    reason="as root, a read-only file needs setpriv to drop the override")
+def test_simulate_keeps_a_read_only_out_file(tmp_path):
+    """A hold-out battery: simulate --out onto a read-only file in a writable folder replaced it
+    (an atomic rename ignores the file's own mode). Now refused by name before the run, the file
+    kept."""
+    target = tmp_path / "f.csv"
+    target.write_text("keep\n")
+    target.chmod(0o444)
+    res = _as_a_user_who_cannot_write(
+        ["simulate", "STUDY-R3", "--t-end", "0.02", "--out", str(target)], tmp_path)
+    assert res.returncode == 2, (res.stdout, res.stderr)
+    assert "may not be written" in res.stderr and str(target) in res.stderr
+    assert target.read_text() == "keep\n" and not (tmp_path / "f.summary.csv").exists()
+
+
+@pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
                     reason="as root, a read-only folder needs setpriv to drop the override")
 def test_a_folder_that_cannot_be_written_is_refused_by_name_before_any_run(tmp_path):
     """simulate --out, sweep, longrun and compare into a read-only folder printed a traceback
