@@ -54,6 +54,7 @@ from .reference import results_dir
 from .store import (
     check_writable,
     read_json,
+    remove_temp_files,
     sha256_file,
     writable,
     write_json_atomic,
@@ -244,6 +245,8 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
           dict(rtol=how["rtol"], atol=how["atol"]))
     can_write = writable(path.parent)  # (a finished run is read from a folder it cannot write)
+    if can_write:  # a killed session's half-written checkpoint or manifest
+        remove_temp_files(path.parent)
     ck = load_checkpoint(path, repair=can_write, log=log)
     state, samples, cpu_prev, wall_prev = None, [], 0.0, 0.0
     before = {"newton": 0, "krylov": 0, "peak_rss_mib": 0.0}  # the sessions' before this one

@@ -671,6 +671,10 @@ def _read_run(out: Path, run_id: str, *, repair: bool = True) -> dict | None:
     """A finished run's summary row, or None: not there, or damaged (then moved aside, unless
     not ``repair``)."""
     path = out / RUNS_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    if path.exists() and not path.is_file():  # a folder (or other) where the file goes
+        if repair:
+            set_aside(path, IsADirectoryError("not a file"))
+        return None
     if not path.is_file():
         return None
     try:
@@ -714,9 +718,15 @@ def _manifest_holds(out: Path, run_id: str, row: dict, *, repair: bool = True) -
               "again", file=sys.stderr)
         return False
     try:
-        files = read_json(path)["files"]
+        record = read_json(path)
+        files = record["files"]
         if not isinstance(files, dict):
             raise ValueError(f"'files' is {type(files).__name__}, not a table")
+        if record.get("run_id") != run_id:
+            raise ValueError(f"it is run {record.get('run_id')!r}'s, not {run_id!r}'s")
+        own = {f.relative_to(out).as_posix() for f in _files_of(out, run_id)}
+        if not own <= set(files):  # (a run's files all listed: its summary row at least)
+            raise ValueError(f"it does not list {sorted(own - set(files))}")
     except Exception as exc:  # truncated or foreign: the run's files are not known
         if repair:
             set_aside(path, exc)

@@ -3,6 +3,7 @@ failed runs recorded, atomic writes, and the ``redysim`` command line."""
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import shlex
@@ -791,13 +792,17 @@ def test_a_result_file_replaced_by_another_readable_one_is_caught_by_its_digest(
     assert sorted(table.groupby("run_id").size()) == sorted(runs["n_samples"])
 
 
-@pytest.mark.parametrize("damage", ["manifest deleted", "manifest damaged", "run deleted"])
+@pytest.mark.parametrize("damage", ["manifest deleted", "manifest damaged", "run deleted",
+                                    "manifest lists nothing", "another run's manifest",
+                                    "a folder for the run"])
 def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, damage):
     """A hold-out battery: a finished run's summary row changed and its manifest deleted (or
     made unreadable) was taken as finished, the changed row kept ("0 run by this sweep"; a
     damaged manifest was even said to be redone); a deleted summary row was redone without a
-    word. A sweep writes a run's manifest before its summary row, so a row without a manifest
-    is not a finished run's: each is said and its run done again, the changed value gone."""
+    word. A second battery: a manifest listing no files, or another run's, let a changed row
+    through; a folder in the row's place was a traceback. A sweep writes a run's manifest
+    before its summary row, so a row without its own manifest, listing it, is not a finished
+    run's: each is said and its run done again, the changed value gone."""
     out = tmp_path / "out"
     specs = TINY[:2]
     run_sweep(specs, out, progress=False)
@@ -810,6 +815,13 @@ def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, dam
         manifest.unlink()
     elif damage == "manifest damaged":
         manifest.write_text('{"bad": 1')
+    elif damage == "manifest lists nothing":
+        manifest.write_text(json.dumps({"run_id": specs[1].run_id, "files": {}}))
+    elif damage == "another run's manifest":
+        manifest.write_bytes((out / "manifest" / f"{specs[0].run_id}.json").read_bytes())
+    elif damage == "a folder for the run":
+        row.unlink()
+        row.mkdir()
     else:
         row.unlink()
     runs = run_sweep(specs, out, progress=False)
