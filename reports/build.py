@@ -63,6 +63,20 @@ HEADLINE_CASE = "RE-U125-L1"
 
 
 # --------------------------------------------------------------------------- headline
+
+STEP_DETAIL_CHARS = 600  # a step's detail in the table (a sweep's list of failed runs can fill
+# pages: the PDF's table cell then outgrows a page); the whole text is in the results' record
+
+
+def _step_detail(detail: str) -> str:
+    """A reproduction step's detail, cut at STEP_DETAIL_CHARS with where the rest is."""
+    detail = str(detail)
+    if len(detail) <= STEP_DETAIL_CHARS:
+        return detail
+    return (detail[:STEP_DETAIL_CHARS] + f" ... ({len(detail) - STEP_DETAIL_CHARS:,} more "
+            "characters: the step's whole detail is in results/reproduce-*.json)")
+
+
 def closed_form_e0(case: str) -> float | None:
     """rho_l L^3 w^2 / 6: E(0) of a straight rod spinning about its end (rod inertia)."""
     path = CASES_DIR / f"{case}.toml"
@@ -296,7 +310,7 @@ def setup_section(ctx: Ctx) -> Section:
                   f"Reproduction: {doc.get('mode')}",
                   ["step", "wall time", "CPU time", "status", "detail"],
                   [Row([s["step"], seconds(s["wall_s"]), seconds(s.get("cpu_s")), s["status"],
-                        s.get("detail", "")],
+                        _step_detail(s.get("detail", ""))],
                        MATCH if s["status"] == "ok" else DIFFER) for s in doc.get("steps", [])])
         cpu = sum(s.get("cpu_s", math.nan) for s in doc["steps"]) if doc.get("steps") \
             else math.nan
