@@ -363,6 +363,12 @@ class MuJoCo(Engine):
         self._mj_steps = 0
 
     def _sim_step(self):
+        # a sample between steps runs mj_forward on the same data with the rigid flags and its
+        # own qfrc_applied (_forward): the step takes the model's passive stages back, and no
+        # applied force of a sample's
+        if self.mjmodel.opt.disableflags != self._passive_flags:
+            self.mjmodel.opt.disableflags = self._passive_flags
+        self.mjdata.qfrc_applied[:] = 0.0
         self.lib.mj_step(self.mjmodel, self.mjdata)
         self._mj_steps += 1
 
