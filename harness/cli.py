@@ -400,8 +400,11 @@ def _check_out(out: Path) -> None:
         raise SettingsError(SOURCE, "--out", str(out), f"must end in {' or '.join(OUT_SUFFIXES)} "
                             "(the format is chosen by the suffix)")
     if not out.parent.is_dir():
-        raise SettingsError(SOURCE, "--out", str(out), f"its folder {str(out.parent)!r} does not "
-                            "exist")
+        missing = next((p for p in reversed([out.parent, *out.parent.parents])
+                        if p.exists() and not p.is_dir()), None)
+        raise SettingsError(SOURCE, "--out", str(out), f"{str(missing)!r} is a file, not a "
+                            "folder" if missing is not None else f"its folder "
+                            f"{str(out.parent)!r} does not exist")
     writers = ("pandas", "pyarrow") if out.suffix == ".parquet" else ("pandas",)
     for package in writers:
         if importlib.util.find_spec(package) is None:

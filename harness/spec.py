@@ -230,6 +230,27 @@ class RunSpec:
                        links=int(self.links),
                        t_end=float(t_end), sample=float(min(sample, t_end)))
 
+    def unlike(self, row: dict) -> list[str]:
+        """The fields of a stored run's ``row`` that cannot be this run's (a resolution of it,
+        :meth:`resolved`, records every setting left to the case as the case's): a setting
+        given here must be the row's (an integrator by its canonical name, the sample at most
+        the horizon); the others the row fills in. [] when the row may be this run's."""
+        wrong = []
+        for f in fields(self):
+            mine, theirs = getattr(self, f.name), row.get(f.name)
+            if f.name in _RESOLVED and mine == f.default:
+                continue  # left to the case: the row holds the case's
+            if f.name == "integrator":
+                mine = canonical(mine)
+            elif f.name == "sample" and isinstance(theirs, int | float):
+                mine = min(mine, float(row.get("t_end") or mine))
+            same = (isinstance(theirs, int | float) and not isinstance(theirs, bool)
+                    and float(theirs) == float(mine)) if isinstance(mine, int | float) \
+                else type(theirs) is type(mine) and theirs == mine
+            if not same:
+                wrong.append(f.name)
+        return wrong
+
     @property
     def run_id(self) -> str:
         """A stable 16-hex-digit id from every field, the case file's bytes
@@ -269,6 +290,10 @@ class RunSpec:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+
+# the settings a run may leave to its case (RunSpec.resolved fills them in)
+_RESOLVED = frozenset({"integrator", "rtol", "atol", "h", "t_end", "sample", "links"})
 
 
 def _check_horizon(case, t_end: float, source: str, name: str) -> None:

@@ -592,17 +592,25 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(str(out), "<results folder>", None, "is a file, not a folder")
+    for sub in (RUNS_DIR, SAMPLES_DIR, MANIFEST_DIR, DAMAGED_DIR, CLAIMS_DIR):
+        if (out / sub).exists() and not (out / sub).is_dir():  # (a finished run's folder?)
+            raise SweepError(str(out / sub), "<results subfolder>", None,
+                             f"is a file where the sweep keeps its {sub} folder: move it away "
+                             "(the runs it held, if any, are not there to reuse); nothing was "
+                             "run")
     repair = writable(out)  # (a folder it cannot write is read only if every run is finished)
 
     def finished(spec: RunSpec) -> str | None:
         """'ok', 'failed' (a result), or None (not run, damaged, missing a file, stopped by a
         wall-clock limit, or to be run again)."""
-        row = _read_run(out, spec.run_id, repair=repair)
-        if row is None and (out / MANIFEST_DIR / f"{spec.run_id}.json").is_file() and not (
-                out / RUNS_DIR / f"{spec.run_id}{PARQUET_SUFFIX}").exists():
+        there = (out / RUNS_DIR / f"{spec.run_id}{PARQUET_SUFFIX}").exists()
+        row = _read_run(out, spec.run_id, repair=repair)  # (a damaged one is said and set aside)
+        if not there and (out / MANIFEST_DIR / f"{spec.run_id}.json").is_file():
             print(f"redysim: {out / RUNS_DIR / f'{spec.run_id}{PARQUET_SUFFIX}'} is missing "
                   f"(its manifest lists it: deleted, or its sweep stopped before moving it into "
                   "place): its run will be done again", file=sys.stderr)
+        if row is not None and not _row_is_specs(out, spec, row, repair=repair):
+            return None
         if (row is None or not _samples_readable(out, spec.run_id, repair=repair)
                 or not _manifest_holds(out, spec.run_id, row, repair=repair)):
             return None
@@ -681,11 +689,29 @@ def _read_run(out: Path, run_id: str, *, repair: bool = True) -> dict | None:
         rows = read_parquet(path).to_dict("records")
         if len(rows) != 1 or "status" not in rows[0]:
             raise ValueError(f"{len(rows)} rows, columns {sorted(rows[0]) if rows else []}")
+        if rows[0].get("run_id") != run_id:  # (a row copied or edited under another's name)
+            raise ValueError(f"its row is run {rows[0].get('run_id')!r}'s, not {run_id!r}'s")
         return rows[0]
     except Exception as exc:  # a truncated, empty or foreign file: pyarrow's errors vary
         if repair:
             set_aside(path, exc)
         return None
+
+
+def _row_is_specs(out: Path, spec: RunSpec, row: dict, *, repair: bool = True) -> bool:
+    """Whether a finished run's row records ``spec``'s settings (:meth:`RunSpec.unlike`): a
+    row whose settings are another run's (copied or edited, its digest recomputed) is set
+    aside (not when not ``repair``: said) and its run done again."""
+    wrong = spec.unlike(row)
+    if not wrong:
+        return True
+    path = out / RUNS_DIR / f"{spec.run_id}{PARQUET_SUFFIX}"
+    why = ", ".join(f"{k} = {row.get(k)!r}, not {getattr(spec, k)!r}" for k in wrong[:4])
+    if repair:
+        set_aside(path, ValueError(f"its settings are not its run's: {why}"))
+    else:
+        print(f"redysim: {path} records other settings than its run's ({why})", file=sys.stderr)
+    return False
 
 
 def _files_of(out: Path, run_id: str) -> list[Path]:
@@ -1047,6 +1073,10 @@ def _samples_readable(out: Path, run_id: str, *, repair: bool = True) -> bool:
     its files are set aside, unless not ``repair``, and the run is not done); True otherwise (a
     run whose worker died has no samples file)."""
     path = out / SAMPLES_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    if path.exists() and not path.is_file():  # a folder (or other) where the file goes
+        if repair:
+            _set_aside_run(path, IsADirectoryError("not a file"))
+        return False
     if not path.is_file():
         return True
     try:

@@ -3,6 +3,7 @@ failed runs recorded, atomic writes, and the ``redysim`` command line."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import random
@@ -535,6 +536,10 @@ def test_cli_zero_horizon_and_an_out_folder_are_refused(capsys, tmp_path):
     assert main(["simulate", "STUDY-R3", "--t-end", "0.01", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "command line: --out" in err and "is a folder" in err  # the run finished, unsaved
+    (tmp_path / "afile").write_text("x")  # a third battery: "its folder does not exist"
+    assert main(["simulate", "STUDY-R3", "--t-end", "0.01", "--out",
+                 str(tmp_path / "afile" / "x.parquet")]) == 2
+    assert f"{str(tmp_path / 'afile')!r} is a file, not a folder" in capsys.readouterr().err
 
 
 def test_cli_saves_csv_by_its_suffix(tmp_path, capsys):
@@ -794,7 +799,7 @@ def test_a_result_file_replaced_by_another_readable_one_is_caught_by_its_digest(
 
 @pytest.mark.parametrize("damage", ["manifest deleted", "manifest damaged", "run deleted",
                                     "manifest lists nothing", "another run's manifest",
-                                    "a folder for the run"])
+                                    "a folder for the run", "a folder for its samples"])
 def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, damage):
     """A hold-out battery: a finished run's summary row changed and its manifest deleted (or
     made unreadable) was taken as finished, the changed row kept ("0 run by this sweep"; a
@@ -822,6 +827,10 @@ def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, dam
     elif damage == "a folder for the run":
         row.unlink()
         row.mkdir()
+    elif damage == "a folder for its samples":  # (a third battery: said to be "missing")
+        samples = out / SAMPLES_DIR / f"{specs[1].run_id}.parquet"
+        samples.unlink()
+        samples.mkdir()
     else:
         row.unlink()
     runs = run_sweep(specs, out, progress=False)
@@ -830,6 +839,54 @@ def test_a_run_whose_record_is_gone_is_said_and_done_again(tmp_path, capsys, dam
     assert ("is missing" in err or "could not be read" in err) and specs[1].run_id in err
     assert (read_parquet(out / RUNS_FILE)["steps"] != 999999).all()
     assert run_sweep(specs, out, progress=False).attrs["ran"] == 0
+
+
+@pytest.mark.parametrize("forgery", ["run B's row under A's name", "rtol edited",
+                                     "integrator edited"])
+def test_a_row_that_is_not_its_runs_is_set_aside_even_with_its_digest_recomputed(
+        tmp_path, capsys, forgery):
+    """A third hold-out battery: a finished run's summary row replaced by another run's (or
+    its plan fields, rtol or integrator, edited), its manifest's SHA-256 recomputed to match,
+    was taken as finished: runs.parquet held run B twice and run A nowhere. A row records its
+    run's id and settings; the sweep compares them with the run it stands for."""
+    out = tmp_path / "out"
+    specs = [TINY[3], TINY[0]]
+    run_sweep(specs, out, progress=False)
+    a, b = (out / RUNS_DIR / f"{s.run_id}.parquet" for s in specs)
+    if forgery == "run B's row under A's name":
+        a.write_bytes(b.read_bytes())
+    else:
+        table = read_parquet(a)
+        if forgery == "rtol edited":
+            table["rtol"] = 1e-3
+        else:
+            table["integrator"] = "rk4"
+        table.to_parquet(a, index=False)
+    manifest = out / "manifest" / f"{specs[0].run_id}.json"
+    record = json.loads(manifest.read_text())
+    record["files"][a.relative_to(out).as_posix()] = hashlib.sha256(a.read_bytes()).hexdigest()
+    manifest.write_text(json.dumps(record))
+    runs = run_sweep(specs, out, progress=False)
+    assert runs.attrs["ran"] == 1
+    assert specs[0].run_id in capsys.readouterr().err
+    table = read_parquet(out / RUNS_FILE)
+    assert sorted(table["run_id"]) == sorted(s.run_id for s in specs)
+    first = table[table["run_id"] == specs[0].run_id].iloc[0]
+    assert (first["rtol"], first["integrator"]) == (specs[0].rtol, specs[0].integrator)
+    assert run_sweep(specs, out, progress=False).attrs["ran"] == 0
+
+
+@pytest.mark.parametrize("sub", [SAMPLES_DIR, RUNS_DIR, "manifest"])
+def test_a_results_subfolder_replaced_by_a_file_is_refused_by_name(tmp_path, sub):
+    """A third hold-out battery: `rm -r OUT/samples; echo x > OUT/samples` then the sweep again
+    was a FileExistsError traceback from the folder's mkdir."""
+    out = tmp_path / "out"
+    run_sweep(TINY[:1], out, progress=False)
+    shutil.rmtree(out / sub)
+    (out / sub).write_text("x")
+    with pytest.raises(SweepError, match=f"{sub}.*is a file where the sweep keeps"):
+        run_sweep(TINY[:1], out, progress=False)
+    assert (out / sub).read_text() == "x"
 
 
 def test_a_finished_sweep_run_again_rewrites_nothing(tmp_path):
