@@ -55,8 +55,10 @@ PDF_FILE = "report.pdf"
 TEMPLATES = Path(__file__).with_name("templates")
 TEMPLATE = "report.html.j2"
 TITLE = "redysim: paper vs ours"
+REFERENCE_ENGINES = ("Pinocchio", "MuJoCo", "Exudyn", "DART", "Drake")  # (test_report checks)
 SUBTITLE = ("Agarwal, Shah, Bandyopadhyay, Saha: Dynamics of serial kinematic chains with large "
-            "number of degrees-of-freedom, reproduced with redysim and four reference engines")
+            "number of degrees-of-freedom, reproduced with redysim and five reference engines "
+            f"({', '.join(REFERENCE_ENGINES)})")
 SPIN_RATE = 1.0  # rad/s: w_Y0 of every RE-U case (published.toml [conventions])
 ENERGY_TABLES = ("table2", "table3", "table4", "table5", "table6")
 HEADLINE_CASE = "RE-U125-L1"

@@ -276,3 +276,14 @@ def test_the_loops_section_checks_its_bounds(tmp_path):
     assert kinds == [MATCH, DIFFER, MATCH, MATCH]  # the drift 3e-8 is beyond its 1e-8
     empty = {t.id: t for t in loops_section(Results(tmp_path / "none")).items}
     assert all("reports.loops" in t.not_run for t in empty.values())
+
+
+def test_the_subtitle_names_the_engines_the_registry_has():
+    """The subtitle said "four reference engines" when there were five."""
+    from redysim import references
+    from redysim.reports.build import REFERENCE_ENGINES, SUBTITLE
+
+    packages = {cls.package.lower() for cls in references.ENGINES.values()}
+    assert {name.lower() for name in REFERENCE_ENGINES} == {
+        {"dartpy": "dart", "pin": "pinocchio", "pydrake": "drake"}.get(p, p) for p in packages}
+    assert "five reference engines" in SUBTITLE and len(REFERENCE_ENGINES) == 5
