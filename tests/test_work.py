@@ -197,3 +197,19 @@ def test_a_stepper_without_the_work_says_so(integrator):
     assert rigid.work_note == "" and not rigid.work.any()
     sim = Simulator(System(model), 0.05, integrator="ode45")
     assert sim.y0.size == model.n_q + model.n_v + 1
+
+
+def test_a_providers_qdd_in_our_integrator_carries_the_work_too():
+    """A system whose accelerations come from a provider (an engine's qdd is one; here the
+    core's forward dynamics as a Python function) is stepped in Python, its forces still the
+    system's: W is recorded, and agrees with the compiled run's to rounding."""
+    from redysim import forward_dynamics
+
+    model = sprung_arm()
+    kw = dict(integrator="ode45", rtol=1e-9, atol=1e-11, sample=0.05, **ARM_STATE)
+    core = simulator(model, 0.5, **kw).run()
+    provided = simulator(model, 0.5, qdd=lambda q, v, tau: forward_dynamics(model, q, v, tau),
+                         **kw).run()
+    assert not provided.work_note and provided.work is not None
+    assert np.abs(provided.work - core.work).max() < 1e-10
+    assert np.abs(provided.delta_M).max() < 1e-9
