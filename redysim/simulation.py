@@ -305,11 +305,11 @@ class Simulator:
                                 + "): a checkpoint of another system or code")
         t_jit = time.perf_counter()
         system.rhs(0.0, self.y0)  # the first calls: JIT compile or disk-cache load, timed apart
-        nq, nv = system.n_q, system.motion_size
-        system.energy_and_com(self.y0[:nq], self.y0[nq:nv])
+        nq, end = system.n_q, system.motion_size  # q = y0[:nq], v = y0[nq:end]
+        system.energy_and_com(self.y0[:nq], self.y0[nq:end])
         self.integrator.warm_up()
         self.jit_s = time.perf_counter() - t_jit
-        self.E0 = system.energy_and_com(self.y0[:nq], self.y0[nq:nv])[0]
+        self.E0 = system.energy_and_com(self.y0[:nq], self.y0[nq:end])[0]
         self._limits = _Limits(system)  # the stepper's view: the limits checked at every call
         self.solver = self.integrator.solver(self._limits, 0.0, self.y0, self.t_end, state)
 

@@ -255,8 +255,8 @@ class System:
         worst = self.worst if record else np.zeros(3)
         nq = self.n_q
         if self.loops is not None:
-            nv = nq + self.n_v
-            y[:nq], y[nq:nv], rq, rv = self.loops.project(y[:nq], y[nq:nv])
+            end = nq + self.n_v  # (a work W after v untouched)
+            y[:nq], y[nq:end], rq, rv = self.loops.project(y[:nq], y[nq:end])
             worst[1], worst[2] = max(worst[1], rq), max(worst[2], rv)
         if self.model.couplings:
             K.project_couplings(self.couplings, nq, y, worst[1:])
@@ -294,8 +294,8 @@ class System:
     def _python_derivative(self, t, y, out) -> None:
         """dy/dt from the checked Python path: the forces, then qdd (the provider's, the loops',
         the coupled tree's or the core's forward dynamics), then dq/dt."""
-        nq, model, nv = self.n_q, self.model, self.n_q + self.n_v
-        q, v = y[:nq], y[nq:nv]
+        nq, model, end = self.n_q, self.model, self.n_q + self.n_v
+        q, v = y[:nq], y[nq:end]
         tau, power = self.forces_and_power(t, q, v)
         if self.provider is not None:
             a = np.asarray(self.provider(q, v, tau), dtype=float)
@@ -303,22 +303,22 @@ class System:
                 raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
                                  f"{model.name!r} has {self.n_v} DOF, so it must return "
                                  f"shape ({self.n_v},)")
-            out[nq:nv] = a
+            out[nq:end] = a
         elif self.loops is not None:
-            out[nq:nv] = self.loops.forward_dynamics(q, v, tau)
+            out[nq:end] = self.loops.forward_dynamics(q, v, tau)
         elif model.couplings and self.method == "rge-a" and not model.is_planar:
             q, v = check_state(model, "q", q), check_state(model, "v", v)
             ws = self.ws
             if K.coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, q, v,
-                             ws.zeros if tau is None else tau, out[nq:nv]) != 0.0:
+                             ws.zeros if tau is None else tau, out[nq:end]) != 0.0:
                 # not finite: the checked path says why (or, finite there, is the answer)
-                out[nq:nv] = forward_dynamics(model, q, v, tau, self.method)
+                out[nq:end] = forward_dynamics(model, q, v, tau, self.method)
         else:
-            forward_dynamics(model, q, v, tau, self.method, ws=self.ws, out=out[nq:nv])
-        if len(out) > nv:  # y = (q, v, W): the work's rate
-            out[nv] = power
+            forward_dynamics(model, q, v, tau, self.method, ws=self.ws, out=out[nq:end])
+        if len(out) > end:  # y = (q, v, W): the work's rate
+            out[end] = power
         if not self.free:
-            out[:nq] = y[nq:nv]
+            out[:nq] = y[nq:end]
         else:
             K.configuration_rate(nq, self.plain_q, self.plain_v, self.free_q, self.free_v,
                                  self.ball_q, self.ball_v, np.ascontiguousarray(y, dtype=float),
