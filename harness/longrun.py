@@ -18,7 +18,9 @@ tolerances, horizon and sample interval; anything else is refused, naming both s
 checkpoint that cannot be read is moved aside and the previous one (or a fresh start) is used,
 saying so.
 
-Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M.
+Samples (every ``sample_interval`` of the case): t, tip position, E and delta_M (with a damped
+case under our Runge-Kutta steps, the balance (E - W - E0) / M, W the dampers' work carried in
+the checkpointed state; :class:`redysim.simulation.Simulation`'s ``work``).
 Exit codes: 0 done (or stopped by ``--stop-after``), 1 the run failed, 2 bad input.
 """
 
@@ -278,9 +280,10 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
                             sampled_until=samples[-1][0] if samples else None)
         cpu_prev, wall_prev = float(ck["cpu_s"]), float(ck["wall_s"])
         before = {k: ck[k].item() if k in ck else v for k, v in before.items()}
-    def record(s):  # every sample: t, tip position, E, delta_M
+    def record(s):  # every sample: t, tip position, E, delta_M (the balance E - W - E0 / M)
         p = tip(chain, s.q, s.v, ws=s.ws).position
-        samples.append((s.t, *p, s.E, (s.E - E0) / chain.total_mass))
+        W = 0.0 if s.W is None else s.W  # (None: the implicit midpoint, which does not carry it)
+        samples.append((s.t, *p, s.E, (s.E - W - E0) / chain.total_mass))
         log(f"  sample t = {s.t:.4f} s: delta_M = {samples[-1][-1]:.3e} J/kg, "
             f"steps {sim.solver.counters.steps:,}")
 

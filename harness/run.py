@@ -9,7 +9,9 @@ sweep (which sets no wall-clock limit).
 
 Per sample (the spec's interval): the observed path's position, velocity and acceleration (the
 ``tip_*`` columns: a rope's tip, or the scenario's first observed frame, named in the row's
-``frame``), E = T + V, delta_M = (E - E0) / M (Eq. 11) and the centre of mass, all computed by
+``frame``), E = T + V, delta_M = (E - E0) / M (Eq. 11; for a damped scenario stepped by the
+core's Runge-Kutta integrators the balance (E - W - E0) / M, W the dampers' work stepped with the
+motion: :class:`redysim.simulation.Simulation`'s ``work``) and the centre of mass, all computed by
 the core from the run's state (a measurement, the same for every engine). The path's
 acceleration needs qdd at the sample: one extra call of the run's own qdd per sample, not
 counted in ``nfev`` (the integrator's count).

@@ -9,9 +9,13 @@ from plain keywords, :func:`simulator` assembles one from them.
 
 The energy E = T + V is sampled with the motion (the potentials of the system's forces counted);
 with no work done by them it is conserved, and its change per unit mass delta_M = (E - E0) / M
-(the paper's Eq. 11) measures the integration error. The centre of mass is sampled too: in a free
-fall (a floating base, no contact) it follows c(t) = c0 + cdot0 t + g t^2 / 2 exactly, a check
-that needs no reference solution.
+(the paper's Eq. 11) measures the integration error. The forces without a potential (a damping,
+a caller's ``tau`` without ``potential``: :attr:`System.work_forces`) do work W(t), stepped with
+the motion by the core's Runge-Kutta integrators as one more component of the state; then E -
+W is conserved, and delta_M = (E - W - E0) / M is the balance that measures the error
+(``Simulation.work``; docs/design.md, "Passive elements"). The centre of mass is sampled too:
+in a free fall (a floating base, no contact) it follows c(t) = c0 + cdot0 t + g t^2 / 2
+exactly, a check that needs no reference solution.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from redysim.integrators.explicit import (
     FIXED_STEP,
     IMPLICIT,
     INTEGRATORS,
+    TABLEAU_NAMES,
     advance,
     canonical,
     check_settings,
@@ -150,7 +155,13 @@ class Simulation:
     step at which the motion came nearest a change point (J M^-1 J^T's singular values within
     :data:`redysim.algorithms.loops.NEAR_CHANGE_POINT` of each other: a configuration where the
     mechanism can switch branches), None when it came nowhere near one; a run that then failed or
-    stopped says so in its ``message``. ``observed``: name -> (m, k) rows of each observer
+    stopped says so in its ``message``. ``work``: the work W [J] of the forces without a
+    potential (:attr:`~redysim.algorithms.system.System.work_forces`: the damping's, a ``tau``'s
+    given without ``potential``) from t = 0 to each sample, stepped with the motion, and then
+    ``delta_M`` = (E - W - E0) / M, the energy balance; zeros for a system without such forces
+    (delta_M = (E - E0) / M, as before); None when the stepper does not carry it (the implicit
+    midpoint, SciPy's, an engine's own: ``work_note`` says so, and delta_M is then E's change
+    alone). ``observed``: name -> (m, k) rows of each observer
     (:class:`Simulator`); ``y_final``: (q, v) at the last sample; ``E0``: the energy at t = 0 (the
     reference of ``delta_M``; with a resumed run's skipped samples, not the first sample's). ``q``
     and ``v`` have no rows when the run kept no
@@ -179,6 +190,8 @@ class Simulation:
     observed: dict = field(default_factory=dict)
     y_final: np.ndarray | None = None
     E0: float = math.nan
+    work: np.ndarray | None = None
+    work_note: str = ""
 
 
 class _Stop(Exception):
@@ -194,7 +207,9 @@ class Sample(NamedTuple):
     state ``q``, ``v`` (on the constraints: quaternions unit, loops closed), the energy ``E``
     [J] (forces' potential included) and centre of mass ``com`` [m], ``accel()``, the run's
     own qdd there (computed once, on first call), and ``ws``, the system's workspace, free for an
-    observer's own kinematics (nothing else uses it between two steps)."""
+    observer's own kinematics (nothing else uses it between two steps); ``W``: the work of the
+    forces without a potential since t = 0 [J] (:attr:`Simulation.work`; 0.0 without such
+    forces, None when the stepper does not carry it), so that E - W is the conserved one."""
 
     t: float
     q: np.ndarray
@@ -203,6 +218,7 @@ class Sample(NamedTuple):
     com: np.ndarray
     accel: Callable[[], np.ndarray]
     ws: Workspace
+    W: float | None = 0.0
 
 
 def frame_observer(model: Model, frame: str = "tip", *, acceleration: bool = False):
@@ -270,14 +286,30 @@ class Simulator:
         self.observe, self.keep_states = dict(observe or {}), bool(keep_states)
         self.skip_until = None if state is None else state.sampled_until
         system.reset()
-        self.y0 = system.initial_state(q0, v0,
-                                       second_order=self.integrator.name in IMPLICIT)
+        # the work W rides in the state of the core's Runge-Kutta steps (their error norm
+        # leaves it out: the motion's steps and bits are those of a run without it); the
+        # implicit midpoint's y is (q, v), SciPy's norm would count it, an engine steps its own
+        carries = isinstance(self.integrator, Integrator) and \
+            self.integrator.name in TABLEAU_NAMES
+        self.work_note = "" if carries or not system.work_forces else (
+            f"the work of {' and '.join(system.work_forces)} is not recorded by "
+            f"{self.integrator.name} (only the core's {', '.join(TABLEAU_NAMES)} step it): "
+            "delta_M is the energy's change, not the balance E - W - E0")
+        self.y0 = system.initial_state(q0, v0, second_order=self.integrator.name in IMPLICIT,
+                                       work=carries)
+        self.work_slot = system.motion_size if self.y0.size > system.motion_size else None
+        if state is not None and np.size(state.y) != self.y0.size:
+            raise SettingsError(source, "state", f"y of {np.size(state.y)} components",
+                                f"this run steps {self.y0.size} (q, v"
+                                + (", and the work W" if self.work_slot else "")
+                                + "): a checkpoint of another system or code")
         t_jit = time.perf_counter()
         system.rhs(0.0, self.y0)  # the first calls: JIT compile or disk-cache load, timed apart
-        system.energy_and_com(self.y0[:system.n_q], self.y0[system.n_q:])
+        nq, end = system.n_q, system.motion_size  # q = y0[:nq], v = y0[nq:end]
+        system.energy_and_com(self.y0[:nq], self.y0[nq:end])
         self.integrator.warm_up()
         self.jit_s = time.perf_counter() - t_jit
-        self.E0 = system.energy_and_com(self.y0[:system.n_q], self.y0[system.n_q:])[0]
+        self.E0 = system.energy_and_com(self.y0[:nq], self.y0[nq:end])[0]
         self._limits = _Limits(system)  # the stepper's view: the limits checked at every call
         self.solver = self.integrator.solver(self._limits, 0.0, self.y0, self.t_end, state)
 
@@ -303,8 +335,9 @@ class Simulator:
         "time limit: max_cpu_s = ..."), whatever else the machine does. ``max_wall_s``: the
         caller's patience: past it the run is stopped (``status`` 1, "stopped by the wall-clock
         limit ..."), never failed. Both are checked after every step and every derivative call
-        (one implicit step can take long). ``energy_bound``: a run whose |delta_M| passes it
-        fails ("energy blow-up"). An unexpected error of a provider (an engine's qdd, say) is
+        (one implicit step can take long). ``energy_bound``: a run whose |delta_M| (the balance
+        E - W - E0 per unit mass where the work W is recorded) passes it fails ("energy
+        blow-up"). An unexpected error of a provider (an engine's qdd, say) is
         raised as it is, the run's samples up to it attached as its ``partial``
         :class:`Simulation`."""
         if getattr(self, "_ran", False):
@@ -353,6 +386,7 @@ class _Run:
         self.ts: list[float] = []
         self.ys: list[np.ndarray] = []
         self.energies: list[float] = []
+        self.works: list[float] = []
         self.coms: list[np.ndarray] = []
         self.forces: list[np.ndarray] = []
         self.observed: dict[str, list] = {name: [] for name in sim.observe}
@@ -385,6 +419,9 @@ class _Run:
             return None  # taken before the checkpoint this run resumed from
         y = y.copy()
         system.project(y, record=False)
+        slot = sim.work_slot
+        W = (float(y[slot]) if slot is not None else None if sim.work_note else 0.0)
+        y = y[:system.motion_size]  # (q, v)
         q, v = y[:system.n_q], y[system.n_q:]
         a: list[np.ndarray] = []
 
@@ -398,7 +435,7 @@ class _Run:
                 tau = system.forces(t, q, v)
                 self.forces.append(system.loops.forward_dynamics_and_forces(q, v, tau)[1])
             E, com = system.energy_and_com(q, v)
-            sample = Sample(t, q, v, E, com, accel, system.ws)
+            sample = Sample(t, q, v, E, com, accel, system.ws, W)
             rows = {name: f(sample) for name, f in sim.observe.items()}
         except StateError as exc:  # the state overflowed (or went NaN) between samples
             raise _Stop(-1, f"at t = {t:.6g}: {type(exc).__name__}: {exc}") from None
@@ -407,13 +444,16 @@ class _Run:
             self.ys.append(y)
         self.last_y = y
         self.energies.append(E)
+        self.works.append(math.nan if W is None else W)
         self.coms.append(com)
         for name, row in rows.items():
             if row is not None:
                 self.observed[name].append(np.asarray(row))
         if not math.isfinite(E):
             raise _Stop(-1, f"non-finite energy at t = {t:.6g}")
-        dM = (E - sim.E0) / system.model.total_mass
+        # the balance E - W - E0 (W = 0 without forces that lack a potential: E - E0's bits)
+        dM = ((E - W if slot is not None and W is not None else E) - sim.E0) \
+            / system.model.total_mass
         if self.energy_bound and abs(dM) > self.energy_bound:
             raise _Stop(-1, f"energy blow-up: |delta_M| = {abs(dM):.3g} J/kg > bound "
                             f"{self.energy_bound:g} at t = {t:.6g}")
@@ -482,12 +522,14 @@ class _Run:
     def result(self, status: int, message: str, near: float | None) -> Simulation:
         sim, system = self.sim, self.system
         c, nq, mass = sim.solver.counters, system.n_q, system.model.total_mass
-        Y = np.array(self.ys) if self.ys else np.empty((0, sim.y0.size))
+        Y = np.array(self.ys) if self.ys else np.empty((0, system.motion_size))
         E = np.array(self.energies)
+        W = np.array(self.works)
         worst = system.worst
         return Simulation(
             name=system.model.name, t=np.array(self.ts), q=Y[:, :nq], v=Y[:, nq:], energy=E,
-            delta_M=(E - sim.E0) / mass if E.size else E,
+            delta_M=((E - W if sim.work_slot is not None else E) - sim.E0) / mass
+            if E.size else E,
             com=np.array(self.coms).reshape(-1, 3), steps=c.steps, rejected=c.rejected,
             nfev=c.nfev, status=status, message=message, cpu_s=self.cpu() - self.cpu0,
             wall_s=time.perf_counter() - self.wall0, jit_s=sim.jit_s,
@@ -495,7 +537,7 @@ class _Run:
             forces=np.array(self.forces) if system.loops is not None else None,
             residual_q=float(worst[1]), residual_v=float(worst[2]), near_change_point=near,
             observed={k: np.array(v) for k, v in self.observed.items()}, y_final=self.last_y,
-            E0=sim.E0)
+            E0=sim.E0, work=None if sim.work_note else W, work_note=sim.work_note)
 
 
 def simulator(model: Model, t_end: float, *, q0=None, v0=None,

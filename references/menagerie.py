@@ -186,7 +186,8 @@ def _state(rng, model, system, first: bool):
     if system.loops is not None:  # onto the loops (Newton from the moved q, a few rounds)
         for _ in range(4):
             q, v, _, _ = system.loops.project(q, v)
-    y = system.initial_state(q, v) if (model.cuts or model.couplings) else np.concatenate((q, v))
+    y = system.initial_state(q, v, work=False) if (model.cuts or model.couplings) \
+        else np.concatenate((q, v))
     return y[:model.n_q], y[model.n_q:], tau
 
 

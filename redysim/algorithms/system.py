@@ -16,6 +16,14 @@ v)`` of the caller's; constraints: the model's couplings (mimic joints) and clos
 accelerations come from the core's forward dynamics (RGE-A; GE-N or RGE-N by ``method``) or
 from a provider ``qdd(q, v, tau)`` (a reference engine's). Anything Python (``tau``, ``qdd``, a
 method other than RGE-A) makes the derivative Python: such a system is stepped in Python only.
+
+The work of the forces without a potential in the energy (:attr:`System.work_forces`: the
+viscous damping, and a caller's ``tau`` given without ``potential``) can be stepped with the
+motion as one more component, y = (q, v, W), dW/dt = v . tau_nc (:meth:`System.initial_state`
+appends it; the derivative writes its rate when y has it), so that E(t) - W(t) = E(0) along a
+run to the integrator's accuracy. The tip force, the body forces, gravity compensation and the
+springs have potentials counted in :meth:`System.energy_and_com`; the loops' and couplings'
+constraint forces do no work.
 """
 
 from __future__ import annotations
@@ -80,6 +88,7 @@ class System:
         self.model, self.source = model, source
         self.n_q, self.n_v = model.n_q, model.n_v
         self.size = self.n_q + self.n_v
+        self.motion_size = self.size  # y = (q, v); a work W rides after it (module docstring)
         self.tau, self.potential, self.provider, self.method = tau, potential, qdd, method
         if loops is None and model.cuts:  # a closed mechanism: its loops closed
             from redysim.algorithms.loops import ClosedLoops
@@ -130,6 +139,7 @@ class System:
                                 "coordinates are their velocities', not on a free or ball "
                                 "joint (its q is a quaternion)")
         self.worst = np.zeros(3)  # [quaternion, residual q, residual v] met before projections
+        self.power = np.zeros(1)  # the damping's power at the last forces' call (the kernels')
         self.couplings = K.couplings_of(model) if model.couplings else K.no_couplings()
         self.data, self.extras = self._data(), self._extras()
         compiled = (qdd is None and method == "rge-a" and tau is None
@@ -184,7 +194,7 @@ class System:
             self.body, self.force, self.point,
             np.zeros((m.n_bodies if self.body.size else 0, 6)), np.zeros(3),
             self.plain_q, self.plain_v, self.free_q, self.free_v, self.ball_q, self.ball_v,
-            self.worst)
+            self.worst, self.power)
 
     def _extras(self) -> K.Extras | None:
         """What only some systems have, or None (module docstring of the kernels)."""
@@ -200,6 +210,15 @@ class System:
         return self.kernel is not None
 
     @property
+    def work_forces(self) -> list[str]:
+        """The forces whose work W the state can carry (module docstring), by setting name:
+        "damping" (the model's and the settings'), "tau" (a caller's, given without
+        ``potential``); empty for a conservative system."""
+        return [name for name, on in (
+            ("damping", bool(self.damping.any())),
+            ("tau", self.tau is not None and self.potential is None)) if on]
+
+    @property
     def additions(self) -> list[str]:
         """What this system adds to its model's own dynamics, by setting name (an engine's own
         stepper, which steps the engine's model, refuses them)."""
@@ -211,8 +230,9 @@ class System:
 
     # ----------------------------------------------------------------------- the contract
     def derivative(self, t: float, y: np.ndarray, out: np.ndarray) -> None:
-        """dy/dt at (t, y) into ``out`` (n_q + n_v,). Raises StateError (from the checked path,
-        saying why) where qdd is not defined or not finite."""
+        """dy/dt at (t, y) into ``out`` (n_q + n_v,; with y = (q, v, W), n_q + n_v + 1, the
+        work's rate last). Raises StateError (from the checked path, saying why) where qdd is
+        not defined or not finite."""
         if self.kernel is not None:
             y = y if y.flags.c_contiguous and y.dtype == np.float64 else np.array(y, dtype=float)
             if K.derivative(self.kernel[0], self.kernel[1], t, y, out):
@@ -223,7 +243,7 @@ class System:
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """dy/dt at (t, y), a new array."""
-        out = np.empty(self.size)
+        out = np.empty(np.size(y))
         self.derivative(t, y, out)
         return out
 
@@ -235,7 +255,8 @@ class System:
         worst = self.worst if record else np.zeros(3)
         nq = self.n_q
         if self.loops is not None:
-            y[:nq], y[nq:], rq, rv = self.loops.project(y[:nq], y[nq:])
+            end = nq + self.n_v  # (a work W after v untouched)
+            y[:nq], y[nq:end], rq, rv = self.loops.project(y[:nq], y[nq:end])
             worst[1], worst[2] = max(worst[1], rq), max(worst[2], rv)
         if self.model.couplings:
             K.project_couplings(self.couplings, nq, y, worst[1:])
@@ -248,45 +269,56 @@ class System:
         """The generalized forces at (t, q, v) (n_v,): the system's terms (compiled:
         :func:`redysim.algorithms._kernels.system.generalized_forces`) and ``tau``'s; None when
         there are none."""
+        return self.forces_and_power(t, q, v)[0]
+
+    def forces_and_power(self, t: float, q, v) -> tuple[np.ndarray | None, float]:
+        """(:meth:`forces`, the power v . tau_nc of :attr:`work_forces` [W]): the damping's
+        from the compiled terms, plus v . tau for a ``tau`` without ``potential``."""
         d = self.data
-        own = None
+        own, power = None, 0.0
         if d.tip.size or d.damping.size or d.stiffness.size or d.body.size:
             own = np.empty(self.n_v)
             K.generalized_forces(d, self.extras, t, np.ascontiguousarray(q, dtype=float),
                                  np.ascontiguousarray(v, dtype=float), own)
             if self.tip_force is not None and not np.isfinite(own).all():
                 tip_force_torques(self.model, q, self.tip_force, ws=self.ws)  # says why
+            if d.damping.size:
+                power = float(d.power[0])
         if self.tau is None:
-            return own
+            return own, power
         user = np.asarray(self.tau(t, q, v), dtype=float)
-        return user if own is None else own + user
+        if self.potential is None and user.shape == (self.n_v,):
+            power += float(np.dot(v, user))
+        return (user if own is None else own + user), power
 
     def _python_derivative(self, t, y, out) -> None:
         """dy/dt from the checked Python path: the forces, then qdd (the provider's, the loops',
         the coupled tree's or the core's forward dynamics), then dq/dt."""
-        nq, model = self.n_q, self.model
-        q, v = y[:nq], y[nq:]
-        tau = self.forces(t, q, v)
+        nq, model, end = self.n_q, self.model, self.n_q + self.n_v
+        q, v = y[:nq], y[nq:end]
+        tau, power = self.forces_and_power(t, q, v)
         if self.provider is not None:
             a = np.asarray(self.provider(q, v, tau), dtype=float)
             if a.shape != (self.n_v,):
                 raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
                                  f"{model.name!r} has {self.n_v} DOF, so it must return "
                                  f"shape ({self.n_v},)")
-            out[nq:] = a
+            out[nq:end] = a
         elif self.loops is not None:
-            out[nq:] = self.loops.forward_dynamics(q, v, tau)
+            out[nq:end] = self.loops.forward_dynamics(q, v, tau)
         elif model.couplings and self.method == "rge-a" and not model.is_planar:
             q, v = check_state(model, "q", q), check_state(model, "v", v)
             ws = self.ws
             if K.coupled_qdd(ws.kernel_f, ws.kernel_i, ws.scratch, q, v,
-                             ws.zeros if tau is None else tau, out[nq:]) != 0.0:
+                             ws.zeros if tau is None else tau, out[nq:end]) != 0.0:
                 # not finite: the checked path says why (or, finite there, is the answer)
-                out[nq:] = forward_dynamics(model, q, v, tau, self.method)
+                out[nq:end] = forward_dynamics(model, q, v, tau, self.method)
         else:
-            forward_dynamics(model, q, v, tau, self.method, ws=self.ws, out=out[nq:])
+            forward_dynamics(model, q, v, tau, self.method, ws=self.ws, out=out[nq:end])
+        if len(out) > end:  # y = (q, v, W): the work's rate
+            out[end] = power
         if not self.free:
-            out[:nq] = y[nq:]
+            out[:nq] = y[nq:end]
         else:
             K.configuration_rate(nq, self.plain_q, self.plain_v, self.free_q, self.free_v,
                                  self.ball_q, self.ball_v, np.ascontiguousarray(y, dtype=float),
@@ -320,12 +352,15 @@ class System:
         return E, com
 
     # ----------------------------------------------------------------------- a run's start
-    def initial_state(self, q0=None, v0=None, *, second_order: bool = False) -> np.ndarray:
+    def initial_state(self, q0=None, v0=None, *, second_order: bool = False,
+                      work: bool = True) -> np.ndarray:
         """y0 = (q0, v0), checked (StateError naming what is wrong) and projected onto the
         constraints: q0 by default the model's own configuration (:meth:`Model.initial`), v0
-        zeros. A free or ball joint's quaternion must be of unit norm within QUATERNION_TOL (then
-        it is normalised); a closed mechanism's q0 near its loops. ``second_order``: refuse a system
-        whose dq/dt is not v (a stepper for y = (q, v), dq/dt = v)."""
+        zeros; with ``work`` and :attr:`work_forces` (and not ``second_order``), y0 = (q0, v0,
+        W0 = 0), the work stepped with the motion (module docstring). A free or ball joint's
+        quaternion must be of unit norm within QUATERNION_TOL (then it is normalised); a closed
+        mechanism's q0 near its loops. ``second_order``: refuse a system whose dq/dt is not v
+        (a stepper for y = (q, v), dq/dt = v)."""
         model = self.model
         q0 = check_state(model, "q", model.initial() if q0 is None else q0)
         v0 = check_state(model, "v", np.zeros(self.n_v) if v0 is None else v0)
@@ -346,7 +381,8 @@ class System:
             raise SettingsError(self.source, "integrator", "implicit", "steps systems whose "
                                 "dq/dt is v; a free or ball joint's quaternion moves "
                                 "otherwise: use ode45 or dop853")
-        y0 = np.concatenate((q0, v0))
+        carry = work and not second_order and bool(self.work_forces)
+        y0 = np.concatenate((q0, v0, [0.0] if carry else []))
         self.project(y0, record=False)
         return y0
 

@@ -331,12 +331,15 @@ class Solver(OdeSolver):
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
                                      tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
+        n = np.size(y0)
+        self.n = n
+        # the components the error norm measures: a system's motion (q, v), not the work W
+        # that may ride after it (redysim.algorithms._kernels.rk_run.Control)
+        self.checked = min(n, int(getattr(self.system, "motion_size", n)))
         self._ctl = rk_run.Control(
             self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
             self.hmax, power, self.t_end, bool(self.adaptive), SAFETY, MAX_GROWTH,
-            FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS)
-        n = np.size(y0)
-        self.n = n
+            FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS, self.checked)
         self.K = np.empty((tab.stages + (1 if tab.fsal else 0), n))
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
         if state is not None:
@@ -363,8 +366,9 @@ class Solver(OdeSolver):
     def _initial_step(self) -> float:
         """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call)."""
         absh = min(self.hmax, self.t_end - self.t)
-        scale = np.maximum(np.abs(self.y), self.atol / self.rtol)
-        rh = np.max(np.abs(self.f) / scale) / (SAFETY * self.rtol ** self._ctl.power)
+        m = self.checked  # (the motion's components, as the error norm's)
+        scale = np.maximum(np.abs(self.y[:m]), self.atol / self.rtol)
+        rh = np.max(np.abs(self.f[:m]) / scale) / (SAFETY * self.rtol ** self._ctl.power)
         if absh * rh > 1:
             absh = 1.0 / rh
         return max(absh, float(self._run.hmin_at(self._ctl, self.t)))

@@ -61,7 +61,11 @@ class Scheme(NamedTuple):
 
 class Control(NamedTuple):
     """The step control's settings (rtol and atol 1 for a fixed step; ``power`` the error
-    exponent) and :mod:`redysim.integrators.protocol`'s constants."""
+    exponent), :mod:`redysim.integrators.protocol`'s constants, and ``checked``: how many of the
+    state's leading components the error norm measures (all of them, but for a quadrature that
+    rides along after them: a system's work W, stepped by the same stages, measured by none of
+    the controller's decisions, so that recording it leaves the motion's steps and bits as
+    they were; docs/design.md, "Integrators")."""
 
     rtol: float
     atol: float
@@ -76,6 +80,7 @@ class Control(NamedTuple):
     hmin_eps: float
     finish_slack: float
     sample_eps: float
+    checked: int
 
 
 class StepState(NamedTuple):
@@ -167,7 +172,9 @@ def _attempt(sd, extras, scheme, ctl, st, t, threshold):
         h = t_new - t
         if not _stages(sd, extras, scheme, t, y, f, h, K, st.tmp, st.y_new, counts):
             return ERR_QDD, t_new, 0.0, nofailed
-        e = error_norm(h, E, E3, K, E.shape[0], y, st.y_new, threshold, st.err, st.err3)
+        m = ctl.checked  # (the state's leading components: not a quadrature after them)
+        e = error_norm(h, E, E3, K, E.shape[0], y[:m], st.y_new[:m], threshold, st.err[:m],
+                       st.err3[:m])
         if not math.isfinite(e):
             return ERR_NONFINITE, t_new, e, nofailed
         if e <= ctl.rtol:

@@ -16,6 +16,13 @@ recursion (:func:`.couplings.coupled_qdd`). The generalized forces tau are assem
 of bodies (gravity compensation is one), viscous joint damping and joint springs. A new force is
 one term there; a new constraint one step in :func:`derivative` and :func:`project`.
 
+The work of the forces that have no potential in the system's energy, W(t) = int v . tau_nc dt,
+can ride along as one more component of the state, y = (q, v, W): :func:`derivative` then writes
+dW/dt = v . tau_nc after the velocities (when ``out`` has that slot; a stepper's y without it is
+stepped exactly as before). Of the terms here only the damping has no potential (the tip force's,
+the bodies' forces' and the springs' are counted in the energy), so tau_nc is the damping's,
+v . (-c v), summed in :func:`generalized_forces` beside its term into ``SystemData.power``.
+
 Two bundles: :class:`SystemData` (what every system has: the tree's packed arrays, the force
 terms, the free joints' slots) and :class:`Extras` (what only some have: couplings, loops, a
 spatial chain's tip force), or None, for which numba prunes their branches (a chain's or a
@@ -61,7 +68,8 @@ class SystemData(NamedTuple):
     in ``ball_q``, its v slot of w_x in ``ball_v``; every other coordinate q[plain_q[i]] moves
     as v[plain_v[i]] (all empty without free and ball joints: dq/dt = v). ``worst`` (3,): the
     largest | |quaternion| - 1 |, |loop or coupling residual in q| and |in v| met before a
-    projection."""
+    projection. ``power`` (1,): the damping's power v . (-c v) at the last forces' call (0
+    without damping), the rate of the work W (module docstring)."""
 
     kind: int
     fdata: np.ndarray
@@ -88,6 +96,7 @@ class SystemData(NamedTuple):
     ball_q: np.ndarray
     ball_v: np.ndarray
     worst: np.ndarray
+    power: np.ndarray
 
 
 class Couplings(NamedTuple):
@@ -133,7 +142,8 @@ class Extras(NamedTuple):
 def generalized_forces(sd, extras, t, q, v, tau):
     """The generalized forces at (t, q, v) into ``tau`` (n_v,), term after term: the tip force's
     J^T F, the bodies' forces' J^T f, the joints' damping, their springs; False (tau untouched)
-    when the system has none. The one place a force is written (module docstring)."""
+    when the system has none. The one place a force is written (module docstring); the
+    damping's power v . (-c v) into ``sd.power[0]``, summed in the order of the DOFs."""
     if sd.tip.shape[0] == 0 and sd.damping.shape[0] == 0 and sd.stiffness.shape[0] == 0 \
             and sd.body.shape[0] == 0:
         return False
@@ -156,6 +166,10 @@ def generalized_forces(sd, extras, t, q, v, tau):
         else:
             for k in range(tau.shape[0]):
                 tau[k] = tau[k] + d[k] * v[k]
+        p = 0.0  # the damping's power (the work W's rate), its own loop: tau's bits as before
+        for k in range(tau.shape[0]):
+            p += v[k] * (d[k] * v[k])
+        sd.power[0] = p
         first = False
     if sd.stiffness.shape[0] != 0:
         s, ref, at = sd.stiffness, sd.spring_ref, sd.spring_q
@@ -240,10 +254,11 @@ def body_force_torques(sd, q, tau, first):
 # --------------------------------------------------------------------------- the derivative
 @jit_borrowed
 def derivative(sd, extras, t, y, out):
-    """out = (dq/dt, qdd) at (t, y), y = (q, v) (module docstring); False when qdd is not
-    finite (or the loops are redundant: the Python side says which)."""
-    nq = sd.nq
-    q, v, qdd = y[:nq], y[nq:], out[nq:]
+    """out = (dq/dt, qdd) at (t, y), y = (q, v), or (dq/dt, qdd, dW/dt) for y = (q, v, W)
+    (module docstring); False when qdd is not finite (or the loops are redundant: the Python
+    side says which)."""
+    nq, nv = sd.nq, sd.zeros.shape[0]
+    q, v, qdd = y[:nq], y[nq:nq + nv], out[nq:nq + nv]
     tau = sd.tau if generalized_forces(sd, extras, t, q, v, sd.tau) else sd.zeros
     if extras is not None and extras.loops.ckind.shape[0] != 0:
         flag = 0.0 if loops_qdd(extras.loops, q, v, tau, qdd) == OK else 1.0
@@ -261,6 +276,8 @@ def derivative(sd, extras, t, y, out):
     else:
         configuration_rate(nq, sd.plain_q, sd.plain_v, sd.free_q, sd.free_v, sd.ball_q,
                            sd.ball_v, y, out)
+    if out.shape[0] > nq + nv:  # y = (q, v, W): the work's rate (module docstring)
+        out[nq + nv] = sd.power[0]
     return flag == 0.0
 
 
@@ -296,13 +313,14 @@ def quaternion_rate(i, w, y, out):
 # --------------------------------------------------------------------------- the projection
 @jit_borrowed
 def project(sd, extras, y, worst):
-    """y = (q, v) moved back onto the system's constraints after a step, in place: the loops
+    """y = (q, v) (or (q, v, W), W untouched) moved back onto the system's constraints after a
+    step, in place: the loops
     (:func:`.constraints.loops_project`), then each coupling's follower onto its leader, then
     each quaternion onto the unit sphere; the largest departures met into ``worst`` (as
     :attr:`SystemData.worst`). Returns OK, or the loops' status (the Python side says why)."""
-    nq = sd.nq
+    nq, nv = sd.nq, sd.zeros.shape[0]
     if extras is not None and extras.loops.ckind.shape[0] != 0:
-        status = loops_project(extras.loops, y[:nq], y[nq:], worst[RESIDUAL_Q:])
+        status = loops_project(extras.loops, y[:nq], y[nq:nq + nv], worst[RESIDUAL_Q:])
         if status != OK:
             return status
     if extras is not None:
