@@ -893,7 +893,7 @@ class Coupling:
 
 
 # cut joint -> constraint equations
-KINDS = {"point": 3, "planar": 2, "plane": 2, "revolute": 5, "weld": 6}
+KINDS = {"point": 3, "planar": 2, "plane": 2, "line": 1, "revolute": 5, "weld": 6}
 WORLD = -1  # a cut joint's body_b: the world
 
 
@@ -905,7 +905,9 @@ class CutJoint:
     frames, default the bodies' own; the revolute axis is their z) kept aligned. A ``"plane"``
     cut keeps the points together along the x and y axes of frame ``rot_b`` on body b (the
     plane a mechanism moves in, its normal z: a ``"planar"`` cut in a plane of any
-    orientation, which may move with body b)."""
+    orientation, which may move with body b); a ``"line"`` cut along the x axis of ``rot_b``
+    only (1 equation: what is left of a pin whose other equations repeat other cuts', as the
+    second bar of a parallelogram's)."""
 
     name: str
     body_a: int
@@ -944,9 +946,11 @@ class CutJoint:
             if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
                     np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
                 raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
-            if self.kind not in ("revolute", "weld") and (self.kind, side) != ("plane", "rot_b"):
+            if self.kind not in ("revolute", "weld") and \
+                    (self.kind, side) not in (("plane", "rot_b"), ("line", "rot_b")):
                 raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
-                                f"or 'weld' cut only (a 'plane' cut's rot_b gives its plane); "
+                                f"or 'weld' cut only (a 'plane' cut's rot_b gives its plane, "
+                                f"a 'line' cut's its line, x); "
                                 f"a {self.kind!r} cut would ignore it")
 
 
