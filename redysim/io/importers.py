@@ -61,7 +61,8 @@ with its disable flags: ``armature`` (``dof_armature``, :attr:`Model.armature`),
 (``dof_damping``, unless DAMPER is off), ``stiffness`` with ``springref`` on hinges and slides
 (``jnt_stiffness`` and ``qpos_spring``, unless SPRING is off), body ``gravcomp`` (unless gravity
 is off or zero, or SPRING and DAMPER both are: MuJoCo's mj_passive then computes nothing); a
-jointless body fused into its parent with another gravcomp fraction is refused by name.
+jointless body fused into its parent with another gravcomp fraction keeps its own share of its
+weight held at its own centre of mass (:attr:`Model.gravcomp_loads`).
 
 **Honoured, announced or refused.** Every attribute of a file that changes the motion is
 honoured, refused, or announced: a line of :attr:`Model.notes` names the element, its name and
