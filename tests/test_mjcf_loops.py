@@ -450,21 +450,22 @@ def test_a_loop_on_a_floating_model_is_closed(tmp_path):
     assert sim.residual_q < 1e-8 and sim.residual_v < 1e-8
 
 
-def test_a_plane_cut_is_differentiated_right(tmp_path):
+@pytest.mark.parametrize("kind", ["plane", "line"])
+def test_a_plane_cut_is_differentiated_right(tmp_path, kind):
     """A 'plane' cut (the points kept together along two axes of a frame on body b, which
-    moves and turns): its J v and Jdot v are the first and second derivatives of its residual
-    along q + t v (hinges: dq/dt = v, qdd = 0), by central differences, away from the loop (the
-    residual's normal part and the frame's turning both act), and its qdd is the dense KKT
-    system's."""
+    moves and turns; a 'line' cut: along its x axis): its J v and Jdot v are the first and
+    second derivatives of its residual along q + t v (hinges: dq/dt = v, qdd = 0), by central
+    differences, away from the loop (the residual's normal part and the frame's turning both
+    act), and its qdd is the dense KKT system's."""
     from redysim import CutJoint
 
     model = load_model(write(tmp_path, SPATIAL.format(eq="")))
     turn = np.linalg.qr(np.random.default_rng(5).normal(size=(3, 3)))[0]
     turn *= np.sign(np.linalg.det(turn))
-    cut = CutJoint("p", 2, (0.6, 0.0, 0.0), 0, (0.1, 0.2, -0.1), "plane",
+    cut = CutJoint("p", 2, (0.6, 0.0, 0.0), 0, (0.1, 0.2, -0.1), kind,
                    rot_b=tuple(map(tuple, turn)))
     loops = ClosedLoops(model, [cut])
-    rng = np.random.default_rng(stable_seed("plane"))
+    rng = np.random.default_rng(stable_seed("plane") if kind == "plane" else stable_seed(kind))
     q, v = rng.uniform(-1, 1, 9), rng.normal(size=9)
     gap, J, Jv, Jdv = loops.evaluate(q, v)
     assert np.abs(gap).max() > 0.1 and np.allclose(Jv, J @ v, rtol=0, atol=1e-14)
