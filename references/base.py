@@ -787,6 +787,10 @@ class Engine(EnginePackage):
         passive elements (:attr:`Model.damping`, ...) the engine's native model does not hold
         (:attr:`holds_passive`)."""
         m = self.model
+        if m.gravcomp_loads.shape[0]:  # (no engine's body holds two fractions of its weight)
+            return (f"{self.name}'s own integrators step its model, whose bodies hold one "
+                    "gravity compensation fraction each, not the model's gravcomp_loads (a "
+                    "fused body's parts of other fractions, each at its own centre of mass)")
         if self.holds_passive or not m.has_passive:
             return ""
         held = [key for key in ("damping", "stiffness", "gravcomp") if np.any(getattr(m, key))]

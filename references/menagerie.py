@@ -52,6 +52,7 @@ ALLOWED = ("frictionloss", "contact", "collision", "fluid", "density", "viscosit
            "actuator", "does not act", "do not act", "limit", "range", "sensor", "visual",
            "no effect", "not read", "solref",  # solref: MuJoCo's softness, where the core is exact
            "in-plane equations",  # a planar loop closed by its independent equations
+           "independent equations",  # loop equations that repeat others, dropped (the same motion)
            "mocap")  # a mocap body: held where the file puts it, an input like an actuator
 
 

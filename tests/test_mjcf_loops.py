@@ -233,6 +233,121 @@ def test_a_weld_holds_frame_and_point(tmp_path):
     assert any("torquescale = 0" in n for n in free.notes), free.notes
 
 
+# two connects on the hinge line (as ToddlerBot closes its neck's loops): the four-bar's pin
+# at C written as two points, C and C + 0.1 y, on each body
+HINGE = FOURBAR.replace('<site name="c1" pos="0.4 0 0.1"/>', '<site name="c1" pos="0.4 0 0.1"/>'
+                        '<site name="c1z" pos="0.4 0.1 0.1"/>').replace(
+    '<site name="c2" pos="-0.1 0 0.4"/>', '<site name="c2" pos="-0.1 0 0.4"/>'
+    '<site name="c2z" pos="-0.1 {y} 0.4"/>')
+PAIR = '<connect name="pin" site1="c1" site2="c2"/><connect name="pin_z" site1="c1z" site2="c2z"/>'
+# a parallelogram (crank and rocker equal and parallel, the coupler the ground's length) with a
+# third bar, parallel to both, pinned to the coupler's middle: its loop repeats one equation of
+# the first's (each pin written as two connects on the hinge line)
+PARALLEL = HEAD + """<worldbody>
+<body name="crank"><joint name="a" axis="0 1 0"/><geom fromto="0 0 0 0.1 0 0.3" mass="1"/>
+ <body name="coupler" pos="0.1 0 0.3"><joint name="b" axis="0 1 0"/>
+  <geom fromto="0 0 0 0.5 0 0" mass="2"/>
+  <site name="c1" pos="0.5 0 0"/><site name="c1z" pos="0.5 0.1 0"/>
+  <site name="m1" pos="0.25 0 0"/><site name="m1z" pos="0.25 0.1 0"/></body></body>
+<body name="rocker" pos="0.5 0 0"><joint name="d" axis="0 1 0"/>
+ <geom fromto="0 0 0 0.1 0 0.3" mass="1.5"/>
+ <site name="c2" pos="0.1 0 0.3"/><site name="c2z" pos="0.1 0.1 0.3"/></body>
+<body name="middle" pos="0.25 0 0"><joint name="e" axis="0 1 0"/>
+ <geom fromto="0 0 0 0.1 0 0.3" mass="0.7"/>
+ <site name="m2" pos="0.1 0 0.3"/><site name="m2z" pos="0.1 0.1 0.3"/></body>
+</worldbody><equality>
+<connect name="outer" site1="c1" site2="c2"/><connect name="outer_z" site1="c1z" site2="c2z"/>
+<connect name="middle" site1="m1" site2="m2"/><connect name="middle_z" site1="m1z" site2="m2z"/>
+</equality></mujoco>"""
+
+
+def test_two_connects_on_a_hinge_line_are_one_revolute_cut(tmp_path):
+    """ToddlerBot's way to close a loop: two connects of the same two bodies, their points on
+    the hinge line (6 equations, 2 independent in this planar four-bar). Merged into one
+    revolute cut about the line, reduced to its two in-plane equations (a 'plane' cut), both
+    announced by the connects' names; the residuals of both of MuJoCo's connects vanish on our
+    loops, and qdd is MuJoCo's hard limit (its soft rows take the redundant equations).
+    (Before: refused, 'its equations are redundant'.)"""
+    path = write(tmp_path, HINGE.format(eq=PAIR, y="0.1"))
+    model = load_model(path)
+    (cut,) = model.cuts
+    assert (cut.name, cut.kind, model.n_v) == ("pin", "plane", 3)
+    assert any("'pin', 'pin_z'" in n and "'revolute' cut" in n for n in model.notes), \
+        model.notes
+    assert any("equality 'pin': 3 of its 5 equations repeat its others" in n and
+               "'plane' cut" in n for n in model.notes), model.notes
+    loops = ClosedLoops(model)
+    rng = np.random.default_rng(stable_seed("hinge pair"))
+    q = loops.project(model.initial() + rng.uniform(-0.05, 0.05, 3), np.zeros(3))[0]
+    assert np.abs(mujoco_at(path, q, np.zeros(3), np.zeros(3))[1]).max() < 1e-12
+    v = on_the_loops(loops, q, rng)
+    tau = rng.normal(size=3)
+    qdd = check_constrained_qdd(loops, q, v, tau)
+    check_mujoco(path, q, v, tau, qdd, 1e-9)
+    single = load_model(write(tmp_path, FOURBAR.format(eq=SITES), "one.xml"))
+    assert np.allclose(ClosedLoops(single).forward_dynamics(q, v, tau), qdd, rtol=0,
+                       atol=1e-12 * np.abs(qdd).max())
+
+
+def test_a_connect_pair_of_a_spatial_chain_is_a_revolute_cut(tmp_path):
+    """Two connects of the last of three spatial links to the world, on a line: one
+    'revolute' cut (5 independent equations of 6: 4 DOF left), qdd MuJoCo's hard limit."""
+    pair = ('<connect name="p" body1="b2" anchor="0.6 0 0"/>'
+            '<connect name="q" body1="b2" anchor="0.3 0.01 -0.005"/>')
+    path = write(tmp_path, SPATIAL.format(eq=pair))
+    model = load_model(path)
+    (cut,) = model.cuts
+    assert (cut.name, cut.kind, cut.body_b) == ("p", "revolute", -1)
+    loops = ClosedLoops(model)
+    q0 = model.initial()
+    assert max(loops.residuals(q0, np.zeros(9))) < 1e-12
+    rng = np.random.default_rng(stable_seed("spatial pair"))
+    v = on_the_loops(loops, q0, rng)
+    tau = rng.normal(size=9)
+    qdd = check_constrained_qdd(loops, q0, v, tau)
+    assert np.linalg.matrix_rank(loops.evaluate(q0, v)[1]) == 5
+    check_mujoco(path, q0, v, tau, qdd, 3e-4)  # (MuJoCo's stiff soft rows, as the weld's)
+
+
+def test_a_parallelogram_bar_keeps_its_one_independent_equation(tmp_path):
+    """A parallelogram with a third parallel bar, each pin two connects on the hinge line: the
+    first loop a 'plane' cut, the second's in-plane equation along the bar repeats the first
+    loop's (the parallelogram moves anyway): a 'line' cut, announced naming the first. One DOF
+    left; qdd MuJoCo's hard limit, and a passive run keeps the energy and all of MuJoCo's
+    connects shut."""
+    path = write(tmp_path, PARALLEL)
+    model = load_model(path)
+    assert [(c.name, c.kind) for c in model.cuts] == [("outer", "plane"), ("middle", "line")]
+    assert any("equality 'middle': 4 of its 5 equations repeat its others and those of "
+               "'outer'" in n and "'line' cut" in n for n in model.notes), model.notes
+    loops = ClosedLoops(model)
+    rng = np.random.default_rng(stable_seed("parallelogram"))
+    q = model.initial()
+    v = on_the_loops(loops, q, rng)
+    assert np.linalg.norm(v) > 0.1
+    tau = rng.normal(size=model.n_v)
+    qdd = check_constrained_qdd(loops, q, v, tau)
+    check_mujoco(path, q, v, tau, qdd, 1e-8)
+    sim = simulate(model, 0.3, v0=v, rtol=1e-10, atol=1e-12, sample=0.1)
+    assert sim.status == 0, sim.message
+    assert np.abs(sim.delta_M).max() < 1e-8
+    assert np.abs(mujoco_at(path, sim.q[-1], np.zeros(4), np.zeros(4))[1]).max() < 1e-8
+
+
+@pytest.mark.parametrize("eq, y, field, fragment", [
+    (PAIR, "0.12", "equality 'pin_z'", "0.1 m apart on one body and 0.12 m on the other"),
+    (PAIR + '<connect name="third" body1="coupler" body2="rocker" anchor="0.3 0 0.1"/>', "0.1",
+     "equality 'third'", "write one <weld> instead"),
+])
+def test_connects_of_two_bodies_that_cannot_all_hold_are_refused(tmp_path, eq, y, field,
+                                                                  fragment):
+    """Two connects of the same two bodies whose points are further apart on one body than on
+    the other cannot both hold; a third off the line of the first two welds the bodies: both
+    refused naming the connect (no traceback from the loops' solve)."""
+    path = write(tmp_path, HINGE.format(eq=eq, y=y))
+    refused(lambda: load_model(path), field, fragment, "equality='drop'")
+
+
 def test_equality_options_and_inactive_closures(tmp_path):
     """equality='refuse' refuses a loop closure by name, 'drop' drops it (announced); an
     inactive one is announced, not built."""
@@ -335,21 +450,22 @@ def test_a_loop_on_a_floating_model_is_closed(tmp_path):
     assert sim.residual_q < 1e-8 and sim.residual_v < 1e-8
 
 
-def test_a_plane_cut_is_differentiated_right(tmp_path):
+@pytest.mark.parametrize("kind", ["plane", "line"])
+def test_a_plane_cut_is_differentiated_right(tmp_path, kind):
     """A 'plane' cut (the points kept together along two axes of a frame on body b, which
-    moves and turns): its J v and Jdot v are the first and second derivatives of its residual
-    along q + t v (hinges: dq/dt = v, qdd = 0), by central differences, away from the loop (the
-    residual's normal part and the frame's turning both act), and its qdd is the dense KKT
-    system's."""
+    moves and turns; a 'line' cut: along its x axis): its J v and Jdot v are the first and
+    second derivatives of its residual along q + t v (hinges: dq/dt = v, qdd = 0), by central
+    differences, away from the loop (the residual's normal part and the frame's turning both
+    act), and its qdd is the dense KKT system's."""
     from redysim import CutJoint
 
     model = load_model(write(tmp_path, SPATIAL.format(eq="")))
     turn = np.linalg.qr(np.random.default_rng(5).normal(size=(3, 3)))[0]
     turn *= np.sign(np.linalg.det(turn))
-    cut = CutJoint("p", 2, (0.6, 0.0, 0.0), 0, (0.1, 0.2, -0.1), "plane",
+    cut = CutJoint("p", 2, (0.6, 0.0, 0.0), 0, (0.1, 0.2, -0.1), kind,
                    rot_b=tuple(map(tuple, turn)))
     loops = ClosedLoops(model, [cut])
-    rng = np.random.default_rng(stable_seed("plane"))
+    rng = np.random.default_rng(stable_seed("plane") if kind == "plane" else stable_seed(kind))
     q, v = rng.uniform(-1, 1, 9), rng.normal(size=9)
     gap, J, Jv, Jdv = loops.evaluate(q, v)
     assert np.abs(gap).max() > 0.1 and np.allclose(Jv, J @ v, rtol=0, atol=1e-14)

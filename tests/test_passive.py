@@ -62,6 +62,12 @@ FLOATER = """<mujoco model="floater"><option {option}>{flags}</option>
 </body>
 </worldbody></mujoco>"""
 
+# the arm with its jointless tool holding another fraction of its weight than the slider it is
+# fused into (Hello Robot Stretch's ArUco marker body: gravcomp 0 on an arm link of 1)
+FUSED = ARM.replace('<body name="slider" pos="0.3 0 0.1">',
+                    '<body name="slider" pos="0.3 0 0.1" gravcomp="0.2">').replace(
+    '<body name="tool" pos="0.05 0 0">', '<body name="tool" pos="0.05 0.01 0.02" gravcomp="0.7">')
+
 OPTIONS = [
     ("all", "", ""),
     ("gravity-elsewhere", 'gravity="1 -2 -7"', ""),
@@ -95,7 +101,7 @@ def mujoco_forward(path, q, v, tau):
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("text", [ARM, FLOATER], ids=["arm", "floating"])
+@pytest.mark.parametrize("text", [ARM, FLOATER, FUSED], ids=["arm", "floating", "fused-parts"])
 @pytest.mark.parametrize("option", OPTIONS, ids=[o[0] for o in OPTIONS])
 def test_a_files_passive_elements_give_mujocos_qacc(tmp_path, text, option):
     """The file's armature, damping, springs (springref in degrees, classes and defaults) and
@@ -237,8 +243,20 @@ def test_the_model_holds_them_checked_kept_and_carried():
     assert np.array_equal(locked.spring_ref, [0.0, -0.4])
     assert np.array_equal(locked.gravcomp, [0.5, 1.0])  # link2 fused into link1: both 0.5
     # link3 (gravcomp 1), fused into link2 (0.5, with mass): one fraction cannot hold both
-    with pytest.raises(CaseError, match=r"fuses it into body 'link2', whose gravcomp is 0.5"):
-        model.locked({"joint3": 0.3})
+    # link3 (gravcomp 1), fused into link2 (0.5, with mass): each part's share held at its
+    # own centre of mass; the locked model's passive forces are the model's at joint3 = 0.3
+    both = model.locked({"joint3": 0.3})
+    assert both.gravcomp.tolist() == [0.5, 0.0]
+    assert both.gravcomp_loads.shape == (2, 5)
+    q, v = np.array([0.2, -0.4]), np.array([0.3, 0.7])
+    want = passive_forces(model, np.array([0.2, -0.4, 0.3]), np.array([0.3, 0.7, 0.0]))
+    assert np.abs(passive_forces(both, q, v) - want[:2]).max() < 1e-14
+    back = pickle.loads(pickle.dumps(both))
+    assert np.array_equal(back.gravcomp_loads, both.gravcomp_loads)
+    assert not both.without_passive().has_passive
+    with pytest.raises(CaseError, match=r"gravcomp_loads = \['link2'\]: bodies fused from parts "
+                       "whose gravcomp fractions differ"):
+        both.locked({"joint2": 0.1})
     for kw, match in ((dict(damping=-1.0), r"damping\[0\] = -1.0: must be finite and >= 0"),
                       (dict(stiffness=[1.0, np.nan, 1.0]), r"stiffness\[1\] = nan"),
                       (dict(spring_ref=[1.0, 2.0]), r"must be 3 numbers"),
@@ -378,3 +396,34 @@ def test_engines_agree_with_the_core_on_a_damped_sprung_arm(name):
     assert rel(native.v, rigid.v) > 1e-3  # (they act)
     # after a native run, its qdd is the rigid body's again
     assert rel(eng.qdd(q, v, tau), forward_dynamics(model, q, v, tau)) < 1e-9
+
+
+@pytest.mark.engine
+def test_a_fused_body_of_two_fractions_holds_each_at_its_part(tmp_path):
+    """Before: refused ('one body holds one fraction'). The jointless tool (gravcomp 0.7) fused
+    into the slider (0.2): the model holds the slider's and the tool's shares as loads at each
+    part's centre of mass (the fused body's own fraction 0), announced nowhere as dropped;
+    the passive forces are MuJoCo's (test_a_files_passive_elements_give_mujocos_qacc). The
+    exporters and the engines' own stepping refuse them by name (no body of a file holds two
+    fractions)."""
+    from redysim.io.export import ExportError, to_mjcf
+
+    model = load_model(write(tmp_path, FUSED.format(option="", flags=""), "m.xml"))
+    k = model.body_names.index("slider")
+    assert model.gravcomp[k] == 0.0
+    held = sorted(model.gravcomp_loads[:, 1].tolist())
+    assert held == pytest.approx([0.3 * 0.2, 0.1 * 0.7], rel=1e-12)  # slider 0.3 kg, tool 0.1
+    assert set(model.gravcomp_loads[:, 0].astype(int)) == {k}
+    with pytest.raises(ExportError, match="gravcomp_loads"):
+        to_mjcf(model)
+    from engine_chains import engine_or_skip
+
+    from redysim.errors import SettingsError
+    from redysim.simulation import Integrator, Simulator
+
+    both = arm(gravcomp=[0.5, 0.5, 1.0]).locked({"joint3": 0.3})  # (link3 into link2)
+    eng = engine_or_skip("mujoco")(both)  # its bodies' gravcomp: one fraction each
+    with pytest.raises(SettingsError, match="not the model's gravcomp_loads"):
+        Simulator(System(both), 0.1, integrator=eng.stepper(h=1e-3)).run()
+    core = Simulator(System(both), 0.1, integrator=Integrator("rk4", h=1e-3)).run()
+    assert core.status == 0

@@ -306,6 +306,8 @@ def _two_links():
     (("", 1, (1, 0, 0), -1, (0, 0, 0)), {}, "name = '': must be a non-empty string"),
     (("pin", 1, (1, 0, 0), -1, (0, 0, 0), "point"), {"rot_a": np.eye(3)},
      "a 'point' cut would ignore it"),
+    (("pin", 1, (1, 0, 0), -1, (0, 0, 0), "line"), {"rot_a": np.eye(3)},
+     "a 'line' cut would ignore it"),
 ])
 def test_a_cut_joints_bad_field_is_named_at_construction(args, kw, fragment):
     """Before: CutJoint(body_a=1.5) was built, and failed deep inside (an index error) or not

@@ -6,7 +6,8 @@ the world), in all three directions (``"point"``: a ball joint, 3 equations) or 
 x and y only (``"planar"``: a pin of a mechanism moving in the xy plane, 2 equations; the third
 would repeat the other two), or along the x and y axes of a frame ``rot_b`` fixed on body b
 (``"plane"``: the same pin in a plane of any orientation, moving with body b; its rows are
-u_k . (x_a - x_b), u_k = R_b rot_b e_k, whose rates carry the frame's turning, w_b x u_k);
+u_k . (x_a - x_b), u_k = R_b rot_b e_k, whose rates carry the frame's turning, w_b x u_k;
+``"line"``: its first row only, what is left of a pin whose other rows repeat other cuts');
 ``"revolute"`` (5 equations) also keeps the z axes of two frames
 fixed on the bodies (``rot_a``, ``rot_b``) aligned, ``"weld"`` (6) the whole frames. Their
 rotation rows are velocity-level equations on the relative angular velocity: for a weld
@@ -96,11 +97,13 @@ class ClosedLoops:
         self.size = max(1.0, float(np.abs(model.placement_p).sum()))  # for the tolerance
         # the compiled functions' bundle; None for a coupled tree, whose qdd is its couplings'
         # (numpy path)
-        # (numpy path), as is one with a 'plane' cut (the compiled functions have none)
+        # (numpy path), as is one with a 'plane' or 'line' cut (the compiled functions have
+        # neither)
         # and for a tree with quaternions (free or ball joints: q moves along v by the joints'
         # rates, :meth:`_moved`, which the compiled projection does not do)
         self._rate = _rate_layout(model)
-        self.bundle = None if (model.couplings or any(c.kind == "plane" for c in self.cuts)
+        self.bundle = None if (model.couplings or any(c.kind in ("plane", "line")
+                                                                for c in self.cuts)
                                or self._rate is not None) else self._bundle()
 
     def _bundle(self):
@@ -214,20 +217,21 @@ class ClosedLoops:
 
     def _plane_rows(self, ws, c, rot, path_b, diff, Jc):
         """(phi, J, J v, Jdot v) of a 'plane' cut: u_k . d, d = x_a - x_b, along u_k the x and
-        y axes of frame ``rot`` on body b; d/dt u_k = w_b x u_k, so the rows carry
-        (u_k x d) . w_b, and Jdot v adds 2 (w_b x u_k) . d' + (alpha_b x u_k + w_b x (w_b x
-        u_k)) . d (alpha_b at qdd = 0)."""
+        y axes of frame ``rot`` on body b (a 'line' cut: x only); d/dt u_k = w_b x u_k, so the
+        rows carry (u_k x d) . w_b, and Jdot v adds 2 (w_b x u_k) . d' + (alpha_b x u_k + w_b x
+        (w_b x u_k)) . d (alpha_b at qdd = 0)."""
         d, dv, da = diff
         RB, wb, ab = self._frame(ws, c.body_b, rot)
-        u = RB[:, :2]
-        wu = [cross(wb, u[:, k]) for k in range(2)]
+        n = KINDS[c.kind]
+        u = RB[:, :n]
+        wu = [cross(wb, u[:, k]) for k in range(n)]
         J = u.T @ Jc
         if c.body_b >= 0:
-            J = J + np.vstack([cross(u[:, k], d) for k in range(2)]) @ \
+            J = J + np.vstack([cross(u[:, k], d) for k in range(n)]) @ \
                 self._angular_block(ws, path_b)
-        Jv = u.T @ dv + np.array([wu[k] @ d for k in range(2)])
+        Jv = u.T @ dv + np.array([wu[k] @ d for k in range(n)])
         Jdv = u.T @ da + np.array([2.0 * (wu[k] @ dv) + cross(ab, u[:, k]) @ d
-                                   + cross(wb, wu[k]) @ d for k in range(2)])
+                                   + cross(wb, wu[k]) @ d for k in range(n)])
         return u.T @ d, J, Jv, Jdv
 
     def evaluate(self, q, v):
@@ -239,7 +243,7 @@ class ClosedLoops:
             xb, vb, ab = self._point(ws, c.body_b, c.point_b)
             Jc = self._jacobian_block(ws, pa, xa) - (self._jacobian_block(ws, pb, xb)
                                                      if c.body_b >= 0 else 0.0)
-            if c.kind == "plane":
+            if c.kind in ("plane", "line"):
                 rows = self._plane_rows(ws, c, self._rots[i][1], pb, (xa - xb, va - vb, aa - ab),
                                         Jc)
                 for out, x in zip((phi, J, Jv, Jdv), rows, strict=True):

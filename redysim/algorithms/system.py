@@ -439,8 +439,9 @@ def _vector(source: str, name: str, value, n: int, per: str = "velocity coordina
 def _body_forces(source: str, model: Model, body_forces, gravcomp
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(bodies (m,), forces (m, 3), points (m, 3)) of the constant body forces: those given, then
-    each compensated body's -gravcomp m g at its centre of mass (SettingsError naming a bad
-    one)."""
+    each compensated body's -gravcomp m g at its centre of mass, then the model's
+    :attr:`~redysim.model.tree.Model.gravcomp_loads` (a fused body's parts of other fractions:
+    -held mass g at each part's centre of mass) (SettingsError naming a bad one)."""
     names = list(model.body_names)
     body, force, point = [], [], []
     for i, item in enumerate(body_forces):
@@ -466,6 +467,11 @@ def _body_forces(source: str, model: Model, body_forces, gravcomp
             body.append(int(k))
             force.append(-factors[k] * mass[k] * g)
             point.append(np.asarray(model.mass_com[k], dtype=float) / mass[k])
+    g = np.asarray(model.gravity, dtype=float)
+    for k, held, *x in model.gravcomp_loads:  # a fused body's parts, each at its own centre
+        body.append(int(k))
+        force.append(-held * g)
+        point.append(np.array(x, dtype=float))
     return (np.array(body, dtype=np.int64), np.array(force, dtype=float).reshape(-1, 3),
             np.array(point, dtype=float).reshape(-1, 3))
 

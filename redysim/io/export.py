@@ -131,6 +131,14 @@ def _as_model(model: Model, source: str = "export") -> Model:
         raise ExportError(source, "cuts", [c.name for c in model.cuts],
                           "a closed mechanism: the exporters write trees, and would drop its "
                           "cut joints; export the open tree (model.with_cuts(()))")
+    if model.gravcomp_loads.shape[0]:
+        k = int(model.gravcomp_loads[0, 0])
+        raise ExportError(source, f"body {model.body_names[k]!r}.gravcomp_loads",
+                          _plain(model.gravcomp_loads[0]), "a body fused from parts whose "
+                          "gravity compensation fractions differ (each held at its part's "
+                          "centre of mass): a file's body holds one fraction, and the exporters "
+                          "write the fused body; export model.without_passive(), or give the "
+                          "parts one fraction")
     return model
 
 

@@ -61,7 +61,8 @@ with its disable flags: ``armature`` (``dof_armature``, :attr:`Model.armature`),
 (``dof_damping``, unless DAMPER is off), ``stiffness`` with ``springref`` on hinges and slides
 (``jnt_stiffness`` and ``qpos_spring``, unless SPRING is off), body ``gravcomp`` (unless gravity
 is off or zero, or SPRING and DAMPER both are: MuJoCo's mj_passive then computes nothing); a
-jointless body fused into its parent with another gravcomp fraction is refused by name.
+jointless body fused into its parent with another gravcomp fraction keeps its own share of its
+weight held at its own centre of mass (:attr:`Model.gravcomp_loads`).
 
 **Honoured, announced or refused.** Every attribute of a file that changes the motion is
 honoured, refused, or announced: a line of :attr:`Model.notes` names the element, its name and
@@ -109,6 +110,7 @@ from redysim.model.tree import (
     BALL_JOINT,
     FIXED,
     FREE,
+    KINDS,
     QUATERNION_JOINTS,
     Body,
     Coupling,
@@ -1273,10 +1275,14 @@ def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
                ) -> tuple[list[CutJoint], list[str]]:
     """The cut joints of the loop closures, in the model's bodies (a MuJoCo body fused into
     an ancestor or the world, its points and frames carried there through the poses at qpos0);
+    connects of the same two bodies merged (:func:`_hinges_of_pairs`: two on a hinge line are
+    one revolute cut), then each cut's equations that repeat others dropped
+    (:func:`_independent_cuts`: a point closure of a mechanism that moves in a plane keeps 2
+    of its 3, a 'planar' or 'plane' cut; the second bar of a parallelogram 1, a 'line' cut);
     ModelFileError naming the equality for a closure of the world to itself, or equations
-    that are redundant (a point closure of a mechanism that moves in
-    a plane: 2 independent equations of 3; one in the world's xy plane becomes a 'planar'
-    cut). Also a note for each closure open at qpos0 (MuJoCo pulls it shut softly)."""
+    still redundant (at the file's configuration only: a change point). Also the notes: what
+    was merged or dropped as dependent on what, and each closure open at qpos0 (MuJoCo pulls
+    it shut softly)."""
     from redysim.algorithms import rbda
     from redysim.algorithms.loops import ClosedLoops
 
@@ -1315,8 +1321,10 @@ def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
         rots = {"rot_a": tuple(map(tuple, R1)), "rot_b": tuple(map(tuple, R2))} \
             if c.kind == "weld" else {}
         cuts.append(CutJoint(c.name, k1, tuple(p1), k2, tuple(p2), c.kind, **rots))
+    cuts, merged = _hinges_of_pairs(cuts, closures, src,
+                                    max(1.0, float(np.abs(model.placement_p).sum())))
     qc = model.couple(q0)  # (qpos0 is off a coupling whose a0 is not 0)
-    cuts = [_planar_if_redundant(model, cuts, i, qc) for i in range(len(cuts))]
+    cuts, reduced = _independent_cuts(model, cuts, qc, src)
     loops = ClosedLoops(model, cuts, source=src)
     try:
         loops.forward_dynamics(qc, np.zeros(model.n_v))
@@ -1336,49 +1344,224 @@ def _mjcf_cuts(mj, m, model: Model, closures: list[_Closure], src: str
     notes = [f"equality {name!r}: open at the file's configuration by up to {g:.3g} (m, or rad "
              "for a weld's frames; MuJoCo pulls it shut softly): a run starts from an assembled "
              "q (ClosedLoops.project moves q onto the loops)" for name, g in worst.items()]
-    return cuts, notes
+    return cuts, merged + reduced + notes
 
 
-def _planar_if_redundant(model: Model, cuts: list[CutJoint], i: int, q0) -> CutJoint:
-    """Cut i, or, where it is a point cut whose three equations are dependent at q0 and near it
-    (a mechanism moving in a plane: the equation along the plane's normal n repeats the
-    others), its two in-plane equations: a 'planar' cut when n is the world's z, else a
-    'plane' cut whose frame on body b has n as its z (the plane moves with body b)."""
+def _frame_with_z(z) -> np.ndarray:
+    """A rotation whose z axis is the unit vector z (its x and y any, fixed)."""
+    z = np.asarray(z, dtype=float) / np.linalg.norm(z)
+    x = np.cross(z, np.eye(3)[int(np.argmin(np.abs(z)))])
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _hinges_of_pairs(cuts: list[CutJoint], closures: list[_Closure], src: str, size: float
+                     ) -> tuple[list[CutJoint], list[str]]:
+    """The point cuts that join the same two bodies, merged: two or more whose points lie on
+    one line become one 'revolute' cut about that line (pinned at two points, the bodies turn
+    about the line through them: 5 independent equations where the connects write 6 or more);
+    one that repeats another's point is dropped. Refused by name: points whose distances
+    differ on the two bodies (the connects cannot all hold), or three or more not on a line
+    (they weld the bodies: a <weld> says so)."""
+    what = {c.name: c.what for c in closures}
+    tol = LOOP_GAP * size
+    groups: dict[tuple[int, int], list[int]] = {}
+    for i, c in enumerate(cuts):
+        if c.kind == "point":
+            groups.setdefault((min(c.body_a, c.body_b), max(c.body_a, c.body_b)), []).append(i)
+    gone: set[int] = set()
+    merged: dict[int, CutJoint] = {}
+    notes = []
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        first = cuts[members[0]]
+        pa, pb = [np.array(first.point_a)], [np.array(first.point_b)]
+        for i in members[1:]:  # each as (first's body a, first's body b)
+            c = cuts[i]
+            same = c.body_a == first.body_a
+            pa.append(np.array(c.point_a if same else c.point_b))
+            pb.append(np.array(c.point_b if same else c.point_a))
+        for j, i in enumerate(members[1:], 1):
+            for k in range(j):
+                da, db = np.linalg.norm(pa[j] - pa[k]), np.linalg.norm(pb[j] - pb[k])
+                if abs(da - db) > tol:
+                    c = cuts[i]
+                    raise ModelFileError(src, f"equality {c.name!r}", what[c.name],
+                                         f"a connect of the same two bodies as equality "
+                                         f"{cuts[members[k]].name!r}, their points {da:.6g} m "
+                                         f"apart on one body and {db:.6g} m on the other: the "
+                                         "two cannot both hold; load with equality='drop' to "
+                                         "drop them")
+        far = [j for j in range(1, len(pa)) if np.linalg.norm(pa[j] - pa[0]) > tol]
+        names = [cuts[i].name for i in members]
+        if not far:  # every point the first's: the others repeat it
+            gone.update(members[1:])
+            notes.append(f"equality {', '.join(map(repr, names[1:]))}: repeats the connect of "
+                         f"equality {names[0]!r} (the same points): closed once, by its "
+                         "independent equations")
+            continue
+        axis_a = pa[far[0]] - pa[0]
+        axis_a /= np.linalg.norm(axis_a)
+        for j in far[1:]:
+            off = pa[j] - pa[0]
+            if np.linalg.norm(off - (off @ axis_a) * axis_a) > tol:
+                c = cuts[members[j]]
+                raise ModelFileError(src, f"equality {c.name!r}", what[c.name],
+                                     "a third connect of the same two bodies, its point off "
+                                     f"the line through those of {names[0]!r} and "
+                                     f"{names[far[0]]!r}: together they weld the bodies, which "
+                                     "the connects' 9 or more equations do redundantly; write "
+                                     "one <weld> instead, or load with equality='drop'")
+        axis_b = pb[far[0]] - pb[0]
+        axis_b /= np.linalg.norm(axis_b)
+        merged[members[0]] = CutJoint(first.name, first.body_a, first.point_a, first.body_b,
+                                      first.point_b, "revolute",
+                                      rot_a=tuple(map(tuple, _frame_with_z(axis_a).tolist())),
+                                      rot_b=tuple(map(tuple, _frame_with_z(axis_b).tolist())))
+        gone.update(members[1:])
+        notes.append(f"equality {', '.join(map(repr, names))}: connects of the same two "
+                     f"bodies, their points on one line: closed as one 'revolute' cut about "
+                     f"that line, named {names[0]!r} (the bodies turn about it; the same motion "
+                     f"as the {3 * len(names)} equations, by its 5 independent equations)")
+    return [merged.get(i, c) for i, c in enumerate(cuts) if i not in gone], notes
+
+
+def _near_on_loops(model: Model, loops, J, q0):
+    """A configuration near q0 that keeps the loops to second order: q0 moved up to 1e-3 rad
+    (or m) per coordinate along the null space of J and the couplings (fixed pseudo-random
+    directions)."""
+    n = model.n_v
+    rows = [J] + [np.eye(n)[int(fv)] - m * np.eye(n)[int(lv)]
+                  for fv, lv, m in zip(*model.coupling_index[2:5], strict=True)]
+    A = np.vstack(rows)
+    _, s, Vt = np.linalg.svd(A)
+    rank = int(np.sum(s > 1e-6 * s[0])) if s.size and s[0] > 0 else 0
+    null = Vt[rank:]
+    if not null.shape[0]:
+        return q0
+    dv = null.T @ np.random.default_rng(20261207).uniform(-1.0, 1.0, null.shape[0])
+    dv *= 1e-3 / max(np.abs(dv).max(), np.finfo(float).tiny)
+    return model.couple(loops._moved(np.asarray(q0, dtype=float), dv))
+
+
+def _independent_cuts(model: Model, cuts: list[CutJoint], q0, src: str
+                      ) -> tuple[list[CutJoint], list[str]]:
+    """The cuts with their dependent equations dropped: in order, each cut's equations that
+    repeat its own others or earlier cuts' (the Schur complement of J M^-1 J^T on them, given
+    the rows kept before, has an eigenvalue below PLANE_RANK of its largest diagonal, at the
+    file's configuration and near it, on the loops) are dropped, where what is left is a cut:
+    a point's (or a revolute's or weld's whose rotation rows all repeat) independent directions
+    kept as a 'point', 'planar' (the plane's normal the world's z, at q0 and near), 'plane' or
+    'line' cut (the directions fixed on body b: a planar loop's plane turns with its bodies),
+    a cut with none dropped; notes say which equations were
+    dropped as dependent on which. A cut dependent only at q0 (a change point), or whose
+    rotation rows are in part independent, is left whole (ClosedLoops then refuses it)."""
+    from redysim.algorithms import rbda
     from redysim.algorithms.loops import ClosedLoops
 
-    c = cuts[i]
-    if c.kind != "point":
-        return c
-    near = model.couple(q0 + np.random.default_rng(20261207).uniform(-1e-3, 1e-3, q0.shape))
+    loops = ClosedLoops(model, cuts)
+    zeros = np.zeros(model.n_v)
+    J0 = loops.evaluate(q0, zeros)[1]
+    near = _near_on_loops(model, loops, J0, q0)
+    grams = []
+    for q in (q0, near):
+        J = loops.evaluate(q, zeros)[1]
+        grams.append(J @ loops._mobility(q, J))
+    start = np.concatenate([[0], np.cumsum([KINDS[c.kind] for c in cuts])])
+    kept: list[np.ndarray] = []  # each kept row as coefficients of the rows of J
+    kept_by: list[int] = []  # the cut each kept row is of
+    out: list[CutJoint] = []
+    notes = []
+    R0, R_near = (rbda.kinematics(model, q, zeros).R for q in (q0, near))
 
-    def smallest(cut):
-        """The least singular value ratio of J M^-1 J^T over q0 and near it, and the direction
-        of the smallest at q0."""
-        loops = ClosedLoops(model, [cut])
-        worst, normal = math.inf, None
-        for q in (q0, near):
-            J = loops.evaluate(q, np.zeros(model.n_v))[1]
-            _, s, Vt = np.linalg.svd(J @ loops._mobility(q, J))
-            worst = min(worst, float(s[-1] / s[0]) if s[0] > 0 else 0.0)
-            normal = Vt[-1] if normal is None else normal
-        return worst, normal
+    def schur(G, idx):
+        """(eigenvalues relative to the rows' largest diagonal, eigenvectors, projection
+        coefficients on the kept rows) of rows idx given the kept rows."""
+        T = np.eye(G.shape[0])[idx]
+        S = T @ G @ T.T
+        coef = np.zeros((len(idx), 0))
+        if kept:
+            C = np.vstack(kept)
+            GK = C @ G @ C.T
+            coef = np.linalg.lstsq(GK, C @ G @ T.T, rcond=None)[0].T
+            S = S - T @ G @ C.T @ coef.T
+        lam, V = np.linalg.eigh(0.5 * (S + S.T))
+        scale = max(float(np.max(np.diag(T @ G @ T.T))), np.finfo(float).tiny)
+        return lam / scale, V, coef
 
-    ratio, n = smallest(c)
-    if ratio > PLANE_RANK:
-        return c
-    if abs(abs(n[2]) - 1.0) < 1e-9:
-        cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "planar")
-    else:
-        e1 = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
-        e1 /= np.linalg.norm(e1)
-        F = np.column_stack([e1, np.cross(n, e1), n])  # world, at q0
-        if c.body_b >= 0:
-            from redysim.algorithms import rbda
+    def schur_alone(G, idx):
+        """The eigenvalues of rows idx's own J M^-1 J^T, relative to its largest diagonal."""
+        S = G[np.ix_(idx, idx)]
+        return np.linalg.eigvalsh(S) / max(float(np.max(np.diag(S))), np.finfo(float).tiny)
 
-            F = rbda.kinematics(model, q0, np.zeros(model.n_v)).R[c.body_b].T @ F
-        cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "plane",
-                       rot_b=tuple(map(tuple, F)))
-    return cut if smallest(cut)[0] > PLANE_RANK else c
+    for i, c in enumerate(cuts):
+        t = KINDS[c.kind]
+        rows = np.arange(start[i], start[i + 1])
+        trans = rows[:min(t, 3)] if c.kind in ("point", "revolute", "weld") else rows
+        ranks = []
+        for G in grams:
+            lam, _, _ = schur(G, rows)
+            lam_t, _, _ = schur(G, trans)
+            ranks.append((int(np.sum(lam > PLANE_RANK)), int(np.sum(lam_t > PLANE_RANK))))
+        r, r_t = ranks[0]
+        if r == t or ranks[0] != ranks[1] or r != r_t:
+            out.append(c)  # whole: independent, dependent at q0 only, or not a cut's rows
+            kept.extend(np.eye(start[-1])[rows])
+            kept_by.extend([i] * t)
+            continue
+        lam, V, coef = schur(grams[0], trans)
+        keep, drop = V[:, lam > PLANE_RANK], V[:, lam <= PLANE_RANK]
+        whom: list[str] = []
+        if kept:
+            weight = np.abs(drop.T @ coef).max(axis=0)
+            whom = sorted({cuts[kept_by[k]].name for k in
+                           np.flatnonzero(weight > 1e-3 * max(weight.max(), 1e-300))})
+        for col in keep.T:
+            row = np.zeros(start[-1])
+            row[trans] = col
+            kept.append(row)
+            kept_by.append(i)
+        own = int(np.sum(schur_alone(grams[0], rows) > PLANE_RANK)) < t
+        on = " and ".join((["its others"] if own or not whom else [])
+                          + ([f"those of {', '.join(map(repr, whom))}"] if whom else []))
+        head = f"equality {c.name!r}: {t - r} of its {t} equations repeat {on} (dependent " \
+            "at the file's configuration and near it, on the loops)"
+        if r == 0:
+            notes.append(f"{head}: dropped, the loop is closed by {on}, its independent "
+                         "equations")
+            continue
+        if c.kind in ("planar", "plane"):  # directions in the plane's frame on body b
+            F = np.eye(3) if c.kind == "planar" else np.asarray(c.rot_b, dtype=float)
+            if c.kind == "planar" and c.body_b >= 0:
+                F = R0[c.body_b].T
+            dirs = F[:, :2] @ keep
+        else:  # world directions at q0, carried onto body b
+            dirs = keep if c.body_b < 0 else R0[c.body_b].T @ keep
+            F = None
+        if r == 3:
+            cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "point")
+        elif r == 2:
+            n = np.cross(dirs[:, 0], dirs[:, 1])
+            n_world = [n] if c.body_b < 0 else [R[c.body_b] @ n for R in (R0, R_near)]
+            if c.kind == "point" and all(abs(abs(x[2]) - 1.0) < 1e-9 for x in n_world):
+                cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "planar")
+            else:
+                cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "plane",
+                               rot_b=tuple(map(tuple, _frame_with_z(n).tolist())))
+        else:
+            F = _frame_with_z(dirs[:, 0])[:, [2, 0, 1]]  # its x the line (a turn of the axes)
+            cut = CutJoint(c.name, c.body_a, c.point_a, c.body_b, c.point_b, "line",
+                           rot_b=tuple(map(tuple, F.tolist())))
+        out.append(cut)
+        if c.kind == "point" and r == 2 and not whom:
+            notes.append(f"equality {c.name!r}: a connect of a mechanism that moves in a "
+                         f"plane, closed by its two in-plane equations (a {cut.kind!r} cut: "
+                         "the third repeats them)")
+        else:
+            notes.append(f"{head}: closed by its independent equations ({r} of {t}: a "
+                         f"{cut.kind!r} cut, the same motion)")
+    return out, notes
 
 
 def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str = "close",
@@ -1418,12 +1601,8 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
         model = model.with_couplings(couplings, source=src)
     object.__setattr__(model, "initial_q", np.array(m.qpos0, dtype=float))
     if closures:
-        cuts, gaps = _mjcf_cuts(mj, m, model, closures, src)
-        planar = [c.name for c in cuts if c.kind in ("planar", "plane")]
-        notes = model.notes + ((f"equality {', '.join(map(repr, planar))}: a connect of a "
-                                "mechanism that moves in a plane, closed by its two in-plane "
-                                "equations (a 'planar' or 'plane' cut: the third repeats "
-                                "them)",) if planar else ()) + tuple(gaps)
+        cuts, reduced = _mjcf_cuts(mj, m, model, closures, src)
+        notes = model.notes + tuple(reduced)
         initial = model.initial_q
         model = model.with_cuts(cuts, source=src)
         object.__setattr__(model, "notes", notes)

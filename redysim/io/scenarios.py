@@ -143,7 +143,8 @@ class Scenario:
         internal)."""
         m = self.model
         return bool(m.joint_types and m.joint_types[0] == FREE and self.tip_force is None
-                    and not self.damping and not m.cuts and not np.any(m.gravcomp))
+                    and not self.damping and not m.cuts and not np.any(m.gravcomp)
+                    and not m.gravcomp_loads.shape[0])
 
     @property
     def frame(self) -> str:

@@ -220,7 +220,12 @@ class Model:
                           spring_ref) [N m / rad, N / m] on each velocity coordinate (no spring
                           on a free joint's); zeros unless given (:meth:`with_passive`).
         gravcomp:         (nb,) the fraction of each body's weight held up at its centre of mass
-                          (MuJoCo's body ``gravcomp``), zeros unless given. These four are forces,
+                          (MuJoCo's body ``gravcomp``), zeros unless given.
+        gravcomp_loads:   (k, 5) more held-up weights, each (body, held mass [kg], point (3,) in
+                          the body's frame): a body fused from parts whose gravcomp fractions
+                          differ (a jointless MJCF body of another fraction than its parent's)
+                          holds each part's fraction of its mass at the part's centre of mass
+                          (its gravcomp entry then 0); (0, 5) unless so. These five are forces,
                           not inertia: :func:`redysim.forward_dynamics` stays the rigid body's map
                           tau -> qdd and :meth:`energy` its T + V; :func:`redysim.passive_forces`
                           gives them, and a run (:class:`redysim.algorithms.system.System`,
@@ -268,6 +273,8 @@ class Model:
     stiffness: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
     spring_ref: np.ndarray = None  # type: ignore[assignment]  # (n_v,); None given: zeros
     gravcomp: np.ndarray = None  # type: ignore[assignment]  # (nb,); None given: zeros
+    # (k, 5): (body, held mass, point) of fused parts' differing gravcomp; None given: none
+    gravcomp_loads: np.ndarray = None  # type: ignore[assignment]
     # The per-thread workspaces (a threading.local), in the instance's __dict__ once made
     # (redysim.algorithms.workspace.model_workspace); declared here for the type checker only (a
     # ClassVar is no dataclass field, and the class itself has no such attribute).
@@ -290,6 +297,7 @@ class Model:
                       and (key == "spring_ref" or not (value < 0).any())
                       and np.isfinite(value).all()):  # (a checked one is kept, not copied)
                 object.__setattr__(self, key, check_armature(self.name, key, value, n))
+        self._check_gravcomp_loads()
         if not self.stiffness.any() or FREE not in self.joint_types:
             return  # (a long chain's construction pays no loop over its joints)
         for k, t in enumerate(self.joint_types):
@@ -311,8 +319,8 @@ class Model:
               spring_ref=None) -> Model:
         """Validate and freeze a tree: body k hangs from ``parents[k]`` (-1: the base) by
         ``joints[k]``; ``parents[k] < k``. Fixed joints are fused into their parents here (a
-        body's ``gravcomp`` with it: a fused body with mass whose gravcomp differs from its
-        parent's is refused, as one fraction at the fused centre of mass could not hold both).
+        body's ``gravcomp`` with it: where the fused parts' fractions differ, each part's share
+        of its weight is held at its own centre of mass, :attr:`gravcomp_loads`).
         ``armature``, ``damping``, ``stiffness``, ``spring_ref``: as :meth:`with_armature` and
         :meth:`with_passive` take them (of the built model's joints).
         ``frame_rotations``: the axes of some of the ``frames`` (a rotation in the body's frame).
@@ -377,6 +385,7 @@ class Model:
         into = list(range(nb))  # the kept body each body ends in
         to_kept_R = [np.eye(3) for _ in range(nb)]  # body frame -> that kept body's frame
         to_kept_p = [np.zeros(3) for _ in range(nb)]
+        parts: dict[int, list] = {}  # a body fused from parts of different gravcomp: its parts
         for k in range(nb):
             if jtype[k] != FIXED:
                 continue
@@ -384,20 +393,23 @@ class Model:
                 _fail(source, f"joint {jname[k]!r} (joints[{k}]).type", FIXED, "a body fixed to "
                       "the base does not move: leave it out (or give the model a frame for it)")
             a = into[par[k]]
-            if mass[k] > 0 and gravcomp[k] != gravcomp[a]:
-                if mass[a] > 0:
-                    _fail(source, f"body {body_name[k]!r} (bodies[{k}]).gravcomp", gravcomp[k],
-                          f"its fixed joint fuses it into body {body_name[a]!r}, whose gravcomp "
-                          f"is {gravcomp[a]:g}: one body holds one fraction of its weight up "
-                          "(give both the same)")
-                gravcomp[a] = gravcomp[k]  # a massless body takes its fused child's
             R = to_kept_R[par[k]] @ plR[k]
             p = to_kept_R[par[k]] @ plp[k] + to_kept_p[par[k]]
+            if mass[k] > 0 and (a in parts or gravcomp[k] != gravcomp[a]):
+                if a not in parts and mass[a] == 0:
+                    gravcomp[a] = gravcomp[k]  # a massless body takes its fused child's
+                else:  # each part's fraction held at its own centre of mass (gravcomp_loads)
+                    parts.setdefault(a, [(mass[a], np.array(com[a]), gravcomp[a])]).append(
+                        (mass[k], R @ com[k] + p, gravcomp[k]))
             into[k], to_kept_R[k], to_kept_p[k] = a, R, p
             mass[a], com[a], inertia[a] = _combine(mass[a], com[a], inertia[a], mass[k],
                                                    R @ com[k] + p, R @ inertia[k] @ R.T)
         kept = [k for k in range(nb) if jtype[k] != FIXED]
         index = {k: i for i, k in enumerate(kept)}
+        loads = [(index[a], f * m_, *c) for a, held in parts.items() for m_, c, f in held
+                 if f * m_ > 0]
+        for a in parts:
+            gravcomp[a] = 0.0
         new_parent, new_R, new_p = [], [], []
         for k in kept:
             pk = par[k]
@@ -485,7 +497,8 @@ class Model:
                                       voff, "stiffness"),
             spring_ref=armature_values(source, spring_ref, voff[-1],
                                        [jname[k] for k in kept], voff, "spring_ref"),
-            gravcomp=_readonly(np.array([gravcomp[k] for k in kept], dtype=float)))
+            gravcomp=_readonly(np.array([gravcomp[k] for k in kept], dtype=float)),
+            gravcomp_loads=np.array(loads, dtype=float).reshape(-1, 5))
 
     def with_cuts(self, cuts: Sequence, *, source: str | None = None) -> Model:
         """The model with these cut joints (:class:`CutJoint`: each keeps a point
@@ -581,6 +594,8 @@ class Model:
                                ("spring_ref", spring_ref)) if value is not None}
         if gravcomp is not None:
             changes["gravcomp"] = gravcomp_values(where, gravcomp, self.body_names)
+            # (the fractions given replace the file's parts')
+            changes["gravcomp_loads"] = _readonly(np.zeros((0, 5)))
         return dataclasses.replace(self, **changes) if changes else self
 
     def without_passive(self) -> Model:
@@ -592,13 +607,35 @@ class Model:
             return self
         zeros = _readonly(np.zeros(self.n_v))
         return dataclasses.replace(self, damping=zeros, stiffness=zeros, spring_ref=zeros,
-                                   gravcomp=_readonly(np.zeros(self.n_bodies)))
+                                   gravcomp=_readonly(np.zeros(self.n_bodies)),
+                                   gravcomp_loads=_readonly(np.zeros((0, 5))))
 
     @property
     def has_passive(self) -> bool:
         """Whether the model has damping, springs or gravity compensation (a spring_ref alone,
         without stiffness, acts on nothing)."""
-        return bool(np.any(self.damping) or np.any(self.stiffness) or np.any(self.gravcomp))
+        return bool(np.any(self.damping) or np.any(self.stiffness) or np.any(self.gravcomp)
+                    or self.gravcomp_loads.shape[0])
+
+    def _check_gravcomp_loads(self) -> None:
+        """:attr:`gravcomp_loads` as a read-only (k, 5) array (none: (0, 5)), CaseError naming
+        a bad entry: a body index out of range, a negative or non-finite held mass or point."""
+        loads = self.gravcomp_loads
+        if loads is None:
+            object.__setattr__(self, "gravcomp_loads", _readonly(np.zeros((0, 5))))
+            return
+        a = np.asarray(loads, dtype=float) if isinstance(loads, np.ndarray | list | tuple) \
+            else None
+        if a is not None and a.size == 0:
+            a = a.reshape(0, 5)
+        if a is None or a.ndim != 2 or a.shape[1] != 5 or not np.isfinite(a).all():
+            _fail(self.name, "gravcomp_loads", _plain(loads), "must be rows (body, held mass "
+                  "[kg], point x, y, z [m] in the body's frame) of finite numbers")
+        for i, row in enumerate(a):
+            if row[0] != int(row[0]) or not 0 <= row[0] < self.n_bodies or row[1] < 0:
+                _fail(self.name, f"gravcomp_loads[{i}]", row.tolist(), f"needs a body index "
+                      f"in 0..{self.n_bodies - 1} and a held mass >= 0")
+        object.__setattr__(self, "gravcomp_loads", _readonly(a))
 
     @cached_property
     def coupling_index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -658,6 +695,13 @@ class Model:
             _fail(where, "values", sorted(coupled & set(values)), "a coupled joint (a follower "
                   "or a leader of model.couplings): lock the uncoupled model "
                   "(model.with_couplings(())), then couple what is left")
+        if self.gravcomp_loads.shape[0]:
+            _fail(where, "gravcomp_loads", sorted({self.body_names[int(b)] for b in
+                                                   self.gravcomp_loads[:, 0]}),
+                  "bodies fused from parts whose gravcomp fractions differ (each part's held "
+                  "at its own centre of mass): locking would fuse them again with one "
+                  "fraction; lock the model without them (model.without_passive()), or give "
+                  "the parts one fraction in the file")
         if self.cuts:
             _fail(where, "cuts", [c.name for c in self.cuts], "a model with cut joints: lock "
                   "joints of the open tree (model.with_cuts(())), then cut it again (the cuts "
@@ -862,6 +906,8 @@ class Model:
             if state.get(key) is None:  # pickled before models had one
                 n = self.n_bodies if key == "gravcomp" else self.n_v
                 object.__setattr__(self, key, _readonly(np.zeros(n)))
+        if state.get("gravcomp_loads") is None:  # pickled before models had them
+            object.__setattr__(self, "gravcomp_loads", _readonly(np.zeros((0, 5))))
 
     def __repr__(self) -> str:
         return (f"Model({self.name!r}, bodies={self.n_bodies}, n_q={self.n_q}, n_v={self.n_v}, "
@@ -893,7 +939,7 @@ class Coupling:
 
 
 # cut joint -> constraint equations
-KINDS = {"point": 3, "planar": 2, "plane": 2, "revolute": 5, "weld": 6}
+KINDS = {"point": 3, "planar": 2, "plane": 2, "line": 1, "revolute": 5, "weld": 6}
 WORLD = -1  # a cut joint's body_b: the world
 
 
@@ -905,7 +951,9 @@ class CutJoint:
     frames, default the bodies' own; the revolute axis is their z) kept aligned. A ``"plane"``
     cut keeps the points together along the x and y axes of frame ``rot_b`` on body b (the
     plane a mechanism moves in, its normal z: a ``"planar"`` cut in a plane of any
-    orientation, which may move with body b)."""
+    orientation, which may move with body b); a ``"line"`` cut along the x axis of ``rot_b``
+    only (1 equation: what is left of a pin whose other equations repeat other cuts', as the
+    second bar of a parallelogram's)."""
 
     name: str
     body_a: int
@@ -944,9 +992,11 @@ class CutJoint:
             if a is None or a.shape != (3, 3) or not np.isfinite(a).all() or \
                     np.abs(a.T @ a - np.eye(3)).max() > ROTATION_TOL or np.linalg.det(a) < 0:
                 raise CaseError(source, side, _plain(R), "must be a 3 x 3 rotation")
-            if self.kind not in ("revolute", "weld") and (self.kind, side) != ("plane", "rot_b"):
+            if self.kind not in ("revolute", "weld") and \
+                    (self.kind, side) not in (("plane", "rot_b"), ("line", "rot_b")):
                 raise CaseError(source, side, _plain(R), f"a frame is aligned by a 'revolute' "
-                                f"or 'weld' cut only (a 'plane' cut's rot_b gives its plane); "
+                                f"or 'weld' cut only (a 'plane' cut's rot_b gives its plane, "
+                                f"a 'line' cut's its line, x); "
                                 f"a {self.kind!r} cut would ignore it")
 
 
