@@ -142,7 +142,13 @@ class DART(Engine):
     package = "dartpy"
     module = "dartpy"
     no_armature = ("dartpy 6.20 exposes no joint armature (a DOF's damping, spring stiffness "
-                   "and rest position, nothing on its inertia)")
+                   "and rest position, nothing on its inertia: no rotor inertia on Joint or "
+                   "its Properties, checked)")
+    holds_armature = ("by the adapter, from DART's own getMassMatrix and "
+                      "getCoriolisAndGravityForces: (M + diag(armature)) qdd = tau - (C + g), "
+                      "the equations DART would solve had it the field (it has none: "
+                      + no_armature + "); World.step does not hold it")
+    armature_native = False
     no_couplings = ("DART's mimic joints are out of reach from Python: dartpy 6.20 binds "
                     "Joint.setActuatorType(MIMIC) but not setMimicJoint (no such method on "
                     "dartpy.dynamics.Joint, checked), so a MIMIC joint has no leader")
@@ -229,6 +235,8 @@ class DART(Engine):
             else:
                 self.eidx[vs:vs + len(idx)] = idx
         self.skel, self.bodynodes = skel, bodies
+        # the armature in DART's DOF order, held in the qdd (holds_armature); None: none
+        self.arm = self.armature_e if np.any(m.armature) else None
         self.world = None  # simulate's, made on first use
 
     def _engine_state(self, q, v):
@@ -253,13 +261,21 @@ class DART(Engine):
         s.setForces(np.zeros(self.model.n_v) if tau_e is None else tau_e)
 
     def _qdd(self, qe, y, tau_e):
+        if self.arm is not None:  # (M + diag(armature)) qdd = tau - (C + g): holds_armature
+            self._set(qe, y)
+            rhs = -np.array(self.skel.getCoriolisAndGravityForces())
+            if tau_e is not None:
+                rhs = rhs + tau_e
+            M = np.array(self.skel.getMassMatrix())
+            return np.linalg.solve(M + np.diag(self.arm), rhs)
         self._set(qe, y, tau_e)
         self.skel.computeForwardDynamics()
         return np.array(self.skel.getAccelerations())
 
     def _mass_matrix(self, qe):
         self._set(qe, np.zeros(self.model.n_v))
-        return np.array(self.skel.getMassMatrix())
+        M = np.array(self.skel.getMassMatrix())
+        return M if self.arm is None else M + np.diag(self.arm)
 
     def _bias(self, qe, y):
         self._set(qe, y)
@@ -267,7 +283,10 @@ class DART(Engine):
 
     def _energy(self, qe, y):
         self._set(qe, y)
-        return self.skel.computeKineticEnergy(), self.skel.computePotentialEnergy()
+        T = self.skel.computeKineticEnergy()
+        if self.arm is not None:  # the joints' own inertia: 1/2 armature v^2
+            T += 0.5 * float(self.arm @ (y * y))
+        return T, self.skel.computePotentialEnergy()
 
     def _position(self, qe, body, point):
         self._set(qe, np.zeros(self.model.n_v))

@@ -337,6 +337,13 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
+    holds_armature = ("by the adapter, from Exudyn's own ComputeMassMatrix and ComputeODE2RHS: "
+                      "(M + diag(armature)) qdd = tau + RHS, the equations Exudyn would solve "
+                      "had it the field (ObjectKinematicTree has none: jointTypes, linkMasses, "
+                      "linkInertiasCOM, the P/D control and force vectors, checked); a coupled "
+                      "model's: that M and RHS restricted to the coupled motion, G (G^T M G)^-1 "
+                      "G^T (tau + RHS); its own solvers do not hold it")
+    armature_native = False
     couples = ("one CoordinateConstraint per coupling on the tree's coordinates (factor1 = m, "
                "offset = -c: Exudyn's factor1 q_m1 - q_m0 - offset = 0, measured), qdd from its "
                "implicit solver's consistent initial accelerations (GeneralizedAlpha "
@@ -395,6 +402,8 @@ class Exudyn(Engine):
         if n != m.n_v:
             raise AssertionError(f"tree has {n} coordinates, the model {m.n_v}")
         self.hts = hts
+        # the armature in the tree's coordinates, held in the qdd (holds_armature); None: none
+        self.arm = self.armature_e if np.any(m.armature) else None
         self.SC = exu.SystemContainer()
         mbs = self.SC.AddSystem()
         self.node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
@@ -513,6 +522,8 @@ class Exudyn(Engine):
         self._set_state(qe, y, None, which="Current")
 
     def _qdd(self, qe, y, tau_e):
+        if self.arm is not None:  # (M + diag(armature)) qdd = tau + RHS: holds_armature
+            return self._armature_qdd(qe, y, tau_e)
         if self.coupled is not None:  # the constrained system's initial accelerations
             tree, ss, solver = self.coupled
             tree.hts = self.hts
@@ -528,10 +539,31 @@ class Exudyn(Engine):
             self.solver.SolveSystem(self.mbs, self.ss_qdd)
         return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
 
+    def _armature_qdd(self, qe, y, tau_e):
+        """qdd with the model's armature from Exudyn's M (``_mass_matrix`` adds the armature)
+        and ODE2 right-hand side; a coupled model's restricted to the motions that keep the
+        couplings, v = G u (the couplings join 1-DOF joints, whose engine slots are the core's:
+        ``eidx`` is the identity here, and a free joint's slots are columns of G of their own,
+        so its c term passes through unchanged)."""
+        M = self._mass_matrix(qe)
+        rhs = self._bias(qe, y)
+        if tau_e is not None:
+            rhs = rhs + tau_e
+        if self.coupled is None:
+            return np.linalg.solve(M, rhs)
+        _, _, fv, lv, mult, _ = self.model.coupling_index
+        free = np.setdiff1d(np.arange(self.model.n_v), fv)
+        G = np.zeros((self.model.n_v, free.size))
+        G[free, np.arange(free.size)] = 1.0
+        for f, ld, mu in zip(fv, lv, mult, strict=True):
+            G[f] = mu * G[ld]
+        return G @ np.linalg.solve(G.T @ M @ G, G.T @ rhs)
+
     def _mass_matrix(self, qe):
         self._current(qe, np.zeros(self.model.n_v))
         self.solver.ComputeMassMatrix(self.mbs)
-        return np.array(self.solver.GetSystemMassMatrix())
+        M = np.array(self.solver.GetSystemMassMatrix())
+        return M if self.arm is None else M + np.diag(self.arm)
 
     def _bias(self, qe, y):
         self._current(qe, y)

@@ -227,6 +227,12 @@ class LoopEngine(EnginePackage):
         lim = cls.adapter.limits(model)
         if not lim.ok:
             return Limits(False, lim.reason + (f" ({why})" if why else ""))
+        if np.any(model.armature) and not cls.adapter.armature_native:
+            j = int(np.flatnonzero(model.armature)[0])
+            return Limits(False, f"{cls.name}: the model has armature (armature[{j}] = "
+                                 f"{float(model.armature[j]):g}), which the engine's tree adapter "
+                                 f"holds in its own qdd only ({cls.adapter.no_armature}); this "
+                                 f"loop adapter solves with the engine's own dynamics, without it")
         for c in loops.cuts:
             if c.kind not in cls.kinds:
                 return Limits(False, f"{cls.name}: cut {c.name!r} is {c.kind!r}, which this "
