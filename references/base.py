@@ -807,11 +807,34 @@ class Engine(EnginePackage):
         passive elements (:attr:`Model.damping`, ...) the engine's native model does not hold
         (:attr:`holds_passive`)."""
         m = self.model
-        if self.holds_passive or not m.has_passive:
+        if not m.has_passive:
             return ""
+        if self.holds_passive:
+            why = self.passive_unheld()
+            return (f"{self.name}'s own integrators step its model, which holds the model's "
+                    f"passive elements ({self.holds_passive}) but not {why}") if why else ""
         held = [key for key in ("damping", "stiffness", "gravcomp") if np.any(getattr(m, key))]
         return (f"{self.name}'s own integrators step its model, which does not hold the "
                 f"model's {', '.join(held)} (its qdd is the rigid body's, tau -> qdd)")
+
+    def passive_unheld(self) -> str:
+        """Which of the model's passive elements the engine's native model does not hold and
+        why, naming the joint or body ("" when it holds them all), for an engine that holds
+        them (:attr:`holds_passive`) element by element; by default it holds them all."""
+        return ""
+
+    def passive_on_free(self) -> str:
+        """The first free or ball joint with damping (or a spring), named ("" when none):
+        the engines whose native passive elements act on 1-DOF joints only."""
+        m = self.model
+        for k, jt in enumerate(m.joint_types):
+            if jt in (FREE, BALL_JOINT):
+                sl = slice(int(m.joint_voff[k]), int(m.joint_voff[k + 1]))
+                if np.any(m.damping[sl]) or np.any(m.stiffness[sl]):
+                    return (f"the damping of the {jt} joint {m.joint_names[k]!r} (body "
+                            f"{m.body_names[k]!r}): this adapter puts damping on 1-DOF joints "
+                            f"only (the engine's coordinates of a {jt} joint are not the core's)")
+        return ""
 
     def no_native_armature(self) -> str:
         """Why the engine's own integrators cannot step this model for its armature ("" when

@@ -344,6 +344,12 @@ class Exudyn(Engine):
                       "model's: that M and RHS restricted to the coupled motion, G (G^T M G)^-1 "
                       "G^T (tau + RHS); its own solvers do not hold it")
     armature_native = False
+    holds_passive = ("switched on for its own solvers' steps only (the qdd, M and bias stay "
+                     "the rigid body's): each 1-DOF joint's damping and spring as the tree's own "
+                     "joint P/D control, jointPControlVector = stiffness, jointDControlVector = "
+                     "damping, jointPositionOffsetVector = spring_ref (force P (q_o - q) - D v), "
+                     "each body's gravcomp a LoadForceVector of -gravcomp m g (global) on a "
+                     "MarkerKinematicTreeRigid at its COM")
     couples = ("one CoordinateConstraint per coupling on the tree's coordinates (factor1 = m, "
                "offset = -c: Exudyn's factor1 q_m1 - q_m0 - offset = 0, measured), qdd from its "
                "implicit solver's consistent initial accelerations (GeneralizedAlpha "
@@ -417,6 +423,7 @@ class Exudyn(Engine):
             jointForceVector=[0.0] * n, visualization=VObjectKinematicTree(show=False)))
         self.mbs = mbs
         self._sensors = {}  # (body, point) -> its position sensor
+        self._build_passive()
         mbs.Assemble()
         self._tau_set = False
         self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
@@ -425,6 +432,52 @@ class Exudyn(Engine):
         self.coupled = None
         if m.couplings:
             self._couple()
+
+    def passive_unheld(self) -> str:
+        return self.passive_on_free()
+
+    def _build_passive(self):
+        """The model's passive elements, built switched off (``holds_passive``): the tree's P/D
+        control vectors at zero and one zero LoadForceVector on a COM marker per body with
+        gravcomp; ``_passive(True)`` sets their values for a native step, ``_passive(False)``
+        zeroes them again. ``_passive_on``: whether they are set now."""
+        from exudyn.itemInterface import LoadForceVector, MarkerKinematicTreeRigid
+
+        m, mbs = self.model, self.mbs
+        self._passive_on = False
+        self._gravcomp_loads: list[tuple[int, list[float]]] = []
+        if not m.has_passive:
+            return
+        n = m.n_v
+        for key in ("jointPControlVector", "jointDControlVector", "jointPositionOffsetVector",
+                    "jointVelocityOffsetVector"):
+            mbs.SetObjectParameter(self.tree, key, [0.0] * n)
+        g = np.asarray(m.gravity, dtype=float)
+        for k in np.flatnonzero(m.gravcomp):
+            A = self.turn_of_body[k]
+            com = np.asarray(m.com[k], dtype=float)
+            marker = mbs.AddMarker(MarkerKinematicTreeRigid(
+                objectNumber=self.tree, linkNumber=self.link_of_body[k],
+                localPosition=list(map(float, com if A is None else A.T @ com))))
+            load = mbs.AddLoad(LoadForceVector(markerNumber=marker, loadVector=[0.0] * 3,
+                                               bodyFixed=False))
+            force = -float(m.gravcomp[k]) * float(m.mass[k]) * g
+            self._gravcomp_loads.append((load, [float(x) for x in force]))
+
+    def _passive(self, on: bool) -> None:
+        """Switch the model's passive elements on (a native step) or off (the qdd's rigid
+        body): the tree's P/D control and the gravcomp loads (``_build_passive``)."""
+        m = self.model
+        if not m.has_passive or on == self._passive_on:
+            return
+        mbs, n = self.mbs, m.n_v
+        vals = {"jointPControlVector": m.stiffness, "jointDControlVector": m.damping,
+                "jointPositionOffsetVector": m.spring_ref}
+        for key, val in vals.items():
+            mbs.SetObjectParameter(self.tree, key, [float(x) for x in val] if on else [0.0] * n)
+        for load, force in self._gravcomp_loads:
+            mbs.SetLoadParameter(load, "loadVector", force if on else [0.0] * 3)
+        self._passive_on = on
 
     def _couple(self):
         """The model's couplings as Exudyn's own constraints, in a second system of the same
@@ -504,7 +557,8 @@ class Exudyn(Engine):
             v[vs + 3:vs + 6] = Rz.T @ (Ry.T @ (da * ex) + db * ey) + dc * ez
         return q, v
 
-    def _set_state(self, qe, y, tau_e, which="Initial"):
+    def _set_state(self, qe, y, tau_e, which="Initial", passive=False):
+        self._passive(passive)  # on for a native step only (holds_passive)
         cfg = getattr(self.lib.ConfigurationType, which)
         sd = self.mbs.systemData
         sd.SetODE2Coordinates(qe, configuration=cfg)
@@ -655,7 +709,8 @@ class Exudyn(Engine):
         """Initialise the run's solver at the engine state (qe, ye) (consistent initial
         accelerations for the implicit ones) and keep that state and its chart."""
         ex = self._exu
-        self._set_state(qe, ye, None)  # the initial configuration, which InitializeSolver reads
+        # the initial configuration, which InitializeSolver reads, passive elements on
+        self._set_state(qe, ye, None, passive=True)
         with _without_sparse_advice():
             ex["solver"].InitializeSolver(self.mbs, ex["ss"])
         self._sim_keep()
@@ -672,7 +727,7 @@ class Exudyn(Engine):
         as the current state and the step's start at time t0."""
         sd, C = self.mbs.systemData, self.lib.ConfigurationType
         qe, ye, ae = self._sim_e
-        self._set_state(qe, ye, None, which="Current")
+        self._set_state(qe, ye, None, which="Current", passive=True)
         for cfg in (C.Current, C.StartOfStep):
             sd.SetODE2Coordinates(qe, configuration=cfg)
             sd.SetODE2Coordinates_t(ye, configuration=cfg)

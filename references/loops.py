@@ -227,6 +227,11 @@ class LoopEngine(EnginePackage):
         lim = cls.adapter.limits(model)
         if not lim.ok:
             return Limits(False, lim.reason + (f" ({why})" if why else ""))
+        if model.couplings and not cls.couples:
+            return Limits(False, f"{cls.name}: the model couples joints "
+                                 f"({', '.join(c.follower for c in model.couplings)} follow "
+                                 f"others: mimic joints), which this loop adapter does not "
+                                 f"build with its loops (its constraints close the cuts only)")
         if np.any(model.armature) and not cls.adapter.armature_native:
             j = int(np.flatnonzero(model.armature)[0])
             return Limits(False, f"{cls.name}: the model has armature (armature[{j}] = "
@@ -243,6 +248,9 @@ class LoopEngine(EnginePackage):
         return Limits(True, "")
 
     kinds: ClassVar[tuple[str, ...]] = ("point", "planar")
+    # how the loop adapter holds a model's couplings (Model.couplings) beside its cuts; "" when
+    # it does not (limits then refuses a coupled model: never dropped)
+    couples: ClassVar[str] = ""
 
     def refusal(self, q, v) -> str:
         """Why the engine cannot answer at (q, v) ("" when it can)."""

@@ -165,7 +165,8 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
     q0 = loops.project(q0, np.zeros(model.n_v))[0]  # the scenario's assembled configuration
     states = []
     for _ in range(LOOP_STATES):
-        q, v = loops.project(q0, rng.normal(size=model.n_v))[:2]
+        # a coupled model's followers move with their leaders (model.couple), then the loops
+        q, v = loops.project(*model.couple(q0, rng.normal(size=model.n_v)))[:2]
         states.append((q, v, rng.normal(size=model.n_v)))
     core = [loops.forward_dynamics(q, v, tau) for q, v, tau in states]
     rows = []
