@@ -169,7 +169,8 @@ def non_planar(loops: ClosedLoops, cut) -> str:
 
     model = loops.model
     kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
-    z = np.array([0.0, 0.0, 1.0])
+    z = plane_normal(loops, cut, kin)
+    axis = "world z" if cut.kind == "planar" else f"its plane's normal {np.round(z, 6)}"
     for body in (cut.body_a, cut.body_b):
         while body >= 0:
             for i in range(int(model.joint_voff[body]), int(model.joint_voff[body + 1])):
@@ -177,11 +178,39 @@ def non_planar(loops: ClosedLoops, cut) -> str:
                 kind = int(model.dof_kind[i])
                 if (kind == 0 and np.linalg.norm(cross(u, z)) > PARALLEL) or \
                         (kind == 1 and abs(u @ z) > PARALLEL) or kind not in (0, 1):
-                    return (f"the planar cut {cut.name!r} leaves world z free, but body {body} "
-                            f"({model.body_names[body]}) moves its points along z; this engine's "
-                            "ball constraint would hold z too")
+                    return (f"the {cut.kind} cut {cut.name!r} leaves {axis} free, but body "
+                            f"{body} ({model.body_names[body]}) moves its points along it; this "
+                            "engine's ball constraint would hold it too")
             body = int(model.parent[body])
     return ""
+
+
+def plane_normal(loops: ClosedLoops, cut, kin) -> np.ndarray:
+    """The direction a "planar" or "plane" cut leaves free, in the world at the kinematics
+    ``kin``: world z for a planar cut; for a plane cut the z axis of its frame ``rot_b`` on body
+    b (the world's when b is the world), R_b rot_b e_z."""
+    if cut.kind == "planar":
+        return np.array([0.0, 0.0, 1.0])
+    rot = np.asarray(cut.rot_b, dtype=float)
+    return (rot if cut.body_b < 0 else kin.R[cut.body_b] @ rot)[:, 2]
+
+
+def plane_axes(loops: ClosedLoops, q) -> list[np.ndarray | None]:
+    """Per cut, the world axes (3, 2) its two rows run along for a "plane" cut (u_k = R_b rot_b
+    e_k, k = x, y: the core's rows u_k . (x_a - x_b)), None for any other cut."""
+    from redysim.algorithms.rbda import kinematics
+
+    if not any(c.kind == "plane" for c in loops.cuts):
+        return [None] * len(loops.cuts)
+    kin = kinematics(loops.model, np.asarray(q, dtype=float), np.zeros(loops.model.n_v))
+    out: list[np.ndarray | None] = []
+    for c in loops.cuts:
+        if c.kind != "plane":
+            out.append(None)
+            continue
+        rot = np.asarray(c.rot_b, dtype=float)
+        out.append((rot if c.body_b < 0 else kin.R[c.body_b] @ rot)[:, :2])
+    return out
 
 
 # --------------------------------------------------------------------------- base class
@@ -242,7 +271,8 @@ class LoopEngine(EnginePackage):
             if c.kind not in cls.kinds:
                 return Limits(False, f"{cls.name}: cut {c.name!r} is {c.kind!r}, which this "
                                      f"adapter has no construction for")
-            why = "" if c.kind != "planar" or cls.planar_exact else non_planar(loops, c)
+            why = ("" if c.kind not in ("planar", "plane")
+                   or (c.kind == "planar" and cls.planar_exact) else non_planar(loops, c))
             if why:
                 return Limits(False, f"{cls.name}: {why}")
         return Limits(True, "")
@@ -284,18 +314,27 @@ class LoopEngine(EnginePackage):
         return self._solve(q, v, tau)
 
     def _planar_gap(self, q) -> str:
-        """A planar cut built as a ball: its points must also meet in z (constant on a planar
-        mechanism, see :func:`non_planar`)."""
-        if self.planar_exact or not any(c.kind == "planar" for c in self.loops.cuts):
+        """A planar or plane cut built as a ball: its points must also meet along the direction
+        it leaves free (world z, or the plane's normal: constant on such a mechanism, see
+        :func:`non_planar`)."""
+        as_ball = [c.kind == "plane" or (c.kind == "planar" and not self.planar_exact)
+                   for c in self.loops.cuts]
+        if not any(as_ball):
             return ""
-        for c, (pa, pb) in zip(self.loops.cuts, self.loops.cut_points(q), strict=True):
-            if c.kind != "planar":
+        from redysim.algorithms.rbda import kinematics
+
+        kin = kinematics(self.model, np.asarray(q, dtype=float), np.zeros(self.model.n_v))
+        for c, ball, (pa, pb) in zip(self.loops.cuts, as_ball, self.loops.cut_points(q),
+                                     strict=True):
+            if not ball:
                 continue
-            za, zb = float(pa[2]), float(pb[2])
-            if abs(za - zb) > self.PLANAR_GAP * self.loops.size:
-                return (f"the planar cut {c.name!r} has its points {abs(za - zb):.3g} m apart in "
-                        "world z, which it leaves free; this engine's ball constraint would "
-                        "close that gap")
+            n = plane_normal(self.loops, c, kin)
+            gap = abs(float(n @ (np.asarray(pa) - np.asarray(pb))))
+            if gap > self.PLANAR_GAP * self.loops.size:
+                where = "in world z" if c.kind == "planar" else "along its plane's normal"
+                return (f"the {c.kind} cut {c.name!r} has its points {gap:.3g} m apart {where}, "
+                        "which it leaves free; this engine's ball constraint would close that "
+                        "gap")
         return ""
 
     def qdd(self, q, v, tau=None) -> np.ndarray:
@@ -324,9 +363,12 @@ class LoopEngine(EnginePackage):
         """(times, q samples, v samples) in the core's coordinates, the start included."""
         raise NotImplementedError
 
-    def _rows(self, per_cut: np.ndarray) -> np.ndarray:
-        """(n_cuts, 3) per-cut 3-D values -> the core's rows (the first 2 of a planar cut)."""
-        return np.array([per_cut[i, r] for i, r in self.loops.rows])
+    def _rows(self, per_cut: np.ndarray, q=None) -> np.ndarray:
+        """(n_cuts, 3) per-cut 3-D world values (a ball's force) -> the core's rows: the first 2
+        of a planar cut, a plane cut's along its axes u_k at q (:func:`plane_axes`)."""
+        axes = plane_axes(self.loops, q) if q is not None else [None] * len(self.loops.cuts)
+        return np.array([per_cut[i, r] if axes[i] is None else axes[i][:, r] @ per_cut[i]
+                         for i, r in self.loops.rows])
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}({self.model.name!r}, {len(self.loops.cuts)} cuts, "
@@ -349,6 +391,7 @@ class PinocchioLoops(LoopEngine):
     module = "pinocchio"
     no_integrator = ("Pinocchio has no time integrator (its constraintDynamics gives qdd only; "
                      "any trajectory would be this adapter's integrator, not Pinocchio's)")
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
     MU = 1e-8  # proximal parameter (any small value: the iterations converge to mu = 0's answer)
     ACCURACY = 1e-13
     MAX_ITER = 50
@@ -382,7 +425,7 @@ class PinocchioLoops(LoopEngine):
                 f"{self.name}: constraintDynamics did not converge in {self.MAX_ITER} proximal "
                 f"iterations (residual {self.settings.absolute_residual:.3g})")
         lam = np.asarray(t.data.lambda_c, dtype=float).reshape(-1, 3)
-        return t._from_engine(a, blocks), self._rows(lam)
+        return t._from_engine(a, blocks), self._rows(lam, q)
 
 
 # --------------------------------------------------------------------------- MuJoCo
@@ -394,6 +437,9 @@ class MuJoCoLoops(LoopEngine):
     package = "mujoco"
     module = "mujoco"
     thin_ok = True
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("the MuJoCo adapter's own joint equalities (mjEQ_JOINT, solimp at mjMAXIMP), "
+               "solved with the cuts' connects in one constraint solve")
     TOLERANCE = 1e-15  # opt.tolerance; Newton stops after 1 iteration on these problems
 
     def _build(self):
@@ -416,7 +462,7 @@ class MuJoCoLoops(LoopEngine):
             eq.solimp = solimp
         t._compile()
         mm = t.mjmodel
-        assert mm.neq == len(self.loops.cuts)
+        assert mm.neq == len(self.loops.cuts) + len(self.model.couplings)
         assert not np.any(mm.opt.disableflags & int(mj.mjtDisableBit.mjDSBL_CONSTRAINT
                                                      | mj.mjtDisableBit.mjDSBL_EQUALITY))
         self.eq_ids = [mm.equality(f"cut{i}").id for i in range(len(self.loops.cuts))]
@@ -428,16 +474,19 @@ class MuJoCoLoops(LoopEngine):
                        None if tau is None else t._to_engine(tau, blocks))
         n = d.nefc
         eq = int(self.lib.mjtConstraint.mjCNSTR_EQUALITY)
-        if n != 3 * len(self.loops.cuts) or np.any(d.efc_type[:n] != eq):
-            raise AssertionError(f"expected {3 * len(self.loops.cuts)} equality rows, got {n}")
-        order = np.argsort([self.eq_ids.index(int(e)) for e in d.efc_id[:n]], kind="stable")
+        rows = 3 * len(self.loops.cuts) + len(self.model.couplings)  # connects, joint equalities
+        if n != rows or np.any(d.efc_type[:n] != eq):
+            raise AssertionError(f"expected {rows} equality rows, got {n}")
+        cuts = [i for i in range(n) if int(d.efc_id[i]) in self.eq_ids]  # the connects' rows
+        order = np.array(cuts)[np.argsort([self.eq_ids.index(int(d.efc_id[i])) for i in cuts],
+                                          kind="stable")]
         return d, blocks, order
 
     def _solve(self, q, v, tau):
         t = self.tree
         d, blocks, order = self._forward(q, v, tau)
         f = np.asarray(d.efc_force[:d.nefc])[order].reshape(-1, 3)
-        return t._from_engine(d.qacc, blocks), self._rows(f)
+        return t._from_engine(d.qacc, blocks), self._rows(f, q)
 
     integrator = "mj_step, mjINT_RK4 (soft connect constraints, default solref)"
 
@@ -469,6 +518,7 @@ class DARTLoops(LoopEngine):
     package = "dartpy"
     module = "dartpy"
     thin_ok = True
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
     STEP = 1e-3  # s; at v = 0 (the only state taken) the answer does not depend on it
     CFM = 1e-9  # DART's default and floor; its relative error in qdd and lam is ~CFM (measured)
 
@@ -560,8 +610,8 @@ class DARTLoops(LoopEngine):
         t._set(qe, y, tau_e)
         self.world.step()
         a = (np.array(skel.getVelocities()) - y) / self.STEP
-        keep = [3 * i + r for i, r in self.loops.rows]
-        lam, *_ = np.linalg.lstsq(J[keep].T, M @ (a - a0), rcond=None)
+        rows = self._rows(J.reshape(len(self.loops.cuts), 3, -1), q)  # the core's rows of J
+        lam, *_ = np.linalg.lstsq(rows.T, M @ (a - a0), rcond=None)
         return t._from_engine(a, blocks), lam
 
 
