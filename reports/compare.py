@@ -115,7 +115,8 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     """The runs of a comparison: the core (ode45, dop853 at CORE_RTOLS; rk4 at the steps
     sample / STEP_DIVISIONS), every engine through ode45 (ENGINE_RTOLS) and with each of its own
     integrators (fixed: those steps; adaptive: NATIVE_RTOLS); closed loops: no native stepping
-    (the harness refuses it)."""
+    (the harness refuses it), nor for an engine whose qdd holds the model's armature by the
+    adapter (its own steps would run without it; the page says so)."""
     from redysim import references
 
     steps = [sample / n for n in STEP_DIVISIONS]
@@ -129,13 +130,16 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     names = ([c.adapter.name for c in references.LOOP_ENGINES.values()] if scn.model.cuts
              else engine_names(scn.model))
     left_out = own_steps_left_out(scn.model, names)
+    # an engine whose armature is the adapter's (no field for it): its own steps lack it
+    no_arm = {n for n in names if np.any(scn.model.armature)
+              and not references.get(n).armature_native}
     for name in names:
         cls = references.get(name)
         if engines is not None and name not in engines:
             continue
         specs += [RunSpec(**base, engine=name, integrator="ode45", rtol=r, atol=r * 1e-2)
                   for r in ENGINE_RTOLS]
-        if scn.model.cuts:
+        if scn.model.cuts or name in no_arm:
             continue
         for own, info in cls.integrators.items():
             if own in left_out.get(name, ((), ""))[0]:
@@ -334,6 +338,21 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
             + (". Own integrators not run, which would step the joints uncoupled: "
                + "; ".join(f"{n}: {_integrators_named(n, left)}"
                            for n, (left, _) in left_out.items()) if left_out else "") + ".")
+    if np.any(m.armature):  # how each engine holds it: natively, or the adapter's M + diag(a)
+        from redysim import references
+
+        tree = m.with_cuts(()) if m.cuts else m
+        by_adapter = [n for n in engine_names(tree) if references.get(n).limits(tree).ok
+                      and not references.get(n).armature_native]
+        if by_adapter:
+            intro.append(
+                "Armature (the joints' own inertia): held natively by "
+                + ", ".join(n for n in engine_names(tree) if references.get(n).limits(tree).ok
+                            and references.get(n).armature_native)
+                + "; " + ", ".join(by_adapter) + " have no field for it, so their qdd is "
+                "(M + diag(armature)) qdd = tau + phi from the engine's own M and bias (the "
+                "adapter's solve), and their own integrators, which step the engine's model "
+                "without it, are not run.")
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
                     ["engine", "status", *STAGES, "note"],
                     notes=[f"Worst relative difference max|engine - core| / max|core| over "

@@ -140,3 +140,22 @@ def test_pinocchios_mimic_joint_reflects_its_armature_into_its_leader():
         bare = m.with_armature(np.where(np.arange(m.n_v) == m.n_v - 1, 0.0, m.armature))
         off = engine_or_skip("drake")(bare).qdd(q, v, tau)
         assert np.abs(off - got).max() > 1e-6 * scale
+
+
+def test_compare_runs_dart_and_exudyn_through_their_qdd_only_with_armature():
+    """`redysim compare` on the G1 (armature on every hinge): DART and Exudyn run through
+    redysim's integrators with their qdd (which holds the armature), and none of their own
+    integrators, which would step the engine's model without it; the other engines keep theirs."""
+    from redysim.io.scenarios import load_scenario
+    from redysim.reports.compare import plan
+
+    target = str(MENAGERIE / "unitree_g1" / "g1.xml")
+    scn = load_scenario(target, options={})
+    specs = plan(target, scn, options={}, t_end=0.05, sample=0.01)
+    by_engine: dict[str, set[str]] = {}
+    for s in specs:
+        by_engine.setdefault(s.engine, set()).add(s.integrator)
+    for name in ("dart", "exudyn"):
+        assert by_engine[name] == {"ode45"}, by_engine[name]
+    assert any(i.startswith("native:") for i in by_engine["mujoco"])
+    assert any(i.startswith("native:") for i in by_engine["drake"])
