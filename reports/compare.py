@@ -328,8 +328,20 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         left_out = own_steps_left_out(m, kept)
         rules = ", ".join(f"{c.follower} = {c.multiplier:g} {c.leader} + {c.offset:g}"
                           for c in m.couplings)
+        loops_note = ""
+        if m.cuts:  # the runs are the loop adapters': say which of them hold the couplings
+            held = [f"{n}: {c.couples}" for n, c in references.LOOP_ENGINES.items()
+                    if c.couples]
+            refused = [n for n, c in references.LOOP_ENGINES.items() if not c.couples]
+            loops_note = (" With the loops closed (the runs below) only "
+                          + ("; ".join(held) or "none") + (f"; {', '.join(refused)} refuse the "
+                                                           "coupled model (their loop adapters "
+                                                           "close the cuts only)" if refused
+                                                           else "") + ".")
         intro.append(
-            f"Coupled joints ({rules}). Each engine's qdd holds them: " + "; ".join(own)
+            f"Coupled joints ({rules}). "
+            + ("On the open tree, each" if m.cuts else "Each") + " engine's qdd holds them: "
+            + "; ".join(own)
             + (f"; {', '.join(projected)}: the engine's own M and bias restricted to the "
                f"coupled motion by the adapter, qdd = G (G^T M G)^-1 G^T phi, as it has no "
                f"coupling of its own (" + "; ".join(f"{n}: {references.get(n).no_couplings}"
@@ -337,7 +349,8 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                if projected else "")
             + (". Own integrators not run, which would step the joints uncoupled: "
                + "; ".join(f"{n}: {_integrators_named(n, left)}"
-                           for n, (left, _) in left_out.items()) if left_out else "") + ".")
+                           for n, (left, _) in left_out.items()) if left_out and not m.cuts
+               else "") + "." + loops_note)
     if np.any(m.armature):  # how each engine holds it: natively, or the adapter's M + diag(a)
         from redysim import references
 
@@ -351,8 +364,11 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                             and references.get(n).armature_native)
                 + "; " + ", ".join(by_adapter) + " have no field for it, so their qdd is "
                 "(M + diag(armature)) qdd = tau + phi from the engine's own M and bias (the "
-                "adapter's solve), and their own integrators, which step the engine's model "
-                "without it, are not run.")
+                "adapter's solve), and "
+                + ("their loop adapters, whose constraint solve runs on the engine's own "
+                   "model, refuse it." if m.cuts else
+                   "their own integrators, which step the engine's model without it, are not "
+                   "run."))
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
                     ["engine", "status", *STAGES, "note"],
                     notes=[f"Worst relative difference max|engine - core| / max|core| over "
