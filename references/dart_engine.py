@@ -359,6 +359,11 @@ class DART(Engine):
 
     def _settings(self):
         out: dict = {"shape_nodes": sum(int(b.getNumShapeNodes()) for b in self.bodynodes)}
+        if self.model.has_passive:
+            out["passive"] = ("joint damping, springs and gravcomp forces on the skeleton's "
+                              "clone that World.step steps (holds_passive)")
+        if self.arm is not None:
+            out["armature"] = "in the qdd only: (M + diag(a)) qdd = tau + phi (holds_armature)"
         w = self.world
         if w is None:
             return out

@@ -508,7 +508,9 @@ class Drake(DrakePackage, Engine):
         out: dict[str, Any] = {
             "plant_time_step": self.plant.time_step(),
             "scene_graph": False,
-            "joint_limits": "none", "damping": 0.0, "actuators": 0,
+            "joint_limits": "none", "actuators": 0,
+            "damping": (0.0 if not self.model.has_passive else "the model's damping, springs "
+                        "and gravcomp in the Simulator's Context only (holds_passive)"),
             "unchecked_inertia_bodies": list(self.unchecked_inertia),
             "qdd": "generalized_acceleration output port (articulated-body forward dynamics), "
                    "one Context",

@@ -898,6 +898,11 @@ class Exudyn(Engine):
             "linear_solver": "EigenDense", "threads": 1, "constraints": 0,
             "qdd": f"one ExplicitEuler step of {QDD_STEP:g} s, computeEndOfStepAccelerations "
                    "off (module docstring)"}
+        if self.arm is not None:
+            out["armature"] = "in the qdd only: (M + diag(a)) qdd = tau + RHS (holds_armature)"
+        if self.model.has_passive:
+            out["passive"] = ("the tree's P/D control (stiffness, damping, spring_ref) and COM "
+                              "LoadForceVectors for gravcomp, on during its steps only")
         ex = getattr(self, "_exu", None)
         if ex is None:
             return out
