@@ -383,7 +383,9 @@ class LoopEngine(EnginePackage):
 
 # --------------------------------------------------------------------------- Pinocchio
 class PinocchioLoops(LoopEngine):
-    """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut."""
+    """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut; a
+    coupled model's: ``pin.forwardDynamics``, Pinocchio's KKT solve, on the cuts' rows and one
+    row per coupling (module docstring of ``couples``)."""
 
     name = "pinocchio"
     adapter = PinocchioCRBA
@@ -392,6 +394,11 @@ class PinocchioLoops(LoopEngine):
     no_integrator = ("Pinocchio has no time integrator (its constraintDynamics gives qdd only; "
                      "any trajectory would be this adapter's integrator, not Pinocchio's)")
     kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("pin.forwardDynamics (Pinocchio's KKT solve with its own M, armature included, "
+               "and nonlinear effects: constraintDynamics refuses mimic joints, 'This algorithm "
+               "does not support Joint Mimic type in the model', 4.1.0) on the tree, with the "
+               "cuts' rows from Pinocchio's frame Jacobians and classical accelerations at the "
+               "cut points (the core's rows of each cut) and one row e_f - m e_l per coupling")
     MU = 1e-8  # proximal parameter (any small value: the iterations converge to mu = 0's answer)
     ACCURACY = 1e-13
     MAX_ITER = 50
@@ -412,8 +419,57 @@ class PinocchioLoops(LoopEngine):
         pin.initConstraintDynamics(t.pm, t.data, models, datas)
         self.cmodels, self.cdatas = models, datas
         self.settings = pin.ProximalSettings(self.ACCURACY, self.MU, self.MAX_ITER)
+        self.frames: list[tuple[int, int | None]] = []
+        if self.model.couplings:  # the cut points as Pinocchio frames (the KKT path's rows)
+            se3, op = pin.SE3, pin.FrameType.OP_FRAME
+            for i, c in enumerate(self.loops.cuts):
+                fa = t.pm.addFrame(pin.Frame(f"cut{i}a", t.body_joint[c.body_a],
+                                             se3(np.eye(3), np.array(c.point_a)), op))
+                fb = None if c.body_b < 0 else t.pm.addFrame(pin.Frame(
+                    f"cut{i}b", t.body_joint[c.body_b], se3(np.eye(3), np.array(c.point_b)),
+                    op))
+                self.frames.append((fa, fb))
+            t.data = pin.Data(t.pm)
+            _, _, fv, lv, mult, _ = self.model.coupling_index
+            self.coupling_rows = np.zeros((len(fv), self.model.n_v))
+            for r, (f, ld, mu) in enumerate(zip(fv, lv, mult, strict=True)):
+                self.coupling_rows[r, t.eidx[f]] = 1.0
+                self.coupling_rows[r, t.eidx[ld]] -= mu
+
+    def _solve_coupled(self, q, v, tau):
+        """qdd and the cuts' forces of a coupled model by Pinocchio's KKT forward dynamics
+        (``couples``): J qdd = -gamma, J the cuts' rows (a ball's three, a planar cut's world x
+        and y, a plane cut's along its axes) and the couplings', gamma their classical
+        accelerations at qdd = 0 (zero for a coupling; a plane cut's rows also carry 2 (w_b x
+        u_k) . (v_a - v_b), zero on an assembled state of a mechanism moving in that plane)."""
+        pin, t = self.lib, self.tree
+        pm, data = t.pm, t.data
+        qp, blocks = t._state(q, v)
+        y = t._to_engine(v, blocks)
+        tau_e = np.zeros(self.model.n_v) if tau is None else t._to_engine(tau, blocks)
+        pin.forwardKinematics(pm, data, qp, y, np.zeros(self.model.n_v))
+        pin.computeJointJacobians(pm, data, qp)
+        pin.updateFramePlacements(pm, data)
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        Js, gs = [], []
+        for fa, fb in self.frames:
+            J = pin.getFrameJacobian(pm, data, fa, world)[:3]
+            g = pin.getFrameClassicalAcceleration(pm, data, fa, world).linear
+            if fb is not None:
+                J = J - pin.getFrameJacobian(pm, data, fb, world)[:3]
+                g = g - pin.getFrameClassicalAcceleration(pm, data, fb, world).linear
+            Js.append(J)
+            gs.append(g)
+        J = np.vstack([self._rows(np.array(Js), q), self.coupling_rows])
+        gamma = np.concatenate([self._rows(np.array(gs), q),
+                                np.zeros(len(self.coupling_rows))])
+        a = pin.forwardDynamics(pm, data, qp, y, tau_e, J, gamma, 0.0)
+        lam = np.asarray(data.lambda_c, dtype=float)[:self.loops.m]
+        return t._from_engine(np.array(a), blocks), lam
 
     def _solve(self, q, v, tau):
+        if self.model.couplings:
+            return self._solve_coupled(q, v, tau)
         pin, t = self.lib, self.tree
         qp, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)

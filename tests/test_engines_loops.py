@@ -473,41 +473,51 @@ def test_the_2f85s_plane_cuts_are_balls_in_the_ball_engines():
             loop_engine("pinocchio", apart).forward_dynamics(q0, np.zeros(m.n_v))
 
 
-def test_the_coupled_2f85_runs_in_mujoco_and_is_refused_by_name_elsewhere():
-    """The whole gripper: MuJoCo closes its loops with its connects and couples the drivers
-    with its own joint equality (soft, so within TOL_MUJOCO of the core); the other loop
-    adapters do not build couplings and say so, never answering for the uncoupled gripper."""
+def test_the_coupled_2f85_runs_in_pinocchio_and_mujoco_and_is_refused_by_name_elsewhere():
+    """The whole gripper: Pinocchio by its KKT forward dynamics (its constraintDynamics refuses
+    mimic joints) on the cuts' rows and the coupling's, its M holding the armature; MuJoCo
+    closes its loops with its connects and couples the drivers with its own joint equality
+    (soft, so within TOL_MUJOCO of the core); DART's and Exudyn's loop adapters do not build
+    couplings and say so, never answering for the uncoupled gripper."""
     m, q0 = robotiq()
     loops = ClosedLoops(m)
+    rng = np.random.default_rng(20261208)
+    q = loops.project(q0, np.zeros(m.n_v))[0]
+    states = []
+    for _ in range(3):
+        qs = loops.project(m.couple(q + 0.05 * rng.normal(size=m.n_q)), np.zeros(m.n_v))[0]
+        states.append((*loops.project(*m.couple(qs, rng.normal(size=m.n_v)))[:2],
+                       0.01 * rng.normal(size=m.n_v)))
     for name, cls in LOOP_ENGINES.items():
         if not cls.available():
             continue
         lim = cls.limits(loops)
-        if name != "mujoco":
+        if name in ("dart", "exudyn"):
             assert not lim.ok and "couples joints" in lim.reason, lim.reason
             continue
         assert lim.ok, lim.reason
         eng = loop_engine(name, loops)
-        rng = np.random.default_rng(20261208)
-        q = loops.project(q0, np.zeros(m.n_v))[0]
-        q, v = loops.project(*m.couple(q, rng.normal(size=m.n_v)))[:2]
-        got = eng.forward_dynamics(q, v)
-        want = loops.forward_dynamics(q, v)
-        assert np.abs(got - want).max() < TOL_MUJOCO * np.abs(want).max()
+        for q, v, tau in states:
+            qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
+            assert max(differences(loops, qdd, lam, q, v, tau)) < TOLERANCE[name], name
+            _, _, fv, lv, mult, _ = m.coupling_index
+            assert np.allclose(qdd[fv], mult * qdd[lv], rtol=1e-12 if name == "pinocchio"
+                               else TOL_MUJOCO, atol=0.0)
 
 
 def test_compare_takes_the_coupled_2f85s_loops():
     """`redysim compare`'s loop agreement on the coupled gripper: its random velocities are
     coupled before they are projected on the loops (they were not: a StateError stopped the
-    page), MuJoCo's loops answer, and the others' refusals are named."""
+    page), Pinocchio's and MuJoCo's loops answer, and the others' refusals are named."""
     from redysim.reports.compare import loop_agreement
 
     m, q0 = robotiq()
     rows = {r["engine"]: r for r in loop_agreement("2f85", m, q0)}
-    if LOOP_ENGINES["mujoco"].available():
-        assert rows["mujoco (loops)"]["status"] == "ok"
-        assert rows["mujoco (loops)"]["qdd"] < TOL_MUJOCO
-    for name in ("pinocchio", "dart", "exudyn"):
+    for name in ("pinocchio", "mujoco"):
+        if LOOP_ENGINES[name].available():
+            assert rows[f"{name} (loops)"]["status"] == "ok"
+            assert rows[f"{name} (loops)"]["qdd"] < TOLERANCE[name]
+    for name in ("dart", "exudyn"):
         if LOOP_ENGINES[name].available():
             r = rows[f"{name} (loops)"]
             assert r["status"] == "refused" and "couples joints" in r["reason"], r
