@@ -261,7 +261,7 @@ class LoopEngine(EnginePackage):
                                  f"({', '.join(c.follower for c in model.couplings)} follow "
                                  f"others: mimic joints), which this loop adapter does not "
                                  f"build with its loops (its constraints close the cuts only)")
-        if np.any(model.armature) and not cls.adapter.armature_native:
+        if np.any(model.armature) and not (cls.adapter.armature_native or cls.holds_armature):
             j = int(np.flatnonzero(model.armature)[0])
             return Limits(False, f"{cls.name}: the model has armature (armature[{j}] = "
                                  f"{float(model.armature[j]):g}), which the engine's tree adapter "
@@ -281,6 +281,8 @@ class LoopEngine(EnginePackage):
     # how the loop adapter holds a model's couplings (Model.couplings) beside its cuts; "" when
     # it does not (limits then refuses a coupled model: never dropped)
     couples: ClassVar[str] = ""
+    # True: the loop adapter holds armature its tree adapter holds in its qdd only (DART's)
+    holds_armature: ClassVar[bool] = False
 
     def refusal(self, q, v) -> str:
         """Why the engine cannot answer at (q, v) ("" when it can)."""
@@ -575,6 +577,12 @@ class DARTLoops(LoopEngine):
     module = "dartpy"
     thin_ok = True
     kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("the adapter's KKT solve on DART's own dynamics: M (with the armature the DART "
+               "adapter adds) and -(C + g) from getMassMatrix and getCoriolisAndGravityForces, "
+               "the cuts' rows from getLinearJacobian and getLinearJacobianDeriv at the cut "
+               "points, one row e_f - m e_l per coupling (dartpy 6.20 reaches no mimic joint, "
+               "and World.step's constraint solver would run on a model without the armature)")
+    holds_armature = True  # by the same KKT solve (couples)
     STEP = 1e-3  # s; at v = 0 (the only state taken) the answer does not depend on it
     CFM = 1e-9  # DART's default and floor; its relative error in qdd and lam is ~CFM (measured)
 
@@ -585,9 +593,14 @@ class DARTLoops(LoopEngine):
         self.world.addSkeleton(t.skel)  # also sets the skeleton's gravity to the world's
         self.world.setTimeStep(self.STEP)
         self.bodynodes = t.bodynodes
+        # a coupled model or one with armature: the KKT solve on DART's dynamics (couples)
+        self.kkt = bool(self.model.couplings) or bool(np.any(self.model.armature))
 
     def refusal(self, q, v) -> str:
-        if np.any(np.asarray(v) != 0.0):
+        if self.kkt and self.tree.free:
+            return ("the KKT path (a coupled model, or one with armature) takes a tree without "
+                    "a free joint")
+        if np.any(np.asarray(v) != 0.0) and not self.kkt:
             return ("DART resolves a loop by a velocity impulse inside World.step() (J v_new = 0, "
                     "so J qdd = 0): at v != 0 its (v_new - v)/h lacks the loop's velocity-product "
                     "term -Jdot v, an error of O(|Jdot v|) that no step size removes; only v = 0 "
@@ -621,6 +634,11 @@ class DARTLoops(LoopEngine):
     ERP = 0.01  # DART's default (JointConstraint), for simulate: its drift correction
 
     def _simulate(self, q0, v0, h, steps, every):
+        if self.kkt:
+            raise LoopStateUnsupported(
+                f"{self.name}: World.step would step the model without its "
+                f"{'couplings' if self.model.couplings else 'armature'} (its qdd holds them by "
+                f"the adapter's KKT solve, couples)")
         t = self.tree
         self._constraints(q0, self.ERP)
         qe, blocks = t._state(q0, v0)
@@ -651,7 +669,51 @@ class DARTLoops(LoopEngine):
             rows.append(Ja)
         return np.vstack(rows)
 
+    def _solve_kkt(self, q, v, tau):
+        """(qdd, lam) from DART's M (armature in), bias and point kinematics by the adapter's
+        solve (``couples``): M a = phi + J^T lam, J a = -gamma, J the cuts' rows (J_a - J_b
+        along the core's rows of each cut) and the couplings' (e_f - m e_l), gamma their
+        classical accelerations at qdd = 0 (Jdot v; zero for a coupling). The engine's
+        coordinates are the core's here (no free joint: ``refusal``)."""
+        t, m = self.tree, self.model
+        M, phi = t.mass_matrix(q), t.bias(q, v)
+        if tau is not None:
+            phi = phi + tau
+        qe, _ = t._state(q, v)
+        y = t._to_engine(v, [])
+        t._set(qe, y)
+        skel = t.skel
+        Js, gs = [], []
+        for c in self.loops.cuts:
+            sides = [(c.body_a, c.point_a, 1.0)] + ([(c.body_b, c.point_b, -1.0)]
+                                                     if c.body_b >= 0 else [])
+            J, g = np.zeros((3, m.n_v)), np.zeros(3)
+            for body, point, sign in sides:
+                p = np.array(point, dtype=float)
+                Jb = np.array(skel.getLinearJacobian(self.bodynodes[body], p))
+                Jd = np.array(skel.getLinearJacobianDeriv(self.bodynodes[body], p))
+                J += sign * Jb[:, t.eidx]
+                g += sign * (Jd @ y)
+            Js.append(J)
+            gs.append(g)
+        rows = [self._rows(np.array(Js), q)]
+        gamma = [self._rows(np.array(gs), q)]
+        if m.couplings:
+            _, _, fv, lv, mult, _ = m.coupling_index
+            C = np.zeros((len(fv), m.n_v))
+            C[np.arange(len(fv)), fv] = 1.0
+            C[np.arange(len(fv)), lv] -= mult
+            rows.append(C)
+            gamma.append(np.zeros(len(fv)))
+        J, g = np.vstack(rows), np.concatenate(gamma)
+        X = np.linalg.solve(M, np.column_stack([phi, J.T]))
+        a0, X = X[:, 0], X[:, 1:]
+        lam = np.linalg.solve(J @ X, -g - J @ a0)
+        return a0 + X @ lam, lam[:self.loops.m]
+
     def _solve(self, q, v, tau):
+        if self.kkt:
+            return self._solve_kkt(q, v, tau)
         t = self.tree
         qe, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)

@@ -292,8 +292,9 @@ def test_the_engines_that_hold_armature_agree(engine, name):
 @pytest.mark.parametrize("engine", ["dart", "exudyn"])
 def test_armature_held_in_the_qdd_only_is_refused_where_the_engine_steps(engine):
     """DART and Exudyn hold armature in their qdd, not in their own models: their native
-    stepping of a model with armature, their loop adapters and armature on a free joint (whose
-    engine coordinates are not the core's) are refused by name, never run without it."""
+    stepping of a model with armature, Exudyn's loop adapter (DART's holds it by its KKT solve,
+    not by World.step) and armature on a free joint (whose engine coordinates are not the
+    core's) are refused by name, never run without it."""
     from redysim.algorithms.loops import ClosedLoops
     from redysim.references import ENGINES, LOOP_ENGINES
     cls = ENGINES[engine]
@@ -315,7 +316,21 @@ def test_armature_held_in_the_qdd_only_is_refused_where_the_engine_steps(engine)
     loops = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0).loops
     armed = ClosedLoops(loops.model.with_armature(0.01))
     lim = LOOP_ENGINES[engine].limits(armed)
-    assert not lim.ok and "armature" in lim.reason, lim.reason
+    if engine == "exudyn":
+        assert not lim.ok and "armature" in lim.reason, lim.reason
+        return
+    # DART's loop adapter holds it by its KKT solve on DART's M + armature (at any velocity)
+    from redysim.references import loop_engine
+    assert lim.ok, lim.reason
+    eng = loop_engine(engine, armed)
+    q = armed.project(loops.model.neutral() + 0.3, np.zeros(armed.model.n_v))[0]
+    q, v = armed.project(q, np.random.default_rng(4).normal(size=armed.model.n_v))[:2]
+    want = armed.forward_dynamics(q, v)
+    assert np.abs(eng.forward_dynamics(q, v) - want).max() < 1e-10 * np.abs(want).max()
+    bare = ClosedLoops(loops.model).forward_dynamics(q, v)
+    assert np.abs(bare - want).max() > 1e-4 * np.abs(want).max()  # (the armature acts)
+    with pytest.raises(Exception, match="armature"):
+        eng.simulate(q, v, 0.01, 1e-3)
 
 
 def test_mjcf_holds_armature_and_urdf_refuses_it():

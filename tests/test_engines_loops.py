@@ -473,12 +473,13 @@ def test_the_2f85s_plane_cuts_are_balls_in_the_ball_engines():
             loop_engine("pinocchio", apart).forward_dynamics(q0, np.zeros(m.n_v))
 
 
-def test_the_coupled_2f85_runs_in_pinocchio_and_mujoco_and_is_refused_by_name_elsewhere():
+def test_the_coupled_2f85_runs_in_three_loop_engines_and_is_refused_by_name_in_exudyn():
     """The whole gripper: Pinocchio by its KKT forward dynamics (its constraintDynamics refuses
-    mimic joints) on the cuts' rows and the coupling's, its M holding the armature; MuJoCo
-    closes its loops with its connects and couples the drivers with its own joint equality
-    (soft, so within TOL_MUJOCO of the core); DART's and Exudyn's loop adapters do not build
-    couplings and say so, never answering for the uncoupled gripper."""
+    mimic joints) on the cuts' rows and the coupling's, its M holding the armature; DART by the
+    adapter's KKT solve on its own M (with the armature), bias and point Jacobians, at moving
+    states too; MuJoCo closes its loops with its connects and couples the drivers with its own
+    joint equality (soft, so within TOL_MUJOCO of the core); Exudyn's loop adapter does not
+    build couplings and says so, never answering for the uncoupled gripper."""
     m, q0 = robotiq()
     loops = ClosedLoops(m)
     rng = np.random.default_rng(20261208)
@@ -492,7 +493,7 @@ def test_the_coupled_2f85_runs_in_pinocchio_and_mujoco_and_is_refused_by_name_el
         if not cls.available():
             continue
         lim = cls.limits(loops)
-        if name in ("dart", "exudyn"):
+        if name == "exudyn":
             assert not lim.ok and "couples joints" in lim.reason, lim.reason
             continue
         assert lim.ok, lim.reason
@@ -501,23 +502,23 @@ def test_the_coupled_2f85_runs_in_pinocchio_and_mujoco_and_is_refused_by_name_el
             qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
             assert max(differences(loops, qdd, lam, q, v, tau)) < TOLERANCE[name], name
             _, _, fv, lv, mult, _ = m.coupling_index
-            assert np.allclose(qdd[fv], mult * qdd[lv], rtol=1e-12 if name == "pinocchio"
-                               else TOL_MUJOCO, atol=0.0)
+            assert np.allclose(qdd[fv], mult * qdd[lv], rtol=TOL_MUJOCO if name == "mujoco"
+                               else 1e-12, atol=0.0)
 
 
 def test_compare_takes_the_coupled_2f85s_loops():
     """`redysim compare`'s loop agreement on the coupled gripper: its random velocities are
     coupled before they are projected on the loops (they were not: a StateError stopped the
-    page), Pinocchio's and MuJoCo's loops answer, and the others' refusals are named."""
+    page), Pinocchio's, MuJoCo's and DART's loops answer, and Exudyn's refusal is named."""
     from redysim.reports.compare import loop_agreement
 
     m, q0 = robotiq()
     rows = {r["engine"]: r for r in loop_agreement("2f85", m, q0)}
-    for name in ("pinocchio", "mujoco"):
+    for name in ("pinocchio", "mujoco", "dart"):
         if LOOP_ENGINES[name].available():
             assert rows[f"{name} (loops)"]["status"] == "ok"
             assert rows[f"{name} (loops)"]["qdd"] < TOLERANCE[name]
-    for name in ("dart", "exudyn"):
+    for name in ("exudyn",):
         if LOOP_ENGINES[name].available():
             r = rows[f"{name} (loops)"]
             assert r["status"] == "refused" and "couples joints" in r["reason"], r
