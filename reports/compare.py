@@ -197,6 +197,24 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
     return rows
 
 
+def _loop_armature(names) -> str:
+    """What the loop adapters of the engines ``names`` (whose tree adapters hold armature in
+    their qdd only) do with a model's armature: hold it by their own solve, or refuse it."""
+    from redysim import references
+
+    loop = {c.adapter.name: c for c in references.LOOP_ENGINES.values()}
+    held = [n for n in names if n in loop and loop[n].holds_armature]
+    refused = [n for n in names if n in loop and not loop[n].holds_armature]
+    out = []
+    if held:
+        out.append(f"the loop adapter of {', '.join(held)} holds it by its own KKT solve on "
+                   "the engine's M with the armature")
+    if refused:
+        out.append(f"that of {', '.join(refused)}, whose constraint solve runs on the engine's "
+                   "own model, refuses it")
+    return "; ".join(out) + "." if out else "."
+
+
 def setting(r) -> str:
     """'h 0.001' or 'rtol 1e-07' of a run row."""
     return f"h {float(r['h']):g}" if float(r["h"]) > 0 else f"rtol {float(r['rtol']):g}"
@@ -333,11 +351,11 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
             held = [f"{n}: {c.couples}" for n, c in references.LOOP_ENGINES.items()
                     if c.couples]
             refused = [n for n, c in references.LOOP_ENGINES.items() if not c.couples]
-            loops_note = (" With the loops closed (the runs below) only "
-                          + ("; ".join(held) or "none") + (f"; {', '.join(refused)} refuse the "
-                                                           "coupled model (their loop adapters "
-                                                           "close the cuts only)" if refused
-                                                           else "") + ".")
+            loops_note = (" With the loops closed (the runs below): "
+                          + ("; ".join(held) or "no loop adapter holds them")
+                          + (f"; {', '.join(refused)} refuse{'s' if len(refused) == 1 else ''} "
+                             "the coupled model (a loop adapter that closes the cuts only)"
+                             if refused else "") + ".")
         intro.append(
             f"Coupled joints ({rules}). "
             + ("On the open tree, each" if m.cuts else "Each") + " engine's qdd holds them: "
@@ -365,8 +383,7 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                 + "; " + ", ".join(by_adapter) + " have no field for it, so their qdd is "
                 "(M + diag(armature)) qdd = tau + phi from the engine's own M and bias (the "
                 "adapter's solve), and "
-                + ("their loop adapters, whose constraint solve runs on the engine's own "
-                   "model, refuse it." if m.cuts else
+                + (_loop_armature(by_adapter) if m.cuts else
                    "their own integrators, which step the engine's model without it, are not "
                    "run."))
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
