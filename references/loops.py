@@ -569,7 +569,9 @@ class MuJoCoLoops(LoopEngine):
 
 # --------------------------------------------------------------------------- DART
 class DARTLoops(LoopEngine):
-    """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc)."""
+    """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc); a
+    coupled model or one with armature: the adapter's KKT solve on DART's own dynamics and
+    point kinematics (``couples``, :meth:`_solve_kkt`)."""
 
     name = "dart"
     adapter = DART
