@@ -188,6 +188,11 @@ class NativeStepper:
             raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
                                 why + ": run it through redysim's integrators (ode45, dop853, "
                                 "rk4, ...), which apply them around the engine's qdd")
+        why = self.engine.no_native_armature()
+        if why:
+            raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
+                                why + ": run it through redysim's integrators (ode45, dop853, "
+                                "rk4, ...), with the engine's qdd")
         added = getattr(system, "additions", [])
         if added:  # the engine steps its own model: nothing of ours reaches it
             raise SettingsError(getattr(system, "source", "simulate"), "integrator", self.name,
@@ -523,6 +528,12 @@ class Engine(EnginePackage):
     # reason: never dropped silently)
     holds_armature: ClassVar[str] = ""
     no_armature: ClassVar[str] = "no joint armature built in this adapter"
+    # False: the engine has no armature field, and the adapter holds it in the engine's qdd
+    # from the engine's own M and bias, (M + diag(armature)) qdd = tau + phi (``holds_armature``
+    # says so): the engine's own integrators step its model without it, so a native run of a
+    # model with armature is refused by name (:meth:`no_native_armature`), and armature on a
+    # free or ball joint (whose engine coordinates are not the core's) is refused by ``limits``
+    armature_native: ClassVar[bool] = True
     # how the engine's own integrators hold a model's passive elements (Model.damping,
     # stiffness with spring_ref, gravcomp: forces of the model, not additions of a run); "" when
     # they cannot (its native stepping then refuses such a model, naming them: never dropped).
@@ -592,6 +603,15 @@ class Engine(EnginePackage):
         why = cls.unsupported(model, joints)
         if why:
             return Limits(False, f"{cls.name}: {why}")
+        if np.any(model.armature) and cls.holds_armature and not cls.armature_native:
+            for k, j in enumerate(joints):
+                a = model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]
+                if j.type in (FREE, BALL_JOINT) and np.any(a):
+                    return Limits(False, f"{cls.name}: the {j.type} joint of body {j.body!r} "
+                                         f"has armature ({', '.join(f'{x:g}' for x in a)}): "
+                                         f"{cls.no_armature}, and the adapter adds armature "
+                                         f"on 1-DOF axes only (engine and core coordinates "
+                                         f"differ on a {j.type} joint)")
         if np.any(model.armature) and not cls.holds_armature:
             j = int(np.flatnonzero(model.armature)[0])
             return Limits(False, f"{cls.name}: the model has armature (a joint's own inertia, "
@@ -791,11 +811,55 @@ class Engine(EnginePackage):
             return (f"{self.name}'s own integrators step its model, whose bodies hold one "
                     "gravity compensation fraction each, not the model's gravcomp_loads (a "
                     "fused body's parts of other fractions, each at its own centre of mass)")
-        if self.holds_passive or not m.has_passive:
+        if not m.has_passive:
             return ""
+        if self.holds_passive:
+            why = self.passive_unheld()
+            return (f"{self.name}'s own integrators step its model, which holds the model's "
+                    f"passive elements ({self.holds_passive}) but not {why}") if why else ""
         held = [key for key in ("damping", "stiffness", "gravcomp") if np.any(getattr(m, key))]
         return (f"{self.name}'s own integrators step its model, which does not hold the "
                 f"model's {', '.join(held)} (its qdd is the rigid body's, tau -> qdd)")
+
+    def passive_unheld(self) -> str:
+        """Which of the model's passive elements the engine's native model does not hold and
+        why, naming the joint or body ("" when it holds them all), for an engine that holds
+        them (:attr:`holds_passive`) element by element; by default it holds them all."""
+        return ""
+
+    def passive_on_free(self) -> str:
+        """The first free or ball joint with damping (or a spring), named ("" when none):
+        the engines whose native passive elements act on 1-DOF joints only."""
+        m = self.model
+        for k, jt in enumerate(m.joint_types):
+            if jt in (FREE, BALL_JOINT):
+                sl = slice(int(m.joint_voff[k]), int(m.joint_voff[k + 1]))
+                if np.any(m.damping[sl]) or np.any(m.stiffness[sl]):
+                    return (f"the damping of the {jt} joint {m.joint_names[k]!r} (body "
+                            f"{m.body_names[k]!r}): this adapter puts damping on 1-DOF joints "
+                            f"only (the engine's coordinates of a {jt} joint are not the core's)")
+        return ""
+
+    def no_native_armature(self) -> str:
+        """Why the engine's own integrators cannot step this model for its armature ("" when
+        they can): the engine has no armature field (:attr:`armature_native` False), so the
+        adapter holds it in the qdd only."""
+        m = self.model
+        if self.armature_native or not np.any(m.armature):
+            return ""
+        j = int(np.flatnonzero(m.armature)[0])
+        return (f"{self.name}'s own integrators step its model, which has no armature "
+                f"(armature[{j}] = {float(m.armature[j]):g}: {self.no_armature}); its qdd holds "
+                f"it ({self.holds_armature})")
+
+    @property
+    def armature_e(self) -> np.ndarray:
+        """The model's armature in the engine's velocity order (n_v,), zero on a free or ball
+        joint (which ``limits`` refuses with armature when the engine holds it in its qdd
+        only)."""
+        a = np.zeros(self.model.n_v)
+        a[self.eidx[self._vslots]] = self.model.armature[self._vslots]
+        return a
 
     def stepper(self, name: str | None = None, *, h: float | None = None,
                 rtol: float | None = None, atol: float | None = None) -> NativeStepper:
@@ -871,6 +935,9 @@ class Engine(EnginePackage):
         why = self.no_native_passive()
         if why:
             raise ValueError(why)
+        why = self.no_native_armature()
+        if why:
+            raise ValueError(why + ": run its qdd in redysim's integrators (--integrator ode45)")
         if info.adaptive:
             if rtol is None or not (math.isfinite(rtol) and rtol > 0):
                 raise ValueError(f"{self.name} integrator {info.name!r} is adaptive: give "

@@ -142,7 +142,19 @@ class DART(Engine):
     package = "dartpy"
     module = "dartpy"
     no_armature = ("dartpy 6.20 exposes no joint armature (a DOF's damping, spring stiffness "
-                   "and rest position, nothing on its inertia)")
+                   "and rest position, nothing on its inertia: no rotor inertia on Joint or "
+                   "its Properties, checked)")
+    holds_armature = ("by the adapter, from DART's own getMassMatrix and "
+                      "getCoriolisAndGravityForces: (M + diag(armature)) qdd = tau - (C + g), "
+                      "the equations DART would solve had it the field (it has none: "
+                      + no_armature + "); World.step does not hold it")
+    armature_native = False
+    holds_passive = ("on a clone of the skeleton that only World.step steps: each 1-DOF joint's "
+                     "Joint.setDampingCoefficient, setSpringStiffness and setRestPosition (DART "
+                     "takes them implicitly in its step: -K (q + h qdot - q_ref), the "
+                     "articulated inertia raised by h D + h^2 K), each body's gravcomp a "
+                     "BodyNode.setExtForce of -gravcomp m g at its COM before every step; the "
+                     "qdd's skeleton stays the rigid body's")
     no_couplings = ("DART's mimic joints are out of reach from Python: dartpy 6.20 binds "
                     "Joint.setActuatorType(MIMIC) but not setMimicJoint (no such method on "
                     "dartpy.dynamics.Joint, checked), so a MIMIC joint has no leader")
@@ -229,7 +241,10 @@ class DART(Engine):
             else:
                 self.eidx[vs:vs + len(idx)] = idx
         self.skel, self.bodynodes = skel, bodies
+        # the armature in DART's DOF order, held in the qdd (holds_armature); None: none
+        self.arm = self.armature_e if np.any(m.armature) else None
         self.world = None  # simulate's, made on first use
+        self.sim_skel = skel  # the skeleton World.step steps (a clone with passive elements)
 
     def _engine_state(self, q, v):
         qe = self._scatter(q)
@@ -246,20 +261,31 @@ class DART(Engine):
             blocks.append(FreeBlock(vs, B, np.zeros(6)))
         return qe, blocks
 
-    def _set(self, qe, y, tau_e=None):
-        s = self.skel
+    def passive_unheld(self) -> str:
+        return self.passive_on_free()
+
+    def _set(self, qe, y, tau_e=None, skel=None):
+        s = self.skel if skel is None else skel
         s.setPositions(qe)
         s.setVelocities(y)
         s.setForces(np.zeros(self.model.n_v) if tau_e is None else tau_e)
 
     def _qdd(self, qe, y, tau_e):
+        if self.arm is not None:  # (M + diag(armature)) qdd = tau - (C + g): holds_armature
+            self._set(qe, y)
+            rhs = -np.array(self.skel.getCoriolisAndGravityForces())
+            if tau_e is not None:
+                rhs = rhs + tau_e
+            M = np.array(self.skel.getMassMatrix())
+            return np.linalg.solve(M + np.diag(self.arm), rhs)
         self._set(qe, y, tau_e)
         self.skel.computeForwardDynamics()
         return np.array(self.skel.getAccelerations())
 
     def _mass_matrix(self, qe):
         self._set(qe, np.zeros(self.model.n_v))
-        return np.array(self.skel.getMassMatrix())
+        M = np.array(self.skel.getMassMatrix())
+        return M if self.arm is None else M + np.diag(self.arm)
 
     def _bias(self, qe, y):
         self._set(qe, y)
@@ -267,7 +293,10 @@ class DART(Engine):
 
     def _energy(self, qe, y):
         self._set(qe, y)
-        return self.skel.computeKineticEnergy(), self.skel.computePotentialEnergy()
+        T = self.skel.computeKineticEnergy()
+        if self.arm is not None:  # the joints' own inertia: 1/2 armature v^2
+            T += 0.5 * float(self.arm @ (y * y))
+        return T, self.skel.computePotentialEnergy()
 
     def _position(self, qe, body, point):
         self._set(qe, np.zeros(self.model.n_v))
@@ -279,17 +308,49 @@ class DART(Engine):
         if self.world is None:
             self.world = self.lib.simulation.World()
             self.world.setGravity(np.asarray(self.model.gravity, dtype=float))
-            self.world.addSkeleton(self.skel)
+            self.sim_skel = self._passive_skeleton()
+            self.world.addSkeleton(self.sim_skel)
             sleep = self.world.getDeactivationOptions()  # a copy: set back (module docstring)
             sleep.mEnabled = False
             self.world.setDeactivationOptions(sleep)
         self.world.setTimeStep(h)
         self.world.setTime(0.0)
         qe, blocks = self._state(q0, v0)
-        self._set(qe, self._to_engine(v0, blocks))
+        self._set(qe, self._to_engine(v0, blocks), skel=self.sim_skel)
         self._dart_steps = 0
 
+    def _passive_skeleton(self):
+        """The skeleton World.step steps: the qdd's own when the model has no passive element,
+        else a clone holding them (``holds_passive``), so that a qdd, bias or mass matrix call
+        between steps sees neither them nor the stepped state. ``_gravcomp``: (BodyNode, force
+        [N, world], COM [m, body]) of each body with gravcomp, set again before every step
+        (World.step clears external forces after it)."""
+        m = self.model
+        self._gravcomp = []
+        if not m.has_passive:
+            return self.skel
+        skel = self.skel.clone()
+        for k, (joint, dj) in enumerate(zip(self.joints, (self.bodynodes[i].getParentJoint()
+                                                          for i in range(m.n_bodies)),
+                                            strict=True)):
+            if joint.type == FREE:  # (passive_unheld refuses damping there)
+                continue
+            cj = skel.getJoint(dj.getJointIndexInSkeleton())
+            for i in range(cj.getNumDofs()):
+                slot = int(m.joint_voff[k]) + i
+                cj.setDampingCoefficient(i, float(m.damping[slot]))
+                cj.setSpringStiffness(i, float(m.stiffness[slot]))
+                cj.setRestPosition(i, float(m.spring_ref[slot]))
+        g = np.asarray(m.gravity, dtype=float)
+        for k in np.flatnonzero(m.gravcomp):
+            body = skel.getBodyNode(self.bodynodes[k].getIndexInSkeleton())
+            self._gravcomp.append((body, -float(m.gravcomp[k]) * float(m.mass[k]) * g,
+                                   np.array(m.com[k], dtype=float)))
+        return skel
+
     def _sim_step(self):
+        for body, force, com in self._gravcomp:  # world force at the COM (in the body frame)
+            body.setExtForce(force, com, False, True)
         self.world.step()
         self._dart_steps += 1
 
@@ -298,6 +359,11 @@ class DART(Engine):
 
     def _settings(self):
         out: dict = {"shape_nodes": sum(int(b.getNumShapeNodes()) for b in self.bodynodes)}
+        if self.model.has_passive:
+            out["passive"] = ("joint damping, springs and gravcomp forces on the skeleton's "
+                              "clone that World.step steps (holds_passive)")
+        if self.arm is not None:
+            out["armature"] = "in the qdd only: (M + diag(a)) qdd = tau + phi (holds_armature)"
         w = self.world
         if w is None:
             return out
@@ -313,8 +379,8 @@ class DART(Engine):
         return out
 
     def _sim_state(self):
-        qe = np.array(self.skel.getPositions())
-        y = np.array(self.skel.getVelocities())
+        qe = np.array(self.sim_skel.getPositions())
+        y = np.array(self.sim_skel.getVelocities())
         if self.identity:
             return qe, y
         q = self._gather(qe)

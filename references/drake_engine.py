@@ -215,6 +215,12 @@ class Drake(DrakePackage, Engine):
         name: NativeIntegrator(name, adaptive, _what(scheme, adaptive), note)
         for name, scheme, adaptive, _, note in _SCHEMES}
     holds_armature = "a JointActuator's rotor inertia, gear ratio 1, per 1-DOF joint"
+    holds_passive = ("in the Simulator's Context only (the qdd's Context keeps the rigid "
+                     "body's): each 1-DOF joint's damping (Joint.SetDampingVector), a "
+                     "RevoluteSpring per sprung revolute axis (SetStiffness, SetNominalAngle; "
+                     "stiffness 0 by default), each body's gravcomp a constant "
+                     "ExternallyAppliedSpatialForce of -gravcomp m g at its COM on the applied "
+                     "spatial force input port")
     no_couplings = ("Drake's coupler constraint (MultibodyPlant.AddCouplerConstraint) is for a "
                     "discrete plant with the SAP solver only (compliant, by a step's impulses); "
                     "this adapter's plant is continuous (time_step = 0), where the plant takes "
@@ -256,6 +262,7 @@ class Drake(DrakePackage, Engine):
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(m.gravity, dtype=float))
         body_frames: list[Any] = []
         drake_joints: list[list[Any]] = []
+        self._springs: list[tuple[int, Any]] = []  # (v slot, RevoluteSpring)
         self.unchecked_inertia: list[str] = []
         for k, joint in enumerate(self.joints):
             inertia, skipped = _spatial_inertia(tree, float(m.mass[k]), m.com[k],
@@ -287,6 +294,10 @@ class Drake(DrakePackage, Engine):
                 cls = tree.RevoluteJoint if axis.kind == "R" else tree.PrismaticJoint
                 js.append(plant.AddJoint(cls(f"j{k}_{i}", frame, body.body_frame(),
                                              axis.vector)))
+                slot = int(m.joint_voff[k]) + i
+                if axis.kind == "R" and m.stiffness[slot]:  # its stiffness set in the sim only
+                    self._springs.append((slot, plant.AddForceElement(tree.RevoluteSpring(
+                        js[-1], float(m.spring_ref[slot]), 0.0))))
                 armature = float(m.armature[m.joint_voff[k] + i])
                 if armature:  # a rotor's inertia reflected through a gear ratio of 1
                     actuator = plant.AddJointActuator(f"a{k}_{i}", js[-1])
@@ -377,6 +388,48 @@ class Drake(DrakePackage, Engine):
             self._sim = Simulator(self.plant)  # its own Context: no applied force
         return self._sim
 
+    def passive_unheld(self) -> str:
+        why = self.passive_on_free()
+        if why:
+            return why
+        m = self.model
+        for k, joint in enumerate(self.joints):
+            for i, axis in enumerate(joint.axes):
+                slot = int(m.joint_voff[k]) + i
+                if axis.kind == "P" and m.stiffness[slot]:
+                    return (f"the spring of joint {joint.name!r} (stiffness[{slot}] = "
+                            f"{float(m.stiffness[slot]):g}): a PrismaticSpring's stiffness is "
+                            f"not a Context parameter in pydrake (no SetStiffness), so it would "
+                            f"act in the qdd's Context too")
+        return ""
+
+    def _sim_passive(self, ctx) -> None:
+        """The model's passive elements in the Simulator's Context (``holds_passive``)."""
+        from pydrake.multibody.math import SpatialForce
+        from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+
+        m = self.model
+        if not m.has_passive:
+            return
+        for k, js in enumerate(self.drake_joints):
+            if self.joints[k].type == FREE:
+                continue
+            for i, j in enumerate(js):
+                j.SetDampingVector(ctx, [float(m.damping[int(m.joint_voff[k]) + i])])
+        for slot, spring in self._springs:
+            spring.SetStiffness(ctx, float(m.stiffness[slot]))
+            spring.SetNominalAngle(ctx, float(m.spring_ref[slot]))
+        forces = []
+        g = np.asarray(m.gravity, dtype=float)
+        for k in np.flatnonzero(m.gravcomp):
+            f = ExternallyAppliedSpatialForce()
+            f.body_index = self.body_frames[k].body().index()
+            f.p_BoBq_B = np.array(m.com[k], dtype=float)
+            f.F_Bq_W = SpatialForce(np.zeros(3), -float(m.gravcomp[k]) * float(m.mass[k]) * g)
+            forces.append(f)
+        if forces:
+            self.plant.get_applied_spatial_force_input_port().FixValue(ctx, forces)
+
     def _sim_reset(self, q0, v0, h):
         from pydrake.systems.analysis import ApplySimulatorConfig, SimulatorConfig
 
@@ -393,6 +446,7 @@ class Drake(DrakePackage, Engine):
         qe, blocks = self._state(q0, v0)
         ctx = sim.get_mutable_context()
         ctx.SetTime(0.0)
+        self._sim_passive(ctx)
         self.plant.SetPositionsAndVelocities(ctx, np.concatenate((qe,
                                                                   self._to_engine(v0, blocks))))
         if not self.sim_caching:
@@ -454,7 +508,9 @@ class Drake(DrakePackage, Engine):
         out: dict[str, Any] = {
             "plant_time_step": self.plant.time_step(),
             "scene_graph": False,
-            "joint_limits": "none", "damping": 0.0, "actuators": 0,
+            "joint_limits": "none", "actuators": 0,
+            "damping": (0.0 if not self.model.has_passive else "the model's damping, springs "
+                        "and gravcomp in the Simulator's Context only (holds_passive)"),
             "unchecked_inertia_bodies": list(self.unchecked_inertia),
             "qdd": "generalized_acceleration output port (articulated-body forward dynamics), "
                    "one Context",

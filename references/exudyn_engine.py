@@ -337,6 +337,19 @@ class Exudyn(Engine):
     module = "exudyn"
     no_armature = ("Exudyn 1.13's ObjectKinematicTree has no joint armature (no rotor "
                    "inertia of a joint found in its items)")
+    holds_armature = ("by the adapter, from Exudyn's own ComputeMassMatrix and ComputeODE2RHS: "
+                      "(M + diag(armature)) qdd = tau + RHS, the equations Exudyn would solve "
+                      "had it the field (ObjectKinematicTree has none: jointTypes, linkMasses, "
+                      "linkInertiasCOM, the P/D control and force vectors, checked); a coupled "
+                      "model's: that M and RHS restricted to the coupled motion, G (G^T M G)^-1 "
+                      "G^T (tau + RHS); its own solvers do not hold it")
+    armature_native = False
+    holds_passive = ("switched on for its own solvers' steps only (the qdd, M and bias stay "
+                     "the rigid body's): each 1-DOF joint's damping and spring as the tree's own "
+                     "joint P/D control, jointPControlVector = stiffness, jointDControlVector = "
+                     "damping, jointPositionOffsetVector = spring_ref (force P (q_o - q) - D v), "
+                     "each body's gravcomp a LoadForceVector of -gravcomp m g (global) on a "
+                     "MarkerKinematicTreeRigid at its COM")
     couples = ("one CoordinateConstraint per coupling on the tree's coordinates (factor1 = m, "
                "offset = -c: Exudyn's factor1 q_m1 - q_m0 - offset = 0, measured), qdd from its "
                "implicit solver's consistent initial accelerations (GeneralizedAlpha "
@@ -395,6 +408,8 @@ class Exudyn(Engine):
         if n != m.n_v:
             raise AssertionError(f"tree has {n} coordinates, the model {m.n_v}")
         self.hts = hts
+        # the armature in the tree's coordinates, held in the qdd (holds_armature); None: none
+        self.arm = self.armature_e if np.any(m.armature) else None
         self.SC = exu.SystemContainer()
         mbs = self.SC.AddSystem()
         self.node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
@@ -408,6 +423,7 @@ class Exudyn(Engine):
             jointForceVector=[0.0] * n, visualization=VObjectKinematicTree(show=False)))
         self.mbs = mbs
         self._sensors = {}  # (body, point) -> its position sensor
+        self._build_passive()
         mbs.Assemble()
         self._tau_set = False
         self.ss_qdd = _settings(exu, exu.DynamicSolverType.ExplicitEuler, QDD_STEP, 1)
@@ -416,6 +432,52 @@ class Exudyn(Engine):
         self.coupled = None
         if m.couplings:
             self._couple()
+
+    def passive_unheld(self) -> str:
+        return self.passive_on_free()
+
+    def _build_passive(self):
+        """The model's passive elements, built switched off (``holds_passive``): the tree's P/D
+        control vectors at zero and one zero LoadForceVector on a COM marker per body with
+        gravcomp; ``_passive(True)`` sets their values for a native step, ``_passive(False)``
+        zeroes them again. ``_passive_on``: whether they are set now."""
+        from exudyn.itemInterface import LoadForceVector, MarkerKinematicTreeRigid
+
+        m, mbs = self.model, self.mbs
+        self._passive_on = False
+        self._gravcomp_loads: list[tuple[int, list[float]]] = []
+        if not m.has_passive:
+            return
+        n = m.n_v
+        for key in ("jointPControlVector", "jointDControlVector", "jointPositionOffsetVector",
+                    "jointVelocityOffsetVector"):
+            mbs.SetObjectParameter(self.tree, key, [0.0] * n)
+        g = np.asarray(m.gravity, dtype=float)
+        for k in np.flatnonzero(m.gravcomp):
+            A = self.turn_of_body[k]
+            com = np.asarray(m.com[k], dtype=float)
+            marker = mbs.AddMarker(MarkerKinematicTreeRigid(
+                objectNumber=self.tree, linkNumber=self.link_of_body[k],
+                localPosition=list(map(float, com if A is None else A.T @ com))))
+            load = mbs.AddLoad(LoadForceVector(markerNumber=marker, loadVector=[0.0] * 3,
+                                               bodyFixed=False))
+            force = -float(m.gravcomp[k]) * float(m.mass[k]) * g
+            self._gravcomp_loads.append((load, [float(x) for x in force]))
+
+    def _passive(self, on: bool) -> None:
+        """Switch the model's passive elements on (a native step) or off (the qdd's rigid
+        body): the tree's P/D control and the gravcomp loads (``_build_passive``)."""
+        m = self.model
+        if not m.has_passive or on == self._passive_on:
+            return
+        mbs, n = self.mbs, m.n_v
+        vals = {"jointPControlVector": m.stiffness, "jointDControlVector": m.damping,
+                "jointPositionOffsetVector": m.spring_ref}
+        for key, val in vals.items():
+            mbs.SetObjectParameter(self.tree, key, [float(x) for x in val] if on else [0.0] * n)
+        for load, force in self._gravcomp_loads:
+            mbs.SetLoadParameter(load, "loadVector", force if on else [0.0] * 3)
+        self._passive_on = on
 
     def _couple(self):
         """The model's couplings as Exudyn's own constraints, in a second system of the same
@@ -495,7 +557,8 @@ class Exudyn(Engine):
             v[vs + 3:vs + 6] = Rz.T @ (Ry.T @ (da * ex) + db * ey) + dc * ez
         return q, v
 
-    def _set_state(self, qe, y, tau_e, which="Initial"):
+    def _set_state(self, qe, y, tau_e, which="Initial", passive=False):
+        self._passive(passive)  # on for a native step only (holds_passive)
         cfg = getattr(self.lib.ConfigurationType, which)
         sd = self.mbs.systemData
         sd.SetODE2Coordinates(qe, configuration=cfg)
@@ -513,6 +576,8 @@ class Exudyn(Engine):
         self._set_state(qe, y, None, which="Current")
 
     def _qdd(self, qe, y, tau_e):
+        if self.arm is not None:  # (M + diag(armature)) qdd = tau + RHS: holds_armature
+            return self._armature_qdd(qe, y, tau_e)
         if self.coupled is not None:  # the constrained system's initial accelerations
             tree, ss, solver = self.coupled
             tree.hts = self.hts
@@ -528,10 +593,31 @@ class Exudyn(Engine):
             self.solver.SolveSystem(self.mbs, self.ss_qdd)
         return np.array(self.mbs.systemData.GetODE2Coordinates_tt())
 
+    def _armature_qdd(self, qe, y, tau_e):
+        """qdd with the model's armature from Exudyn's M (``_mass_matrix`` adds the armature)
+        and ODE2 right-hand side; a coupled model's restricted to the motions that keep the
+        couplings, v = G u (the couplings join 1-DOF joints, whose engine slots are the core's:
+        ``eidx`` is the identity here, and a free joint's slots are columns of G of their own,
+        so its c term passes through unchanged)."""
+        M = self._mass_matrix(qe)
+        rhs = self._bias(qe, y)
+        if tau_e is not None:
+            rhs = rhs + tau_e
+        if self.coupled is None:
+            return np.linalg.solve(M, rhs)
+        _, _, fv, lv, mult, _ = self.model.coupling_index
+        free = np.setdiff1d(np.arange(self.model.n_v), fv)
+        G = np.zeros((self.model.n_v, free.size))
+        G[free, np.arange(free.size)] = 1.0
+        for f, ld, mu in zip(fv, lv, mult, strict=True):
+            G[f] = mu * G[ld]
+        return G @ np.linalg.solve(G.T @ M @ G, G.T @ rhs)
+
     def _mass_matrix(self, qe):
         self._current(qe, np.zeros(self.model.n_v))
         self.solver.ComputeMassMatrix(self.mbs)
-        return np.array(self.solver.GetSystemMassMatrix())
+        M = np.array(self.solver.GetSystemMassMatrix())
+        return M if self.arm is None else M + np.diag(self.arm)
 
     def _bias(self, qe, y):
         self._current(qe, y)
@@ -623,7 +709,8 @@ class Exudyn(Engine):
         """Initialise the run's solver at the engine state (qe, ye) (consistent initial
         accelerations for the implicit ones) and keep that state and its chart."""
         ex = self._exu
-        self._set_state(qe, ye, None)  # the initial configuration, which InitializeSolver reads
+        # the initial configuration, which InitializeSolver reads, passive elements on
+        self._set_state(qe, ye, None, passive=True)
         with _without_sparse_advice():
             ex["solver"].InitializeSolver(self.mbs, ex["ss"])
         self._sim_keep()
@@ -640,7 +727,7 @@ class Exudyn(Engine):
         as the current state and the step's start at time t0."""
         sd, C = self.mbs.systemData, self.lib.ConfigurationType
         qe, ye, ae = self._sim_e
-        self._set_state(qe, ye, None, which="Current")
+        self._set_state(qe, ye, None, which="Current", passive=True)
         for cfg in (C.Current, C.StartOfStep):
             sd.SetODE2Coordinates(qe, configuration=cfg)
             sd.SetODE2Coordinates_t(ye, configuration=cfg)
@@ -811,6 +898,11 @@ class Exudyn(Engine):
             "linear_solver": "EigenDense", "threads": 1, "constraints": 0,
             "qdd": f"one ExplicitEuler step of {QDD_STEP:g} s, computeEndOfStepAccelerations "
                    "off (module docstring)"}
+        if self.arm is not None:
+            out["armature"] = "in the qdd only: (M + diag(a)) qdd = tau + RHS (holds_armature)"
+        if self.model.has_passive:
+            out["passive"] = ("the tree's P/D control (stiffness, damping, spring_ref) and COM "
+                              "LoadForceVectors for gravcomp, on during its steps only")
         ex = getattr(self, "_exu", None)
         if ex is None:
             return out

@@ -169,7 +169,8 @@ def non_planar(loops: ClosedLoops, cut) -> str:
 
     model = loops.model
     kin = kinematics(model, model.neutral(), np.zeros(model.n_v))
-    z = np.array([0.0, 0.0, 1.0])
+    z = plane_normal(loops, cut, kin)
+    axis = "world z" if cut.kind == "planar" else f"its plane's normal {np.round(z, 6)}"
     for body in (cut.body_a, cut.body_b):
         while body >= 0:
             for i in range(int(model.joint_voff[body]), int(model.joint_voff[body + 1])):
@@ -177,11 +178,39 @@ def non_planar(loops: ClosedLoops, cut) -> str:
                 kind = int(model.dof_kind[i])
                 if (kind == 0 and np.linalg.norm(cross(u, z)) > PARALLEL) or \
                         (kind == 1 and abs(u @ z) > PARALLEL) or kind not in (0, 1):
-                    return (f"the planar cut {cut.name!r} leaves world z free, but body {body} "
-                            f"({model.body_names[body]}) moves its points along z; this engine's "
-                            "ball constraint would hold z too")
+                    return (f"the {cut.kind} cut {cut.name!r} leaves {axis} free, but body "
+                            f"{body} ({model.body_names[body]}) moves its points along it; this "
+                            "engine's ball constraint would hold it too")
             body = int(model.parent[body])
     return ""
+
+
+def plane_normal(loops: ClosedLoops, cut, kin) -> np.ndarray:
+    """The direction a "planar" or "plane" cut leaves free, in the world at the kinematics
+    ``kin``: world z for a planar cut; for a plane cut the z axis of its frame ``rot_b`` on body
+    b (the world's when b is the world), R_b rot_b e_z."""
+    if cut.kind == "planar":
+        return np.array([0.0, 0.0, 1.0])
+    rot = np.asarray(cut.rot_b, dtype=float)
+    return (rot if cut.body_b < 0 else kin.R[cut.body_b] @ rot)[:, 2]
+
+
+def plane_axes(loops: ClosedLoops, q) -> list[np.ndarray | None]:
+    """Per cut, the world axes (3, 2) its two rows run along for a "plane" cut (u_k = R_b rot_b
+    e_k, k = x, y: the core's rows u_k . (x_a - x_b)), None for any other cut."""
+    from redysim.algorithms.rbda import kinematics
+
+    if not any(c.kind == "plane" for c in loops.cuts):
+        return [None] * len(loops.cuts)
+    kin = kinematics(loops.model, np.asarray(q, dtype=float), np.zeros(loops.model.n_v))
+    out: list[np.ndarray | None] = []
+    for c in loops.cuts:
+        if c.kind != "plane":
+            out.append(None)
+            continue
+        rot = np.asarray(c.rot_b, dtype=float)
+        out.append((rot if c.body_b < 0 else kin.R[c.body_b] @ rot)[:, :2])
+    return out
 
 
 # --------------------------------------------------------------------------- base class
@@ -227,16 +256,33 @@ class LoopEngine(EnginePackage):
         lim = cls.adapter.limits(model)
         if not lim.ok:
             return Limits(False, lim.reason + (f" ({why})" if why else ""))
+        if model.couplings and not cls.couples:
+            return Limits(False, f"{cls.name}: the model couples joints "
+                                 f"({', '.join(c.follower for c in model.couplings)} follow "
+                                 f"others: mimic joints), which this loop adapter does not "
+                                 f"build with its loops (its constraints close the cuts only)")
+        if np.any(model.armature) and not (cls.adapter.armature_native or cls.holds_armature):
+            j = int(np.flatnonzero(model.armature)[0])
+            return Limits(False, f"{cls.name}: the model has armature (armature[{j}] = "
+                                 f"{float(model.armature[j]):g}), which the engine's tree adapter "
+                                 f"holds in its own qdd only ({cls.adapter.no_armature}); this "
+                                 f"loop adapter solves with the engine's own dynamics, without it")
         for c in loops.cuts:
             if c.kind not in cls.kinds:
                 return Limits(False, f"{cls.name}: cut {c.name!r} is {c.kind!r}, which this "
                                      f"adapter has no construction for")
-            why = "" if c.kind != "planar" or cls.planar_exact else non_planar(loops, c)
+            why = ("" if c.kind not in ("planar", "plane")
+                   or (c.kind == "planar" and cls.planar_exact) else non_planar(loops, c))
             if why:
                 return Limits(False, f"{cls.name}: {why}")
         return Limits(True, "")
 
     kinds: ClassVar[tuple[str, ...]] = ("point", "planar")
+    # how the loop adapter holds a model's couplings (Model.couplings) beside its cuts; "" when
+    # it does not (limits then refuses a coupled model: never dropped)
+    couples: ClassVar[str] = ""
+    # True: the loop adapter holds armature its tree adapter holds in its qdd only (DART's)
+    holds_armature: ClassVar[bool] = False
 
     def refusal(self, q, v) -> str:
         """Why the engine cannot answer at (q, v) ("" when it can)."""
@@ -270,18 +316,27 @@ class LoopEngine(EnginePackage):
         return self._solve(q, v, tau)
 
     def _planar_gap(self, q) -> str:
-        """A planar cut built as a ball: its points must also meet in z (constant on a planar
-        mechanism, see :func:`non_planar`)."""
-        if self.planar_exact or not any(c.kind == "planar" for c in self.loops.cuts):
+        """A planar or plane cut built as a ball: its points must also meet along the direction
+        it leaves free (world z, or the plane's normal: constant on such a mechanism, see
+        :func:`non_planar`)."""
+        as_ball = [c.kind == "plane" or (c.kind == "planar" and not self.planar_exact)
+                   for c in self.loops.cuts]
+        if not any(as_ball):
             return ""
-        for c, (pa, pb) in zip(self.loops.cuts, self.loops.cut_points(q), strict=True):
-            if c.kind != "planar":
+        from redysim.algorithms.rbda import kinematics
+
+        kin = kinematics(self.model, np.asarray(q, dtype=float), np.zeros(self.model.n_v))
+        for c, ball, (pa, pb) in zip(self.loops.cuts, as_ball, self.loops.cut_points(q),
+                                     strict=True):
+            if not ball:
                 continue
-            za, zb = float(pa[2]), float(pb[2])
-            if abs(za - zb) > self.PLANAR_GAP * self.loops.size:
-                return (f"the planar cut {c.name!r} has its points {abs(za - zb):.3g} m apart in "
-                        "world z, which it leaves free; this engine's ball constraint would "
-                        "close that gap")
+            n = plane_normal(self.loops, c, kin)
+            gap = abs(float(n @ (np.asarray(pa) - np.asarray(pb))))
+            if gap > self.PLANAR_GAP * self.loops.size:
+                where = "in world z" if c.kind == "planar" else "along its plane's normal"
+                return (f"the {c.kind} cut {c.name!r} has its points {gap:.3g} m apart {where}, "
+                        "which it leaves free; this engine's ball constraint would close that "
+                        "gap")
         return ""
 
     def qdd(self, q, v, tau=None) -> np.ndarray:
@@ -310,9 +365,12 @@ class LoopEngine(EnginePackage):
         """(times, q samples, v samples) in the core's coordinates, the start included."""
         raise NotImplementedError
 
-    def _rows(self, per_cut: np.ndarray) -> np.ndarray:
-        """(n_cuts, 3) per-cut 3-D values -> the core's rows (the first 2 of a planar cut)."""
-        return np.array([per_cut[i, r] for i, r in self.loops.rows])
+    def _rows(self, per_cut: np.ndarray, q=None) -> np.ndarray:
+        """(n_cuts, 3) per-cut 3-D world values (a ball's force) -> the core's rows: the first 2
+        of a planar cut, a plane cut's along its axes u_k at q (:func:`plane_axes`)."""
+        axes = plane_axes(self.loops, q) if q is not None else [None] * len(self.loops.cuts)
+        return np.array([per_cut[i, r] if axes[i] is None else axes[i][:, r] @ per_cut[i]
+                         for i, r in self.loops.rows])
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}({self.model.name!r}, {len(self.loops.cuts)} cuts, "
@@ -327,7 +385,9 @@ class LoopEngine(EnginePackage):
 
 # --------------------------------------------------------------------------- Pinocchio
 class PinocchioLoops(LoopEngine):
-    """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut."""
+    """``pin.constraintDynamics`` with one CONTACT_3D ``RigidConstraintModel`` per cut; a
+    coupled model's: ``pin.forwardDynamics``, Pinocchio's KKT solve, on the cuts' rows and one
+    row per coupling (module docstring of ``couples``)."""
 
     name = "pinocchio"
     adapter = PinocchioCRBA
@@ -335,6 +395,12 @@ class PinocchioLoops(LoopEngine):
     module = "pinocchio"
     no_integrator = ("Pinocchio has no time integrator (its constraintDynamics gives qdd only; "
                      "any trajectory would be this adapter's integrator, not Pinocchio's)")
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("pin.forwardDynamics (Pinocchio's KKT solve with its own M, armature included, "
+               "and nonlinear effects: constraintDynamics refuses mimic joints, 'This algorithm "
+               "does not support Joint Mimic type in the model', 4.1.0) on the tree, with the "
+               "cuts' rows from Pinocchio's frame Jacobians and classical accelerations at the "
+               "cut points (the core's rows of each cut) and one row e_f - m e_l per coupling")
     MU = 1e-8  # proximal parameter (any small value: the iterations converge to mu = 0's answer)
     ACCURACY = 1e-13
     MAX_ITER = 50
@@ -355,8 +421,57 @@ class PinocchioLoops(LoopEngine):
         pin.initConstraintDynamics(t.pm, t.data, models, datas)
         self.cmodels, self.cdatas = models, datas
         self.settings = pin.ProximalSettings(self.ACCURACY, self.MU, self.MAX_ITER)
+        self.frames: list[tuple[int, int | None]] = []
+        if self.model.couplings:  # the cut points as Pinocchio frames (the KKT path's rows)
+            se3, op = pin.SE3, pin.FrameType.OP_FRAME
+            for i, c in enumerate(self.loops.cuts):
+                fa = t.pm.addFrame(pin.Frame(f"cut{i}a", t.body_joint[c.body_a],
+                                             se3(np.eye(3), np.array(c.point_a)), op))
+                fb = None if c.body_b < 0 else t.pm.addFrame(pin.Frame(
+                    f"cut{i}b", t.body_joint[c.body_b], se3(np.eye(3), np.array(c.point_b)),
+                    op))
+                self.frames.append((fa, fb))
+            t.data = pin.Data(t.pm)
+            _, _, fv, lv, mult, _ = self.model.coupling_index
+            self.coupling_rows = np.zeros((len(fv), self.model.n_v))
+            for r, (f, ld, mu) in enumerate(zip(fv, lv, mult, strict=True)):
+                self.coupling_rows[r, t.eidx[f]] = 1.0
+                self.coupling_rows[r, t.eidx[ld]] -= mu
+
+    def _solve_coupled(self, q, v, tau):
+        """qdd and the cuts' forces of a coupled model by Pinocchio's KKT forward dynamics
+        (``couples``): J qdd = -gamma, J the cuts' rows (a ball's three, a planar cut's world x
+        and y, a plane cut's along its axes) and the couplings', gamma their classical
+        accelerations at qdd = 0 (zero for a coupling; a plane cut's rows also carry 2 (w_b x
+        u_k) . (v_a - v_b), zero on an assembled state of a mechanism moving in that plane)."""
+        pin, t = self.lib, self.tree
+        pm, data = t.pm, t.data
+        qp, blocks = t._state(q, v)
+        y = t._to_engine(v, blocks)
+        tau_e = np.zeros(self.model.n_v) if tau is None else t._to_engine(tau, blocks)
+        pin.forwardKinematics(pm, data, qp, y, np.zeros(self.model.n_v))
+        pin.computeJointJacobians(pm, data, qp)
+        pin.updateFramePlacements(pm, data)
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        Js, gs = [], []
+        for fa, fb in self.frames:
+            J = pin.getFrameJacobian(pm, data, fa, world)[:3]
+            g = pin.getFrameClassicalAcceleration(pm, data, fa, world).linear
+            if fb is not None:
+                J = J - pin.getFrameJacobian(pm, data, fb, world)[:3]
+                g = g - pin.getFrameClassicalAcceleration(pm, data, fb, world).linear
+            Js.append(J)
+            gs.append(g)
+        J = np.vstack([self._rows(np.array(Js), q), self.coupling_rows])
+        gamma = np.concatenate([self._rows(np.array(gs), q),
+                                np.zeros(len(self.coupling_rows))])
+        a = pin.forwardDynamics(pm, data, qp, y, tau_e, J, gamma, 0.0)
+        lam = np.asarray(data.lambda_c, dtype=float)[:self.loops.m]
+        return t._from_engine(np.array(a), blocks), lam
 
     def _solve(self, q, v, tau):
+        if self.model.couplings:
+            return self._solve_coupled(q, v, tau)
         pin, t = self.lib, self.tree
         qp, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)
@@ -368,7 +483,7 @@ class PinocchioLoops(LoopEngine):
                 f"{self.name}: constraintDynamics did not converge in {self.MAX_ITER} proximal "
                 f"iterations (residual {self.settings.absolute_residual:.3g})")
         lam = np.asarray(t.data.lambda_c, dtype=float).reshape(-1, 3)
-        return t._from_engine(a, blocks), self._rows(lam)
+        return t._from_engine(a, blocks), self._rows(lam, q)
 
 
 # --------------------------------------------------------------------------- MuJoCo
@@ -380,6 +495,9 @@ class MuJoCoLoops(LoopEngine):
     package = "mujoco"
     module = "mujoco"
     thin_ok = True
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("the MuJoCo adapter's own joint equalities (mjEQ_JOINT, solimp at mjMAXIMP), "
+               "solved with the cuts' connects in one constraint solve")
     TOLERANCE = 1e-15  # opt.tolerance; Newton stops after 1 iteration on these problems
 
     def _build(self):
@@ -402,7 +520,7 @@ class MuJoCoLoops(LoopEngine):
             eq.solimp = solimp
         t._compile()
         mm = t.mjmodel
-        assert mm.neq == len(self.loops.cuts)
+        assert mm.neq == len(self.loops.cuts) + len(self.model.couplings)
         assert not np.any(mm.opt.disableflags & int(mj.mjtDisableBit.mjDSBL_CONSTRAINT
                                                      | mj.mjtDisableBit.mjDSBL_EQUALITY))
         self.eq_ids = [mm.equality(f"cut{i}").id for i in range(len(self.loops.cuts))]
@@ -414,16 +532,19 @@ class MuJoCoLoops(LoopEngine):
                        None if tau is None else t._to_engine(tau, blocks))
         n = d.nefc
         eq = int(self.lib.mjtConstraint.mjCNSTR_EQUALITY)
-        if n != 3 * len(self.loops.cuts) or np.any(d.efc_type[:n] != eq):
-            raise AssertionError(f"expected {3 * len(self.loops.cuts)} equality rows, got {n}")
-        order = np.argsort([self.eq_ids.index(int(e)) for e in d.efc_id[:n]], kind="stable")
+        rows = 3 * len(self.loops.cuts) + len(self.model.couplings)  # connects, joint equalities
+        if n != rows or np.any(d.efc_type[:n] != eq):
+            raise AssertionError(f"expected {rows} equality rows, got {n}")
+        cuts = [i for i in range(n) if int(d.efc_id[i]) in self.eq_ids]  # the connects' rows
+        order = np.array(cuts)[np.argsort([self.eq_ids.index(int(d.efc_id[i])) for i in cuts],
+                                          kind="stable")]
         return d, blocks, order
 
     def _solve(self, q, v, tau):
         t = self.tree
         d, blocks, order = self._forward(q, v, tau)
         f = np.asarray(d.efc_force[:d.nefc])[order].reshape(-1, 3)
-        return t._from_engine(d.qacc, blocks), self._rows(f)
+        return t._from_engine(d.qacc, blocks), self._rows(f, q)
 
     integrator = "mj_step, mjINT_RK4 (soft connect constraints, default solref)"
 
@@ -448,13 +569,22 @@ class MuJoCoLoops(LoopEngine):
 
 # --------------------------------------------------------------------------- DART
 class DARTLoops(LoopEngine):
-    """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc)."""
+    """DART's ``BallJointConstraint`` per cut, resolved in one ``World.step()`` (module doc); a
+    coupled model or one with armature: the adapter's KKT solve on DART's own dynamics and
+    point kinematics (``couples``, :meth:`_solve_kkt`)."""
 
     name = "dart"
     adapter = DART
     package = "dartpy"
     module = "dartpy"
     thin_ok = True
+    kinds = ("point", "planar", "plane")  # a planar or plane cut as a ball (non_planar)
+    couples = ("the adapter's KKT solve on DART's own dynamics: M (with the armature the DART "
+               "adapter adds) and -(C + g) from getMassMatrix and getCoriolisAndGravityForces, "
+               "the cuts' rows from getLinearJacobian and getLinearJacobianDeriv at the cut "
+               "points, one row e_f - m e_l per coupling (dartpy 6.20 reaches no mimic joint, "
+               "and World.step's constraint solver would run on a model without the armature)")
+    holds_armature = True  # by the same KKT solve (couples)
     STEP = 1e-3  # s; at v = 0 (the only state taken) the answer does not depend on it
     CFM = 1e-9  # DART's default and floor; its relative error in qdd and lam is ~CFM (measured)
 
@@ -465,9 +595,14 @@ class DARTLoops(LoopEngine):
         self.world.addSkeleton(t.skel)  # also sets the skeleton's gravity to the world's
         self.world.setTimeStep(self.STEP)
         self.bodynodes = t.bodynodes
+        # a coupled model or one with armature: the KKT solve on DART's dynamics (couples)
+        self.kkt = bool(self.model.couplings) or bool(np.any(self.model.armature))
 
     def refusal(self, q, v) -> str:
-        if np.any(np.asarray(v) != 0.0):
+        if self.kkt and self.tree.free:
+            return ("the KKT path (a coupled model, or one with armature) takes a tree without "
+                    "a free joint")
+        if np.any(np.asarray(v) != 0.0) and not self.kkt:
             return ("DART resolves a loop by a velocity impulse inside World.step() (J v_new = 0, "
                     "so J qdd = 0): at v != 0 its (v_new - v)/h lacks the loop's velocity-product "
                     "term -Jdot v, an error of O(|Jdot v|) that no step size removes; only v = 0 "
@@ -501,6 +636,11 @@ class DARTLoops(LoopEngine):
     ERP = 0.01  # DART's default (JointConstraint), for simulate: its drift correction
 
     def _simulate(self, q0, v0, h, steps, every):
+        if self.kkt:
+            raise LoopStateUnsupported(
+                f"{self.name}: World.step would step the model without its "
+                f"{'couplings' if self.model.couplings else 'armature'} (its qdd holds them by "
+                f"the adapter's KKT solve, couples)")
         t = self.tree
         self._constraints(q0, self.ERP)
         qe, blocks = t._state(q0, v0)
@@ -531,7 +671,51 @@ class DARTLoops(LoopEngine):
             rows.append(Ja)
         return np.vstack(rows)
 
+    def _solve_kkt(self, q, v, tau):
+        """(qdd, lam) from DART's M (armature in), bias and point kinematics by the adapter's
+        solve (``couples``): M a = phi + J^T lam, J a = -gamma, J the cuts' rows (J_a - J_b
+        along the core's rows of each cut) and the couplings' (e_f - m e_l), gamma their
+        classical accelerations at qdd = 0 (Jdot v; zero for a coupling). The engine's
+        coordinates are the core's here (no free joint: ``refusal``)."""
+        t, m = self.tree, self.model
+        M, phi = t.mass_matrix(q), t.bias(q, v)
+        if tau is not None:
+            phi = phi + tau
+        qe, _ = t._state(q, v)
+        y = t._to_engine(v, [])
+        t._set(qe, y)
+        skel = t.skel
+        Js, gs = [], []
+        for c in self.loops.cuts:
+            sides = [(c.body_a, c.point_a, 1.0)] + ([(c.body_b, c.point_b, -1.0)]
+                                                     if c.body_b >= 0 else [])
+            J, g = np.zeros((3, m.n_v)), np.zeros(3)
+            for body, point, sign in sides:
+                p = np.array(point, dtype=float)
+                Jb = np.array(skel.getLinearJacobian(self.bodynodes[body], p))
+                Jd = np.array(skel.getLinearJacobianDeriv(self.bodynodes[body], p))
+                J += sign * Jb[:, t.eidx]
+                g += sign * (Jd @ y)
+            Js.append(J)
+            gs.append(g)
+        rows = [self._rows(np.array(Js), q)]
+        gamma = [self._rows(np.array(gs), q)]
+        if m.couplings:
+            _, _, fv, lv, mult, _ = m.coupling_index
+            C = np.zeros((len(fv), m.n_v))
+            C[np.arange(len(fv)), fv] = 1.0
+            C[np.arange(len(fv)), lv] -= mult
+            rows.append(C)
+            gamma.append(np.zeros(len(fv)))
+        J, g = np.vstack(rows), np.concatenate(gamma)
+        X = np.linalg.solve(M, np.column_stack([phi, J.T]))
+        a0, X = X[:, 0], X[:, 1:]
+        lam = np.linalg.solve(J @ X, -g - J @ a0)
+        return a0 + X @ lam, lam[:self.loops.m]
+
     def _solve(self, q, v, tau):
+        if self.kkt:
+            return self._solve_kkt(q, v, tau)
         t = self.tree
         qe, blocks = t._state(q, v)
         y = t._to_engine(v, blocks)
@@ -546,8 +730,8 @@ class DARTLoops(LoopEngine):
         t._set(qe, y, tau_e)
         self.world.step()
         a = (np.array(skel.getVelocities()) - y) / self.STEP
-        keep = [3 * i + r for i, r in self.loops.rows]
-        lam, *_ = np.linalg.lstsq(J[keep].T, M @ (a - a0), rcond=None)
+        rows = self._rows(J.reshape(len(self.loops.cuts), 3, -1), q)  # the core's rows of J
+        lam, *_ = np.linalg.lstsq(rows.T, M @ (a - a0), rcond=None)
         return t._from_engine(a, blocks), lam
 
 

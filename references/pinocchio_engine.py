@@ -39,8 +39,9 @@ at their defaults, which ``aba``/``crba``/``rnea`` ignore (they apply no limit o
 model's armature (``Model.armature``) is ``pm.armature`` (per Pinocchio velocity coordinate),
 which ``aba``, ``crba`` and ``rnea`` add (checked on 4.1: M's diagonal, tau's armature qdd); its
 ``computeKineticEnergy`` leaves out a ``JointModelRevoluteUnaligned``'s armature (every other
-joint type's is in), so the adapter's energy is the bodies' plus 1/2 armature v^2 itself. Refused:
-a coupled follower with armature (its mimic joint has no velocity of its own to hold it), and
+joint type's is in), so the adapter's energy is the bodies' plus 1/2 armature v^2 itself. A
+mimic joint (a coupled follower, ``pinocchio-crba``) has no velocity of its own, so its armature
+is reflected into the joint it mimics (m^2 a_f added to the leader's, G^T diag(a) G). Refused:
 armature on a free joint's translations (the core's multiplies the rate of the world velocity;
 Pinocchio's free flyer's, the rate of the body-frame velocity, which differs by w x v).
 ``pin.Data(model)`` is used, not ``model.createData()``, which copies through the bindings and
@@ -135,17 +136,11 @@ class PinocchioEngine(Engine):
                         f"translations ({', '.join(f'{x:g}' for x in a)}): the model's is on "
                         f"the world velocity's rate, Pinocchio's free flyer's on the "
                         f"body-frame velocity's, which differs by w x v")
-        index = {name: k for k, name in enumerate(model.joint_names)}
         for c, (follower, _, _, _) in zip(model.couplings, mimic_order(model), strict=True):
             if follower is None:
                 return (f"joint {c.follower!r} follows {c.leader!r} with multiplier 0 and comes "
                         f"before it in the tree: Pinocchio's mimic joint must come after the "
                         f"joint it mimics, and a constant joint cannot be mimicked")
-            k = index[follower]
-            if np.any(model.armature[model.joint_voff[k]:model.joint_voff[k + 1]]):
-                return (f"joint {follower!r} is the mimic joint of the coupling of "
-                        f"{c.follower!r} to {c.leader!r} and has armature: Pinocchio's mimic "
-                        f"joint has no velocity of its own to hold it")
         mimics = {f for f, _, _, _ in mimic_order(model)}
         for f, ld, _, _ in mimic_order(model):
             if ld in mimics:
@@ -211,7 +206,6 @@ class PinocchioEngine(Engine):
         for follower, leader, mult, offset in order:
             pmm = pin.transformJointIntoMimic(pmm, first[index[leader]], first[index[follower]],
                                               mult, offset)
-        self.pmm, self.dmm = pmm, pin.Data(pmm)
         G = np.zeros((pm.nv, pmm.nv))
         mq, mv = np.zeros(pmm.nq, dtype=np.int64), np.zeros(pmm.nv, dtype=np.int64)
         rule = {first[index[f]]: (first[index[ld]], mult) for f, ld, mult, _ in order}
@@ -224,6 +218,13 @@ class PinocchioEngine(Engine):
             mq[red.idx_q:red.idx_q + red.nq] = full.idx_q + np.arange(full.nq)
             mv[red.idx_v:red.idx_v + red.nv] = full.idx_v + np.arange(full.nv)
             G[full.idx_v + np.arange(full.nv), red.idx_v + np.arange(red.nv)] = 1.0
+        if np.any(m.armature):
+            # a mimic joint has no velocity of its own, so Pinocchio's coupled model holds no
+            # armature of it: the mimic's is reflected into the joint it mimics, G^T diag(a) G
+            # (diagonal: each tree velocity is one reduced velocity times its factor), a_l +
+            # m^2 a_f at the leader, the coupled motion's own inertia (the core's, G^T I G)
+            pmm.armature = np.einsum("ij,i,ij->j", G, np.asarray(pm.armature), G)
+        self.pmm, self.dmm = pmm, pin.Data(pmm)
         self.mq, self.mv, self.G = mq, mv, G
 
     def _engine_state(self, q, v):

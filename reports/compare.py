@@ -115,7 +115,8 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     """The runs of a comparison: the core (ode45, dop853 at CORE_RTOLS; rk4 at the steps
     sample / STEP_DIVISIONS), every engine through ode45 (ENGINE_RTOLS) and with each of its own
     integrators (fixed: those steps; adaptive: NATIVE_RTOLS); closed loops: no native stepping
-    (the harness refuses it)."""
+    (the harness refuses it), nor for an engine whose qdd holds the model's armature by the
+    adapter (its own steps would run without it; the page says so)."""
     from redysim import references
 
     steps = [sample / n for n in STEP_DIVISIONS]
@@ -129,13 +130,16 @@ def plan(target: str, scn, *, options: dict, t_end: float, sample: float,
     names = ([c.adapter.name for c in references.LOOP_ENGINES.values()] if scn.model.cuts
              else engine_names(scn.model))
     left_out = own_steps_left_out(scn.model, names)
+    # an engine whose armature is the adapter's (no field for it): its own steps lack it
+    no_arm = {n for n in names if np.any(scn.model.armature)
+              and not references.get(n).armature_native}
     for name in names:
         cls = references.get(name)
         if engines is not None and name not in engines:
             continue
         specs += [RunSpec(**base, engine=name, integrator="ode45", rtol=r, atol=r * 1e-2)
                   for r in ENGINE_RTOLS]
-        if scn.model.cuts:
+        if scn.model.cuts or name in no_arm:
             continue
         for own, info in cls.integrators.items():
             if own in left_out.get(name, ((), ""))[0]:
@@ -165,7 +169,8 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
     q0 = loops.project(q0, np.zeros(model.n_v))[0]  # the scenario's assembled configuration
     states = []
     for _ in range(LOOP_STATES):
-        q, v = loops.project(q0, rng.normal(size=model.n_v))[:2]
+        # a coupled model's followers move with their leaders (model.couple), then the loops
+        q, v = loops.project(*model.couple(q0, rng.normal(size=model.n_v)))[:2]
         states.append((q, v, rng.normal(size=model.n_v)))
     core = [loops.forward_dynamics(q, v, tau) for q, v, tau in states]
     rows = []
@@ -190,6 +195,24 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
     for r in agreement(name, model.with_cuts(())):
         rows.append({**r, "engine": f"{r['engine']} (open tree)"})
     return rows
+
+
+def _loop_armature(names) -> str:
+    """What the loop adapters of the engines ``names`` (whose tree adapters hold armature in
+    their qdd only) do with a model's armature: hold it by their own solve, or refuse it."""
+    from redysim import references
+
+    loop = {c.adapter.name: c for c in references.LOOP_ENGINES.values()}
+    held = [n for n in names if n in loop and loop[n].holds_armature]
+    refused = [n for n in names if n in loop and not loop[n].holds_armature]
+    out = []
+    if held:
+        out.append(f"the loop adapter of {', '.join(held)} holds it by its own KKT solve on "
+                   "the engine's M with the armature")
+    if refused:
+        out.append(f"that of {', '.join(refused)}, whose constraint solve runs on the engine's "
+                   "own model, refuses it")
+    return "; ".join(out) + "." if out else "."
 
 
 def setting(r) -> str:
@@ -323,8 +346,20 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         left_out = own_steps_left_out(m, kept)
         rules = ", ".join(f"{c.follower} = {c.multiplier:g} {c.leader} + {c.offset:g}"
                           for c in m.couplings)
+        loops_note = ""
+        if m.cuts:  # the runs are the loop adapters': say which of them hold the couplings
+            held = [f"{n}: {c.couples}" for n, c in references.LOOP_ENGINES.items()
+                    if c.couples]
+            refused = [n for n, c in references.LOOP_ENGINES.items() if not c.couples]
+            loops_note = (" With the loops closed (the runs below): "
+                          + ("; ".join(held) or "no loop adapter holds them")
+                          + (f"; {', '.join(refused)} refuse{'s' if len(refused) == 1 else ''} "
+                             "the coupled model (a loop adapter that closes the cuts only)"
+                             if refused else "") + ".")
         intro.append(
-            f"Coupled joints ({rules}). Each engine's qdd holds them: " + "; ".join(own)
+            f"Coupled joints ({rules}). "
+            + ("On the open tree, each" if m.cuts else "Each") + " engine's qdd holds them: "
+            + "; ".join(own)
             + (f"; {', '.join(projected)}: the engine's own M and bias restricted to the "
                f"coupled motion by the adapter, qdd = G (G^T M G)^-1 G^T phi, as it has no "
                f"coupling of its own (" + "; ".join(f"{n}: {references.get(n).no_couplings}"
@@ -332,7 +367,25 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                if projected else "")
             + (". Own integrators not run, which would step the joints uncoupled: "
                + "; ".join(f"{n}: {_integrators_named(n, left)}"
-                           for n, (left, _) in left_out.items()) if left_out else "") + ".")
+                           for n, (left, _) in left_out.items()) if left_out and not m.cuts
+               else "") + "." + loops_note)
+    if np.any(m.armature):  # how each engine holds it: natively, or the adapter's M + diag(a)
+        from redysim import references
+
+        tree = m.with_cuts(()) if m.cuts else m
+        by_adapter = [n for n in engine_names(tree) if references.get(n).limits(tree).ok
+                      and not references.get(n).armature_native]
+        if by_adapter:
+            intro.append(
+                "Armature (the joints' own inertia): held natively by "
+                + ", ".join(n for n in engine_names(tree) if references.get(n).limits(tree).ok
+                            and references.get(n).armature_native)
+                + "; " + ", ".join(by_adapter) + " have no field for it, so their qdd is "
+                "(M + diag(armature)) qdd = tau + phi from the engine's own M and bias (the "
+                "adapter's solve), and "
+                + (_loop_armature(by_adapter) if m.cuts else
+                   "their own integrators, which step the engine's model without it, are not "
+                   "run."))
     agree_t = Table("compare-agreement", "Single-state agreement with the core",
                     ["engine", "status", *STAGES, "note"],
                     notes=[f"Worst relative difference max|engine - core| / max|core| over "

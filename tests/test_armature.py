@@ -258,11 +258,14 @@ def _engine_qdd(engine_name, m, q, v, tau):
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ["pinocchio-aba-ryrz", "pinocchio-crba", "mujoco", "drake"])
+@pytest.mark.parametrize("engine", ["pinocchio-aba-ryrz", "pinocchio-crba", "mujoco", "drake",
+                                    "dart", "exudyn"])
 @pytest.mark.parametrize("name", ["puma", "stanford", "tree", "mixed chain"])
 def test_the_engines_that_hold_armature_agree(engine, name):
     """Pinocchio (pm.armature: aba, crba), MuJoCo (dof_armature, mj_setConst) and Drake (a
-    JointActuator's rotor inertia, gear ratio 1) give the core's qdd and GIM with armature."""
+    JointActuator's rotor inertia, gear ratio 1) give the core's qdd and GIM with armature;
+    DART and Exudyn, which have no armature field, through (M + diag(a)) qdd = tau + phi from
+    their own M and bias (their adapters' ``holds_armature``)."""
     from redysim.references import ENGINES
     m = _armed_models()[name]
     cls = ENGINES[engine]
@@ -285,13 +288,49 @@ def test_the_engines_that_hold_armature_agree(engine, name):
     assert eng.energy(q, v)[0] == pytest.approx(T, rel=1e-9)
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("engine", ["dart", "exudyn"])
-def test_the_engines_without_armature_refuse_it_by_name(engine):
-    from redysim.references import ENGINES
+def test_armature_held_in_the_qdd_only_is_refused_where_the_engine_steps(engine):
+    """DART and Exudyn hold armature in their qdd, not in their own models: their native
+    stepping of a model with armature, Exudyn's loop adapter (DART's holds it by its KKT solve,
+    not by World.step) and armature on a free joint (whose engine coordinates are not the
+    core's) are refused by name, never run without it."""
+    from redysim.algorithms.loops import ClosedLoops
+    from redysim.references import ENGINES, LOOP_ENGINES
+    cls = ENGINES[engine]
+    if not cls.available():
+        pytest.skip(f"{engine} not installed")
     m = _armed_models()["mixed chain"]
-    lim = ENGINES[engine].limits(m)
-    assert not lim.ok and "armature" in lim.reason, lim.reason
-    assert ENGINES[engine].limits(m.with_armature(None)).ok
+    eng = cls(m)
+    q, v, _ = _state(m, 2)
+    with pytest.raises(ValueError, match=r"has no armature \(armature\[0\]"):
+        eng.simulate(q, v, 0.01, 1e-3, integrator=list(cls.integrators)[0]
+                     if not next(iter(cls.integrators.values())).adaptive else None)
+    assert cls(m.with_armature(None)).no_native_armature() == ""
+    tree = _armed_models()["tree"]
+    arm = np.array(tree.armature)
+    arm[3] = 0.2  # a rotation of the free joint
+    lim = cls.limits(tree.with_armature(arm))
+    assert not lim.ok and "free joint" in lim.reason and "armature" in lim.reason, lim.reason
+    from redysim.algorithms.linkages import four_bar
+    loops = four_bar(0.3, 0.1, 0.35, 0.3, rp=0.2, gamma=0.4, density=2.0).loops
+    armed = ClosedLoops(loops.model.with_armature(0.01))
+    lim = LOOP_ENGINES[engine].limits(armed)
+    if engine == "exudyn":
+        assert not lim.ok and "armature" in lim.reason, lim.reason
+        return
+    # DART's loop adapter holds it by its KKT solve on DART's M + armature (at any velocity)
+    from redysim.references import loop_engine
+    assert lim.ok, lim.reason
+    eng = loop_engine(engine, armed)
+    q = armed.project(loops.model.neutral() + 0.3, np.zeros(armed.model.n_v))[0]
+    q, v = armed.project(q, np.random.default_rng(4).normal(size=armed.model.n_v))[:2]
+    want = armed.forward_dynamics(q, v)
+    assert np.abs(eng.forward_dynamics(q, v) - want).max() < 1e-10 * np.abs(want).max()
+    bare = ClosedLoops(loops.model).forward_dynamics(q, v)
+    assert np.abs(bare - want).max() > 1e-4 * np.abs(want).max()  # (the armature acts)
+    with pytest.raises(Exception, match="armature"):
+        eng.simulate(q, v, 0.01, 1e-3)
 
 
 def test_mjcf_holds_armature_and_urdf_refuses_it():

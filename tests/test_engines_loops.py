@@ -422,3 +422,103 @@ def test_a_wrong_model_is_caught(name):
     _, q, v, tau = states[0]
     assert max(differences(loops, *eng.forward_dynamics_and_forces(q, v, tau), q, v, tau)) > \
         TOLERANCE[name]
+
+
+# --------------------------------------------------------------------------- Menagerie 2F-85
+MENAGERIE_2F85 = (__import__("pathlib").Path(__file__).parent / "models" / "menagerie"
+                  / "robotiq_2f85" / "2f85.xml")
+
+
+def robotiq():
+    """Menagerie's Robotiq 2F-85 (issue 56): two 'plane' cuts (a connect of a mechanism moving
+    in the plane normal to the fingers' axes, world y), a coupling of the two drivers, armature
+    on every joint, as the scenario reads it (its assembled configuration)."""
+    from redysim.io.scenarios import load_scenario
+
+    scn = load_scenario(str(MENAGERIE_2F85), options={})
+    m = scn.model
+    assert [c.kind for c in m.cuts] == ["plane", "plane"] and m.couplings
+    return m, scn.q0
+
+
+def test_the_2f85s_plane_cuts_are_balls_in_the_ball_engines():
+    """A plane cut whose normal every joint on its bodies' paths turns about leaves that normal
+    equation void, so Pinocchio, MuJoCo and DART hold it as a ball (non_planar generalised):
+    their qdd and the loop forces (projected on the plane's axes) are the core's, on the
+    gripper without its coupling and armature (which those adapters do not all hold)."""
+    m, q0 = robotiq()
+    bare = ClosedLoops(dataclasses.replace(m, couplings=()).with_armature(None))
+    rng = np.random.default_rng(20261207)
+    q0 = bare.project(q0, np.zeros(m.n_v))[0]
+    for name in ("pinocchio", "mujoco", "dart"):
+        cls = LOOP_ENGINES[name]
+        if not cls.available():
+            continue
+        assert cls.limits(bare).ok, cls.limits(bare).reason
+        eng = loop_engine(name, bare)
+        for _ in range(2):
+            q = bare.project(q0 + 0.05 * rng.normal(size=m.n_q), np.zeros(m.n_v))[0]
+            v = (np.zeros(m.n_v) if name == "dart"  # (DART takes v = 0 only)
+                 else bare.project(q, rng.normal(size=m.n_v))[1])
+            tau = 0.01 * rng.normal(size=m.n_v)
+            assert max(differences(bare, *eng.forward_dynamics_and_forces(q, v, tau), q, v,
+                                   tau)) < TOLERANCE[name], name
+    # a plane cut's points apart along its normal: the ball would close that gap
+    normal = np.asarray(bare.cuts[0].rot_b, dtype=float)[:, 2]  # in body b's frame
+    cut = dataclasses.replace(bare.cuts[0], point_b=tuple(np.add(bare.cuts[0].point_b,
+                                                                 1e-3 * normal)))
+    apart = ClosedLoops(bare.model, [cut, bare.cuts[1]])
+    if LOOP_ENGINES["pinocchio"].available():
+        with pytest.raises(LoopStateUnsupported, match="along its plane's normal"):
+            loop_engine("pinocchio", apart).forward_dynamics(q0, np.zeros(m.n_v))
+
+
+def test_the_coupled_2f85_runs_in_three_loop_engines_and_is_refused_by_name_in_exudyn():
+    """The whole gripper: Pinocchio by its KKT forward dynamics (its constraintDynamics refuses
+    mimic joints) on the cuts' rows and the coupling's, its M holding the armature; DART by the
+    adapter's KKT solve on its own M (with the armature), bias and point Jacobians, at moving
+    states too; MuJoCo closes its loops with its connects and couples the drivers with its own
+    joint equality (soft, so within TOL_MUJOCO of the core); Exudyn's loop adapter does not
+    build couplings and says so, never answering for the uncoupled gripper."""
+    m, q0 = robotiq()
+    loops = ClosedLoops(m)
+    rng = np.random.default_rng(20261208)
+    q = loops.project(q0, np.zeros(m.n_v))[0]
+    states = []
+    for _ in range(3):
+        qs = loops.project(m.couple(q + 0.05 * rng.normal(size=m.n_q)), np.zeros(m.n_v))[0]
+        states.append((*loops.project(*m.couple(qs, rng.normal(size=m.n_v)))[:2],
+                       0.01 * rng.normal(size=m.n_v)))
+    for name, cls in LOOP_ENGINES.items():
+        if not cls.available():
+            continue
+        lim = cls.limits(loops)
+        if name == "exudyn":
+            assert not lim.ok and "couples joints" in lim.reason, lim.reason
+            continue
+        assert lim.ok, lim.reason
+        eng = loop_engine(name, loops)
+        for q, v, tau in states:
+            qdd, lam = eng.forward_dynamics_and_forces(q, v, tau)
+            assert max(differences(loops, qdd, lam, q, v, tau)) < TOLERANCE[name], name
+            _, _, fv, lv, mult, _ = m.coupling_index
+            assert np.allclose(qdd[fv], mult * qdd[lv], rtol=TOL_MUJOCO if name == "mujoco"
+                               else 1e-12, atol=0.0)
+
+
+def test_compare_takes_the_coupled_2f85s_loops():
+    """`redysim compare`'s loop agreement on the coupled gripper: its random velocities are
+    coupled before they are projected on the loops (they were not: a StateError stopped the
+    page), Pinocchio's, MuJoCo's and DART's loops answer, and Exudyn's refusal is named."""
+    from redysim.reports.compare import loop_agreement
+
+    m, q0 = robotiq()
+    rows = {r["engine"]: r for r in loop_agreement("2f85", m, q0)}
+    for name in ("pinocchio", "mujoco", "dart"):
+        if LOOP_ENGINES[name].available():
+            assert rows[f"{name} (loops)"]["status"] == "ok"
+            assert rows[f"{name} (loops)"]["qdd"] < TOLERANCE[name]
+    for name in ("exudyn",):
+        if LOOP_ENGINES[name].available():
+            r = rows[f"{name} (loops)"]
+            assert r["status"] == "refused" and "couples joints" in r["reason"], r
