@@ -3,6 +3,7 @@
 Bessel-zero frequencies, a small study end to end, the advice and its check."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +14,8 @@ from redysim.harness import refine
 from redysim.harness.run import execute
 from redysim.harness.spec import RunSpec
 from redysim.harness.sweep import SweepError, run_sweep, sweep_from_dict
+
+REPO = Path(__file__).resolve().parents[1]
 
 SMALL_FALL = """
 [case]
@@ -112,6 +115,33 @@ def test_a_count_that_does_not_divide_rebuilds_a_straight_rope(small_fall, tmp_p
     v = np.random.default_rng(4).uniform(-1.0, 1.0, 4)
     a = redysim.forward_dynamics(lumped, q, v)
     assert np.abs(a - redysim.forward_dynamics(rebuilt, q, v)).max() <= 1e-12 * np.abs(a).max()
+
+
+@pytest.mark.parametrize("per_link", ["link_length", "link_mass"])
+def test_a_rope_given_link_by_link_keeps_its_length_and_mass_when_rebuilt(tmp_path, per_link):
+    """A fourth hold-out battery: STUDY-R10 (10 links of link_length 1 m) rebuilt at 20 links
+    was a 20 m rope (`simulate STUDY-R10 --links 20`: the tip at x = 20 m), and `advise` then
+    blamed the model for a 10 m gap. The rebuilt rope is the same body: where lumping applies
+    (10 -> 5 links, two links each) the two are the same model to rounding, and at any count
+    its length, mass and resting energy are the file's."""
+    from redysim.harness.run import coarse_case
+    from redysim.io.cases import rebuilt_case
+
+    text = (REPO / "cases" / "STUDY-R10.toml").read_text()
+    if per_link == "link_mass":  # the same rope by each link's mass (pi r^2 l rho)
+        text = text.replace("density = 7025.0", f"link_mass = {np.pi * 0.02**2 * 7025.0!r}")
+    path = tmp_path / "r10.toml"
+    path.write_text(text)
+    case = redysim.load_case(path)
+    lumped, rebuilt = coarse_case(case, 5)[0].chain, rebuilt_case(case, 5).chain
+    for field in ("mass", "length", "inertia_O", "mass_com"):
+        assert np.allclose(getattr(lumped, field), getattr(rebuilt, field), rtol=1e-13,
+                           atol=1e-16), field
+    for links in (7, 20):
+        chain = rebuilt_case(case, links).chain
+        assert chain.n_links == links
+        assert float(np.sum(chain.length)) == pytest.approx(10.0, rel=1e-14)
+        assert float(chain.total_mass) == pytest.approx(float(case.chain.total_mass), rel=1e-14)
 
 
 def test_bad_links_and_precision_are_named(small_fall, tmp_path):

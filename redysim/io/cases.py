@@ -744,10 +744,16 @@ def rebuilt_case(case, links: int):
 def case_with_links(path, links: int, name: str, source: str, *,
                     initial: dict | None = None) -> Case:
     """The case file at ``path`` read with its ``[chain] links`` set to ``links`` and its name
-    to ``name`` (the file itself unchanged); ``source`` names it in messages. ``initial``: its
-    ``[initial]`` entries replaced by these (``q``, ``v``)."""
+    to ``name`` (the file itself unchanged): the same rope, a ``link_length`` or ``link_mass``
+    read as the whole rope's (times the file's count), so that the rope keeps its length and
+    mass at the new count; ``source`` names it in messages. ``initial``: its ``[initial]``
+    entries replaced by these (``q``, ``v``)."""
     doc = json.loads(json.dumps(read_toml(path)[0]))  # a deep copy
-    doc["chain"]["links"] = int(links)
+    chain, old = doc["chain"], int(doc["chain"]["links"])
+    for each, whole in (("link_length", "total_length"), ("link_mass", "total_mass")):
+        if each in chain:  # the same rope: its length and mass, not each link's, carried over
+            chain[whole] = float(chain.pop(each)) * old
+    chain["links"] = int(links)
     doc["case"]["name"] = name
     if initial:
         doc.setdefault("initial", {}).update(initial)
