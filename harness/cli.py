@@ -888,7 +888,8 @@ def _advise_own(args: argparse.Namespace) -> int:
           f"{ref['integrator']} rtol {ref['rtol']:g} ({ref['cpu_s']:.3g} s CPU)")
     print("  model error (tip path, max over the samples) at "
           + ", ".join(f"{d['links']} links {d['tip_err']:.2g} m" for d in conv["levels"])
-          + "; local orders " + ", ".join(f"{o:.2f}" for o in st.orders))
+          + ("; local orders " + ", ".join(f"{o:.2f}" for o in st.orders) if st.orders
+             else "; one coarser model: no local order"))
     if st.searched:
         print("  the rope rebuilt between those counts: "
               + ", ".join(f"{d['links']} links {d['tip_err']:.2g} m" for d in st.searched))

@@ -552,7 +552,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     lv = conv["levels"]
     orders, converges, steady = verdict(lv)
     notes: list[str] = []
-    if not converges:
+    if not converges and len(lv) >= 2:  # (one level shows no order: the finer rope judges it)
         notes.append("the tip path does not settle as links are added (model errors "
                      + ", ".join(f"{d['tip_err']:.2g} m at {d['links']}" for d in lv)
                      + f" links; local orders {', '.join(f'{o:.2f}' for o in orders)}): a "
@@ -610,11 +610,12 @@ def _reference_error(path: str, case, study, lv, orders, steady: bool, log
                 f"Richardson: order {p:.2f} steady over the last levels, from {c['links']} "
                 f"links' error {c['tip_err']:.2g} m", "")
     fine, why = _refined(path, case)
+    unsteady = (f"the order is not steady (local orders {', '.join(f'{o:.2f}' for o in orders)})"
+                if orders else f"one coarser model ({lv[0]['links']} links) shows no order")
     if fine is None:
-        return (math.nan, f"unknown: the order is not steady (local orders "
-                f"{', '.join(f'{o:.2f}' for o in orders)}) and {why}", "")
-    log(f"advise: the order is not steady: the rope at {2 * nl} links (DOP853 {FINER_RTOL:g}) "
-        "measures the reference's own error")
+        return (math.nan, f"unknown: {unsteady} and {why}", "")
+    log(f"advise: {unsteady}: the rope at {2 * nl} links (DOP853 {FINER_RTOL:g}) measures the "
+        "reference's own error")
     finer = finer_references({study.scene: study}, workers=1, log=lambda *_: None)[study.scene]
     step = float(np.linalg.norm(study.tips[study.reference["run_id"]] - finer["tips"],
                                 axis=1).max())
@@ -629,8 +630,7 @@ def _reference_error(path: str, case, study, lv, orders, steady: bool, log
     return (step / ((finer["links"] / nl) ** p - 1.0),
             f"estimated from the rope at {finer['links']} links (DOP853 {FINER_RTOL:g}): "
             f"{step:.2g} m from yours, order {p:.2f} over {c['links']}, {nl} and "
-            f"{finer['links']} links, the rest of the way by that order (the order not steady "
-            f"over the levels: {', '.join(f'{o:.2f}' for o in orders)})", "")
+            f"{finer['links']} links, the rest of the way by that order ({unsteady})", "")
 
 
 def _counts_to_try(case, lv, first: int, budget: float, specs: list, base: dict, out: Path,

@@ -310,7 +310,8 @@ def own_table(doc: dict) -> Table:
                        f"{o['reference_cpu_s']:.3g} s CPU)",
                        ", ".join(f"{d['links']} links {_fmt_err(d['tip_err'])} m"
                                  for d in o["levels"])
-                       + "; local orders " + ", ".join(num(x, 3) for x in o["orders"])], INFO))
+                       + ("; local orders " + ", ".join(num(x, 3) for x in o["orders"])
+                          if o["orders"] else "; one coarser model: no local order")], INFO))
     if o.get("searched"):
         t.rows.append(Row(["the rope rebuilt between two levels (bisected; ode45 1e-8)",
                            ", ".join(f"{d['links']} links {_fmt_err(d['tip_err'])} m"

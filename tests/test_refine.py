@@ -371,6 +371,23 @@ def test_a_rope_cases_own_study_advises_a_model_that_meets_the_tolerance(tmp_pat
     assert again.advice == st.advice
 
 
+def test_a_rope_with_one_coarser_divisor_is_judged_by_the_finer_rope_and_bisected(tmp_path):
+    """A fourth hold-out battery: a straight 6-link rope (one coarser divisor, 3) was declared
+    "does not settle ... local orders " (blank) and advised nothing: one level shows no order,
+    and the bisection between 3 and 6 links that --help promises never ran. Now the rope at 12
+    links judges the convergence (an order over 3, 6 and 12 links), and the rope rebuilt at 4
+    and 5 links is searched."""
+    case = tmp_path / "r6.toml"
+    case.write_text(SMALL_FALL.replace("links = 8", "links = 6").replace(
+        "total_length = 1.0", "total_length = 1.2").replace("t_end = 0.1", "t_end = 0.2"))
+    st = refine.own_study(case, 1e-3, tmp_path / "study", workers=1, progress=False,
+                          log=lambda *_: None, check=False)
+    assert [d["links"] for d in st.conv["levels"]] == [3] and st.orders == []
+    assert st.converges and math.isfinite(st.ref_error) and "12 links" in st.ref_error_how
+    assert sorted(d["links"] for d in st.searched) == [4, 5]
+    assert st.advice is not None
+
+
 @pytest.mark.slow
 def test_advise_on_a_case_file_and_what_it_refuses(tmp_path, small_fall, capsys):
     from redysim.harness.cli import main
