@@ -589,3 +589,34 @@ def test_a_urdf_export_is_read_by_urdfdom_mujoco_and_redysim_with_the_same_dynam
     assert any("limit" in note for note in back.notes)
     assert rel(mass_matrix(back, q), M0) < TOL
     assert rel(forward_dynamics(back, q, qd), a0) < TOL
+
+
+@pytest.mark.engine
+def test_every_urdf_mujoco_refuses_is_a_model_to_mjcf_refuses_by_name():
+    """A fourth hold-out battery: to_urdf's docstring said MuJoCo reads every URDF it writes
+    but for U and S joints; MuJoCo refused the shipped PUMA 560's (a waist of mass 0), the
+    locked PUMA's (A + B >= C) and a massless middle body's (mjMINVAL). Each shipped robot whose
+    URDF MuJoCo refuses is one to_mjcf refuses by name, for MuJoCo's own reason, and urdfdom
+    reads it with the same dynamics."""
+    pinocchio = pytest.importorskip("pinocchio")
+    refused = []
+    for path in sorted((CASES / "robots").glob("*.toml")):
+        model = load_model(path)
+        if any(t in ("U", "S") for t in model.joint_types) or model.has_passive or \
+                np.any(model.armature) or model.couplings:
+            continue
+        try:
+            text = to_urdf(model)
+        except ExportError:
+            continue
+        try:
+            mujoco.MjModel.from_xml_string(text)
+        except ValueError as exc:
+            refused.append(path.stem)
+            assert "mass and inertia" in str(exc) or "triangle" in str(exc) or \
+                "positive eigenvalues" in str(exc), (path.stem, str(exc))
+            with pytest.raises(ExportError, match="mjMINVAL|triangle inequality"):
+                to_mjcf(model)
+            pm = pinocchio.buildModelFromXML(text)
+            assert pm.nv == model.n_v
+    assert "puma560" in refused

@@ -65,7 +65,10 @@ holds no joint limits (the importers announce the ones they drop), so none is lo
 axes are ``continuous``, which takes none. Every file is read by urdfdom (Pinocchio's
 ``buildModelFromXML``) and redysim's own reader with the model's dynamics, and by MuJoCo's URDF
 reader unless it has a U or S joint, whose massless links between axes MuJoCo's compiler refuses
-(export to MJCF for MuJoCo: :func:`to_mjcf` merges them) (``tests/test_export.py``).
+(export to MJCF for MuJoCo: :func:`to_mjcf` merges them), or a body MuJoCo's compiler refuses in
+any format: the ones :func:`to_mjcf` refuses by name (a moving body's mass or principal moment
+below ``mjMINVAL``, moments breaking A + B >= C; the PUMA 560 of the talk, whose waist has no
+mass, is one). URDF holds them, and urdfdom and redysim read them (``tests/test_export.py``).
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
 is written without recursion, so a model of any depth is written (or refused) at once.
