@@ -812,11 +812,14 @@ def cmd_advise(args: argparse.Namespace) -> int:
             print(f"  (the coarser models, {', '.join(map(str, fewer))} links, have fewer than "
                   f"{args.modes} modes: a chain of n links has n)")
         return EXIT_OK
+    if args.modes is not None or args.freq_tol is not None:  # (said first: --tip-tol's absence
+        # is then no news)
+        raise SettingsError(SOURCE, "--modes/--freq-tol",
+                            args.modes if args.modes is not None else args.freq_tol,
+                            f"apply to the hanging chain only (advise hanging ...); "
+                            f"{args.scene}'s advice is for a tip-path tolerance: --tip-tol M")
     if args.tip_tol is None:
         raise SettingsError(SOURCE, "--tip-tol", None, "missing: the tip-path tolerance [m]")
-    if args.modes is not None or args.freq_tol is not None:
-        raise SettingsError(SOURCE, "--modes/--freq-tol", args.modes,
-                            "apply to the hanging chain only (advise hanging ...)")
     if args.scene not in refine.SCENES and args.results is not None:
         raise SettingsError(SOURCE, "--results", str(args.results), f"says where the studies "
                             f"of {', '.join(refine.SCENES)} are; a folder given as SCENE is "

@@ -283,6 +283,8 @@ def test_advise_from_the_command_line(study, capsys):
     (["advise", "fall"], "--tip-tol: missing"),
     (["advise", "hanging", "--modes", "2"], "needs both"),
     (["advise", "fall", "--tip-tol", "0.1", "--modes", "2"], "apply to the hanging chain only"),
+    (["advise", "STUDY-R10", "--modes", "3", "--freq-tol", "0.01"],  # (a fourth battery: was
+     "apply to the hanging chain only"),                               # "--tip-tol missing")
     (["advise", "/nonexistent/study", "--tip-tol", "0.1"], "no runs/ folder"),
 ])
 def test_bad_advise_arguments_are_named(argv, fragment, capsys):
