@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,7 @@ STEP_DIVISIONS = (5, 25, 125)  # fixed steps h = sample / n: they land on every 
 NATIVE_RTOLS = (1e-4, 1e-7)
 ADVICE_TOLS = (1e-2, 1e-4, 1e-6)  # m: path tolerances the advice answers for
 MAX_CPU_S = 120.0  # a run's CPU limit here [s]
+REASON_CHARS = 400  # an engine's refusal in the agreement table, cut at a word (was 160: mid-word)
 
 
 def engine_names(model) -> list[str]:
@@ -399,7 +401,8 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         good = r["status"] == "ok" and all(v <= TOLERANCE for v in vals if not math.isnan(v))
         agree_t.rows.append(Row([r["engine"], r["status"],
                                  *(f"{v:.1e}" if not math.isnan(v) else "" for v in vals),
-                                 r.get("reason", "")[:160]],
+                                 textwrap.shorten(r.get("reason", ""), REASON_CHARS,
+                                                  placeholder=" [...]")],
                                 MATCH if good else (NOT_RUN if r["status"] != "ok" else DIFFER)))
     adv = advice(runs)
     adv_t = Table("compare-advice", "For this accuracy, this engine and setting was cheapest "
