@@ -19,7 +19,10 @@ counted in ``nfev`` (the integrator's count).
 Per run: the model's size (links, DOF, and for the core the bytes of its Workspace: every array
 the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall time of the
 integration, the JIT compile (or cache load) of the first qdd call and an engine's model build,
-both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance;
+both timed apart and excluded from ``cpu_s``/``wall_s``; the integration's cost by
+:mod:`redysim.harness.cost` (``cost_s``: the least CPU of repeated runs, the sampling's
+``sample_cpu_s`` excluded, ``cost_repeats``, ``cost_spread``, one RHS call's ``rhs_s`` and the
+work ``work_s``); peak RSS of the process; provenance;
 and, when a cached reference solution exists for the case, horizon and sampling
 (:mod:`redysim.harness.reference`), the max tip-position error over the samples and the final-state
 error against it.

@@ -323,6 +323,8 @@ def _legend_right(axes) -> None:
 
 
 def _wp_figure(scn, runs: pd.DataFrame):
+    from redysim.harness.cost import cost_of
+
     fig, axes = new_figure(2, width=PANEL_W * 3.0, height=PANEL_H * 1.5,
                            footer=provenance_line(runs))
     ok = runs[(runs["status"] == "ok")]
@@ -331,7 +333,8 @@ def _wp_figure(scn, runs: pd.DataFrame):
         g = g.sort_values(key, ascending=False)
         style = "-" if g["engine"].iloc[0] == CORE else "--"
         for ax, col in ((axes[0], "max_tip_err"), (axes[1], "max_abs_delta_M")):
-            ax.loglog(g["cpu_s"].astype(float), np.maximum(g[col].astype(float), ERROR_FLOOR),
+            ax.loglog([cost_of(r).value for _, r in g.iterrows()],
+                      np.maximum(g[col].astype(float), ERROR_FLOOR),
                       linestyle=style, color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)],
                       ms=3.5, label=name if ax is axes[0] else None)
     axes[0].set(title=f"(a) {scn.frame}: max error against CPU", xlabel="CPU time [s]",
@@ -342,7 +345,8 @@ def _wp_figure(scn, runs: pd.DataFrame):
     return _figure("compare-wp", "work-precision", f"{scn.name}: work against precision",
                    "Every run: the largest distance of the observed frame from the reference "
                    "over the samples (a) and the largest energy drift (b), against the CPU time "
-                   "of the integration (JIT compile and engine build timed apart); one curve per "
+                   "of the integration (the least of repeated runs; the sampling, the JIT "
+                   "compile and the engine build timed apart); one curve per "
                    "engine and integrator, from loose to tight. Solid: the core; dashed: an "
                    "engine.", fig)
 
