@@ -98,5 +98,6 @@ def test_advise_on_a_robot_scenario_from_the_command_line(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "advice for a path within 0.01 m: lock" in text
     assert "run it: redysim simulate" in text and "follows the advised path" in text
+    assert "cost of the integration (least of" in text and "saved: " in text
     assert main(["advise", "PUMA560-FALL", "--tip-tol", "1e-6", "--workers", "2"]) == 2
     assert "one after another" in capsys.readouterr().err
