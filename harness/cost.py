@@ -22,8 +22,9 @@ spread, at least :data:`NOISE_FLOOR` (what a busy neighbour adds to a minimum of
 caches and memory bandwidth are shared, not only cores), and :data:`SINGLE_RUN` for a cost
 measured once. Two runs whose intervals overlap are **indistinguishable**: no measurement here
 says which is cheaper. :func:`rank` orders by the least measure and names the runs
-indistinguishable from the cheapest; among them, the pick is the one of least work (``work_s``,
-else its cost), so that noise inside the interval does not reorder the advice.
+indistinguishable from the cheapest; among them, the pick is the one of least work (``work_s``)
+when all of them have it, so that noise inside the interval does not reorder the advice (else
+the least measure: an engine's own stepper has no work to compare).
 """
 
 from __future__ import annotations
@@ -125,17 +126,20 @@ class Ranking:
 def rank(costs: Sequence[Cost]) -> Ranking | None:
     """The cheapest of ``costs`` and those indistinguishable from it (None: no finite cost).
     The group is every cost whose interval overlaps the least measure's; the pick is the one of
-    least work in it (its ``work``, else its ``value``), ties by the least measure, then by
-    position."""
+    least work in it when every member's work is measured (else of least ``value``), ties by
+    the least measure, then by position."""
     idx = [i for i, c in enumerate(costs) if c.ok]
     if not idx:
         return None
     least = min(idx, key=lambda i: (costs[i].value, i))
     group = [i for i in idx if costs[i].overlaps(costs[least])]
 
+    # work orders the group only when every member has it (an engine's own stepper has none,
+    # and work, measured through the Python entry, is not its CPU)
+    by_work = all(math.isfinite(costs[i].work) for i in group)
+
     def key(i: int) -> tuple[float, float, int]:
-        w = costs[i].work
-        return (w if math.isfinite(w) else costs[i].value, costs[i].value, i)
+        return (costs[i].work if by_work else costs[i].value, costs[i].value, i)
 
     pick = min(group, key=key)
     return Ranking(pick, tuple(i for i in group if i != pick), tuple(costs))

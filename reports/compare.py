@@ -445,7 +445,8 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                          "(the repeats' spread, at least 10%; 25% for a run measured once). Runs "
                          "whose cost intervals overlap are indistinguishable: no measurement "
                          "here says which is cheaper, and the pick among them is the one of "
-                         "least work (RHS calls x one call's CPU)."])
+                         "least work (RHS calls x one call's CPU) where all of them have it (an "
+                         "engine's own stepper has none: then the least cost)."])
     heads = []
     for a in adv:
         b = a["best"]

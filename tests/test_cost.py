@@ -50,6 +50,11 @@ def test_rank_picks_the_least_and_names_only_the_overlapping():
     alone = cost.rank([cost.make_cost(1.0, 10, 0.0), cost.make_cost(2.0, 10, 0.0)])
     assert alone.pick == 0 and alone.indistinguishable == () and alone.verdict == "cheapest"
     assert cost.rank([cost.make_cost(math.nan)]) is None and cost.rank([]) is None
+    # work orders the group only when every member has it
+    mixed = [cost.make_cost(1.0, 10, 0.0, work=5.0), cost.make_cost(1.05, 10, 0.0)]
+    assert cost.rank(mixed).pick == 0
+    both = [cost.make_cost(1.0, 10, 0.0, work=5.0), cost.make_cost(1.05, 10, 0.0, work=1.0)]
+    assert cost.rank(both).pick == 1
 
 
 def test_a_busy_neighbour_inside_the_noise_does_not_reorder_the_pick():
