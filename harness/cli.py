@@ -850,6 +850,7 @@ def cmd_advise(args: argparse.Namespace) -> int:
           f"{a.rtol:g} (atol {a.rtol * 1e-2:g})")
     print(f"  measured: tip error {a.tip_err:.3g} m, CPU {a.cpu_s:.3g} s, {a.steps:,} steps "
           f"({a.candidates} runs met the tolerance)")
+    _print_tied(a)
     if math.isfinite(a.finest_cpu_s):
         print(f"  the finest model ({a.finest_links} links) meets it at rtol {a.finest_rtol:g} "
               f"in {a.finest_cpu_s:.3g} s of CPU: {a.saved:.0f}x the advised run's")
@@ -860,6 +861,15 @@ def cmd_advise(args: argparse.Namespace) -> int:
     print(f"  run it: redysim simulate {case} --links {a.links} --integrator {a.integrator} "
           f"--rtol {a.rtol:g} --atol {a.rtol * 1e-2:g} --t-end {study.reference['t_end']:g}")
     return EXIT_OK
+
+
+def _print_tied(a) -> None:
+    """advise's verdict: the runs whose measured cost cannot be told from the advised run's."""
+    if a.indistinguishable:
+        shown = list(a.indistinguishable[:4]) + (["..."] if len(a.indistinguishable) > 4 else [])
+        print(f"  indistinguishable in cost (within the measurement's noise) from "
+              f"{len(a.indistinguishable)} other run{'s' if len(a.indistinguishable) > 1 else ''}"
+              f": {', '.join(shown)}; the advice is the one of least work among them")
 
 
 def _advise_own(args: argparse.Namespace) -> int:
@@ -910,6 +920,7 @@ def _advise_own(args: argparse.Namespace) -> int:
     print(f"  measured: tip error {a.tip_err:.3g} m against your model"
           + (f" (+ its own {st.ref_error:.2g} m)" if math.isfinite(st.ref_error) else "")
           + f", CPU {a.cpu_s:.3g} s, {a.steps:,} steps ({a.candidates} runs met it)")
+    _print_tied(a)
     if math.isfinite(a.finest_cpu_s):
         print(f"  your model ({a.finest_links} links) meets it at rtol {a.finest_rtol:g} in "
               f"{a.finest_cpu_s:.3g} s of CPU: {a.saved:.1f}x the advised run's")
@@ -956,6 +967,18 @@ def _advise_robot(args: argparse.Namespace) -> int:
           f"{p['error']:.3g} m, {red['nfev']:,} RHS calls of {red['dof']} DOF in "
           f"{red['cpu_s']:.3g} s of CPU against the full model's {full['nfev']:,} of "
           f"{full['dof']} DOF in {full['cpu_s']:.3g} s")
+    if "verdict" in p:
+        from redysim.harness.cost import cost_of
+
+        rc, fc = cost_of(red), cost_of(full)
+        gain = 1.0 - rc.value / fc.value if fc.value > 0 else math.nan
+        print(f"  cost of the integration (least of {rc.repeats} and {fc.repeats} runs, "
+              f"sampling excluded): {rc.value:.3g} s against {fc.value:.3g} s, "
+              f"{gain:+.0%} saved: "
+              + ("indistinguishable, within the measurement's noise: locking saves no "
+                 "measurable CPU here"
+                 if p["verdict"] == "indistinguishable" else
+                 f"the reduced model is {p['verdict']}"))
     if r.file is not None:
         print(f"  checked: the reduced scenario file, run on its own, follows the advised path "
               f"to {r.file_check:.2g} m")

@@ -51,10 +51,12 @@ SOURCE = "advise"
 class Reduction:
     """What :func:`reductions` measured and advises (module docstring). ``candidates``: (joint,
     error [m]) ranked, least effect first; ``locked``: joint -> value(s) held; ``error``: the
-    reduced model's path error at REFERENCE; ``practical``: {"full": {cpu_s, nfev, steps},
-    "reduced": {...}, "error": path error of the reduced model at PRACTICAL against the full
-    model at REFERENCE}; ``file``: the reduced scenario's file (None: the frame could not be
-    declared on the reduced model, ``notes`` say why)."""
+    reduced model's path error at REFERENCE; ``practical``: {"full": {cpu_s, nfev, steps,
+    cost_s, cost_repeats, cost_spread}, "reduced": {...}, "error": path error of the reduced
+    model at PRACTICAL against the full model at REFERENCE, "verdict": the reduced model's cost
+    against the full one's, "cheaper", "dearer" or "indistinguishable"
+    (:func:`redysim.harness.cost.compare_two`)}; ``file``: the reduced scenario's file (None:
+    the frame could not be declared on the reduced model, ``notes`` say why)."""
 
     scenario: str
     frame: str
@@ -110,12 +112,16 @@ class _Runner:
                                  f"not {keep_q.size}, {keep_v.size}")
         return red, keep_q, keep_v
 
-    def run(self, locked: tuple[str, ...], setting: tuple[str, float]) -> dict:
-        """The path of the scene's frame with ``locked`` held, at ``setting``: cached."""
+    def run(self, locked: tuple[str, ...], setting: tuple[str, float], *,
+            timed: bool = False) -> dict:
+        """The path of the scene's frame with ``locked`` held, at ``setting``: cached.
+        ``timed``: its cost measured too (:mod:`redysim.harness.cost`: a short run repeated,
+        the least of the repeats' CPU, the sampling excluded): ``cost_s``, ``cost_repeats``,
+        ``cost_spread`` in the entry."""
         locked = tuple(sorted(locked))
         key = hashlib.sha256(json.dumps([*self.base, list(locked), list(setting)])
                              .encode()).hexdigest()[:16]
-        if key in self.cache:
+        if key in self.cache and (not timed or "cost_s" in self.cache[key]):
             return self.cache[key]
         from redysim.algorithms.dynamics import frame_motion
         from redysim.simulation import simulator
@@ -130,17 +136,27 @@ class _Runner:
             return frame_motion(full, qf, vf, frame=frame).position
 
         integrator, rtol = setting
-        sim = simulator(red, self.t_end, q0=self.q0[keep_q], v0=self.v0[keep_v],
-                        integrator=integrator, rtol=rtol, atol=rtol * 1e-2, sample=self.sample,
-                        observe={"frame": observe}, keep_states=False,
-                        damping=self.scn.damping)
-        res = sim.run(clock="process")
+
+        def new_sim():
+            return simulator(red, self.t_end, q0=self.q0[keep_q], v0=self.v0[keep_v],
+                             integrator=integrator, rtol=rtol, atol=rtol * 1e-2,
+                             sample=self.sample, observe={"frame": observe}, keep_states=False,
+                             damping=self.scn.damping)
+        res = new_sim().run(clock="process")
         if res.status != 0:
             raise SettingsError(SOURCE, "SCENE", self.scn.name, f"the run with {list(locked)} "
                                 f"locked failed: {res.message}")
         entry = {"locked": list(locked), "setting": list(setting),
                  "path": np.asarray(res.observed["frame"]).tolist(), "cpu_s": res.cpu_s,
                  "nfev": int(res.nfev), "steps": int(res.steps), "dof": int(red.n_v)}
+        if timed:
+            from . import cost
+
+            def once() -> float:
+                again = new_sim().run(clock="process")
+                return (again.cpu_s - again.sample_cpu_s if again.nfev == res.nfev
+                        else math.nan)
+            entry.update(cost.summary(cost.repeat(once, res.cpu_s - res.sample_cpu_s)))
         self.cache[key] = entry
         self._write(self.cache, self.path)  # each run kept as it finishes
         return entry
@@ -203,11 +219,17 @@ def reductions(scenario: str, tol: float, out: str | Path, *, frame: str | None 
             locked, error = (*locked, name), e
     log(f"advise: {len(locked)} joints locked together within {tol:g} m; comparing costs at "
         f"{PRACTICAL[0]} {PRACTICAL[1]:g}")
-    full_p = runner.run((), PRACTICAL)
-    red_p = runner.run(locked, PRACTICAL)
-    practical = {"full": {k: full_p[k] for k in ("cpu_s", "nfev", "steps", "dof")},
-                 "reduced": {k: red_p[k] for k in ("cpu_s", "nfev", "steps", "dof")},
-                 "error": _distance(red_p, ref), "full_error": _distance(full_p, ref)}
+    from .cost import compare_two, cost_of
+
+    full_p = runner.run((), PRACTICAL, timed=True)
+    red_p = runner.run(locked, PRACTICAL, timed=True)
+    keys = ("cpu_s", "nfev", "steps", "dof", "cost_s", "cost_repeats", "cost_spread")
+    practical = {"full": {k: full_p[k] for k in keys},
+                 "reduced": {k: red_p[k] for k in keys},
+                 "error": _distance(red_p, ref), "full_error": _distance(full_p, ref),
+                 # the reduced model's cost against the full one's: "cheaper", "dearer" or
+                 # "indistinguishable" (their cost intervals overlap: within the noise)
+                 "verdict": compare_two(cost_of(red_p), cost_of(full_p))}
     values = {name: runner.values(name) for name in locked}
     red_model = runner.reduced(locked)[0]
     result = Reduction(scn.name, frame, float(tol), horizon, model.n_v, red_model.n_v, ranked,

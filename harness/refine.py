@@ -197,6 +197,9 @@ class Advice:
     finest_cpu_s: float  # the cheapest run of the finest model that meets tol (nan: none does)
     finest_rtol: float
     candidates: int  # runs that met tol
+    # the runs whose measured cost cannot be told from the advised run's (harness.cost: their
+    # cost intervals overlap; "cpu_s" ranking only): "links integrator rtol", cheapest first
+    indistinguishable: tuple[str, ...] = ()
 
     @property
     def saved(self) -> float:
@@ -208,7 +211,10 @@ def advise(study: Study, tol: float, *, precision: str = "float64",
            cost: str = "cpu_s") -> Advice | None:
     """The coarsest model and cheapest integrator setting, from measured data, whose tip path
     stays within ``tol`` [m] of the reference's: of the study's runs that met ``tol``, the one
-    of least ``cost`` (a column of the runs: ``"cpu_s"``, the measured CPU time, by default;
+    of least ``cost`` (a column of the runs: ``"cpu_s"``, the measured CPU time, by default,
+    ranked by :mod:`redysim.harness.cost`: the integration's least CPU of repeats, sampling
+    excluded, with its uncertainty, the runs it cannot tell from the pick listed in
+    ``Advice.indistinguishable`` and the pick among them the one of least work;
     ``"nfev"`` or ``"steps"`` count work without the machine's noise, ``"work"`` RHS calls x
     links, across models of different sizes too), ties broken by fewer
     links, then by the run id. None when no run met it. Raises SettingsError for a ``tol`` that
@@ -231,14 +237,34 @@ def advise(study: Study, tol: float, *, precision: str = "float64",
            & (r["run_id"] != study.reference["run_id"]) & (r["tip_err"] <= tol)]
     if ok.empty:
         return None
-    best = ok.sort_values([cost, "n_links", "run_id"]).iloc[0]
-    finest = int(study.reference["n_links"])
-    fine = ok[ok["n_links"] == finest].sort_values([cost, "run_id"])
+    tied: tuple[str, ...] = ()
+    if cost == "cpu_s":
+        from . import cost as costs
+
+        ok = ok.sort_values(["n_links", "run_id"])
+        rows = [r for _, r in ok.iterrows()]
+        ranking = costs.rank([costs.cost_of(r) for r in rows])
+        best = rows[ranking.pick] if ranking is not None else ok.iloc[0]
+        if ranking is not None:
+            tied = tuple(f"{int(rows[i]['n_links'])} links {rows[i]['integrator']} rtol "
+                         f"{float(rows[i]['rtol']):g}"
+                         for i in sorted(ranking.indistinguishable,
+                                         key=lambda i: ranking.costs[i].value))
+        fine_rows = [r for r in rows if int(r["n_links"]) == int(study.reference["n_links"])]
+        fr = costs.rank([costs.cost_of(r) for r in fine_rows])
+        fine = pd.DataFrame([fine_rows[fr.pick]]) if fr is not None else ok.iloc[:0]
+        finest = int(study.reference["n_links"])
+    else:
+        best = ok.sort_values([cost, "n_links", "run_id"]).iloc[0]
+        finest = int(study.reference["n_links"])
+        fine = ok[ok["n_links"] == finest].sort_values([cost, "run_id"])
+    from .cost import cost_of  # the integration's cost (cpu_s for rows from before it)
+
     return Advice(study.scene, float(tol), int(best["n_links"]), str(best["integrator"]),
-                  float(best["rtol"]), float(best["tip_err"]), float(best["cpu_s"]),
+                  float(best["rtol"]), float(best["tip_err"]), cost_of(best).value,
                   int(best["steps"]), finest,
-                  float(fine["cpu_s"].iloc[0]) if len(fine) else math.nan,
-                  float(fine["rtol"].iloc[0]) if len(fine) else math.nan, int(len(ok)))
+                  cost_of(fine.iloc[0]).value if len(fine) else math.nan,
+                  float(fine["rtol"].iloc[0]) if len(fine) else math.nan, int(len(ok)), tied)
 
 
 def finer_case(case_file: str | Path, factor: int):

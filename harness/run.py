@@ -19,7 +19,10 @@ counted in ``nfev`` (the integrator's count).
 Per run: the model's size (links, DOF, and for the core the bytes of its Workspace: every array
 the kernels read or write), steps, rejected steps, RHS evaluations, CPU and wall time of the
 integration, the JIT compile (or cache load) of the first qdd call and an engine's model build,
-both timed apart and excluded from ``cpu_s``/``wall_s``; peak RSS of the process; provenance;
+both timed apart and excluded from ``cpu_s``/``wall_s``; the integration's cost by
+:mod:`redysim.harness.cost` (``cost_s``: the least CPU of repeated runs, the sampling's
+``sample_cpu_s`` excluded, ``cost_repeats``, ``cost_spread``, one RHS call's ``rhs_s`` and the
+work ``work_s``); peak RSS of the process; provenance;
 and, when a cached reference solution exists for the case, horizon and sampling
 (:mod:`redysim.harness.reference`), the max tip-position error over the samples and the final-state
 error against it.
@@ -41,6 +44,7 @@ from redysim.integrators.explicit import sample_times
 from redysim.io.scenarios import Scenario, load_scenario
 from redysim.simulation import Integrator, Simulator, frame_observer, momentum_observer
 
+from . import cost
 from .provenance import peak_rss_mib, provenance, reset_peak_rss
 from .reference import load_reference
 from .spec import CORE, RunSpec, is_native, native_name
@@ -226,7 +230,9 @@ def execute(spec: RunSpec, *, reference=True, progress=None,
            "t_reached": 0.0, "n_samples": 0, "max_tip_err": math.nan, "final_state_err": math.nan,
            "ref_tol_estimate": math.nan, "ref_engine_check": math.nan,
            "quaternion_error": 0.0, "residual_q": 0.0,
-           "residual_v": 0.0, "max_loop_force": math.nan, "near_change_point": math.nan}
+           "residual_v": 0.0, "max_loop_force": math.nan, "near_change_point": math.nan,
+           "cost_s": math.nan, "cost_repeats": 0, "cost_spread": math.nan,
+           "sample_cpu_s": math.nan, "rhs_s": math.nan, "work_s": math.nan}
     samples: list[tuple] = []
     last: dict = {"states": [] if states else None}  # the last state (final-state error)
     engine_version = ""
@@ -302,20 +308,26 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
                 raise RunFailed(f"native stepping: sample times must be whole multiples of "
                                 f"h = {spec.h:g}")
     source = f"run {spec.label}"
-    if native:
-        try:
-            stepper = dyn.engine.stepper(native_name(spec.integrator), h=spec.h or None,
-                                         rtol=spec.rtol, atol=spec.atol)
-        except ValueError as exc:
-            raise SettingsError(source, "integrator", spec.integrator, str(exc)) from None
-    else:
-        stepper = Integrator(spec.integrator, rtol=spec.rtol, atol=spec.atol, h=spec.h or None)
+
+    def new_stepper():
+        if native:
+            try:
+                return dyn.engine.stepper(native_name(spec.integrator), h=spec.h or None,
+                                          rtol=spec.rtol, atol=spec.atol)
+            except ValueError as exc:
+                raise SettingsError(source, "integrator", spec.integrator, str(exc)) from None
+        return Integrator(spec.integrator, rtol=spec.rtol, atol=spec.atol, h=spec.h or None)
+
     system = System(chain, qdd=dyn.qdd, method=dyn.method, tip_force=dyn.force,
                     damping=case.damping, source=source)
-    sim = Simulator(system, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=stepper,
-                    sample=spec.sample, keep_states=last.get("states") is not None,
-                    observe={"tip": frame_observer(chain, case.frame, acceleration=True),
-                             "momentum": momentum_observer(chain)})
+
+    def new_sim(keep: bool) -> Simulator:
+        return Simulator(system, spec.t_end, q0=y0[:n], v0=y0[n:], integrator=new_stepper(),
+                         sample=spec.sample, keep_states=keep,
+                         observe={"tip": frame_observer(chain, case.frame, acceleration=True),
+                                  "momentum": momentum_observer(chain)})
+
+    sim = new_sim(last.get("states") is not None)
     row["jit_s"], row["E0"] = sim.jit_s, sim.E0
     row["model_mib"] = system.ws.nbytes / 2**20 if dyn.engine is None else math.nan
     next_report = [time.perf_counter() + PROGRESS_EVERY_S]
@@ -336,10 +348,32 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
             _keep(spec, exc.partial, row, samples, last)
         raise
     _keep(spec, res, row, samples, last)
+    if res.status == 0:
+        _measure_cost(spec, system, sim.y0, res, row, lambda: new_sim(False))
     if res.status == 1 and res.message.startswith("stopped by the wall-clock limit"):
         raise RunStopped(res.message)
     if res.status != 0:
         raise RunFailed(res.message)
+
+
+def _measure_cost(spec: RunSpec, system: System, y, res, row: dict, new_sim) -> None:
+    """The integration's cost of a finished run, load-proof (:mod:`redysim.harness.cost`): a
+    short run repeated (fresh simulators of the same spec, in this process) and the least of the
+    repeats' CPU, the sampling excluded; one derivative call's CPU at the initial state ``y``
+    (the simulator's) and the RHS calls' work. A repeat that does not make the same steps and
+    calls (it would time other work) ends the repeats; the times before it are kept."""
+    def once() -> float:
+        again = new_sim().run(clock="process")
+        if again.status != 0 or again.nfev != res.nfev or again.steps != res.steps:
+            return math.nan
+        return again.cpu_s - again.sample_cpu_s
+
+    times = cost.repeat(once, res.cpu_s - res.sample_cpu_s)
+    row.update(cost.summary(times), sample_cpu_s=res.sample_cpu_s)
+    out = np.empty_like(y)
+    row["rhs_s"] = cost.per_call(lambda: system.derivative(0.0, y, out))
+    row["work_s"] = (res.nfev * row["rhs_s"] if res.nfev >= 0 and not is_native(spec.integrator)
+                     else math.nan)
 
 
 def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:

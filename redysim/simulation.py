@@ -165,7 +165,9 @@ class Simulation:
     (:class:`Simulator`); ``y_final``: (q, v) at the last sample; ``E0``: the energy at t = 0 (the
     reference of ``delta_M``; with a resumed run's skipped samples, not the first sample's). ``q``
     and ``v`` have no rows when the run kept no
-    states (``keep_states=False``)."""
+    states (``keep_states=False``). ``sample_cpu_s``: the part of ``cpu_s`` spent taking the
+    samples (their projection, energy and observers: the caller's measurement, not the
+    integration's work), on the run's CPU clock."""
 
     name: str
     t: np.ndarray
@@ -192,6 +194,7 @@ class Simulation:
     E0: float = math.nan
     work: np.ndarray | None = None
     work_note: str = ""
+    sample_cpu_s: float = 0.0  # of cpu_s: the sampling's (energy, projection, observers)
 
 
 class _Stop(Exception):
@@ -391,6 +394,7 @@ class _Run:
         self.forces: list[np.ndarray] = []
         self.observed: dict[str, list] = {name: [] for name in sim.observe}
         self.last_y: np.ndarray | None = None
+        self.sample_cpu = 0.0  # CPU time spent in on_sample
 
     def limit(self, cpu, max_cpu_s, max_wall_s) -> None:
         """Start the clocks: past max_cpu_s of ``cpu`` the run fails, past max_wall_s of wall
@@ -414,9 +418,17 @@ class _Run:
     def on_sample(self, t: float, y: np.ndarray) -> None:
         """Keep the sample at t (the state y, projected onto the constraints: interpolated
         between steps); observers' rows; the energy checks."""
-        sim, system = self.sim, self.system
+        sim = self.sim
         if sim.skip_until is not None and t <= sim.skip_until:
             return None  # taken before the checkpoint this run resumed from
+        t0 = self.cpu()
+        try:
+            return self._sample(t, y)
+        finally:
+            self.sample_cpu += self.cpu() - t0
+
+    def _sample(self, t: float, y: np.ndarray) -> None:
+        sim, system = self.sim, self.system
         y = y.copy()
         system.project(y, record=False)
         slot = sim.work_slot
@@ -537,7 +549,8 @@ class _Run:
             forces=np.array(self.forces) if system.loops is not None else None,
             residual_q=float(worst[1]), residual_v=float(worst[2]), near_change_point=near,
             observed={k: np.array(v) for k, v in self.observed.items()}, y_final=self.last_y,
-            E0=sim.E0, work=None if sim.work_note else W, work_note=sim.work_note)
+            E0=sim.E0, work=None if sim.work_note else W, work_note=sim.work_note,
+            sample_cpu_s=self.sample_cpu)
 
 
 def simulator(model: Model, t_end: float, *, q0=None, v0=None,

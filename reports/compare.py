@@ -14,8 +14,10 @@ For any scenario (:mod:`redysim.io.scenarios`: a .urdf, an MJCF .xml, a DH robot
    checked by SciPy's DOP853 at 1e-13: :mod:`redysim.harness.reference`);
 3. writes a short page, ``compare.html`` and ``compare.pdf`` in ``--out``: the agreement table,
    the observed path's error and the energy drift over time, a work-precision plot, every run,
-   and the advice "for this accuracy, this engine and setting was cheapest here" (the least CPU
-   time among the runs whose path error is within it, measured here, on this machine).
+   and the advice "for this accuracy, this engine and setting was cheapest here": among the runs
+   whose path error is within it, the least cost by :mod:`redysim.harness.cost` (the
+   integration's CPU, least of repeats, sampling excluded, with its uncertainty), and the runs
+   indistinguishable from it, measured here, on this machine.
 
     python -m redysim.reports.compare ur5_robot.urdf --out results/compare/ur5
 """
@@ -227,17 +229,44 @@ def label(r) -> str:
 
 
 def advice(runs: pd.DataFrame, tols=ADVICE_TOLS) -> list[dict]:
-    """For each path tolerance: the cheapest run (least CPU time) whose path error is within
-    it, overall and per engine; None where no run met it."""
+    """For each path tolerance: the cheapest run whose path error is within it, overall and per
+    engine, by the cost model (:mod:`redysim.harness.cost`: the integration's CPU, least of
+    repeats, sampling excluded, with its uncertainty); ``tied``: the runs indistinguishable
+    from ``best`` (their costs overlap), ``per_engine_tied`` likewise per engine; None where no
+    run met it."""
+    from redysim.harness import cost
+
     ok = runs[(runs["status"] == "ok") & pd.to_numeric(runs["max_tip_err"],
                                                         errors="coerce").notna()]
     out = []
     for tol in tols:
         met = ok[ok["max_tip_err"].astype(float) <= tol]
-        best = met.loc[met["cpu_s"].astype(float).idxmin()] if len(met) else None
-        per = {e: g.loc[g["cpu_s"].astype(float).idxmin()] for e, g in met.groupby("engine")}
-        out.append({"tol": tol, "best": best, "per_engine": per})
+        best, tied = _cheapest(met, cost)
+        per, per_tied = {}, {}
+        for e, g in met.groupby("engine"):
+            per[e], per_tied[e] = _cheapest(g, cost)
+        out.append({"tol": tol, "best": best, "tied": tied, "per_engine": per,
+                    "per_engine_tied": per_tied})
     return out
+
+
+def _cheapest(runs: pd.DataFrame, cost) -> tuple[pd.Series | None, list]:
+    """The pick of :func:`redysim.harness.cost.rank` among ``runs`` and the rows
+    indistinguishable from it."""
+    rows = [r for _, r in runs.iterrows()]
+    ranking = cost.rank([cost.cost_of(r) for r in rows])
+    if ranking is None:
+        return None, []
+    return rows[ranking.pick], [rows[i] for i in ranking.indistinguishable]
+
+
+def _cost_text(r) -> str:
+    """A run's cost as shown: '0.95 ms +- 10% (20 runs)'."""
+    from redysim.harness import cost
+
+    c = cost.cost_of(r)
+    u = cost.uncertainty(c.repeats, c.spread)
+    return f"{c.value * 1e3:.3g} ms +-{u:.0%} ({c.repeats} run{'s' if c.repeats > 1 else ''})"
 
 
 def _samples(out: Path, run_id: str) -> pd.DataFrame | None:
@@ -296,6 +325,8 @@ def _legend_right(axes) -> None:
 
 
 def _wp_figure(scn, runs: pd.DataFrame):
+    from redysim.harness.cost import cost_of
+
     fig, axes = new_figure(2, width=PANEL_W * 3.0, height=PANEL_H * 1.5,
                            footer=provenance_line(runs))
     ok = runs[(runs["status"] == "ok")]
@@ -304,7 +335,8 @@ def _wp_figure(scn, runs: pd.DataFrame):
         g = g.sort_values(key, ascending=False)
         style = "-" if g["engine"].iloc[0] == CORE else "--"
         for ax, col in ((axes[0], "max_tip_err"), (axes[1], "max_abs_delta_M")):
-            ax.loglog(g["cpu_s"].astype(float), np.maximum(g[col].astype(float), ERROR_FLOOR),
+            ax.loglog([cost_of(r).value for _, r in g.iterrows()],
+                      np.maximum(g[col].astype(float), ERROR_FLOOR),
                       linestyle=style, color=f"C{i % 10}", marker=WP_MARKERS[i % len(WP_MARKERS)],
                       ms=3.5, label=name if ax is axes[0] else None)
     axes[0].set(title=f"(a) {scn.frame}: max error against CPU", xlabel="CPU time [s]",
@@ -315,7 +347,8 @@ def _wp_figure(scn, runs: pd.DataFrame):
     return _figure("compare-wp", "work-precision", f"{scn.name}: work against precision",
                    "Every run: the largest distance of the observed frame from the reference "
                    "over the samples (a) and the largest energy drift (b), against the CPU time "
-                   "of the integration (JIT compile and engine build timed apart); one curve per "
+                   "of the integration (the least of repeated runs; the sampling, the JIT "
+                   "compile and the engine build timed apart); one curve per "
                    "engine and integrator, from loose to tight. Solid: the core; dashed: an "
                    "engine.", fig)
 
@@ -406,25 +439,40 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                                 MATCH if good else (NOT_RUN if r["status"] != "ok" else DIFFER)))
     adv = advice(runs)
     adv_t = Table("compare-advice", "For this accuracy, this engine and setting was cheapest "
-                  "here", ["path tolerance [m]", "cheapest run", "CPU [s]", "error [m]",
-                           "cheapest per engine (CPU s)"],
-                  notes=["Measured on this machine in this comparison: the least CPU time of "
-                         "the integration among the runs whose largest path error is within "
-                         "the tolerance; the JIT compile and the engine's build are not counted."])
+                  "here", ["path tolerance [m]", "cheapest run", "cost", "error [m]",
+                           "indistinguishable from it", "cheapest per engine"],
+                  notes=["Measured on this machine in this comparison: the integration's CPU "
+                         "time, the least of repeated runs (a run under 0.2 s is repeated until "
+                         "its repeats add up to 0.2 s), the sampling (observers, energy) and "
+                         "the JIT compile and engine build not counted, with its uncertainty "
+                         "(the repeats' spread, at least 10%; 25% for a run measured once). Runs "
+                         "whose cost intervals overlap are indistinguishable: no measurement "
+                         "here says which is cheaper, and the pick among them is the one of "
+                         "least work (RHS calls x one call's CPU) where all of them have it (an "
+                         "engine's own stepper has none: then the least cost)."])
     heads = []
     for a in adv:
         b = a["best"]
-        per = "; ".join(f"{e}: {label(r).split(' ', 1)[1]} {setting(r)} ({float(r['cpu_s']):.3g})"
-                        for e, r in sorted(a["per_engine"].items()))
+
+        def per_text(e, r, a=a):
+            tie = a["per_engine_tied"].get(e) or []
+            return (f"{e}: {label(r).split(' ', 1)[1]} {setting(r)} ({_cost_text(r)})"
+                    + (f", indistinguishable from {len(tie)} other" if tie else ""))
+        per = "; ".join(per_text(e, r) for e, r in sorted(a["per_engine"].items())
+                        if r is not None)
         if b is None:
-            adv_t.rows.append(Row([f"{a['tol']:g}", "no run met it", "", "", ""], NOT_RUN))
+            adv_t.rows.append(Row([f"{a['tol']:g}", "no run met it", "", "", "", ""], NOT_RUN))
             continue
-        adv_t.rows.append(Row([f"{a['tol']:g}", f"{label(b)} {setting(b)}",
-                               f"{float(b['cpu_s']):.3g}", f"{float(b['max_tip_err']):.2e}",
+        tied = "; ".join(f"{label(r)} {setting(r)} ({_cost_text(r)})" for r in a["tied"])
+        adv_t.rows.append(Row([f"{a['tol']:g}", f"{label(b)} {setting(b)}", _cost_text(b),
+                               f"{float(b['max_tip_err']):.2e}", tied or "none: cheapest",
                                per], INFO))
+        verdict = (f"; indistinguishable from {len(a['tied'])} other run"
+                   f"{'s' if len(a['tied']) > 1 else ''} (costs within the noise)"
+                   if a["tied"] else "")
         heads.append(Headline(f"cheapest within {a['tol']:g} m", f"{label(b)} {setting(b)}",
-                              f"{float(b['cpu_s']):.3g} s CPU, error "
-                              f"{float(b['max_tip_err']):.1e} m"))
+                              f"{_cost_text(b)}, error {float(b['max_tip_err']):.1e} m"
+                              + verdict))
     acting = acting_notes(m)
     if acting:  # first on the page: what the file has and this run does not simulate
         heads.insert(0, Headline("in the file, not simulated", f"{len(acting)} item"
@@ -436,12 +484,13 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         "engines that ran", f"{len(ran)} + the core", ", ".join(ran) or "none",
         INFO if ran else NOT_RUN))
     runs_t = Table("compare-runs", "Every run", ["run", "status", "steps", "RHS calls",
-                                                  "CPU [s]", "path error [m]",
+                                                  "CPU [s]", "cost", "path error [m]",
                                                   "max |delta_M| [J/kg]", "reason"])
     for _, r in runs.iterrows():
         runs_t.rows.append(Row([f"{label(r)} {setting(r)}", r["status"], str(r["steps"]),
                                 "" if int(r["nfev"]) < 0 else str(r["nfev"]),
-                                f"{float(r['cpu_s']):.3g}", f"{float(r['max_tip_err']):.2e}",
+                                f"{float(r['cpu_s']):.3g}", _cost_text(r),
+                                f"{float(r['max_tip_err']):.2e}",
                                 f"{float(r['max_abs_delta_M']):.2e}", str(r["reason"])[:140]],
                                INFO if r["status"] == "ok" else DIFFER))
     manifests = Table("compare-engines", "The engines as they ran",

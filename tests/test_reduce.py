@@ -59,6 +59,10 @@ def test_the_advised_set_is_within_the_tolerance_when_run_again(puma):
     left = [n for n, _ in r.candidates if n not in r.locked]
     assert left and all(e > 0 for n, e in r.candidates if n in left)
     assert r.practical["reduced"]["dof"] == r.reduced_dof and r.practical["error"] <= 10 * r.tol
+    # both models' costs timed by harness.cost (repeats recorded) and compared with their noise
+    for m in ("full", "reduced"):
+        assert r.practical[m]["cost_repeats"] >= 1 and r.practical[m]["cost_s"] > 0
+    assert r.practical["verdict"] in ("cheaper", "dearer", "indistinguishable")
 
 
 def test_the_reduced_scenario_file_runs_on_its_own_and_follows_the_advised_path(puma):
@@ -94,5 +98,6 @@ def test_advise_on_a_robot_scenario_from_the_command_line(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "advice for a path within 0.01 m: lock" in text
     assert "run it: redysim simulate" in text and "follows the advised path" in text
+    assert "cost of the integration (least of" in text and "saved: " in text
     assert main(["advise", "PUMA560-FALL", "--tip-tol", "1e-6", "--workers", "2"]) == 2
     assert "one after another" in capsys.readouterr().err

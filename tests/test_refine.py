@@ -200,9 +200,27 @@ def _inject_costs(study, cost):
     logic is tested on known costs, not on what this machine measured (an 8-link study's runs
     take milliseconds, and their measured order is noise)."""
     r = study.runs
-    study.runs = r.assign(cpu_s=[float(cost(n, t)) for n, t in zip(r["n_links"], r["rtol"],
-                                                                    strict=True)])
+    c = [float(cost(n, t)) for n, t in zip(r["n_links"], r["rtol"], strict=True)]
+    # as measured by harness.cost: the least of 20 repeats, spread 0 (uncertainty: the noise
+    # floor), no work measured (the pick among indistinguishable runs by the order given)
+    study.runs = r.assign(cpu_s=c, cost_s=c, cost_repeats=20, cost_spread=0.0,
+                          work_s=float("nan"))
     return study
+
+
+def test_advice_names_the_runs_it_cannot_tell_from_the_pick(study):
+    """Costs within the noise floor of each other are indistinguishable: the advice says so,
+    and picks among them the one of least work (RHS calls x one call's CPU)."""
+    _inject_costs(study, lambda links, rtol: {2: 9.0, 4: 4.0, 8: 4.2}[links])
+    r = study.runs
+    tol = float(r.loc[r["n_links"] == 4, "tip_err"].max()) * 1.01
+    a = refine.advise(study, tol)
+    assert a.links == 4 and a.cpu_s == 4.0
+    assert any(t.startswith("8 links") for t in a.indistinguishable)
+    # the 8-link runs of least work: picked among the indistinguishable
+    study.runs = study.runs.assign(work_s=[1.0 if n == 8 else 2.0 for n in r["n_links"]])
+    b = refine.advise(study, tol)
+    assert b.links == 8 and any(t.startswith("4 links") for t in b.indistinguishable)
 
 
 def test_advice_is_the_cheapest_run_that_met_the_tolerance(study):
