@@ -6,7 +6,8 @@ What is measured (:func:`redysim.harness.run.execute`, the row's columns):
 - ``cost_s``: the integration's CPU time [s], the least over ``cost_repeats`` runs of the same
   spec in the same process. A run shorter than :data:`TOTAL_S` is repeated until its repeats
   add up to it (at least :data:`MIN_REPEATS`, at most :data:`MAX_REPEATS` runs); a longer run is
-  measured once. The sampling (each sample's projection, energy and observers: the harness's
+  measured once, and so is every run when ``REDYSIM_COST_REPEAT_S=0`` (the test suite's
+  setting). The sampling (each sample's projection, energy and observers: the harness's
   measurement, ~80 us a sample in Python) is timed apart (``sample_cpu_s``) and excluded, and so
   are the JIT compile and an engine's build. The least of k repeats is the run's cost with the
   least of the machine's interference (another process can only add time).
@@ -30,11 +31,34 @@ the least measure: an engine's own stepper has no work to compare).
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-TOTAL_S = 0.2  # repeat a run shorter than this until its repeats add up to it [s of CPU]
+REPEAT_ENV = "REDYSIM_COST_REPEAT_S"  # the environment's setting of TOTAL_S (0: measure once)
+
+
+def _total_s() -> float:
+    """:data:`TOTAL_S` from the environment (``REDYSIM_COST_REPEAT_S``; default 0.2 s): 0
+    measures each run once (the test suite's setting: its runs are checks, not rankings, and the
+    repeats would add ~0.2 s of CPU to each)."""
+    text = os.environ.get(REPEAT_ENV, "").strip()
+    if not text:
+        return 0.2
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0.0):
+        from redysim.errors import SettingsError
+
+        raise SettingsError("environment", REPEAT_ENV, text, "must be a CPU time >= 0 [s] "
+                            "(0: measure each run once)")
+    return value
+
+
+TOTAL_S = _total_s()  # repeat a run shorter than this until its repeats add up to it [s of CPU]
 MIN_REPEATS = 3  # a short run's least number of timed runs
 MAX_REPEATS = 20  # and most
 NOISE_FLOOR = 0.10  # least relative uncertainty of a measured cost (a minimum of repeats)
@@ -153,13 +177,14 @@ def compare_two(a: Cost, b: Cost) -> str:
     return "cheaper" if a.value < b.value else "dearer"
 
 
-def repeat(once: Callable[[], float], first: float, *, total_s: float = TOTAL_S,
+def repeat(once: Callable[[], float], first: float, *, total_s: float | None = None,
            min_repeats: int = MIN_REPEATS, max_repeats: int = MAX_REPEATS) -> list[float]:
     """The integration CPU times of a run: ``first`` (the run already made), then ``once()``
     (another run, returning its integration CPU) while the run is short: until the times add up
     to ``total_s`` with at least ``min_repeats`` of them, at most ``max_repeats``. A run of
     ``total_s`` or more is measured once. ``once()`` returning nan (the repeat did not repeat
     the run) ends the repeats, the times before it kept."""
+    total_s = TOTAL_S if total_s is None else total_s
     times = [float(first)]
     if not math.isfinite(first) or first >= total_s:
         return times

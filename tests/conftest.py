@@ -3,6 +3,12 @@
 from __future__ import annotations
 
 import hashlib
+import os
+
+# Runs in tests are checks, not rankings: each is measured once (redysim.harness.cost; the
+# repeats would add ~0.2 s of CPU to every short run of every sweep). Pool workers inherit it;
+# tests of the repeats set it themselves.
+os.environ.setdefault("REDYSIM_COST_REPEAT_S", "0")
 
 import numpy as np
 import pytest

@@ -148,13 +148,14 @@ def test_compares_page_shows_the_verdict():
     assert _cost_text(pd.Series({"cpu_s": 2e-3})) == "2 ms +-25% (1 run)"
 
 
-def test_a_runs_repeats_happen_and_are_recorded():
+def test_a_runs_repeats_happen_and_are_recorded(monkeypatch):
     """A short run is repeated (at least MIN_REPEATS timed runs, unless its first run alone
     filled TOTAL_S), its least integration CPU is at most the first run's, the sampling is
     timed apart, and the work is the RHS calls times one call's cost."""
     from redysim.harness.run import execute
     from redysim.harness.spec import RunSpec
 
+    monkeypatch.setattr(cost, "TOTAL_S", 0.2)  # (the suite measures once: tests/conftest.py)
     spec = RunSpec(case="DOUBLE-PENDULUM", integrator="rk4", h=0.01, t_end=0.5, sample=0.05)
     row = execute(spec, reference=False).summary
     assert row["status"] == "ok", row["reason"]
@@ -168,3 +169,16 @@ def test_a_runs_repeats_happen_and_are_recorded():
     assert row["cost_s"] <= first
     assert row["rhs_s"] > 0 and row["work_s"] == pytest.approx(row["nfev"] * row["rhs_s"])
     assert row["steps"] == 50 and row["nfev"] >= 4 * 50  # rk4: four calls a step
+
+
+def test_the_repeat_total_is_read_from_the_environment(monkeypatch):
+    from redysim.errors import SettingsError
+
+    monkeypatch.setenv(cost.REPEAT_ENV, "0.5")
+    assert cost._total_s() == 0.5
+    monkeypatch.delenv(cost.REPEAT_ENV)
+    assert cost._total_s() == 0.2
+    for bad in ("-1", "nan", "soon"):
+        monkeypatch.setenv(cost.REPEAT_ENV, bad)
+        with pytest.raises(SettingsError, match=f"{cost.REPEAT_ENV} = '{bad}'"):
+            cost._total_s()
