@@ -264,9 +264,8 @@ def _model_file(source: str, scenario: Path, text: str) -> Path:
         try:
             return robot_file(text[len(ROBOT_DATA):])
         except FileNotFoundError as exc:
-            raise CaseError(source, "model.file", text,
-                            str(exc).split(": ", 1)[-1].removeprefix(f"model file {text!r} ")
-                            ) from None
+            why = str(exc).removeprefix(f"model file {text!r}").lstrip(": ")
+            raise CaseError(source, "model.file", text, why) from None
     if is_case_name(text) and (Path(CASES_DIR) / f"{text}.toml").is_file():
         return Path(CASES_DIR) / f"{text}.toml"
     p = Path(text)
