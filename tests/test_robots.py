@@ -123,3 +123,19 @@ def test_the_cold_cache_note(tmp_path, monkeypatch):
     (tmp_path / "articulated.f-1.py311.nbi").write_bytes(b"")
     said = io.StringIO()
     assert not kernels.announce_cold_cache(said) and said.getvalue() == ""
+
+
+def test_advise_on_a_robot_by_name_writes_its_reduced_scenario(tmp_path, monkeypatch, capsys):
+    """`redysim advise` on a model file by itself (here by name) writes the reduced scenario
+    naming the robot (it read the URDF as TOML and failed), and the file runs."""
+    import tomllib
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path))
+    assert main(["advise", "example-robot-data:ur5", "--tip-tol", "1e-2", "--t-end",
+                 "0.1"]) == 0
+    reduced = tmp_path / "advise" / "ur5" / "ur5-REDUCED.toml"
+    assert f"redysim simulate {reduced}" in capsys.readouterr().out
+    doc = tomllib.loads(reduced.read_text())
+    assert doc["model"]["file"] == "example-robot-data:ur5" and doc["model"]["lock"]
+    scn = load_scenario(reduced)
+    assert scn.model.n_v == 6 - len(doc["model"]["lock"])
