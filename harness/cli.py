@@ -31,10 +31,12 @@ from redysim.integrators.explicit import (
 )
 from redysim.io.cases import CASES_DIR, list_cases, load_case
 from redysim.io.kinds import KINDS, FileKind, either, kind_of
+from redysim.io.robots import PREFIX as ROBOT_DATA
 
 PROG = "redysim"
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 DEFAULT_SWEEP_ROOT = Path("results") / "sweeps"  # redysim sweep's --out default: <root>/<name>
+# (results/ is $REDYSIM_RESULTS when set: redysim.harness.reference.results_dir)
 MAX_FAILED_SHOWN = 20  # failed runs listed after a sweep
 # The extra that installs each optional package a command may import, by import name
 # (pyproject.toml's [project.optional-dependencies]; dask comes with distributed; mujoco is in
@@ -55,7 +57,8 @@ examples:
   redysim simulate RE-U125-L1 --t-end 0.1         # one run, printed
   redysim sweep sweeps/smoke.toml                 # a declared set of runs, saved as Parquet
   redysim simulate UR5-FALL --engine mujoco --integrator native:implicit --h 1e-3
-  redysim compare ur5_robot.urdf                  # your model in every engine: a page
+  redysim compare example-robot-data:ur5          # your model in every engine: a page
+  redysim robots                                  # robots by name: example-robot-data:NAME
   redysim engines                                 # the engines and their own integrators
 
 `redysim COMMAND --help` explains each command. Without extras, cases, info and simulate run
@@ -75,9 +78,10 @@ interval default to the scenario's.
 
 A scenario is a rope case (its name or file), a scenario file (cases/scenarios/: a model file,
 a state, a horizon and what to observe; its name, e.g. UR5-FALL, or its path), or a model file
-by itself: a robot (a .urdf, an MJCF .xml, a DH robot file such as cases/robots/puma560.toml)
-falls passively under gravity from its file's configuration at rest (a floating base tumbles
-from seeded random velocities), a linkage (cases/loops/*.toml) moves with its loops closed; the
+by itself: a robot (a .urdf, an MJCF .xml, a DH robot file such as cases/robots/puma560.toml,
+or a robot of example-robot-data by name, example-robot-data:ur5: `redysim robots`) falls
+passively under gravity from its file's configuration at rest (a floating base tumbles from
+seeded random velocities), a linkage (cases/loops/*.toml) moves with its loops closed; the
 summary says what the importer dropped from the file (damping, friction, limits: not simulated).
 With --floating, a URDF's or MJCF's root body gets a free joint. --lock holds joints at given
 values (a reduced model). Horizon 1 s and 20 samples unless given. A flag that the kind of file
@@ -98,8 +102,8 @@ examples:
   redysim simulate RE-U125-L1 --engine mujoco --rtol 1e-6 --atol 1e-8 --out tip.parquet
   redysim simulate UR5-FALL --engine mujoco --integrator native:implicit --h 1.25e-3
   redysim simulate TALOS-FALL --engine drake --integrator native:runge_kutta3 --rtol 1e-6
-  redysim simulate ur5_robot.urdf --t-end 1 --rtol 1e-8 --atol 1e-10
-  redysim simulate solo12.urdf --floating --engine pinocchio-aba
+  redysim simulate example-robot-data:ur5 --t-end 1 --rtol 1e-8 --atol 1e-10
+  redysim simulate example-robot-data:solo12 --floating --engine pinocchio-aba
   redysim simulate cases/robots/puma560.toml --lock joint1=0 --lock joint4=0 --lock joint5=0 \\
       --lock joint6=0                           # the talk's free fall of joints 2 and 3
   redysim simulate cases/loops/hoekens_straight_line.toml --rtol 1e-10 --atol 1e-12
@@ -129,8 +133,8 @@ URDF is read by redysim; MJCF by MuJoCo's compiler (the 'models' extra).
 
 examples:
   redysim info RE-U125-L1
-  redysim info ur5_robot.urdf
-  redysim info solo12.urdf --floating"""
+  redysim info example-robot-data:ur5
+  redysim info example-robot-data:solo12 --floating"""
 
 ADVISE_HELP = """\
 How many links does a scene need? From a refinement study (one rope at several link counts, each
@@ -169,6 +173,18 @@ examples:
   redysim advise RE-U125-L1 --tip-tol 1e-3 --t-end 0.3
   redysim advise my_rope.toml --tip-tol 0.01
   redysim advise TALOS-FALL --tip-tol 1e-3 --observe arm_left_7_link"""
+
+ROBOTS_HELP = """\
+List the robots that can be given by name wherever a model file is taken (simulate, info,
+compare, advise, a sweep's cases, a scenario's [model] file, load_model): the model files of
+the example-robot-data package (installed with redysim[test]), as example-robot-data:NAME, or
+by the end of their path in the package (example-robot-data:ur_description/urdf/ur5_robot.urdf;
+the only form for a file whose stem another file shares), and the built-in scenarios, which
+run by their own names.
+
+example:
+  redysim robots
+  redysim info example-robot-data:ur5"""
 
 CASES_HELP = """\
 List the case files that come with redysim (every chain of the paper: the repository's cases/,
@@ -295,6 +311,11 @@ def build_parser(extra: Sequence[Callable] = ()) -> argparse.ArgumentParser:
     cs = sub.add_parser("cases", description=CASES_HELP, formatter_class=fmt,
                         help="list the chains of the paper that come with redysim")
     cs.set_defaults(func=cmd_cases)
+
+    rb = sub.add_parser("robots", description=ROBOTS_HELP, formatter_class=fmt,
+                        help="list the robots given by name (example-robot-data:NAME) and the "
+                             "built-in scenarios")
+    rb.set_defaults(func=cmd_robots)
 
     adv = sub.add_parser("advise", description=ADVISE_HELP, formatter_class=fmt,
                          help="the coarsest model and cheapest integrator setting that meet a "
@@ -483,7 +504,8 @@ def file_kind(name: str) -> FileKind:
     other name a rope case's."""
     from redysim.io.scenarios import scenario_path
 
-    p = scenario_path(name) if not Path(name).suffix else None
+    robot = name.startswith(ROBOT_DATA)  # example-robot-data:NAME, a file of the package
+    p = scenario_path(name) if robot or not Path(name).suffix else None
     return kind_of(p if p is not None else name)
 
 
@@ -687,7 +709,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--workers", args.workers, "sets the local process pool; "
                             "with --dask the cluster's own workers run the runs")
     sweep = load_sweep(args.sweep_file)
-    out = args.out or DEFAULT_SWEEP_ROOT / sweep.name
+    from redysim.harness.reference import results_dir
+
+    out = args.out or results_dir() / "sweeps" / sweep.name
     if out.exists() and not out.is_dir():
         raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
                             "folder")
@@ -831,7 +855,9 @@ def cmd_advise(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--t-end/--out/--workers/--observe",
                             next(v for v in own if v is not None),
                             "set a rope case's own study; a finished study is read as it is")
-    folder = (refine.study_folder(args.results or Path("results"), args.scene)
+    from redysim.harness.reference import results_dir
+
+    folder = (refine.study_folder(args.results or results_dir(), args.scene)
               if args.scene in refine.SCENES else Path(args.scene))
     try:
         study = refine.load_study(folder, args.scene)
@@ -893,7 +919,9 @@ def _advise_own(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "SCENE", scene, f"is no study ({', '.join(refine.SCENES)}, "
                             f"hanging), no study's folder (no runs/ folder there) and no rope "
                             f"case: {exc}") from None
-    out = args.out or Path("results") / "advise" / path.stem
+    from redysim.harness.reference import results_dir
+
+    out = args.out or results_dir() / "advise" / path.stem
     st = refine.own_study(path, args.tip_tol, out, t_end=args.t_end or 0.0,
                           workers=args.workers, progress=not args.no_progress)
     conv, ref = st.conv, st.study.reference
@@ -942,8 +970,11 @@ def _advise_robot(args: argparse.Namespace) -> int:
     if args.workers is not None:
         raise SettingsError(SOURCE, "--workers", args.workers, "a robot's reductions run one "
                             "after another (each set is decided by the runs before it)")
-    name = Path(args.scene).stem if Path(args.scene).suffix else args.scene
-    out = args.out or Path("results") / "advise" / name
+    from redysim.harness.reference import results_dir
+
+    scene = args.scene.removeprefix(ROBOT_DATA)  # a robot by name: its name, no colon
+    name = Path(scene).stem if Path(scene).suffix or scene != args.scene else scene
+    out = args.out or results_dir() / "advise" / name
     r = reduce.reductions(args.scene, args.tip_tol, out, frame=args.observe,
                           t_end=args.t_end or 0.0)
     print(f"{r.scenario}: {r.full_dof} DOF; the path of {r.frame!r} over {r.t_end:g} s, each "
@@ -1020,6 +1051,26 @@ def cmd_cases(args: argparse.Namespace) -> int:
         print(f"{PROG}: {bad} case file{'s' if bad > 1 else ''} in {CASES_DIR} did not load",
               file=sys.stderr)
     return EXIT_RUN_FAILED if bad else EXIT_OK
+
+
+def cmd_robots(args: argparse.Namespace) -> int:
+    """``redysim robots``: example-robot-data's model files by name (with their paths in the
+    package; a file without a name by its path), then the built-in scenarios' names."""
+    from redysim.io.robots import PACKAGE, robots
+    from redysim.io.scenarios import list_scenarios
+
+    table = robots()
+    if table:
+        print(f"{PACKAGE} (give {ROBOT_DATA}NAME, or {ROBOT_DATA}PATH for those without a name):")
+        width = max(len(ROBOT_DATA + n) for n, _ in table)
+        for name, rel in table:
+            print(f"  {ROBOT_DATA + name if name else '':<{width}}  {rel}")
+    else:
+        print(f"{PACKAGE} is not installed (pip install {PACKAGE}, or redysim[test]): no robots "
+              "by name")
+    print("built-in scenarios (give the name; redysim simulate NAME):")
+    print("  " + " ".join(list_scenarios()))
+    return EXIT_OK
 
 
 def main(argv: list[str] | None = None, *, extra: Sequence[Callable] = ()) -> int:

@@ -288,13 +288,20 @@ def write_reduced(scenario: str, scn, runner: _Runner, locked: tuple[str, ...], 
     import tomli_w
 
     from redysim.io.cases import read_toml
+    from redysim.io.kinds import ScenarioKind, kind_of
+    from redysim.io.robots import PREFIX as ROBOT_DATA
     from redysim.io.scenarios import scenario_path
 
     path = scenario_path(scenario)
     if path is None:
         notes.append("the scenario is not a file: no reduced scenario file written")
         return None
-    doc, _ = read_toml(path)
+    if isinstance(kind_of(path), ScenarioKind):
+        doc, _ = read_toml(path)
+    else:  # a model file by itself (it was read as TOML and refused): the reduced scenario
+        # names it, a robot of example-robot-data by its name
+        text = str(scenario)
+        doc = {"model": {"file": text if text.startswith(ROBOT_DATA) else str(path.resolve())}}
     red, keep_q, keep_v = runner.reduced(locked)
     anchor = _anchor(scn.model, locked, runner.frame, runner.q0)
     if anchor is None:
@@ -305,7 +312,7 @@ def write_reduced(scenario: str, scn, runner: _Runner, locked: tuple[str, ...], 
     name = f"{scn.name}-REDUCED"
     model_doc = dict(doc.get("model", {}))
     model_file = model_doc.get("file", "")
-    if model_file and not str(model_file).startswith("example-robot-data:") \
+    if model_file and not str(model_file).startswith(ROBOT_DATA) \
             and not Path(model_file).is_absolute():
         model_doc["file"] = str((path.parent / model_file).resolve())
     model_doc["lock"] = {**model_doc.get("lock", {}),  # the scenario's own locks kept

@@ -379,7 +379,9 @@ def _measure_cost(spec: RunSpec, system: System, y, res, row: dict, new_sim) -> 
 def _keep(spec: RunSpec, res, row: dict, samples: list, last: dict) -> None:
     """A Simulation's samples as the run's rows (tip, E, delta_M, COM, momentum), its counts
     into ``row``."""
-    tips, run_id = res.observed["tip"], spec.run_id  # the id hashes files: once a run
+    # the summary row's id (the spec as given, which a sweep looks runs up by), not the
+    # resolved spec's: redysim simulate --out wrote samples whose run_id no summary had
+    tips, run_id = res.observed["tip"], row["run_id"]  # (read once: the id hashes files)
     mom = res.observed["momentum"]
     for i, t in enumerate(res.t):
         samples.append((run_id, float(t), *tips[i], float(res.energy[i]),

@@ -92,6 +92,7 @@ from redysim.errors import FieldError, RedysimError, SettingsError
 from redysim.integrators.explicit import ALIASES, INTEGRATORS
 from redysim.io.cases import is_case_name
 from redysim.io.kinds import by_suffix
+from redysim.io.robots import PREFIX as ROBOT_DATA
 from redysim.io.scenarios import list_scenarios, load_scenario
 
 from . import REDYSIM_THREADS, worker_threads
@@ -323,6 +324,12 @@ class _Checker:
         relative to the sweep file's folder). A name without a folder or ``.toml`` is a
         built-in case only (:func:`redysim.io.cases.case_path`)."""
         name = self.text(field, value)
+        if name.startswith(ROBOT_DATA):  # a robot of example-robot-data, kept by its name
+            try:
+                self.loaded[name] = load_scenario(name)
+            except (RedysimError, OSError) as exc:
+                self.fail(field, value, str(exc))
+            return name
         if is_case_name(name) and not by_suffix(name):  # a name, not a model file
             if name not in self.case_names:
                 self.fail(field, value, f"no such case or scenario; known: "

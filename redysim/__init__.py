@@ -8,7 +8,7 @@ The public surface; everything else is internal::
     qdd = forward_dynamics(case.chain, case.q0, case.v0)
 
     from redysim import load_model, simulate
-    robot = load_model("ur5_robot.urdf")          # or an MJCF .xml
+    robot = load_model("example-robot-data:ur5")  # or a .urdf, an MJCF .xml
     fall = simulate(robot, 1.0, rtol=1e-8, atol=1e-10)
 
 The names are imported on first use (PEP 562): ``import redysim`` itself loads neither numba nor

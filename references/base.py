@@ -397,6 +397,16 @@ def depth_first(model: Model) -> list[int]:
     return order
 
 
+def build_warnings(engine) -> str:
+    """What an engine wrote to stderr while its adapter built the model, as its adapter kept it
+    (``build_warnings``: message -> how many bodies; a loop adapter's, of the tree engine it
+    holds), as one line; ``""`` when it said nothing. DART's Inertia warns for a principal
+    moment that is not > 0 (a thin rod about its axis), and uses it as given."""
+    said = getattr(engine, "build_warnings", None) or \
+        getattr(getattr(engine, "tree", None), "build_warnings", None) or {}
+    return "; ".join(f"{w} ({n} bod{'ies' if n > 1 else 'y'})" for w, n in said.items())
+
+
 def free_rotation(q, qs: int) -> np.ndarray:
     """The rotation of the free joint whose configuration starts at ``q[qs]`` (its quaternion,
     w first, normalised)."""

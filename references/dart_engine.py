@@ -82,11 +82,50 @@ BodyNodes, above) and a joint no DART joint composes (none of the core's joint t
 
 from __future__ import annotations
 
+import os
+import re
+import sys
+import tempfile
+
 import numpy as np
 
 from redysim.model.tree import FREE
 
-from .base import Engine, FreeBlock, NativeIntegrator, free_rotation, rotation_quaternion
+from .base import (
+    Engine,
+    FreeBlock,
+    NativeIntegrator,
+    build_warnings,
+    free_rotation,
+    rotation_quaternion,
+)
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+class _StderrCapture:
+    """Captures what C++ writes to the process's stderr (file descriptor 2) inside the block:
+    DART warns there ("Warning [Inertia.cpp:279] [Inertia::verifyMoment] ..."), past Python's
+    sys.stderr, so that a run printed ten such lines among the command's output. ``lines``:
+    what was written, colour codes stripped, one entry per line."""
+
+    def __enter__(self):
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile()
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        self.lines: list[str] = []
+        return self
+
+    def __exit__(self, *exc):
+        sys.stderr.flush()
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._file.seek(0)
+        text = _ANSI.sub("", self._file.read().decode("utf-8", "replace"))
+        self._file.close()
+        self.lines = [line.strip() for line in text.splitlines() if line.strip()]
+        return False
 
 
 def _construction(axes) -> str | None:
@@ -185,6 +224,7 @@ class DART(Engine):
         dyn = dart.dynamics
         m = self.model
         skel = dyn.Skeleton(m.name)
+        self.build_warnings: dict[str, int] = {}  # DART's warning -> how many bodies
         makers = {"revolute": (dyn.RevoluteJointProperties,
                                skel.createRevoluteJointAndBodyNodePair),
                   "prismatic": (dyn.PrismaticJointProperties,
@@ -217,8 +257,11 @@ class DART(Engine):
             props.mT_ParentBodyToJoint = T
             props.mName = f"j{k}"
             dj, body = make(None if joint.parent < 0 else bodies[joint.parent], props)
-            body.setInertia(dyn.Inertia(float(m.mass[k]), np.array(m.com[k]),
-                                        np.array(m.inertia_com[k])))
+            with _StderrCapture() as said:  # DART's C++ warnings: kept for the manifest
+                body.setInertia(dyn.Inertia(float(m.mass[k]), np.array(m.com[k]),
+                                            np.array(m.inertia_com[k])))
+            for line in said.lines:
+                self.build_warnings[line] = self.build_warnings.get(line, 0) + 1
             bodies.append(body)
             djoints.append(dj)
         skel.setGravity(np.asarray(m.gravity, dtype=float))
@@ -359,6 +402,8 @@ class DART(Engine):
 
     def _settings(self):
         out: dict = {"shape_nodes": sum(int(b.getNumShapeNodes()) for b in self.bodynodes)}
+        if self.build_warnings:  # (a thin rod's zero moment about its axis: used as given)
+            out["dart_warnings"] = build_warnings(self)
         if self.model.has_passive:
             out["passive"] = ("joint damping, springs and gravcomp forces on the skeleton's "
                               "clone that World.step steps (holds_passive)")

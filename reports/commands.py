@@ -41,8 +41,8 @@ every run with each engine's configuration, and the advice: for this accuracy, t
 setting was cheapest here. The runs are cached: run it again and only what changed runs.
 
 examples:
-  redysim compare ur5_robot.urdf
-  redysim compare talos_reduced.urdf --floating --t-end 0.5
+  redysim compare example-robot-data:ur5
+  redysim compare example-robot-data:talos_reduced --floating --t-end 0.5
   redysim compare cases/loops/jansen_leg.toml
   redysim compare UR5-FALL --engine mujoco --engine exudyn"""
 
@@ -61,7 +61,8 @@ def add_compare(sub) -> None:
     cmp_.add_argument("--t-end", type=positive, metavar="T",
                       help="horizon [s] (default: the scenario's; a model file's own: 1 s)")
     cmp_.add_argument("--out", type=Path, metavar="DIR",
-                      help="where the runs and the page go (default: results/compare/<name>)")
+                      help="where the runs and the page go (default: results/compare/<name>; "
+                           "results/ is $REDYSIM_RESULTS when set)")
     cmp_.add_argument("--workers", type=_whole, metavar="N",
                       help="processes running the runs (default: the number of CPU cores)")
     cmp_.add_argument("--engine", dest="engines", action="append",
@@ -88,7 +89,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from redysim.reports.compare import compare
 
     name = "".join(c if c.isalnum() or c in "-_." else "_" for c in scn.name)
-    out = args.out or Path("results") / "compare" / name
+    from redysim.harness.reference import results_dir
+
+    out = args.out or results_dir() / "compare" / name
     from redysim.harness.store import check_writable
 
     check_writable(out, flag="--out" if args.out else None)  # before any engine runs

@@ -167,6 +167,7 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
     :func:`redysim.reports.robots.agreement` ("tree:" rows)."""
     from redysim import references
     from redysim.algorithms.loops import ClosedLoops
+    from redysim.references.base import build_warnings
 
     loops = ClosedLoops(model)
     rng = np.random.default_rng(20261127)
@@ -188,6 +189,7 @@ def loop_agreement(name: str, model, q0) -> list[dict]:
                 row.update(status="refused", reason=lim.reason)
             else:
                 eng = references.loop_engine(engine, loops)
+                row["warnings"] = build_warnings(eng)  # its C++ stderr, kept (the notes)
                 worst = 0.0
                 for (q, v, tau), ref in zip(states, core, strict=True):
                     got = eng.forward_dynamics(q, v, tau)
@@ -353,6 +355,18 @@ def _wp_figure(scn, runs: pd.DataFrame):
                    "engine.", fig)
 
 
+def engine_warnings(agree: list[dict]) -> list[str]:
+    """What the engines wrote to stderr while their adapters built the model in the agreement
+    stage (:func:`redysim.references.base.build_warnings`: DART's Inertia wants every
+    principal moment > 0 and says so for a thin rod; the moments are used as given), once per
+    engine and warning: the page's notes, not the terminal."""
+    out: dict[str, None] = {}
+    for r in agree:
+        if r.get("warnings"):
+            out[f"{r['engine']}: {r['warnings']}"] = None
+    return list(out)
+
+
 def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, ref) -> Report:
     """The comparison page as a :class:`~redysim.reports.content.Report`."""
     from redysim.harness.provenance import provenance
@@ -372,6 +386,10 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                      f"(the observed path's largest distance); {check}.")
     if m.notes:
         intro.append("From the file, not simulated (Model.notes): " + "; ".join(m.notes))
+    said = engine_warnings(agree)
+    if said:
+        intro.append("The engines warned while building the model (their C++ output, kept "
+                     "here rather than printed): " + "; ".join(said))
     if m.couplings:
         from redysim import references
 

@@ -113,6 +113,7 @@ def _rel(a, b) -> float:
 def agreement(label, model) -> list[dict]:
     """One row per engine: the worst relative difference of each stage over STATES states."""
     from redysim import energy, forward_dynamics, mass_matrix, phi, references
+    from redysim.references.base import build_warnings
 
     rng = np.random.default_rng(SEED)
     states = [random_state(model, rng) for _ in range(STATES)]
@@ -131,6 +132,7 @@ def agreement(label, model) -> list[dict]:
             else:
                 eng = cls(model)
                 row["version"] = eng.version
+                row["warnings"] = build_warnings(eng)  # its C++ stderr, kept (compare's notes)
                 for (q, v, tau), (qdd, M, bias, E) in zip(states, core, strict=True):
                     got = {"qdd": _rel(eng.qdd(q, v, tau), qdd),
                            "GIM": _rel(eng.mass_matrix(q), M),

@@ -110,3 +110,23 @@ def test_the_talks_free_fall_of_puma_joints_2_and_3_conserves_energy(capsys):
     assert "4 joints locked" in capsys.readouterr().out
     assert main(["simulate", str(path), "--lock", "joint9=0"]) == 2
     assert "no such joint" in capsys.readouterr().err
+
+
+def test_simulate_out_samples_carry_the_summarys_run_id(capsys, tmp_path):
+    """`redysim simulate --out` writes the samples and the summary of one run: the samples'
+    run_id is the summary's (it was the resolved spec's, an id no summary had), and a robot
+    given by its name (example-robot-data:NAME) runs like its file."""
+    import pandas as pd
+
+    from redysim.io.scenarios import robot_data_file
+
+    if robot_data_file("ur5") is None:
+        pytest.skip("example-robot-data is not installed")
+    out = tmp_path / "fall.csv"
+    assert main(["simulate", "example-robot-data:ur5", "--t-end", "0.05", "--out",
+                 str(out)]) == 0
+    assert "ur5" in capsys.readouterr().out
+    samples = pd.read_csv(out)
+    summary = pd.read_csv(tmp_path / "fall.summary.csv")
+    assert len(summary) == 1 and len(samples) == 21
+    assert set(samples["run_id"]) == {summary["run_id"][0]}

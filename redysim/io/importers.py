@@ -105,6 +105,7 @@ from pathlib import Path
 import numpy as np
 
 from redysim.errors import CaseError, ModelFileError, StateError
+from redysim.io.robots import resolve
 from redysim.model.parts import KIND_CODES, check_inertia, check_positive
 from redysim.model.tree import (
     BALL_JOINT,
@@ -556,9 +557,11 @@ def load_urdf(path: str | os.PathLike, *, floating: bool = False, mimic: str = "
     announcing in :attr:`Model.notes`, what would change the motion and the core does not
     model (friction, limits, collision geometry). ``armature``: the joints' own inertia, which
     URDF has no tag for (:meth:`Model.with_armature`'s values: a number, n_v numbers, or joint
-    name -> value). Raises ModelFileError naming the file, the element (``joint 'elbow'``,
-    ``link 'base'``) and the value."""
-    path = Path(path)
+    name -> value). ``path`` may name a robot of example-robot-data
+    (``"example-robot-data:ur5"``, :mod:`redysim.io.robots`). Raises ModelFileError naming the
+    file, the element (``joint 'elbow'``, ``link 'base'``) and the value; FileNotFoundError for
+    a robot name the package does not have."""
+    path = Path(resolve(path))
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
     _check_choice(src, "mimic", mimic, MIMIC)
@@ -1578,8 +1581,9 @@ def load_mjcf(path: str | os.PathLike, *, floating: bool = False, equality: str 
     connect or weld (couplings kept); "drop" drops every equality (announced). ``strict``:
     refuse, instead of announcing in :attr:`Model.notes`, what would change the motion and the
     core does not model. Raises ModelFileError naming the file, the element (``joint 'knee'``,
-    ``body 'torso'``, ``equality 'loop'``) and the value."""
-    path = Path(path)
+    ``body 'torso'``, ``equality 'loop'``) and the value. ``path`` may name a robot of
+    example-robot-data as :func:`load_urdf`'s does."""
+    path = Path(resolve(path))
     src = str(path)
     _check_flags(src, floating=floating, strict=strict)
     _check_choice(src, "equality", equality, EQUALITY)

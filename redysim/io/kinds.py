@@ -37,6 +37,7 @@ import numpy as np
 from redysim.errors import CaseError
 from redysim.io.cases import Case, has_table, load_case
 from redysim.io.importers import EQUALITY, MIMIC, ModelFileError, _check_choice, _check_flags
+from redysim.io.robots import resolve
 from redysim.model.tree import Model
 
 # the suffix of redysim's own files (cases, scenarios, DH robots, linkages, proteins), which their
@@ -347,7 +348,7 @@ def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = 
     refused, naming its own loader. ``armature``: the joints' own inertia, replacing the file's
     (a URDF has no tag for it; :meth:`Model.with_armature`'s values: a number, n_v numbers, or
     joint name -> value). Raises FileNotFoundError, ModelFileError or CaseError."""
-    p = Path(path)
+    p = Path(resolve(path))  # example-robot-data:<name>: redysim.io.robots
     src = str(p)
     args = _loader_args(src, floating=floating, mimic=mimic, equality=equality, strict=strict)
     if not p.is_file():

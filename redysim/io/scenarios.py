@@ -54,7 +54,6 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -78,10 +77,11 @@ from redysim.io.cases import (
     read_toml,
 )
 from redysim.io.kinds import KINDS, Loaded, ScenarioKind, by_suffix, either, kind_of
+from redysim.io.robots import PREFIX, package_hint, robot_file
 from redysim.model.tree import FREE, QUATERNION_JOINTS, Model
 
 SCENARIOS_DIR = Path(CASES_DIR) / "scenarios"
-ROBOT_DATA = "example-robot-data:"  # a model file of the example-robot-data package
+ROBOT_DATA = PREFIX  # a model file of the example-robot-data package (redysim.io.robots)
 DEFAULT_T_END = 1.0  # s: a model file's own scenario
 QUATERNION_TOL = 1e-6
 _FIELDS = {
@@ -189,31 +189,29 @@ def list_scenarios(directory: Path = SCENARIOS_DIR) -> list[str]:
     return sorted(p.stem for p in Path(directory).glob("*.toml"))
 
 
-@functools.lru_cache(maxsize=256)
 def robot_data_file(name: str) -> Path | None:
-    """A file of the ``example-robot-data`` package by the end of its path
-    (``"ur_description/urdf/ur5_robot.urdf"``), or None when the package is not installed or
-    has no such file. Cached: reading the package's list of files is slow next to a run's id,
-    which asks for it (docs/notes/2026-11-costs-in-the-code.md)."""
+    """A file of the ``example-robot-data`` package by its short name (``"ur5"``) or the end of
+    its path (``"ur_description/urdf/ur5_robot.urdf"``; :mod:`redysim.io.robots`), or None when
+    the package is not installed or has no such file (or two)."""
     try:
-        dist = metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
+        return robot_file(name)
+    except FileNotFoundError:
         return None
-    hits = [f for f in dist.files or () if str(f).endswith("/" + name.lstrip("/"))]
-    return Path(str(dist.locate_file(hits[0]))) if hits else None
 
 
 def scenario_path(name_or_path: str | os.PathLike) -> Path | None:
     """The file of a built-in scenario name (``cases/scenarios/NAME.toml``), or the path given
     when it is a file; None for a name that is no scenario (a rope case's, perhaps)."""
     text = os.fspath(name_or_path)
+    if text.startswith(ROBOT_DATA):  # a robot of example-robot-data, by name
+        return robot_file(text[len(ROBOT_DATA):])
     model_file = by_suffix(text)
     if is_case_name(text) and not model_file:
         p = SCENARIOS_DIR / f"{text}.toml"
         return p if p.is_file() else None
     p = Path(text)
     if model_file and not p.is_file():
-        raise FileNotFoundError(f"model file {text!r} does not exist")
+        raise FileNotFoundError(f"model file {text!r} does not exist{package_hint(text)}")
     return p if p.is_file() else None
 
 
@@ -263,13 +261,11 @@ def _model_file(source: str, scenario: Path, text: str) -> Path:
     """The model file a scenario names: example-robot-data's, a built-in case's, or a path
     relative to the scenario file."""
     if text.startswith(ROBOT_DATA):
-        name = text[len(ROBOT_DATA):]
-        p = robot_data_file(name)
-        if p is None:
-            raise CaseError(source, "model.file", text, "not found: the example-robot-data "
-                            "package is not installed or has no such file (pip install "
-                            "example-robot-data)")
-        return p
+        try:
+            return robot_file(text[len(ROBOT_DATA):])
+        except FileNotFoundError as exc:
+            why = str(exc).removeprefix(f"model file {text!r}").lstrip(": ")
+            raise CaseError(source, "model.file", text, why) from None
     if is_case_name(text) and (Path(CASES_DIR) / f"{text}.toml").is_file():
         return Path(CASES_DIR) / f"{text}.toml"
     p = Path(text)

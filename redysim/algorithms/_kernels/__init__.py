@@ -51,4 +51,39 @@ def drop_stale_cache(cache: Path = HERE / "__pycache__") -> bool:
     return True
 
 
+def compiled_cache_dir() -> Path | None:
+    """Where numba keeps these kernels' machine code (beside them, or where NUMBA_CACHE_DIR or a
+    read-only install sends it: numba's own choice, asked of numba); None if numba cannot say."""
+    try:
+        from numba.core.caching import FunctionCache
+
+        return Path(FunctionCache(sources_digest)._cache_path)
+    except Exception:  # (numba internals of another version: no answer, no note)
+        return None
+
+
+# shown once per process on stderr when the kernels' cache is empty: numba then compiles each
+# kernel on its first call, which takes a minute or two of a first run (docs/guide.md)
+COLD_NOTE = ("redysim: compiling the numba kernels for this machine on first use (about 1.5 "
+             "min of CPU for a first run; cached in {where}, so later processes start at once)")
+
+
+def announce_cold_cache(stream=None) -> bool:
+    """Say on ``stream`` (stderr) that the first calls will compile, when the kernels' cache
+    holds no compiled kernel; True if it said so."""
+    import sys
+
+    where = compiled_cache_dir()
+    if where is None or os.environ.get("NUMBA_DISABLE_JIT", "0") not in ("", "0"):
+        return False
+    try:
+        if any(where.glob("*.nbi")):
+            return False
+    except OSError:
+        pass
+    print(COLD_NOTE.format(where=where), file=stream or sys.stderr, flush=True)
+    return True
+
+
 drop_stale_cache()
+announce_cold_cache()
