@@ -364,14 +364,42 @@ class Solver(OdeSolver):
         return out
 
     def _initial_step(self) -> float:
-        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call)."""
+        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call); dop853's is Hairer's
+        (:meth:`_initial_step_hairer`)."""
         absh = min(self.hmax, self.t_end - self.t)
         m = self.checked  # (the motion's components, as the error norm's)
+        if self.tab.E3 is not None:
+            absh = self._initial_step_hairer(absh, m)
+            return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
         scale = np.maximum(np.abs(self.y[:m]), self.atol / self.rtol)
         rh = np.max(np.abs(self.f[:m]) / scale) / (SAFETY * self.rtol ** self._ctl.power)
         if absh * rh > 1:
             absh = 1.0 / rh
         return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
+
+    def _initial_step_hairer(self, absh: float, m: int) -> float:
+        """DOP853's first step (Hairer's HINIT in dop853.f, as SciPy's select_initial_step),
+        at most ``absh``: with the RMS norm ||x|| over the m measured components scaled by
+        sc = atol + rtol |y0|, d0 = ||y0||, d1 = ||f0||, h0 = 0.01 d0 / d1 (1e-6 when either is
+        below 1e-5), d2 = ||f(t + h0, y0 + h0 f0) - f0|| / h0 (one RHS call), and
+        h = min(100 h0, (0.01 / max(d1, d2))^(1/8)). The sums are math.fsum's (correctly
+        rounded: the same on every CPU)."""
+        y, f = self.y[:m], self.f[:m]
+        sc = self.atol + self.rtol * np.abs(y)
+
+        def rms(x):
+            return math.sqrt(math.fsum((x * x).tolist()) / max(m, 1))
+
+        d0, d1 = rms(y / sc), rms(f / sc)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, absh)
+        f1 = self._call(self.t + h0, self.y + h0 * self.f)
+        d2 = rms((f1[:m] - f) / sc) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** self._ctl.power
+        return min(100 * h0, h1, absh)
 
     def state(self) -> SolverState:
         """A copy of the resumable state (to save in a checkpoint)."""
