@@ -54,6 +54,7 @@ from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping 
     HMIN_EPS,
     LATER_REJECT,
     MAX_GROWTH,
+    DOP853_SAFETY,
     SAFETY,
     SAMPLE_EPS,
     Counters,
@@ -338,7 +339,8 @@ class Solver(OdeSolver):
         self.checked = min(n, int(getattr(self.system, "motion_size", n)))
         self._ctl = rk_run.Control(
             self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
-            self.hmax, power, self.t_end, bool(self.adaptive), SAFETY, MAX_GROWTH,
+            self.hmax, power, self.t_end, bool(self.adaptive),
+            DOP853_SAFETY if tab.E3 is not None else SAFETY, MAX_GROWTH,
             FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS, self.checked)
         self.K = np.empty((tab.stages + (1 if tab.fsal else 0), n))
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
