@@ -11,8 +11,15 @@ an embedded error estimate and a step-size controller; a fixed-step scheme has n
             that needed no retry; a first rejection shrinks by ``max(0.1, 0.8 (rtol/err)^(1/5))``,
             later ones of the same step halve it; outputs by its quartic interpolant (ntrp45).
 ``dop853``  Dormand-Prince 8(5,3) (Hairer's DOP853 tableau, error estimator and 7th-order dense
-            output) under the SAME max-norm control as ``ode45`` (exponent 1/8), so that a
-            tolerance means the same thing for both.
+            output) with Hairer's error norm over the whole vector, as dop853.f and SciPy's
+            DOP853: ``sc = atol + rtol max(|y|, |y_new|)``, ``s5 = sum (K^T E5 ./ sc)^2``,
+            ``s3`` likewise with E3, ``err = |h| s5 / sqrt((s5 + 0.01 s3) n)``, accepted when
+            ``<= 1`` (:func:`redysim.algorithms._kernels.rk.error_norm`); Hairer's first step
+            (HINIT: one extra RHS call) and his safety factor 0.9; otherwise ode45's controller
+            (exponent 1/8, growth capped at 5x, ode45's rejections, ``hmax = 0.1 span``). Its
+            rtol and atol mean what they mean for SciPy's DOP853: on the same RHS it takes at
+            most 1.2x SciPy's steps (docs/notes/2026-12-07-norm.md). A max norm, as ode45's,
+            would answer the rounding noise of components that start at zero.
 ``rk4``     classical Runge-Kutta at a fixed step ``h``; steps are shortened to land on the sample
             times; outputs are the step values.
 ``midpoint`` (alias ``implicit``) and ``midpoint-fixed``: the implicit midpoint rule for
