@@ -55,13 +55,13 @@ import numpy as np
 
 from redysim.errors import FieldError, SettingsError, StateError
 from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping pieces, importable from here too
+    DOP853_SAFETY,
     FINISH_SLACK,
     FIRST_REJECT_MIN,
     HMAX_FRACTION,
     HMIN_EPS,
     LATER_REJECT,
     MAX_GROWTH,
-    DOP853_SAFETY,
     SAFETY,
     SAMPLE_EPS,
     Counters,
