@@ -110,3 +110,24 @@ def test_the_talks_free_fall_of_puma_joints_2_and_3_conserves_energy(capsys):
     assert "4 joints locked" in capsys.readouterr().out
     assert main(["simulate", str(path), "--lock", "joint9=0"]) == 2
     assert "no such joint" in capsys.readouterr().err
+
+
+def test_a_run_without_limits_reads_no_clock_per_step(monkeypatch):
+    """The Simulator's fixed cost: without max_cpu_s or max_wall_s a run reads the CPU clock
+    twice (its start and its cpu_s), not once per step or sample; with max_cpu_s the limit is
+    still checked (a tiny one fails the run, saying so)."""
+    import time
+
+    from redysim import Chain
+
+    chain = Chain.uniform(4, "R", length=0.25, mass=0.5)
+    calls = []
+    real = time.thread_time
+    monkeypatch.setattr(time, "thread_time", lambda: calls.append(1) or real())
+    sim = simulate(chain, 0.5, q0=np.full(4, 0.3), sample=0.01, rtol=1e-8, atol=1e-10)
+    assert sim.status == 0 and sim.steps > 10 and sim.t.size == 51
+    assert len(calls) == 2
+    from redysim.simulation import simulator
+    run = simulator(chain, 0.5, q0=np.full(4, 0.3), sample=0.01, rtol=1e-8,
+                    atol=1e-10).run(max_cpu_s=1e-9)
+    assert run.status == -1 and "max_cpu_s" in run.message
