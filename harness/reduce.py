@@ -142,7 +142,7 @@ class _Runner:
                              integrator=integrator, rtol=rtol, atol=rtol * 1e-2,
                              sample=self.sample, observe={"frame": observe}, keep_states=False,
                              damping=self.scn.damping)
-        res = new_sim().run(clock="process")
+        res = new_sim().run(clock="process", time_samples=timed)
         if res.status != 0:
             raise SettingsError(SOURCE, "SCENE", self.scn.name, f"the run with {list(locked)} "
                                 f"locked failed: {res.message}")
@@ -153,7 +153,7 @@ class _Runner:
             from . import cost
 
             def once() -> float:
-                again = new_sim().run(clock="process")
+                again = new_sim().run(clock="process", time_samples=True)
                 return (again.cpu_s - again.sample_cpu_s if again.nfev == res.nfev
                         else math.nan)
             entry.update(cost.summary(cost.repeat(once, res.cpu_s - res.sample_cpu_s)))

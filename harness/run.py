@@ -342,7 +342,7 @@ def _integrate(spec: RunSpec, case, dyn: _Dynamics, row: dict, samples: list, la
 
     try:
         res = sim.run(progress=report, max_cpu_s=spec.max_cpu_s or None, max_wall_s=max_wall_s,
-                      clock="process", energy_bound=spec.energy_bound)
+                      clock="process", energy_bound=spec.energy_bound, time_samples=True)
     except Exception as exc:  # an engine's error mid-run: its row keeps the samples before it
         if getattr(exc, "partial", None) is not None:
             _keep(spec, exc.partial, row, samples, last)
@@ -363,7 +363,7 @@ def _measure_cost(spec: RunSpec, system: System, y, res, row: dict, new_sim) -> 
     (the simulator's) and the RHS calls' work. A repeat that does not make the same steps and
     calls (it would time other work) ends the repeats; the times before it are kept."""
     def once() -> float:
-        again = new_sim().run(clock="process")
+        again = new_sim().run(clock="process", time_samples=True)
         if again.status != 0 or again.nfev != res.nfev or again.steps != res.steps:
             return math.nan
         return again.cpu_s - again.sample_cpu_s

@@ -167,7 +167,8 @@ class Simulation:
     and ``v`` have no rows when the run kept no
     states (``keep_states=False``). ``sample_cpu_s``: the part of ``cpu_s`` spent taking the
     samples (their projection, energy and observers: the caller's measurement, not the
-    integration's work), on the run's CPU clock."""
+    integration's work), on the run's CPU clock; NaN unless the run was asked to time them
+    (``Simulator.run(time_samples=True)``, as the harness's runs are)."""
 
     name: str
     t: np.ndarray
@@ -194,7 +195,7 @@ class Simulation:
     E0: float = math.nan
     work: np.ndarray | None = None
     work_note: str = ""
-    sample_cpu_s: float = 0.0  # of cpu_s: the sampling's (energy, projection, observers)
+    sample_cpu_s: float = math.nan  # of cpu_s: the sampling's (NaN: not timed)
 
 
 class _Stop(Exception):
@@ -325,7 +326,8 @@ class Simulator:
     def run(self, *, progress: Callable[[float, float, int, float], str | None] | None = None,
             on_step: Callable[[object], str | None] | None = None,
             max_cpu_s: float | None = None, max_wall_s: float | None = None,
-            clock: str = "thread", energy_bound: float | None = None) -> Simulation:
+            clock: str = "thread", energy_bound: float | None = None,
+            time_samples: bool = False) -> Simulation:
         """Integrate to t_end (or until stopped) and return the samples and counts (once: a
         second call raises RuntimeError).
 
@@ -340,7 +342,10 @@ class Simulator:
         limit ..."), never failed. Both are checked after every step and every derivative call
         (one implicit step can take long). ``energy_bound``: a run whose |delta_M| (the balance
         E - W - E0 per unit mass where the work W is recorded) passes it fails ("energy
-        blow-up"). An unexpected error of a provider (an engine's qdd, say) is
+        blow-up"). ``time_samples``: time the sampling apart (``sample_cpu_s``; two clock
+        reads a sample, a system call each: the harness's runs ask, for their cost; else
+        ``sample_cpu_s`` is NaN, not measured). An unexpected error of a provider (an engine's
+        qdd, say) is
         raised as it is, the run's samples up to it attached as its ``partial``
         :class:`Simulation`."""
         if getattr(self, "_ran", False):
@@ -353,6 +358,7 @@ class Simulator:
             raise SettingsError(source, "max_wall_s", max_wall_s, "must be None or a number of "
                                 "seconds > 0")
         run = _Run(self, progress, on_step, energy_bound)
+        run.time_samples = bool(time_samples)
         run.limit(time.thread_time if clock == "thread" else time.process_time, max_cpu_s,
                   max_wall_s)
         return run.go()
@@ -394,7 +400,8 @@ class _Run:
         self.forces: list[np.ndarray] = []
         self.observed: dict[str, list] = {name: [] for name in sim.observe}
         self.last_y: np.ndarray | None = None
-        self.sample_cpu = 0.0  # CPU time spent in on_sample
+        self.sample_cpu = 0.0  # CPU time spent in on_sample (when time_samples)
+        self.time_samples = False
 
     def limit(self, cpu, max_cpu_s, max_wall_s) -> None:
         """Start the clocks: past max_cpu_s of ``cpu`` the run fails, past max_wall_s of wall
@@ -406,10 +413,12 @@ class _Run:
         self.sim._limits.check = self.check_limits if (max_cpu_s or max_wall_s) else None
 
     def check_limits(self, t: float) -> None:
-        if self.cpu() > self.cpu_end:
+        """Raise _Stop past a limit; without one, no clock is read (a thread's CPU clock is a
+        system call, which on a loaded VM was measured to take most of a small robot's run)."""
+        if self.cpu_end < math.inf and self.cpu() > self.cpu_end:
             raise _Stop(-1, f"time limit: max_cpu_s = {self.max_cpu_s:g} s of CPU reached at "
                             f"t = {t:.6g}")
-        if time.perf_counter() > self.wall_end:
+        if self.wall_end < math.inf and time.perf_counter() > self.wall_end:
             raise _Stop(1, f"stopped by the wall-clock limit, max_wall_s = {self.max_wall_s:g} "
                            f"s (the caller's patience, not a result), at t = {t:.6g}; the "
                            "samples so far are kept")
@@ -421,6 +430,8 @@ class _Run:
         sim = self.sim
         if sim.skip_until is not None and t <= sim.skip_until:
             return None  # taken before the checkpoint this run resumed from
+        if not self.time_samples:
+            return self._sample(t, y)
         t0 = self.cpu()
         try:
             return self._sample(t, y)
@@ -550,7 +561,7 @@ class _Run:
             residual_q=float(worst[1]), residual_v=float(worst[2]), near_change_point=near,
             observed={k: np.array(v) for k, v in self.observed.items()}, y_final=self.last_y,
             E0=sim.E0, work=None if sim.work_note else W, work_note=sim.work_note,
-            sample_cpu_s=self.sample_cpu)
+            sample_cpu_s=self.sample_cpu if self.time_samples else math.nan)
 
 
 def simulator(model: Model, t_end: float, *, q0=None, v0=None,

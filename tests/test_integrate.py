@@ -429,3 +429,71 @@ def test_a_pulled_chain_steps_in_compiled_code_in_the_same_bits(method, kw, damp
         assert a.energy[-1] < a.energy[0]
     else:  # T + V - F . p_tip is conserved (rk4 at h = 1e-3: to its truncation)
         assert np.abs(a.delta_M).max() < (1e-4 if method == "rk4" else 1e-6)
+
+
+def test_dop853_error_norm_is_hairers_over_the_whole_vector():
+    """The compiled dop853 norm against SciPy's DOP853 (Hairer's formula, an independent
+    source, SciPy's own E5 and E3): the same value, in units of rtol, on random stages with half
+    the components at zero; 0 for zero stages; NaN when not finite."""
+    import types
+
+    from scipy.integrate import DOP853 as SDOP853
+    from scipy.integrate._ivp import dop853_coefficients as d
+
+    from redysim.algorithms._kernels import rk
+
+    rng = np.random.default_rng(5100)
+    n, rtol, atol, h = 40, 1e-9, 1e-11, 3e-3
+    K = rng.normal(size=(DOP853.E.size, n))
+    y = rng.normal(size=n)
+    y[::2] = 0.0
+    y_new = y + h * rng.normal(size=n)
+    ours = rk.error_norm(h, DOP853.E, DOP853.E3, K, DOP853.E.size, y, y_new, rtol, atol,
+                         np.empty(n), np.empty(n))
+    scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
+    theirs = SDOP853._estimate_error_norm(types.SimpleNamespace(E5=d.E5, E3=d.E3), K, h, scale)
+    assert ours == pytest.approx(rtol * theirs, rel=1e-12)
+    # a zero step's stages: 0, not 0/0
+    assert rk.error_norm(h, DOP853.E, DOP853.E3, np.zeros_like(K), DOP853.E.size, y, y_new,
+                         rtol, atol, np.empty(n), np.empty(n)) == 0.0
+    # not finite: NaN (the controller stops with a reason)
+    K[5, 7] = np.inf  # (a stage with a nonzero weight)
+    assert np.isnan(rk.error_norm(h, DOP853.E, DOP853.E3, K, DOP853.E.size, y, y_new, rtol,
+                                  atol, np.empty(n), np.empty(n)))
+
+
+def test_dop853_first_step_is_hairers():
+    """dop853's first step is Hairer's HINIT, as SciPy's select_initial_step computes it."""
+    from scipy.integrate._ivp.common import select_initial_step
+
+    y0 = np.array([0.3, 0.0, 0.0, 1.0])
+
+    def fun(t, y):
+        return np.array([y[2], y[3], -np.sin(y[0]) - 0.1 * y[3], -y[1] ** 3 + np.cos(t)])
+
+    for rtol in (1e-6, 1e-10):
+        s = Solver(fun, 0.0, y0, 5.0, "dop853", rtol=rtol, atol=rtol / 100)
+        h = select_initial_step(fun, 0.0, y0, 5.0, 0.5, fun(0.0, y0), 1, 7, rtol, rtol / 100)
+        assert s.h_next == pytest.approx(h, rel=1e-12)
+        assert s.counters.nfev == 2  # f(t0, y0) and HINIT's one call
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10, 1e-12])
+def test_dop853_takes_no_more_steps_than_scipys(rtol):
+    """Issue 51: on a 6-link spatial chain (12 DOF, velocities starting at zero) the core's
+    dop853 takes at most 1.2x the steps of SciPy's DOP853 on the same RHS at the same rtol and
+    atol = rtol / 100 (before Hairer's norm: several times more at tight tolerances)."""
+    from scipy.integrate import solve_ivp
+
+    from redysim import Chain, Workspace, forward_dynamics
+
+    chain = Chain.uniform(6, "U", length=0.3, mass=0.5, radius=0.02)
+    ws, n = Workspace(chain), chain.n_dof
+
+    def rhs(t, y):
+        return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
+
+    y0 = np.concatenate((np.linspace(0.1, 0.6, n), np.zeros(n)))
+    sol = integrate(rhs, (0.0, 0.5), y0, "dop853", rtol=rtol, atol=rtol / 100)
+    ref = solve_ivp(rhs, (0.0, 0.5), y0, method="DOP853", rtol=rtol, atol=rtol / 100)
+    assert sol.steps <= 1.2 * (ref.t.size - 1)

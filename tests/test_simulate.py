@@ -130,3 +130,24 @@ def test_simulate_out_samples_carry_the_summarys_run_id(capsys, tmp_path):
     summary = pd.read_csv(tmp_path / "fall.summary.csv")
     assert len(summary) == 1 and len(samples) == 21
     assert set(samples["run_id"]) == {summary["run_id"][0]}
+
+
+def test_a_run_without_limits_reads_no_clock_per_step(monkeypatch):
+    """The Simulator's fixed cost: without max_cpu_s or max_wall_s a run reads the CPU clock
+    twice (its start and its cpu_s), not once per step or sample; with max_cpu_s the limit is
+    still checked (a tiny one fails the run, saying so)."""
+    import time
+
+    from redysim import Chain
+
+    chain = Chain.uniform(4, "R", length=0.25, mass=0.5)
+    calls = []
+    real = time.thread_time
+    monkeypatch.setattr(time, "thread_time", lambda: calls.append(1) or real())
+    sim = simulate(chain, 0.5, q0=np.full(4, 0.3), sample=0.01, rtol=1e-8, atol=1e-10)
+    assert sim.status == 0 and sim.steps > 10 and sim.t.size == 51
+    assert len(calls) == 2
+    from redysim.simulation import simulator
+    run = simulator(chain, 0.5, q0=np.full(4, 0.3), sample=0.01, rtol=1e-8,
+                    atol=1e-10).run(max_cpu_s=1e-9)
+    assert run.status == -1 and "max_cpu_s" in run.message

@@ -11,8 +11,15 @@ an embedded error estimate and a step-size controller; a fixed-step scheme has n
             that needed no retry; a first rejection shrinks by ``max(0.1, 0.8 (rtol/err)^(1/5))``,
             later ones of the same step halve it; outputs by its quartic interpolant (ntrp45).
 ``dop853``  Dormand-Prince 8(5,3) (Hairer's DOP853 tableau, error estimator and 7th-order dense
-            output) under the SAME max-norm control as ``ode45`` (exponent 1/8), so that a
-            tolerance means the same thing for both.
+            output) with Hairer's error norm over the whole vector, as dop853.f and SciPy's
+            DOP853: ``sc = atol + rtol max(|y|, |y_new|)``, ``s5 = sum (K^T E5 ./ sc)^2``,
+            ``s3`` likewise with E3, ``err = |h| s5 / sqrt((s5 + 0.01 s3) n)``, accepted when
+            ``<= 1`` (:func:`redysim.algorithms._kernels.rk.error_norm`); Hairer's first step
+            (HINIT: one extra RHS call) and his safety factor 0.9; otherwise ode45's controller
+            (exponent 1/8, growth capped at 5x, ode45's rejections, ``hmax = 0.1 span``). Its
+            rtol and atol mean what they mean for SciPy's DOP853: on the same RHS it takes at
+            most 1.2x SciPy's steps (docs/notes/2026-12-07-norm.md). A max norm, as ode45's,
+            would answer the rounding noise of components that start at zero.
 ``rk4``     classical Runge-Kutta at a fixed step ``h``; steps are shortened to land on the sample
             times; outputs are the step values.
 ``midpoint`` (alias ``implicit``) and ``midpoint-fixed``: the implicit midpoint rule for
@@ -48,6 +55,7 @@ import numpy as np
 
 from redysim.errors import FieldError, SettingsError, StateError
 from redysim.integrators.protocol import (  # noqa: F401 -- the shared stepping pieces, importable from here too
+    DOP853_SAFETY,
     FINISH_SLACK,
     FIRST_REJECT_MIN,
     HMAX_FRACTION,
@@ -338,7 +346,8 @@ class Solver(OdeSolver):
         self.checked = min(n, int(getattr(self.system, "motion_size", n)))
         self._ctl = rk_run.Control(
             self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
-            self.hmax, power, self.t_end, bool(self.adaptive), SAFETY, MAX_GROWTH,
+            self.hmax, power, self.t_end, bool(self.adaptive),
+            DOP853_SAFETY if tab.E3 is not None else SAFETY, MAX_GROWTH,
             FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS, self.checked)
         self.K = np.empty((tab.stages + (1 if tab.fsal else 0), n))
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
@@ -364,14 +373,42 @@ class Solver(OdeSolver):
         return out
 
     def _initial_step(self) -> float:
-        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call)."""
+        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call); dop853's is Hairer's
+        (:meth:`_initial_step_hairer`)."""
         absh = min(self.hmax, self.t_end - self.t)
         m = self.checked  # (the motion's components, as the error norm's)
+        if self.tab.E3 is not None:
+            absh = self._initial_step_hairer(absh, m)
+            return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
         scale = np.maximum(np.abs(self.y[:m]), self.atol / self.rtol)
         rh = np.max(np.abs(self.f[:m]) / scale) / (SAFETY * self.rtol ** self._ctl.power)
         if absh * rh > 1:
             absh = 1.0 / rh
         return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
+
+    def _initial_step_hairer(self, absh: float, m: int) -> float:
+        """DOP853's first step (Hairer's HINIT in dop853.f, as SciPy's select_initial_step),
+        at most ``absh``: with the RMS norm ||x|| over the m measured components scaled by
+        sc = atol + rtol |y0|, d0 = ||y0||, d1 = ||f0||, h0 = 0.01 d0 / d1 (1e-6 when either is
+        below 1e-5), d2 = ||f(t + h0, y0 + h0 f0) - f0|| / h0 (one RHS call), and
+        h = min(100 h0, (0.01 / max(d1, d2))^(1/8)). The sums are math.fsum's (correctly
+        rounded: the same on every CPU)."""
+        y, f = self.y[:m], self.f[:m]
+        sc = self.atol + self.rtol * np.abs(y)
+
+        def rms(x):
+            return math.sqrt(math.fsum((x * x).tolist()) / max(m, 1))
+
+        d0, d1 = rms(y / sc), rms(f / sc)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, absh)
+        f1 = self._call(self.t + h0, self.y + h0 * self.f)
+        d2 = rms((f1[:m] - f) / sc) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** self._ctl.power
+        return min(100 * h0, h1, absh)
 
     def state(self) -> SolverState:
         """A copy of the resumable state (to save in a checkpoint)."""

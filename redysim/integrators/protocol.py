@@ -19,6 +19,7 @@ import numpy as np
 
 # --------------------------------------------------------------------------- controller constants
 SAFETY = 0.8            # ode45: new h = h * SAFETY * (rtol / err)^(1 / (q + 1))
+DOP853_SAFETY = 0.9    # dop853: Hairer's dop853.f (SAFE) and SciPy's DOP853
 MAX_GROWTH = 5.0        # ode45: at most 5x growth after an accepted step
 FIRST_REJECT_MIN = 0.1  # ode45: a first rejection shrinks h by no more than 10x
 LATER_REJECT = 0.5      # ode45: later rejections of the same step halve h

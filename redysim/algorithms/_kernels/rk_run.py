@@ -156,7 +156,7 @@ def _stages(sd, extras, scheme, t, y, f, h, K, tmp, y_new, counts):
 
 
 @jit_borrowed
-def _attempt(sd, extras, scheme, ctl, st, t, threshold):
+def _attempt(sd, extras, scheme, ctl, st, t):
     """One adaptive step from t: stages and error estimate, retried with shrinking steps until
     the error is within rtol. Returns (status, t_new, e, nofailed) (status 0: accepted)."""
     y, f, K, counts = st.y, st.f, st.K, st.counts
@@ -173,8 +173,8 @@ def _attempt(sd, extras, scheme, ctl, st, t, threshold):
         if not _stages(sd, extras, scheme, t, y, f, h, K, st.tmp, st.y_new, counts):
             return ERR_QDD, t_new, 0.0, nofailed
         m = ctl.checked  # (the state's leading components: not a quadrature after them)
-        e = error_norm(h, E, E3, K, E.shape[0], y[:m], st.y_new[:m], threshold, st.err[:m],
-                       st.err3[:m])
+        e = error_norm(h, E, E3, K, E.shape[0], y[:m], st.y_new[:m], ctl.rtol, ctl.atol,
+                       st.err[:m], st.err3[:m])
         if not math.isfinite(e):
             return ERR_NONFINITE, t_new, e, nofailed
         if e <= ctl.rtol:
@@ -195,7 +195,6 @@ def rk_steps(sd, extras, scheme, ctl, st, t_stop, max_steps):
     of a call is projected (the last is the caller's, after its samples)."""
     ts, y, f, K, counts = st.ts, st.y, st.f, st.K, st.counts
     s = scheme.b.shape[0]
-    threshold = ctl.atol / ctl.rtol
     taken = 0
     t_stop = min(t_stop, ctl.t_end)
     while taken < max_steps and ts[0] < ctl.t_end:
@@ -203,7 +202,7 @@ def rk_steps(sd, extras, scheme, ctl, st, t_stop, max_steps):
             return ERR_PROJECT
         t = ts[0]
         if ctl.adaptive:
-            status, t_new, _, _ = _attempt(sd, extras, scheme, ctl, st, t, threshold)
+            status, t_new, _, _ = _attempt(sd, extras, scheme, ctl, st, t)
             if status != 0:
                 return status
         else:
