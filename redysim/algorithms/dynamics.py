@@ -136,7 +136,12 @@ def _ws(model: Model, ws: Workspace | None, where: str = "dynamics") -> Workspac
         door.require_model(model, where)
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
-        raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another chain than "
+        if repr(ws.model) == repr(model):  # the same description: another object
+            raise FieldError("dynamics", "ws", repr(ws.model), "was made for another Model "
+                             "object with the same description (a file loaded again gives a "
+                             "new model; a Workspace serves the very model it was made for): "
+                             "make one with Workspace(model)")
+        raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another model than "
                          f"{model!r}; make one with Workspace(model)")
     return ws
 
@@ -392,6 +397,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     them).
     """
     ws = _ws(model, ws, "forward_dynamics")
+    if method != "rge-a" and method not in METHODS:
+        raise FieldError("forward_dynamics", "method", method,
+                         f"unknown; choose one of {', '.join(METHODS)}")
     if model.cuts or model.couplings:
         if model.cuts:
             raise closed_error(model, "forward_dynamics")
@@ -431,8 +439,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     if planar is None:
         planar = is_planar
     elif planar and not is_planar:
-        raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
-                         "a single revolute about its frame's z axis)")
+        raise FieldError("forward_dynamics", "planar", True, f"chain {model.name!r} is not "
+                         "planar (every joint must be a single revolute about its frame's z "
+                         "axis)")
     use_dh = (ws.dh and not planar) if dh is None else use_dh_kernels(model, ws.dh, dh, planar)
     if method == "rge-a":
         entry = (_PLANAR if planar else _DH if use_dh else _RGE_A).compiled
@@ -450,12 +459,10 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                 return qdd
             if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
                 raise _nonfinite_qdd(model, ws, planar, q, v, tau, use_dh=use_dh)
-    elif method not in METHODS:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if _is_batch(q):
         if method != "rge-a":
-            raise ValueError(f"method = {method!r} with a batch of states: batches run "
-                             "'rge-a' only")
+            raise FieldError("forward_dynamics", "method", method, "with a batch of states: "
+                             "batches run 'rge-a' only")
         return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd, use_dh)
     q = check_state(model, "q", q, finite=False)
     v = check_state(model, "v", v, finite=False)
@@ -803,7 +810,8 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
         raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
     kernels = dict(zip(ELIMINATIONS, (ge_n, rge_n), strict=True))
     if method not in kernels:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(kernels)}")
+        raise FieldError("eliminate", "method", method,
+                         f"unknown; choose one of {', '.join(kernels)}")
     if not np.isfinite(A).all():
         i, j = np.argwhere(~np.isfinite(A))[0]
         raise StateError(f"gim[{i}, {j}] = {float(A[i, j])!r}: not finite")
