@@ -358,3 +358,76 @@ def test_the_loops_take_any_argument_to_the_answer_or_a_named_error(crank_rocker
         vectors[0] = (q0 + 1e-3 * np.nan_to_num(vectors[0].astype(float), posinf=0,
                                                 neginf=0).clip(-1, 1)).astype(vectors[0].dtype)
     _check(lambda *xs: call(loops, *xs), vectors)
+
+
+# --------------------------------------------------------------------------- battery 4: API doors
+def test_battery4_arguments_are_refused_at_the_door_by_name(chain):
+    """Each of these reached the user as a raw TypeError, ValueError or AttributeError from
+    deep inside, or only at run time (hold-out battery 4, family API-DOOR)."""
+    from redysim import Coupling, Simulator, System
+    from redysim.errors import FieldError, ModelTypeError, SettingsError
+
+    q = np.zeros(3)
+    with pytest.raises(ModelTypeError, match="^passive_forces: model"):
+        redysim.passive_forces("x", q, q)
+    with pytest.raises(FieldError, match="method = 'rgea': unknown"):
+        redysim.forward_dynamics(chain, q, q, method="rgea")
+    with pytest.raises(FieldError, match="batches run 'rge-a' only"):
+        redysim.forward_dynamics(chain, np.zeros((2, 3)), np.zeros((2, 3)), method="ge-n")
+    with pytest.raises(FieldError, match="^eliminate: method = 'foo'"):
+        redysim.eliminate(np.eye(2), np.ones(2), "foo")
+    cases = [
+        (lambda: Simulator(chain, 0.01, integrator=5), "integrator = 5"),
+        (lambda: Simulator(chain, 0.01, state={"a": 1}), "state = 'dict'"),
+        (lambda: Simulator(chain, 0.01, observe={"x": 5}), r"observe\['x'\] = 5"),
+        (lambda: Simulator(chain, 0.01, observe=[1]), "observe = 'list'"),
+        (lambda: System(chain, tau=5), "tau = 5"),
+        (lambda: System(chain, qdd=3), "qdd = 3"),
+        (lambda: System(chain, method="foo"), "method = 'foo'"),
+        (lambda: redysim.simulate(chain, "1"), "t_end = '1'"),
+        (lambda: Simulator(chain, 0.01).run(energy_bound=-1), "energy_bound = -1"),
+        (lambda: Simulator(chain, 0.01).run(energy_bound=float("nan")), "energy_bound = nan"),
+    ]
+    for call, match in cases:
+        with pytest.raises(SettingsError, match=f"^simulate: {match}"):
+            call()
+    with pytest.raises(StateError, match=r"provider \(qdd\) returned shape \(2,\)"):
+        Simulator(System(chain, qdd=lambda q, v, tau: np.ones(2)), 0.01)
+    with pytest.raises(StateError, match=r"provider \(tau\) returned shape \(\)"):
+        Simulator(System(chain, tau=lambda t, q, v: 1.0), 0.01)
+    with pytest.raises(CaseError, match="couplings = 'int': must be a list of Coupling"):
+        chain.with_couplings(5)
+    # the hang: refused up front ...
+    with pytest.raises(CaseError, match=r"multiplier = 1e\+300: \|multiplier\| must be <="):
+        Coupling("j2", "j1", 1e300)
+    with pytest.raises(CaseError, match=r"gravcomp\[0\] \(body '.*'\) = 1e\+300: must be <="):
+        chain.with_passive(gravcomp=1e300)
+    with pytest.raises(SettingsError, match=r"^simulate: gravcomp = 1e\+300: must be <="):
+        System(chain, gravcomp=1e300)
+    # ... or, for forces of the caller's, a failure once the step falls below t_end's spacing
+    res = Simulator(System(chain, tau=lambda t, q, v: np.full(3, 1e200)), 1.0).run()
+    assert res.status == -1 and res.message.startswith("step size underflow: h = ")
+
+
+def test_repeated_names_are_refused_by_model_build():
+    from redysim import Body, Model, TreeJoint
+
+    bodies = [Body("a", 1.0), Body("a", 1.0)]
+    joints = [TreeJoint("j1", "R"), TreeJoint("j2", "R", "z", None, (1, 0, 0))]
+    with pytest.raises(CaseError, match=r"body 'a' \(bodies\[1\]\)\.name = 'a': repeats the "
+                                        r"name of bodies\[0\]"):
+        Model.build(bodies, joints, [-1, 0])
+    bodies[1], joints[1] = Body("b", 1.0), TreeJoint("j1", "R", "z", None, (1, 0, 0))
+    with pytest.raises(CaseError, match=r"joint 'j1' \(joints\[1\]\)\.name = 'j1': repeats"):
+        Model.build(bodies, joints, [-1, 0])
+
+
+def test_a_workspace_of_an_equal_model_says_it_is_another_object(chain):
+    twin = Chain.uniform(3, "R", mass=1.0)
+    assert repr(twin) == repr(chain)
+    with pytest.raises(redysim.errors.FieldError, match="another Model object with the same "
+                                                        "description"):
+        redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(twin))
+    other = Chain.uniform(4, "R", mass=1.0)
+    with pytest.raises(redysim.errors.FieldError, match="was made for another model than"):
+        redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(other))
