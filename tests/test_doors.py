@@ -431,3 +431,27 @@ def test_a_workspace_of_an_equal_model_says_it_is_another_object(chain):
     other = Chain.uniform(4, "R", mass=1.0)
     with pytest.raises(redysim.errors.FieldError, match="was made for another model than"):
         redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(other))
+
+
+ANYTHING = st.one_of(st.none(), st.integers(-3, 3), st.floats(allow_nan=True), st.text(max_size=3),
+                     st.booleans(), st.lists(st.integers(0, 2), max_size=3),
+                     st.dictionaries(st.text(max_size=2), st.integers(0, 2), max_size=2),
+                     st.just(np.zeros(3)), st.just(lambda *a: np.zeros(3)))
+SIMULATOR_ARGUMENTS = {  # name -> the valid value a drawn one replaces
+    "integrator": "ode45", "state": None, "observe": None, "tau": None, "qdd": None,
+    "method": "rge-a", "t_end": 0.002, "sample": None}
+
+
+@settings(max_examples=PROPERTY_EXAMPLES, **SETTINGS)
+@given(data=st.data(), name=st.sampled_from(sorted(SIMULATOR_ARGUMENTS)))
+def test_a_run_takes_any_argument_to_a_result_or_a_named_error(chain, data, name):
+    """System's, Simulator's and simulate's arguments: any value runs or is refused by
+    redysim's own code, named (never an AttributeError or a TypeError from inside)."""
+    from redysim import Simulator, System
+
+    given = dict(SIMULATOR_ARGUMENTS, **{name: data.draw(ANYTHING)})
+    t_end = given.pop("t_end")
+    system = {k: given.pop(k) for k in ("tau", "qdd", "method")}
+    kind, out = _outcome(lambda: Simulator(System(chain, **system), t_end, **given).run())
+    if kind == "error":
+        assert isinstance(out, RedysimError), f"{type(out).__name__}: {out}"
