@@ -455,3 +455,33 @@ def test_a_run_takes_any_argument_to_a_result_or_a_named_error(chain, data, name
     kind, out = _outcome(lambda: Simulator(System(chain, **system), t_end, **given).run())
     if kind == "error":
         assert isinstance(out, RedysimError), f"{type(out).__name__}: {out}"
+
+
+def test_numbers_that_pass_any_check_are_refused(chain, crank_rocker):
+    """delta_M(E0=nan) answered NaN, check_start(q, nan) passed any q (battery 4)."""
+    loops, q = crank_rocker
+    with pytest.raises(StateError, match="^delta_M: E0 = nan: must be a finite number"):
+        redysim.delta_M(chain, np.zeros(3), np.zeros(3), float("nan"))
+    for tol in (float("nan"), -1e-6):
+        with pytest.raises(StateError, match="^check_start: tol = .*: must be >= 0"):
+            loops.check_start(q, tol)
+    with pytest.raises(StateError, match="violates the cut joint"):
+        loops.check_start(np.asarray(q) + 0.1, 1e-6)
+
+
+def test_a_float32_state_of_a_coupled_model_is_checked_at_its_own_precision(chain):
+    """Refused over 6e-9 of float32 roundoff before; the answer is the float64 copy's."""
+    from redysim import Coupling
+
+    m = Chain.uniform(3, "R", mass=1.0).with_couplings([Coupling("joint2", "joint1", 0.3)])
+    q = np.array([0.7, 0.21, 0.1], dtype=np.float32)
+    v = np.array([0.3, 0.09, 0.0], dtype=np.float32)
+    assert abs(float(q[1]) - 0.3 * float(q[0])) > 1e-9 * 1.21  # off by float32's roundoff
+    got = redysim.forward_dynamics(m, q, v)
+    with pytest.raises(StateError, match="joint 'joint2', follows joint 'joint1'"):
+        redysim.forward_dynamics(m, q.astype(float), v.astype(float))  # float64: its own tol
+    # the same state made exact in float64 gives the same accelerations to float32's roundoff
+    q64, v64 = m.couple(q.astype(float), v.astype(float))
+    assert np.allclose(got, redysim.forward_dynamics(m, q64, v64), rtol=1e-5, atol=1e-5)
+    with pytest.raises(StateError, match="joint 'joint2'"):  # off by more: still refused
+        redysim.forward_dynamics(m, q + np.float32([0, 1e-3, 0]), v)

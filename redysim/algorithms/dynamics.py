@@ -183,14 +183,26 @@ LEAN_INVERSE_MAX_DOF = 500
 COUPLING_TOL = _couplings.COUPLING_TOL  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f|
 
 
-def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
+def given_tolerance(x) -> float:
+    """The couplings' tolerance for a vector given as ``x``: COUPLING_TOL, or, for a vector of
+    a narrower float (float32, float16: converted at the door), 8 units of its own roundoff."""
+    try:
+        dtype = np.asarray(x).dtype
+    except (TypeError, ValueError):
+        return COUPLING_TOL
+    return max(COUPLING_TOL, 8.0 * float(np.finfo(dtype).eps)) if dtype.kind == "f" else \
+        COUPLING_TOL
+
+
+def check_coupled(model: Model, name: str, x: np.ndarray, tol: float = COUPLING_TOL) -> None:
     """Refuse a state off the model's couplings (StateError naming the joints and values): a
-    follower's ``q`` must be m q_l + offset, its ``v`` (or ``qdd``) m times its leader's."""
+    follower's ``q`` must be m q_l + offset, its ``v`` (or ``qdd``) m times its leader's, to
+    ``tol`` relative to 1 + |q_f| (:func:`given_tolerance`: a float32 vector's is its own)."""
     i = 0 if name == "q" else 2
     idx = model.coupling_index
     f, ld, m = idx[i], idx[i + 1], idx[4]
     want = m * x[ld] + (idx[5] if name == "q" else 0.0)
-    bad = np.abs(x[f] - want) > COUPLING_TOL * (1.0 + np.abs(x[f]))
+    bad = np.abs(x[f] - want) > tol * (1.0 + np.abs(x[f]))
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         c = model.couplings[k]
@@ -211,11 +223,12 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
     couplings are linear, so Jdot v = 0)."""
+    tol_q, tol_v = given_tolerance(q), given_tolerance(v)
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     tau = check_state(model, "tau", tau, optional=True)
-    check_coupled(model, "q", q)
-    check_coupled(model, "v", v)
+    check_coupled(model, "q", q, tol_q)
+    check_coupled(model, "v", v, tol_v)
     ws = _ws(model, ws)
     if method == "rge-a" and not planar and ws.coupled:
         # in compiled code, as a simulation's right-hand side; where the result is not finite,
@@ -847,7 +860,7 @@ def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, f
 def delta_M(model: Model, q, v, E0: float, *, ws: Workspace | None = None) -> float:
     """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
     door.require_model(model, "delta_M")
-    E0 = door.number("delta_M", "E0", E0)
+    E0 = door.number("delta_M", "E0", E0, finite=True)
     T, V = energy(model, q, v, ws=ws)
     return (T + V - E0) / model.total_mass
 
