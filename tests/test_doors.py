@@ -485,3 +485,13 @@ def test_a_float32_state_of_a_coupled_model_is_checked_at_its_own_precision(chai
     assert np.allclose(got, redysim.forward_dynamics(m, q64, v64), rtol=1e-5, atol=1e-5)
     with pytest.raises(StateError, match="joint 'joint2'"):  # off by more: still refused
         redysim.forward_dynamics(m, q + np.float32([0, 1e-3, 0]), v)
+
+
+def test_simulate_with_too_many_links_is_bad_input_not_a_failed_run(capsys):
+    """`simulate RE-U125-L1 --links 100000000` exited 1 ("run failed") after the rebuild was
+    refused; it is a bad flag: exit 2, naming it, before any run."""
+    from redysim.harness.cli import main
+
+    assert main(["simulate", "RE-U125-L1", "--t-end", "0.01", "--links", "100000000"]) == 2
+    err = capsys.readouterr().err
+    assert "--links = 100000000: must be at most 2,000,000 links" in err and "run failed" not in err
