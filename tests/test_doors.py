@@ -429,7 +429,7 @@ def test_a_workspace_of_an_equal_model_says_it_is_another_object(chain):
                                                         "description"):
         redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(twin))
     other = Chain.uniform(4, "R", mass=1.0)
-    with pytest.raises(redysim.errors.FieldError, match="was made for another model than"):
+    with pytest.raises(redysim.errors.FieldError, match="was made for another chain than"):
         redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(other))
 
 

@@ -141,7 +141,7 @@ def _ws(model: Model, ws: Workspace | None, where: str = "dynamics") -> Workspac
                              "object with the same description (a file loaded again gives a "
                              "new model; a Workspace serves the very model it was made for): "
                              "make one with Workspace(model)")
-        raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another model than "
+        raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another chain than "
                          f"{model!r}; make one with Workspace(model)")
     return ws
 
