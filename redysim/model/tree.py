@@ -339,8 +339,10 @@ class Model:
         if len(joints) != nb or len(parents) != nb:
             _fail(source, "joints/parents", (len(joints), len(parents)),
                   f"need one joint and one parent per body ({nb} bodies)")
-        body_name, mass, com, inertia, gravcomp = [], [], [], [], []
-        jname, jtype, axes, par, plR, plp = [], [], [], [], [], []
+        body_name: list[str] = []
+        jname: list[str] = []
+        mass, com, inertia, gravcomp = [], [], [], []
+        jtype, axes, par, plR, plp = [], [], [], [], []
         for k, (b, j, p) in enumerate(zip(bodies, joints, parents, strict=True)):
             if not isinstance(b, Body):
                 _fail(source, f"bodies[{k}]", b, "must be a redysim.Body")
