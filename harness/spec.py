@@ -166,6 +166,11 @@ class RunSpec:
             if isinstance(self.links, bool) or int(self.links) != self.links or self.links < 1:
                 raise SettingsError(source, names.get("links", "links"), self.links,
                                     "must be a whole number of links >= 1")
+            from redysim.io.cases import MAX_LINKS
+
+            if self.links > MAX_LINKS:
+                raise SettingsError(source, names.get("links", "links"), self.links,
+                                    f"must be at most {MAX_LINKS:,} links (a case's limit)")
             if nl % int(self.links):
                 from redysim.io.cases import rebuild_problem
 

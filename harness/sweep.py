@@ -218,7 +218,7 @@ def sweep_from_dict(doc: dict, *, source: str = "<dict>", base: Path | None = No
         check.fail(f"{SWEEP_TABLE}.reference", reference, "must be true or false")
     if "cases" not in top:
         check.fail(f"{SWEEP_TABLE}.cases", None, "missing: list the cases to run")
-    products = [(SWEEP_TABLE, top)]
+    products = [(SWEEP_TABLE, top, "h" in top)]  # (where, settings, whether it gives h itself)
     for i, sub in enumerate(check.tables(table, PRODUCT_TABLE)):
         where = f"{SWEEP_TABLE}.{PRODUCT_TABLE}[{i}]"
         given = check.fields(sub, where, (*LIST_FIELDS, *SCALAR_FIELDS))
@@ -226,8 +226,11 @@ def sweep_from_dict(doc: dict, *, source: str = "<dict>", base: Path | None = No
         if "atols" in given or "atol_ratio" in given:
             inherited.pop("atols", None)
             inherited.pop("atol_ratio", None)
-        products.append((where, {**inherited, **given}))
-    specs = [spec for where, settings in products for spec in check.expand(where, settings)]
+        products.append((where, {**inherited, **given}, "h" in given))
+    if len(products) > 1:  # the top table's h may be there for its products' fixed steps
+        products[0] = (SWEEP_TABLE, top, False)
+    specs = [spec for where, settings, own_h in products
+             for spec in check.expand(where, settings, own_h=own_h)]
     shared = {k: top[k] for k in SHARED_SCALARS if k in top}
     for i, sub in enumerate(check.tables(table, EXTRA_TABLE)):
         specs.append(check.extra(f"{SWEEP_TABLE}.{EXTRA_TABLE}[{i}]", sub, shared))
@@ -401,8 +404,10 @@ class _Checker:
         ratio = settings.get("atol_ratio", DEFAULT_ATOL_RATIO)
         return [(r, float(f"{r * ratio:.{TOL_DIGITS}g}")) for r in rtols]
 
-    def expand(self, where: str, settings: dict) -> list[RunSpec]:
-        """The cross product one [sweep] or [[sweep.product]] table declares."""
+    def expand(self, where: str, settings: dict, *, own_h: bool = True) -> list[RunSpec]:
+        """The cross product one [sweep] or [[sweep.product]] table declares; ``own_h``: the
+        table gives ``h`` itself (an inherited one is for the fixed-step integrators of the
+        tables that have some)."""
         integrators = settings.get("integrators", [RunSpec.integrator])
         engines = settings.get("engines", [CORE])
         fixed = [i for i in integrators if i in STEPPED_INTEGRATORS or (
@@ -410,6 +415,10 @@ class _Checker:
         if fixed and "h" not in settings:
             self.fail(f"{where}.h", None, f"missing: integrator {fixed[0]!r} is fixed-step "
                                           "and needs step sizes, e.g. h = [1e-3]")
+        if own_h and "h" in settings and not fixed:
+            self.fail(f"{where}.h", settings["h"], "only fixed-step integrators take a step h; "
+                      f"{', '.join(map(repr, integrators))} adapt their own steps (give rtols), "
+                      "or add a fixed-step integrator such as 'rk4'")
         tols = self.tolerances(where, settings)
         common = {k: settings[k] for k in SHARED_SCALARS if k in settings}
         specs = []

@@ -132,6 +132,19 @@ class Integrator:
                            h=self.h, state=state, preconditioner=pre, compiled=self.compiled)
 
 
+def _check_observers(source: str, observe) -> None:
+    """``observe``: None or a dict of name -> callable (SettingsError naming the bad one)."""
+    if observe is None:
+        return
+    if not isinstance(observe, dict):
+        raise SettingsError(source, "observe", type(observe).__name__, "must be None or a dict "
+                            "of name -> f(sample) (frame_observer(model) gives one)")
+    for name, f in observe.items():
+        if not isinstance(name, str) or not callable(f):
+            raise SettingsError(source, f"observe[{name!r}]", f, "must be a name (a str) -> a "
+                                "callable f(sample)")
+
+
 def _check_run_settings(source: str, *, progress=None, max_cpu_s=None) -> None:
     """Check a run's hooks and limit (Simulator.run's), naming the bad one (SettingsError)."""
     if max_cpu_s is not None and (isinstance(max_cpu_s, bool) or not isinstance(
@@ -281,8 +294,21 @@ class Simulator:
                  state: SolverState | None = None):
         system = system if isinstance(system, System) else System(system)
         source = system.source
+        if not isinstance(integrator, str) and not all(
+                callable(getattr(integrator, m, None)) for m in ("checked", "warm_up", "solver")):
+            raise SettingsError(source, "integrator", integrator, "must be an integrator's name "
+                                f"({', '.join(INTEGRATORS)}), an Integrator or an engine's "
+                                "stepper")
         stepper: Stepper = integrator if not isinstance(integrator, str) else \
             Integrator(integrator)
+        for key, x in (("t_end", t_end), ("sample", sample)):
+            if x is not None and (isinstance(x, bool) or not isinstance(x, NUMBERS)):
+                raise SettingsError(source, key, x, "must be a number of seconds (a "
+                                    f"{type(x).__name__} was given)")
+        if state is not None and not isinstance(state, SolverState):
+            raise SettingsError(source, "state", type(state).__name__, "must be None or a "
+                                "SolverState (a solver's state(), as a checkpoint saves it)")
+        _check_observers(source, observe)
         self.sample = sample if sample is not None or t_end is None else t_end / DEFAULT_SAMPLES
         self.integrator = stepper.checked(source, t_end, self.sample)
         self.system, self.t_end = system, float(t_end)
@@ -357,6 +383,10 @@ class Simulator:
         if max_wall_s is not None and not (isinstance(max_wall_s, NUMBERS) and max_wall_s > 0):
             raise SettingsError(source, "max_wall_s", max_wall_s, "must be None or a number of "
                                 "seconds > 0")
+        if energy_bound is not None and (isinstance(energy_bound, bool) or not isinstance(
+                energy_bound, NUMBERS) or not energy_bound > 0):
+            raise SettingsError(source, "energy_bound", energy_bound, "must be None or a "
+                                "number > 0 (a bound on |delta_M| [J/kg])")
         run = _Run(self, progress, on_step, energy_bound)
         run.time_samples = bool(time_samples)
         run.limit(time.thread_time if clock == "thread" else time.process_time, max_cpu_s,
@@ -488,6 +518,13 @@ class _Run:
         self.system.project(solver.y)
         self.system.after_step(solver.t)
         self.check_limits(solver.t)
+        h, t_end = getattr(solver, "h_next", None), self.sim.t_end
+        if isinstance(h, float) and solver.t < t_end and h < np.spacing(t_end):
+            # the step is below the resolution of time at t_end: the run would crawl for ever
+            raise _Stop(-1, f"step size underflow: h = {h:.3g} s at t = {solver.t:.6g} is "
+                            f"below the spacing of t_end = {t_end:g} s ({np.spacing(t_end):.3g}):"
+                            " the forces or accelerations are too large to follow (a unit "
+                            "slip?)")
         if self.progress and (stop := self.progress(solver.t, self.sim.t_end,
                                                     solver.counters.steps,
                                                     time.perf_counter() - self.wall0)):

@@ -234,7 +234,7 @@ def test_forward_dynamics_refuses_a_read_only_out(kind):
      FieldError, "ws = 'object': must be a redysim.Workspace"),
     (lambda: forward_dynamics(Chain.uniform(2, mass=1.0), [0, 0], [0, 0],
                               ws=Workspace(Chain.uniform(2, mass=1.0))),
-     FieldError, "was made for another chain"),
+     FieldError, "was made for another"),
 ])
 def test_wrong_arguments_get_named_errors(call, error, fragment):
     """These gave an AttributeError from deep inside (Workspace(None)) or a confusing message

@@ -358,3 +358,140 @@ def test_the_loops_take_any_argument_to_the_answer_or_a_named_error(crank_rocker
         vectors[0] = (q0 + 1e-3 * np.nan_to_num(vectors[0].astype(float), posinf=0,
                                                 neginf=0).clip(-1, 1)).astype(vectors[0].dtype)
     _check(lambda *xs: call(loops, *xs), vectors)
+
+
+# --------------------------------------------------------------------------- battery 4: API doors
+def test_battery4_arguments_are_refused_at_the_door_by_name(chain):
+    """Each of these reached the user as a raw TypeError, ValueError or AttributeError from
+    deep inside, or only at run time (hold-out battery 4, family API-DOOR)."""
+    from redysim import Coupling, Simulator, System
+    from redysim.errors import FieldError, ModelTypeError, SettingsError
+
+    q = np.zeros(3)
+    with pytest.raises(ModelTypeError, match="^passive_forces: model"):
+        redysim.passive_forces("x", q, q)
+    with pytest.raises(FieldError, match="method = 'rgea': unknown"):
+        redysim.forward_dynamics(chain, q, q, method="rgea")
+    with pytest.raises(FieldError, match="batches run 'rge-a' only"):
+        redysim.forward_dynamics(chain, np.zeros((2, 3)), np.zeros((2, 3)), method="ge-n")
+    with pytest.raises(FieldError, match="^eliminate: method = 'foo'"):
+        redysim.eliminate(np.eye(2), np.ones(2), "foo")
+    cases = [
+        (lambda: Simulator(chain, 0.01, integrator=5), "integrator = 5"),
+        (lambda: Simulator(chain, 0.01, state={"a": 1}), "state = 'dict'"),
+        (lambda: Simulator(chain, 0.01, observe={"x": 5}), r"observe\['x'\] = 5"),
+        (lambda: Simulator(chain, 0.01, observe=[1]), "observe = 'list'"),
+        (lambda: System(chain, tau=5), "tau = 5"),
+        (lambda: System(chain, qdd=3), "qdd = 3"),
+        (lambda: System(chain, method="foo"), "method = 'foo'"),
+        (lambda: redysim.simulate(chain, "1"), "t_end = '1'"),
+        (lambda: Simulator(chain, 0.01).run(energy_bound=-1), "energy_bound = -1"),
+        (lambda: Simulator(chain, 0.01).run(energy_bound=float("nan")), "energy_bound = nan"),
+    ]
+    for call, match in cases:
+        with pytest.raises(SettingsError, match=f"^simulate: {match}"):
+            call()
+    with pytest.raises(StateError, match=r"provider \(qdd\) returned shape \(2,\)"):
+        Simulator(System(chain, qdd=lambda q, v, tau: np.ones(2)), 0.01)
+    with pytest.raises(StateError, match=r"provider \(tau\) returned shape \(\)"):
+        Simulator(System(chain, tau=lambda t, q, v: 1.0), 0.01)
+    with pytest.raises(CaseError, match="couplings = 'int': must be a list of Coupling"):
+        chain.with_couplings(5)
+    # the hang: refused up front ...
+    with pytest.raises(CaseError, match=r"multiplier = 1e\+300: \|multiplier\| must be <="):
+        Coupling("j2", "j1", 1e300)
+    with pytest.raises(CaseError, match=r"gravcomp\[0\] \(body '.*'\) = 1e\+300: must be <="):
+        chain.with_passive(gravcomp=1e300)
+    with pytest.raises(SettingsError, match=r"^simulate: gravcomp = 1e\+300: must be <="):
+        System(chain, gravcomp=1e300)
+    # ... or, for forces of the caller's, a failure once the step falls below t_end's spacing
+    res = Simulator(System(chain, tau=lambda t, q, v: np.full(3, 1e200)), 1.0).run()
+    assert res.status == -1 and res.message.startswith("step size underflow: h = ")
+
+
+def test_repeated_names_are_refused_by_model_build():
+    from redysim import Body, Model, TreeJoint
+
+    bodies = [Body("a", 1.0), Body("a", 1.0)]
+    joints = [TreeJoint("j1", "R"), TreeJoint("j2", "R", "z", None, (1, 0, 0))]
+    with pytest.raises(CaseError, match=r"body 'a' \(bodies\[1\]\)\.name = 'a': repeats the "
+                                        r"name of bodies\[0\]"):
+        Model.build(bodies, joints, [-1, 0])
+    bodies[1], joints[1] = Body("b", 1.0), TreeJoint("j1", "R", "z", None, (1, 0, 0))
+    with pytest.raises(CaseError, match=r"joint 'j1' \(joints\[1\]\)\.name = 'j1': repeats"):
+        Model.build(bodies, joints, [-1, 0])
+
+
+def test_a_workspace_of_an_equal_model_says_it_is_another_object(chain):
+    twin = Chain.uniform(3, "R", mass=1.0)
+    assert repr(twin) == repr(chain)
+    with pytest.raises(redysim.errors.FieldError, match="another Model object with the same "
+                                                        "description"):
+        redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(twin))
+    other = Chain.uniform(4, "R", mass=1.0)
+    with pytest.raises(redysim.errors.FieldError, match="was made for another chain than"):
+        redysim.forward_dynamics(chain, np.zeros(3), np.zeros(3), ws=redysim.Workspace(other))
+
+
+ANYTHING = st.one_of(st.none(), st.integers(-3, 3), st.floats(allow_nan=True), st.text(max_size=3),
+                     st.booleans(), st.lists(st.integers(0, 2), max_size=3),
+                     st.dictionaries(st.text(max_size=2), st.integers(0, 2), max_size=2),
+                     st.just(np.zeros(3)), st.just(lambda *a: np.zeros(3)))
+SIMULATOR_ARGUMENTS = {  # name -> the valid value a drawn one replaces
+    "integrator": "ode45", "state": None, "observe": None, "tau": None, "qdd": None,
+    "method": "rge-a", "t_end": 0.002, "sample": None}
+
+
+@settings(max_examples=PROPERTY_EXAMPLES, **SETTINGS)
+@given(data=st.data(), name=st.sampled_from(sorted(SIMULATOR_ARGUMENTS)))
+def test_a_run_takes_any_argument_to_a_result_or_a_named_error(chain, data, name):
+    """System's, Simulator's and simulate's arguments: any value runs or is refused by
+    redysim's own code, named (never an AttributeError or a TypeError from inside)."""
+    from redysim import Simulator, System
+
+    given = dict(SIMULATOR_ARGUMENTS, **{name: data.draw(ANYTHING)})
+    t_end = given.pop("t_end")
+    system = {k: given.pop(k) for k in ("tau", "qdd", "method")}
+    kind, out = _outcome(lambda: Simulator(System(chain, **system), t_end, **given).run())
+    if kind == "error":
+        assert isinstance(out, RedysimError), f"{type(out).__name__}: {out}"
+
+
+def test_numbers_that_pass_any_check_are_refused(chain, crank_rocker):
+    """delta_M(E0=nan) answered NaN, check_start(q, nan) passed any q (battery 4)."""
+    loops, q = crank_rocker
+    with pytest.raises(StateError, match="^delta_M: E0 = nan: must be a finite number"):
+        redysim.delta_M(chain, np.zeros(3), np.zeros(3), float("nan"))
+    for tol in (float("nan"), -1e-6):
+        with pytest.raises(StateError, match="^check_start: tol = .*: must be >= 0"):
+            loops.check_start(q, tol)
+    with pytest.raises(StateError, match="violates the cut joint"):
+        loops.check_start(np.asarray(q) + 0.1, 1e-6)
+
+
+def test_a_float32_state_of_a_coupled_model_is_checked_at_its_own_precision(chain):
+    """Refused over 6e-9 of float32 roundoff before; the answer is the float64 copy's."""
+    from redysim import Coupling
+
+    m = Chain.uniform(3, "R", mass=1.0).with_couplings([Coupling("joint2", "joint1", 0.3)])
+    q = np.array([0.7, 0.21, 0.1], dtype=np.float32)
+    v = np.array([0.3, 0.09, 0.0], dtype=np.float32)
+    assert abs(float(q[1]) - 0.3 * float(q[0])) > 1e-9 * 1.21  # off by float32's roundoff
+    got = redysim.forward_dynamics(m, q, v)
+    with pytest.raises(StateError, match="joint 'joint2', follows joint 'joint1'"):
+        redysim.forward_dynamics(m, q.astype(float), v.astype(float))  # float64: its own tol
+    # the same state made exact in float64 gives the same accelerations to float32's roundoff
+    q64, v64 = m.couple(q.astype(float), v.astype(float))
+    assert np.allclose(got, redysim.forward_dynamics(m, q64, v64), rtol=1e-5, atol=1e-5)
+    with pytest.raises(StateError, match="joint 'joint2'"):  # off by more: still refused
+        redysim.forward_dynamics(m, q + np.float32([0, 1e-3, 0]), v)
+
+
+def test_simulate_with_too_many_links_is_bad_input_not_a_failed_run(capsys):
+    """`simulate RE-U125-L1 --links 100000000` exited 1 ("run failed") after the rebuild was
+    refused; it is a bad flag: exit 2, naming it, before any run."""
+    from redysim.harness.cli import main
+
+    assert main(["simulate", "RE-U125-L1", "--t-end", "0.01", "--links", "100000000"]) == 2
+    err = capsys.readouterr().err
+    assert "--links = 100000000: must be at most 2,000,000 links" in err and "run failed" not in err

@@ -98,7 +98,8 @@ def misbehaving(monkeypatch, mode, after=0):
     ("fpe", FAIL_AFTER_CALLS, "FloatingPointError: overflow in the factorisation"),
     ("nan", 0, "StateError: qdd[0] = nan: not finite"),
     ("nan", FAIL_AFTER_CALLS, "non-finite error estimate"),
-    ("shape", 0, "ValueError: the accelerations' provider (qdd) returned shape (4,)"),
+    ("shape", 0, "StateError: run STUDY-R3 misbehaving ode45 rtol=0.0001: the accelerations' "
+              "provider (qdd) returned shape (4,)"),
     ("build", 0, "RuntimeError: model build failed"),
 ])
 def test_an_engine_failing_inside_qdd_gives_a_failed_row(monkeypatch, mode, after, reason):

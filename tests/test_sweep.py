@@ -187,6 +187,13 @@ BAD = {
     "step to an adaptive": ('cases = ["STUDY-R3"]\n[[sweep.extra]]\ncase = "STUDY-R3"\n'
                             'integrator = "ode45"\nh = 1e-3', "sweep.extra[0].h", "0.001",
                             "fixed-step integrator"),
+    "h for adaptive integrators only": ('cases = ["STUDY-R3"]\nintegrators = ["ode45"]\n'
+                                        'h = [1e-3]', "sweep.h", "[0.001]",
+                                        "only fixed-step integrators take a step h"),
+    "h for a product of adaptive integrators": ('cases = ["STUDY-R3"]\n[[sweep.product]]\n'
+                                                'integrators = ["ode45"]\nh = [1e-3]',
+                                                "sweep.product[0].h", "[0.001]",
+                                                "only fixed-step integrators take a step h"),
     "samples past the cap": ('cases = ["STUDY-R3"]\nsample = 1e-9', "sweep.sample", "1e-09",
                              "at most 10,000,000"),
     "name is a path": ('name = "/tmp/elsewhere"\ncases = ["STUDY-R3"]', "sweep.name",

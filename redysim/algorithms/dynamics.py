@@ -136,6 +136,11 @@ def _ws(model: Model, ws: Workspace | None, where: str = "dynamics") -> Workspac
         door.require_model(model, where)
         if not isinstance(ws, Workspace):
             raise FieldError("dynamics", "ws", type(ws).__name__, "must be a redysim.Workspace")
+        if repr(ws.model) == repr(model):  # the same description: another object
+            raise FieldError("dynamics", "ws", repr(ws.model), "was made for another Model "
+                             "object with the same description (a file loaded again gives a "
+                             "new model; a Workspace serves the very model it was made for): "
+                             "make one with Workspace(model)")
         raise FieldError("dynamics", "ws", repr(ws.model), f"was made for another chain than "
                          f"{model!r}; make one with Workspace(model)")
     return ws
@@ -178,14 +183,26 @@ LEAN_INVERSE_MAX_DOF = 500
 COUPLING_TOL = _couplings.COUPLING_TOL  # |q_f - (m q_l + offset)| allowed, relative to 1 + |q_f|
 
 
-def check_coupled(model: Model, name: str, x: np.ndarray) -> None:
+def given_tolerance(x) -> float:
+    """The couplings' tolerance for a vector given as ``x``: COUPLING_TOL, or, for a vector of
+    a narrower float (float32, float16: converted at the door), 8 units of its own roundoff."""
+    try:
+        dtype = np.asarray(x).dtype
+    except (TypeError, ValueError):
+        return COUPLING_TOL
+    return max(COUPLING_TOL, 8.0 * float(np.finfo(dtype).eps)) if dtype.kind == "f" else \
+        COUPLING_TOL
+
+
+def check_coupled(model: Model, name: str, x: np.ndarray, tol: float = COUPLING_TOL) -> None:
     """Refuse a state off the model's couplings (StateError naming the joints and values): a
-    follower's ``q`` must be m q_l + offset, its ``v`` (or ``qdd``) m times its leader's."""
+    follower's ``q`` must be m q_l + offset, its ``v`` (or ``qdd``) m times its leader's, to
+    ``tol`` relative to 1 + |q_f| (:func:`given_tolerance`: a float32 vector's is its own)."""
     i = 0 if name == "q" else 2
     idx = model.coupling_index
     f, ld, m = idx[i], idx[i + 1], idx[4]
     want = m * x[ld] + (idx[5] if name == "q" else 0.0)
-    bad = np.abs(x[f] - want) > COUPLING_TOL * (1.0 + np.abs(x[f]))
+    bad = np.abs(x[f] - want) > tol * (1.0 + np.abs(x[f]))
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         c = model.couplings[k]
@@ -206,11 +223,12 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
     couplings are linear, so Jdot v = 0)."""
+    tol_q, tol_v = given_tolerance(q), given_tolerance(v)
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     tau = check_state(model, "tau", tau, optional=True)
-    check_coupled(model, "q", q)
-    check_coupled(model, "v", v)
+    check_coupled(model, "q", q, tol_q)
+    check_coupled(model, "v", v, tol_v)
     ws = _ws(model, ws)
     if method == "rge-a" and not planar and ws.coupled:
         # in compiled code, as a simulation's right-hand side; where the result is not finite,
@@ -392,6 +410,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     them).
     """
     ws = _ws(model, ws, "forward_dynamics")
+    if method != "rge-a" and method not in METHODS:
+        raise FieldError("forward_dynamics", "method", method,
+                         f"unknown; choose one of {', '.join(METHODS)}")
     if model.cuts or model.couplings:
         if model.cuts:
             raise closed_error(model, "forward_dynamics")
@@ -431,8 +452,9 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
     if planar is None:
         planar = is_planar
     elif planar and not is_planar:
-        raise ValueError(f"planar=True but chain {model.name!r} is not planar (every joint must be "
-                         "a single revolute about its frame's z axis)")
+        raise FieldError("forward_dynamics", "planar", True, f"chain {model.name!r} is not "
+                         "planar (every joint must be a single revolute about its frame's z "
+                         "axis)")
     use_dh = (ws.dh and not planar) if dh is None else use_dh_kernels(model, ws.dh, dh, planar)
     if method == "rge-a":
         entry = (_PLANAR if planar else _DH if use_dh else _RGE_A).compiled
@@ -450,12 +472,10 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                 return qdd
             if flag != SIZE_MISMATCH:  # NaN: some qdd is NaN or +-inf
                 raise _nonfinite_qdd(model, ws, planar, q, v, tau, use_dh=use_dh)
-    elif method not in METHODS:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(METHODS)}")
     if _is_batch(q):
         if method != "rge-a":
-            raise ValueError(f"method = {method!r} with a batch of states: batches run "
-                             "'rge-a' only")
+            raise FieldError("forward_dynamics", "method", method, "with a batch of states: "
+                             "batches run 'rge-a' only")
         return _forward_batch(model, ws, planar, q, v, tau, out, threads, simd, use_dh)
     q = check_state(model, "q", q, finite=False)
     v = check_state(model, "v", v, finite=False)
@@ -803,7 +823,8 @@ def eliminate(gim: np.ndarray, rhs: np.ndarray, method: str) -> Elimination:
         raise StateError(f"gim has shape {A.shape}; rhs has {n} entries")
     kernels = dict(zip(ELIMINATIONS, (ge_n, rge_n), strict=True))
     if method not in kernels:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(kernels)}")
+        raise FieldError("eliminate", "method", method,
+                         f"unknown; choose one of {', '.join(kernels)}")
     if not np.isfinite(A).all():
         i, j = np.argwhere(~np.isfinite(A))[0]
         raise StateError(f"gim[{i}, {j}] = {float(A[i, j])!r}: not finite")
@@ -839,7 +860,7 @@ def energy(model: Model, q, v, *, ws: Workspace | None = None) -> tuple[float, f
 def delta_M(model: Model, q, v, E0: float, *, ws: Workspace | None = None) -> float:
     """The energy drift per unit mass (E - E0) / M [J/kg] of Eq. (11)."""
     door.require_model(model, "delta_M")
-    E0 = door.number("delta_M", "E0", E0)
+    E0 = door.number("delta_M", "E0", E0, finite=True)
     T, V = energy(model, q, v, ws=ws)
     return (T + V - E0) / model.total_mass
 

@@ -390,7 +390,7 @@ class ClosedLoops:
     def check_start(self, q, tol: float = 1e-6) -> None:
         """Refuse a configuration that violates a loop by more than ``tol`` (relative to the
         model's size), naming the cut joint: a start to be projected is one near the loops."""
-        tol = door.number("check_start", "tol", tol)
+        tol = door.number("check_start", "tol", tol, at_least=0.0)
         phi = self.evaluate(q, self._zeros)[0]
         worst = int(np.argmax(np.abs(phi)))
         if abs(phi[worst]) > tol * self.size:

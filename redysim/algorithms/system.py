@@ -41,10 +41,11 @@ from redysim.algorithms.dynamics import (
     forward_dynamics,
 )
 from redysim.algorithms.loads import check_force, tip_force_potential, tip_force_torques
+from redysim.algorithms.methods import METHODS
 from redysim.algorithms.workspace import Workspace
 from redysim.errors import SettingsError, StateError
 from redysim.model import door
-from redysim.model.tree import BALL_JOINT, FREE, QUATERNION_JOINTS, Model
+from redysim.model.tree import BALL_JOINT, FREE, MAX_GRAVCOMP, QUATERNION_JOINTS, Model
 
 QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); more is refused
 NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
@@ -85,6 +86,14 @@ class System:
                  tip_force=None, body_forces=(), gravcomp=None, tau=None, potential=None,
                  loops=None, qdd=None, method: str = "rge-a", source: str = "simulate"):
         door.require_model(model, source)
+        for key, f in (("tau", tau), ("potential", potential), ("qdd", qdd)):
+            if f is not None and not callable(f):
+                raise SettingsError(source, key, f, "must be None or a callable (" + {
+                    "tau": "tau(t, q, v) -> (n_v,)", "potential": "potential(q) -> J",
+                    "qdd": "qdd(q, v, tau) -> (n_v,)"}[key] + ")")
+        if not isinstance(method, str) or method not in METHODS:
+            raise SettingsError(source, "method", method,
+                                f"unknown; choose one of {', '.join(METHODS)}")
         self.model, self.source = model, source
         self.n_q, self.n_v = model.n_q, model.n_v
         self.size = self.n_q + self.n_v
@@ -287,7 +296,11 @@ class System:
         if self.tau is None:
             return own, power
         user = np.asarray(self.tau(t, q, v), dtype=float)
-        if self.potential is None and user.shape == (self.n_v,):
+        if user.shape != (self.n_v,):
+            raise StateError(f"{self.source}: the joint forces' provider (tau) returned shape "
+                             f"{user.shape}; {self.model.name!r} has {self.n_v} DOF, so it must "
+                             f"return shape ({self.n_v},)")
+        if self.potential is None:
             power += float(np.dot(v, user))
         return (user if own is None else own + user), power
 
@@ -300,9 +313,9 @@ class System:
         if self.provider is not None:
             a = np.asarray(self.provider(q, v, tau), dtype=float)
             if a.shape != (self.n_v,):
-                raise ValueError(f"the accelerations' provider (qdd) returned shape {a.shape}; "
-                                 f"{model.name!r} has {self.n_v} DOF, so it must return "
-                                 f"shape ({self.n_v},)")
+                raise StateError(f"{self.source}: the accelerations' provider (qdd) returned "
+                                 f"shape {a.shape}; {model.name!r} has {self.n_v} DOF, so it "
+                                 f"must return shape ({self.n_v},)")
             out[nq:end] = a
         elif self.loops is not None:
             out[nq:end] = self.loops.forward_dynamics(q, v, tau)
@@ -492,6 +505,10 @@ def _gravcomp_factors(source: str, model: Model, gravcomp) -> np.ndarray:
                            "the fraction of a body's weight held up", per="body")
     if not np.isfinite(factors).all():
         raise SettingsError(source, "gravcomp", gravcomp, "must be finite")
+    if (np.abs(factors) > MAX_GRAVCOMP).any():
+        raise SettingsError(source, "gravcomp", gravcomp, f"must be <= {MAX_GRAVCOMP:g}: the "
+                            "fraction of a body's weight held up (1: all of it); a larger one "
+                            "is a unit slip")
     return factors
 
 
@@ -501,9 +518,7 @@ def passive_forces(model: Model, q, v) -> np.ndarray:
     (:attr:`Model.damping`, ...; MuJoCo's ``qfrc_passive`` without fluid forces), from the very
     function a run's steps call (:class:`System`), so in the same bits. Zeros for a model without
     them. Raises StateError for a bad state (naming it)."""
-    if not isinstance(model, Model):
-        raise TypeError(f"passive_forces takes a redysim.Model (a Chain is one), not "
-                        f"{type(model).__name__}")
+    door.require_model(model, "passive_forces")
     q, v = check_state(model, "q", q), check_state(model, "v", v)
     if not model.has_passive:
         return np.zeros(model.n_v)

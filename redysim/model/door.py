@@ -107,11 +107,17 @@ def require_finite(name: str, arr: np.ndarray) -> None:
                          f"({bad.size} non-finite value{'s' if bad.size > 1 else ''})")
 
 
-def number(where: str, name: str, x) -> float:
+def number(where: str, name: str, x, *, finite: bool = False, at_least: float | None = None
+           ) -> float:
     """``x`` as a float if it is a real number (not a string, a bool or an array), else
-    StateError naming ``where`` and ``name``."""
+    StateError naming ``where`` and ``name``; with ``finite``, NaN and Inf refused too, with
+    ``at_least``, a number below it."""
     if isinstance(x, bool | np.bool_) or not isinstance(x, int | float | np.integer
                                                          | np.floating):
         raise StateError(f"{where}: {name} = {reprlib.repr(x)}: must be a number (a "
                          f"{type(x).__name__} was given)")
+    if finite and not np.isfinite(x):
+        raise StateError(f"{where}: {name} = {float(x)!r}: must be a finite number")
+    if at_least is not None and not x >= at_least:
+        raise StateError(f"{where}: {name} = {float(x)!r}: must be >= {at_least:g}")
     return float(x)

@@ -60,6 +60,8 @@ BALL = 2  # dof_kind of a free or ball joint's rotational DOF (about the body's 
 FREE, FIXED, BALL_JOINT = "free", "fixed", "ball"
 TREE_JOINT_TYPES = (*JOINT_TYPES, FREE, FIXED, BALL_JOINT)
 QUATERNION_JOINTS = (FREE, BALL_JOINT)  # joints whose q holds a unit quaternion (w, x, y, z)
+MAX_GRAVCOMP = 1e6  # a body's gravcomp (its weight's fraction held up): more is a unit slip
+MAX_MULTIPLIER = 1e6  # |a coupling's multiplier|: a gear ratio beyond it is a unit slip
 ROTATION_TOL = 1e-9  # |R^T R - 1| allowed in a placement rotation given by the user
 THREAD_WORKSPACES = "_thread_workspaces"  # a model's per-thread workspaces (Model.__getstate__)
 
@@ -297,6 +299,11 @@ class Model:
                       and (key == "spring_ref" or not (value < 0).any())
                       and np.isfinite(value).all()):  # (a checked one is kept, not copied)
                 object.__setattr__(self, key, check_armature(self.name, key, value, n))
+        if (self.gravcomp > MAX_GRAVCOMP).any():
+            k = int(np.flatnonzero(self.gravcomp > MAX_GRAVCOMP)[0])
+            _fail(self.name, f"gravcomp[{k}] (body {self.body_names[k]!r})",
+                  float(self.gravcomp[k]), f"must be <= {MAX_GRAVCOMP:g}: the fraction of the "
+                  "body's weight held up (1: all of it); a larger one is a unit slip")
         self._check_gravcomp_loads()
         if not self.stiffness.any() or FREE not in self.joint_types:
             return  # (a long chain's construction pays no loop over its joints)
@@ -332,8 +339,10 @@ class Model:
         if len(joints) != nb or len(parents) != nb:
             _fail(source, "joints/parents", (len(joints), len(parents)),
                   f"need one joint and one parent per body ({nb} bodies)")
-        body_name, mass, com, inertia, gravcomp = [], [], [], [], []
-        jname, jtype, axes, par, plR, plp = [], [], [], [], [], []
+        body_name: list[str] = []
+        jname: list[str] = []
+        mass, com, inertia, gravcomp = [], [], [], []
+        jtype, axes, par, plR, plp = [], [], [], [], []
         for k, (b, j, p) in enumerate(zip(bodies, joints, parents, strict=True)):
             if not isinstance(b, Body):
                 _fail(source, f"bodies[{k}]", b, "must be a redysim.Body")
@@ -358,6 +367,14 @@ class Model:
                                           - np.eye(3)).max() > 0 or any(j.translation)):
                 _fail(source, f"{jwhere}.translation", j.translation, "a free joint's body "
                       "pose is its configuration q, not a placement: give the pose in q")
+            if str(b.name) in body_name:
+                _fail(source, f"{where}.name", b.name, "repeats the name of bodies["
+                      f"{body_name.index(str(b.name))}]: a body is found by its name (frames, "
+                      "gravcomp, body forces), so each must be unique")
+            if str(j.name) in jname:
+                _fail(source, f"{jwhere}.name", j.name, "repeats the name of joints["
+                      f"{jname.index(str(j.name))}]: a joint is found by its name (locked, "
+                      "with_armature, couplings), so each must be unique")
             body_name.append(str(b.name))
             mass.append(m_k)
             com.append(c)
@@ -530,11 +547,10 @@ class Model:
         import dataclasses
 
         where = source or f"{self.name}.with_couplings"
-        if couplings is not None and not isinstance(couplings, str | Coupling) and \
-                len(couplings) == 0:
-            return dataclasses.replace(self, couplings=())
         if isinstance(couplings, Coupling | str) or not isinstance(couplings, Sequence):
             _fail(where, "couplings", type(couplings).__name__, "must be a list of Coupling")
+        if len(couplings) == 0:
+            return dataclasses.replace(self, couplings=())
         index = {name: k for k, name in enumerate(self.joint_names)}
         followers: set[str] = set()
         for i, c in enumerate(couplings):
@@ -935,6 +951,10 @@ class Coupling:
             if isinstance(x, bool) or not isinstance(x, int | float | np.floating | np.integer) \
                     or not math.isfinite(x):
                 raise CaseError(source, key, _plain(x), "must be a finite number")
+            if key == "multiplier" and abs(x) > MAX_MULTIPLIER:
+                raise CaseError(source, key, _plain(x), f"|multiplier| must be <= "
+                                f"{MAX_MULTIPLIER:g}: a larger ratio is a unit slip (its "
+                                "reflected inertia m^2 I swamps the model, and a run crawls)")
             object.__setattr__(self, key, float(x))
 
 
