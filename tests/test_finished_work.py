@@ -1,0 +1,196 @@
+"""Finished work kept honest (a fourth hold-out battery): a sweep's, a long run's and compare's
+finished files are checked against what recorded them (their row, their manifest, their
+horizon, their system), damaged ones redone or refused by name, and a path of the wrong kind
+refused by name before any work."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from redysim.harness.spec import RunSpec
+from redysim.harness.store import FolderError, read_parquet
+from redysim.harness.sweep import (
+    DAMAGED_DIR,
+    RUNS_DIR,
+    RUNS_FILE,
+    SAMPLES_DIR,
+    SAMPLES_FILE,
+    run_sweep,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+PYTHON = sys.executable
+SPECS = [RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05),
+         RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05, integrator="dop853", rtol=1e-6,
+                 atol=1e-8)]
+
+
+def _env() -> dict:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get(
+        "PYTHONPATH", "")])}
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _fix_manifest(out: Path, run_id: str) -> None:
+    """What a forger does: the manifest's SHA-256 recomputed for the edited files."""
+    path = out / "manifest" / f"{run_id}.json"
+    record = json.loads(path.read_text())
+    record["files"] = {k: _sha(out / k) for k in record["files"]}
+    path.write_text(json.dumps(record))
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("finished") / "out"
+    run_sweep(SPECS, out, progress=False, workers=1)
+    return out
+
+
+def _copy(finished: Path, tmp_path: Path) -> Path:
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)
+    return out
+
+
+# --------------------------------------------------------------------------- sweep: forgeries
+@pytest.mark.parametrize("forgery", ["a samples row dropped", "no samples rows",
+                                     "a samples column dropped", "a row column dropped"])
+def test_a_forged_file_with_its_digest_recomputed_is_caught_by_its_row(finished, tmp_path,
+                                                                       capsys, forgery):
+    """Battery 4, item 3: samples/X with a row (or every row) dropped, or without tip_x, and
+    runs/X without steps, each with the manifest's SHA-256 recomputed, were taken as finished:
+    samples.parquet silently lacked rows, or held NaN. A run's samples are checked against its
+    row (n_samples rows, every sample column), its row for every column a run writes."""
+    out = _copy(finished, tmp_path)
+    run_id = SPECS[0].run_id
+    expected = read_parquet(out / SAMPLES_FILE)
+    samples = out / SAMPLES_DIR / f"{run_id}.parquet"
+    row = out / RUNS_DIR / f"{run_id}.parquet"
+    if forgery == "a row column dropped":
+        read_parquet(row).drop(columns=["steps"]).to_parquet(row, index=False)
+    else:
+        table = read_parquet(samples)
+        table = {"a samples row dropped": table.iloc[:-1], "no samples rows": table.iloc[:0],
+                 "a samples column dropped": table.drop(columns=["tip_x"])}[forgery]
+        table.to_parquet(samples, index=False)
+    _fix_manifest(out, run_id)
+    runs = run_sweep(SPECS, out, progress=False, workers=1)
+    assert runs.attrs["ran"] == 1
+    err = capsys.readouterr().err
+    assert str(out / "runs" if forgery == "a row column dropped" else samples) in err
+    assert list((out / DAMAGED_DIR).iterdir())
+    again = read_parquet(out / SAMPLES_FILE)
+    assert len(again) == len(expected) and not again["tip_x"].isna().any()
+    assert not read_parquet(out / RUNS_FILE)["steps"].isna().any()
+    assert run_sweep(SPECS, out, progress=False, workers=1).attrs["ran"] == 0
+
+
+def test_a_manifest_entry_outside_the_folder_is_never_looked_up(finished, tmp_path, capsys):
+    """Battery 4: a manifest listing ../../../etc/passwd had it hashed. A run's manifest may
+    list only its run's own two files; any other entry makes it a damaged manifest."""
+    out = _copy(finished, tmp_path)
+    run_id = SPECS[0].run_id
+    path = out / "manifest" / f"{run_id}.json"
+    record = json.loads(path.read_text())
+    record["files"]["../../../etc/passwd"] = "0" * 64
+    path.write_text(json.dumps(record))
+    runs = run_sweep(SPECS, out, progress=False, workers=1)
+    assert runs.attrs["ran"] == 1
+    err = capsys.readouterr().err
+    assert "../../../etc/passwd" in err and "not one of its run's files" in err
+
+
+# --------------------------------------------------------------------------- sweep: wrong kinds
+@pytest.mark.parametrize("where", [RUNS_FILE, SAMPLES_FILE, "sweep.json", "manifest/X.json",
+                                   ".claims/X"])
+def test_a_folder_where_a_sweep_file_goes_is_refused_by_name_before_any_run(
+        finished, tmp_path, where):
+    """Battery 4, item 6 and 'temp-file names': a folder at runs.parquet, sweep.json or
+    .claims/<run> was a traceback or named the writer's temporary file after the runs, and
+    manifest/X.json was said to be 'missing'. Each is refused by its own name, nothing run."""
+    out = _copy(finished, tmp_path)
+    run_id = SPECS[0].run_id
+    (out / RUNS_DIR / f"{run_id}.parquet").unlink()  # a run left to do
+    place = out / where.replace("X", run_id)
+    if place.is_file():
+        place.unlink()
+    place.mkdir(parents=True, exist_ok=True)
+    with pytest.raises(FolderError) as info:
+        run_sweep(SPECS, out, progress=False, workers=1)
+    assert str(place) in str(info.value) and "is a folder where a file goes" in str(info.value)
+    assert ".tmp" not in str(info.value)
+    assert not (out / RUNS_DIR / f"{run_id}.parquet").exists()  # nothing was run
+
+
+def test_a_foreign_folder_among_the_claims_is_not_a_claim(finished, tmp_path):
+    """Battery 4, item 6: a folder .claims/<id>.lock beside an unfinished run was an
+    IsADirectoryError; it is no claim of a sweep's, and is left alone."""
+    out = _copy(finished, tmp_path)
+    run_id = SPECS[0].run_id
+    (out / RUNS_DIR / f"{run_id}.parquet").unlink()
+    (out / ".claims" / f"{run_id}.lock").mkdir(parents=True)
+    runs = run_sweep(SPECS, out, progress=False, workers=1)
+    assert runs.attrs["ran"] == 1 and (runs["status"] == "ok").all()
+
+
+def test_the_resume_count_is_the_checked_one_and_said_once(finished, tmp_path, capsys):
+    """Battery 4: a resumed sweep printed '2 runs, 2 already done' and then ran one again (the
+    count was of files present, not of files checked), and its notes came twice."""
+    from redysim.harness.cli import main
+
+    out = _copy(finished, tmp_path)
+    (out / SAMPLES_DIR / f"{SPECS[1].run_id}.parquet").unlink()
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[sweep]\nname = "s"\ncases = ["STUDY-R3"]\nintegrators = ["ode45", '
+                     '"dop853"]\nrtols = [1e-4]\nt_end = 0.2\nsample = 0.05\n')
+    assert main(["sweep", str(sweep), "--out", str(out), "--no-progress", "--workers",
+                 "1"]) == 0
+    res = capsys.readouterr()
+    assert "2 runs, " in res.out
+    said = res.out.split("2 runs, ")[1].split(" already done")[0]
+    ran = res.out.split(" run by this sweep")[0].rsplit(", ", 1)[1]
+    assert int(said) + int(ran) == 2, res.out
+    assert res.err.count("is missing") <= 1, res.err
+
+
+def _unwritable(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    """A redysim command in a process that file permissions bind (root's override dropped)."""
+    cmd = [PYTHON, "-m", "redysim.reports.commands", *argv]
+    if os.geteuid() == 0:
+        cmd = ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", *cmd]
+    return subprocess.run(cmd, cwd=cwd, env=_env(), capture_output=True, text=True,
+                          timeout=600)
+
+
+@pytest.mark.skipif(os.geteuid() == 0 and not shutil.which("setpriv"),
+                    reason="as root, a read-only folder needs setpriv to drop the override")
+def test_a_read_only_samples_folder_with_a_damaged_file_is_refused_by_name(tmp_path):
+    """Battery 4, item 7: a read-only samples/ holding a damaged file was a PermissionError
+    from setting it aside. The sweep sees it cannot repair there and refuses by name."""
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[sweep]\nname = "s"\ncases = ["STUDY-R3"]\nt_end = 0.05\n'
+                     'sample = 0.05\n')
+    out = tmp_path / "out"
+    ok = _unwritable(["sweep", str(sweep), "--out", str(out), "--no-progress"], tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    (victim,) = (out / SAMPLES_DIR).glob("*.parquet")
+    with open(victim, "r+b") as fh:
+        fh.truncate(10)
+    (out / SAMPLES_DIR).chmod(0o555)
+    try:
+        res = _unwritable(["sweep", str(sweep), "--out", str(out), "--no-progress"], tmp_path)
+    finally:
+        (out / SAMPLES_DIR).chmod(0o755)
+    assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr
+    assert str(out / SAMPLES_DIR) in res.stderr and "cannot be written" in res.stderr
