@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from redysim.harness.spec import RunSpec
@@ -194,3 +195,70 @@ def test_a_read_only_samples_folder_with_a_damaged_file_is_refused_by_name(tmp_p
         (out / SAMPLES_DIR).chmod(0o755)
     assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr
     assert str(out / SAMPLES_DIR) in res.stderr and "cannot be written" in res.stderr
+
+
+# --------------------------------------------------------------------------- long runs
+LONG_CASE, LONG_T = "RE-U125-L1", 0.05
+
+
+@pytest.fixture(scope="module")
+def long_done(tmp_path_factory) -> Path:
+    from redysim.harness.longrun import run
+
+    out = tmp_path_factory.mktemp("long") / "out"
+    run(LONG_CASE, t_end=LONG_T, out=out, log=lambda _m: None)
+    return out
+
+
+def _forge_checkpoint(out: Path, **changes) -> None:
+    """Edit the checkpoint's arrays and recompute its SHA-256 in manifest.json."""
+    path = out / "checkpoint.npz"
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays.update({k: np.asarray(v) for k, v in changes.items()})
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+    record = json.loads((out / "manifest.json").read_text())
+    record["files"]["checkpoint.npz"] = _sha(path)
+    (out / "manifest.json").write_text(json.dumps(record))
+
+
+@pytest.mark.parametrize("forgery", ["t past t_end, done", "done before t_end", "t < 0",
+                                     "y two entries short"])
+def test_a_forged_checkpoint_is_refused_by_name(long_done, tmp_path, forgery):
+    """Battery 4, items 4 and 11: a checkpoint with t = 5 (of 0.05) was accepted as 'done, t =
+    5'; 'done' at t short of t_end as finished; t = -1 resumed from -1; y two entries short was
+    a shape-mismatch ValueError from inside the integrator. Each is refused naming the file,
+    the field and its value, with the way out."""
+    from redysim.harness.longrun import LongrunError, run
+
+    out = tmp_path / "out"
+    shutil.copytree(long_done, out)
+    with np.load(out / "checkpoint.npz") as z:
+        y = z["y"]
+    changes = {"t past t_end, done": {"t": 5.0},
+               "done before t_end": {"t": LONG_T / 2},
+               "t < 0": {"t": -1.0, "status": "stopped"},
+               "y two entries short": {"y": y[:-2], "status": "stopped", "t": LONG_T / 2}}
+    _forge_checkpoint(out, **changes[forgery])
+    with pytest.raises(LongrunError) as info:
+        run(LONG_CASE, t_end=LONG_T, out=out, log=lambda _m: None)
+    msg = str(info.value)
+    assert str(out / "checkpoint.npz") in msg and "another --out" in msg
+    assert ("shape" in msg) if forgery.startswith("y") else ("t = " in msg)
+
+
+@pytest.mark.parametrize("name", ["manifest.json", "checkpoint.npz"])
+def test_a_folder_where_a_long_runs_file_goes_is_refused_before_any_step(tmp_path, name):
+    """Battery 4: a long run with manifest.json a folder ran all the way, then failed naming a
+    temporary file. Refused by its name before any step."""
+    from redysim.harness.longrun import run
+    from redysim.harness.store import FolderError
+
+    out = tmp_path / "out"
+    (out / name).mkdir(parents=True)
+    said: list[str] = []
+    with pytest.raises(FolderError) as info:
+        run(LONG_CASE, t_end=LONG_T, out=out, log=said.append)
+    assert str(out / name) in str(info.value) and ".tmp" not in str(info.value)
+    assert not said  # (no step was taken: nothing was said of the run)
