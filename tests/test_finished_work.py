@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from redysim.harness.spec import RunSpec
@@ -262,3 +263,97 @@ def test_a_folder_where_a_long_runs_file_goes_is_refused_before_any_step(tmp_pat
         run(LONG_CASE, t_end=LONG_T, out=out, log=said.append)
     assert str(out / name) in str(info.value) and ".tmp" not in str(info.value)
     assert not said  # (no step was taken: nothing was said of the run)
+
+
+# --------------------------------------------------------------------------- compare's cache
+REF_T, REF_DT = 0.1, 0.05
+
+
+@pytest.fixture
+def cached(tmp_path, monkeypatch):
+    """STUDY-R3's reference computed into a fresh results folder: (scenario, its path, ref)."""
+    from redysim.harness.reference import compute_reference, reference_path
+    from redysim.io.scenarios import load_scenario
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+    scn = load_scenario("STUDY-R3")
+    ref = compute_reference(scn, REF_T, REF_DT)
+    return scn, reference_path(scn, REF_T, REF_DT), ref
+
+
+def _rewrite(path: Path, **changes) -> None:
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays.update(changes)
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+@pytest.mark.parametrize("damage", ["tip + 0.5 m", "y cut to 4 columns", "a NaN in tip",
+                                    "one sample"])
+def test_a_damaged_cached_reference_is_said_and_recomputed(cached, capsys, damage):
+    """Battery 4, items 5 and 8: compare trusted its reference cache: 0.5 added to its tip
+    made every run report an error of 0.87 m; a NaN or one-sample reference gave NaN errors
+    and '0 failed'; y cut to 4 columns failed every run, then a KeyError. The cache has a
+    digest beside each file and its arrays are checked against the scenario (shapes, samples
+    from 0 to the horizon, finite); a damaged one is said and recomputed."""
+    from redysim.harness.reference import compute_reference, load_reference
+
+    scn, path, ref = cached
+    with np.load(path) as z:
+        t, tip, y = z["t"], z["tip"], z["y"]
+    changes = {"tip + 0.5 m": {"tip": tip + 0.5}, "y cut to 4 columns": {"y": y[:, :4]},
+               "a NaN in tip": {"tip": np.where(np.arange(tip.size).reshape(tip.shape) == 4,
+                                                np.nan, tip)},
+               "one sample": {"t": t[:1], "y": y[:1], "tip": tip[:1]}}[damage]
+    _rewrite(path, **changes)
+    assert load_reference(scn, REF_T, REF_DT) is None
+    assert f"{path} is damaged" in capsys.readouterr().err
+    again = compute_reference(scn, REF_T, REF_DT)
+    np.testing.assert_array_equal(again.tip, ref.tip)  # (the same computation, done again)
+    assert load_reference(scn, REF_T, REF_DT) is not None
+
+
+def test_a_file_where_the_reference_cache_goes_is_refused_by_name(tmp_path, monkeypatch):
+    """Battery 4, item 9: results/reference a file was a FileExistsError from deep inside."""
+    from redysim.harness.reference import compute_reference, results_dir
+    from redysim.io.scenarios import load_scenario
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+    results_dir().mkdir()
+    (results_dir() / "reference").write_text("x")
+    with pytest.raises(FolderError) as info:
+        compute_reference(load_scenario("STUDY-R3"), REF_T, REF_DT)
+    assert str(results_dir() / "reference") in str(info.value)
+    assert "is a file where a folder goes" in str(info.value)
+
+
+@pytest.mark.parametrize("where", ["compare.pdf", "compare.html", "reference"])
+def test_compare_refuses_a_wrong_kind_of_path_by_name_before_any_engine(tmp_path, monkeypatch,
+                                                                       where):
+    """Battery 4, items 9 and 10: compare.pdf a folder was an IsADirectoryError from the PDF
+    writer after every run; the reference's .npz a folder failed after all the runs. Each is
+    refused by name before the engines are asked anything."""
+    from redysim.harness.reference import reference_path
+    from redysim.io.scenarios import load_scenario
+    from redysim.reports.compare import compare
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+    out = tmp_path / "cmp"
+    scn = load_scenario("STUDY-R3")
+    place = (reference_path(scn, 0.01, scn.sample_for(0.01)) if where == "reference"
+             else out / where)
+    place.mkdir(parents=True)
+    said: list[str] = []
+    with pytest.raises(FolderError) as info:
+        compare("STUDY-R3", out, t_end=0.01, engines=["mujoco"], progress=False,
+                log=said.append)
+    assert str(place) in str(info.value) and not said
+
+
+def test_advice_without_any_measured_run_is_no_advice():
+    """Battery 4, item 8: every run failed (no max_tip_err column) -> KeyError in advice."""
+    from redysim.reports.compare import advice
+
+    runs = pd.DataFrame([{"run_id": "a", "status": "failed", "reason": "worker raised"}])
+    assert all(a["best"] is None and not a["per_engine"] for a in advice(runs))
