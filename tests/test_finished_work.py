@@ -357,3 +357,14 @@ def test_advice_without_any_measured_run_is_no_advice():
 
     runs = pd.DataFrame([{"run_id": "a", "status": "failed", "reason": "worker raised"}])
     assert all(a["best"] is None and not a["per_engine"] for a in advice(runs))
+
+
+def test_advise_onto_a_file_refuses_before_saying_it_caches_there(tmp_path, capsys):
+    """Battery 4: 'advise ... --out FILE' printed 'runs cached in FILE' before refusing."""
+    from redysim.harness.cli import main
+
+    a_file = tmp_path / "a-file"
+    a_file.write_text("x")
+    assert main(["advise", "RE-U125-L1", "--tip-tol", "1e-3", "--out", str(a_file)]) == 2
+    res = capsys.readouterr()
+    assert "runs cached" not in res.out + res.err and str(a_file) in res.err
