@@ -702,8 +702,8 @@ def print_run(summary: dict, samples: list[tuple]) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``redysim sweep``: every run of a sweep file, resumable."""
-    from redysim.harness.store import parquet_files, writable
-    from redysim.harness.sweep import RUNS_DIR, RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
+    from redysim.harness.store import writable
+    from redysim.harness.sweep import RUNS_FILE, SAMPLES_FILE, load_sweep, run_sweep
 
     if args.dask and args.workers is not None:
         raise SettingsError(SOURCE, "--workers", args.workers, "sets the local process pool; "
@@ -716,18 +716,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise SettingsError(SOURCE, "--out", str(out), "is a file; a sweep's results go in a "
                             "folder")
     # (a folder it cannot write: refused by run_sweep before any run, unless finished there)
-    # (as recorded: the sweep checks each against its manifest, and says what it redoes)
-    done = parquet_files(out / RUNS_DIR).keys() & {s.run_id for s in sweep.specs}
     where = f"Dask ({args.dask})" if args.dask else "a local process pool"
     if sweep.description:
         print(f"{sweep.name}: {sweep.description}")
-    rest = (f"running the rest on {where}" if writable(out) else
-            "a folder it cannot write: read as it is if every run is finished there")
-    print(f"{sweep.name}: {len(sweep.specs)} runs, {len(done)} already done in {out}; {rest}",
-          flush=True)
+
+    def announce(n_runs: int, n_done: int) -> None:  # (counted after each file was checked)
+        rest = (f"running the rest on {where}" if writable(out) else
+                "a folder it cannot write: read as it is if every run is finished there")
+        print(f"{sweep.name}: {n_runs} runs, {n_done} already done in {out}; {rest}",
+              flush=True)
+
     runs = run_sweep(sweep.specs, out, name=sweep.name, workers=args.workers, dask=args.dask,
                      progress=args.progress, reference=sweep.reference,
-                     retry_failed=args.retry_failed)
+                     retry_failed=args.retry_failed, on_plan=announce)
     failed = runs[runs["status"] != "ok"] if len(runs) else runs
     print(f"{len(runs)} runs: {len(runs) - len(failed)} ok, {len(failed)} failed, "
           f"{runs.attrs.get('ran', 0)} run by this sweep -> {out / RUNS_FILE}, "

@@ -54,6 +54,7 @@ from .cli import positive, time_to_go
 from .provenance import code_digest, peak_rss_mib, reset_peak_rss
 from .reference import results_dir
 from .store import (
+    check_kinds,
     check_writable,
     read_json,
     remove_temp_files,
@@ -175,6 +176,27 @@ def _refuse_other(path: Path, ck: dict, now: dict) -> None:
                                f"{now[key]!r}); use another --out, delete it or --set-aside")
 
 
+def _check_state(path: Path, ck: dict, t_end: float, n_state: int) -> None:
+    """Refuse a checkpoint whose state is not one this run can have reached: its t outside
+    [0, t_end], "done" before t_end, or y and f not the system's length (``n_state``)."""
+    t = float(ck["t"])
+    status = str(ck.get("status", ""))
+    way = "delete it (and checkpoint.prev.npz, manifest.json) or give another --out"
+    if not (math.isfinite(t) and 0.0 <= t <= t_end):
+        raise LongrunError(f"{path}: t = {t:g} is outside [0, t_end = {t_end:g}] s: not a state "
+                           f"of this run; {way}")
+    if status == "done" and t < t_end:
+        raise LongrunError(f"{path}: status = 'done' at t = {t:g} s, before t_end = {t_end:g} "
+                           f"s; {way}")
+    for key in ("y", "f"):
+        shape = np.shape(ck[key])
+        if shape != (n_state,):
+            raise LongrunError(f"{path}: {key} has shape {shape}, the system's state has "
+                               f"{n_state} entries; {way}")
+        if not np.all(np.isfinite(ck[key])):
+            raise LongrunError(f"{path}: {key} is not finite; {way}")
+
+
 def set_aside_other(path: Path) -> Path:
     """Rename a checkpoint of another run (and the one before it) beside it, as
     ``checkpoint.aside-<UTC time>.npz`` (``.prev`` before ``.npz`` for the earlier one): kept,
@@ -246,6 +268,9 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
            "t_end": t_end, "sample": interval, **how}
     kw = (dict(h=how["fixed_h"]) if how["fixed_h"] else
           dict(rtol=how["rtol"], atol=how["atol"]))
+    # before anything is read or run: a folder where one of its files goes is refused by name
+    check_kinds(files=[path, path.with_name(PREVIOUS), path.with_name(MANIFEST)],
+                folders=[path.parent], why="nothing was run")
     can_write = writable(path.parent)  # (a finished run is read from a folder it cannot write)
     if can_write:  # a killed session's half-written checkpoint or manifest
         remove_temp_files(path.parent)
@@ -262,6 +287,8 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
             reason = str(exc).split("; use another --out")[0]
             log(f"{reason}: set aside as {set_aside_other(path).name}; starting over")
             ck = None
+    if ck is not None:
+        _check_state(path, ck, t_end, 2 * n)
     elif (manifest := read_manifest(path.parent)) is not None and manifest["files"]:
         raise LongrunError(f"{path.parent / MANIFEST} lists the checkpoints of this run (t = "
                            f"{manifest.get('t', 0.0):.6g} s, {manifest.get('status', '')}), "

@@ -17,9 +17,13 @@ final-state error (``redysim.harness.run``).
 
 The cache key is a hash of the scenario's bytes (its file and its model's), the horizon, the
 interval, the settings and the core's source (every ``.py`` of ``redysim/``), so editing a
-scenario, a model file or the core invalidates its references; a damaged cache file reads as
-missing and is recomputed. Files are ``.npz`` written atomically (temp file + ``os.replace``)
-under ``results/reference/`` (``REDYSIM_RESULTS`` moves ``results/``).
+scenario, a model file or the core invalidates its references. Each file has its SHA-256 beside
+it (``<name>.sha256``, written after it); a cached reference whose digest is missing or differs,
+whose arrays are not the scenario's shapes (samples from 0 to the horizon, the full state, a
+3-D path) or not finite, or that cannot be read, is said on stderr and recomputed. A folder
+where the cache file goes (or a file where its folder goes) is refused by name
+(:func:`check_cache`) before any run. Files are ``.npz`` written atomically (temp file +
+``os.replace``) under ``results/reference/`` (``REDYSIM_RESULTS`` moves ``results/``).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import hashlib
 import json
 import math
 import os
+import sys
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +44,9 @@ from redysim.io.scenarios import Scenario
 from redysim.simulation import frame_observer
 
 from .provenance import code_digest
-from .store import write_npz_atomic
+from .store import check_kinds, sha256_file, write_npz_atomic, write_text_atomic
+
+DIGEST_SUFFIX = ".sha256"  # beside each cached reference: its SHA-256, written after it
 
 REF_METHOD = "dop853"
 REF_RTOL = 1e-11
@@ -94,18 +101,56 @@ def reference_path(case, t_end: float, interval: float) -> Path:
     return results_dir() / "reference" / f"{name}-{_key(case, t_end, interval)}.npz"
 
 
+def check_cache(case, t_end: float, interval: float) -> Path:
+    """Refuse by name (:class:`redysim.harness.store.FolderError`), before any work, a folder
+    where ``case``'s cached reference goes or a file where its folder goes; returns its path."""
+    p = reference_path(case, t_end, interval)
+    check_kinds(files=[p, p.with_name(p.name + DIGEST_SUFFIX)], folders=[p.parent],
+                why="the reference cache; nothing was run")
+    return p
+
+
+def _damage(ref: Reference, case, t_end: float) -> str:
+    """Why ``ref`` is not a reference of ``case`` over [0, t_end] ('' when it is)."""
+    model = _scenario(case).model
+    m, n = len(ref.t), model.n_q + model.n_v
+    if ref.t.ndim != 1 or m < 2:
+        return f"t has shape {ref.t.shape}, not two samples or more"
+    if ref.y.shape != (m, n):
+        return f"y has shape {ref.y.shape}, not ({m}, {n}) (the samples by the state)"
+    if ref.tip.shape != (m, 3):
+        return f"tip has shape {ref.tip.shape}, not ({m}, 3)"
+    for name in ("t", "y", "tip"):
+        if not np.all(np.isfinite(getattr(ref, name))):
+            return f"{name} is not finite"
+    if ref.t[0] != 0.0 or abs(ref.t[-1] - t_end) > 1e-9 * max(1.0, t_end) or \
+            np.any(np.diff(ref.t) <= 0):
+        return f"t runs from {ref.t[0]:g} to {ref.t[-1]:g} s, not from 0 to {t_end:g} s"
+    return ""
+
+
 def load_reference(case, t_end: float, interval: float) -> Reference | None:
-    """The cached reference, or None."""
+    """The cached reference, or None: none, or damaged (said on stderr: then recomputed by
+    :func:`compute_reference`)."""
     p = reference_path(case, t_end, interval)
     if not p.exists():
         return None
+    digest = p.with_name(p.name + DIGEST_SUFFIX)
     try:
+        if not digest.is_file() or digest.read_text().strip() != sha256_file(p):
+            raise ValueError(f"its SHA-256 is not the one {digest.name} recorded")
         with np.load(p) as z:
-            return Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]),
-                             int(z["steps"]), int(z["nfev"]), float(z["cpu_s"]),
-                             float(z["engine_check"]), str(z["engine_check_by"]))
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
-        return None  # damaged (the writer is atomic, so only outside damage does this)
+            ref = Reference(z["t"], z["y"], z["tip"], float(z["tol_estimate"]),
+                            int(z["steps"]), int(z["nfev"]), float(z["cpu_s"]),
+                            float(z["engine_check"]), str(z["engine_check_by"]))
+        if why := _damage(ref, case, t_end):
+            raise ValueError(why)
+        return ref
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        # (the writer is atomic, so only outside damage does this)
+        print(f"redysim: the cached reference {p} is damaged ({str(exc)[:200]}); it is "
+              "recomputed", file=sys.stderr)
+        return None
 
 
 def _solve(case, t_end, interval, method, rtol, qdd=None):
@@ -126,7 +171,7 @@ def _solve(case, t_end, interval, method, rtol, qdd=None):
 def compute_reference(case, t_end: float, interval: float, *, force: bool = False) -> Reference:
     """Compute (or load) and cache the reference of ``case`` over [0, t_end], sampled at
     ``interval``."""
-    p = reference_path(case, t_end, interval)
+    p = check_cache(case, t_end, interval)
     if not force and (ref := load_reference(case, t_end, interval)) is not None:
         return ref
     ts, Y, P, cnt, cpu = _solve(case, t_end, interval, REF_METHOD, REF_RTOL)
@@ -136,6 +181,7 @@ def compute_reference(case, t_end: float, interval: float, *, force: bool = Fals
     p.parent.mkdir(parents=True, exist_ok=True)
     write_npz_atomic(p, t=ts, y=Y, tip=P, tol_estimate=est, steps=cnt.steps, nfev=cnt.nfev,
                      cpu_s=cpu, engine_check=engine_est, engine_check_by=by)
+    write_text_atomic(sha256_file(p) + "\n", p.with_name(p.name + DIGEST_SUFFIX))
     return Reference(ts, Y, P, est, cnt.steps, cnt.nfev, cpu, engine_est, by)
 
 

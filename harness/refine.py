@@ -564,6 +564,10 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     specs = [ref_spec] + [RunSpec(**base, links=n, integrator=OWN_LEVEL[0], rtol=OWN_LEVEL[1],
                                   atol=OWN_LEVEL[1] * 1e-2) for n in levels]
     out = Path(out)
+    from .store import check_kinds
+
+    # before a word of what it will run: a file where its folder goes is refused by name
+    check_kinds(folders=[out], why="give a folder for --out; nothing was run")
     name = f"advise-{case.name}"
     log(f"advise: {case.name}: {nl} links over {horizon:g} s; the reference ({OWN_REFERENCE[0]} "
         f"{OWN_REFERENCE[1]:g}) and {len(levels)} coarser models ({', '.join(map(str, levels))} "

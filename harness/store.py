@@ -19,7 +19,7 @@ import io
 import json
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
@@ -66,10 +66,26 @@ class FolderError(RedysimError, OSError):
 
 def _cannot_write(path: Path, exc: OSError, what: str, flag: str | None) -> FolderError:
     given = f"{flag} " if flag else ""
+    if what == "file" and path.is_dir():  # (the rename onto a folder: name it, not the temp file)
+        return FolderError(f"{given}{str(path)!r}: is a folder where a file goes; move it away")
     reason = exc.strerror or type(exc).__name__
-    return FolderError(f"{given}{str(path)!r}: the {what} cannot be written ({reason}: "
-                       f"{exc.filename or path}); make it writable, or give another "
-                       f"{flag or 'folder (--out)'}")
+    # the path the user gave, never the writer's temporary file beside it
+    return FolderError(f"{given}{str(path)!r}: the {what} cannot be written ({reason}); make "
+                       f"it writable, or give another {flag or 'folder (--out)'}")
+
+
+def check_kinds(*, files: Iterable[str | os.PathLike] = (),
+                folders: Iterable[str | os.PathLike] = (), why: str = "nothing was run") -> None:
+    """Refuse, by name and before any work, a path where a file goes but a folder (or other)
+    is, or where a folder goes but a file is (:class:`FolderError`); paths not there pass."""
+    for f in map(Path, files):
+        if f.exists() and not f.is_file():
+            raise FolderError(f"{str(f)!r}: is a folder where a file goes; move it away "
+                              f"({why})")
+    for d in map(Path, folders):
+        if d.exists() and not d.is_dir():
+            raise FolderError(f"{str(d)!r}: is a file where a folder goes; move it away "
+                              f"({why})")
 
 
 def check_writable(folder: str | os.PathLike, *, what: str = "results folder",

@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import io
 import itertools
 import json
 import logging
@@ -96,7 +97,7 @@ from redysim.io.robots import PREFIX as ROBOT_DATA
 from redysim.io.scenarios import list_scenarios, load_scenario
 
 from . import REDYSIM_THREADS, worker_threads
-from .run import execute
+from .run import SAMPLE_COLUMNS, execute
 from .spec import (
     CORE,
     CORE_METHODS,
@@ -112,6 +113,8 @@ from .store import (
     FILE_MODE,
     PARQUET_SUFFIX,
     FolderError,
+    check_kinds,
+    check_writable,
     parquet_files,
     parquet_metadata,
     read_json,
@@ -158,6 +161,10 @@ STAGED_SUFFIX = ".staged"  # a summary row written, to be moved into place after
 MANIFEST_DIR = "manifest"  # manifest/<run_id>.json: a finished run's files and their SHA-256
 RUNS_FILE = "runs.parquet"
 SAMPLES_FILE = "samples.parquet"
+# the columns a finished run's summary row always has (harness.run.execute writes them)
+ROW_COLUMNS = ("run_id", "label", "status", "reason", "steps", "rejected", "nfev", "cpu_s",
+               "E0", "avg_abs_delta_M", "max_abs_delta_M", "t_reached", "n_samples",
+               "max_tip_err")
 
 POOL_START_METHOD = "spawn"  # fresh interpreters: safe with numba and with threads in the parent
 DASK_LOCAL = "local"  # dask= value that starts a LocalCluster on this machine
@@ -537,6 +544,8 @@ class Claims:
         """Remove the claim files of processes that died holding them; returns how many."""
         stale = 0
         for path in self.dir.iterdir():
+            if not path.is_file() or path.name.startswith("."):
+                continue  # not a claim (run_sweep refuses a folder in a run's claim's place)
             if path.name not in self.held and self.take(path.name):
                 self.release(path.name)
                 stale += 1
@@ -583,7 +592,8 @@ class _Work:
 def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str = "sweep",
               workers: int | None = None, dask: str | None = None,
               progress: bool = True, reference: bool = False,
-              retry_failed: bool = False) -> pd.DataFrame:
+              retry_failed: bool = False,
+              on_plan: Callable[[int, int], None] | None = None) -> pd.DataFrame:
     """Run every spec not yet done in ``out_dir``; return all runs' rows (see :func:`collect`).
 
     ``workers``: processes of the local pool (default ``os.cpu_count()``). ``dask``: a scheduler
@@ -602,7 +612,12 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     runs every failed run again. A run file that cannot be read is moved to ``damaged/`` (with
     a note on stderr) and the run is done again. Several sweeps may share ``out_dir``: each run
     is claimed (:class:`Claims`) and computed once. The returned frame's ``attrs["ran"]`` counts
-    the runs this call computed.
+    the runs this call computed. ``on_plan(n_runs, n_done)`` is called once the finished runs
+    are known (their files checked), before any run.
+
+    Before anything is read or run, a folder where one of the sweep's files goes (or a file
+    where one of its folders goes) is refused by name (:class:`FolderError`), and so is a
+    folder it cannot write while runs are left to do.
     """
     specs = unique(specs)
     out = Path(out_dir)
@@ -614,7 +629,14 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
                              f"is a file where the sweep keeps its {sub} folder: move it away "
                              "(the runs it held, if any, are not there to reuse); nothing was "
                              "run")
-    repair = writable(out)  # (a folder it cannot write is read only if every run is finished)
+    check_kinds(files=[out / PLAN_FILE, out / RUNS_FILE, out / SAMPLES_FILE,
+                       *(out / MANIFEST_DIR / f"{s.run_id}.json" for s in specs),
+                       *(out / CLAIMS_DIR / s.run_id for s in specs)])
+    # (a folder it cannot write, or one of its subfolders, is read only if every run is
+    # finished there: a damaged file cannot even be set aside)
+    subs = [out / sub for sub in (RUNS_DIR, SAMPLES_DIR, MANIFEST_DIR, DAMAGED_DIR, CLAIMS_DIR)
+            if (out / sub).is_dir()]
+    repair = writable(out) and all(writable(sub) for sub in subs)
 
     def finished(spec: RunSpec) -> str | None:
         """'ok', 'failed' (a result), or None (not run, damaged, missing a file, stopped by a
@@ -628,7 +650,8 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
         if row is not None and not _row_is_specs(out, spec, row, repair=repair):
             return None
         if (row is None or not _samples_readable(out, spec.run_id, repair=repair)
-                or not _manifest_holds(out, spec.run_id, row, repair=repair)):
+                or not _manifest_holds(out, spec.run_id, row, repair=repair)
+                or not _files_match_row(out, spec.run_id, row, repair=repair)):
             return None
         if row["status"] == "ok":
             return "ok"
@@ -639,14 +662,15 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     status = {s.run_id: finished(s) for s in specs}
     pending = [s for s in specs if status[s.run_id] is None]
     failed = sum(v == "failed" for v in status.values())
+    if on_plan is not None:
+        on_plan(len(specs), len(specs) - len(pending))
     plan = {"name": name, "n_runs": len(specs),
             "runs": [{"run_id": s.run_id, "label": s.label, **s.to_dict()} for s in specs]}
     if not repair:
         if pending:
-            from .store import check_writable
-
             try:
-                check_writable(out)
+                for folder in (out, *subs):
+                    check_writable(folder)
             except FolderError as exc:
                 raise FolderError(f"{exc} ({len(pending)} of the sweep's {len(specs)} runs are "
                                   "not finished there; nothing was run)") from None
@@ -666,7 +690,12 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
         ensure_references(pending)
     claims = Claims(out)
     claims.clear_stale()
-    work = _Work(pending, claims, lambda s: finished(s) is not None)
+
+    def done_since(spec: RunSpec) -> bool:  # (said once already, in the first look: quiet now)
+        with contextlib.redirect_stderr(io.StringIO()):
+            return finished(spec) is not None
+
+    work = _Work(pending, claims, done_since)
     if dask:
         results = _dask_results(work, dask, run_one)
     else:
@@ -767,6 +796,9 @@ def _manifest_holds(out: Path, run_id: str, row: dict, *, repair: bool = True) -
         if record.get("run_id") != run_id:
             raise ValueError(f"it is run {record.get('run_id')!r}'s, not {run_id!r}'s")
         own = {f.relative_to(out).as_posix() for f in _files_of(out, run_id)}
+        allowed = {f"{sub}/{run_id}{PARQUET_SUFFIX}" for sub in (RUNS_DIR, SAMPLES_DIR)}
+        if foreign := sorted(set(files) - allowed):  # (never looked up: it may lead outside)
+            raise ValueError(f"it lists {foreign[0]!r}, not one of its run's files")
         if not own <= set(files):  # (a run's files all listed: its summary row at least)
             raise ValueError(f"it does not list {sorted(own - set(files))}")
     except Exception as exc:  # truncated or foreign: the run's files are not known
@@ -789,14 +821,57 @@ def _manifest_holds(out: Path, run_id: str, row: dict, *, repair: bool = True) -
     return True
 
 
+def _files_match_row(out: Path, run_id: str, row: dict, *, repair: bool = True) -> bool:
+    """Whether a finished run's files hold what its row says: the row every column a run
+    writes, its samples file ``n_samples`` rows and every sample column. A file edited and its
+    digest recomputed passes the manifest, not this: then both the run's files are set aside
+    (not when not ``repair``: said) and its run done again."""
+    if row.get("transient"):
+        return True  # (done again anyway)
+    path = out / RUNS_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    samples = out / SAMPLES_DIR / f"{run_id}{PARQUET_SUFFIX}"
+    problem = ""
+    if missing := [c for c in ROW_COLUMNS if c not in row]:
+        problem = f"{path}: its row has no column {missing[0]!r}"
+    else:
+        try:
+            n = int(row["n_samples"])
+        except (TypeError, ValueError):
+            n = -1
+        if samples.is_file():
+            meta = parquet_metadata(samples)
+            names = set(meta.schema.names)
+            if lacking := [c for c in SAMPLE_COLUMNS if c not in names]:
+                problem = f"{samples}: it has no column {lacking[0]!r}"
+            elif meta.num_rows != n:
+                problem = (f"{samples}: {meta.num_rows} rows, but its run's row says "
+                           f"n_samples = {row['n_samples']}")
+        elif n != 0:
+            problem = (f"{samples} is missing (its run's row says n_samples = "
+                       f"{row['n_samples']})")
+    if not problem:
+        return True
+    if repair and samples.is_file():
+        _set_aside_run(samples, ValueError(problem))
+    elif repair:
+        set_aside(path, ValueError(problem))
+    else:
+        print(f"redysim: {problem}: its run is not finished", file=sys.stderr)
+    return False
+
+
 def set_aside(path: Path, exc: BaseException) -> Path | None:
     """Move a damaged result file into ``damaged/`` beside its folder, saying so on stderr."""
     target = path.parent.parent / DAMAGED_DIR / f"{path.name}.{int(time.time())}"
-    target.parent.mkdir(parents=True, exist_ok=True)
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
         os.replace(path, target)
     except FileNotFoundError:  # another sweep moved it first
         return None
+    except OSError as exc:  # (a folder it cannot write: run_sweep checks first, still)
+        raise FolderError(f"{str(path)!r} could not be read, and cannot be set aside into "
+                          f"{str(target.parent)!r} ({exc.strerror or type(exc).__name__}); "
+                          "make the folder writable, or move the file away") from None
     print(f"redysim: {path} could not be read ({type(exc).__name__}: {str(exc)[:200]}); moved "
           f"to {target}, and its run will be done again", file=sys.stderr)
     return target

@@ -238,6 +238,9 @@ def advice(runs: pd.DataFrame, tols=ADVICE_TOLS) -> list[dict]:
     run met it."""
     from redysim.harness import cost
 
+    if not len(runs) or "max_tip_err" not in runs or "cpu_s" not in runs:  # (none ran)
+        return [{"tol": tol, "best": None, "tied": [], "per_engine": {},
+                 "per_engine_tied": {}} for tol in tols]
     ok = runs[(runs["status"] == "ok") & pd.to_numeric(runs["max_tip_err"],
                                                         errors="coerce").notna()]
     out = []
@@ -535,8 +538,8 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
             workers: int | None = None, engines=None, progress: bool = True,
             log=print) -> tuple[Path, Path]:
     """Run the comparison of ``target`` into ``out`` and write its page (module docstring)."""
-    from redysim.harness.reference import compute_reference
-    from redysim.harness.store import check_writable, write_text_atomic
+    from redysim.harness.reference import check_cache, compute_reference
+    from redysim.harness.store import check_kinds, check_writable, write_text_atomic
     from redysim.harness.sweep import run_sweep
     from redysim.io.scenarios import load_scenario
 
@@ -548,6 +551,9 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
     check_writable(out, flag=None)  # before any engine runs: its pages and runs go there
     horizon = t_end or scn.t_end
     sample = scn.sample_for(horizon)
+    # before any engine runs: a folder where its pages or its reference go, by name
+    check_kinds(files=[out / HTML_FILE, out / PDF_FILE], why="nothing was run")
+    check_cache(scn, horizon, sample)
     log(f"compare: {scn.name}: single-state agreement in every engine")
     agree = (loop_agreement(scn.name, scn.model, scn.q0) if scn.model.cuts
              else agreement(scn.name, scn.model))

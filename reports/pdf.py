@@ -25,7 +25,7 @@ from reportlab.platypus import (
 )
 from reportlab.platypus import Table as RLTable
 
-from redysim.harness.store import TEMP_PREFIX, TEMP_SUFFIX
+from redysim.harness.store import TEMP_PREFIX, TEMP_SUFFIX, check_kinds
 
 from .content import DIFFER, MATCH, NOT_RUN, PARTIAL, Figure, Headline, Report, Table
 
@@ -169,6 +169,7 @@ def _page_footer(text: str):
 def write_pdf(report: Report, path: str | Path) -> Path:
     """Render ``report`` to ``path`` (written to a temporary file, then renamed)."""
     path = Path(path)
+    check_kinds(files=[path], folders=[path.parent], why="the page was not written")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{TEMP_PREFIX}{path.name}{TEMP_SUFFIX}")
     story: list = [P(report.title, "title"), P(report.subtitle, "subtitle"),
