@@ -65,27 +65,25 @@ def coupling_tail(model, parent, joint_voff, serial: bool, tol: float, f_at: int
     k, n, nb = fv.shape[0], model.n_v, joint_voff.shape[0] - 1
     body_of = np.searchsorted(joint_voff, np.arange(n), side="right") - 1
 
-    def up(b: int) -> list[int]:
-        out = []
+    def up(b: int) -> set[int]:
+        out = set()
         while b >= 0:
-            out.append(b)
+            out.add(b)
             b = b - 1 if serial else int(parent[b])
         return out
 
-    bodies: list[int] = []
-    dofs: list[int] = []
-    boff, doff = [0], [0]
-    for c in range(k):
-        path = sorted(set(up(int(body_of[fv[c]]))) | set(up(int(body_of[lv[c]]))), reverse=True)
-        bodies.extend(path)
-        for b in path:
-            dofs.extend(range(int(joint_voff[b + 1]) - 1, int(joint_voff[b]) - 1, -1))
-        boff.append(len(bodies))
-        doff.append(len(dofs))
-    ints = np.concatenate(([k, f_at, s_at, len(bodies), len(dofs)], fq, lq, fv, lv, boff, bodies,
-                           doff, dofs, [i_at])).astype(np.int64)
+    paths = [up(int(body_of[fv[c]])) | up(int(body_of[lv[c]])) for c in range(k)]
+    # the union of the paths, children before parents (a parent's index is below its
+    # children's), and on each of its bodies the columns whose path holds it, in order
+    union = sorted(set().union(*paths), reverse=True)
+    coff, cols = [0], []
+    for b in union:
+        cols.extend(c for c in range(k) if b in paths[c])
+        coff.append(len(cols))
+    ints = np.concatenate(([k, f_at, s_at, len(union), len(cols)], fq, lq, fv, lv, union, coff,
+                           cols, [i_at])).astype(np.int64)
     floats = np.concatenate((m, off, [tol, 0.0, 0.0, 0.0])).astype(np.float64)
-    return ints, floats, 2 * k * n + k * k + k + 6 * nb + n
+    return ints, floats, 2 * k * n + k * k + k + 6 * k * nb + n
 
 
 @inline
@@ -93,17 +91,15 @@ def _tail(fdata, idata, scratch):
     """The couplings' segments of a workspace's packed arrays, as flat views (module docstring;
     no reshape, whose strides numba gets from a C helper at a cost per call)."""
     c0 = idata[idata.shape[0] - 1]
-    k, fo, so, nbp, ndp = idata[c0], idata[c0 + 1], idata[c0 + 2], idata[c0 + 3], idata[c0 + 4]
+    k, fo, so, nub, ncol = idata[c0], idata[c0 + 1], idata[c0 + 2], idata[c0 + 3], idata[c0 + 4]
     nv, nb = idata[H_NV], idata[H_NB]
     i = c0 + HEAD
     fq, lq, fv, lv = (idata[i:i + k], idata[i + k:i + 2 * k], idata[i + 2 * k:i + 3 * k],
                       idata[i + 3 * k:i + 4 * k])
     i += 4 * k
-    boff = idata[i:i + k + 1]
-    bodies = idata[i + k + 1:i + k + 1 + nbp]
-    i += k + 1 + nbp
-    doff = idata[i:i + k + 1]
-    dofs = idata[i + k + 1:i + k + 1 + ndp]
+    union = idata[i:i + nub]
+    coff = idata[i + nub:i + 2 * nub + 1]
+    cols = idata[i + 2 * nub + 1:i + 2 * nub + 1 + ncol]
     m, off, tol, base0 = (fdata[fo:fo + k], fdata[fo + k:fo + 2 * k], fdata[fo + 2 * k],
                           fdata[fo + 2 * k + 1:fo + 2 * k + 4])
     Y = scratch[so:so + k * nv]  # (k, nv) row by row, as Z
@@ -112,18 +108,17 @@ def _tail(fdata, idata, scratch):
     A = scratch[so:so + k * k]  # (k, k)
     lam = scratch[so + k * k:so + k * k + k]
     so += k * k + k
-    E = scratch[so:so + 6 * nb]  # (nb, 6)
-    delta = scratch[so + 6 * nb:so + 6 * nb + nv]
-    return (k, fq, lq, fv, lv, boff, bodies, doff, dofs, m, off, tol, base0, Y, Z, A, lam, E,
-            delta)
+    E = scratch[so:so + 6 * k * nb]  # (k, nb, 6)
+    delta = scratch[so + 6 * k * nb:so + 6 * k * nb + nv]
+    return (k, fq, lq, fv, lv, union, coff, cols, m, off, tol, base0, Y, Z, A, lam, E, delta)
 
 
 @inline
 def on_couplings(fdata, idata, scratch, q, v):
     """True when every follower's q is m q_l + offset and its v m v_l, to the workspace's
     relative tolerance (NaN passes: the passes then say it is not finite)."""
-    (k, fq, lq, fv, lv, _, _, _, _, m, off, tol, _, _, _, _, _, _, _) = _tail(fdata, idata,
-                                                                             scratch)
+    (k, fq, lq, fv, lv, _, _, _, m, off, tol, _, _, _, _, _, _, _) = _tail(fdata, idata,
+                                                                          scratch)
     for c in range(k):
         x = q[fq[c]]
         if abs(x - (m[c] * q[lq[c]] + off[c])) > tol * (1.0 + abs(x)):
@@ -166,23 +161,34 @@ def couple_step(tree, s, fdata, idata, scratch, qdd):
     docstring). Returns 0.0, or NaN when some qdd is not finite (a singular J M^-1 J^T
     included). Inlined into each caller (:func:`coupled_qdd`, the lean entries), which hand it
     the bundles they made."""
-    (k, fq, lq, fv, lv, boff, bodies, doff, dofs, m, off, tol, base0, Y, Z, A, lam, E,
+    (k, fq, lq, fv, lv, union, coff, cols, m, off, tol, base0, Y, Z, A, lam, E,
      delta) = _tail(fdata, idata, scratch)
     serial = tree.serial != 0
     parent, voff, oO, oP, Ihat, Psihat = tree.parent, tree.joint_voff, s.oO, s.oP, s.Ihat, s.Psihat
     nv = qdd.shape[0]
-    for j in range(k * nv):
-        Y[j] = 0.0
-    # each column y_c = U^-1 (e_f - m e_l) on its path, children before parents
-    for c in range(k):
-        f, ld, mc, row = fv[c], lv[c], m[c], c * nv
-        for i in range(boff[c], boff[c + 1]):
+    nb6 = 6 * (voff.shape[0] - 1)
+    nub = union.shape[0]
+    # each column y_c = U^-1 (e_f - m e_l) on its path: the columns swept side by side, body
+    # by body over the paths' union, children before parents (each column's own steps, in
+    # its own order, as alone; the columns' chains of dependent steps overlap)
+    for i in range(nub):
+        b = union[i]
+        for t in range(coff[i], coff[i + 1]):
+            o = cols[t] * nb6 + 6 * b
             for r in range(6):
-                E[6 * bodies[i] + r] = 0.0
-        for i in range(boff[c], boff[c + 1]):
-            b = bodies[i]
-            e0, e1, e2 = E[6 * b], E[6 * b + 1], E[6 * b + 2]
-            e3, e4, e5 = E[6 * b + 3], E[6 * b + 4], E[6 * b + 5]
+                E[o + r] = 0.0
+    for i in range(nub):
+        b = union[i]
+        p = b - 1 if serial else parent[b]
+        if p >= 0:  # a = O_p - O_b, the shift to the parent's origin: n <- n - a x f
+            a0, a1, a2 = oO[p, 0] - oO[b, 0], oO[p, 1] - oO[b, 1], oO[p, 2] - oO[b, 2]
+        else:
+            a0, a1, a2 = 0.0, 0.0, 0.0
+        for t in range(coff[i], coff[i + 1]):
+            c = cols[t]
+            f, ld, mc, row, o = fv[c], lv[c], m[c], c * nv, c * nb6
+            e0, e1, e2 = E[o + 6 * b], E[o + 6 * b + 1], E[o + 6 * b + 2]
+            e3, e4, e5 = E[o + 6 * b + 3], E[o + 6 * b + 4], E[o + 6 * b + 5]
             for j in range(voff[b + 1] - 1, voff[b] - 1, -1):
                 rhs = 1.0 if j == f else 0.0
                 if j == ld:
@@ -197,24 +203,30 @@ def couple_step(tree, s, fdata, idata, scratch, qdd):
                 e3 += Psihat[j, 3] * ph
                 e4 += Psihat[j, 4] * ph
                 e5 += Psihat[j, 5] * ph
-            p = b - 1 if serial else parent[b]
-            if p >= 0:  # to the parent's origin, a = O_p - O_b: n <- n - a x f
-                a0, a1, a2 = oO[p, 0] - oO[b, 0], oO[p, 1] - oO[b, 1], oO[p, 2] - oO[b, 2]
-                E[6 * p] += e0 - (a1 * e5 - a2 * e4)
-                E[6 * p + 1] += e1 - (a2 * e3 - a0 * e5)
-                E[6 * p + 2] += e2 - (a0 * e4 - a1 * e3)
-                E[6 * p + 3] += e3
-                E[6 * p + 4] += e4
-                E[6 * p + 5] += e5
-    # A = Y^T D^-1 Y (column c's path holds every DOF where z_c is not zero), A lam = -J qdd0
+            if p >= 0:
+                o += 6 * p
+                E[o] += e0 - (a1 * e5 - a2 * e4)
+                E[o + 1] += e1 - (a2 * e3 - a0 * e5)
+                E[o + 2] += e2 - (a0 * e4 - a1 * e3)
+                E[o + 3] += e3
+                E[o + 4] += e4
+                E[o + 5] += e5
+    # A = Y^T D^-1 Y, A_cd summed over the DOFs the paths of c and d share (y_d is zero off
+    # its path), DOF by DOF over the union; A lam = -J qdd0
+    for j in range(k * k):
+        A[j] = 0.0
+    for i in range(nub):
+        b = union[i]
+        for j in range(voff[b + 1] - 1, voff[b] - 1, -1):
+            for t in range(coff[i], coff[i + 1]):
+                c = cols[t]
+                z = Z[c * nv + j]
+                for u in range(t, coff[i + 1]):
+                    d = cols[u]
+                    A[c * k + d] += z * Y[d * nv + j]
     for c in range(k):
-        for d in range(c, k):
-            acc = 0.0
-            for i in range(doff[c], doff[c + 1]):
-                j = dofs[i]
-                acc += Z[c * nv + j] * Y[d * nv + j]
-            A[c * k + d] = acc
-            A[d * k + c] = acc
+        for d in range(c + 1, k):
+            A[d * k + c] = A[c * k + d]
         lam[c] = -(qdd[fv[c]] - m[c] * qdd[lv[c]])
     _solve(A, lam, k)
     # qdd += U^-T (D^-1 Y lam): RGE-A's forward pass on phitil = Z lam, zero base acceleration
@@ -222,11 +234,14 @@ def couple_step(tree, s, fdata, idata, scratch, qdd):
     phitil, td = s.phitil, s.td
     for j in range(nv):
         phitil[j] = 0.0
-    for c in range(k):
-        x = lam[c]
-        for i in range(doff[c], doff[c + 1]):
-            j = dofs[i]
-            phitil[j] += Z[c * nv + j] * x
+    for i in range(nub):
+        b = union[i]
+        for j in range(voff[b + 1] - 1, voff[b] - 1, -1):
+            x = 0.0
+            for t in range(coff[i], coff[i + 1]):
+                c = cols[t]
+                x += Z[c * nv + j] * lam[c]
+            phitil[j] = x
     for b in range(td.shape[0]):
         for r in range(6):
             td[b, r] = 0.0
