@@ -19,24 +19,45 @@ and each follower's qdd set to m times its leader's (the solve leaves rounding).
 pass and the short path sweeps more than the tree's call, where the method this replaces ran
 one whole call of the tree per coupling (docs/design.md, "Coupled joints").
 
-:func:`couple_step` is the one implementation, inlined where the tree's passes were just run on
-the same bundles: :func:`coupled_qdd` (which the public entry :func:`coupled_entry`, batches
-:func:`coupled_rows` and a run's compiled derivative :func:`.system.derivative` call) and the
-evaluator's lean entries (:mod:`.lean`).
+The columns are swept side by side, body by body over the union of their paths (each column's
+own steps in its own order: their chains of dependent steps overlap), and A over the DOFs two
+paths share.
+
+Local groups. Couplings whose follower and leader meet in a subtree whose root has a parent (a
+gripper's) are closed at that root inside the backward pass (:func:`local_passes`): after the
+root's joint is eliminated, the group's columns are swept on the subtree alone (W, k_g x 6: each
+column's wrench out of the root), A_g = Y^T D^-1 Y there, and s = J qdd of the subtree from a zero
+twist-rate at the root's joint (:func:`_local_forward`). A force J^T lam in the subtree adds W lam
+to the wrench the root hands on and J qdd = s - W^T mu + A_g lam (mu: the twist-rate at the
+root's joint), so the coupled subtree's articulated body is Mbar + W A_g^-1 W^T with bias
+nf - W A_g^-1 s, handed to the parent as any other (:func:`_close_group`). RGE-A's forward pass
+then gives the trunk's coupled qdd and the subtree's uncoupled one; A_g lam = -J qdd and a local
+forward pass on D^-1 Y lam from zero correct the subtree (:func:`_finish_local`). The trunk is
+eliminated once; a coupling whose paths meet at the first body (across branches) makes the
+whole model take the general path above.
+
+:func:`couple_step` (the general path) and :func:`local_passes` are the implementation, run
+where the tree's kinematics (for the first, its passes too) were just run on the same bundles:
+:func:`coupled_qdd` (which the public entry :func:`coupled_entry`, batches :func:`coupled_rows`
+and a run's compiled derivative :func:`.system.derivative` call) and the evaluator's lean
+entries (:mod:`.lean`).
 
 Layout. A coupled model's workspace (:class:`redysim.algorithms.workspace.Workspace`, a model
 with couplings that is not planar) appends to its packed arrays, after the tree's (whose header
 does not see them, so every other kernel reads the arrays as before):
 
-- ints: ``k``, the floats' offset, the scratch's offset, the path bodies' count, the path DOFs'
-  count, then ``fq``, ``lq``, ``fv``, ``lv`` (k each: each coupling's follower's and leader's q
-  and v slots), ``boff`` (k + 1) and ``bodies`` (each coupling's path bodies, children before
-  parents), ``doff`` (k + 1) and ``dofs`` (their DOFs, in the order the sweep meets them); the
+- ints: ``k``, the floats' offset, the scratch's offset, the union's bodies' count, their
+  columns' count, where the local groups' ints start (0: the general path), then ``fq``,
+  ``lq``, ``fv``, ``lv`` (k each: each coupling's follower's and leader's q and v slots),
+  ``union`` (the paths' bodies, children before parents), ``coff`` and ``cols`` (on each, the
+  couplings whose path holds it); the local groups' (:func:`local_segment`: each group's root,
+  columns, subtree and paths in it; ``hook``, nb: the group closed at each body, or -1); the
   very last int is where this segment starts.
 - floats: ``m`` (k), ``offset`` (k), the tolerance of a state's check (relative, as
   :data:`redysim.algorithms.dynamics.COUPLING_TOL`), 3 zeros (a base at rest).
 - scratch: ``Y`` (k, n_v), ``Z`` = D^-1 Y (k, n_v) on the paths, ``A`` (k, k), ``lam`` (k),
-  ``E`` (n_b, 6) the wrenches handed to the parents, ``delta`` (n_v); flat, row by row.
+  ``E`` (k, n_b, 6) the wrenches handed to the parents, ``delta`` (n_v); with local groups also
+  ``A2`` (k, k), ``W`` (k, 6), ``X`` (k, 7), ``MU`` (n_b, 6), ``phz`` (n_v); flat, row by row.
 """
 
 from __future__ import annotations
@@ -86,12 +107,14 @@ def coupling_tail(model, parent, joint_voff, serial: bool, tol: float, f_at: int
     # the union of the paths, children before parents (a parent's index is below its
     # children's), and on each of its bodies the columns whose path holds it, in order
     union = sorted(set().union(*paths), reverse=True)
-    coff, cols = [0], []
+    coff: list[int] = [0]
+    cols: list[int] = []
     for b in union:
         cols.extend(c for c in range(k) if b in paths[c])
         coff.append(len(cols))
-    head = [k, f_at, s_at, len(union), len(cols), 0]
-    ints = np.concatenate((head, fq, lq, fv, lv, union, coff, cols)).astype(np.int64)
+    head = np.array([k, f_at, s_at, len(union), len(cols), 0])
+    ints = np.concatenate((head, fq, lq, fv, lv, np.array(union), np.array(coff),
+                           np.array(cols))).astype(np.int64)
     items = 2 * k * n + k * k + k + 6 * k * nb + n
     groups = local_groups(model, parent, joint_voff, serial)
     if groups is not None:
@@ -336,8 +359,12 @@ def local_segment(model, parent, joint_voff, serial: bool, groups) -> tuple[np.n
                 return out
             b = par(b)
 
-    roots, goff, gcols, loc, aoff, lbo, lub, lcoff, lcols, sbo, sub = \
-        [], [0], [], [0] * k, [0], [0], [], [0], [], [0], []
+    roots: list[int] = []
+    gcols: list[int] = []
+    lub: list[int] = []
+    lcols: list[int] = []
+    sub: list[int] = []
+    goff, aoff, lbo, lcoff, sbo, loc = [0], [0], [0], [0], [0], [0] * k
     hook = [-1] * nb
     for g, (root, cols) in enumerate(groups):
         roots.append(root)
