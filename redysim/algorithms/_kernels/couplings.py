@@ -320,7 +320,10 @@ def local_groups(model, parent, joint_voff, serial: bool):
     roots = []
     for c in range(k):
         a, b = up(int(body_of[fv[c]])), set(up(int(body_of[lv[c]])))
-        roots.append(next(x for x in a if x in b))
+        common = next((x for x in a if x in b), None)
+        if common is None:  # in two trees of a forest (bodies on the world): the general path
+            return None
+        roots.append(common)
     changed = True
     while changed:
         changed = False
