@@ -320,10 +320,7 @@ def local_groups(model, parent, joint_voff, serial: bool):
     roots = []
     for c in range(k):
         a, b = up(int(body_of[fv[c]])), set(up(int(body_of[lv[c]])))
-        common = next((x for x in a if x in b), None)
-        if common is None:  # in two trees of a forest (bodies on the world): the general path
-            return None
-        roots.append(common)
+        roots.append(next(x for x in a if x in b))
     changed = True
     while changed:
         changed = False
