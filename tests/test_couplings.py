@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 from conftest import stable_seed
-from test_trees import random_configuration, random_tree, robot_urdf
+from test_trees import random_configuration, random_tree
 
 import redysim
 from redysim import Coupling
@@ -146,66 +146,6 @@ def test_every_door_gives_the_reduced_coordinates_solve(kind):
     y, dy = np.concatenate((q, v)), np.empty(model.n_q + model.n_v)
     assert derivative(sd, extras, 0.0, y, dy)
     assert np.array_equal(dy[model.n_q:], redysim.forward_dynamics(model, q, v))
-
-
-@pytest.mark.parametrize("kind", ["branches", "free", "talos"])
-def test_the_columns_are_swept_over_the_union_of_their_paths(kind):
-    """The couplings' columns are swept side by side over the union of their paths: the
-    union's bodies come children before parents, and each body lists exactly the couplings
-    whose follower or leader lies below it (its path, counted here from the parents), in
-    order; on Talos (12 gripper couplings on a free base, paths sharing the arms, the torso
-    and the base) the coupled qdd is the reduced-coordinate solve from the GIM to 1e-12."""
-    from redysim.algorithms._kernels.couplings import HEAD, coupled_qdd
-
-    if kind == "talos":
-        model = redysim.load_model(robot_urdf("talos_full_v2.urdf"), floating=True)
-    else:
-        model = structured(kind)
-    ws = redysim.Workspace(model)
-    ints = ws.kernel_i
-    c0 = int(ints[-1])
-    k, nub, ncol = int(ints[c0]), int(ints[c0 + 3]), int(ints[c0 + 4])
-    i = c0 + HEAD + 4 * k
-    union = ints[i:i + nub]
-    coff = ints[i + nub:i + 2 * nub + 1]
-    cols = ints[i + 2 * nub + 1:i + 2 * nub + 1 + ncol]
-    parent, voff = ws.tree.parent, ws.tree.joint_voff
-    _, _, fv, lv, _, _ = model.coupling_index
-    assert k == len(model.couplings) and coff[-1] == ncol
-    assert np.all(np.diff(union) < 0)  # children (higher index) before parents
-    # Talos's two grippers close locally; couplings across branches or through the first
-    # body take the general path
-    assert (ints[c0 + 5] != 0) == (kind == "talos")
-
-    def below(b, dof):  # the DOF's joint is on body b or under it
-        x = int(np.searchsorted(voff, dof, side="right") - 1)
-        while x >= 0 and x != b:
-            x = int(parent[x])
-        return x == b
-
-    for n, b in enumerate(union):
-        want = [c for c in range(k) if below(b, fv[c]) or below(b, lv[c])]
-        assert cols[coff[n]:coff[n + 1]].tolist() == want, b
-    on_paths = {int(b) for b in range(len(voff) - 1)
-                if any(below(b, fv[c]) or below(b, lv[c]) for c in range(k))}
-    assert on_paths == set(union.tolist())
-    if kind == "talos":
-        rng = np.random.default_rng(stable_seed("talos-union"))
-        for _ in range(3):
-            q = model.initial()
-            q[7:] += rng.uniform(-0.5, 0.5, model.n_q - 7)
-            q, v = model.couple(q, rng.normal(size=model.n_v))
-            tau = rng.normal(size=model.n_v)
-            want = reduced_solve(model, q, v, tau)
-            got = redysim.forward_dynamics(model, q, v, tau)
-            assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
-            assert np.array_equal(got[fv], model.coupling_index[4] * got[lv])
-            # the local groups' path (taken here) against the general one on the same arrays
-            general = ws.kernel_i.copy()
-            general[c0 + 5] = 0
-            out = np.empty(model.n_v)
-            assert coupled_qdd(ws.kernel_f, general, ws.scratch, q, v, tau, out) == 0.0
-            assert np.abs(out - got).max() < 1e-12 * np.abs(got).max()
 
 
 def test_a_run_keeps_the_couplings_and_the_energy():

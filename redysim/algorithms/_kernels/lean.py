@@ -47,7 +47,7 @@ from redysim._jit import INTERNALS_OK, LEAN_OPTIONS, EntryPoint, inline, inline_
 
 from . import entry as E
 from .bundles import DH_SCRATCH, H_NB, H_NQ, H_NV, Scratch, Tree, bundles_source
-from .couplings import couple_step, is_local, local_passes, on_couplings
+from .couplings import couple_step, on_couplings
 from .dh import dh_forward_dynamics, dh_inverse_dynamics
 from .inverse_dynamics import rnea_backward
 from .kinematics import _kinematics
@@ -265,10 +265,6 @@ def _forward_coupled(q, v, tau, out, fdata, idata, scratch, serial):
     base_accel = fdata[h[E.F_BASE_ACCEL]:h[E.F_BASE_ACCEL] + 3]
     zeros = fdata[h[E.F_ZEROS]:h[E.F_ZEROS] + nv]
     _kinematics(tree, q, v, zeros, base_accel, s, True, serial)
-    if is_local(idata):
-        if local_passes(tree, s, fdata, idata, scratch, tau, base_accel, out) != 0.0:
-            raise Refused()
-        return
     _rge_a_backward(tree, s, tau, serial)
     if _rge_a_forward(tree, s, base_accel, out, serial) != 0.0:
         raise Refused()  # some qdd is not finite
