@@ -123,8 +123,9 @@ def warm_stepping(forms: tuple[str, ...] = STEPPING_FORMS) -> None:
         fb = four_bar(0.3, 0.1, 0.35, 0.3)
         simulator(fb.model, 0.02, q0=fb.configuration(0.5), loops=fb.loops, sample=0.01,
                   compiled=True).run()
-        bar = Body("bar", 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
-        arm = Model.build([bar, bar], [TreeJoint("j0", "R", "z"),
+        bars = [Body(name, 1.0, (0.3, 0.0, 0.0), ((0.01, 0, 0), (0, 0.03, 0), (0, 0, 0.03)))
+                for name in ("bar0", "bar1")]  # (each body its own name: Model.build)
+        arm = Model.build(bars, [TreeJoint("j0", "R", "z"),
                                        TreeJoint("j1", "R", "x", translation=(0.6, 0.0, 0.0))],
                           [-1, 0]).with_couplings([Coupling("j1", "j0", 1.0, 0.0)])
         simulator(arm, 0.02, q0=np.zeros(2), sample=0.01, compiled=True).run()
