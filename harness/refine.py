@@ -197,8 +197,9 @@ class Advice:
     finest_cpu_s: float  # the cheapest run of the finest model that meets tol (nan: none does)
     finest_rtol: float
     candidates: int  # runs that met tol
-    # the runs whose measured cost cannot be told from the advised run's (harness.cost: their
-    # cost intervals overlap; "cpu_s" ranking only): "links integrator rtol", cheapest first
+    # the runs whose measured cost cannot be told from the advised run's
+    # (redysim.harness.cost: their cost intervals overlap; "cpu_s" ranking only): "links
+    # integrator rtol", cheapest first
     indistinguishable: tuple[str, ...] = ()
 
     @property

@@ -161,7 +161,7 @@ STAGED_SUFFIX = ".staged"  # a summary row written, to be moved into place after
 MANIFEST_DIR = "manifest"  # manifest/<run_id>.json: a finished run's files and their SHA-256
 RUNS_FILE = "runs.parquet"
 SAMPLES_FILE = "samples.parquet"
-# the columns a finished run's summary row always has (harness.run.execute writes them)
+# the columns a finished run's summary row always has (redysim.harness.run.execute writes them)
 ROW_COLUMNS = ("run_id", "label", "status", "reason", "steps", "rejected", "nfev", "cpu_s",
                "E0", "avg_abs_delta_M", "max_abs_delta_M", "t_reached", "n_samples",
                "max_tip_err")

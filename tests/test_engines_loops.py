@@ -361,8 +361,9 @@ def test_inert_moments_do_not_change_the_dynamics():
 def test_a_thin_body_that_could_spin_is_refused_by_mujoco():
     """A slender bar on a U joint turns about two axes: its zero moment can enter the dynamics,
     so nothing is raised and MuJoCo's refusal stands, with the reason."""
-    bar = Body("bar", 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
-    model = Model.build([bar, bar], [TreeJoint("a", "U"),
+    bars = [Body(name, 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+            for name in ("bar", "bar2")]  # (names are unique: Model.build)
+    model = Model.build(bars, [TreeJoint("a", "U"),
                                      TreeJoint("b", "R", "z", translation=(1.0, 0, 0))],
                         [-1, 0], gravity=(0.0, -9.81, 0.0))
     loops = ClosedLoops(model, [CutJoint("pin", 1, (1, 0, 0), -1, (1.5, 0, 0))])

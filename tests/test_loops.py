@@ -87,8 +87,9 @@ def test_a_spatial_loop_conserves_energy():
 
 
 def _two_links():
-    bar = Body("bar", 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
-    return Model.build([bar, bar], [TreeJoint("a", "R", "z"),
+    bars = [Body(name, 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+            for name in ("bar", "bar2")]  # (names are unique: Model.build)
+    return Model.build(bars, [TreeJoint("a", "R", "z"),
                                     TreeJoint("b", "R", "z", translation=(1.0, 0, 0))],
                        [-1, 0], gravity=(0.0, -9.81, 0.0))
 

@@ -39,8 +39,10 @@ def test_a_joint_spring_makes_a_torsional_pendulum_oscillate_at_its_frequency():
     assert run.status == 0
     want = 0.25 + 0.1 * np.cos(w * run.t)
     assert np.abs(run.q[:, 0] - want).max() < 1e-10
-    # the spring's potential is in the energy, which the motion keeps
-    assert np.abs(run.energy - run.energy[0]).max() < 1e-12 * abs(run.energy[0]) + 1e-13
+    # the spring's potential is in the energy, which the motion keeps, to the integrator's
+    # tolerance: 1.2e-13 J of E = 0.015 J (8e-12 relative) at rtol 1e-12 since dop853's error
+    # norm is Hairer's over the whole vector (1e-12 relative held under the max norm it had)
+    assert np.abs(run.energy - run.energy[0]).max() < 1e-11 * abs(run.energy[0]) + 1e-13
 
 
 @pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),

@@ -289,8 +289,9 @@ def test_simulate_batchs_bad_arguments_are_named_before_any_thread_starts(small_
 
 
 def _two_links():
-    bar = redysim.Body("bar", 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
-    return Model.build([bar, bar], [redysim.TreeJoint("a", "R", "z"),
+    bars = [redysim.Body(name, 1.0, (0.5, 0, 0), ((0, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
+            for name in ("bar", "bar2")]  # (names are unique: Model.build)
+    return Model.build(bars, [redysim.TreeJoint("a", "R", "z"),
                                     redysim.TreeJoint("b", "R", "z", translation=(1.0, 0, 0))],
                        [-1, 0], gravity=(0.0, -9.81, 0.0))
 
