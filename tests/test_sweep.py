@@ -54,7 +54,7 @@ PYTHON = sys.executable
 # Columns that legitimately differ between two executions of the same run.
 VOLATILE = ["cpu_s", "wall_s", "jit_s", "build_s", "peak_rss_mib", "python", "numpy", "scipy",
             "numba", "redysim", "machine", "cpu", "git_commit", "engine_version", "date",
-            "executable"]
+            "executable", "cost_s", "cost_spread", "sample_cpu_s", "rhs_s", "work_s"]
 TINY = [RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05),
         RunSpec(case="RE-U125-L1", t_end=0.01, sample=0.005),
         RunSpec(case="STUDY-R3", t_end=0.2, sample=0.05, integrator="rk4", h=0.01),
