@@ -180,3 +180,90 @@ def unchecked_call(dispatcher):
     if not overloads or len(overloads) != 1:
         return None
     return next(iter(overloads.values())).entry_point
+
+
+class Pinned:
+    """Calls of one :func:`jit` kernel past numba's dispatch, where the caller's arguments are of
+    types fixed by construction (a solver's own bundles, a system's workspace, slices of a run's
+    own float64 state): numba's dispatch types every argument at every call (~15 us for the
+    bundles of a tree on a loaded VM, against ~1 us through the compiled wrapper:
+    docs/notes/2026-12-08-fixed-cost.md).
+
+    ``call(key, *args)``: ``key`` is a tuple of the objects whose identity fixes the argument
+    types (the bundles); while it holds the same objects, ``args`` go to the compiled wrapper of
+    the overload picked for the first call's argument types. A key with another object (a state
+    reassigned from outside, say) picks again, from numba's typing of the new arguments, and an
+    argument type without a compiled overload goes through numba's dispatch (which compiles it or
+    converts), so a changed type re-dispatches instead of being unboxed as the old one. The
+    caller keeps the arguments outside the key of the same types at every call (a Python float,
+    an int, a C-contiguous float64 vector). Without the known numba internals
+    (:data:`INTERNALS_OK`) or under ``NUMBA_DISABLE_JIT``: the dispatcher, every call. The same
+    compiled code either way: the same bits."""
+
+    __slots__ = ("dispatcher", "key", "entry", "omitted")
+
+    def __init__(self, dispatcher) -> None:
+        self.dispatcher = dispatcher
+        self.key: tuple | None = None
+        self.entry = None
+        self.omitted: tuple = ()
+
+    def call(self, key: tuple, *args):
+        k = self.key
+        if k is None or len(k) != len(key) or any(a is not b for a, b in zip(k, key,
+                                                                            strict=True)):
+            self._pin(key, args)
+            if self.entry is None:  # nothing compiled for these types yet: numba's dispatch
+                out = self.dispatcher(*args)  # compiles (or converts) and runs it
+                self._pin(key, args)
+                self.key = tuple(key)  # pinned or not, not tried again for this key
+                return out
+        if self.entry is None:
+            return self.dispatcher(*args)
+        return self.entry(*args, *self.omitted)
+
+    def _pin(self, key: tuple, args: tuple) -> None:
+        """The compiled wrapper of the overload for exactly ``args``' types (None: none yet).
+        numba's typing of a bundle in Python is slow (~1 ms for a tree's two, more than a small
+        robot's run): the overload found for a set of types is kept for the process, by the
+        arguments' fingerprints (numba's own C-level key of a value's type, the one its
+        dispatch maps to its types), so that a new run of the same types pins in microseconds."""
+        self.key, self.entry, self.omitted = None, None, ()
+        d = self.dispatcher
+        if not (INTERNALS_OK and JIT_ENABLED) or not getattr(d, "overloads", None):
+            return  # (nothing compiled yet: the dispatcher's call compiles; the next one pins)
+        from numba._dispatcher import compute_fingerprint
+
+        try:
+            prints: tuple | None = (d, *(compute_fingerprint(a) for a in args))
+        except Exception:  # noqa: BLE001 -- (a value without a fingerprint: typed below)
+            prints = None
+        found = None if prints is None else _PINNED.get(prints)
+        if found is None:
+            found = self._overload(args)
+            if found is None:
+                return
+            if prints is not None:
+                _PINNED[prints] = found
+        self.key, (self.entry, self.omitted) = tuple(key), found
+
+    def _overload(self, args: tuple) -> tuple | None:
+        """(the compiled wrapper, the omitted defaults' values) of the overload for exactly
+        ``args``' types by numba's typing, or None when there is none."""
+        from numba.core import types
+
+        d = self.dispatcher
+        try:
+            _, folded = d.fold_argument_types(tuple(d.typeof_pyval(a) for a in args), {})
+        except Exception:  # noqa: BLE001 -- (an argument numba cannot type: its dispatch says)
+            return None
+        compiled = d.overloads.get(tuple(folded))
+        rest = tuple(folded[len(args):])
+        if compiled is None or not all(isinstance(t, types.Omitted) for t in rest):
+            return None
+        return compiled.entry_point, tuple(t.value for t in rest)
+
+
+# (dispatcher, the fingerprints of its arguments) -> (compiled wrapper, omitted defaults): the
+# overloads Pinned found, kept for the process (a handful: one per kernel and set of types)
+_PINNED: dict[tuple, tuple] = {}

@@ -339,7 +339,7 @@ class Simulator:
         system.energy_and_com(self.y0[:nq], self.y0[nq:end])
         self.integrator.warm_up()
         self.jit_s = time.perf_counter() - t_jit
-        self.E0 = system.energy_and_com(self.y0[:nq], self.y0[nq:end])[0]
+        self.E0 = system.run_energy_and_com(self.y0)[0]
         self._limits = _Limits(system)  # the stepper's view: the limits checked at every call
         self.solver = self.integrator.solver(self._limits, 0.0, self.y0, self.t_end, state)
 
@@ -487,7 +487,7 @@ class _Run:
             if system.loops is not None:
                 tau = system.forces(t, q, v)
                 self.forces.append(system.loops.forward_dynamics_and_forces(q, v, tau)[1])
-            E, com = system.energy_and_com(q, v)
+            E, com = system.run_energy_and_com(y)  # (y: this sample's own float64 copy)
             sample = Sample(t, q, v, E, com, accel, system.ws, W)
             rows = {name: f(sample) for name, f in sim.observe.items()}
         except StateError as exc:  # the state overflowed (or went NaN) between samples

@@ -34,6 +34,8 @@ import numpy as np
 
 from redysim.algorithms._kernels import system as K
 from redysim.algorithms._kernels.constraints import no_loops
+from redysim.algorithms._kernels.energy import energy as _energy
+from redysim.algorithms._kernels.kinematics import kinematics as _kinematics
 from redysim.algorithms.dynamics import (
     check_coupled,
     check_state,
@@ -94,6 +96,11 @@ class System:
         if not isinstance(method, str) or method not in METHODS:
             raise SettingsError(source, "method", method,
                                 f"unknown; choose one of {', '.join(METHODS)}")
+        if isinstance(body_forces, str | bytes | dict) or not hasattr(body_forces, "__iter__"):
+            raise SettingsError(source, "body_forces", body_forces, "must be a list of (body "
+                                "name, force (3,) [N], point (3,) [m] in the body's frame), "
+                                "() for none")
+        body_forces = list(body_forces)
         self.model, self.source = model, source
         self.n_q, self.n_v = model.n_q, model.n_v
         self.size = self.n_q + self.n_v
@@ -156,6 +163,7 @@ class System:
                     and not (model.couplings and model.is_planar))
         self.kernel = (self.data, self.extras) if compiled else None
         self._nearest = [math.inf, math.nan]  # the loops' least s_min / s_max met, and its t
+        self._pinned: tuple | None = None  # the samples' kernels (run_energy_and_com)
 
     # ----------------------------------------------------------------------- assembly
     def _layout_free_joints(self) -> None:
@@ -346,8 +354,38 @@ class System:
     def energy_and_com(self, q, v) -> tuple[float, np.ndarray]:
         """E = T + V (the model's, and the potentials of the tip force, the springs and
         ``potential``), and the centre of mass from the same kinematics pass."""
+        T, V = energy(self.model, q, v, ws=self.ws)
+        return self._energy_and_com(q, T, V)
+
+    def run_energy_and_com(self, y: np.ndarray) -> tuple[float, np.ndarray]:
+        """:meth:`energy_and_com` at a state y = (q, v[, W]) of a run's own (a sample's), in the
+        same bits, without the door's checks of q and v and past numba's dispatch
+        (:class:`redysim._jit.Pinned`): y a C-contiguous, writable float64 vector, whose q and v
+        slices are of the types the kernels were pinned for. Anything else, a y that is not
+        finite, or an energy that is not (an overflow), goes the checked way,
+        :meth:`energy_and_com`, which raises the StateError naming it, as it would have."""
+        nq, end = self.n_q, self.motion_size
+        if not (y.ndim == 1 and y.dtype == np.float64 and y.flags.c_contiguous
+                and y.flags.writeable and y.shape[0] >= end
+                and math.isfinite(float(y[:end].sum()))):  # (a NaN or an Inf makes it not)
+            return self.energy_and_com(y[:nq], y[nq:end])
+        q, v, ws = y[:nq], y[nq:end], self.ws
+        if self._pinned is None:  # (per system: each holds its own workspace's bundles)
+            from redysim._jit import Pinned
+
+            self._pinned = (Pinned(_kinematics), Pinned(_energy))
+        kinematics, kinetic_potential = self._pinned
+        tree, s, zeros, none, gravity = ws.tree, ws.s, ws.zeros, ws.no_accel, ws.gravity
+        # the public energy's kinematics and energy passes (its _run_kinematics), on ws
+        kinematics.call((tree, s, zeros, none), tree, q, v, zeros, none, s)
+        T, V = kinetic_potential.call((tree, gravity, s), tree, gravity, s, v)
+        if not (math.isfinite(T) and math.isfinite(V)):
+            return self.energy_and_com(q, v)  # (raises, saying why)
+        return self._energy_and_com(q, float(T), float(V))
+
+    def _energy_and_com(self, q, T: float, V: float) -> tuple[float, np.ndarray]:
+        """E and the centre of mass from (T, V) and the kinematics pass left in the workspace."""
         ws = self.ws
-        T, V = energy(self.model, q, v, ws=ws)
         tree = ws.tree
         md = np.einsum("kij,kj->ki", ws.oR, tree.mass_com)  # m_k R_k c_k
         com = (tree.mass @ ws.oO + md.sum(axis=0)) / self.model.total_mass

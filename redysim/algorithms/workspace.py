@@ -7,6 +7,7 @@ as fast as one given a workspace (``benchmarks/default_path.py``).
 
 from __future__ import annotations
 
+import functools
 import threading
 from functools import cached_property
 
@@ -57,6 +58,18 @@ def _pack(segments: dict[str, np.ndarray], dtype, header: np.ndarray, start: int
         slot = SLOT[name]
         packed[header[slot] - start:header[slot] - start + a.size] = np.ravel(a)
     return packed
+
+
+@functools.lru_cache(maxsize=256)
+def _segments(nb: int, n: int, ng: int, serial: bool, n_q: int, na: int, planar: bool,
+              dh: bool) -> tuple[dict[str, int], ...]:
+    """The segments (field name -> items) of the packed tree floats, tree ints, scratch and
+    tiles for a model of these sizes: the layout table walked once per set of sizes (its Python
+    was a third of a small robot's Workspace: docs/notes/2026-12-08-fixed-cost.md). Sizes, not
+    arrays: a few hundred bytes each. Read only (the callers iterate them)."""
+    sizes = sizes_of(nb, n, ng, serial, n_q, na)
+    return tuple(segment_sizes(kind, sizes, planar, dh)
+                 for kind in ("tree_f", "tree_i", "scratch", "tiles"))
 
 
 def tree_tables(model: Model) -> dict:
@@ -168,15 +181,14 @@ class Workspace:
         if dh:
             arrays["dh"] = dh_table
         # the packed arrays, as the layout table lays them out (redysim.algorithms._kernels.bundles)
-        sizes = sizes_of(nb, n, ng, bool(t["serial"]), t["n_q"], na)
-        self.kernel_f = _pack({f: arrays[f]
-                               for f in segment_sizes("tree_f", sizes, planar, dh)},
-                              np.float64, header)
-        ints_packed = _pack({f: arrays[f] for f in segment_sizes("tree_i", sizes, planar, dh)},
+        tree_f, tree_i, scratch, tiles = _segments(nb, n, ng, bool(t["serial"]), int(t["n_q"]),
+                                                   na, bool(planar), dh)
+        self.kernel_f = _pack({f: arrays[f] for f in tree_f}, np.float64, header)
+        ints_packed = _pack({f: arrays[f] for f in tree_i},
                             np.int64, header, start=HEADER)  # after the header
-        scratch_items = _layout(segment_sizes("scratch", sizes, planar, dh), header)
+        scratch_items = _layout(scratch, header)
         # a thread's row of the SIMD tiles' buffer (tile_buffer), laid out as the others
-        self._tile_items = _layout(segment_sizes("tiles", sizes, planar, dh), header)
+        self._tile_items = _layout(tiles, header)
         self.kernel_i = np.concatenate((header, ints_packed))
         # a coupled model (not planar): the couplings' segments after the tree's, which RGE-A's
         # entries do not see (redysim.algorithms._kernels.couplings)
