@@ -190,7 +190,7 @@ def test_bad_arguments_are_named():
         integrate(oscillator, (1, 0), [1.0, 0.0], "ode45")
 
 
-@pytest.mark.parametrize("method", ["ode45", "dop853", "rk4", "scipy-RK45"])
+@pytest.mark.parametrize("method", ["ode45", "rk45", "dop853", "rk4", "scipy-RK45"])
 @pytest.mark.parametrize("t_eval, fragment", [
     ([0.5, 0.2, 1.0], "not properly sorted"),  # ode45 returned values 0.5 % off
     ([0.2, 0.2, 1.0], "not properly sorted"),
@@ -325,6 +325,7 @@ def test_compiled_stepping_takes_the_same_steps_in_the_same_bits(case_name, meth
 
 
 @pytest.mark.parametrize("method, kw", [("ode45", {"rtol": 1e-8, "atol": 1e-10}),
+                                        ("rk45", {"rtol": 1e-8, "atol": 1e-10}),
                                         ("dop853", {"rtol": 1e-9, "atol": 1e-11}),
                                         ("rk4", {"h": 1e-3})])
 @pytest.mark.parametrize("free, damping", [(True, 0.0), (False, 0.3), (True, 0.3)])
@@ -431,6 +432,16 @@ def test_a_pulled_chain_steps_in_compiled_code_in_the_same_bits(method, kw, damp
         assert np.abs(a.delta_M).max() < (1e-4 if method == "rk4" else 1e-6)
 
 
+def _random_step(seed: int, stages: int, n: int, h: float):
+    """Random stages K (stages, n), y with half its components at zero (they carry only
+    rounding noise in a run: the case the whole-vector norms are for) and y_new = y + h * noise."""
+    rng = np.random.default_rng(seed)
+    K = rng.normal(size=(stages, n))
+    y = rng.normal(size=n)
+    y[::2] = 0.0
+    return K, y, y + h * rng.normal(size=n)
+
+
 def test_dop853_error_norm_is_hairers_over_the_whole_vector():
     """The compiled dop853 norm against SciPy's DOP853 (Hairer's formula, an independent
     source, SciPy's own E5 and E3): the same value, in units of rtol, on random stages with half
@@ -442,24 +453,45 @@ def test_dop853_error_norm_is_hairers_over_the_whole_vector():
 
     from redysim.algorithms._kernels import rk
 
-    rng = np.random.default_rng(5100)
     n, rtol, atol, h = 40, 1e-9, 1e-11, 3e-3
-    K = rng.normal(size=(DOP853.E.size, n))
-    y = rng.normal(size=n)
-    y[::2] = 0.0
-    y_new = y + h * rng.normal(size=n)
+    K, y, y_new = _random_step(5100, DOP853.E.size, n, h)
     ours = rk.error_norm(h, DOP853.E, DOP853.E3, K, DOP853.E.size, y, y_new, rtol, atol,
-                         np.empty(n), np.empty(n))
+                         np.empty(n), np.empty(n), rk.NORM_MAX)
     scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
     theirs = SDOP853._estimate_error_norm(types.SimpleNamespace(E5=d.E5, E3=d.E3), K, h, scale)
     assert ours == pytest.approx(rtol * theirs, rel=1e-12)
     # a zero step's stages: 0, not 0/0
     assert rk.error_norm(h, DOP853.E, DOP853.E3, np.zeros_like(K), DOP853.E.size, y, y_new,
-                         rtol, atol, np.empty(n), np.empty(n)) == 0.0
+                         rtol, atol, np.empty(n), np.empty(n), rk.NORM_MAX) == 0.0
     # not finite: NaN (the controller stops with a reason)
     K[5, 7] = np.inf  # (a stage with a nonzero weight)
     assert np.isnan(rk.error_norm(h, DOP853.E, DOP853.E3, K, DOP853.E.size, y, y_new, rtol,
-                                  atol, np.empty(n), np.empty(n)))
+                                  atol, np.empty(n), np.empty(n), rk.NORM_MAX))
+
+
+def test_rk45_error_norm_is_scipys_rk45_over_the_whole_vector():
+    """rk45's compiled norm against SciPy's RK45 (its own E and _estimate_error_norm, an
+    independent source): the same value in units of rtol on random stages with half the
+    components at zero; ode45's max norm on the same stages is larger (it is the worst
+    component, not the RMS); NaN when not finite."""
+    import types
+
+    from scipy.integrate import RK45 as SRK45
+    from scipy.integrate._ivp.common import norm as rms  # (SciPy's: RMS over the vector)
+
+    from redysim.algorithms._kernels import rk
+    from redysim.integrators.explicit import RK45
+
+    n, rtol, atol, h = 40, 1e-8, 1e-10, 2e-3
+    K, y, y_new = _random_step(5101, RK45.E.size, n, h)
+    args = (K, RK45.E.size, y, y_new, rtol, atol, np.empty(n), np.empty(n))
+    ours = rk.error_norm(h, RK45.E, np.empty(0), *args, rk.NORM_RMS)
+    scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
+    theirs = rms(SRK45._estimate_error(types.SimpleNamespace(E=SRK45.E), K, h) / scale)
+    assert ours == pytest.approx(rtol * theirs, rel=1e-12)
+    assert rk.error_norm(h, RK45.E, np.empty(0), *args, rk.NORM_MAX) > 2 * ours
+    K[3, 4] = np.nan
+    assert np.isnan(rk.error_norm(h, RK45.E, np.empty(0), *args, rk.NORM_RMS))
 
 
 def test_dop853_first_step_is_hairers():
@@ -471,18 +503,22 @@ def test_dop853_first_step_is_hairers():
     def fun(t, y):
         return np.array([y[2], y[3], -np.sin(y[0]) - 0.1 * y[3], -y[1] ** 3 + np.cos(t)])
 
-    for rtol in (1e-6, 1e-10):
-        s = Solver(fun, 0.0, y0, 5.0, "dop853", rtol=rtol, atol=rtol / 100)
-        h = select_initial_step(fun, 0.0, y0, 5.0, 0.5, fun(0.0, y0), 1, 7, rtol, rtol / 100)
-        assert s.h_next == pytest.approx(h, rel=1e-12)
-        assert s.counters.nfev == 2  # f(t0, y0) and HINIT's one call
+    for method, order in (("dop853", 7), ("rk45", 4)):  # (order: the error estimate's)
+        for rtol in (1e-6, 1e-10):
+            s = Solver(fun, 0.0, y0, 5.0, method, rtol=rtol, atol=rtol / 100)
+            h = select_initial_step(fun, 0.0, y0, 5.0, 0.5, fun(0.0, y0), 1, order, rtol,
+                                    rtol / 100)
+            assert s.h_next == pytest.approx(h, rel=1e-12)
+            assert s.counters.nfev == 2  # f(t0, y0) and HINIT's one call
 
 
 @pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10, 1e-12])
-def test_dop853_takes_no_more_steps_than_scipys(rtol):
+@pytest.mark.parametrize("ours,theirs", [("dop853", "DOP853"), ("rk45", "RK45")])
+def test_dop853_and_rk45_take_no_more_steps_than_scipys(rtol, ours, theirs):
     """Issue 51: on a 6-link spatial chain (12 DOF, velocities starting at zero) the core's
-    dop853 takes at most 1.2x the steps of SciPy's DOP853 on the same RHS at the same rtol and
-    atol = rtol / 100 (before Hairer's norm: several times more at tight tolerances)."""
+    dop853 and rk45 take at most 1.2x the steps of SciPy's DOP853 and RK45 on the same RHS at
+    the same rtol and atol = rtol / 100 (dop853 before Hairer's norm: several times more at
+    tight tolerances; ode45, MATLAB's max norm, 1.3-2x SciPy's RK45)."""
     from scipy.integrate import solve_ivp
 
     from redysim import Chain, Workspace, forward_dynamics
@@ -494,6 +530,39 @@ def test_dop853_takes_no_more_steps_than_scipys(rtol):
         return np.concatenate((y[n:], forward_dynamics(chain, y[:n], y[n:], ws=ws)))
 
     y0 = np.concatenate((np.linspace(0.1, 0.6, n), np.zeros(n)))
-    sol = integrate(rhs, (0.0, 0.5), y0, "dop853", rtol=rtol, atol=rtol / 100)
-    ref = solve_ivp(rhs, (0.0, 0.5), y0, method="DOP853", rtol=rtol, atol=rtol / 100)
+    sol = integrate(rhs, (0.0, 0.5), y0, ours, rtol=rtol, atol=rtol / 100)
+    ref = solve_ivp(rhs, (0.0, 0.5), y0, method=theirs, rtol=rtol, atol=rtol / 100)
     assert sol.steps <= 1.2 * (ref.t.size - 1)
+
+
+def test_battery5_integrate_refuses_by_name():
+    """Battery 5 (F5): an empty y0 raised numpy's "zero-size array" error, hmax = 0 was ignored
+    silently, hmax < 0 was blamed on the tolerances, a complex rhs was cast to its real part
+    with a warning, and the other refusals were plain ValueErrors: now SettingsError for a
+    setting, StateError for y0 and rhs (both still ValueErrors)."""
+    from redysim.errors import SettingsError, StateError
+
+    y0 = [1.0, 0.0]
+    with pytest.raises(StateError, match="^integrate: y0 is empty"):
+        integrate(lambda t, y: y, (0, 1), np.empty(0))
+    for hmax in (0, 0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(SettingsError, match=r"^integrate: hmax = .*must be a finite step > 0"):
+            integrate(oscillator, (0, 1), y0, hmax=hmax)
+    with pytest.raises(SettingsError, match="^integrate: hmax = '0.1': must be a number"):
+        integrate(oscillator, (0, 1), y0, hmax="0.1")
+    with pytest.raises(SettingsError, match=r"^integrate: h = -0.1: must be a finite step > 0"):
+        integrate(oscillator, (0, 1), y0, "rk4", h=-0.1)
+    with pytest.raises(StateError, match="^integrate: rhs.t0, y0. returns complex128 values"):
+        integrate(lambda t, y: 1j * y, (0, 1), y0)
+    with pytest.raises(StateError, match="^integrate: y0 has 3 entries; midpoint steps"):
+        integrate(lambda t, y: -y, (0, 1), [1.0, 0.0, 0.0], "midpoint")
+    for kw, field in (({"method": "x"}, "method"), ({"method": "rk4"}, "h"),
+                      ({"t_span": (1, 0)}, "t_span"), ({"t_span": (0, np.nan)}, "t_span"),
+                      ({"t_eval": [0.5, 0.2]}, "t_eval"), ({"t_eval": [2.0]}, "t_eval")):
+        args = {"t_span": (0, 1), **kw}
+        with pytest.raises(SettingsError, match=rf"^integrate: {field}"):
+            integrate(oscillator, args.pop("t_span"), y0, **args)
+    # hmax honoured: a bound below the steps ode45 takes alone makes it take more
+    free = integrate(oscillator, (0, 1), y0, rtol=1e-6, atol=1e-9)
+    bound = integrate(oscillator, (0, 1), y0, rtol=1e-6, atol=1e-9, hmax=0.01)
+    assert bound.steps >= 100 > free.steps

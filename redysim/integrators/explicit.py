@@ -10,6 +10,11 @@ an embedded error estimate and a step-size controller; a fixed-step scheme has n
             ``hmax = 0.1 span``; growth ``0.8 (rtol/err)^(1/5)`` capped at 5x, only after a step
             that needed no retry; a first rejection shrinks by ``max(0.1, 0.8 (rtol/err)^(1/5))``,
             later ones of the same step halve it; outputs by its quartic interpolant (ntrp45).
+``rk45``    the same Dormand-Prince 5(4) pair under SciPy's RK45 error norm, over the whole
+            vector: ``sc = atol + rtol max(|y|, |y_new|)``, ``err = |h| rms(K^T E ./ sc)``,
+            accepted when ``<= 1``; Hairer's first step and safety 0.9, otherwise ode45's
+            controller and interpolant. On the same RHS it takes at most 1.2x SciPy's RK45 steps,
+            where ode45 (MATLAB's max norm) takes 1.3-2x (docs/notes/2026-12-07-norm.md).
 ``dop853``  Dormand-Prince 8(5,3) (Hairer's DOP853 tableau, error estimator and 7th-order dense
             output) with Hairer's error norm over the whole vector, as dop853.f and SciPy's
             DOP853: ``sc = atol + rtol max(|y|, |y_new|)``, ``s5 = sum (K^T E5 ./ sc)^2``,
@@ -50,6 +55,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
@@ -91,6 +97,9 @@ class Tableau:
     ``h K^T E`` over the s stages and f(t + h, y_new) (FSAL); ``E3`` (optional) is DOP853's
     3rd-order estimate; ``error_order`` the order q of the estimate (the controller's exponent is
     1 / (q + 1)). ``fsal``: the last stage is f(t + h, y_new), reused as the next step's first.
+    ``norm``: how the estimate is measured and the step controlled: "max" (MATLAB's ode45: max
+    norm, its first step and safety 0.8), "rms" (SciPy's RK45: the RMS over the whole vector,
+    Hairer's first step, safety 0.9), "hairer" (DOP853's, with E3).
     """
 
     name: str
@@ -102,6 +111,12 @@ class Tableau:
     E3: np.ndarray | None = None
     error_order: int = 0
     fsal: bool = False
+    norm: str = "max"
+
+    @property
+    def hairer_control(self) -> bool:
+        """Hairer's first step (HINIT) and safety factor 0.9 (dop853, rk45), else ode45's."""
+        return self.norm in ("rms", "hairer")
 
     @property
     def stages(self) -> int:
@@ -147,7 +162,7 @@ def _dop853() -> tuple[Tableau, dict]:
 
     s = d.N_STAGES  # 12 stages; E3/E5 span 13 entries (the 13th is f(t + h, y_new))
     tab = Tableau("dop853", 8, d.A[:s, :s].copy(), d.B.copy(), d.C[:s].copy(), E=d.E5.copy(),
-                  E3=d.E3.copy(), error_order=7, fsal=True)
+                  E3=d.E3.copy(), error_order=7, fsal=True, norm="hairer")
     dense = {"A_extra": d.A[s + 1:].copy(), "C_extra": d.C[s + 1:].copy(), "D": d.D.copy()}
     return tab, dense
 
@@ -162,15 +177,19 @@ def _rk4() -> Tableau:
 
 
 DP45 = _dp45()
+# The same Dormand-Prince pair under SciPy's RK45 norm (RMS over the whole vector) and Hairer's
+# first step: ode45 stays MATLAB's (the paper's step counts), rk45 is for users' runs
+RK45 = Tableau("rk45", 5, DP45.A, DP45.b, DP45.c, E=DP45.E, error_order=4, fsal=True,
+               norm="rms")
 RK4 = _rk4()
-TABLEAU_NAMES = ("ode45", "dop853", "rk4")  # our schemes; tableau(name) gives each
+TABLEAU_NAMES = ("ode45", "rk45", "dop853", "rk4")  # our schemes; tableau(name) gives each
 
 
 def tableau(name: str) -> Tableau:
     """The tableau of one of our schemes (:data:`TABLEAU_NAMES`)."""
     if name == "dop853":
         return _dop853()[0]
-    return {"ode45": DP45, "rk4": RK4}[name]
+    return {"ode45": DP45, "rk45": RK45, "rk4": RK4}[name]
 
 
 def __getattr__(name: str):
@@ -308,6 +327,7 @@ class Solver(OdeSolver):
                  rtol: float = 1e-4, atol: float = 1e-6, h: float | None = None,
                  hmax: float | None = None, state: SolverState | None = None,
                  compiled: bool | None = None, max_steps: int = 1000):
+        from redysim._jit import Pinned  # (numba: imported on first use, as _rk's)
         from redysim.algorithms._kernels import rk_run
 
         if method not in TABLEAU_NAMES:
@@ -335,10 +355,15 @@ class Solver(OdeSolver):
         self.compiled = kernel is not None and compiled is not False
         self._kernel = kernel if self.compiled else (self.system, None)
         self._steps = rk_run.rk_steps if self.compiled else _python_steps()
+        # the compiled steps past numba's dispatch: their arguments' types are fixed by
+        # construction (the system's bundles, the scheme, the control, the step state; a float
+        # t_stop and an int max_steps), and a step state replaced from outside picks again
+        self._pinned = Pinned(rk_run.rk_steps) if self.compiled else None
         self.max_steps = int(max_steps) if self.compiled else 1
         self._scheme = rk_run.Scheme(tab.A, tab.b, tab.c,
                                      tab.E if tab.E is not None else _NO_WEIGHTS,
-                                     tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal)
+                                     tab.E3 if tab.E3 is not None else _NO_WEIGHTS, tab.fsal,
+                                     _rk().NORM_RMS if tab.norm == "rms" else _rk().NORM_MAX)
         n = np.size(y0)
         self.n = n
         # the components the error norm measures: a system's motion (q, v), not the work W
@@ -347,7 +372,7 @@ class Solver(OdeSolver):
         self._ctl = rk_run.Control(
             self.rtol if self.adaptive else 1.0, self.atol if self.adaptive else 1.0,
             self.hmax, power, self.t_end, bool(self.adaptive),
-            DOP853_SAFETY if tab.E3 is not None else SAFETY, MAX_GROWTH,
+            DOP853_SAFETY if tab.hairer_control else SAFETY, MAX_GROWTH,
             FIRST_REJECT_MIN, LATER_REJECT, HMIN_EPS, FINISH_SLACK, SAMPLE_EPS, self.checked)
         self.K = np.empty((tab.stages + (1 if tab.fsal else 0), n))
         self._dense_K = None  # DOP853's extra stages, computed on demand per step
@@ -373,11 +398,11 @@ class Solver(OdeSolver):
         return out
 
     def _initial_step(self) -> float:
-        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call); dop853's is Hairer's
-        (:meth:`_initial_step_hairer`)."""
+        """ode45's rule: min(hmax, span), cut to 1/rh (no extra RHS call); dop853's and rk45's
+        is Hairer's (:meth:`_initial_step_hairer`)."""
         absh = min(self.hmax, self.t_end - self.t)
         m = self.checked  # (the motion's components, as the error norm's)
-        if self.tab.E3 is not None:
+        if self.tab.hairer_control:
             absh = self._initial_step_hairer(absh, m)
             return max(absh, float(self._run.hmin_at(self._ctl, self.t)))
         scale = np.maximum(np.abs(self.y[:m]), self.atol / self.rtol)
@@ -391,7 +416,8 @@ class Solver(OdeSolver):
         at most ``absh``: with the RMS norm ||x|| over the m measured components scaled by
         sc = atol + rtol |y0|, d0 = ||y0||, d1 = ||f0||, h0 = 0.01 d0 / d1 (1e-6 when either is
         below 1e-5), d2 = ||f(t + h0, y0 + h0 f0) - f0|| / h0 (one RHS call), and
-        h = min(100 h0, (0.01 / max(d1, d2))^(1/8)). The sums are math.fsum's (correctly
+        h = min(100 h0, (0.01 / max(d1, d2))^(1/(q+1))) (q the estimate's order: 7 for dop853,
+        4 for rk45). The sums are math.fsum's (correctly
         rounded: the same on every CPU)."""
         y, f = self.y[:m], self.f[:m]
         sc = self.atol + self.rtol * np.abs(y)
@@ -427,10 +453,15 @@ class Solver(OdeSolver):
         st.counts[:] = c.steps, c.rejected, c.nfev
         steps0, wall0 = c.steps, time.perf_counter()
         sd, extras = self._kernel
+        until = self.t_end if t_stop is None else float(t_stop)
         try:
-            status = self._steps(sd, extras, self._scheme, self._ctl, st,
-                                 self.t_end if t_stop is None else float(t_stop),
-                                 self.max_steps)
+            if self._pinned is not None:
+                scheme, ctl = self._scheme, self._ctl
+                status = self._pinned.call((sd, extras, scheme, ctl, st), sd, extras, scheme,
+                                           ctl, st, until, self.max_steps)
+            else:
+                status = self._steps(sd, extras, self._scheme, self._ctl, st, until,
+                                     self.max_steps)
         finally:
             self.t, self.t_old, self.h_next = (float(x) for x in st.ts)
             c.steps, c.rejected, c.nfev = (int(x) for x in st.counts)
@@ -462,7 +493,7 @@ class Solver(OdeSolver):
         h = self.t - self.t_old
         s = (ts - self.t_old) / h
         combine = _rk().combine
-        if self.tab is DP45:  # y_old + h sum_j (BI_j . [s, s^2, s^3, s^4]) K_j, per time
+        if self.tab.A is DP45.A:  # ode45, rk45: y_old + h sum_j (BI_j . [s, .., s^4]) K_j
             out = np.empty((s.size, self.n))
             for i, si in enumerate(s.tolist()):
                 w = [((b[0] * si + b[1] * si ** 2) + b[2] * si ** 3) + b[3] * si ** 4
@@ -708,14 +739,21 @@ def _check_rhs(rhs, t0: float, y0) -> None:
     y = door.numeric("y0", y0)
     if y.ndim != 1:
         raise StateError(f"integrate: y0 has shape {y.shape}; it must be a vector (1-D)")
+    if not y.size:
+        raise StateError("integrate: y0 is empty: there is no state to integrate (give y0 as "
+                         "a vector of at least one number)")
     door.require_finite("y0", y.astype(float))
     if not callable(rhs):
         raise TypeError(f"integrate: rhs = {type(rhs).__name__}: must be a function "
                         "rhs(t, y) -> dy/dt")
-    dy = np.shape(rhs(t0, y.astype(float)))
-    if dy != y.shape:
-        raise StateError(f"integrate: rhs(t0, y0) has shape {dy}; y0 has shape {y.shape}: "
-                         "rhs(t, y) must return dy/dt of y's shape")
+    dy = np.asarray(rhs(t0, y.astype(float)))
+    if dy.shape != y.shape:
+        raise StateError(f"integrate: rhs(t0, y0) has shape {dy.shape}; y0 has shape "
+                         f"{y.shape}: rhs(t, y) must return dy/dt of y's shape")
+    if dy.dtype.kind not in "biuf":  # complex would be cast to its real part, with a warning
+        raise StateError(f"integrate: rhs(t0, y0) returns {dy.dtype} values; integrate takes "
+                         "real dy/dt (a complex ODE: integrate its real and imaginary parts "
+                         "as one real vector of twice the length)")
 
 
 def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode45", *,
@@ -729,34 +767,61 @@ def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode
     with dq/dt = v. ``h``: the step of a fixed-step method (given to an adaptive scheme it
     steps that scheme at a fixed step, for convergence studies).
     ``t_eval``: strictly increasing times within ``t_span``, as SciPy's ``solve_ivp`` requires;
-    anything else raises ValueError (unsorted times gave wrong values, a time before t0 the
-    initial state, and times past t_end were dropped).
-    Raises ValueError (:class:`~redysim.errors.SettingsError` for a setting out of range).
+    anything else is refused (unsorted times gave wrong values, a time before t0 the initial
+    state, and times past t_end were dropped). ``hmax``: an adaptive step's largest (default
+    0.1 x the span), a finite number > 0.
+    Raises :class:`~redysim.errors.SettingsError` for a setting (method, t_span, rtol, atol, h,
+    hmax, t_eval) and :class:`~redysim.errors.StateError` for a y0 (empty, not finite, odd for
+    the midpoint methods) or an rhs answer (another shape, complex) it cannot take: both are
+    ValueErrors.
     """
-    if canonical(method) not in INTEGRATORS:
-        raise ValueError(f"method = {method!r}: unknown; choose one of {', '.join(INTEGRATORS)}"
-                         f" (or {', '.join(ALIASES)})")
+    def fail(field, value, problem) -> NoReturn:
+        raise SettingsError("integrate", field, value, problem)
+
+    if not isinstance(method, str) or canonical(method) not in INTEGRATORS:
+        fail("method", method, f"unknown; choose one of {', '.join(INTEGRATORS)} (or "
+             f"{', '.join(ALIASES)})")
     method = canonical(method)
-    t0, t1 = map(float, t_span)
+    try:
+        t0, t1 = map(float, t_span)
+    except (TypeError, ValueError):
+        fail("t_span", t_span, "must be two numbers (t0, t_end)")
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
-        raise ValueError(f"t_span = {t_span!r}: need finite t0 < t_end (forward in time)")
+        fail("t_span", t_span, "need finite t0 < t_end (forward in time)")
     adaptive = method not in FIXED_STEP and h is None
     check_settings("integrate", method=method, rtol=rtol if adaptive else None,
                    atol=atol if adaptive else None)
+    for name, step in (("h", h), ("hmax", hmax)):  # (hmax = 0 was ignored, hmax < 0 blamed
+        if step is None:                            # on the tolerances)
+            continue
+        if isinstance(step, bool) or not isinstance(step, int | float | np.integer
+                                                    | np.floating):
+            fail(name, step, "must be a number (a step in the units of t)")
+        if not (math.isfinite(step) and step > 0):
+            fail(name, step, "must be a finite step > 0" + (" (None: 0.1 x the span)"
+                                                             if name == "hmax" else ""))
+    if h is None and (method in FIXED_STEP or method == "midpoint-fixed"):
+        fail("h", h, f"the fixed-step method {method!r} needs h > 0 (its step)")
     if t_eval is not None:
-        t_eval = np.asarray(t_eval, dtype=float)
+        try:
+            t_eval = np.asarray(t_eval, dtype=float)
+        except (TypeError, ValueError):
+            fail("t_eval", t_eval, "must be a vector of times")
         if t_eval.ndim != 1:
-            raise ValueError(f"t_eval must be 1-dimensional, got shape {t_eval.shape}")
+            fail("t_eval", t_eval, f"must be 1-dimensional, got shape {t_eval.shape}")
         if not np.isfinite(t_eval).all():
-            raise ValueError("t_eval must be finite")
+            fail("t_eval", t_eval, "must be finite")
         if t_eval.size and (t_eval.min() < t0 or t_eval.max() > t1):
-            raise ValueError(f"Values in t_eval are not within t_span = ({t0:g}, {t1:g}): "
-                             f"they run from {t_eval.min():g} to {t_eval.max():g}")
+            fail("t_eval", t_eval, f"Values in t_eval are not within t_span = ({t0:g}, "
+                 f"{t1:g}): they run from {t_eval.min():g} to {t_eval.max():g}")
         if np.any(np.diff(t_eval) <= 0):
-            raise ValueError("Values in t_eval are not properly sorted (they must increase "
-                             "strictly)")
+            fail("t_eval", t_eval, "Values in t_eval are not properly sorted (they must "
+                 "increase strictly)")
     if not hasattr(rhs, "derivative"):  # a function: its answer's shape checked once, here
         _check_rhs(rhs, t0, y0)
+    if method in IMPLICIT and np.size(y0) % 2:
+        raise StateError(f"integrate: y0 has {np.size(y0)} entries; {method} steps y = (q, v), "
+                         "two halves of equal length (dq/dt = v)")
     cpu0, wall0 = time.process_time(), time.perf_counter()
     solver = make_solver(rhs, t0, y0, t1, method, rtol=rtol, atol=atol, h=h, hmax=hmax)
     ts, ys = [], []

@@ -49,13 +49,19 @@ def combine(y, h, w, K, count, out):
     return out
 
 
+NORM_MAX, NORM_RMS = 0, 1  # the norms of a scheme without E3 (ode45's, rk45's)
+
+
 @jit_strict
-def error_norm(h, E, E3, K, count, y, y_new, rtol, atol, err, err3):
-    """The step's error estimate, accepted when ``<= rtol`` (both schemes' controllers compare
+def error_norm(h, E, E3, K, count, y, y_new, rtol, atol, err, err3, norm):
+    """The step's error estimate, accepted when ``<= rtol`` (every scheme's controller compares
     it with rtol). e = sum_j E_j K_j and e3 = sum_j E3_j K_j, each summed in the order of j.
 
-    - ode45 (E3 empty): MATLAB's max norm, |h| max_k |e_k| / max(|y_k|, |y_new_k|, atol/rtol)
-      (the paper's integrator: these bits are the paper's reproduction's).
+    - ode45 (E3 empty, ``norm`` NORM_MAX): MATLAB's max norm, |h| max_k |e_k| / max(|y_k|,
+      |y_new_k|, atol/rtol) (the paper's integrator: these bits are the paper's reproduction's).
+    - rk45 (E3 empty, ``norm`` NORM_RMS): SciPy's RK45 norm over the whole vector, with
+      sc_k = atol + rtol max(|y_k|, |y_new_k|) and s = sum_k (e_k/sc_k)^2 (summed in order),
+      rtol |h| sqrt(s / n): SciPy's error_norm, which it accepts at < 1, times rtol.
     - dop853 (E3 of size count): Hairer's DOP853 norm over the whole vector, as dop853.f and
       SciPy's DOP853: with sc_k = atol + rtol max(|y_k|, |y_new_k|), s5 = sum_k (e_k/sc_k)^2
       and s3 = sum_k (e3_k/sc_k)^2 (each summed k = 0, 1, ... in order), the estimate is
@@ -85,6 +91,14 @@ def error_norm(h, E, E3, K, count, y, y_new, rtol, atol, err, err3):
         if deno <= 0.0:
             return 0.0
         return rtol * (abs(h) * s5 / math.sqrt(deno * n))
+    if norm == NORM_RMS:
+        s = 0.0
+        for k in range(n):
+            r = err[k] / (atol + rtol * max(abs(y[k]), abs(y_new[k])))
+            s += r * r
+        if not math.isfinite(s):
+            return math.nan
+        return rtol * (abs(h) * math.sqrt(s / n))
     threshold = atol / rtol
     worst = 0.0
     for k in range(n):

@@ -48,8 +48,9 @@ ERR_NONFINITE, ERR_HMIN, ERR_QDD, ERR_PROJECT = -1, -2, -3, -4
 
 class Scheme(NamedTuple):
     """A Runge-Kutta tableau (:class:`redysim.integrators.explicit.Tableau`): A (s, s), b, c (s,),
-    the error weights E (and DOP853's E3; empty when unused), and whether the last stage is the
-    next step's first (FSAL)."""
+    the error weights E (and DOP853's E3; empty when unused), whether the last stage is the
+    next step's first (FSAL), and the norm of an estimate without E3 (:mod:`.rk`'s NORM_MAX,
+    ode45's, or NORM_RMS, rk45's)."""
 
     A: np.ndarray
     b: np.ndarray
@@ -57,6 +58,7 @@ class Scheme(NamedTuple):
     E: np.ndarray
     E3: np.ndarray
     fsal: bool
+    norm: int
 
 
 class Control(NamedTuple):
@@ -174,7 +176,7 @@ def _attempt(sd, extras, scheme, ctl, st, t):
             return ERR_QDD, t_new, 0.0, nofailed
         m = ctl.checked  # (the state's leading components: not a quadrature after them)
         e = error_norm(h, E, E3, K, E.shape[0], y[:m], st.y_new[:m], ctl.rtol, ctl.atol,
-                       st.err[:m], st.err3[:m])
+                       st.err[:m], st.err3[:m], scheme.norm)
         if not math.isfinite(e):
             return ERR_NONFINITE, t_new, e, nofailed
         if e <= ctl.rtol:
