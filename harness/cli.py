@@ -145,15 +145,16 @@ tolerance, and the command that runs the advised model.
 
 Any rope case (a case name or your own case file): the study is run for it, here, and stopped
 once the answer is known: your model by DOP853 at 1e-10 (the reference) and every coarser model
-(link counts that divide yours) by ode45 at 1e-8; the reference's own error by Richardson where
-the observed order is steady, else against the rope at twice your links. Searched: every count
-between the finest divisor that misses the tolerance and the coarsest count that meets it (the
-coarsest divisor that meets it, or your own count when none does), by bisection on the rope
-rebuilt at each count tried (a straight rope's file; a rope that starts bent is searched over
-divisors only, and says so); then every setting on the least count within the tolerance, the
-coarsest divisor within it and your own model. The advice is checked by running it again.
-Runs are cached in --out (default results/advise/CASE): ask again, with another tolerance too,
-and only what is new runs.
+(link counts that divide yours; for a count with no divisor, such as 5, the straight rope
+rebuilt at coarser counts spaced alike) by ode45 at 1e-8; the reference's own error by
+Richardson where the observed order is steady, else against the rope at twice your links.
+Searched: every count between the finest divisor that misses the tolerance and the coarsest
+count that meets it (the coarsest divisor that meets it, or your own count when none does), by
+bisection on the rope rebuilt at each count tried (a straight rope's file; a rope that starts
+bent is searched over divisors only, and says so); then every setting on the least count within
+the tolerance, the coarsest divisor within it and your own model. The advice is checked by
+running it again. Runs are cached in --out (default results/advise/CASE): ask again, with
+another tolerance too, and only what is new runs.
 
 A robot's scenario (a scenario's name or file, or a robot file): which joints can be locked at
 their initial values (their bodies fused) with the path of --observe (default: the scenario's

@@ -11,7 +11,7 @@ the work since the last checkpoint, and resuming continues bit for bit the same 
     python -m redysim.harness.longrun RE-U50000-L1000 --status  # what the checkpoint holds, ETA
 
 The integrator and its tolerances (or step) are the case file's ``[simulation]`` settings, or
-the flags': one of ours (ode45, dop853, rk4, midpoint alias implicit, midpoint-fixed), whose
+the flags': one of ours (ode45, rk45, dop853, rk4, midpoint alias implicit, midpoint-fixed), whose
 state can be saved; SciPy's cannot. ``--sample`` sets the sample interval (default the case's).
 A checkpoint is resumed only by the same code, case file (its SHA-256 and DOF), integrator,
 tolerances, horizon and sample interval; anything else is refused, naming both sides. A
@@ -68,6 +68,7 @@ CHECKPOINT = "checkpoint.npz"
 PREVIOUS = "checkpoint.prev.npz"  # the checkpoint before the last, kept in case it is damaged
 MANIFEST = "manifest.json"  # the checkpoints written, their SHA-256, the run's t and status
 FINISHED = ("done", "failed")  # a checkpoint's status that is the run's record: never rewritten
+STATUSES = ("in progress", "stopped", *FINISHED)  # every status a run writes
 DEFAULT_EVERY_S = 120.0   # wall seconds between checkpoints
 SAMPLE_FIELDS = ("t", "tip_x", "tip_y", "tip_z", "E", "delta_M")
 INTEGRATORS = (*TABLEAU_NAMES, *IMPLICIT)  # ours (their state can be saved)
@@ -176,9 +177,12 @@ def _refuse_other(path: Path, ck: dict, now: dict) -> None:
                                f"{now[key]!r}); use another --out, delete it or --set-aside")
 
 
-def _check_state(path: Path, ck: dict, t_end: float, n_state: int) -> None:
+def _check_state(path: Path, ck: dict, t_end: float, n_state: int,
+                 case_name: str | None = None) -> None:
     """Refuse a checkpoint whose state is not one this run can have reached: its t outside
-    [0, t_end], "done" before t_end, or y and f not the system's length (``n_state``)."""
+    [0, t_end], "done" before t_end, y and f not the system's length (``n_state``), a status
+    not a long run's, another case's name (``case_name``), h not > 0, a count below 0, or
+    samples not rows of :data:`SAMPLE_FIELDS` at increasing times up to t."""
     t = float(ck["t"])
     status = str(ck.get("status", ""))
     way = "delete it (and checkpoint.prev.npz, manifest.json) or give another --out"
@@ -195,6 +199,34 @@ def _check_state(path: Path, ck: dict, t_end: float, n_state: int) -> None:
                                f"{n_state} entries; {way}")
         if not np.all(np.isfinite(ck[key])):
             raise LongrunError(f"{path}: {key} is not finite; {way}")
+    # the rest of its fields, as the run's own spec would have them (a damaged field found at
+    # the end, when the record is written, would lose the work of the whole run)
+    if "status" in ck and status not in STATUSES:  # (a checkpoint in progress has none)
+        raise LongrunError(f"{path}: status = {status!r}: not a long run's status (one of "
+                           f"{', '.join(map(repr, STATUSES))}); {way}")
+    if case_name is not None and str(ck["case"]) != case_name:
+        raise LongrunError(f"{path}: case = {str(ck['case'])!r}: this run is case "
+                           f"{case_name!r}; {way}")
+    h = np.asarray(ck["h"])
+    if h.shape != () or h.dtype.kind != "f" or not (math.isfinite(float(h)) and float(h) > 0):
+        raise LongrunError(f"{path}: h = {h.tolist()!r}: the next step must be a finite "
+                           f"number > 0; {way}")
+    for key in ("steps", "rejected", "nfev"):
+        c = np.asarray(ck.get(key, 0))
+        if c.shape != () or c.dtype.kind not in "iu" or int(c) < 0:
+            raise LongrunError(f"{path}: {key} = {c.tolist()!r}: must be a count (an integer "
+                               f">= 0); {way}")
+    samples = np.asarray(ck["samples"])
+    fields = len(SAMPLE_FIELDS)
+    if samples.ndim != 2 or samples.shape[1] != fields or samples.dtype.kind != "f":
+        raise LongrunError(f"{path}: samples has shape {samples.shape} ({samples.dtype}); a "
+                           f"long run's samples are rows of {fields} numbers "
+                           f"({', '.join(SAMPLE_FIELDS)}); {way}")
+    ts = samples[:, 0]
+    if samples.shape[0] and not (np.all(np.isfinite(ts)) and np.all(np.diff(ts) > 0)
+                                 and ts[0] >= 0.0 and ts[-1] <= t):
+        raise LongrunError(f"{path}: the samples' times do not increase from 0 to t = {t:g} s; "
+                           f"{way}")
 
 
 def set_aside_other(path: Path) -> Path:
@@ -288,7 +320,7 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
             log(f"{reason}: set aside as {set_aside_other(path).name}; starting over")
             ck = None
     if ck is not None:
-        _check_state(path, ck, t_end, 2 * n)
+        _check_state(path, ck, t_end, 2 * n, case.name)
     elif (manifest := read_manifest(path.parent)) is not None and manifest["files"]:
         raise LongrunError(f"{path.parent / MANIFEST} lists the checkpoints of this run (t = "
                            f"{manifest.get('t', 0.0):.6g} s, {manifest.get('status', '')}), "

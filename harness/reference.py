@@ -44,7 +44,14 @@ from redysim.io.scenarios import Scenario
 from redysim.simulation import frame_observer
 
 from .provenance import code_digest
-from .store import check_kinds, sha256_file, write_npz_atomic, write_text_atomic
+from .store import (
+    FolderError,
+    check_kinds,
+    probe_write,
+    sha256_file,
+    write_npz_atomic,
+    write_text_atomic,
+)
 
 DIGEST_SUFFIX = ".sha256"  # beside each cached reference: its SHA-256, written after it
 
@@ -58,6 +65,9 @@ CHECK_RTOL = 1e-13
 CONFIRM_ENGINE = "pinocchio-aba"
 # a coupled model's (pin.aba refuses mimic joints): Pinocchio's CRBA on its own mimic joints
 CONFIRM_ENGINE_COUPLED = "pinocchio-crba"
+
+
+RESULTS_ENV = "REDYSIM_RESULTS"  # moves results/ (the reference cache is under it)
 
 
 def results_dir() -> Path:
@@ -107,6 +117,19 @@ def check_cache(case, t_end: float, interval: float) -> Path:
     p = reference_path(case, t_end, interval)
     check_kinds(files=[p, p.with_name(p.name + DIGEST_SUFFIX)], folders=[p.parent],
                 why="the reference cache; nothing was run")
+    if not (p.is_file() and p.with_name(p.name + DIGEST_SUFFIX).is_file()):
+        # to be computed: its folder must take it, said before the work (--out does not move
+        # it: $REDYSIM_RESULTS does)
+        try:
+            probe_write(p.parent)
+        except OSError as exc:
+            raise FolderError(
+                f"{str(p.parent)!r}: the reference cache cannot be written "
+                f"({exc.strerror or type(exc).__name__}); it is "
+                f"$REDYSIM_RESULTS/reference ({RESULTS_ENV} = "
+                f"{os.environ.get(RESULTS_ENV)!r}; results/reference in the working folder "
+                "when unset), which --out does not move: make it writable, or set "
+                f"{RESULTS_ENV} to a folder you can write; nothing was run") from None
     return p
 
 

@@ -399,6 +399,19 @@ def coarse_levels(links: int) -> list[int]:
     return out
 
 
+def rebuilt_levels(links: int) -> list[int]:
+    """The coarser models of a straight rope whose count has no divisor (:func:`coarse_levels`
+    empty): the rope rebuilt at counts spaced as the divisors are (each at most
+    1/MIN_LEVEL_RATIO of the one before it, from the user's), or the next count down when none
+    is so far; at least 2 links."""
+    out, last = [], links
+    for d in range(links - 1, 1, -1):
+        if last / d >= MIN_LEVEL_RATIO:
+            out.append(d)
+            last = d
+    return out or ([links - 1] if links > 2 else [])
+
+
 def local_orders(levels: list[dict]) -> list[float]:
     """The order between each two consecutive levels (coarse to fine, ``convergence``'s),
     log(e_coarse / e_fine) / log(n_fine / n_coarse); nan where an error is 0 or missing."""
@@ -542,7 +555,6 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     from redysim.errors import SettingsError
 
     from .spec import RunSpec
-    from .sweep import run_sweep
 
     if isinstance(tol, bool) or not isinstance(tol, int | float) or not (
             tol > 0 and math.isfinite(tol)):
@@ -553,10 +565,20 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     case = load_case(path)
     nl = case.chain.n_links
     levels = coarse_levels(nl)
-    if not levels:
-        raise SettingsError("advise", "CASE", path, f"has {nl} links: no coarser model (a coarse "
-                            "link lumps the same number of fine ones, so the count needs a "
-                            "divisor between 2 and itself)")
+    rebuilt = ""
+    if not levels:  # no divisor (a prime count): the rope rebuilt at coarser counts, if it can be
+        from redysim.io.cases import rebuild_problem
+
+        why = rebuild_problem(case)
+        levels = [] if why else rebuilt_levels(nl)
+        if not levels:
+            raise SettingsError("advise", "CASE", path, f"has {nl} links: no coarser model (a "
+                                "coarse link lumps the same number of fine ones, so lumping "
+                                "needs a divisor between 2 and itself, and "
+                                + (f"the rope cannot be rebuilt at another count: {why})"
+                                   if why else "a rope of fewer links than 2 is no model)"))
+        rebuilt = (f"{nl} has no divisor between 2 and itself: the coarser models are the rope "
+                   f"rebuilt at {', '.join(map(str, levels))} links")
     horizon = float(t_end or case.t_end)
     sample = min(case.sample_interval or horizon / FILE_SAMPLES, horizon)
     base = dict(case=path, t_end=horizon, sample=sample)
@@ -573,7 +595,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     log(f"advise: {case.name}: {nl} links over {horizon:g} s; the reference ({OWN_REFERENCE[0]} "
         f"{OWN_REFERENCE[1]:g}) and {len(levels)} coarser models ({', '.join(map(str, levels))} "
         f"links, {OWN_LEVEL[0]} {OWN_LEVEL[1]:g}); runs cached in {out}")
-    runs = run_sweep(specs, out, name=name, workers=workers, progress=progress)
+    runs = _kept_sweep(specs, out, name=name, workers=workers, progress=progress)
     ref_row = runs[runs["run_id"] == ref_spec.run_id].iloc[0]
     if ref_row["status"] != "ok":
         raise SettingsError("advise", "CASE", path, f"its reference run failed: "
@@ -582,7 +604,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
     conv = convergence(study)
     lv = conv["levels"]
     orders, converges, steady = verdict(lv)
-    notes: list[str] = []
+    notes: list[str] = [rebuilt] if rebuilt else []
     if not converges and len(lv) >= 2:  # (one level shows no order: the finer rope judges it)
         notes.append("the tip path does not settle as links are added (model errors "
                      + ", ".join(f"{d['tip_err']:.2g} m at {d['links']}" for d in lv)
@@ -614,7 +636,7 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
         f"({len(OWN_INTEGRATORS) * len(OWN_RTOLS)} each)")
     specs += [RunSpec(**base, links=0 if n == nl else n, integrator=i, rtol=r, atol=r * 1e-2)
               for n in chosen for i in OWN_INTEGRATORS for r in OWN_RTOLS]
-    run_sweep(specs, out, name=name, workers=workers, progress=progress)
+    _kept_sweep(specs, out, name=name, workers=workers, progress=progress)
     study = load_study(out, case.name)
     a = advise(study, budget, cost="work")
     result = OwnStudy(path, tol, study, conv, orders, True, ref_error, how, a, None, notes,
@@ -627,6 +649,27 @@ def _own_study(case_file: str | Path, tol: float, out: str | Path, *, t_end: flo
         result.check = {"tip_err": err, "cpu_s": cpu, "steps": int(steps),
                         "bound": err + (ref_error if math.isfinite(ref_error) else 0.0)}
     return result
+
+
+def _kept_sweep(specs: list, out: Path, *, name: str, workers, progress: bool):
+    """:func:`redysim.harness.sweep.run_sweep`, and once more when a run's row is not in its
+    answer (its files set aside as damaged while the sweep ran: a row of another run id, as when
+    the code changes between the plan and a worker; the sweep then redoes it); a run still
+    without its row is refused by name (SweepError), never a KeyError later."""
+    from .sweep import SweepError, run_sweep
+
+    missing: list = []
+    for _ in range(2):
+        runs = run_sweep(specs, out, name=name, workers=workers, progress=progress)
+        have = set(runs["run_id"]) if "run_id" in runs.columns else set()
+        missing = [s for s in specs if s.run_id not in have]
+        if not missing:
+            return runs
+    raise SweepError(str(out), "runs", [s.run_id for s in missing[:3]],
+                     f"{len(missing)} of the study's {len(specs)} runs have no result there "
+                     f"after being done twice (the first: {missing[0].label}; their files were "
+                     "set aside as damaged, see damaged/: the code changing while the study "
+                     "ran?); run the same command again")
 
 
 def _reference_error(path: str, case, study, lv, orders, steady: bool, log
@@ -676,7 +719,6 @@ def _counts_to_try(case, lv, first: int, budget: float, specs: list, base: dict,
     from redysim.io.cases import rebuild_problem
 
     from .spec import RunSpec
-    from .sweep import run_sweep
 
     nl = case.chain.n_links
     finer_levels = [d["links"] for d in lv if d["links"] > first]
@@ -694,7 +736,7 @@ def _counts_to_try(case, lv, first: int, budget: float, specs: list, base: dict,
         mid = (lo + hi) // 2
         specs.append(RunSpec(**base, links=mid, integrator=OWN_LEVEL[0], rtol=OWN_LEVEL[1],
                              atol=OWN_LEVEL[1] * 1e-2))
-        runs = run_sweep(specs, out, name=name, workers=workers, progress=False)
+        runs = _kept_sweep(specs, out, name=name, workers=workers, progress=False)
         row = runs[runs["run_id"] == specs[-1].run_id].iloc[0]
         if row["status"] != "ok":
             notes.append(f"the rope rebuilt at {mid} links failed ({row['reason']}): the search "

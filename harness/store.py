@@ -99,14 +99,20 @@ def check_writable(folder: str | os.PathLike, *, what: str = "results folder",
         raise FolderError(f"{(flag + ' ') if flag else ''}{str(folder)!r}: is a file, not a "
                           f"folder; give a folder for the {what}")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=f"{TEMP_PREFIX}probe.{os.getpid()}.",
-                                     suffix=TEMP_SUFFIX)
-        os.close(fd)
-        os.unlink(probe)
+        probe_write(folder)
     except OSError as exc:
         raise _cannot_write(folder, exc, what, flag) from None
     return folder
+
+
+def probe_write(folder: Path) -> None:
+    """Make ``folder`` (and its parents) if missing, then create and remove a hidden file in
+    it: OSError (the system's) where it cannot be written."""
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, probe = tempfile.mkstemp(dir=folder, prefix=f"{TEMP_PREFIX}probe.{os.getpid()}.",
+                                 suffix=TEMP_SUFFIX)
+    os.close(fd)
+    os.unlink(probe)
 
 
 def writable(folder: str | os.PathLike) -> bool:

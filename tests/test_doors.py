@@ -495,3 +495,98 @@ def test_simulate_with_too_many_links_is_bad_input_not_a_failed_run(capsys):
     assert main(["simulate", "RE-U125-L1", "--t-end", "0.01", "--links", "100000000"]) == 2
     err = capsys.readouterr().err
     assert "--links = 100000000: must be at most 2,000,000 links" in err and "run failed" not in err
+
+
+def _small_tree():
+    """A tree of R z, P x and U joints (battery 5's): q[1] is a prismatic length in metres."""
+    from redysim import Body, Model, TreeJoint
+
+    inertia = ((0.02, 0.001, 0.0), (0.001, 0.03, 0.002), (0.0, 0.002, 0.025))
+    bodies = [Body("a", 1.0, (0.1, 0.02, 0.0), inertia), Body("b", 0.7, (0.2, 0.0, 0.01), inertia),
+              Body("c", 0.5, (0.05, 0.03, 0.02), inertia)]
+    joints = [TreeJoint("j1", "R", "z"), TreeJoint("j2", "P", "x", translation=(0.3, 0, 0)),
+              TreeJoint("j3", "U", translation=(0.4, 0.0, 0.1))]
+    return Model.build(bodies, joints, [-1, 0, 1], name="small")
+
+
+@pytest.mark.parametrize("q", [[0.1, 1e160, 0.2, 0.3], [1e300] * 4])
+def test_mass_matrix_and_factors_of_an_overflowing_state_are_refused(q):
+    """Battery 5 (F1): a prismatic joint at 1e160 m gave M[0, 0] = NaN and D[0, 0] = NaN
+    silently, where energy and the dynamics refused the same finite q as an overflow."""
+    m = _small_tree()
+    with pytest.raises(StateError, match="^qdd is"):
+        redysim.forward_dynamics(m, q, np.zeros(m.n_v))  # the other doors refuse it
+    with pytest.raises(StateError, match="mass matrix is not finite .*overflow"):
+        redysim.mass_matrix(m, q)
+    with pytest.raises(StateError, match="not finite .*overflow"):
+        redysim.udu_factors(m, q)
+    assert np.isfinite(redysim.mass_matrix(m, [0.1, 1e3, 0.2, 0.3])).all()  # large but fine
+
+
+def _coupled_rr():
+    """Battery 5's coupled model (j4 follows j1) and a batch of 20 states on its coupling."""
+    from redysim import Body, Coupling, Model, TreeJoint
+
+    inertia = ((0.02, 0.001, 0.0), (0.001, 0.03, 0.002), (0.0, 0.002, 0.025))
+    bodies = [Body(f"b{i}", 0.5 + 0.2 * i, (0.1, 0.02 * i, 0.01), inertia) for i in range(4)]
+    joints = [TreeJoint("j1", "R", "z"), TreeJoint("j2", "R", "y", translation=(0.3, 0, 0)),
+              TreeJoint("j3", "P", "x", translation=(0.3, 0.0, 0.1)),
+              TreeJoint("j4", "R", (0.0, 0.6, 0.8), translation=(0.2, 0.1, 0))]
+    m = Model.build(bodies, joints, [-1, 0, 1, 2], name="rr").with_couplings(
+        [Coupling("j4", "j1", 0.5, 0.1)])
+    rng = np.random.default_rng(55)
+    rows = [m.couple(rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 4)) for _ in range(20)]
+    return m, np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+
+
+def test_a_coupled_batch_refuses_a_wrong_out_as_an_uncoupled_one_does():
+    """Battery 5 (F14): out of 19 rows or flat gave numpy's broadcast error for a coupled model;
+    the uncoupled model's refusal by name, the same for both."""
+    m, Q, V = _coupled_rr()
+    for out in (np.empty((19, 4)), np.empty(80), np.empty((20, 4), dtype=np.float32),
+                np.empty((4, 20)).T, [[0.0] * 4] * 20):
+        for model in (m, m.tree):
+            with pytest.raises(StateError, match=r"^out \(.*must be a writeable, C-contiguous "
+                                                 r"float64 array of shape \(20, 4\)"):
+                redysim.forward_dynamics(model, Q, V, out=out)
+        with pytest.raises(StateError, match=r"shape \(20, 4\)"):  # the checked path too
+            redysim.forward_dynamics(m, Q.tolist(), V, out=out)
+    out = np.empty((20, 4))
+    assert redysim.forward_dynamics(m, Q, V, out=out) is out
+    assert np.array_equal(out[3], redysim.forward_dynamics(m, Q[3], V[3]))
+
+
+@pytest.mark.parametrize("simd", [True, False])
+def test_a_float32_batch_of_a_coupled_model_is_held_to_float32s_roundoff(simd):
+    """Battery 5 (F13): the single float32 call was accepted, its batch refused over 2e-9 of
+    float32 roundoff; a batch's row is now the single call's, bit for bit."""
+    m, Q, V = _coupled_rr()
+    Q32, V32 = Q.astype(np.float32), V.astype(np.float32)
+    got = redysim.forward_dynamics(m, Q32, V32, simd=simd)
+    for i in (0, 7, 19):
+        assert np.array_equal(got[i], redysim.forward_dynamics(m, Q32[i], V32[i]))
+    assert np.allclose(got, redysim.forward_dynamics(m, Q, V), rtol=1e-4, atol=1e-4)
+    with pytest.raises(StateError, match="^state 0 of the batch.*joint 'j4', follows joint 'j1'"):
+        redysim.forward_dynamics(m, Q32 + np.float32([0, 0, 0, 1e-3]), V32)  # off by more
+    with pytest.raises(StateError, match="^state 0 of the batch.*joint 'j4'"):
+        redysim.forward_dynamics(m, Q32.astype(float), V32.astype(float))  # float64's own tol
+
+
+def test_battery5_arguments_are_refused_by_name(tmp_path):
+    """Battery 5 (F3, F4): System's body_forces, load_model's path and a robot's name given to
+    load_linkage reached the user as TypeError or FileNotFoundError from deep inside."""
+    from redysim import System
+    from redysim.errors import SettingsError
+
+    m = _small_tree()
+    for bad in (5, "a", {"a": 1}):
+        with pytest.raises(SettingsError, match=r"body_forces = .*must be a list of \(body name"):
+            System(m, body_forces=bad)
+    system = System(m, body_forces=[("b", (0.0, 0.0, 1.0), (0.0, 0.0, 0.0))])  # (still taken)
+    assert system.body.tolist() == [1]
+    for bad in (5, None, 1.5, True):
+        with pytest.raises(CaseError, match=r"^load_model: path( = .*)?: must be the path"):
+            redysim.load_model(bad)
+    with pytest.raises(CaseError, match="load_linkage: path = 'example-robot-data:ur5': is a "
+                                        "robot's name.*redysim.load_model"):
+        redysim.load_linkage("example-robot-data:ur5")

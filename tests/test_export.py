@@ -620,3 +620,71 @@ def test_every_urdf_mujoco_refuses_is_a_model_to_mjcf_refuses_by_name():
             pm = pinocchio.buildModelFromXML(text)
             assert pm.nv == model.n_v
     assert "puma560" in refused
+
+
+def test_a_non_model_is_refused_by_both_exporters_as_a_model_type_error():
+    """Battery 5 (F2): a Case, a str, None, a dict, the Model class or a Linkage gave a plain
+    TypeError; the guide promises ModelTypeError (a TypeError) naming the call, with the way
+    out for a Case and a Linkage."""
+    from redysim.errors import ModelTypeError
+
+    case = redysim.load_case("STUDY-R3")
+    linkage = redysim.load_linkage(Path(__file__).resolve().parents[1] / "cases" / "loops"
+                                     / "crank_rocker.toml")
+    for export in (to_urdf, to_mjcf):
+        name = export.__name__
+        for thing in (case, "rope", None, {"a": 1}, Model, linkage):
+            with pytest.raises(ModelTypeError, match=rf"^{name}: model = .*must be a "
+                                                     r"redysim.Model"):
+                export(thing)
+        with pytest.raises(TypeError, match=r"a Case: give its \.chain"):
+            export(case)
+        with pytest.raises(TypeError, match=r"a Linkage: give its \.model"):
+            export(linkage)
+
+
+@pytest.mark.parametrize(("make", "refused"), [s[1:] for s in SHIPPED], ids=[s[0] for s in SHIPPED])
+def test_a_urdf_says_what_mujoco_refuses_as_to_mjcf_does(make, refused):
+    """Battery 5 (F6): the PUMA 560's URDF (a massless waist with rotational inertia) was
+    written without a word, and MuJoCo refused the file; to_mjcf refuses it by name. The URDF
+    keeps the model's dynamics (urdfdom and redysim read it) and says, in a comment, each body
+    MuJoCo's compiler refuses with to_mjcf's reason: the same bodies, one check."""
+    model = make()
+    comments = re.findall(r"<!--(.*?)-->", to_urdf(model), re.S)
+    said = [c for c in comments if "MuJoCo's compiler refuses this file" in c]
+    if refused is None:
+        assert not said
+        return
+    field, message = refused
+    assert len(said) == 1 and field in said[0] and re.search(message, said[0])
+
+
+@pytest.mark.engine
+def test_the_puma_urdf_is_read_by_pinocchio_and_refused_by_mujoco_as_it_says(tmp_path):
+    """The PUMA 560's URDF: Pinocchio (urdfdom) reads the model's GIM; MuJoCo's URDF reader
+    refuses the body the file's comment names, and a model to_mjcf takes is read by MuJoCo's
+    URDF reader with the model's GIM."""
+    pinocchio = pytest.importorskip("pinocchio")
+    model = redysim.load_model(CASES / "robots" / "puma560.toml")
+    text = to_urdf(model)
+    assert "body 'waist'.mass = 0.0" in text
+    rng = np.random.default_rng(stable_seed("puma-urdf"))
+    q = rng.uniform(-1, 1, model.n_q)
+    pm = pinocchio.buildModelFromXML(text)
+    qp = np.concatenate([[np.cos(x), np.sin(x)] if jm.nq == 2 else [x]
+                         for jm, x in zip(list(pm.joints)[1:], q, strict=True)])
+    Mp = pinocchio.crba(pm, pm.createData(), qp)
+    assert rel(np.triu(Mp) + np.triu(Mp, 1).T, mass_matrix(model, q)) < TOL
+    with pytest.raises(ValueError, match="waist"):
+        mujoco.MjModel.from_xml_string(text)
+    stanford = redysim.load_model(CASES / "robots" / "stanford_arm.toml")
+    text = to_urdf(stanford)
+    assert "MuJoCo's compiler refuses" not in text
+    m = mujoco.MjModel.from_xml_string(text)
+    d = mujoco.MjData(m)
+    q = rng.uniform(-1, 1, stanford.n_q)
+    d.qpos[:] = q
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    assert rel(M, mass_matrix(stanford, q)) < _mujoco_tol(M)

@@ -368,3 +368,67 @@ def test_advise_onto_a_file_refuses_before_saying_it_caches_there(tmp_path, caps
     assert main(["advise", "RE-U125-L1", "--tip-tol", "1e-3", "--out", str(a_file)]) == 2
     res = capsys.readouterr()
     assert "runs cached" not in res.out + res.err and str(a_file) in res.err
+
+
+def _snapshot(folder: Path) -> dict:
+    """Every file and folder under ``folder`` (hidden ones too): its size and mtime."""
+    return {str(p.relative_to(folder)): (p.is_dir(), p.stat().st_size if p.is_file() else 0,
+                                         p.stat().st_mtime_ns)
+            for p in sorted(folder.rglob("*"))}
+
+
+@pytest.mark.engine
+def test_a_finished_compare_is_read_as_it_is_even_where_it_cannot_write(tmp_path, monkeypatch):
+    """Battery 5 (F7): compare run again on a finished folder rewrote compare.html, compare.pdf
+    and .claims, and refused a finished folder it could not write. Now it says the record and
+    writes nothing, as sweep and longrun do; a damaged page is built again."""
+    pytest.importorskip("mujoco")
+    import redysim.harness.store as store
+    from redysim.reports.compare import compare
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+    out = tmp_path / "cmp"
+    kw = dict(t_end=0.01, engines=["mujoco"], progress=False, workers=1)
+    compare("STUDY-R3", out, log=lambda s: None, **kw)
+    before = _snapshot(out)
+    said: list[str] = []
+
+    def refuse(folder, **_):  # a folder that cannot be written (chattr +i, a read-only mount)
+        raise FolderError(f"{str(folder)!r}: the results folder cannot be written")
+
+    monkeypatch.setattr(store, "check_writable", refuse)
+    assert compare("STUDY-R3", out, log=said.append, **kw) == (out / "compare.html",
+                                                                out / "compare.pdf")
+    assert _snapshot(out) == before
+    assert len(said) == 1 and "finished in" in said[0] and "nothing rewritten" in said[0]
+    (out / "compare.html").write_text("damaged")  # not the page recorded: refused read-only,
+    with pytest.raises(FolderError, match="cannot be written"):
+        compare("STUDY-R3", out, log=said.append, **kw)
+    monkeypatch.undo()
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+    compare("STUDY-R3", out, log=said.append, **kw)  # and built again where it can write
+    assert "Single-state agreement" in (out / "compare.html").read_text()
+
+
+def test_compare_refuses_a_reference_cache_it_cannot_write_before_any_work(tmp_path,
+                                                                           monkeypatch):
+    """Battery 5 (F8): a read-only $REDYSIM_RESULTS was refused after the reference was
+    computed, and the message said to give another --out, which does not move the cache. Now
+    refused before any engine is asked, naming REDYSIM_RESULTS."""
+    import redysim.harness.reference as reference
+    from redysim.reports.compare import compare
+
+    monkeypatch.setenv("REDYSIM_RESULTS", str(tmp_path / "results"))
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(reference, "probe_write", read_only)  # (chattr +i: root writes else)
+    said: list[str] = []
+    with pytest.raises(FolderError) as info:
+        compare("STUDY-R3", tmp_path / "cmp", t_end=0.01, engines=["mujoco"], progress=False,
+                log=said.append)
+    msg = str(info.value)
+    assert str(tmp_path / "results" / "reference") in msg and "Permission denied" in msg
+    assert "set REDYSIM_RESULTS to a folder you can write" in msg and "(--out)" not in msg
+    assert not said  # before the engines' agreement, the first work

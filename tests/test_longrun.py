@@ -250,3 +250,44 @@ def test_a_long_runs_missing_checkpoints_are_refused_by_name(tmp_path):
     with pytest.raises(LongrunError, match=r"manifest.json lists the checkpoints of this run.*"
                                            r"delete manifest.json"):
         run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)
+
+
+def _forge(out: Path, edit) -> None:
+    """Edit the checkpoint's fields and record its new SHA-256 in the manifest, as a damage
+    the digest cannot see (the damage written by the run's own code, or a forger)."""
+    import hashlib
+    import json
+
+    with np.load(out / CHECKPOINT) as z:
+        ck = {k: z[k] for k in z.files}
+    edit(ck)
+    with open(out / CHECKPOINT, "wb") as fh:
+        np.savez(fh, **ck)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["files"][CHECKPOINT] = hashlib.sha256((out / CHECKPOINT).read_bytes()).hexdigest()
+    manifest["status"] = str(ck["status"])
+    (out / "manifest.json").write_text(json.dumps(manifest))
+
+
+@pytest.mark.parametrize("edit, fragment", [
+    (lambda ck: ck.update(samples=np.zeros((2, 4)), status=np.array("in progress")),
+     r"samples has shape \(2, 4\).*rows of 6 numbers"),
+    (lambda ck: ck.update(status=np.array("xyz")), "status = 'xyz': not a long run's status"),
+    (lambda ck: ck.update(case=np.array("STUDY-R5")), "case = 'STUDY-R5': this run is case "
+                                                      "'STUDY-R3'"),
+    (lambda ck: ck.update(steps=np.array(-5)), r"steps = -5: must be a count"),
+    (lambda ck: ck.update(h=np.array(-1e-3)), r"h = -0.001: the next step must be"),
+    (lambda ck: ck.update(samples=ck["samples"][::-1].copy()), "samples' times do not increase"),
+], ids=["samples-4-columns", "status", "case-name", "steps", "h", "samples-order"])
+def test_a_checkpoints_damaged_fields_are_refused_on_load(tmp_path, edit, fragment):
+    """Battery 5 (F12): a checkpoint whose samples had 4 columns (its digest recomputed)
+    resumed, ran to the end and failed writing the record, losing the work; a status 'xyz', the
+    name of another case and steps = -5 were taken without a word. Each field is checked on
+    load, as the run's own spec, and refused by name before any step."""
+    out = tmp_path / "out"
+    run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)
+    _forge(out, edit)
+    said: list[str] = []
+    with pytest.raises(LongrunError, match=fragment):
+        run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=said.append)
+    assert not any("resuming" in m or "finished already" in m for m in said)

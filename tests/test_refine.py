@@ -418,10 +418,21 @@ def test_advise_on_a_case_file_and_what_it_refuses(tmp_path, small_fall, capsys)
     text = capsys.readouterr().out
     assert "advice for a tip path within 0.01 m" in text and "run it: redysim simulate" in text
     assert "checked: run again" in text and "model error" in text
+    # battery 5 (F9): a straight rope of a prime count was refused ("no coarser model") though
+    # --help promises the rope rebuilt at other counts: its coarser models are rebuilt ropes
     prime = tmp_path / "prime.toml"
     prime.write_text(SMALL_FALL.replace("links = 8", "links = 7"))
-    assert main(["advise", str(prime), "--tip-tol", "0.01"]) == 2
-    assert "no coarser model" in capsys.readouterr().err
+    assert main(["advise", str(prime), "--tip-tol", "0.01", "--out", str(tmp_path / "p"),
+                 "--workers", "1", "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "the coarser models are the rope rebuilt at 3 links" in text
+    assert "advice for a tip path within 0.01 m" in text
+    bent = tmp_path / "bent.toml"  # a rope that starts bent: no rebuilt rope is the same rope
+    bent.write_text(SMALL_FALL.replace("links = 8", "links = 7").replace(
+        "q = 0.0", "q = [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0]"))
+    assert main(["advise", str(bent), "--tip-tol", "0.01"]) == 2
+    err = capsys.readouterr().err
+    assert "no coarser model" in err and "cannot be rebuilt at another count" in err
     robot = tmp_path / "arm.urdf"
     robot.write_text("<robot name='a'><link name='b'/></robot>")
     assert main(["advise", str(robot), "--tip-tol", "0.01"]) == 2  # a robot: its reductions,
@@ -545,3 +556,46 @@ def test_the_search_runs_when_no_divisor_meets_the_tolerance(tmp_path):
     own = redysim.load_case(case)
     got = tips(coarse_case(own, a.links)[0], a.integrator, a.rtol)
     assert np.linalg.norm(got - tips(own, "dop853", 1e-10), axis=1).max() <= budget
+
+
+@pytest.mark.parametrize("times", [1, 2])
+def test_an_advise_study_survives_its_runs_being_set_aside(tmp_path, monkeypatch, times):
+    """Battery 5 (F10): the code changing while `advise` ran made each fresh run's row
+    another run id's: the sweep set the files aside as damaged, and the study then raised
+    KeyError 'run_id'. Here the first ``times`` sweeps' answers lose every fresh row as that
+    did (their files moved to damaged/): once, the runs are redone and the study advises as
+    on a quiet tree; twice, it is refused by name."""
+    import sys
+
+    sweep = sys.modules[refine.__package__ + ".sweep"]
+    real = sweep.run_sweep
+    calls = [0]
+
+    def setting_aside(specs, out, **kw):
+        runs = real(specs, out, **kw)
+        calls[0] += 1
+        if calls[0] > times:
+            return runs
+        (out / "damaged").mkdir(exist_ok=True)
+        for s in specs:
+            for sub, ext in (("runs", ".parquet"), ("samples", ".parquet"), ("manifest", ".json")):
+                f = out / sub / f"{s.run_id}{ext}"
+                if f.exists():
+                    f.replace(out / "damaged" / f"{sub}-{f.name}")
+        return runs.iloc[0:0][[]]  # no row kept: not even the run_id column
+
+    monkeypatch.setattr(sweep, "run_sweep", setting_aside)
+    case = tmp_path / "r8.toml"
+    case.write_text(SMALL_FALL)
+    study = dict(workers=1, progress=False, log=lambda *_: None, check=False)
+    if times == 2:
+        with pytest.raises(SweepError, match=r"runs = .*have no result there after being done "
+                                             r"twice.*run the same command again"):
+            refine.own_study(case, 0.01, tmp_path / "study", **study)
+        return
+    st = refine.own_study(case, 0.01, tmp_path / "study", **study)
+    assert st.advice is not None and calls[0] >= 2
+    monkeypatch.undo()  # the same advice as a study whose runs were never set aside
+    quiet = refine.own_study(case, 0.01, tmp_path / "quiet", **study)
+    assert (st.advice.links, st.advice.integrator, st.advice.rtol) == \
+        (quiet.advice.links, quiet.advice.integrator, quiet.advice.rtol)

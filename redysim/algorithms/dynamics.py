@@ -215,7 +215,8 @@ def check_coupled(model: Model, name: str, x: np.ndarray, tol: float = COUPLING_
 
 
 def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
-                     ws: Workspace | None = None) -> np.ndarray:
+                     ws: Workspace | None = None,
+                     tols: tuple[float, float] | None = None) -> np.ndarray:
     """qdd of a coupled model (:meth:`Model.with_couplings`), its state checked: with RGE-A on a
     spatial tree, in RGE-A's recursion on the workspace (``ws``, or the thread's:
     :func:`redysim.algorithms._kernels.couplings.coupled_qdd`); else by Featherstone's method on
@@ -223,7 +224,7 @@ def _coupled_forward(model: Model, q, v, tau, method: str, planar, out,
     velocity (one call per coupling; J's rows e_f - m e_l), then (J X) lam = -J qdd0 and qdd =
     qdd0 + X lam, which holds every follower's qdd at m times its leader's (J qdd = 0: the
     couplings are linear, so Jdot v = 0)."""
-    tol_q, tol_v = given_tolerance(q), given_tolerance(v)
+    tol_q, tol_v = tols or (given_tolerance(q), given_tolerance(v))  # (a batch's: as given)
     q = check_state(model, "q", q)
     v = check_state(model, "v", v)
     tau = check_state(model, "tau", tau, optional=True)
@@ -440,12 +441,15 @@ def forward_dynamics(model: Model, q, v, tau=None, method: str = "rge-a", *,
                 if T.shape == (model.n_v,):
                     T = np.broadcast_to(T, (Q.shape[0], model.n_v))
                 T = check_batch(model, "tau", T, Q.shape[0])
-            res = np.array([_coupled_forward(model, Q[i], V[i], None if T is None else T[i],
-                                             method, planar, None, ws)
-                            for i in range(Q.shape[0])])
-            if out is not None:
-                out[...] = res
-                return out
+            res = check_batch_out(model, out, Q.shape[0])
+            tols = (given_tolerance(q), given_tolerance(v))
+            for i in range(Q.shape[0]):
+                try:
+                    res[i] = _coupled_forward(model, Q[i], V[i], None if T is None else T[i],
+                                              method, planar, None, ws, tols=tols)
+                except StateError as exc:
+                    raise StateError(f"state {i} of the batch (row {i} of q and v): {exc}") \
+                        from None
             return res
         return _coupled_forward(model, q, v, tau, method, planar, out, ws)
     is_planar = model.is_planar
@@ -632,6 +636,21 @@ def _forward_tiled(ws, Q, V, TAU, out, threads) -> int:
     return min(failed) if failed else -1
 
 
+def check_batch_out(model: Model, out, rows: int) -> np.ndarray:
+    """A batch's ``out``: a new (rows, n_v) array, or ``out`` as given if compiled code can
+    write the batch into it (never converted: a copy would not reach the caller), else
+    StateError saying what it must be (coupled or not, one refusal)."""
+    if out is None:
+        return np.empty((rows, model.n_v))
+    if not (type(out) is ndarray and out.shape == (rows, model.n_v) and out.dtype is FLOAT64
+            and out.flags.c_contiguous and out.flags.aligned and out.flags.writeable):
+        what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
+                else f"a {type(out).__name__}")
+        raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
+                         f"shape ({rows}, {model.n_v}): one row of qdd per row of q")
+    return out
+
+
 def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True,
                    use_dh=False) -> np.ndarray:
     Q = check_batch(model, "q", q, None)
@@ -643,14 +662,7 @@ def _forward_batch(model, ws, planar, q, v, tau, out, threads, simd=True,
         TAU = check_state(model, "tau", tau, finite=False).reshape(1, -1)
     else:
         TAU = check_batch(model, "tau", tau, B)
-    if out is None:
-        out = np.empty((B, model.n_v))
-    elif not (type(out) is ndarray and out.shape == (B, model.n_v) and out.dtype is FLOAT64
-              and out.flags.c_contiguous and out.flags.aligned and out.flags.writeable):
-        what = (f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray)
-                else f"a {type(out).__name__}")
-        raise StateError(f"out ({what}) must be a writeable, C-contiguous float64 array of "
-                         f"shape ({B}, {model.n_v})")
+    out = check_batch_out(model, out, B)
     if not isinstance(simd, bool | np.bool_):
         raise FieldError("forward_dynamics", "simd", simd, "must be True or False")
     if simd and not planar and ws.tiles_ok and B >= TILE_MIN_ROWS \
@@ -684,13 +696,18 @@ def _coupled_batch(model, ws, q, v, tau, out, threads) -> np.ndarray:
         T = np.asarray(tau, dtype=float)
         TAU = (check_state(model, "tau", T).reshape(1, -1) if T.shape == (model.n_v,)
                else check_batch(model, "tau", T, B))
-    if out is None:
-        out = np.empty((B, model.n_v))
-    elif not (type(out) is ndarray and out.shape == (B, model.n_v) and out.dtype is FLOAT64
-              and out.flags.c_contiguous and out.flags.writeable):
-        res = _coupled_batch(model, ws, Q, V, TAU if TAU.shape[0] == B else TAU[0], None,
-                             threads)
-        out[...] = res
+    out = check_batch_out(model, out, B)
+    tol_q, tol_v = given_tolerance(q), given_tolerance(v)
+    if max(tol_q, tol_v) > COUPLING_TOL:  # a narrower float: each row held to its own
+        # roundoff, as the single call holds it (the compiled rows check at float64's)
+        for i in range(B):
+            t = TAU[0] if TAU.shape[0] == 1 else TAU[i]
+            try:
+                out[i] = _coupled_forward(model, Q[i], V[i], t, "rge-a", None, None, ws,
+                                          tols=(tol_q, tol_v))
+            except StateError as exc:
+                raise StateError(f"state {i} of the batch (row {i} of q and v): {exc}") \
+                    from None
         return out
     bad = _run_rows(Q, model.n_v, threads, ws, _couplings.coupled_rows, out, V, TAU)
     if bad >= 0:  # the single call of that row says why
@@ -772,6 +789,8 @@ def mass_matrix(model: Model, q, *, ws: Workspace | None = None) -> np.ndarray:
     _run_kinematics(c, ws, q, ws.zeros, ws.zeros, ws.no_accel)
     out = np.empty((c.n_v, c.n_v))
     gim_composite(ws.tree, ws.s, out)
+    if not np.isfinite(out).all():  # finite q whose composite inertias overflow (|q| ~ 1e160)
+        raise overflow_error("the mass matrix", q=q)
     return out
 
 
@@ -794,6 +813,14 @@ def udu_factors(model: Model, q, *, ws: Workspace | None = None) -> UDU:
     U = np.zeros((c.n_v, c.n_v))
     D = np.zeros((c.n_v, c.n_v))
     udu_assemble(ws.tree, ws.s, U, D)
+    if not (np.isfinite(U).all() and np.isfinite(D).all()):  # as forward_dynamics: say why
+        j = first_bad_pivot(np.diag(D), from_base=False, positive=True)
+        if j is not None and np.isfinite(D[j, j]):
+            raise StateError(f"the factors are undefined: the generalized inertia matrix is "
+                             f"singular at DOF {j} (its pivot D[{j}, {j}] is "
+                             f"{float(D[j, j])!r}: a link with no mass or inertia that the axis "
+                             "can move)")
+        raise overflow_error("the factors U and D", q=q)
     return UDU(U, D)
 
 

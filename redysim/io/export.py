@@ -68,7 +68,8 @@ reader unless it has a U or S joint, whose massless links between axes MuJoCo's 
 (export to MJCF for MuJoCo: :func:`to_mjcf` merges them), or a body MuJoCo's compiler refuses in
 any format: the ones :func:`to_mjcf` refuses by name (a moving body's mass or principal moment
 below ``mjMINVAL``, moments breaking A + B >= C; the PUMA 560 of the talk, whose waist has no
-mass, is one). URDF holds them, and urdfdom and redysim read them (``tests/test_export.py``).
+mass, is one). URDF holds them, and urdfdom and redysim read them (``tests/test_export.py``);
+the file then says so in an XML comment, with to_mjcf's reason for each such body.
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
 is written without recursion, so a model of any depth is written (or refused) at once.
@@ -85,6 +86,7 @@ import numpy as np
 
 from redysim.errors import FieldError
 from redysim.io.importers import URDF_GRAVITY
+from redysim.model import door
 from redysim.model.parts import KIND_CODES
 from redysim.model.tree import BALL, BALL_JOINT, FREE, Model, joint_transform
 
@@ -127,9 +129,7 @@ def _plain(v):
 
 
 def _as_model(model: Model, source: str = "export") -> Model:
-    if not isinstance(model, Model):
-        raise TypeError(f"export takes a redysim.Model (a Chain is one), not "
-                        f"{type(model).__name__}")
+    door.require_model(model, source)  # ModelTypeError (a TypeError) naming what was given
     if model.cuts:
         raise ExportError(source, "cuts", [c.name for c in model.cuts],
                           "a closed mechanism: the exporters write trees, and would drop its "
@@ -236,6 +236,21 @@ def _quaternion(R: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- MJCF
+def _mujoco_refuses(source: str, model: Model) -> list[str]:
+    """What MuJoCo's compiler refuses of the model's bodies, whatever the format, as
+    :func:`to_mjcf` refuses it (:func:`_mjcf_inertial`), one ``field = value: problem`` each;
+    a massless body (no mass, no inertia) is left out (to_mjcf merges it into its child)."""
+    said = []
+    for k in range(model.n_bodies):
+        if model.mass[k] == 0 and not np.any(model.inertia_com[k]):
+            continue
+        try:
+            _mjcf_inertial(source, model, k)
+        except ExportError as exc:  # (an XML comment may not hold "--")
+            said.append(f"{exc.field} = {_plain(exc.value)}: {exc.problem}".replace("--", "- -"))
+    return said
+
+
 def _mjcf_inertial(source: str, model: Model, k: int) -> dict[str, str]:
     """The ``<inertial>`` attributes of body k, or ExportError when MuJoCo's compiler would
     refuse them: mass or a principal moment below mjMINVAL, or the triangle inequality broken
@@ -372,7 +387,7 @@ def to_mjcf(model: Model) -> str:
     """The MJCF text of a chain or model (module docstring).
 
     Raises ExportError naming the body or joint that MJCF (MuJoCo's compiler or XML reader)
-    cannot hold, TypeError for anything but a Model.
+    cannot hold, ModelTypeError (a TypeError) for anything but a Model.
     """
     source = "to_mjcf"
     model = _as_model(model, source)
@@ -534,8 +549,8 @@ def _urdf_turn(source: str, model: Model) -> np.ndarray | None:
 def to_urdf(model: Model) -> str:
     """The URDF text of a chain or model (module docstring).
 
-    Raises ExportError naming what URDF (or its readers) cannot hold, TypeError for anything
-    but a Model.
+    Raises ExportError naming what URDF (or its readers) cannot hold, ModelTypeError (a
+    TypeError) for anything but a Model.
     """
     source = "to_urdf"
     model = _as_model(model, source)
@@ -607,6 +622,12 @@ def to_urdf(model: Model) -> str:
             f"each is written wide (lower {_num(-URDF_WIDE_LIMIT)}, upper "
             f"{_num(URDF_WIDE_LIMIT)} m, effort {_num(URDF_WIDE_LIMIT)} N, velocity "
             f"{_num(URDF_WIDE_LIMIT)} m/s), never reached: the motion is the model's."))
+    mujoco_refuses = _mujoco_refuses(source, model)
+    if mujoco_refuses:
+        root.append(ET.Comment(
+            "MuJoCo's compiler refuses this file, in any format (to_mjcf refuses the same by "
+            "name): " + "; ".join(mujoco_refuses) + ". URDF holds it: urdfdom (Pinocchio, ROS) "
+            "and redysim read it with the model's dynamics."))
     if not free:
         ET.SubElement(root, "link", name=URDF_ROOT)
 

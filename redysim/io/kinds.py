@@ -348,6 +348,9 @@ def load_model(path: str | os.PathLike, *, floating: bool = False, mimic: str = 
     refused, naming its own loader. ``armature``: the joints' own inertia, replacing the file's
     (a URDF has no tag for it; :meth:`Model.with_armature`'s values: a number, n_v numbers, or
     joint name -> value). Raises FileNotFoundError, ModelFileError or CaseError."""
+    if isinstance(path, bool) or not isinstance(path, str | os.PathLike):
+        raise CaseError("load_model", "path", path, "must be the path of a model file (a str "
+                        "or a pathlib.Path), or 'example-robot-data:<name>'")
     p = Path(resolve(path))  # example-robot-data:<name>: redysim.io.robots
     src = str(p)
     args = _loader_args(src, floating=floating, mimic=mimic, equality=equality, strict=strict)

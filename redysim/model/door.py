@@ -29,6 +29,8 @@ def require_model(model, where: str):
     if getattr(type(model), MODEL_MARK, False):
         return model
     hint = (" (a Case: give its .chain)" if hasattr(model, "chain") else
+            " (a Linkage: give its .model, the open tree)" if hasattr(model, "loops")
+            and hasattr(model, "q0") else
             " (a ClosedLoops: give its .model, or call its own methods)"
             if hasattr(model, "cuts") and hasattr(model, "tree") else "")
     raise ModelTypeError(where, "model", type(model).__name__,
