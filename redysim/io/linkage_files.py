@@ -11,7 +11,8 @@ A linkage file has these tables (``cases/loops/README.md`` describes every field
                 density: a ternary link drawn as its sides), or as a general rigid body (mass,
                 com, inertia); its named points
     [[cut]]     one per cut joint: name, a = "body.point", b = "body.point" or "ground.point",
-                kind ("planar": a pin of a mechanism in the xy plane, or "point")
+                kind ("planar": a pin of a mechanism in the xy plane, "point", or "line" with its
+                direction in body b's frame: one equation, the points level along it)
     [initial]   driver (a joint) and angle, with a guess of the other joints that picks the
                 assembly branch; or q for every joint; or shape = "catenary" for a hanging chain
 
@@ -53,7 +54,7 @@ _FIELDS = {
     "ground": {"points"},
     "body": {"name", "parent", "at", "joint", "axis", "angle", "repeat", "length", "mass",
              "density", "bars", "com", "inertia", "points"},
-    "cut": {"name", "a", "b", "kind"},
+    "cut": {"name", "a", "b", "kind", "direction"},
     "initial": {"driver", "angle", "guess", "q", "shape", "max_change"},
 }
 _ARRAYS = ("body", "cut")  # arrays of tables; the others are single tables
@@ -443,20 +444,50 @@ def _cuts(src, rows, bodies, ground) -> list[CutJoint]:
         name = _string(src, f"{where}.name", row["name"])
         kind = row.get("kind", "planar")
         if kind not in KINDS:
-            _fail(src, f"{where}.kind", kind, f"unknown; known: {', '.join(KINDS)} ('planar': a "
-                  "pin of a mechanism in the xy plane, 2 equations; 'point': a ball joint, 3)")
+            _fail(src, f"{where}.kind", kind, f"unknown; known: {', '.join(KINDS)} "
+                  "('planar': a pin of a mechanism in the xy plane, 2 equations; 'point': a ball "
+                  "joint, 3; 'line': the points kept level along one direction of body b, 1)")
+        rot_b = None
+        if kind == "line":
+            if "direction" not in row:
+                _fail(src, f"{where}.direction", None, "missing field: a 'line' cut keeps its "
+                      "points level along this direction [x, y, z] of body b's frame (the "
+                      "world's for the ground)")
+            rot_b = _line_frame(check_vector(src, f"{where}.direction", row["direction"], 3),
+                                src, f"{where}.direction", row["direction"])
+        elif "direction" in row:
+            _fail(src, f"{where}.direction", row["direction"], f"only a 'line' cut takes a "
+                  f"direction (this one is {kind!r})")
         a, pa = _reference(src, f"{where}.a", row["a"], bodies, ground, index)
         b, pb = _reference(src, f"{where}.b", row["b"], bodies, ground, index)
         if a < 0:
             if b < 0:
                 _fail(src, f"{where}.a", row["a"], "a cut joint joins a body to another body or "
                       "to the ground, not the ground to itself")
+            if kind == "line":  # its direction is b's: swapped, it would turn to the world's
+                _fail(src, f"{where}.a", row["a"], "a 'line' cut's direction is in body b's "
+                      "frame: write the ground's point as b (the direction then the world's)")
             a, pa, b, pb = b, pb, a, pa
         if a == b:
             _fail(src, f"{where}.b", row["b"], f"a cut joint joins two different bodies (here "
                   f"{bodies[a].name} and itself)")
-        cuts.append(CutJoint(name, a, tuple(pa), b, tuple(pb), kind))
+        cuts.append(CutJoint(name, a, tuple(pa), b, tuple(pb), kind, rot_b=rot_b))
     return cuts
+
+
+def _line_frame(d, src, name, value) -> tuple[tuple[float, float, float], ...]:
+    """A frame (rows of a rotation matrix) whose x axis is the unit vector along d: the
+    ``rot_b`` of a 'line' cut (:class:`~redysim.model.tree.CutJoint`), whose one equation is
+    along the frame's x axis."""
+    n = float(np.linalg.norm(d))
+    if not n > 0:
+        _fail(src, name, value, "must not be the zero vector")
+    x = d / n
+    helper = np.eye(3)[int(np.argmin(np.abs(x)))]
+    y = np.cross(x, helper)
+    y /= np.linalg.norm(y)
+    R = np.column_stack((x, y, np.cross(x, y)))
+    return tuple((float(r[0]), float(r[1]), float(r[2])) for r in R)
 
 
 # --------------------------------------------------------------------------- the initial state
@@ -592,6 +623,10 @@ def load_linkage(path: str | os.PathLike) -> Linkage:
     if isinstance(path, bool) or not isinstance(path, str | os.PathLike):
         raise CaseError("load_linkage", "path", path, "must be the path of a linkage file "
                         "(a str or a pathlib.Path)")
+    if isinstance(path, str) and path.startswith("example-robot-data:"):
+        raise CaseError("load_linkage", "path", path, "is a robot's name, given to the linkage "
+                        "loader: load a robot with redysim.load_model(path); load_linkage reads "
+                        "a linkage file (a .toml with [linkage], as in cases/loops/)")
     path = Path(path)
     if path.is_dir():
         raise CaseError(str(path), "<file>", None, "is a folder, not a linkage file")
