@@ -320,6 +320,15 @@ def test_a_parallelogram_bar_keeps_its_one_independent_equation(tmp_path):
     assert [(c.name, c.kind) for c in model.cuts] == [("outer", "plane"), ("middle", "line")]
     assert any("equality 'middle': 4 of its 5 equations repeat its others and those of "
                "'outer'" in n and "'line' cut" in n for n in model.notes), model.notes
+    # the repeated equations are closed by the others, the same motion: `compare` lists them as
+    # read with no effect on the motion, not among what the file has and the run does not
+    # simulate (issue 56: the 2F-85's page listed them there)
+    from redysim.reports.compare import acting_notes
+
+    closing = [n for n in model.notes if n.startswith("equality 'outer'")
+               or n.startswith("equality 'middle'")]
+    assert len(closing) == 4 and all("no effect on the motion" in n for n in closing), closing
+    assert not set(closing) & set(acting_notes(model))
     loops = ClosedLoops(model)
     rng = np.random.default_rng(stable_seed("parallelogram"))
     q = model.initial()

@@ -137,6 +137,9 @@ MJCF_MAX_DEPTH = 499
 PLANE_RANK = 1e-8
 LOOP_GAP = 1e-6  # a closure further open than this at qpos0 (relative to the model's size): noted
 LISTED = 6  # names (and values) a note lists before "and N more"
+# in every note of what was read or closed without changing the motion (what a file has and the
+# run does not simulate is every other note: redysim.reports.compare.acting_notes)
+SAME_MOTION = "no effect on the motion"
 
 
 def _mujoco(path):
@@ -239,7 +242,7 @@ class _Report:
                                  + (f"; also: {also}" if also else ""))
         notes = [d.text() for d in self.dropped]
         if self.unread:
-            notes.append("not read (no effect on the motion): " + ", ".join(
+            notes.append(f"not read ({SAME_MOTION}): " + ", ".join(
                 f"{n} {what}" for what, n in self.unread.items()))
         return tuple(notes)
 
@@ -1402,7 +1405,7 @@ def _hinges_of_pairs(cuts: list[CutJoint], closures: list[_Closure], src: str, s
             gone.update(members[1:])
             notes.append(f"equality {', '.join(map(repr, names[1:]))}: repeats the connect of "
                          f"equality {names[0]!r} (the same points): closed once, by its "
-                         "independent equations")
+                         f"independent equations ({SAME_MOTION})")
             continue
         axis_a = pa[far[0]] - pa[0]
         axis_a /= np.linalg.norm(axis_a)
@@ -1426,7 +1429,8 @@ def _hinges_of_pairs(cuts: list[CutJoint], closures: list[_Closure], src: str, s
         notes.append(f"equality {', '.join(map(repr, names))}: connects of the same two "
                      f"bodies, their points on one line: closed as one 'revolute' cut about "
                      f"that line, named {names[0]!r} (the bodies turn about it; the same motion "
-                     f"as the {3 * len(names)} equations, by its 5 independent equations)")
+                     f"as the {3 * len(names)} equations, by its 5 independent equations; "
+                     f"{SAME_MOTION})")
     return [merged.get(i, c) for i, c in enumerate(cuts) if i not in gone], notes
 
 
@@ -1532,7 +1536,7 @@ def _independent_cuts(model: Model, cuts: list[CutJoint], q0, src: str
             "at the file's configuration and near it, on the loops)"
         if r == 0:
             notes.append(f"{head}: dropped, the loop is closed by {on}, its independent "
-                         "equations")
+                         f"equations ({SAME_MOTION})")
             continue
         if c.kind in ("planar", "plane"):  # directions in the plane's frame on body b
             F = np.eye(3) if c.kind == "planar" else np.asarray(c.rot_b, dtype=float)
@@ -1560,10 +1564,10 @@ def _independent_cuts(model: Model, cuts: list[CutJoint], q0, src: str
         if c.kind == "point" and r == 2 and not whom:
             notes.append(f"equality {c.name!r}: a connect of a mechanism that moves in a "
                          f"plane, closed by its two in-plane equations (a {cut.kind!r} cut: "
-                         "the third repeats them)")
+                         f"the third repeats them; {SAME_MOTION})")
         else:
             notes.append(f"{head}: closed by its independent equations ({r} of {t}: a "
-                         f"{cut.kind!r} cut, the same motion)")
+                         f"{cut.kind!r} cut; {SAME_MOTION})")
     return out, notes
 
 
