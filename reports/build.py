@@ -8,10 +8,13 @@ Writes ``report.html`` (figures embedded as PNG data URIs: it opens from disk, o
 it. Sections:
 
 1. headline: the numbers a reader wants first;
-2. setup and provenance: this machine, versions, settings, where every result came from;
-3. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`redysim.reports.paper_tables`);
-4. the paper's figures, from our runs (:mod:`redysim.reports.figures`);
-5. beyond the paper: conditioning, CPU scaling, operation counts, work-precision, engine limits,
+2. the trade: per system family and accuracy, the cheapest engine and setting that reaches it,
+   the core's lead over the best engine, the engines that do not reach it
+   (:mod:`redysim.reports.trade`);
+3. setup and provenance: this machine, versions, settings, where every result came from;
+4. paper vs ours: Tables 1-11 and A.2, a verdict per row (:mod:`redysim.reports.paper_tables`);
+5. the paper's figures, from our runs (:mod:`redysim.reports.figures`);
+6. beyond the paper: conditioning, CPU scaling, operation counts, work-precision, engine limits,
    the precision study in IEEE formats, the true error against a 50-digit reference, benchmarks
    and their history across commits (:mod:`redysim.reports.history`: the checkout's
    ``benchmarks/history/bench.jsonl``, ``--history``).
@@ -40,13 +43,14 @@ from . import figures as F
 from . import history as H
 from .content import DIFFER, INFO, MATCH, NOT_RUN, PARTIAL, Headline, Report, Row, Section, Table
 from .implicit import implicit_section
-from .paper_tables import Ctx, paper_tables, printed_match
+from .paper_tables import Ctx, nonfinite_sign_differs, paper_tables, printed_match
 from .precision_tables import sig_decimals
 from .proteins import proteins_section
 from .refine import refine_section
 from .results import Results, finite
 from .scaling import slopes
-from .text import integer, num, provenance_line, sci, seconds
+from .text import clip, integer, num, provenance_line, sci, seconds
+from .trade import headline_trade, trade_section
 
 DEFAULT_RESULTS = Path("results")
 DEFAULT_OUT = Path("reports") / "out"
@@ -54,11 +58,12 @@ HTML_FILE = "report.html"
 PDF_FILE = "report.pdf"
 TEMPLATES = Path(__file__).with_name("templates")
 TEMPLATE = "report.html.j2"
-TITLE = "redysim: paper vs ours"
+TITLE = "redysim: speed against accuracy, and the paper reproduced"
 REFERENCE_ENGINES = ("Pinocchio", "MuJoCo", "Exudyn", "DART", "Drake")  # (test_report checks)
-SUBTITLE = ("Agarwal, Shah, Bandyopadhyay, Saha: Dynamics of serial kinematic chains with large "
-            "number of degrees-of-freedom, reproduced with redysim and five reference engines "
-            f"({', '.join(REFERENCE_ENGINES)})")
+SUBTITLE = ("Which engine and setting reaches which accuracy at what cost, measured in redysim "
+            f"and five reference engines ({', '.join(REFERENCE_ENGINES)}); then Agarwal, Shah, "
+            "Bandyopadhyay, Saha: Dynamics of serial kinematic chains with large number of "
+            "degrees-of-freedom, reproduced")
 SPIN_RATE = 1.0  # rad/s: w_Y0 of every RE-U case (published.toml [conventions])
 ENERGY_TABLES = ("table2", "table3", "table4", "table5", "table6")
 HEADLINE_CASE = "RE-U125-L1"
@@ -75,8 +80,9 @@ def _step_detail(detail: str) -> str:
     detail = str(detail)
     if len(detail) <= STEP_DETAIL_CHARS:
         return detail
-    return (detail[:STEP_DETAIL_CHARS] + f" ... ({len(detail) - STEP_DETAIL_CHARS:,} more "
-            "characters: the step's whole detail is in results/reproduce-*.json)")
+    head = clip(detail, STEP_DETAIL_CHARS)[:-len(" ...")]  # cut at a word's end
+    return (head + f" ... ({len(detail) - len(head):,} more characters: the step's whole "
+            "detail is in results/reproduce-*.json)")
 
 
 def closed_form_e0(case: str) -> float | None:
@@ -135,8 +141,14 @@ def headline_precision(res: Results, tables: dict[str, Table]) -> Headline:
     value = parts[0]  # Table 9's count, unless Table 10's values are on disk
     if doc is not None:
         c = doc["counts"]
+        # an infinity of the other sign is not exact (documents written before the verdict
+        # told the sign apart counted it so)
+        flipped = {m: sum(nonfinite_sign_differs(r[f"ours_{p}"], r[f"paper_{p}"])
+                          and r[f"verdict_{p}"] == "exact" for r in doc["rows"]
+                          if r["arithmetic"] == "double" and r["method"] == m
+                          for p in ("qdd", "dq")) for m in ("GE-N", "RGE-N", "RGE-A")}
         exact = {m: c[f"double/{m}"]["qdd"]["exact"] + c[f"double/{m}"]["dq"]["exact"]
-                 for m in ("GE-N", "RGE-N", "RGE-A")}
+                 - flipped[m] for m in ("GE-N", "RGE-N", "RGE-A")}
         value = "Table 10 values exact: " + ", ".join(f"{m} {n}/36" for m, n in exact.items())
     return Headline("Precision study (Tables 9, 10, 11, A.2)", value, "; ".join(parts),
                     MATCH if set(kinds) == {MATCH} else PARTIAL)
@@ -608,9 +620,10 @@ def robots_section(res: Results) -> Section:
     doc = res.robots
     agree = Table("robots-agreement", "Agreement with the engines: worst relative difference "
                   "over seeded random states", ["robot", "engine", *STAGES, "verdict"])
-    percall = Table("robots-percall", "qdd per call from Python: the core and pin.aba, side by "
-                    "side", ["robot", "DOF", "core", "core, general kernels", "pin.aba",
-                             "pin.aba / core"])
+    percall = Table("robots-percall", "qdd per call from Python: the core (forward_dynamics "
+                    "and the evaluator) and pin.aba, side by side",
+                    ["robot", "DOF", "forward_dynamics", "core, general kernels", "evaluator",
+                     "pin.aba", "pin.aba / forward_dynamics", "pin.aba / evaluator"])
     falls = Table("robots-falls", "Passive falls, 1 s (ode45, rtol 1e-8, atol 1e-10)",
                   ["robot", "DOF", "steps", "CPU", "max |delta_M| [J/kg]",
                    "COM off its parabola [m]"])
@@ -644,12 +657,23 @@ def robots_section(res: Results) -> Section:
                        "the other engines refuse them by name.")
     for r in doc["per_call"]:
         general = r.get("general_s", math.nan)
+        timed = finite(r.get("evaluator_s"))
         percall.rows.append(Row([r["robot"], integer(r["n_v"]),
                                  seconds(r["core_s"]) + (" (DH kernels)" if r.get("dh") else ""),
                                  "" if not finite(general) else seconds(general),
-                                 seconds(r["pin_aba_s"]), num(r["ratio"], 3)]))
-    percall.notes.append("The fastest of 9 rounds of 2,000 calls each, alternating; the core "
-                         "with a reused Workspace, pin.aba on Pinocchio's own model of the same "
+                                 seconds(r["evaluator_s"]) if timed else "not timed",
+                                 seconds(r["pin_aba_s"]), num(r["ratio"], 3),
+                                 num(r["evaluator_ratio"], 3) if timed else "not timed"]))
+    if any(not finite(r.get("evaluator_s")) for r in doc["per_call"]):
+        percall.notes.append("Evaluator 'not timed': results/robots/robots.json was written "
+                             "before the robots step timed it; python -m redysim.reports.robots "
+                             "(make reproduce) times it beside the others.")
+    percall.notes.append("The fastest of 9 rounds of 2,000 calls each, alternating; the core's "
+                         "forward_dynamics with a reused Workspace (a checked call: its "
+                         "arguments' types, shapes and values), its evaluator "
+                         "(fd = redysim.evaluator(model); fd(q, v, None, out): bound once, the "
+                         "fastest call from Python, the README's figure), "
+                         "pin.aba on Pinocchio's own model of the same "
                          "URDF (tests/test_trees.py: the two agree to 1e-13), or for the DH "
                          "robots of cases/robots on the model redysim.references builds from "
                          "the core's (the robots' agreement rows above). On a robot in DH form "
@@ -729,7 +753,14 @@ LOOP_TOLERANCES = {"path": 1e-8, "settled": 1e-10, "drift": 1e-8}  # the issue's
 
 
 SCENARIOS_SWEEP = "quick-scenarios"
-SCENARIO_SWEEPS = (SCENARIOS_SWEEP, "scenarios-round")  # the second: make reproduce-full
+FULL_SCENARIOS_SWEEP = "scenarios-truths"  # the truths that do not fit the quick budget
+SCENARIO_SWEEPS = (SCENARIOS_SWEEP, FULL_SCENARIOS_SWEEP, "scenarios-round")  # the last two:
+#                                                                           make reproduce-full
+FULL_SCENARIOS = ("DZHANIBEKOV", "UBIQUITIN-FREE", "CATENARY")  # sweeps/scenarios-truths.toml
+# the truth table's settings: the sweeps run a ladder of settings for the work-precision figures;
+# the table shows ode45 at this rtol and an engine's own stepper at this step
+TRUTH_RTOL = 1e-8
+TRUTH_H = 1e-3
 SCENARIO_BOUNDS = {  # the truth each scenario has, its measure and its bound
     "TALOS-FALL": ("COM off its free-fall parabola [m]", 1e-9),
     "TALOS-ZERO-G": ("COM off a straight line (2nd difference) [m]", 1e-10),
@@ -762,6 +793,8 @@ FAILED_FINDINGS = {  # (engine, scenario) -> the measured cause of a run that st
         "control runs on atol alone and those jumps set the step"),
 }
 MOMENTUM_BOUND = 1e-8  # max |h_G(t) - h_G(0)| / max |h_G(0)| where it is kept
+OUTSIDE_BOUND = "outside bound"  # a finished run's status in the scenarios table, past its bound
+SCENARIO_REASON_CHARS = 200  # a failed run's reason in the scenarios table, cut at a word
 
 
 def _truth(res: Results, r) -> float:
@@ -846,7 +879,9 @@ def scenarios_section(res: Results) -> Section:
                        "p_* and h_* sample columns, redysim.momentum), kept exactly in free "
                        "fall and in zero gravity. UBIQUITIN-FREE: its units are nm, u and ps "
                        "(the runs' seconds are picoseconds, its path error nm), its energy "
-                       "change relative to its energy."])
+                       "change relative to its energy. The sweeps run each engine over a ladder "
+                       f"of settings (the work-precision figures); the table shows ode45 at "
+                       f"rtol {TRUTH_RTOL:g} and each engine's own stepper at {TRUTH_H:g} s."])
     runs = res.runs
     sel = runs[runs["sweep"].isin(SCENARIO_SWEEPS)] if "sweep" in runs else runs.iloc[0:0]
     if sel.empty:
@@ -860,9 +895,14 @@ def scenarios_section(res: Results) -> Section:
     for case in SCENARIO_BOUNDS:
         what, bound = SCENARIO_BOUNDS[case]
         rows = sel[sel["case"] == case]
+        # the runs at the table's settings (the ladders' other settings are the figures')
+        h = rows["h"].astype(float)
+        rows = rows[np.where(h > 0, np.isclose(h, TRUTH_H),
+                             np.isclose(rows["rtol"].astype(float), TRUTH_RTOL))]
         if rows.empty:
             target = ("make reproduce-full (sweeps/scenarios-round.toml)" if case.endswith(
-                "-ROUND") else f"make reproduce (sweeps/{SCENARIOS_SWEEP}.toml)")
+                "-ROUND") else f"make reproduce-full (sweeps/{FULL_SCENARIOS_SWEEP}.toml)"
+                if case in FULL_SCENARIOS else f"make reproduce (sweeps/{SCENARIOS_SWEEP}.toml)")
             tab.rows.append(Row([case, "", "not run", what, "", f"<= {bound:g}", "", "",
                                  f"not run: {target}; the core's run is a gate "
                                  "(harness/gates.toml)" if case.endswith("-ROUND") else
@@ -877,7 +917,7 @@ def scenarios_section(res: Results) -> Section:
             setting = f"h {float(r['h']):g}" if float(r["h"]) > 0 else f"rtol {float(r['rtol']):g}"
             name = f"{r['engine']} {r['integrator']} {setting}"
             if r["status"] != "ok":
-                reason = str(r["reason"])[:200]
+                reason = clip(r["reason"], SCENARIO_REASON_CHARS)
                 if (r["engine"], case) in FAILED_FINDINGS:
                     reason += f" ({FAILED_FINDINGS[r['engine'], case]})"
                 tab.rows.append(Row([case, name, r["status"], what, "", f"<= {bound:g}", "", "",
@@ -898,7 +938,9 @@ def scenarios_section(res: Results) -> Section:
                         "error shows it)" if r["engine"] in within and
                         str(r["integrator"]).startswith("native") else
                         f"outside the bound: {known}" if known else "outside the bound")
-            tab.rows.append(Row([case, name, "ok", what, sci(value, 1), f"<= {bound:g}",
+            status = "ok" if ok else OUTSIDE_BOUND if math.isfinite(value) else "no value"
+            tab.rows.append(Row([case, name, status, what, sci(value, 1),
+                                 f"<= {bound:g}",
                                  sci(drift, 1) if kept else "",
                                  sci(float(r["max_tip_err"]), 1), note],
                                 MATCH if ok else DIFFER))
@@ -1035,9 +1077,9 @@ def build_report(res: Results, history: Path = H.HISTORY_FILE) -> Report:
     ctx = Ctx(res)
     tables = paper_tables(res)
     by_id = {t.id: t for t in tables}
-    headline = [headline_e0(ctx), headline_drift(ctx), headline_precision(res, by_id),
-                headline_speed(res), headline_accuracy(res), headline_limits(res),
-                headline_verdicts(tables),
+    headline = [headline_trade(res), headline_e0(ctx), headline_drift(ctx),
+                headline_precision(res, by_id), headline_speed(res), headline_accuracy(res),
+                headline_limits(res), headline_verdicts(tables),
                 headline_reproduction(res)]
     paper = Section("paper", "Paper vs ours: Tables 1-11 and A.2", items=list(tables))
     paper.intro.append("One table per table of the paper, a verdict per row. The paper "
@@ -1057,7 +1099,8 @@ def build_report(res: Results, history: Path = H.HISTORY_FILE) -> Report:
                             H.history_figure(history)])
     here = provenance()
     return Report(TITLE, SUBTITLE, here["date"], headline,
-                  [setup_section(ctx), paper, figs, beyond, robots_section(res),
+                  [trade_section(res), setup_section(ctx), paper, figs, beyond,
+                   robots_section(res),
                    scenarios_section(res), loops_section(res), proteins_section(res),
                    refine_section(res), implicit_section(res)],
                   provenance_line(here, what="report built with"))

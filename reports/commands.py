@@ -35,10 +35,12 @@ It builds the model in every reference engine and checks single-state agreement 
 (qdd, GIM, bias, energy at seeded random states), then runs the scenario's passive motion: the
 core with its integrators, every engine through ode45 and with each of its own integrators, over
 a ladder of steps and tolerances, each measured against the reference solution (DOP853 at
-1e-10, checked by SciPy's DOP853 at 1e-13). It writes compare.html and compare.pdf: the
-agreement, the observed path's error and the energy drift over time, work against precision,
-every run with each engine's configuration, and the advice: for this accuracy, this engine and
-setting was cheapest here. The runs are cached: run it again and only what changed runs.
+1e-10, checked by SciPy's DOP853 at 1e-13). It writes compare.html and compare.pdf, opening
+with the answer: for each accuracy, the engine and setting that was cheapest here, the core's
+lead over the best engine and the engines that did not reach it; then the agreement, the
+observed path's error and the energy drift over time, work against precision, every run with
+each engine's configuration, and the advice per engine. The runs are cached: run it again and
+only what changed runs.
 
 examples:
   redysim compare example-robot-data:ur5

@@ -12,12 +12,20 @@ For any scenario (:mod:`redysim.io.scenarios`: a .urdf, an MJCF .xml, a DH robot
    engine through ode45 (its qdd) and with each of its own integrators over a ladder of steps or
    tolerances, each measured against the scenario's reference solution (DOP853 at 1e-10,
    checked by SciPy's DOP853 at 1e-13: :mod:`redysim.harness.reference`);
-3. writes a short page, ``compare.html`` and ``compare.pdf`` in ``--out``: the agreement table,
+3. writes a short page, ``compare.html`` and ``compare.pdf`` in ``--out``, opening with its
+   answer (:func:`redysim.reports.trade.trade_table`: per path tolerance, the cheapest engine and
+   setting, the core's lead over the best engine, the engines that do not reach it); then the
+   agreement table,
    the observed path's error and the energy drift over time, a work-precision plot, every run,
    and the advice "for this accuracy, this engine and setting was cheapest here": among the runs
    whose path error is within it, the least cost by :mod:`redysim.harness.cost` (the
    integration's CPU, least of repeats, sampling excluded, with its uncertainty), and the runs
-   indistinguishable from it, measured here, on this machine.
+   indistinguishable from it, measured here, on this machine; then ``compare.json``, the record
+   of a finished comparison (its runs and the pages' SHA-256). Run again on a finished folder, it
+   is read as it is: the record printed, nothing computed or rewritten (a read-only folder too).
+   A folder it cannot write is refused before any work, and so is a reference cache
+   (``$REDYSIM_RESULTS/reference``, which ``--out`` does not move) that cannot take the
+   reference it needs.
 
     python -m redysim.reports.compare ur5_robot.urdf --out results/compare/ur5
 """
@@ -34,14 +42,17 @@ import numpy as np
 import pandas as pd
 
 from redysim.harness.spec import CORE, RunSpec
+from redysim.io.importers import SAME_MOTION
 
 from .content import DIFFER, INFO, MATCH, NOT_RUN, Headline, Report, Row, Section, Table
 from .figures import ERROR_FLOOR, FONT_PT, PANEL_H, PANEL_W, WP_MARKERS, _figure, new_figure
 from .results import momentum_drift_series
 from .robots import STAGES, TOLERANCE, agreement
 from .text import provenance_line
+from .trade import trade_table
 
 HTML_FILE, PDF_FILE = "compare.html", "compare.pdf"
+RECORD_FILE = "compare.json"  # written last: the runs planned and the pages' SHA-256
 CORE_RTOLS = (1e-4, 1e-7, 1e-10)
 ENGINE_RTOLS = (1e-4, 1e-7)
 STEP_DIVISIONS = (5, 25, 125)  # fixed steps h = sample / n: they land on every sample
@@ -90,7 +101,7 @@ def _integrators_named(name: str, left: list[str]) -> str:
     return "all" if len(left) == len(references.get(name).integrators) else ", ".join(left)
 
 
-NOT_MOTION = "no effect on the motion"  # the importers' summary line of what does not act
+NOT_MOTION = SAME_MOTION  # in the importers' notes of what was read without acting
 
 
 def acting_notes(model) -> list[str]:
@@ -387,8 +398,12 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
         intro.append(f"The reference solution: the core's DOP853 at 1e-10 ({ref.steps} steps), "
                      f"confirmed by SciPy's DOP853 at 1e-13 to {ref.tol_estimate:.1e} m "
                      f"(the observed path's largest distance); {check}.")
-    if m.notes:
-        intro.append("From the file, not simulated (Model.notes): " + "; ".join(m.notes))
+    acting = acting_notes(m)
+    if acting:
+        intro.append("From the file, not simulated (Model.notes): " + "; ".join(acting))
+    if len(acting) < len(m.notes):
+        intro.append("From the file, read with no effect on the motion (Model.notes): "
+                     + "; ".join(n for n in m.notes if n not in acting))
     said = engine_warnings(agree)
     if said:
         intro.append("The engines warned while building the model (their C++ output, kept "
@@ -526,9 +541,17 @@ def build(target: str, scn, runs: pd.DataFrame, agree: list[dict], out: Path, re
                                    r["integrator"], str(r["engine_config"])[:400]], INFO))
     figs = [_path_figures(scn, runs, out, ref), _wp_figure(scn, runs)]
     here = provenance()
+    answer = Section("answer", "The answer: the cheapest engine and setting for each accuracy",
+                     [f"Measured here on {m.name}: at each path tolerance, the cheapest run of "
+                      "any engine and integrator whose path error is within it, the core's "
+                      "cheapest and the best engine's, the core's lead (the engine's cost over "
+                      "the core's) and the engines that do not reach it (their best error). "
+                      "The model, the engines' agreement and every run follow."],
+                     [trade_table(runs, "compare-trade", "The trade for this model",
+                                  accuracies=ADVICE_TOLS)])
     return Report(f"redysim compare: {scn.name}", f"{target}: every engine, every integrator, "
                   "against a reference solution", here["date"], heads,
-                  [Section("model", "The model and its agreement", intro, [agree_t]),
+                  [answer, Section("model", "The model and its agreement", intro, [agree_t]),
                    Section("advice", "What to run", [], [adv_t, *figs]),
                    Section("runs", "The runs", [], [runs_t, manifests])],
                   provenance_line(here, what="page built with"))
@@ -539,7 +562,13 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
             log=print) -> tuple[Path, Path]:
     """Run the comparison of ``target`` into ``out`` and write its page (module docstring)."""
     from redysim.harness.reference import check_cache, compute_reference
-    from redysim.harness.store import check_kinds, check_writable, write_text_atomic
+    from redysim.harness.store import (
+        check_kinds,
+        check_writable,
+        sha256_file,
+        write_json_atomic,
+        write_text_atomic,
+    )
     from redysim.harness.sweep import run_sweep
     from redysim.io.scenarios import load_scenario
 
@@ -548,16 +577,23 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
 
     options = options or {}
     scn = load_scenario(target, options=options)
-    check_writable(out, flag=None)  # before any engine runs: its pages and runs go there
     horizon = t_end or scn.t_end
     sample = scn.sample_for(horizon)
+    specs = plan(target, scn, options=options, t_end=horizon, sample=sample, engines=engines)
     # before any engine runs: a folder where its pages or its reference go, by name
-    check_kinds(files=[out / HTML_FILE, out / PDF_FILE], why="nothing was run")
+    check_kinds(files=[out / HTML_FILE, out / PDF_FILE, out / RECORD_FILE],
+                why="nothing was run")
+    record = finished_record(out, specs)
+    if record is not None:  # finished: read as it is (as sweep and longrun do), nothing written
+        log(f"compare: {scn.name}: finished in {out} ({record['n_runs']} runs, "
+            f"{record['failed']} failed): {out / HTML_FILE} and {out / PDF_FILE}, as they are "
+            "(nothing rewritten; delete compare.json to build them again)")
+        return out / HTML_FILE, out / PDF_FILE
+    check_writable(out, flag=None)  # before any engine runs: its pages and runs go there
     check_cache(scn, horizon, sample)
     log(f"compare: {scn.name}: single-state agreement in every engine")
     agree = (loop_agreement(scn.name, scn.model, scn.q0) if scn.model.cuts
              else agreement(scn.name, scn.model))
-    specs = plan(target, scn, options=options, t_end=horizon, sample=sample, engines=engines)
     log(f"compare: {len(specs)} runs over {horizon:g} s (cached in {out / 'runs'})")
     runs = run_sweep(specs, out, name=f"compare-{scn.name}", workers=workers,
                      progress=progress, reference=True)
@@ -566,8 +602,38 @@ def compare(target: str, out: Path, *, options: dict | None = None, t_end: float
     html = write_text_atomic(render_html(report), out / HTML_FILE)
     pdf = write_pdf(report, out / PDF_FILE)
     bad = int((runs["status"] != "ok").sum())
+    write_json_atomic({"run_ids": sorted(s.run_id for s in specs), "n_runs": len(runs),
+                       "failed": bad, HTML_FILE: sha256_file(html),
+                       PDF_FILE: sha256_file(pdf)}, out / RECORD_FILE)
     log(f"compare: {html} and {pdf} ({len(runs)} runs, {bad} failed)")
     return html, pdf
+
+
+def finished_record(out: Path, specs) -> dict | None:
+    """The record of a finished comparison in ``out`` (:data:`RECORD_FILE`, written last), or
+    None: none, another plan of runs, its pages missing or not the ones it recorded (their
+    SHA-256), or a run's manifest or summary row missing (then the comparison is done again,
+    the sweep redoing what is missing or damaged)."""
+    import json
+
+    from redysim.harness.store import sha256_file
+    from redysim.harness.sweep import MANIFEST_DIR, RUNS_DIR
+
+    try:
+        record = json.loads((out / RECORD_FILE).read_text())
+        if record["run_ids"] != sorted(s.run_id for s in specs):
+            return None
+        for name in (HTML_FILE, PDF_FILE):
+            if sha256_file(out / name) != record[name]:
+                return None
+        int(record["n_runs"]), int(record["failed"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    for s in specs:
+        if not ((out / MANIFEST_DIR / f"{s.run_id}.json").is_file()
+                and (out / RUNS_DIR / f"{s.run_id}.parquet").is_file()):
+            return None
+    return record
 
 
 def main(argv=None) -> int:

@@ -7,7 +7,9 @@ One model, two renderers: the HTML page (``reports/templates/report.html.j2``) a
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
+from typing import Any
 
 # Row kinds: how a renderer colours a row's verdict.
 MATCH = "match"        # ours agrees with the paper (within what the verdict says)
@@ -44,19 +46,53 @@ class Table:
         return out
 
 
+DPI = 120  # a figure's raster resolution (its PNG) and the pixel size the HTML gives it
+
+
+def render(fig, fmt: str) -> bytes:
+    """The matplotlib figure ``fig`` as ``fmt`` bytes: svg and pdf vector (text as paths in SVG,
+    so a browser without matplotlib's fonts draws the same glyphs), png at :data:`DPI`."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=DPI, metadata={"Date": None} if fmt == "svg" else None)
+    return buf.getvalue()
+
+
 @dataclass
 class Figure:
-    """A figure: PNG bytes (None when there is no data: ``not_run`` says how to get it)."""
+    """A figure: its drawing (a matplotlib figure; None when there is no data: ``not_run`` says
+    how to get it), rendered on demand as SVG (the HTML page's), PDF (the PDF's: both vector)
+    or PNG (a raster, for a file a user asks for)."""
 
     id: str
     family: str  # tip-path, tip-speed, drift, conditioning, scaling, opcount, work-precision,
     #              true-error, perf-history, perf-ladder
     title: str
     caption: str
-    png: bytes | None = None
+    drawing: Any = None
     not_run: str = ""
-    width_px: int = 0
-    height_px: int = 0
+    width_px: int = 0   # the drawing's size at the PNG's resolution (the aspect every format
+    height_px: int = 0  # keeps)
+    _rendered: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def render(self, fmt: str) -> bytes | None:
+        """The drawing as ``fmt`` (svg, pdf, png) bytes, rendered once; None without data."""
+        if self.drawing is None:
+            return None
+        if fmt not in self._rendered:
+            self._rendered[fmt] = render(self.drawing, fmt)
+        return self._rendered[fmt]
+
+    @property
+    def svg(self) -> bytes | None:
+        return self.render("svg")
+
+    @property
+    def pdf(self) -> bytes | None:
+        return self.render("pdf")
+
+    @property
+    def png(self) -> bytes | None:
+        return self.render("png")
 
 
 @dataclass

@@ -9,7 +9,6 @@ figure without data is a :class:`~redysim.reports.content.Figure` with ``png = N
 
 from __future__ import annotations
 
-import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -22,13 +21,12 @@ import pandas as pd  # noqa: E402
 
 from redysim.harness.spec import CORE, NATIVE  # noqa: E402
 
-from .content import Figure  # noqa: E402
+from .content import DPI, Figure  # noqa: E402
 from .paper_tables import ENGINE_LABELS, Ctx, Pick, make_target  # noqa: E402
 from .results import momentum_drift, momentum_kept  # noqa: E402
 from .scaling import SLOPE_MIN_DOF, slopes  # noqa: E402
-from .text import footer_lines, provenance_line  # noqa: E402
+from .text import clip, footer_lines, provenance_line  # noqa: E402
 
-DPI = 120
 PANEL_W = 4.3          # inches per panel
 PANEL_H = 3.0
 FOOTER_PT = 6.0        # footer font size
@@ -39,6 +37,9 @@ OPS_DOF = np.unique(np.geomspace(10, 5000, 60).round())  # the paper's Fig. 18(b
 CORE_LABEL = "redysim (RGE-A)"
 WP_MARKERS = "osD^v<>ph*"
 FAILED_REASON_CHARS = 90  # a failed run's reason, shortened, in a work-precision caption
+LEGEND_PRINT_PT = 7.2  # a legend's text at print size (the PDF's page), at least
+PRINT_W_IN = 10.75     # the PDF's figure frame, at most [in] (reports/pdf.py: WIDTH,
+PRINT_H_IN = 6.14      # MAX_FIGURE_H; tests/test_report.py checks they agree)
 
 plt.rcParams.update({"font.size": FONT_PT, "axes.titlesize": FONT_PT + 1,
                      "legend.fontsize": FONT_PT - 1, "axes.grid": True, "grid.alpha": 0.3,
@@ -68,17 +69,23 @@ def new_figure(ncols: int, nrows: int = 1, *, width: float | None = None,
     return fig, axes.ravel()
 
 
-def to_png(fig) -> tuple[bytes, int, int]:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    w, h = (fig.get_size_inches() * DPI).round().astype(int)
-    plt.close(fig)
-    return buf.getvalue(), int(w), int(h)
+def print_scale(fig) -> float:
+    """How much the PDF shrinks ``fig`` (its frame: at most PRINT_W_IN x PRINT_H_IN)."""
+    w, h = fig.get_size_inches()
+    return float(min(PRINT_W_IN / w, PRINT_H_IN / h))
+
+
+def print_pt(fig, pt: float) -> float:
+    """The font size in ``fig`` that prints at ``pt`` points (at least ``pt``)."""
+    return pt / min(1.0, print_scale(fig))
 
 
 def _figure(fid, family, title, caption, fig) -> Figure:
-    png, w, h = to_png(fig)
-    return Figure(fid, family, title, caption, png, width_px=w, height_px=h)
+    """The report's figure of the matplotlib figure ``fig`` (released from pyplot's registry:
+    it is kept, and rendered when a page asks for it)."""
+    w, h = (fig.get_size_inches() * DPI).round().astype(int)
+    plt.close(fig)
+    return Figure(fid, family, title, caption, fig, width_px=int(w), height_px=int(h))
 
 
 def missing(fid, family, title, caption, how) -> Figure:
@@ -174,6 +181,30 @@ def drift(fid: str, title: str, caption: str, panels: list[tuple[str, list[Serie
     return _figure(fid, "drift", title, caption, fig)
 
 
+def plotted_engines(curves: Sequence[Series]) -> list[str]:
+    """The reference engines among ``curves`` (their labels, as drawn), the core's left out."""
+    return [c.label for c in curves if not c.label.startswith(CORE_LABEL)]
+
+
+def beside_what(curves: Sequence[Series]) -> str:
+    """What a core-and-engines figure draws, from its curves: 'our core beside X and Y' or
+    'our core alone (no engine run of this case in the results)'."""
+    engines = plotted_engines(curves)
+    if not engines:
+        return "our core alone (no reference engine's run of this case in the results)"
+    return ("our core beside " + (", ".join(engines[:-1]) + " and " if len(engines) > 1 else "")
+            + engines[-1])
+
+
+def paper_order(figs: list[Figure]) -> list[Figure]:
+    """The paper's figures in the order of their numbers (fig<N>), so that the print order is
+    the numbers' (the loop over Tables 3-5 makes Fig. 12 before Fig. 11)."""
+    def number(f: Figure) -> float:
+        digits = f.id[3:] if f.id.startswith("fig") else ""
+        return float(digits) if digits.isdigit() else float("inf")
+    return sorted(figs, key=number)
+
+
 def _engine_curves(ctx: Ctx, case: str, horizon: float) -> list[tuple[str, Pick]]:
     return [(label, ctx.pick(case, horizon, engine=e)) for e, label in ENGINE_LABELS.items()]
 
@@ -203,20 +234,24 @@ def paper_figures(ctx: Ctx) -> list[Figure]:
     h2 = pub["table2"]["rows"][0]["t_end"]
     c7 = series(ctx, [(CORE_LABEL, ctx.pick(case, h2))] + _engine_curves(ctx, case, h2))
     how2 = f"not run: {make_target('table2')}"
+    drawn = beside_what(c7)
     figs.append(tip_paths(
         "fig7", f"Fig. 7: tip position of {case}",
-        "Our core beside every reference engine through the same ode45 (the paper: ReDySim "
-        "beside RecurDyn). The tip reaches its lowest point near t = 0.45 s.", c7, how2))
+        f"Plotted: {drawn}" + (", through the same ode45" if plotted_engines(c7) else "")
+        + " (the paper: ReDySim beside RecurDyn). The tip reaches its lowest point near "
+        "t = 0.45 s.", c7, how2))
     figs.append(tip_speed(
         "fig8", f"Fig. 8: tip speed and acceleration of {case}",
-        "The paper's RecurDyn acceleration departs from ReDySim's after 0.45 s, where joint "
-        "accelerations reach ~100 g.", c7, how2))
+        f"Plotted: {drawn}. The paper's RecurDyn acceleration departs from ReDySim's after "
+        "0.45 s, where joint accelerations reach ~100 g.", c7, how2))
     long = series(ctx, [(CORE_LABEL, ctx.pick(case, pub["table2"]["long_run"]["t_end"],
                                                shorter=False))])
     figs.append(drift(
         "fig9", f"Fig. 9: energy drift of {case}",
-        f"(a) 1.0 s, our core and the engines (the paper: ReDySim and RecurDyn); (b) "
-        f"{pub['table2']['long_run']['t_end']} s, our core (the paper's ReDySim drifted "
+        f"(a) 1.0 s, {drawn} (the paper: ReDySim and RecurDyn); (b) "
+        f"{pub['table2']['long_run']['t_end']} s, "
+        + ("our core" if long else "not drawn: no run of ours to that horizon in the results")
+        + f" (the paper's ReDySim drifted "
         f"{pub['table2']['long_run']['redysim_avg_abs_delta_M']} J/kg on average).",
         [("(a) 1.0 s", c7), (f"(b) {pub['table2']['long_run']['t_end']} s", long)], how2))
 
@@ -244,7 +279,7 @@ def paper_figures(ctx: Ctx) -> list[Figure]:
                               "1e-4 (Fig. 14), bounded by 0.2 J/kg (Fig. 17).",
                               [(c.label, [c]) for c in panel], how))
     figs.append(fig19(ctx))
-    return figs
+    return paper_order(figs)
 
 
 def fig19(ctx: Ctx) -> Figure:
@@ -313,7 +348,7 @@ def scaling(ctx: Ctx) -> Figure:
                        "not run: python -m redysim.reports.scaling (make reproduce, make table6)")
     ok = df[df["status"] == "ok"]
     sl = slopes(df)
-    fig, axes = new_figure(3, width=PANEL_W * 3.1, height=PANEL_H * 1.3,
+    fig, axes = new_figure(3, width=PANEL_W * 3.1, height=PANEL_H * 2.0,
                            footer=provenance_line(df, what="results/scaling/scaling.parquet"))
     for label, g in ok.groupby("algorithm", sort=False):
         name = f"{label} ({'core' if g['engine'].iloc[0] == CORE else 'engine'})"
@@ -323,7 +358,10 @@ def scaling(ctx: Ctx) -> Figure:
         axes[1].loglog(g["n_dof"], g["ns_per_dof"], "o-", ms=3, color=line.get_color())
     axes[0].set(xlabel="DOF", ylabel="seconds per qdd call", title="(a) qdd per call")
     axes[1].set(xlabel="DOF", ylabel="ns per DOF", title="(b) per DOF")
-    axes[0].legend(fontsize=FONT_PT - 2)
+    # legends below their panels, outside the data (inside, (a)'s covered the core's curve)
+    below = dict(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncols=1,
+                 fontsize=print_pt(fig, LEGEND_PRINT_PT))
+    axes[0].legend(**below)
     ax = axes[2]
     t6 = ctx.pub["table6"]
     dof = [2 * int(r["case"].split("-")[1][1:]) for r in t6["rows"]]
@@ -345,7 +383,7 @@ def scaling(ctx: Ctx) -> Figure:
                       label=f"ours {method.upper()}" + ("" if all(full) else
                                                         " (shortened, scaled to 1.0 s)"))
     ax.set(xlabel="DOF", ylabel="CPU [s] for 1.0 s", title="(c) Table 6: 1.0 s simulations")
-    ax.legend(fontsize=FONT_PT - 2)
+    ax.legend(**below)
     return _figure("fig18a", "scaling", title, caption, fig)
 
 
@@ -392,14 +430,95 @@ def _failed_group(label: str, runs: pd.DataFrame) -> str:
     """'mujoco ode45 (rtol 1e-09, 1e-10): time limit ...' for the failed runs of one curve."""
     key = "h" if runs["h"].astype(float).gt(0).all() else "rtol"
     values = ", ".join(f"{v:g}" for v in sorted(runs[key], reverse=True))
-    reason = str(runs["reason"].iloc[0])[:FAILED_REASON_CHARS]
+    reason = clip(runs["reason"].iloc[0], FAILED_REASON_CHARS)
     return f"{label} ({key} {values}): {reason}" + (" (the first)" if len(runs) > 1 else "")
+
+
+def _planned(ctx: Ctx, sweeps, case: str, horizon: float) -> int | None:
+    """How many runs of ``case`` to ``horizon`` the plans of ``sweeps`` list (None: no plan)."""
+    from .results import case_horizon
+
+    plans = [ctx.res.sweep_plan(str(name)) for name in sweeps]
+    if all(p is None for p in plans):
+        return None
+    ids = {r["run_id"] for p in plans if p for r in p if r["case"] == case and np.isclose(
+        float(r["t_end"]) if float(r["t_end"]) > 0 else case_horizon(case), horizon)}
+    return len(ids)
+
+
+def _narrow(ax, ys: list[np.ndarray], what: str) -> None:
+    """A log axis over less than a decade draws its ticks as one number repeated (2.43759e-7
+    on every tick): draw the deviation from the smallest value instead, that value stated in
+    the axis label, on a linear axis without an offset."""
+    from matplotlib.ticker import ScalarFormatter
+
+    every = np.concatenate(ys) if ys else np.array([])
+    every = every[np.isfinite(every) & (every > 0)]
+    if every.size == 0 or every.max() >= 10 * every.min():
+        return
+    base = float(every.min())
+    for line in ax.get_lines():
+        y = np.asarray(line.get_ydata(), dtype=float)
+        line.set_ydata(y - base)
+    ax.set_yscale("linear")
+    fmt = ScalarFormatter(useOffset=False)
+    fmt.set_powerlimits((-3, 3))
+    ax.yaxis.set_major_formatter(fmt)
+    ax.relim()
+    ax.autoscale_view()
+    ax.set_ylabel(f"{what} - {base:.6g}")
+
+
+# Work-precision figures are drawn at the PDF's text width (landscape A4, 12 mm margins), so
+# that the PDF shows them at scale 1 and a legend of WP_LEGEND_PT is that size in print.
+WP_WIDTH_IN = 10.7
+WP_HEIGHT_IN = 6.0
+WP_LEGEND_PT = 7.5
+WP_LEGEND_COLUMNS = 4
+# a colour family per engine (the core, Pinocchio's three adapters, then the others), a shade per
+# integrator within it: the same engine and integrator has the same colour in every figure
+WP_ENGINE_MAPS = {CORE: "Blues", "pinocchio": "Greens", "mujoco": "Oranges", "dart": "Purples",
+                  "exudyn": "Reds", "drake": "Greys"}
+WP_LINESTYLES = ("-", (0, (5, 1, 1, 1)), "-.", ":")
+
+
+def _wp_family(engine: str) -> str:
+    return str(engine).split("-")[0] if str(engine) != CORE else CORE
+
+
+def _wp_order(label: str) -> tuple[int, bool]:
+    """A curve's place in the legend: the engine families in WP_ENGINE_MAPS's order, redysim's
+    integrators before the engine's own."""
+    fam = list(WP_ENGINE_MAPS)
+    engine, _, integrator = label.partition(" ")
+    f = _wp_family(engine.split("/")[0])
+    return (fam.index(f) if f in fam else len(fam), integrator.startswith(NATIVE))
+
+
+def wp_styles(runs: pd.DataFrame) -> dict[str, tuple]:
+    """(colour, marker, linestyle) of every curve (:func:`_wp_label`) of ``runs``: a colour map
+    per engine family (WP_ENGINE_MAPS, grey for another), a shade and a marker per curve within
+    it, in sorted order (so the same set of curves is drawn the same way in every figure); an
+    engine's own stepper (native:*) dashed, redysim's integrators solid."""
+    labels = runs.assign(_label=runs.apply(_wp_label, axis=1)).drop_duplicates("_label")
+    out: dict[str, tuple] = {}
+    for family, f in labels.groupby(labels["engine"].map(_wp_family)):
+        cmap = plt.get_cmap(WP_ENGINE_MAPS.get(family, "Greys"))
+        names = sorted(f["_label"])
+        for k, label in enumerate(names):
+            shade = 0.45 + 0.5 * (k / (len(names) - 1) if len(names) > 1 else 0.5)
+            native = label.split(" ", 1)[1].startswith(NATIVE)
+            out[label] = (cmap(shade), WP_MARKERS[k % len(WP_MARKERS)],
+                          WP_LINESTYLES[1 + k % 3] if native else WP_LINESTYLES[0])
+    return out
 
 
 def work_precision(ctx: Ctx) -> list[Figure]:
     """One figure per (scenario, horizon) of runs measured against a reference solution: the
     observed path's error against CPU time, the core's integrators and the engines' (through
-    ode45 and their own), and the energy drift of the same runs beside them."""
+    ode45 and their own), and the energy drift of the same runs beside them. A curve has one
+    colour, marker and line style in every panel, named once in the figure's legend. A sweep
+    stopped part way is said so (its plan against its finished runs)."""
     runs = ctx.res.runs
     title0 = "Work-precision"
     how = ("not run: make reproduce (sweeps/quick-work-precision.toml, "
@@ -407,8 +526,8 @@ def work_precision(ctx: Ctx) -> list[Figure]:
     if runs.empty or "max_tip_err" not in runs:
         return [missing("wp", "work-precision", title0, "", how)]
     measured = runs[pd.to_numeric(runs["max_tip_err"], errors="coerce").notna()]
-    # every scenario measured against its reference gets its diagram (the truth scenarios'
-    # single settings, sweeps/quick-scenarios.toml, give one point per engine and integrator)
+    # every scenario measured against its reference gets its diagram (the sweeps run each
+    # engine and integrator over a ladder of settings: a curve each)
     groups = list(measured.groupby(["case", "horizon"]))
     if not groups:
         return [missing("wp", "work-precision", title0, "", how)]
@@ -420,61 +539,99 @@ def work_precision(ctx: Ctx) -> list[Figure]:
         frame = str(g["frame"].dropna().iloc[0]) if "frame" in g and \
             g["frame"].dropna().astype(str).str.len().gt(0).any() else "tip"
         kept = momentum_kept(str(case))  # a floating system: (d) its angular momentum
-        fig, axes = new_figure(4 if kept else 3, width=PANEL_W * (5.4 if kept else 4.2),
-                               height=PANEL_H * 1.45, footer=provenance_line(g))
+        npan = 4 if kept else 3
+        fig, axes = new_figure(npan, width=WP_WIDTH_IN, height=WP_HEIGHT_IN,
+                               footer=provenance_line(g))
+        styles = wp_styles(g)  # one colour and marker per engine and integrator, every panel
         core = g[g["engine"] == CORE]
-        engines = g[g["engine"] != CORE]
-        for ax, part, colour_by in ((axes[0], core, "integrator"), (axes[1], engines, "engine")):
-            keys = list(dict.fromkeys(part[colour_by]))
-            styles: dict[str, int] = {}
-            for label, c in part.groupby(part.apply(_wp_label, axis=1)):
-                i = keys.index(c[colour_by].iloc[0])
-                key = "h" if c["h"].astype(float).gt(0).all() else "rtol"
-                c = c.sort_values(key, ascending=False)
-                native = str(c["integrator"].iloc[0]).startswith(NATIVE)
-                n = styles[c[colour_by].iloc[0]] = styles.get(c[colour_by].iloc[0], -1) + 1
-                style = ("--", "-.", ":", (0, (5, 1, 1, 1)))[n % 4] if native else "-"
-                if kept:
-                    c = c.assign(h_drift=[momentum_drift(ctx.res.samples(r))
-                                          for r in c["run_id"]])
-                panels = ((ax, "max_tip_err"), (axes[2], "max_abs_delta_M")) + \
-                    (((axes[3], "h_drift"),) if kept else ())
-                for a, y in panels:
-                    a.loglog(c["cpu_s"], np.maximum(c[y].astype(float), ERROR_FLOOR),
-                             linestyle=style, color=f"C{i % 10}" if a is ax else
-                             f"C{(i + (0 if part is core else 5)) % 10}",
-                             marker=WP_MARKERS[(i + n) % len(WP_MARKERS)], ms=3.5,
-                             label=label if a is ax else None, alpha=1.0 if a is ax else 0.6)
+        handles = {}
+        ys: dict[str, list[np.ndarray]] = {"max_abs_delta_M": [], "h_drift": []}
+        for label, c in g.groupby(g.apply(_wp_label, axis=1)):
+            key = "h" if c["h"].astype(float).gt(0).all() else "rtol"
+            c = c.sort_values(key, ascending=False)
+            colour, marker, style = styles[label]
+            if kept:
+                c = c.assign(h_drift=[momentum_drift(ctx.res.samples(r)) for r in c["run_id"]])
+            ax = axes[0] if c["engine"].iloc[0] == CORE else axes[1]
+            for a, y in ((ax, "max_tip_err"), (axes[2], "max_abs_delta_M")) + \
+                    (((axes[3], "h_drift"),) if kept else ()):
+                values = np.maximum(c[y].astype(float).to_numpy(), ERROR_FLOOR)
+                if y in ys:
+                    ys[y].append(values)
+                line, = a.loglog(c["cpu_s"], values, linestyle=style, color=colour,
+                                 marker=marker, ms=3.5)
+                if a is ax:
+                    handles[label] = line
         ref = core[core["integrator"] == "ode45"].sort_values("rtol", ascending=False)
         if len(ref):
-            axes[1].loglog(ref["cpu_s"], np.maximum(ref["max_tip_err"], ERROR_FLOOR), "k:",
-                           lw=1.5, label=f"{CORE} ode45 (for scale)")
-        axes[0].set(title="(a) the core (RGE-A), every integrator")
-        axes[1].set(title="(b) every engine: ode45 (solid), its own (dashed)")
-        axes[2].set(title="(c) energy drift of the same runs", xlabel="CPU time [s]",
+            handles[f"{CORE} ode45 in (b), for scale"], = axes[1].loglog(
+                ref["cpu_s"], np.maximum(ref["max_tip_err"], ERROR_FLOOR), "k:", lw=1.5)
+        axes[0].set(title="(a) the core, every integrator")
+        axes[1].set(title="(b) every engine")
+        axes[2].set(title="(c) energy drift", xlabel="CPU time [s]",
                     ylabel="max |delta_M| [J/kg]")
+        _narrow(axes[2], ys["max_abs_delta_M"], "max |delta_M| [J/kg]")
         if kept:
-            axes[3].set(title="(d) angular momentum drift (about the COM)",
-                        xlabel="CPU time [s]", ylabel="max |h_G - h_G(0)| / |h_G(0)|")
+            axes[3].set(title="(d) angular momentum drift", xlabel="CPU time [s]",
+                        ylabel="max |h_G - h_G(0)| / |h_G(0)|")
+            _narrow(axes[3], ys["h_drift"], "max |h_G - h_G(0)| / |h_G(0)|")
         for ax in axes[:2]:
             ax.set(xlabel="CPU time [s]", ylabel=f"max {frame} error [m]")
-            ax.legend(fontsize=FONT_PT - 2.5, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        # the legend below the panels, above the footer: the panels' rect is raised by its rows
+        order = sorted(handles, key=lambda lab: (_wp_order(lab), lab))
+        rows = -(-len(order) // WP_LEGEND_COLUMNS)
+        foot = len(footer_lines(provenance_line(g), WP_WIDTH_IN)) * FOOTER_PT * 1.45 + 4
+        low = (foot + rows * WP_LEGEND_PT * 1.45 + 6) / 72 / WP_HEIGHT_IN
+        fig.set_layout_engine("constrained", rect=(0, low, 1, 1 - low))
+        fig.legend([handles[k] for k in order], order, loc="upper center",
+                   bbox_to_anchor=(0.5, low), ncol=WP_LEGEND_COLUMNS, fontsize=WP_LEGEND_PT,
+                   frameon=False, handlelength=3.0, borderaxespad=0.0, borderpad=0.2,
+                   labelspacing=0.3)
         gone = "; ".join(_failed_group(label, f) for label, f in
                          failed.groupby(failed.apply(_wp_label, axis=1), sort=False)) \
             if len(failed) else ""
+        planned = _planned(ctx, set(g["sweep"]), str(case), float(horizon))
+        partial = planned is not None and len(cases) < planned
         path = "tip" if frame == "tip" else f"observed frame ({frame})"
-        caption = (f"{case} over {horizon:g} s: error = the largest distance of the {path} from "
-                   "the reference solution (DOP853 at 1e-10, checked by SciPy's DOP853 at 1e-13) "
-                   "over the samples, against CPU time; one curve per engine and integrator, "
-                   "points from loose to tight tolerance (or large to small step); (c): the "
+        caption = ((f"Partial sweep: {len(cases)} of the {planned} runs its plan lists "
+                    f"(sweeps/{', '.join(sorted(set(g['sweep'])))}/sweep.json) finished; the "
+                    "others are not drawn. " if partial else "")
+                   + f"{case} over {horizon:g} s: error = the largest distance of the {path} "
+                   "from the reference solution (DOP853 at 1e-10, checked by SciPy's DOP853 at "
+                   "1e-13) over the samples, against CPU time; one curve per engine and "
+                   "integrator, points from loose to tight tolerance (or large to small step), "
+                   "each with one colour in every panel (a hue per engine; solid: redysim's "
+                   "integrators with the engine's qdd, dashed: the engine's own); (c): the "
                    "largest energy drift per unit mass of the same runs (a symplectic stepper can "
                    "keep it small while its path is far off)"
                    + ("; (d): the largest change of the angular momentum about the centre of "
                       "mass over its size, kept exactly by the floating system (redysim.momentum "
                       "of the runs' states)" if kept else "") + "."
+                   + (" A panel whose values span less than a decade draws their deviation from "
+                      "the smallest, stated in its axis label." if any(
+                          a.get_yscale() == "linear" for a in axes[2:4 if kept else 3])
+                      else "")
                    + (f" Failed runs (not drawn): {gone}." if gone else ""))
-        figs.append(_figure(f"wp-{case}-{horizon:g}", "work-precision",
-                            f"{title0}: {case}, {horizon:g} s", caption, fig))
+        title = f"{title0}: {case}, {horizon:g} s" + (
+            f" (partial sweep: {len(cases)} of {planned} runs)" if partial else "")
+        figs.append(_figure(f"wp-{case}-{horizon:g}", "work-precision", title, caption, fig))
+    # a planned scenario of these sweeps without a finished run: said, not silently left out
+    from .results import case_horizon
+
+    for name in sorted(set(measured["sweep"])):
+        made = runs[runs["sweep"] == name]
+        done = {(str(c), float(h)) for c, h in zip(made["case"], made["horizon"], strict=True)}
+        left: dict[tuple[str, float], int] = {}
+        for r in ctx.res.sweep_plan(str(name)) or []:
+            h = float(r["t_end"]) if float(r["t_end"]) > 0 else case_horizon(r["case"])
+            if not any(c == r["case"] and np.isclose(h, d) for c, d in done):
+                left[(r["case"], h)] = left.get((r["case"], h), 0) + 1
+        for (c, h), n in left.items():
+            figs.append(missing(f"wp-{c}-{h:g}", "work-precision",
+                                f"{title0}: {c}, {h:g} s (partial sweep: 0 of {n} runs)", "",
+                                f"not drawn: none of the {n} runs sweeps/{name}/sweep.json "
+                                "plans for it finished (the sweep stopped part way; make "
+                                "reproduce resumes it)"))
     return figs
 
 

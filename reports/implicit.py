@@ -76,11 +76,11 @@ def implicit_section(res: Results) -> Section:
         f"({MEGA}: 500,000 U joints, 1,000,000 DOF), and the CPU and memory of one step against "
         "DOF from 1,000 to 1,000,000. docs/notes/2026-11-implicit-integrator.md discusses what "
         "the error means.")
-    sec.items += _case_items(res, CASE, "implicit-huge", f"{CASE}: implicit midpoint beside "
-                             "ode45 (Figs. 15, 17b)", "--t-end 5 --sample 0.01",
+    sec.items += _case_items(res, CASE, "implicit-huge", f"{CASE}: implicit midpoint{{beside}} "
+                             "(Figs. 15, 17b)", "--t-end 5 --sample 0.01",
                              "--t-end 0.48 --sample 0.01")
     sec.items += _case_items(res, MEGA, "implicit-mega", f"{MEGA} (1,000,000 DOF): implicit "
-                             "midpoint beside ode45", "--t-end 1 --sample 0.001",
+                             "midpoint{beside}", "--t-end 1 --sample 0.001",
                              "--t-end 0.01 --sample 0.001")
     sec.items += _scaling_items(res)
     return sec
@@ -89,8 +89,9 @@ def implicit_section(res: Results) -> Section:
 def _case_items(res: Results, case: str, fig_id: str, title: str, run_flags: str,
                 ref_flags: str) -> list:
     """The table of ``case``'s long runs and the figure of its run at the case's tolerances
-    (folder ``<case>-midpoint``) beside its longest ode45 run (``run_flags``, ``ref_flags``:
-    the long run's flags that make each)."""
+    (folder ``<case>-midpoint``) beside its longest ode45 run if there is one (``run_flags``,
+    ``ref_flags``: the long run's flags that make each). ``title``'s ``{beside}``: ' beside
+    ode45' when an ode45 run is drawn, else nothing."""
     source = f"cases/{MEGA_FILE}" if case == MEGA else case
     how = (f"not run: make reproduce (python -m redysim.harness.longrun {source} "
            f"--integrator implicit {run_flags})")
@@ -99,17 +100,15 @@ def _case_items(res: Results, case: str, fig_id: str, title: str, run_flags: str
                   ["run", "integrator", "t reached [s]", "steps (rejected)", "qdd calls",
                    "Newton / GMRES", "CPU", "wall", "peak RSS [MiB]", "max |delta_M| [J/kg]",
                    "max tip distance from ode45 [m]"])
-    caption = ("(a)-(c) tip X, Y, Z against time; (d) the distance between the two runs' tips "
-               "at the times both sampled; (e) |delta_M(t)|, the change of energy per unit mass "
-               "(Fig. 17b). Solid: implicit midpoint at the case's tolerances; dashed: ode45 (to "
-               "the horizon its run reached). (f) every implicit run in the table: its CPU "
-               "against its largest tip distance from the ode45 run.")
     implicit = runs[runs["integrator"].isin(IMPLICIT)] if len(runs) else runs
+    explicit = runs[runs["integrator"] == "ode45"].sort_values("t_reached") if len(runs) \
+        else runs
+    ref = explicit.iloc[-1] if len(explicit) else None
+    title = title.format(beside=" beside ode45" if ref is not None else "")
+    caption = _caption(ref is not None)
     if implicit.empty:
         table.not_run = how
         return [table, missing(fig_id, "tip-path", title, caption, how)]
-    explicit = runs[runs["integrator"] == "ode45"].sort_values("t_reached")
-    ref = explicit.iloc[-1] if len(explicit) else None
     ref_s = res.samples(ref["run_id"]) if ref is not None else None
     for _, r in pd.concat([implicit, explicit]).iterrows():
         s = res.samples(r["run_id"])
@@ -140,6 +139,20 @@ def _case_items(res: Results, case: str, fig_id: str, title: str, run_flags: str
     main = main.iloc[0] if len(main) else \
         implicit.sort_values("t_reached", kind="stable").iloc[-1]
     return [table, _figure_of(res, main, implicit, ref_s, fig_id, title, caption, ref=ref)]
+
+
+def _caption(with_ode45: bool) -> str:
+    """The long-run figure's caption, its panels lettered as :func:`_figure_of` draws them."""
+    if with_ode45:
+        return ("(a)-(c) tip X, Y, Z against time; (d) the distance between the two runs' tips "
+                "at the times both sampled; (e) |delta_M(t)|, the change of energy per unit "
+                "mass (Fig. 17b). Solid: implicit midpoint at the case's tolerances; dashed: "
+                "ode45 (to the horizon its run reached). (f) every implicit run in the table: "
+                "its CPU against its largest tip distance from the ode45 run.")
+    return ("(a)-(c) tip X, Y, Z against time; (d) |delta_M(t)|, the change of energy per unit "
+            "mass (Fig. 17b); the implicit midpoint at the case's tolerances. No ode45 run of "
+            "this case in the results, so no distance between the two (the table's note says "
+            "how to make one).")
 
 
 def _scaling_items(res: Results) -> list:
@@ -212,41 +225,48 @@ def _last_two(rows: list[dict]) -> str:
 
 
 def _figure_of(res, imp, implicit, ref_s, fig_id, title, caption, *, ref) -> Figure:
+    """Tip X, Y, Z, the distance from the ode45 run, the energy drift and the implicit runs'
+    work against error: the panels comparing with ode45 only when there is an ode45 run (no
+    empty panel), lettered in the order drawn."""
     s = res.samples(imp["run_id"])
-    fig, axes = new_figure(3, 2, footer=provenance_line(what="results/longrun"))
+    both = ref_s is not None
+    fig, axes = new_figure(3 if both else 2, 2, footer=provenance_line(what="results/longrun"))
+    letters = iter("abcdef")
     label = _settings(imp)
-    for i, (ax, c) in enumerate(zip(axes[:3], TIP, strict=True)):
+    for ax, c in zip(axes[:3], TIP, strict=True):
         ax.plot(s["t"], s[c], "-", label=label)
-        if ref_s is not None:
+        if both:
             ax.plot(ref_s["t"], ref_s[c], "--", label=_settings(ref))
         ax.set(xlabel="time [s]", ylabel=f"tip {c[-1].upper()} [m]",
-               title=f"({'abc'[i]}) tip {c[-1].upper()}")
+               title=f"({next(letters)}) tip {c[-1].upper()}")
     axes[0].legend()
-    if ref_s is not None:
+    rest = list(axes[3:])
+    if both:
+        ax = rest.pop(0)
         d = tip_distance(s, ref_s)
         d = d[d["t"] > 0]
         if len(d):
-            axes[3].semilogy(d["t"], np.maximum(d["distance"], 1e-16), "-o", ms=2)
-    axes[3].set(xlabel="time [s]", ylabel="|tip - tip_ode45| [m]",
-                title="(d) distance from the ode45 run")
-    axes[4].semilogy(s["t"], np.maximum(s["delta_M"].abs(), 1e-16), "-", label=label)
-    if ref_s is not None:
-        axes[4].semilogy(ref_s["t"], np.maximum(ref_s["delta_M"].abs(), 1e-16), "--",
-                         label=_settings(ref))
-    axes[4].set(xlabel="time [s]", ylabel="$|\\delta_M(t)|$ [J/kg]", title="(e) energy drift")
-    axes[4].legend()
-    # (f) every implicit run: its CPU against its largest tip distance from ode45
-    for _, r in implicit.iterrows():
-        d = tip_distance(res.samples(r["run_id"]), ref_s) if ref_s is not None else None
-        if d is not None and len(d) > 1:
-            axes[5].loglog(float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16), "o")
-            axes[5].annotate(_settings(r).replace("midpoint", "").strip(),
-                             (float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16)),
-                             fontsize=7, xytext=(3, 3), textcoords="offset points")
-    if ref is not None:
-        axes[5].set(xlabel="CPU to the run's end [s]",
-                    ylabel=f"max |tip - tip_ode45| to {float(ref['t_reached']):.3g} s [m]",
-                    title="(f) implicit runs: work against error")
-    else:
-        axes[5].axis("off")
+            ax.semilogy(d["t"], np.maximum(d["distance"], 1e-16), "-o", ms=2)
+        ax.set(xlabel="time [s]", ylabel="|tip - tip_ode45| [m]",
+               title=f"({next(letters)}) distance from the ode45 run")
+    ax = rest.pop(0)
+    ax.semilogy(s["t"], np.maximum(s["delta_M"].abs(), 1e-16), "-", label=label)
+    if both:
+        ax.semilogy(ref_s["t"], np.maximum(ref_s["delta_M"].abs(), 1e-16), "--",
+                    label=_settings(ref))
+    ax.set(xlabel="time [s]", ylabel="$|\\delta_M(t)|$ [J/kg]",
+           title=f"({next(letters)}) energy drift")
+    ax.legend()
+    if both:  # every implicit run: its CPU against its largest tip distance from ode45
+        ax = rest.pop(0)
+        for _, r in implicit.iterrows():
+            d = tip_distance(res.samples(r["run_id"]), ref_s)
+            if len(d) > 1:
+                ax.loglog(float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16), "o")
+                ax.annotate(_settings(r).replace("midpoint", "").strip(),
+                            (float(r["cpu_s"]), max(float(d["distance"].max()), 1e-16)),
+                            fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set(xlabel="CPU to the run's end [s]",
+               ylabel=f"max |tip - tip_ode45| to {float(ref['t_reached']):.3g} s [m]",
+               title=f"({next(letters)}) implicit runs: work against error")
     return _figure(fig_id, "tip-path", title, caption, fig)

@@ -621,6 +621,18 @@ def table9(ctx: Ctx) -> Table:
     return t
 
 
+def nonfinite_sign_differs(ours, paper) -> bool:
+    """Whether ``ours`` is an infinity of the sign opposite to the printed ``paper`` ('Inf'
+    is +Inf, '-Inf' -Inf); values as Table 10's document stores them (numbers or strings)."""
+    if not isinstance(paper, str) or paper.lstrip("+-") != "Inf":
+        return False
+    try:
+        x = float(ours)
+    except (TypeError, ValueError):
+        return False
+    return math.isinf(x) and (x < 0) != paper.startswith("-")
+
+
 def table10(ctx: Ctx) -> Table:
     t = Table("table10", "Table 10: qdd(0) of the 3-link chain with every operation rounded",
               ["accuracy", "method", "qdd paper", "qdd ours", "dq [%] paper", "dq [%] ours",
@@ -633,29 +645,45 @@ def table10(ctx: Ctx) -> Table:
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault((r["accuracy"], r["method"]), []).append(r)
+    signs = 0
     for (acc, method), rs in groups.items():
         rs.sort(key=lambda r: r["i"])
+        for r in rs:  # an infinity of the other sign is no match (results written before the
+            for part in ("qdd", "dq"):  # verdict told the sign apart scored it exact)
+                if nonfinite_sign_differs(r[f"ours_{part}"], r[f"paper_{part}"]):
+                    r[f"verdict_{part}"] = "nonfinite-sign"
         good = {"exact", "truncation"}
         n_q = sum(r["verdict_qdd"] in good for r in rs)
         n_d = sum(r["verdict_dq"] in good or r["verdict_dq"] == "sign" for r in rs)
         n_sign = sum(r["verdict_dq"] == "sign" for r in rs)
+        flipped = [f"{part}{r['i']} {r[f'ours_{part}']} vs {r[f'paper_{part}']}"
+                   for r in rs for part in ("qdd", "dq")
+                   if r[f"verdict_{part}"] == "nonfinite-sign"]
+        signs += len(flipped)
         total = 2 * len(rs)
         kind = MATCH if n_q + n_d == total else DIFFER
         v = f"{n_q + n_d}/{total} values match"
         if n_sign:
             v += f" ({n_sign} dq up to sign: the extraction lost Table 10's signs)"
+        if flipped:
+            v += f"; non-finite, sign differs: {', '.join(flipped)} (see the note)"
         if kind == DIFFER:
             bad = [f"qdd{r['i']} {num(r['ours_qdd'], 5)} vs {printed(r['paper_qdd'])}"
-                   for r in rs if r["verdict_qdd"] not in good]
+                   for r in rs if r["verdict_qdd"] not in good | {"nonfinite-sign"}]
             bad += [f"dq{r['i']} {num(r['ours_dq'], 5)} vs {printed(r['paper_dq'])}" for r in rs
-                    if r["verdict_dq"] not in good | {"sign"}]
-            v += ": " + "; ".join(bad)
+                    if r["verdict_dq"] not in good | {"sign", "nonfinite-sign"}]
+            v += (": " + "; ".join(bad)) if bad else ""
             if method == "RGE-A":
                 v += " (our RGE-A rounds at other points than the paper's ReDySim; notes)"
         t.rows.append(Row([printed(acc), method, vector([r["paper_qdd"] for r in rs]),
                            vector([r["ours_qdd"] for r in rs], lambda x: num(x, 5)),
                            vector([r["paper_dq"] for r in rs]),
                            vector([r["ours_dq"] for r in rs], lambda x: num(x, 5)), v], kind))
+    if signs:
+        t.notes.append("Non-finite, sign differs: ours is an infinity of the sign opposite to "
+                       "the one the paper prints (its 'Inf' read as +Inf): not counted as a "
+                       "match. The paper's text may have lost a minus sign in extraction, as "
+                       "it did for dq's finite values, but nothing here can tell.")
     for label, n in doc.get("rge_a_variants_values_matching", {}).items():
         t.notes.append(f"RGE-A with {label}: {n}/18 values (qdd and dq both) match.")
     t.notes.append("Accuracy 1e-k: every result rounded to k decimal places, half away from zero, "

@@ -1,10 +1,13 @@
 """The report as PDF (reportlab, pure Python): the same
 :class:`~redysim.reports.content.Report` as the HTML page, on landscape A4 so the wide tables
-fit."""
+fit. Figures are vector: reportlab lays out a frame of each figure's size, and each figure's
+own one-page PDF (matplotlib's) is then drawn into its frame by pypdf. The outline (bookmarks)
+lists the sections and, under each, its tables and figures."""
 
 from __future__ import annotations
 
 import io
+import itertools
 from pathlib import Path
 from xml.sax.saxutils import escape
 
@@ -13,9 +16,10 @@ from reportlab.lib.enums import TA_LEFT
 from reportlab.lib.pagesizes import A4, landscape
 from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
 from reportlab.lib.units import mm
+from reportlab.pdfbase.pdfmetrics import stringWidth
 from reportlab.platypus import (
     CondPageBreak,
-    Image,
+    Flowable,
     KeepTogether,
     PageBreak,
     Paragraph,
@@ -75,16 +79,28 @@ def P(text: str, style: str = "body") -> Paragraph:
     return Paragraph(escape(str(text)), STYLES[style])
 
 
+def _min_width(table: Table, j: int) -> float:
+    """The narrowest column ``j`` may be [pt]: its longest word (header in bold, cells in the
+    cell font) as the PDF draws it, so that no word is split (up to MAX_WORD_CHARS' worth)."""
+    head, cell = STYLES["head"], STYLES["cell"]
+    words = [stringWidth(w, head.fontName, head.fontSize) for w in table.columns[j].split()]
+    words += [stringWidth(w, cell.fontName, cell.fontSize)
+              for r in table.rows if j < len(r.cells) for w in r.cells[j].split()]
+    cap = MAX_WORD_CHARS * CHAR_PT * 1.5
+    return min(max(words, default=0.0), cap) + CELL_PADDING + 1.0
+
+
 def _col_widths(table: Table) -> list[float]:
     """Column widths [pt]: each column's natural width (its longest cell, within bounds, and at
-    least its longest word), narrow columns first; what is left is shared by the wide ones."""
-    natural = []
+    least its longest word), narrow columns first; what is left is shared by the wide ones; a
+    column narrower than its longest word then takes that from the widest."""
+    natural, least = [], []
     for j, head in enumerate(table.columns):
         cells = [r.cells[j] for r in table.rows if j < len(r.cells)]
         longest = max([len(c) for c in cells] + [len(head) * HEADER_SHARE])
-        word = max(len(w) for w in [*head.split(), *(w for c in cells for w in c.split()), ""])
-        chars = max(min(longest, MAX_COL_CHARS), min(word, MAX_WORD_CHARS), MIN_COL_CHARS)
-        natural.append(chars * CHAR_PT + CELL_PADDING)
+        chars = max(min(longest, MAX_COL_CHARS), MIN_COL_CHARS)
+        least.append(_min_width(table, j))
+        natural.append(max(chars * CHAR_PT + CELL_PADDING, least[-1]))
     widths, remaining, budget = list(natural), set(range(len(natural))), WIDTH
     while remaining:  # water-filling: a column narrower than its share keeps its width
         share = budget / len(remaining)
@@ -95,12 +111,21 @@ def _col_widths(table: Table) -> list[float]:
             break
         budget -= sum(natural[j] for j in narrow)
         remaining -= narrow
+    short = {j: least[j] - widths[j] for j in range(len(widths)) if widths[j] < least[j]}
+    if short:  # the shared columns give the words what they need, each down to its own least
+        spare = {j: widths[j] - least[j] for j in range(len(widths)) if j not in short}
+        room = sum(spare.values())
+        take = min(sum(short.values()), room)
+        for j, extra in spare.items():
+            widths[j] -= take * extra / room if room > 0 else 0.0
+        for j, need in short.items():
+            widths[j] += need * take / sum(short.values())
     scale = WIDTH / sum(widths)
     return [w * scale for w in widths] if scale > 1 else widths
 
 
 def table_flowables(t: Table) -> list:
-    out = [P(t.title, "h3")]
+    out = [heading(t.title, "h3", 1)]
     if t.not_run and not t.rows:
         out.append(P(t.not_run, "note"))
     else:
@@ -126,14 +151,70 @@ def table_flowables(t: Table) -> list:
     return out
 
 
-def figure_flowables(f: Figure) -> list:
-    head = [P(f.title, "h3")]
-    if f.png is None:
+class FigureFrame(Flowable):
+    """The place of a figure: its size on the page; where it was drawn is recorded in
+    ``placed`` (page, x, y, width, height, the figure), for :func:`_draw_figures`."""
+
+    def __init__(self, figure: Figure, width: float, height: float, placed: list):
+        super().__init__()
+        self.figure, self.width, self.height, self.placed = figure, width, height, placed
+
+    def wrap(self, availWidth, availHeight):  # noqa: N803 -- reportlab's names
+        return self.width, self.height
+
+    def draw(self):
+        pass
+
+    def drawOn(self, canvas, x, y, _sW=0):  # noqa: N802, N803 -- reportlab's names
+        self.placed.append((canvas.getPageNumber(), x, y, self.width, self.height,
+                            self.figure))
+
+
+def figure_flowables(f: Figure, placed: list | None = None) -> list:
+    head = [heading(f.title, "h3", 1)]
+    if f.drawing is None:
         return [KeepTogether(head + [P(f"{f.not_run}. {f.caption}", "note")])]
     w, h = float(f.width_px), float(f.height_px)
     scale = min(WIDTH / w, MAX_FIGURE_H / h)
-    img = Image(io.BytesIO(f.png), width=w * scale, height=h * scale)
-    return [KeepTogether(head + [img, P(f.caption, "note")])]
+    frame = FigureFrame(f, w * scale, h * scale, placed if placed is not None else [])
+    return [KeepTogether(head + [frame, P(f.caption, "note")])]
+
+
+def heading(text: str, style: str, level: int) -> Paragraph:
+    """A heading that is an entry of the PDF's outline at ``level`` (0: a section)."""
+    para = P(text, style)
+    para.outline = (level, str(text))  # type: ignore[attr-defined]
+    return para
+
+
+class _Outlined(SimpleDocTemplate):
+    """Adds every :func:`heading` to the outline where it is drawn."""
+
+    _keys = itertools.count()
+
+    def afterFlowable(self, flowable):  # noqa: N802 -- reportlab's name
+        entry = getattr(flowable, "outline", None)
+        if entry is None:
+            return
+        level, text = entry
+        key = f"h{next(self._keys)}"
+        self.canv.bookmarkPage(key)
+        self.canv.addOutlineEntry(text, key, level=level, closed=level > 0)
+
+
+def _draw_figures(path: Path, placed: list) -> None:
+    """Draw each figure's own vector PDF into the frame laid out for it (pypdf)."""
+    from pypdf import PdfReader, PdfWriter, Transformation
+
+    writer = PdfWriter(clone_from=PdfReader(io.BytesIO(path.read_bytes())))
+    for page, x, y, w, h, figure in placed:
+        src = PdfReader(io.BytesIO(figure.pdf)).pages[0]
+        sw, sh = float(src.mediabox.width), float(src.mediabox.height)
+        writer.pages[page - 1].merge_transformed_page(
+            src, Transformation().scale(w / sw, h / sh).translate(x, y))
+    writer.page_mode = "/UseOutlines"
+    with open(path, "wb") as fh:
+        writer.write(fh)
 
 
 def headline_flowable(items: list[Headline]) -> RLTable:
@@ -174,22 +255,24 @@ def write_pdf(report: Report, path: str | Path) -> Path:
     tmp = path.with_name(f"{TEMP_PREFIX}{path.name}{TEMP_SUFFIX}")
     story: list = [P(report.title, "title"), P(report.subtitle, "subtitle"),
                    P(f"Generated {report.generated}", "subtitle"), Spacer(1, 4 * mm)]
+    placed: list = []  # the figures' frames, where reportlab put them
     if report.headline:  # (a comparison where no run met a tolerance has none)
-        story += [P("Headline", "h2"), headline_flowable(report.headline)]
+        story += [heading("Headline", "h2", 0), headline_flowable(report.headline)]
     for s in report.sections:
-        story += [PageBreak(), P(s.title, "h2")]
+        story += [PageBreak(), heading(s.title, "h2", 0)]
         story += [P(p) for p in s.intro]
         for item in s.items:
             if isinstance(item, Table):
                 story += [CondPageBreak(40 * mm), *table_flowables(item)]
             else:
-                story += figure_flowables(item)
-    doc = SimpleDocTemplate(str(tmp), pagesize=PAGE, leftMargin=MARGIN, rightMargin=MARGIN,
+                story += figure_flowables(item, placed)
+    doc = _Outlined(str(tmp), pagesize=PAGE, leftMargin=MARGIN, rightMargin=MARGIN,
                             topMargin=MARGIN, bottomMargin=MARGIN + 3 * mm,
                             title=report.title, author="redysim")
     footer = _page_footer(report.footer)
     try:
         doc.build(story, onFirstPage=footer, onLaterPages=footer)
+        _draw_figures(tmp, placed)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -11,7 +11,9 @@ s); ``table8.json`` also keeps delta_M(t) of its main runs (``series``: Fig. 19)
 Verdicts: ``exact`` (ours, rounded half away from zero to the digits the paper prints, equals the
 paper), ``truncation`` (ours truncated to those digits equals it; the paper sometimes truncates),
 ``sign`` (equal in magnitude; published.toml marks Table 10's signs as lost in the text
-extraction and re-derived), ``differs`` (with the difference). Rules and findings: see
+extraction and re-derived; also an infinity of the other sign than the printed Inf, which the
+report calls "non-finite, sign differs" and does not count a match), ``differs`` (with the
+difference). Rules and findings: see
 ``redysim/algorithms/precision.py`` and the notes printed with each table.
 """
 
@@ -86,9 +88,12 @@ def sig_decimals(x: float) -> int:
 
 def verdict(ours: float, paper, decimals: int) -> tuple[str, float | None]:
     """(verdict, ours - paper) for one printed value; see the module docstring."""
-    if isinstance(paper, str):  # "NaN", "Inf" (signs of Inf lost in the extraction)
-        kind = "NaN" if math.isnan(ours) else ("Inf" if math.isinf(ours) else None)
-        return ("exact" if kind == paper else "differs"), None
+    if isinstance(paper, str):  # "NaN", "Inf", "-Inf": as printed
+        if math.isnan(ours):
+            return ("exact" if paper == "NaN" else "differs"), None
+        if math.isinf(ours) and paper.lstrip("+-") == "Inf":
+            return ("exact" if (ours < 0) == paper.startswith("-") else "sign"), None
+        return "differs", None
     if not math.isfinite(ours):
         return "differs", math.inf
     q = Decimal(1).scaleb(-decimals)

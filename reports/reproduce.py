@@ -15,7 +15,8 @@ at the paper's horizons, RE-U3750-L30 shortened, Table 6's GE-N on RE-U125-L1) a
 and ``sweeps/quick-drift-ensemble.toml`` (RE-U125-L1's drift from 8 perturbed initial states),
 ``sweeps/quick-work-precision-robots.toml`` (the UR5, the Panda and Talos floating, 0.5 s: the
 core, every engine through ode45 and with its own integrators) and
-``sweeps/quick-scenarios.toml`` (the truth scenarios of ``cases/scenarios/`` in every engine);
+``sweeps/quick-scenarios.toml`` (the truth scenarios of ``cases/scenarios/`` that fit the budget
+in every engine, each over a ladder of three settings);
 the precision tables 8, 10, 11, A.2 and IEEE (:mod:`redysim.reports.precision_tables`, Table 8
 without its sensitivity runs); Table 9 and the conditioning study
 (:mod:`redysim.reports.gim_study`); the operation counts (:mod:`redysim.reports.opcount`); the
@@ -73,7 +74,8 @@ TABLE_SWEEPS = {"1": "table1", "2": "table2", "3": "table3", "4": "table4", "6":
 # Table 5's checkpointed long runs (hours each).
 FULL_SWEEPS = ("table1", "table3", "table2", "table4", "drift-ensemble",
                "work-precision-RE-U125-L1", "work-precision-RE-U750-L6", "table6",
-               "quick-work-precision-robots", "quick-scenarios", "scenarios-round")
+               "quick-work-precision-robots", "quick-scenarios", "scenarios-truths",
+               "scenarios-round")
 TABLES = ("1", "2", "3", "4", "5", "6", "7", "8", "9", "10", "11", "A2")
 QUICK_ERROR_SIZES = (10, 100)  # links; the full study runs redysim.harness.error_study's defaults
 REPRODUCE_FILE = "reproduce-{}.json"  # {}: quick, full or tables

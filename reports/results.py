@@ -205,6 +205,27 @@ class Results:
         path = self._samples_paths.get(run_id)
         return read_parquet(path) if path else None
 
+    def sweep_plan(self, name: str) -> list[dict] | None:
+        """The runs a sweep folder's plan (its sweep.json) lists, or None without one."""
+        doc = _json(self.root / SWEEPS_DIR / name / PLAN_FILE)
+        return None if doc is None else list(doc.get("runs", []))
+
+    def sweep_counts(self) -> dict[str, tuple[int, int | None, int]]:
+        """{sweep folder: (its finished runs on disk that its plan lists, the runs its plan
+        lists or None without a plan, those of them the report shows under this folder)}: a
+        run two sweeps made is shown once, under the first folder."""
+        shown = self.sweep_dirs()
+        out = {}
+        for sweep_dir in sorted((self.root / SWEEPS_DIR).glob("*/")):
+            plan = self.sweep_plan(sweep_dir.name)
+            files = parquet_files(sweep_dir / RUNS_DIR)
+            planned = None if plan is None else {r["run_id"] for r in plan}
+            done = len(files) if planned is None else len(planned & set(files))
+            if done or planned:
+                out[sweep_dir.name] = (done, None if planned is None else len(planned),
+                                       shown.get(sweep_dir.name, 0))
+        return out
+
     def sweep_dirs(self) -> dict[str, int]:
         """{sweep folder: its runs in the report}."""
         runs = self.runs
@@ -267,9 +288,19 @@ class Results:
 
     def sources(self) -> list[tuple[str, str]]:
         """(what, where and how much) for everything found, for the setup section."""
-        out = [(f"sweep {name}", f"{SWEEPS_DIR}/{name}: {n} runs") if name != LONGRUN_DIR else
-               ("checkpointed long runs", f"{LONGRUN_DIR}/*/{LONGRUN_CHECKPOINT}: {n} runs")
-               for name, n in self.sweep_dirs().items()]
+        out = []
+        for name, (done, planned, shown) in self.sweep_counts().items():
+            where = f"{SWEEPS_DIR}/{name}: {done:,} runs"
+            if planned is not None and done < planned:
+                where += f" of {planned:,} planned (partial: the sweep stopped part way)"
+            if shown < done:
+                where += (f"; {done - shown:,} of them also made by another sweep, shown once "
+                          "under the first folder")
+            out.append((f"sweep {name}", where))
+        n_long = self.sweep_dirs().get(LONGRUN_DIR)
+        if n_long:
+            out.append(("checkpointed long runs",
+                        f"{LONGRUN_DIR}/*/{LONGRUN_CHECKPOINT}: {n_long} runs"))
         for name in ("table8", "table10", "table11", "tableA2", "ieee"):
             doc = self.precision(name)
             if doc is not None:

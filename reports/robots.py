@@ -13,9 +13,11 @@ robots that come with redysim (the repository's ``cases/robots/``: the package d
   (T, V) of every engine (:mod:`redysim.references`, each building the core's own tree) against
   the core's, as max |engine - core| / max |core|; an engine that cannot build the model says
   why (its ``limits``);
-- per call: qdd from Python, the core (a reused workspace) and ``pin.aba`` on Pinocchio's own
-  model of the same URDF (its parser; the fastest honest way to call it), side by side in this
-  process, alternating, the fastest of several rounds of many calls;
+- per call: qdd from Python, the core (``forward_dynamics`` with a reused workspace, and the
+  evaluator ``redysim.evaluator(model)`` writing into a reused array: the fastest call from
+  Python) and ``pin.aba`` on Pinocchio's own model of the same URDF (its parser; the fastest
+  honest way to call it), side by side in this process, alternating, the fastest of several
+  rounds of many calls;
 - a passive fall for 1 s (ode45, rtol 1e-8, atol 1e-10) from the file's configuration (and,
   for the DH arms, the talk's free fall: joints 1, 4, 5, 6 held at zero, joints 2 and 3 free,
   :meth:`redysim.Model.locked`): a fixed base from rest; a floating base tumbling (seeded joint
@@ -164,7 +166,7 @@ def per_call(label, model, path) -> dict | None:
         import pinocchio as pin
     except ImportError:
         return None
-    from redysim import Workspace, forward_dynamics
+    from redysim import Workspace, evaluator, forward_dynamics
 
     rng = np.random.default_rng(SEED)
     q, v, _ = random_state(model, rng)
@@ -182,7 +184,10 @@ def per_call(label, model, path) -> dict | None:
     pq = pin.neutral(pm)
     pq[7 if floating else 0:] += rng.uniform(-0.3, 0.3, pm.nq - (7 if floating else 0))
     pv, ptau = rng.uniform(-0.3, 0.3, pm.nv), np.zeros(pm.nv)
+    fd, out = evaluator(model), np.empty(model.n_v)
+    fd(q, v, None, out)  # (compiled above; binds its entry)
     calls = {"core": lambda: forward_dynamics(model, q, v, ws=ws),
+             "evaluator": lambda: fd(q, v, None, out),
              "pin.aba": lambda: pin.aba(pm, data, pq, pv, ptau)}
     if ws.dh:  # the same robot by the general kernels
         forward_dynamics(model, q, v, ws=ws, dh=False)
@@ -194,6 +199,8 @@ def per_call(label, model, path) -> dict | None:
     return {"robot": label, "n_v": model.n_v, "core_s": best["core"],
             "general_s": best.get("general", math.nan), "dh": bool(ws.dh),
             "pin_aba_s": best["pin.aba"], "ratio": best["pin.aba"] / best["core"],
+            "evaluator_s": best["evaluator"],
+            "evaluator_ratio": best["pin.aba"] / best["evaluator"],
             "pinocchio": pin.__version__}
 
 

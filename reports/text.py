@@ -83,6 +83,16 @@ def seconds(x) -> str:
     return f"{x / 3600:.3g} h"
 
 
+def clip(text, limit: int) -> str:
+    """``text`` cut to at most ``limit`` characters at a word's end, ' ...' added where it was
+    cut (a single word longer than the limit is cut inside it, the only way to cut it)."""
+    text = " ".join(str(text).split())
+    if len(text) <= limit:
+        return text
+    head = text[:limit + 1].rsplit(" ", 1)[0] if " " in text[:limit + 1] else text[:limit]
+    return head.rstrip(" ,;:") + " ..."
+
+
 def integer(x) -> str:
     return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{int(x):,}"
 

@@ -155,3 +155,12 @@ def rng():
 
 
 ALL_JOINT_MIXES = [("R",), ("U",), ("S",), ("P",), tuple(JOINT_TYPES)]
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Where the browser tests kept their first screens (tests/test_browser.py), when any ran."""
+    import sys
+
+    check = sys.modules.get("redysim.reports.browser_check")
+    for folder in check.artefacts_used() if check else ():
+        terminalreporter.write_line(f"browser check: first screens kept in {folder}")

@@ -225,14 +225,23 @@ def test_ieee_errors_follow_conditioning():
 
 
 # --------------------------------------------------------------------------- Table 10
+def expected_verdicts(row) -> list[tuple[str, str]]:
+    """Every value exact, but at 1e-1 GE-N's U33 rounds to exactly 0: qdd NaN, Inf, -Inf where
+    the paper prints NaN, Inf, Inf (its dq: NaN, Inf, Inf): qdd_3 an infinity of the other
+    sign, a verdict of its own ('sign'), never a silent match."""
+    if row["method"] == "GE-N" and row["accuracy"] == 1e-1:
+        return [("exact", "exact"), ("exact", "exact"), ("sign", "exact")]
+    return [("exact", "exact")] * 3
+
+
 @pytest.mark.parametrize("method", ["GE-N", "RGE-N"])
 def test_table10_all_18_values(table9, method):
-    """qdd to its 4 printed decimals and dq (% deviation) to its printed digits, every accuracy;
-    at 1e-1 GE-N's U33 rounds to exactly 0: NaN, Inf, Inf."""
+    """qdd to its 4 printed decimals and dq (% deviation) to its printed digits, every accuracy
+    (expected_verdicts)."""
     case, q64 = table9
     for row in (r for r in T10 if r["method"] == method):
         v, x = row_verdicts(case, q64, row)
-        assert all(a == b == "exact" for a, b in v), (row, x, v)
+        assert v == expected_verdicts(row), (row, x, v)
 
 
 def test_table10_horizontal_state_gives_the_same(table9):
@@ -241,7 +250,7 @@ def test_table10_horizontal_state_gives_the_same(table9):
     case = table9_horizontal()
     for row in (r for r in T10 if r["method"] != "RGE-A"):
         v, x = row_verdicts(case, q64, row)
-        assert all(a == b == "exact" for a, b in v), (row, x, v)
+        assert v == expected_verdicts(row), (row, x, v)
 
 
 def test_table10_decimal_arithmetic_misses_one_row(table9):
@@ -253,7 +262,7 @@ def test_table10_decimal_arithmetic_misses_one_row(table9):
             np.testing.assert_array_equal(x, [-6.25, 7.99, -2.35])
             assert all(a == "differs" for a, _ in v)
         else:
-            assert all(a == b == "exact" for a, b in v), (row, x, v)
+            assert v == expected_verdicts(row), (row, x, v)
 
 
 # RGE-A: (accuracy, component) whose qdd AND dq reproduce with the main rule (horizontal state,

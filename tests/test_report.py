@@ -137,7 +137,7 @@ def test_html_has_every_section_table_and_figure_family(written):
         assert f'id="{tid}"' in html, tid
     for family in FIGURE_FAMILIES:
         assert f"figure-{family}" in html, family
-    assert html.count("data:image/png;base64,") >= len(FIGURE_FAMILIES)
+    assert html.count("data:image/svg+xml;base64,") >= len(FIGURE_FAMILIES)  # vector figures
     assert "not run: make table5" in html  # a table without data says how to get it
     assert "not run: make table8" in html
     assert "<script" not in html  # self-contained, static
@@ -152,10 +152,10 @@ def test_pdf_exists_and_has_pages(written):
 
 
 def test_every_figure_family_has_an_image(report):
-    drawn = {f.family for f in report.figures() if f.png is not None}
+    drawn = {f.family for f in report.figures() if f.drawing is not None}
     assert set(FIGURE_FAMILIES) <= drawn
     for f in report.figures():
-        assert (f.png is not None) != bool(f.not_run), f.id
+        assert (f.drawing is not None) != bool(f.not_run), f.id
 
 
 def test_verdicts_where_data_and_not_run_elsewhere(report):
@@ -202,7 +202,7 @@ def test_figure_footer_carries_versions_and_machine():
 def test_render_is_deterministic_given_the_model(report):
     a, b = render_html(report), render_html(report)
     assert a == b
-    assert re.search(r"<h1>redysim: paper vs ours</h1>", a)
+    assert re.search(r"<h1>redysim: speed against accuracy, and the paper reproduced</h1>", a)
 
 
 def test_the_implicit_section_shows_one_step_against_dof(report, results):
