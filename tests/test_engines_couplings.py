@@ -252,3 +252,31 @@ def test_the_first_screen_names_what_acts_and_leaves_out_what_does_not():
             "exactly (Model.couplings), not softly as MuJoCo does)")
     assert _short(note) == "equality 'e0': solref, solimp"
     assert len(_short("x" * 200)) == 80
+
+
+def test_a_mimic_on_a_fixed_joint_is_noted_as_changing_nothing(tmp_path):
+    """A URDF's <mimic> on a fixed joint (Talos's grippers have them) couples nothing: its note
+    says so in the importers' phrase, and compare's first screen leaves it out; a mimic kept
+    independent at the user's request does change the motion and stays on it."""
+    from redysim.io.importers import SAME_MOTION
+    from redysim.reports.compare import acting_notes
+
+    link = ('<link name="{0}"><inertial><mass value="1"/><origin xyz="0 0 0.1"/>'
+            '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    urdf = tmp_path / "fixed_mimic.urdf"
+    urdf.write_text(
+        '<robot name="r">' + "".join(link.format(n) for n in ("base", "a", "b", "c")) +
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/>'
+        '<axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
+        '<origin xyz="0 0 0.2"/><axis xyz="0 1 0"/><mimic joint="j1" multiplier="0.5"/>'
+        '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+        '<joint name="f" type="fixed"><parent link="b"/><child link="c"/>'
+        '<origin xyz="0 0 0.2"/><mimic joint="j1"/></joint></robot>')
+    model = redysim.load_model(urdf)
+    fixed = [n for n in model.notes if "'f'" in n and "mimic" in n]
+    assert len(fixed) == 1 and SAME_MOTION in fixed[0], model.notes
+    assert not any("mimic" in n for n in acting_notes(model)), acting_notes(model)
+    loose = redysim.load_model(urdf, mimic="independent")
+    assert [n for n in acting_notes(loose) if "mimic" in n and "'j2'" in n], loose.notes
+    assert not any("'f'" in n for n in acting_notes(loose)), loose.notes

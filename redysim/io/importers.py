@@ -431,7 +431,7 @@ def _urdf_unread(report: _Report, root, mimic: str) -> dict[str, float]:
     for six coordinates of two units)."""
     damping: list[tuple[str, float]] = []
     friction: list[tuple[str, float]] = []
-    limits, collision, mimics = [], [], []
+    limits, collision, mimics, fixed_mimics = [], [], [], []
     bounds = 0
     for joint in root.findall("joint"):
         name, jtype = joint.get("name"), joint.get("type")
@@ -451,16 +451,18 @@ def _urdf_unread(report: _Report, root, mimic: str) -> dict[str, float]:
             bounds += any(lim.get(k) is not None for k in ("effort", "velocity"))
         mim = joint.find("mimic")
         if mim is not None and (mimic == "independent" or jtype == "fixed"):
-            mimics.append((name, f"{mim.get('joint')!r} * {mim.get('multiplier', '1')} + "
-                                 f"{mim.get('offset', '0')}"))
+            (fixed_mimics if jtype == "fixed" else mimics).append(
+                (name, f"{mim.get('joint')!r} * {mim.get('multiplier', '1')} + "
+                       f"{mim.get('offset', '0')}"))
     for link in root.findall("link"):
         n = len(link.findall("collision"))
         if n:
             collision.append((link.get("name"), None))
         report.unread_count("<visual>", len(link.findall("visual")))
-    report.drop("joint", mimics, "mimic", "it moves independently: mimic='independent'"
-                if mimic == "independent" else "a fixed joint moves nothing to couple",
+    report.drop("joint", mimics, "mimic", "it moves independently: mimic='independent'",
                 motion=False)
+    report.drop("joint", fixed_mimics, "mimic", f"a fixed joint moves nothing to couple; "
+                f"{SAME_MOTION}", motion=False)
     types = {j.get("name"): j.get("type") for j in root.findall("joint")}
     report.drop("joint", [(n, x) for n, x in damping if types[n] == "floating"],
                 "<dynamics> damping", "one number for a floating joint's six coordinates (m/s "
