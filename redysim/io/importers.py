@@ -431,7 +431,9 @@ def _urdf_unread(report: _Report, root, mimic: str) -> dict[str, float]:
     for six coordinates of two units)."""
     damping: list[tuple[str, float]] = []
     friction: list[tuple[str, float]] = []
-    limits, collision, mimics, fixed_mimics = [], [], [], []
+    limits, collision = [], []
+    mimics: list[tuple[str, str]] = []  # (joint, "leader * multiplier + offset")
+    fixed_mimics: list[tuple[str, str]] = []
     bounds = 0
     for joint in root.findall("joint"):
         name, jtype = joint.get("name"), joint.get("type")
