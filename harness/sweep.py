@@ -172,6 +172,7 @@ DASK_LOCAL_WORKERS = 2
 DASK_KEY_PREFIX = "redysim-run-"
 DASK_IN_FLIGHT = 256  # runs submitted (and claimed) at a time
 DASK_CONNECT_TIMEOUT_S = 10
+DASK_WORKERS_TIMEOUT_S = 60  # how long a sweep waits for a scheduler's first worker
 PARENT_POLL_S = 1.0  # how often a pool worker checks that its sweep is still there
 DIED = "worker process died (out of memory, a crash in native code, or a signal)"
 
@@ -1080,15 +1081,68 @@ def _pool_results(work: _Work, workers: int,
                 suspects.extend(lost)
 
 
+def _worker_code() -> str:
+    """On a Dask worker: the code digest of the project it runs (its own install's)."""
+    from .provenance import code_digest
+
+    return code_digest()
+
+
+def _on_worker(task: Callable[[RunSpec], tuple[dict, pd.DataFrame]],
+               spec: RunSpec) -> tuple[str, str, tuple[dict, pd.DataFrame]]:
+    """One run on a Dask worker: (its address, its code digest, the task's result). The client
+    stores what comes back (a worker's own disk is never written) and refuses a result of other
+    code."""
+    from distributed import get_worker
+
+    return get_worker().address, _worker_code(), task(spec)
+
+
+def _check_workers(client, address: str) -> None:
+    """Every worker the scheduler has (waiting for a first one) runs this checkout's code:
+    a worker that cannot import the project, or runs another version of it (the code digest
+    differs), is refused by name before any run is submitted."""
+    from .provenance import code_digest
+
+    try:
+        client.wait_for_workers(1, timeout=DASK_WORKERS_TIMEOUT_S)
+    except TimeoutError:
+        raise SweepError("--dask", "address", address,
+                         f"the scheduler has no worker ({DASK_WORKERS_TIMEOUT_S} s waited): "
+                         "start workers (dask worker ADDRESS) with this project installed"
+                         ) from None
+    ours = code_digest()
+    for worker, digest in sorted(client.run(_worker_code, on_error="return").items()):
+        if isinstance(digest, BaseException):
+            raise SweepError("--dask", "worker", worker,
+                             f"cannot run this project's code ({type(digest).__name__}: "
+                             f"{str(digest)[:200]}): install this checkout on every worker "
+                             "(pip install -e .[harness]) and start it again; nothing was run")
+        if digest != ours:
+            raise SweepError("--dask", "worker", worker,
+                             f"runs other code (code digest {str(digest)[:12]}, this "
+                             f"checkout's {ours[:12]}: another version or local changes): "
+                             "install this checkout on it; nothing was run")
+
+
 def _dask_results(work: _Work, address: str,
                   task: Callable[[RunSpec], tuple[dict, pd.DataFrame]]) -> Iterator[Result]:
     """Run ``task`` on a Dask cluster, yielding each run as it finishes (``as_completed``).
 
-    At most ``DASK_IN_FLIGHT`` runs are submitted (and claimed) at a time. A worker that dies is
-    retried by the scheduler; a run that keeps killing workers (``KilledWorker``) or raises is
-    recorded as failed (transient: a resumed sweep runs it again).
+    Before any run: every worker runs this checkout's code (:func:`_check_workers`); each
+    result comes back with its worker's code digest and is refused by name if it differs (a
+    worker that joined later). At most ``DASK_IN_FLIGHT`` runs are submitted (and claimed) at a
+    time. A worker that dies is retried by the scheduler on another worker (the run is done
+    again from its start: a run is one task); a run that keeps killing workers
+    (``KilledWorker``) or raises is recorded as failed (transient: a resumed sweep runs it
+    again). A scheduler that goes away is a SweepError saying how many runs finished: they are
+    stored already, and the sweep run again does the rest.
     """
+    from concurrent.futures import CancelledError
+
     from distributed import Client, LocalCluster, as_completed
+
+    from .provenance import code_digest
 
     if work.empty:
         return
@@ -1107,29 +1161,57 @@ def _dask_results(work: _Work, address: str,
                                  f"no Dask scheduler answered there within "
                                  f"{DASK_CONNECT_TIMEOUT_S} s ({type(exc).__name__}: "
                                  f"{str(exc)[:200]})") from None
+        _check_workers(client, address)
+        ours = code_digest()
         futures: dict = {}
         pending = as_completed()
+        finished = 0
 
         def submit(wait_for_claims: bool) -> None:
             while len(futures) < DASK_IN_FLIGHT:
                 spec = work.next(wait=wait_for_claims and not futures)
                 if spec is None:
                     return
-                fut = client.submit(task, spec, key=DASK_KEY_PREFIX + spec.run_id, pure=False)
+                fut = client.submit(_on_worker, task, spec, key=DASK_KEY_PREFIX + spec.run_id,
+                                    pure=False)
                 futures[fut] = spec
                 pending.add(fut)
 
-        submit(True)
+        def scheduler_lost(exc: BaseException) -> SweepError:
+            return SweepError("--dask", "address", address,
+                              f"the scheduler went away ({type(exc).__name__}) after {finished} "
+                              "runs came back (stored: run the sweep again, with a "
+                              "scheduler, to do the rest)")
+
+        try:
+            submit(True)
+        except (OSError, CancelledError) as exc:
+            raise scheduler_lost(exc) from None
         while futures:
             fut = next(pending)
             spec = futures.pop(fut)
             try:
-                summary, samples = fut.result()
+                worker, digest, (summary, samples) = fut.result()
+            except CancelledError as exc:  # (the scheduler lost: every future is cancelled)
+                raise scheduler_lost(exc) from None
             except Exception as exc:
+                if client.status not in ("running", "connecting"):
+                    raise scheduler_lost(exc) from None
                 summary, samples = failed_row(spec, f"worker raised {exc!r}"), None
+            else:
+                if digest != ours:
+                    raise SweepError("--dask", "worker", worker,
+                                     f"ran {spec.run_id} with other code (code digest "
+                                     f"{digest[:12]}, this checkout's {ours[:12]}): its result "
+                                     f"is not kept; install this checkout on it ({finished} "
+                                     "runs finished are stored)")
             fut.release()
+            finished += 1
             yield spec, summary, samples
-            submit(True)
+            try:
+                submit(True)
+            except (OSError, CancelledError) as exc:
+                raise scheduler_lost(exc) from None
 
 
 # --------------------------------------------------------------------------- results
