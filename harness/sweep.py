@@ -1088,14 +1088,21 @@ def _worker_code() -> str:
     return code_digest()
 
 
-def _on_worker(task: Callable[[RunSpec], tuple[dict, pd.DataFrame]],
-               spec: RunSpec) -> tuple[str, str, tuple[dict, pd.DataFrame]]:
-    """One run on a Dask worker: (its address, its code digest, the task's result). The client
-    stores what comes back (a worker's own disk is never written) and refuses a result of other
-    code."""
+def _on_worker(task: Callable[[RunSpec], tuple[dict, pd.DataFrame]], spec: RunSpec,
+               results: str) -> tuple[str, str, bool, tuple[dict, pd.DataFrame]]:
+    """One run on a Dask worker: (its address, its code digest, whether it sees the client's
+    reference cache, the task's result). The run reads cached reference solutions from the
+    client's results folder ``results`` (an absolute path: a shared filesystem on a cluster of
+    several machines), as a local run does. The client stores what comes back (a worker's own
+    disk is never written) and refuses a result of other code or of a worker blind to the
+    references the client has."""
     from distributed import get_worker
 
-    return get_worker().address, _worker_code(), task(spec)
+    from .reference import RESULTS_ENV
+
+    os.environ[RESULTS_ENV] = results
+    sees = (Path(results) / "reference").is_dir()
+    return get_worker().address, _worker_code(), sees, task(spec)
 
 
 def _check_workers(client, address: str) -> None:
@@ -1163,6 +1170,10 @@ def _dask_results(work: _Work, address: str,
                                  f"{str(exc)[:200]})") from None
         _check_workers(client, address)
         ours = code_digest()
+        from .reference import results_dir
+
+        results = str(results_dir().resolve())  # (its reference cache: read by the runs)
+        has_references = (Path(results) / "reference").is_dir()
         futures: dict = {}
         pending = as_completed()
         finished = 0
@@ -1172,8 +1183,8 @@ def _dask_results(work: _Work, address: str,
                 spec = work.next(wait=wait_for_claims and not futures)
                 if spec is None:
                     return
-                fut = client.submit(_on_worker, task, spec, key=DASK_KEY_PREFIX + spec.run_id,
-                                    pure=False)
+                fut = client.submit(_on_worker, task, spec, results,
+                                    key=DASK_KEY_PREFIX + spec.run_id, pure=False)
                 futures[fut] = spec
                 pending.add(fut)
 
@@ -1191,7 +1202,7 @@ def _dask_results(work: _Work, address: str,
             fut = next(pending)
             spec = futures.pop(fut)
             try:
-                worker, digest, (summary, samples) = fut.result()
+                worker, digest, sees, (summary, samples) = fut.result()
             except CancelledError as exc:  # (the scheduler lost: every future is cancelled)
                 raise scheduler_lost(exc) from None
             except Exception as exc:
@@ -1205,6 +1216,13 @@ def _dask_results(work: _Work, address: str,
                                      f"{digest[:12]}, this checkout's {ours[:12]}): its result "
                                      f"is not kept; install this checkout on it ({finished} "
                                      "runs finished are stored)")
+                if has_references and not sees:
+                    raise SweepError("--dask", "worker", worker,
+                                     f"does not see the reference cache {results}/reference "
+                                     f"that {spec.run_id} is compared with here: its result "
+                                     "is not kept (a run there would lack its errors); give "
+                                     "the workers this results folder (a shared filesystem, "
+                                     f"the same path) ({finished} runs finished are stored)")
             fut.release()
             finished += 1
             yield spec, summary, samples

@@ -177,8 +177,32 @@ def test_a_worker_of_other_code_or_without_the_project_is_refused_by_name(cluste
     with pytest.raises(SweepError, match=r"worker = 'tcp://.*': cannot run this project's code "
                                          r"\(.*\): install this checkout on every worker"):
         run_sweep(SPECS[:1], tmp_path / "o2", dask=cluster.address, progress=False)
+    cluster.kill("bare")
     assert not parquet_files(tmp_path / "o1" / RUNS_DIR)  # nothing was run
     assert not parquet_files(tmp_path / "o2" / RUNS_DIR)
+
+
+def test_a_worker_blind_to_the_reference_cache_is_refused_by_name(cluster, tmp_path,
+                                                                 monkeypatch):
+    """A run reads the cached reference solution of its case (its error columns); a worker on
+    a machine without the client's results folder would return rows without them: refused."""
+    (tmp_path / "blind.py").write_text(
+        "import pathlib\n"
+        "def dask_setup(worker):  # a machine without the client's (shared) results folder\n"
+        "    real = pathlib.Path.is_dir\n"
+        "    pathlib.Path.is_dir = lambda self: False if 'shared-results' in str(self) "
+        "else real(self)\n")
+    results = tmp_path / "shared-results"
+    (results / "reference").mkdir(parents=True)
+    monkeypatch.setenv("REDYSIM_RESULTS", str(results))
+    env = {**cluster.env, "PYTHONPATH": str(tmp_path)}
+    cluster._start("blind", "worker", cluster.address, "--name", "blind", "--nthreads", "1",
+                   "--no-nanny", "--no-dashboard", "--preload", "blind", env=env)
+    cluster.wait_for({"blind"})
+    with pytest.raises(SweepError, match=r"worker = 'tcp://.*': does not see the reference "
+                                         r"cache .*shared-results/reference"):
+        run_sweep(SPECS[:1], tmp_path / "o", dask=cluster.address, progress=False)
+    assert not parquet_files(tmp_path / "o" / RUNS_DIR)  # its result was not kept
 
 
 def test_a_scheduler_that_goes_away_is_named_and_the_runs_that_came_back_are_kept(cluster,
