@@ -11,6 +11,7 @@ export PYTHONDONTWRITEBYTECODE := 1
 help:
 	@echo "make reproduce     venv + install + quick reproduction (~9-10 min on 2 quiet cores, ~12-15 beside a busy process): runs, then reports/out/report.{html,pdf}"
 	@echo "make reproduce-full every table to the paper's horizons (hours; resumable), then the report"
+	@echo "                   (DASK=tcp://host:8786 with either: every sweep's runs on that Dask cluster)"
 	@echo "make table1 .. table11, tableA2   only what that table needs, then the report"
 	@echo "make test          venv + install + the test suite (test-fast: ruff, mypy and the fast tests; test-rest)"
 	@echo "make gates         accuracy gates of harness/gates.toml: a table, exit 1 if any fails"
@@ -54,14 +55,18 @@ PAPER_TABLES := 1 2 3 4 5 6 7 8 9 10 11 A2
 TABLE_TARGETS := $(addprefix table,$(PAPER_TABLES))
 .PHONY: reproduce-full $(TABLE_TARGETS)
 
+# DASK=tcp://host:8786 (or local): every sweep's runs on that Dask cluster (docs/guide.md)
+DASK ?=
+DASK_FLAG := $(if $(DASK),--dask $(DASK),)
+
 reproduce: $(STAMP)
-	$(BIN)/python -m redysim.reports.reproduce
+	$(BIN)/python -m redysim.reports.reproduce $(DASK_FLAG)
 
 reproduce-full: $(STAMP)
-	$(BIN)/python -m redysim.reports.reproduce --full
+	$(BIN)/python -m redysim.reports.reproduce --full $(DASK_FLAG)
 
 $(TABLE_TARGETS): table%: $(STAMP)
-	$(BIN)/python -m redysim.reports.reproduce --table $*
+	$(BIN)/python -m redysim.reports.reproduce --table $* $(DASK_FLAG)
 
 # Every benchmark run appends its figures, commit, machine and date to the performance history
 # (benchmarks/history/bench.jsonl, tracked: commit it; redysim.reports.history), which the report

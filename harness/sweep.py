@@ -599,7 +599,8 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
 
     ``workers``: processes of the local pool (default ``os.cpu_count()``). ``dask``: a scheduler
     address (``"tcp://host:8786"``; its workers need this project installed) or ``"local"`` (a
-    LocalCluster of 2 single-threaded worker processes) instead of the local pool. ``progress``:
+    LocalCluster of 2 single-threaded worker processes) instead of the local pool; not given, a
+    :func:`dask_default` block's address, if any. ``progress``:
     a progress bar on stderr (runs done, failed, time left). ``name`` goes into sweep.json.
     ``reference``: first compute (or load from the cache) the reference solution of every
     pending run's case, horizon and sampling (:mod:`redysim.harness.reference`), so that each run
@@ -621,6 +622,8 @@ def run_sweep(specs: Sequence[RunSpec], out_dir: str | os.PathLike, *, name: str
     folder it cannot write while runs are left to do.
     """
     specs = unique(specs)
+    if dask is None:  # (a dask_default block's cluster, if any: its workers, not the pool's)
+        dask = _DASK_DEFAULT[0]
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(str(out), "<results folder>", None, "is a file, not a folder")
@@ -953,6 +956,24 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context(POOL_START_METHOD),
                                initializer=_init_worker, initargs=(os.getpid(),))
+
+
+_DASK_DEFAULT: list[str | None] = [None]  # dask_default's address (the innermost block's)
+
+
+@contextlib.contextmanager
+def dask_default(address: str | None) -> Iterator[None]:
+    """Inside the block, every :func:`run_sweep` not given ``dask`` sends its runs to the Dask
+    cluster at ``address`` (``"local"``: a LocalCluster per sweep; its ``workers``, the local
+    pool's size, then unused) instead of the local pool: how ``python -m
+    redysim.reports.reproduce --dask ADDRESS`` sends every sweep of a reproduction. ``None``:
+    the local pool, as outside a block."""
+    before = _DASK_DEFAULT[0]
+    _DASK_DEFAULT[0] = address
+    try:
+        yield
+    finally:
+        _DASK_DEFAULT[0] = before
 
 
 @contextlib.contextmanager

@@ -580,13 +580,25 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("reports") / "out", help="report folder")
     ap.add_argument("--workers", type=int, default=None,
                     help="sweep worker processes (default: one per core)")
+    ap.add_argument("--dask", metavar="ADDRESS|local", default=None,
+                    help="send every sweep's runs (the tables' sweeps, the scenarios, the "
+                         "refinement studies) to this Dask scheduler (its workers with this "
+                         "checkout installed and the results folder at the same path; 'local': "
+                         "a LocalCluster); the long runs, the precision tables, the error study "
+                         "and the figures run here")
     args = ap.parse_args(argv)
+    if args.dask is not None and args.workers is not None:
+        ap.error("--workers sets the local pool; with --dask the cluster's workers run the sweeps")
     rep = Reproduction(args.results, args.out, args.workers, FULL if args.full else QUICK)
     # reference solutions are cached under the results folder (redysim.harness.reference), also in
     # the sweep's worker processes, which inherit the environment
     os.environ["REDYSIM_RESULTS"] = str(rep.results)
-    rep.say(f"{rep.mode} reproduction -> {rep.results}, report -> {args.out}")
-    return rep.run(rep.plan(args.table, args.build_only))
+    rep.say(f"{rep.mode} reproduction -> {rep.results}, report -> {args.out}"
+            + (f"; sweeps on Dask ({args.dask})" if args.dask else ""))
+    from redysim.harness.sweep import dask_default
+
+    with dask_default(args.dask):
+        return rep.run(rep.plan(args.table, args.build_only))
 
 
 if __name__ == "__main__":

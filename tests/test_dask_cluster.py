@@ -225,3 +225,31 @@ def test_a_scheduler_that_goes_away_is_named_and_the_runs_that_came_back_are_kep
     assert 1 <= len(kept) < len(SPECS)
     again = run_sweep(SPECS, out, workers=2, progress=False)  # the rest, here
     assert (again["status"] == "ok").all() and again.attrs["ran"] == len(SPECS) - len(kept)
+
+
+def test_a_reproduction_sends_its_sweeps_to_the_cluster_it_is_given(cluster, tmp_path,
+                                                                    monkeypatch):
+    """`python -m redysim.reports.reproduce --dask ADDRESS` (make reproduce DASK=ADDRESS): every
+    run_sweep inside it goes to that cluster, also one given a pool size (the refinement
+    studies'); outside the block, the local pool as before."""
+    from redysim.harness import sweep
+    from redysim.reports import reproduce
+
+    seen: list = []
+    monkeypatch.setattr(reproduce.Reproduction, "run",
+                        lambda self, plan: seen.append(sweep._DASK_DEFAULT[0]) or 0)
+    assert reproduce.main(["--build-only", "--results", str(tmp_path / "r"), "--out",
+                           str(tmp_path / "o"), "--dask", cluster.address]) == 0
+    assert seen == [cluster.address] and sweep._DASK_DEFAULT[0] is None
+    cluster.worker("a")
+    cluster.wait_for({"a"})
+    used: list = []
+    real = sweep._dask_results
+    monkeypatch.setattr(sweep, "_dask_results",
+                        lambda work, address, task: used.append(address) or real(work, address,
+                                                                                 task))
+    with sweep.dask_default(cluster.address):
+        runs = run_sweep(SPECS[:2], tmp_path / "s", workers=2, progress=False)
+    assert used == [cluster.address] and (runs["status"] == "ok").all()
+    run_sweep(SPECS[2:3], tmp_path / "t", workers=1, progress=False)  # outside: the pool
+    assert used == [cluster.address]
