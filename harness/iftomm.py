@@ -21,6 +21,10 @@ independent of the core's loops and integrators:
   V = m g L b cos(theta), a = (N + 1) / 3 + N, b = (N + 1) / 2 + N: theta'' = (g / L) (b / a)
   sin(theta), B0 = L (sin theta, cos theta); integrated by SciPy's DOP853 at rtol 1e-13 (one
   degree of freedom: no loops, no singular positions).
+- A03 (Andrews' squeezer): the Test Set for IVP Solvers' published solution at t = 0.03 s
+  (A03_REFERENCE), and its equations by SciPy (a03_equations, a03_scipy); the spring and the
+  motor, which no model or scenario file writes, as a System's tau and potential (a03_forces).
+  Where each number comes from: the A03 section below.
 """
 
 from __future__ import annotations
