@@ -29,7 +29,11 @@ independent of the core's loops and integrators:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+
+from redysim.io.cases import CASES_DIR
 
 LOW, HIGH = 1e-1, 1e-3  # the library's "low" and "high" precision [m]
 G = 9.81  # the library's gravity [N/kg]
@@ -150,6 +154,31 @@ def a03_forces(link, p: dict | None = None):
         return 0.5 * c0 * (float(np.hypot(*(d - c))) - l0) ** 2 - mom * float(q[k_crank])
 
     return tau, potential
+
+
+A03_SAMPLE = 0.001  # s: ex_andrews.R's output times, seq(0, 0.03, by = 0.001)
+A03_FILE = Path(CASES_DIR) / "iftomm" / "models" / "a03_andrews.toml"
+
+
+def a03_simulator(t_end: float = A03_T_END, **settings):
+    """Andrews' squeezer as the test set poses it: the mechanism of ``A03_FILE`` (its loops
+    closed) from the test set's initial angles at rest, driven by its motor and loaded by its
+    spring (:func:`a03_forces`), over [0, ``t_end``] sampled every ``A03_SAMPLE``. Returns (the
+    :class:`redysim.simulation.Simulator`, the linkage). ``settings``: the simulator's keywords
+    (``integrator``, ``rtol``, ``atol``, ...).
+
+    There is no scenario file for A03: neither a linkage file nor a scenario file writes a
+    point-to-point spring or a joint torque, and a scenario without them would run the
+    squeezer at rest under its name."""
+    from redysim import load_linkage
+    from redysim.simulation import simulator
+
+    link = load_linkage(A03_FILE)
+    tau, potential = a03_forces(link)
+    sim = simulator(link.model, t_end, q0=link.q0, v0=np.zeros(link.model.n_v),
+                    sample=A03_SAMPLE, loops=link.loops, tau=tau, potential=potential,
+                    source=str(A03_FILE), **settings)
+    return sim, link
 
 
 def a03_equations(y, p: dict | None = None):
