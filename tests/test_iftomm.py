@@ -1,17 +1,32 @@
 """The IFToMM benchmark problems (cases/iftomm/) in the core: each against a reference that is
 not the core's (A01: the closed form; A02: the parallelogram's one-degree-of-freedom equation by
-SciPy; A04: Bricard's full revolute joint, all 5 equations, and the energy), at the library's
-"high" precision (harness/iftomm.py)."""
+SciPy; A03: the Test Set for IVP Solvers' published solution of Andrews' squeezer, and its
+equations by SciPy; A04: Bricard's full revolute joint, all 5 equations, and the energy), at the
+library's "high" precision (harness/iftomm.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from redysim import load_linkage, simulate
+from redysim import load_linkage, mass_matrix, simulate
 from redysim.algorithms.loops import ClosedLoops
 from redysim.errors import CaseError
-from redysim.harness.iftomm import HIGH, a01_p1, a02_b0, library_error
+from redysim.harness.iftomm import (
+    A03_ORDER,
+    A03_REFERENCE,
+    A03_T_END,
+    A03_Y0,
+    HIGH,
+    a01_p1,
+    a02_b0,
+    a03_equations,
+    a03_forces,
+    a03_scipy,
+    a03_simulator,
+    a03_tree,
+    library_error,
+)
 from redysim.io.linkage_files import linkage_from_dict
 from redysim.io.scenarios import load_scenario
 from redysim.model.tree import CutJoint
@@ -182,3 +197,100 @@ def test_a04_bricard_dop853_and_radau_agree():
         assert sim.status == 0, sim.message
         paths.append(np.array([link.point(q, "rod2.J3") for q in sim.q]))
     assert np.abs(paths[0] - paths[1]).max() < 1e-10
+
+
+# --------------------------------------------------------------------------- A03: Andrews' squeezer
+A03_FILE = f"{CASES}/models/a03_andrews.toml"
+
+
+def test_a03_linkage_file_is_the_test_sets_squeezer():
+    """The file against the test set's own equations (andfunc, written out as a03_equations):
+    at random angles the tree's mass matrix is the test set's M, the cut joints' residuals and
+    Jacobian its g and G (same rows, columns in the tree's order), the spring's and motor's
+    generalized forces (a03_forces) its ff without the velocity terms; and the file's
+    configuration is the test set's initial one, its loops closed."""
+    link = load_linkage(A03_FILE)
+    model = link.model
+    assert model.n_v == 7 and len(model.cuts) == 3 and not np.any(model.gravity)
+    tau, potential = a03_forces(link)
+    order = list(A03_ORDER)
+    rng = np.random.default_rng(20261208)
+    for y in rng.uniform(-np.pi, np.pi, (5, 7)):
+        M, g, G, f = a03_equations(y)
+        q = a03_tree(y)
+        M_tree = M[np.ix_(order, order)]
+        assert np.abs(mass_matrix(model, q) - M_tree).max() < 1e-15 * np.abs(M).max()
+        phi, J, _, _ = link.loops.evaluate(q, np.zeros(7))
+        assert np.abs(phi - g).max() < 1e-16
+        assert np.abs(J - G[:, order]).max() < 1e-16
+        assert np.abs(tau(0.0, q, np.zeros(7)) - a03_tree(f)).max() < 1e-12 * np.abs(f).max()
+    assert np.abs(link.q0 - a03_tree(A03_Y0)).max() < 1e-15
+    assert np.abs(a03_equations(A03_Y0)[1]).max() < 1e-16  # the test set's start closes g
+    assert np.abs(link.loops.evaluate(link.q0, np.zeros(7))[0]).max() < 1e-16
+    # the spring's potential is the one whose gradient is tau (central differences)
+    q, h = link.q0, 1e-6
+    grad = [(potential(q + h * e) - potential(q - h * e)) / (2 * h) for e in np.eye(7)]
+    assert np.allclose(-np.array(grad), tau(0.0, q, np.zeros(7)), rtol=1e-6, atol=1e-9)
+
+
+def test_a03_scipy_on_the_test_sets_equations_meets_its_reference():
+    """The test set's equations by SciPy's DOP853 (no tree, no projection) against its
+    published solution at 0.03 s (andsoln: PSIDE at 1e-14 on a Cray C90): the 7 angles to
+    3e-10 relative (measured 2.7e-10, gamma), the 7 velocities to 5.1e-8 (epsilon'; 5.4e-7
+    rad/s absolute): at rtol 1e-13 and 3e-14 alike, so it is the reference's own error (the
+    test set scores only the angles: its SCD skips y(8..27))."""
+    y, drift = a03_scipy(rtol=1e-13)
+    rel = np.abs(y - A03_REFERENCE) / np.abs(A03_REFERENCE)
+    assert drift < 1e-14
+    assert rel[:7].max() < 5e-10, rel
+    assert rel[7:].max() < 1e-7, rel
+
+
+def _a03(tol):
+    simulator, _ = a03_simulator(integrator="dop853", rtol=tol, atol=tol)
+    sim = simulator.run()
+    assert sim.status == 0, sim.message
+    y = np.concatenate((a03_tree(sim.q[-1]), a03_tree(sim.v[-1])))
+    return sim, y
+
+
+def test_a03_core_meets_the_test_sets_reference():
+    """dop853 at rtol = atol = 1e-12 over [0, 0.03] s (214 steps): the 7 angles within 3e-10
+    relative of the published solution (measured 2.7e-10), the velocities within 1e-7
+    (5.1e-8); the core within 1e-10 relative of SciPy on the test set's equations (1.6e-11:
+    the published solution's own error is what is left); the energy with the spring's and the
+    motor's potentials kept to 1e-11, the loops at round-off."""
+    sim, y = _a03(1e-12)
+    assert len(sim.t) == 31 and sim.t[-1] == A03_T_END
+    rel = np.abs(y - A03_REFERENCE) / np.abs(A03_REFERENCE)
+    assert rel[:7].max() < 5e-10, rel
+    assert rel[7:].max() < 1e-7, rel
+    ref, _ = a03_scipy(rtol=3e-14)
+    assert (np.abs(y - ref) / np.abs(ref)).max() < 1e-10
+    assert np.abs(sim.energy - sim.energy[0]).max() < 1e-11 * abs(sim.energy[0])
+    assert np.max(sim.residual_q) < 1e-13
+    assert np.ptp(sim.q[:, 0]) > 15.0  # the crank turns 2.5 times
+
+
+def test_a03_is_run_with_its_forces_and_has_no_scenario_file_without_them():
+    """The squeezer's spring and motor are not in any file (neither format writes them): it is
+    run by a03_simulator, and no scenario file runs it under its name without them (it would
+    stay at rest). The mechanism's own file says where its forces are."""
+    import pathlib
+
+    assert not list(pathlib.Path(CASES).glob("A03*"))
+    assert "a03_forces" in pathlib.Path(A03_FILE).read_text()
+    simulator, link = a03_simulator(t_end=0.002)
+    sim = simulator.run()
+    assert sim.status == 0 and np.abs(sim.q[-1] - link.q0).max() > 1e-6  # the motor turns it
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tol, angles, velocities", [(1e-10, 5e-10, 1e-7), (1e-8, 1e-8, 1e-6),
+                                                      (1e-6, 1e-5, 1e-3)])
+def test_a03_core_at_looser_tolerances(tol, angles, velocities):
+    """The largest relative errors against the published solution at looser tolerances
+    (measured: 1e-10: 3.5e-10 and 5.4e-8; 1e-8: 3.4e-9 and 3.8e-7; 1e-6: 1.3e-6 and 1.4e-4)."""
+    _, y = _a03(tol)
+    rel = np.abs(y - A03_REFERENCE) / np.abs(A03_REFERENCE)
+    assert rel[:7].max() < angles and rel[7:].max() < velocities, rel
