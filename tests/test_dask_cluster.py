@@ -67,10 +67,10 @@ class Cluster:
     def log(self, name: str) -> str:
         return (self.folder / f"{name}.log").read_text()[-3000:]
 
-    def worker(self, name: str, *extra: str) -> None:
+    def worker(self, name: str, *extra: str, env: dict | None = None) -> None:
         """A worker process (no nanny: killing it kills the worker), one thread."""
         self._start(name, "worker", self.address, "--name", name, "--nthreads", "1",
-                    "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", *extra)
+                    "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", *extra, env=env)
 
     def wait_for(self, names: set[str]) -> None:
         with distributed.Client(self.address, timeout=START_S) as client:
@@ -152,57 +152,43 @@ def test_a_killed_worker_loses_only_its_runs_and_the_results_equal_the_local_poo
     assert "Remove worker" in cluster.log("scheduler") or "lost" in cluster.log("scheduler")
 
 
+def refused(cluster: Cluster, tmp_path: Path, name: str, setup: str, says: str) -> None:
+    """A worker whose start runs ``setup`` (the body of a Dask preload's ``dask_setup``) is
+    refused by name, matching ``says``, before its result is kept: nothing is run."""
+    (tmp_path / f"{name}.py").write_text(f"import pathlib, sys\ndef dask_setup(worker):\n"
+                                         f"{setup}\n")
+    cluster.worker(name, "--preload", name, env={**cluster.env, "PYTHONPATH": str(tmp_path)})
+    cluster.wait_for({name})
+    with pytest.raises(SweepError, match=r"worker = 'tcp://.*': " + says):
+        run_sweep(SPECS[:1], tmp_path / name, dask=cluster.address, progress=False)
+    cluster.kill(name)
+    assert not parquet_files(tmp_path / name / RUNS_DIR)
+
+
 def test_a_worker_of_other_code_or_without_the_project_is_refused_by_name(cluster, tmp_path):
-    (tmp_path / "other_code.py").write_text(
-        "def dask_setup(worker):\n"
-        "    import redysim.harness.provenance as p\n"
-        "    p.code_digest = lambda: 'f' * 64  # another version of the project\n")
-    (tmp_path / "no_project.py").write_text(
-        "import sys\n"
-        "def dask_setup(worker):\n"
-        "    for name in [m for m in sys.modules if m.split('.')[0] == 'redysim']:\n"
-        "        del sys.modules[name]\n"
-        "    sys.modules['redysim'] = None  # import redysim fails, as without the project\n")
-    env = {**cluster.env, "PYTHONPATH": str(tmp_path)}
-    cluster._start("other", "worker", cluster.address, "--name", "other", "--nthreads", "1",
-                   "--no-nanny", "--no-dashboard", "--preload", "other_code", env=env)
-    cluster.wait_for({"other"})
-    with pytest.raises(SweepError, match=r"worker = 'tcp://.*': runs other code \(code digest "
-                                         r"ffffffffffff, this checkout's"):
-        run_sweep(SPECS[:1], tmp_path / "o1", dask=cluster.address, progress=False)
-    cluster.kill("other")
-    cluster._start("bare", "worker", cluster.address, "--name", "bare", "--nthreads", "1",
-                   "--no-nanny", "--no-dashboard", "--preload", "no_project", env=env)
-    cluster.wait_for({"bare"})
-    with pytest.raises(SweepError, match=r"worker = 'tcp://.*': cannot run this project's code "
-                                         r"\(.*\): install this checkout on every worker"):
-        run_sweep(SPECS[:1], tmp_path / "o2", dask=cluster.address, progress=False)
-    cluster.kill("bare")
-    assert not parquet_files(tmp_path / "o1" / RUNS_DIR)  # nothing was run
-    assert not parquet_files(tmp_path / "o2" / RUNS_DIR)
+    refused(cluster, tmp_path, "other",
+            "    import redysim.harness.provenance as p\n"
+            "    p.code_digest = lambda: 'f' * 64  # another version of the project",
+            r"runs other code \(code digest ffffffffffff, this checkout's")
+    refused(cluster, tmp_path, "bare",
+            "    for name in [m for m in sys.modules if m.split('.')[0] == 'redysim']:\n"
+            "        del sys.modules[name]\n"
+            "    sys.modules['redysim'] = None  # import redysim fails, as without the project",
+            r"cannot run this project's code \(.*\): install this checkout on every worker")
 
 
 def test_a_worker_blind_to_the_reference_cache_is_refused_by_name(cluster, tmp_path,
                                                                  monkeypatch):
     """A run reads the cached reference solution of its case (its error columns); a worker on
     a machine without the client's results folder would return rows without them: refused."""
-    (tmp_path / "blind.py").write_text(
-        "import pathlib\n"
-        "def dask_setup(worker):  # a machine without the client's (shared) results folder\n"
-        "    real = pathlib.Path.is_dir\n"
-        "    pathlib.Path.is_dir = lambda self: False if 'shared-results' in str(self) "
-        "else real(self)\n")
     results = tmp_path / "shared-results"
     (results / "reference").mkdir(parents=True)
     monkeypatch.setenv("REDYSIM_RESULTS", str(results))
-    env = {**cluster.env, "PYTHONPATH": str(tmp_path)}
-    cluster._start("blind", "worker", cluster.address, "--name", "blind", "--nthreads", "1",
-                   "--no-nanny", "--no-dashboard", "--preload", "blind", env=env)
-    cluster.wait_for({"blind"})
-    with pytest.raises(SweepError, match=r"worker = 'tcp://.*': does not see the reference "
-                                         r"cache .*shared-results/reference"):
-        run_sweep(SPECS[:1], tmp_path / "o", dask=cluster.address, progress=False)
-    assert not parquet_files(tmp_path / "o" / RUNS_DIR)  # its result was not kept
+    refused(cluster, tmp_path, "blind",
+            "    real = pathlib.Path.is_dir  # a machine without the client's results folder\n"
+            "    pathlib.Path.is_dir = lambda self: ('shared-results' not in str(self)\n"
+            "                                        and real(self))",
+            r"does not see the reference cache .*shared-results/reference")
 
 
 def test_a_scheduler_that_goes_away_is_named_and_the_runs_that_came_back_are_kept(cluster,
