@@ -197,8 +197,9 @@ class PinocchioEngine(Engine):
     def _mimic(self, first):
         """Pinocchio's own coupled model (``pin.transformJointIntoMimic`` of each follower onto
         its leader: Pinocchio's mimic joints, with nq = nv = 0, as ``buildModelFromUrdf(...,
-        mimic=True)`` makes them) beside the tree: ``pmm``, ``dmm``; ``mq``, ``mv``: the tree's
-        engine q and v slot of each of its coordinates; ``G`` (tree nv, its nv): v_tree = G v."""
+        mimic=True)`` makes them) beside the tree: ``pmm`` (a Data of its own at each call);
+        ``mq``, ``mv``: the tree's engine q and v slot of each of its coordinates; ``G`` (tree
+        nv, its nv): v_tree = G v."""
         pin, m, pm = self.lib, self.model, self.pm
         index = {name: k for k, name in enumerate(m.joint_names)}
         pmm = pm
@@ -224,7 +225,7 @@ class PinocchioEngine(Engine):
             # (diagonal: each tree velocity is one reduced velocity times its factor), a_l +
             # m^2 a_f at the leader, the coupled motion's own inertia (the core's, G^T I G)
             pmm.armature = np.einsum("ij,i,ij->j", G, np.asarray(pm.armature), G)
-        self.pmm, self.dmm = pmm, pin.Data(pmm)
+        self.pmm = pmm  # (its Data made at each call: _qdd)
         self.mq, self.mv, self.G = mq, mv, G
 
     def _engine_state(self, q, v):
@@ -340,8 +341,12 @@ class PinocchioCRBA(PinocchioEngine):
         pin = self.lib
         if self.model.couplings:  # Pinocchio's coupled model, in its own coordinates
             qr, yr = qp[self.mq], y[self.mv]
-            M = pin.crba(self.pmm, self.dmm, qr)
-            rhs = -pin.nonLinearEffects(self.pmm, self.dmm, qr, yr)
+            # a fresh Data each call: Pinocchio 4.1.0's crba on a mimic model adds its mimic
+            # terms to what a reused Data holds (M[0, 1] twice, then three times, its value;
+            # clearing data.M in place is not enough): the second call on was wrong
+            dmm = pin.Data(self.pmm)
+            M = pin.crba(self.pmm, dmm, qr)
+            rhs = -pin.nonLinearEffects(self.pmm, dmm, qr, yr)
             if tau_e is not None:
                 rhs = rhs + self.G.T @ tau_e
             return self.G @ _upper_cholesky_solve(M, rhs)

@@ -280,3 +280,39 @@ def test_a_mimic_on_a_fixed_joint_is_noted_as_changing_nothing(tmp_path):
     loose = redysim.load_model(urdf, mimic="independent")
     assert [n for n in acting_notes(loose) if "mimic" in n and "'j2'" in n], loose.notes
     assert not any("'f'" in n for n in acting_notes(loose)), loose.notes
+
+
+def test_pinocchio_crba_is_right_at_every_call_not_only_the_first(tmp_path):
+    """A mimic with a multiplier and an offset: Pinocchio 4.1.0's crba on its mimic model adds
+    to what a reused Data holds, so the adapter's second call on was off by 0.04-4 rad/s^2
+    (hold-out battery 6); each call now equals the core's, which equals a reduced-coordinate
+    solve by NumPy (dq = G d(ja, jc), G^T M G qdd_r = -G^T h)."""
+    eng_cls = engine_or_skip("pinocchio-crba")
+    inertial = ('<inertial><mass value="{m}"/><origin xyz="{x} 0 0"/><inertia ixx="0.001" '
+                'iyy="0.002" izz="0.002" ixy="0" ixz="0" iyz="0"/></inertial>')
+    urdf = tmp_path / "grip.urdf"
+    urdf.write_text(
+        '<robot name="grip">'
+        + "".join(f'<link name="{n}">{inertial.format(m=m, x=x)}</link>'
+                  for n, m, x in (("base", 1, 0), ("a", 0.5, 0.1), ("b", 0.4, 0.1),
+                                  ("c", 0.3, 0.05)))
+        + '<joint name="ja" type="revolute"><parent link="base"/><child link="a"/>'
+          '<axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+          '<joint name="jb" type="revolute"><parent link="a"/><child link="b"/>'
+          '<origin xyz="0.2 0 0"/><axis xyz="0 0 1"/><mimic joint="ja" multiplier="-0.5" '
+          'offset="0.1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+          '<joint name="jc" type="revolute"><parent link="b"/><child link="c"/>'
+          '<origin xyz="0.2 0 0"/><axis xyz="0 1 0"/>'
+          '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>')
+    model = redysim.load_model(urdf)
+    tree = redysim.load_model(urdf, mimic="independent")
+    eng = eng_cls(model)
+    G = np.array([[1.0, 0.0], [-0.5, 0.0], [0.0, 1.0]])
+    for q0, v0 in (([0.64, 0.0, 0.26], [0.5, 0.0, 0.3]), ([0.3, 0.0, 0.2], [0.0, 0.0, 0.0]),
+                   ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]), ([0.64, 0.0, 0.26], [0.5, 0.0, 0.3])):
+        q, v = model.couple(np.array(q0), np.array(v0))
+        M = redysim.mass_matrix(tree, q)
+        h = redysim.inverse_dynamics(tree, q, v, np.zeros(3))
+        reduced = G @ np.linalg.solve(G.T @ M @ G, -G.T @ h)
+        assert np.abs(redysim.forward_dynamics(model, q, v) - reduced).max() < 1e-12
+        assert np.abs(eng.qdd(q, v) - reduced).max() < 1e-10 * (1 + np.abs(reduced).max())
