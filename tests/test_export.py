@@ -86,6 +86,8 @@ def _reads_back(model: Model, text: str, fmt: str, tmp_path, seed) -> Model:
     random states (the URDF of a model with a free joint is loaded floating)."""
     path = tmp_path / ("m.xml" if fmt == "mjcf" else "m.urdf")
     path.write_text(text)
+    if fmt == "urdf":  # the file says whether it is to be loaded floating (hold-out battery 6)
+        assert ("floating=True" in text) == ("free" in model.joint_types)
     back = load_model(path, floating="free" in model.joint_types) if fmt == "urdf" \
         else load_model(path)
     assert (back.n_q, back.n_v) == (model.n_q, model.n_v)

@@ -45,7 +45,7 @@ refuses deeper elements); a body named ``world`` or repeated body or joint names
 from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
 but the last hang from massless links (``<body>_axis<i>``); a free joint is left out (URDF has
 none that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model`
-offers). A coupling is the follower's ``<mimic joint multiplier offset>``. The placement is
+offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint multiplier offset>``. The placement is
 written as ``xyz`` and ``rpy`` (roll-pitch-yaw, converted from the
 rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model
 whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
@@ -622,6 +622,13 @@ def to_urdf(model: Model) -> str:
             f"each is written wide (lower {_num(-URDF_WIDE_LIMIT)}, upper "
             f"{_num(URDF_WIDE_LIMIT)} m, effort {_num(URDF_WIDE_LIMIT)} N, velocity "
             f"{_num(URDF_WIDE_LIMIT)} m/s), never reached: the motion is the model's."))
+    if free:  # (read back without being told, every reader fixes the root: said in the file)
+        root.append(ET.Comment(
+            f"A floating model: its root link {model.body_names[free[0]]!r} moves freely (the "
+            f"free joint {model.joint_names[free[0]]!r}, 7 q and 6 v), which URDF does not "
+            "write: load it floating, redysim.load_model(path, floating=True), Pinocchio's "
+            "buildModelFromUrdf(path, pinocchio.JointModelFreeFlyer()); read without that, "
+            "every reader fixes the root to the world."))
     mujoco_refuses = _mujoco_refuses(source, model)
     if mujoco_refuses:
         root.append(ET.Comment(
