@@ -45,9 +45,9 @@ refuses deeper elements); a body named ``world`` or repeated body or joint names
 from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
 but the last hang from massless links (``<body>_axis<i>``); a free joint is left out (URDF has
 none that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model`
-offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint multiplier offset>``. The placement is
-written as ``xyz`` and ``rpy`` (roll-pitch-yaw, converted from the
-rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model
+offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint
+multiplier offset>``. The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw,
+converted from the rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model
 whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
 -z, in the origins of the joints from ``world`` (an XML comment says which); the dynamics as
 functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
