@@ -47,8 +47,8 @@ but the last hang from massless links (``<body>_axis<i>``); a free joint is left
 none that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model`
 offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint
 multiplier offset>``. The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw,
-converted from the rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model
-whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
+converted from the rotation to round-off). URDF carries no gravity and its readers assume
+(0, 0, -9.81): a model whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
 -z, in the origins of the joints from ``world`` (an XML comment says which); the dynamics as
 functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
 included), a floating model whose gravity is not along -z (turning the world would change its
