@@ -48,9 +48,9 @@ none that parsers agree on: load the file with ``floating=True``, as :func:`redy
 offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint
 multiplier offset>``. The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw,
 converted from the rotation to round-off). URDF carries no gravity and its readers assume
-(0, 0, -9.81): a model whose gravity points elsewhere is turned, by the rotation that takes its gravity's direction to
--z, in the origins of the joints from ``world`` (an XML comment says which); the dynamics as
-functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
+(0, 0, -9.81): a model whose gravity points elsewhere is turned, by the rotation that takes
+its gravity's direction to -z, in the origins of the joints from ``world`` (an XML comment says
+which); the dynamics as functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
 included), a floating model whose gravity is not along -z (turning the world would change its
 free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
 readers take a link of that name as the world itself), repeated link or joint names, and
