@@ -41,35 +41,35 @@ radius); principal moments that break the triangle inequality A + B >= C (the pa
 by more than round-off; bodies nested deeper than :data:`MJCF_MAX_DEPTH` (MuJoCo's XML reader
 refuses deeper elements); a body named ``world`` or repeated body or joint names.
 
-:func:`to_urdf` writes URDF: one ``<link>`` per body and one ``<joint>`` per elementary axis
-from the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes
-but the last hang from massless links (``<body>_axis<i>``); a free joint is left out (URDF has
-none that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model`
-offers; an XML comment in the file says so). A coupling is the follower's ``<mimic joint
-multiplier offset>``. The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw,
-converted from the rotation to round-off). URDF carries no gravity and its readers assume
-(0, 0, -9.81): a model whose gravity points elsewhere is turned, by the rotation that takes
-its gravity's direction to -z, in the origins of the joints from ``world`` (an XML comment says
-which); the dynamics as functions of q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero
-included), a floating model whose gravity is not along -z (turning the world would change its
-free joint's coordinates), a floating model with another root, a body named ``world`` (URDF
-readers take a link of that name as the world itself), repeated link or joint names, and
-armature (:attr:`Model.armature`: URDF has no field for a joint's own inertia), joint springs
-and gravity compensation (no field either; a joint's damping is its ``<dynamics damping>``, a
-free joint's refused as the free joint is left out) and a ball joint (URDF has none). URDF holds no
-initial configuration: a model's :attr:`Model.initial_q` is said in an XML comment only. A
-prismatic joint gets the ``<limit>`` the URDF specification requires of it (urdfdom, the reader
-of Pinocchio and ROS, refuses the file without one), written wide (:data:`URDF_WIDE_LIMIT`:
-+-1e9 m, and effort and velocity 1e9), never reached, and said so in an XML comment; a model
-holds no joint limits (the importers announce the ones they drop), so none is lost. Revolute
-axes are ``continuous``, which takes none. Every file is read by urdfdom (Pinocchio's
-``buildModelFromXML``) and redysim's own reader with the model's dynamics, and by MuJoCo's URDF
-reader unless it has a U or S joint, whose massless links between axes MuJoCo's compiler refuses
-(export to MJCF for MuJoCo: :func:`to_mjcf` merges them), or a body MuJoCo's compiler refuses in
-any format: the ones :func:`to_mjcf` refuses by name (a moving body's mass or principal moment
-below ``mjMINVAL``, moments breaking A + B >= C; the PUMA 560 of the talk, whose waist has no
-mass, is one). URDF holds them, and urdfdom and redysim read them (``tests/test_export.py``);
-the file then says so in an XML comment, with to_mjcf's reason for each such body.
+:func:`to_urdf` writes URDF: one ``<link>`` per body and one ``<joint>`` per elementary axis from
+the root link ``world``. A U or S joint has several axes and URDF one per joint, so its axes but
+the last hang from massless links (``<body>_axis<i>``); a free joint is left out (URDF has none
+that parsers agree on: load the file with ``floating=True``, as :func:`redysim.load_model` offers;
+an XML comment in the file says so). A coupling is the follower's ``<mimic joint multiplier
+offset>``. The placement is written as ``xyz`` and ``rpy`` (roll-pitch-yaw, converted from the
+rotation to round-off). URDF carries no gravity and its readers assume (0, 0, -9.81): a model whose
+gravity points elsewhere is turned, by the rotation that takes its gravity's direction to -z, in
+the origins of the joints from ``world`` (an XML comment says which); the dynamics as functions of
+q are unchanged. Refused: a gravity whose magnitude is not 9.81 m/s^2 (zero included), a floating
+model whose gravity is not along -z (turning the world would change its free joint's coordinates),
+a floating model with another root, a body named ``world`` (URDF readers take a link of that name
+as the world itself), repeated link or joint names, and armature (:attr:`Model.armature`: URDF has
+no field for a joint's own inertia), joint springs and gravity compensation (no field either; a
+joint's damping is its ``<dynamics damping>``, a free joint's refused as the free joint is left
+out) and a ball joint (URDF has none). URDF holds no initial configuration: a model's
+:attr:`Model.initial_q` is said in an XML comment only. A prismatic joint gets the ``<limit>`` the
+URDF specification requires of it (urdfdom, the reader of Pinocchio and ROS, refuses the file
+without one), written wide (:data:`URDF_WIDE_LIMIT`: +-1e9 m, and effort and velocity 1e9), never
+reached, and said so in an XML comment; a model holds no joint limits (the importers announce the
+ones they drop), so none is lost. Revolute axes are ``continuous``, which takes none. Every file is
+read by urdfdom (Pinocchio's ``buildModelFromXML``) and redysim's own reader with the model's
+dynamics, and by MuJoCo's URDF reader unless it has a U or S joint, whose massless links between
+axes MuJoCo's compiler refuses (export to MJCF for MuJoCo: :func:`to_mjcf` merges them), or a body
+MuJoCo's compiler refuses in any format: the ones :func:`to_mjcf` refuses by name (a moving body's
+mass or principal moment below ``mjMINVAL``, moments breaking A + B >= C; the PUMA 560 of the talk,
+whose waist has no mass, is one). URDF holds them, and urdfdom and redysim read them
+(``tests/test_export.py``); the file then says so in an XML comment, with to_mjcf's reason for each
+such body.
 
 Numbers are written as Python's shortest exact ``repr`` (at most 17 significant digits); the XML
 is written without recursion, so a model of any depth is written (or refused) at once.
