@@ -605,7 +605,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         import pandas as pd
 
         samples = res.samples
-        if states and res.states is not None:
+        if states and res.states is not None and getattr(res.states, "ndim", 0) == 2 \
+                and len(res.states):  # (a run that failed before its first sample has none)
             m = scn.model
             cols = {**{f"q{i}": res.states[:, i] for i in range(m.n_q)},
                     **{f"v{i}": res.states[:, m.n_q + i] for i in range(m.n_v)}}

@@ -269,6 +269,8 @@ def settings(case, *, integrator=None, rtol=None, atol=None, h=None,
             raise SettingsError(str(case.path), (names or {}).get("h", "h"), None,
                                 f"missing: {method} is fixed-step and needs a step h")
         return {"integrator": method, "rtol": 0.0, "atol": 0.0, "fixed_h": float(h)}
+    if h is not None:  # (was ignored: simulate refuses it, and so does a long run now)
+        check_settings(str(case.path), names, method=method, h=h)
     rtol, atol = rtol or case.rtol, atol or case.atol
     check_settings(str(case.path), names, method=method, rtol=rtol, atol=atol)
     return {"integrator": method, "rtol": float(rtol), "atol": float(atol), "fixed_h": 0.0}
@@ -285,6 +287,12 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
     or with ``set_aside`` renamed beside it (:func:`set_aside_other`, kept, never resumed) and
     the run starts over."""
     reset_peak_rss()  # the run's own peak, not its caller's before it
+    suffix = Path(str(case_name)).suffix.lower()
+    if suffix in (".urdf", ".xml", ".mjcf", ".sdf"):  # (was read as TOML: "Invalid statement")
+        raise CaseError(str(case_name), "case", str(case_name),
+                        f"a {suffix} robot file: long runs take rope cases (redysim cases, or "
+                        "a case .toml); run a robot with 'redysim simulate' (--max-wall, "
+                        "--out) or a sweep")
     case = load_case(case_name)
     chain, n = case.chain, case.chain.n_dof
     if case.tip_force is not None:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
+from engine_chains import engine_or_skip
 from hypothesis import strategies as st
 
 import redysim
@@ -590,3 +591,65 @@ def test_battery5_arguments_are_refused_by_name(tmp_path):
     with pytest.raises(CaseError, match="load_linkage: path = 'example-robot-data:ur5': is a "
                                         "robot's name.*redysim.load_model"):
         redysim.load_linkage("example-robot-data:ur5")
+
+
+# --------------------------------------------------------------------------- hold-out battery 6
+def test_battery6_integrate_refuses_a_step_that_would_not_end_and_a_callback_not_callable():
+    """integrate(..., "rk4", h=1e-12) over 2 s started 2e12 steps (simulate refused it by name);
+    callback=3 was a bare TypeError from inside the run."""
+    from redysim.errors import SettingsError
+
+    def rhs(t, y):
+        return np.array([y[1], -y[0]])
+
+    with pytest.raises(SettingsError, match=r"h = 1e-12: gives 2e\+12 steps over t_span = "
+                                            r"\(0, 2\); at most 100,000,000"):
+        integrate(rhs, (0.0, 2.0), np.array([1.0, 0.0]), "rk4", h=1e-12)
+    with pytest.raises(SettingsError, match=r"callback = 3: must be a function"):
+        integrate(rhs, (0.0, 1.0), np.array([1.0, 0.0]), callback=3)
+
+
+def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=600, env={**os.environ,
+                                                       "REDYSIM_RESULTS": str(cwd)})
+
+
+def test_battery6_longrun_refuses_h_with_an_adaptive_integrator_and_a_robot_file(tmp_path):
+    """longrun --h with ode45 was ignored (simulate refuses it); a URDF given to longrun was
+    read as TOML ("Invalid statement")."""
+    res = _cli("redysim.harness.longrun", "STUDY-R3", "--t-end", "0.2", "--h", "0.01",
+               "--out", str(tmp_path / "a"), cwd=tmp_path)
+    assert res.returncode == 2 and "--h = 0.01: is the step of a fixed-step integrator" \
+        in res.stderr, res.stderr
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text("<robot name='r'/>")
+    res = _cli("redysim.harness.longrun", str(urdf), "--t-end", "0.2", "--out",
+               str(tmp_path / "b"), cwd=tmp_path)
+    assert res.returncode == 2 and "a .urdf robot file: long runs take rope cases" \
+        in res.stderr, res.stderr
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.engine
+def test_battery6_simulate_out_of_a_run_that_failed_before_its_first_sample(tmp_path):
+    """simulate --out of a robot run refused by its engine before any sample: an IndexError
+    traceback and no file; now the failed run's record is written and the exit code says it
+    failed."""
+    engine_or_skip("pinocchio-aba")
+    urdf = tmp_path / "mimic.urdf"
+    link = ('<link name="{}"><inertial><mass value="1"/><origin xyz="0.1 0 0"/><inertia '
+            'ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    urdf.write_text(
+        "<robot name='m'>" + "".join(link.format(n) for n in ("base", "a", "b"))
+        + '<joint name="ja" type="revolute"><parent link="base"/><child link="a"/>'
+          '<axis xyz="0 0 1"/></joint><joint name="jb" type="revolute"><parent link="a"/>'
+          '<child link="b"/><origin xyz="0.2 0 0"/><axis xyz="0 0 1"/>'
+          '<mimic joint="ja" multiplier="-0.5"/></joint></robot>')
+    out = tmp_path / "r.csv"
+    res = subprocess.run([str(Path(sys.executable).with_name("redysim")), "simulate", str(urdf),
+                          "--engine", "pinocchio-aba", "--t-end", "0.1", "--out", str(out)],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    assert "refused by the engine" in res.stderr
+    assert out.is_file() and out.with_suffix(".summary.csv").is_file()

@@ -802,6 +802,12 @@ def integrate(rhs: Callable, t_span: tuple[float, float], y0, method: str = "ode
                                                              if name == "hmax" else ""))
     if h is None and (method in FIXED_STEP or method == "midpoint-fixed"):
         fail("h", h, f"the fixed-step method {method!r} needs h > 0 (its step)")
+    if h is not None and (t1 - t0) / h > MAX_FIXED_STEPS:  # (as simulate refuses it: a run
+        # of 2e12 steps does not end; hold-out battery 6)
+        fail("h", h, f"gives {(t1 - t0) / h:.3g} steps over t_span = ({t0:g}, {t1:g}); at "
+             f"most {MAX_FIXED_STEPS:,}")
+    if callback is not None and not callable(callback):
+        fail("callback", callback, "must be a function callback(t, y), or None")
     if t_eval is not None:
         try:
             t_eval = np.asarray(t_eval, dtype=float)
