@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
 from engine_chains import engine_or_skip
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import redysim
