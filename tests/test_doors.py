@@ -653,3 +653,15 @@ def test_battery6_simulate_out_of_a_run_that_failed_before_its_first_sample(tmp_
     assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
     assert "refused by the engine" in res.stderr
     assert out.is_file() and out.with_suffix(".summary.csv").is_file()
+
+
+@pytest.mark.parametrize("answer, says", [
+    (np.array([1j, 0, 0]), r"returned array\(\[0\.\+1\.j.*; it must return 3 real numbers"),
+    ("x", r"returned 'x'; it must return 3 real numbers"),
+    (None, r"returned shape \(\)")])
+def test_battery6_a_tau_that_is_not_real_numbers_is_named(chain, answer, says):
+    """A System's tau returning complex numbers ran with their imaginary part dropped (NumPy's
+    warning only); one returning a string was a bare ValueError naming nothing."""
+    system = redysim.System(chain, tau=lambda t, q, v: answer)
+    with pytest.raises(StateError, match=r"the joint forces' provider \(tau\) " + says):
+        redysim.Simulator(system, 0.1).run()

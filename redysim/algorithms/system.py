@@ -53,6 +53,12 @@ QUATERNION_TOL = 1e-6  # | |q0's quaternion| - 1 | allowed (then normalised); mo
 NUMBERS = (int, float, np.integer, np.floating)  # a setting's number types (not bool)
 
 
+def _shown(x) -> str:
+    """A provider's answer in a message: its type, and its value when short."""
+    text = repr(x)
+    return text if len(text) <= 60 else f"a value of type {type(x).__name__}"
+
+
 class System:
     """The physics of a run of ``model`` (module docstring).
 
@@ -303,7 +309,15 @@ class System:
                 power = float(d.power[0])
         if self.tau is None:
             return own, power
-        user = np.asarray(self.tau(t, q, v), dtype=float)
+        given = self.tau(t, q, v)
+        try:  # (a complex answer lost its imaginary part with a warning; a string was a bare
+            if np.iscomplexobj(given):  # ValueError naming nothing: hold-out battery 6)
+                raise TypeError("complex")
+            user = np.asarray(given, dtype=float)
+        except (TypeError, ValueError):
+            raise StateError(f"{self.source}: the joint forces' provider (tau) returned "
+                             f"{_shown(given)}; it must return {self.n_v} real numbers (a "
+                             f"float array of shape ({self.n_v},))") from None
         if user.shape != (self.n_v,):
             raise StateError(f"{self.source}: the joint forces' provider (tau) returned shape "
                              f"{user.shape}; {self.model.name!r} has {self.n_v} DOF, so it must "
