@@ -329,6 +329,13 @@ def run(case_name: str, *, t_end: float | None = None, every_s: float = DEFAULT_
             ck = None
     if ck is not None:
         _check_state(path, ck, t_end, 2 * n, case.name)
+    elif (path.parent / MANIFEST).exists() and read_manifest(path.parent) is None:
+        # (a manifest that cannot be read, and no checkpoint: the run had started over from t
+        # = 0 and written over that record; hold-out battery 6)
+        raise LongrunError(f"{path.parent / MANIFEST} cannot be read (damaged) and no "
+                           f"checkpoint of this run can be read beside it: what it recorded "
+                           f"is not known, so the run is not started over unasked; to start "
+                           f"over, delete {MANIFEST} (or give another --out)")
     elif (manifest := read_manifest(path.parent)) is not None and manifest["files"]:
         raise LongrunError(f"{path.parent / MANIFEST} lists the checkpoints of this run (t = "
                            f"{manifest.get('t', 0.0):.6g} s, {manifest.get('status', '')}), "

@@ -250,6 +250,12 @@ def test_a_long_runs_missing_checkpoints_are_refused_by_name(tmp_path):
     with pytest.raises(LongrunError, match=r"manifest.json lists the checkpoints of this run.*"
                                            r"delete manifest.json"):
         run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)
+    # and with the manifest damaged too (hold-out battery 6: started over, writing over it)
+    (out / "manifest.json").write_text("{bad json")
+    with pytest.raises(LongrunError, match=r"manifest.json cannot be read \(damaged\) and no "
+                                           r"checkpoint.*delete manifest.json"):
+        run("STUDY-R3", t_end=0.05, every_s=1e9, out=out, log=quiet)
+    assert (out / "manifest.json").read_text() == "{bad json"  # not written over
 
 
 def _forge(out: Path, edit) -> None:
