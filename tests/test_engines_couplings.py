@@ -316,3 +316,26 @@ def test_pinocchio_crba_is_right_at_every_call_not_only_the_first(tmp_path):
         reduced = G @ np.linalg.solve(G.T @ M @ G, -G.T @ h)
         assert np.abs(redysim.forward_dynamics(model, q, v) - reduced).max() < 1e-12
         assert np.abs(eng.qdd(q, v) - reduced).max() < 1e-10 * (1 + np.abs(reduced).max())
+
+
+def test_a_urdfs_fixed_links_are_frames_where_pinocchio_puts_them():
+    """The UR5's tool0 and ee_link hang from wrist_3_link by fixed joints: fused into it, they
+    stay frames by their names (hold-out battery 6: frame_motion refused them, which
+    Pinocchio's frames give), their position and axes Pinocchio's to round-off."""
+    pin = pytest.importorskip("pinocchio")
+    from redysim.io.robots import resolve
+
+    path = str(resolve("example-robot-data:ur5"))
+    model = redysim.load_model(path)
+    assert {"tool0", "ee_link"} <= set(model.frames)
+    pm = pin.buildModelFromUrdf(path)
+    pd = pm.createData()
+    rng = np.random.default_rng(stable_seed("ur5 frames"))
+    for q in rng.uniform(-2.0, 2.0, (3, model.n_v)):
+        pin.forwardKinematics(pm, pd, q)
+        pin.updateFramePlacements(pm, pd)
+        for name in ("tool0", "ee_link"):
+            got = redysim.frame_motion(model, q, 0 * q, frame=name)
+            want = pd.oMf[pm.getFrameId(name)]
+            assert np.abs(got.position - want.translation).max() < 1e-14
+            assert np.abs(got.rotation - want.rotation).max() < 1e-14

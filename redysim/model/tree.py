@@ -196,7 +196,8 @@ class Model:
         mass, com, inertia_com, inertia_O, mass_com: per body, as a Chain's per link.
         gravity:          (3,) world gravity [m/s^2].
         frames:           name -> (body, point in its frame): points of interest (a chain's tip,
-                          an MJCF site, an MJCF body whose origin is not its body's here).
+                          an MJCF site, an MJCF body whose origin is not its body's here, a
+                          body fused into its parent by a fixed joint: a URDF's tool0).
         frame_rotations:  name -> (3, 3) rotation of a frame's axes in its body's frame, for
                           frames that have axes of their own (an MJCF site); a frame not listed
                           has its body's axes.
@@ -446,6 +447,12 @@ class Model:
             R_f = to_kept_R[fb] @ frame_axes.get(fname, np.eye(3))
             if fname in frame_axes or np.abs(R_f - np.eye(3)).max() > 0:
                 kept_axes[fname] = tuple(map(tuple, R_f))
+        for k in range(nb):  # a fused body stays a frame by its name (a URDF's tool0, ee_link:
+            fused = str(body_name[k])  # frame_motion(frame=...), as Pinocchio's frames)
+            if jtype[k] == FIXED and fused not in kept_frames:
+                kept_frames[fused] = (index[into[k]], tuple(to_kept_p[k]))
+                if np.abs(to_kept_R[k] - np.eye(3)).max() > 0:
+                    kept_axes[fused] = tuple(map(tuple, to_kept_R[k]))
 
         # per-DOF tables
         qoff, voff, kinds, codes, units = [0], [0], [], [], []
