@@ -1102,13 +1102,6 @@ def _pool_results(work: _Work, workers: int,
                 suspects.extend(lost)
 
 
-def _worker_code() -> str:
-    """On a Dask worker: the code digest of the project it runs (its own install's)."""
-    from .provenance import code_digest
-
-    return code_digest()
-
-
 def _on_worker(task: Callable[[RunSpec], tuple[dict, pd.DataFrame]], spec: RunSpec,
                results: str) -> tuple[str, str, bool, tuple[dict, pd.DataFrame]]:
     """One run on a Dask worker: (its address, its code digest, whether it sees the client's
@@ -1119,17 +1112,26 @@ def _on_worker(task: Callable[[RunSpec], tuple[dict, pd.DataFrame]], spec: RunSp
     references the client has."""
     from distributed import get_worker
 
+    from .provenance import code_digest
     from .reference import RESULTS_ENV
 
     os.environ[RESULTS_ENV] = results
     sees = (Path(results) / "reference").is_dir()
-    return get_worker().address, _worker_code(), sees, task(spec)
+    return get_worker().address, code_digest(), sees, task(spec)
 
 
-def _check_workers(client, address: str) -> None:
+def _other_code(worker: str, digest: str, ours: str, what: str) -> SweepError:
+    """The refusal of a worker whose code digest is not this checkout's; ``what``: what
+    becomes of the sweep's work."""
+    return SweepError("--dask", "worker", worker,
+                      f"runs other code (code digest {digest[:12]}, this checkout's {ours[:12]}: "
+                      f"another version or local changes): install this checkout on it; {what}")
+
+
+def _check_workers(client, address: str) -> str:
     """Every worker the scheduler has (waiting for a first one) runs this checkout's code:
     a worker that cannot import the project, or runs another version of it (the code digest
-    differs), is refused by name before any run is submitted."""
+    differs), is refused by name before any run is submitted. Returns the code digest."""
     from .provenance import code_digest
 
     try:
@@ -1140,17 +1142,16 @@ def _check_workers(client, address: str) -> None:
                          "start workers (dask worker ADDRESS) with this project installed"
                          ) from None
     ours = code_digest()
-    for worker, digest in sorted(client.run(_worker_code, on_error="return").items()):
+    # (each worker's own install's digest: the function goes by its name, imported there)
+    for worker, digest in sorted(client.run(code_digest, on_error="return").items()):
         if isinstance(digest, BaseException):
             raise SweepError("--dask", "worker", worker,
                              f"cannot run this project's code ({type(digest).__name__}: "
                              f"{str(digest)[:200]}): install this checkout on every worker "
                              "(pip install -e .[harness]) and start it again; nothing was run")
         if digest != ours:
-            raise SweepError("--dask", "worker", worker,
-                             f"runs other code (code digest {str(digest)[:12]}, this "
-                             f"checkout's {ours[:12]}: another version or local changes): "
-                             "install this checkout on it; nothing was run")
+            raise _other_code(worker, str(digest), ours, "nothing was run")
+    return ours
 
 
 def _dask_results(work: _Work, address: str,
@@ -1170,7 +1171,7 @@ def _dask_results(work: _Work, address: str,
 
     from distributed import Client, LocalCluster, as_completed
 
-    from .provenance import code_digest
+    from .reference import results_dir
 
     if work.empty:
         return
@@ -1189,25 +1190,12 @@ def _dask_results(work: _Work, address: str,
                                  f"no Dask scheduler answered there within "
                                  f"{DASK_CONNECT_TIMEOUT_S} s ({type(exc).__name__}: "
                                  f"{str(exc)[:200]})") from None
-        _check_workers(client, address)
-        ours = code_digest()
-        from .reference import results_dir
-
+        ours = _check_workers(client, address)
         results = str(results_dir().resolve())  # (its reference cache: read by the runs)
         has_references = (Path(results) / "reference").is_dir()
         futures: dict = {}
         pending = as_completed()
         finished = 0
-
-        def submit(wait_for_claims: bool) -> None:
-            while len(futures) < DASK_IN_FLIGHT:
-                spec = work.next(wait=wait_for_claims and not futures)
-                if spec is None:
-                    return
-                fut = client.submit(_on_worker, task, spec, results,
-                                    key=DASK_KEY_PREFIX + spec.run_id, pure=False)
-                futures[fut] = spec
-                pending.add(fut)
 
         def scheduler_lost(exc: BaseException) -> SweepError:
             return SweepError("--dask", "address", address,
@@ -1215,10 +1203,20 @@ def _dask_results(work: _Work, address: str,
                               "runs came back (stored: run the sweep again, with a "
                               "scheduler, to do the rest)")
 
-        try:
-            submit(True)
-        except (OSError, CancelledError) as exc:
-            raise scheduler_lost(exc) from None
+        def submit() -> None:
+            try:
+                while len(futures) < DASK_IN_FLIGHT:
+                    spec = work.next(wait=not futures)
+                    if spec is None:
+                        return
+                    fut = client.submit(_on_worker, task, spec, results,
+                                        key=DASK_KEY_PREFIX + spec.run_id, pure=False)
+                    futures[fut] = spec
+                    pending.add(fut)
+            except (OSError, CancelledError) as exc:
+                raise scheduler_lost(exc) from None
+
+        submit()
         while futures:
             fut = next(pending)
             spec = futures.pop(fut)
@@ -1232,11 +1230,8 @@ def _dask_results(work: _Work, address: str,
                 summary, samples = failed_row(spec, f"worker raised {exc!r}"), None
             else:
                 if digest != ours:
-                    raise SweepError("--dask", "worker", worker,
-                                     f"ran {spec.run_id} with other code (code digest "
-                                     f"{digest[:12]}, this checkout's {ours[:12]}): its result "
-                                     f"is not kept; install this checkout on it ({finished} "
-                                     "runs finished are stored)")
+                    raise _other_code(worker, digest, ours, f"its result of {spec.run_id} is "
+                                      f"not kept ({finished} runs that came back are stored)")
                 if has_references and not sees:
                     raise SweepError("--dask", "worker", worker,
                                      f"does not see the reference cache {results}/reference "
@@ -1247,10 +1242,7 @@ def _dask_results(work: _Work, address: str,
             fut.release()
             finished += 1
             yield spec, summary, samples
-            try:
-                submit(True)
-            except (OSError, CancelledError) as exc:
-                raise scheduler_lost(exc) from None
+            submit()
 
 
 # --------------------------------------------------------------------------- results
